@@ -1,0 +1,584 @@
+"""Scene configuration: the TOML file beside each MJCF scene, parsed into frozen dataclasses.
+
+The schema is documented in ``models/README.md``. Parsing checks types, shapes and signs and
+rejects unknown keys (the message lists the valid ones); names of joints, geoms, sites and
+bodies are resolved against the MuJoCo model later, in :mod:`isf_robot.arm.scene`.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from isf_robot.core.exceptions import ConfigError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+__all__ = [
+    "RobotConfig",
+    "ObstacleConfig",
+    "Goal",
+    "TaskConfig",
+    "BarrierConfig",
+    "GainsConfig",
+    "FilterConfig",
+    "ControlConfig",
+    "CirclePath",
+    "LinearBouncePath",
+    "ObstaclePath",
+    "MovingObstacle",
+    "SceneConfig",
+    "parse_config",
+    "load_config",
+]
+
+
+# ----------------------------------------------------------------------------- sections
+
+
+@dataclass(frozen=True)
+class RobotConfig:
+    """The arm: which joints the filter acts on, its end effector and its collision geoms.
+
+    Attributes:
+        joints: Names of the arm's hinge/slide joints, in control order (length n).
+        ee_site: Name of the end-effector site.
+        geoms: Names of the robot's collision geoms.
+        home: Initial joint positions [rad], shape (n,), or ``None`` for the model's qpos0.
+        self_collision: Also build barriers for non-adjacent robot-robot geom pairs.
+    """
+
+    joints: tuple[str, ...]
+    ee_site: str
+    geoms: tuple[str, ...]
+    home: tuple[float, ...] | None = None
+    self_collision: bool = False
+
+
+@dataclass(frozen=True)
+class ObstacleConfig:
+    """Obstacles: geoms on the world body, on static bodies or on mocap bodies.
+
+    Attributes:
+        geoms: Names of the obstacle geoms.
+    """
+
+    geoms: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Goal:
+    """One end-effector goal of the reaching task.
+
+    Attributes:
+        position: Goal position in the world frame [m], shape (3,) (resolved from ``site``
+            when the config names a site instead of a position).
+        dwell: Time to hold the goal once reached [s].
+        site: Name of the site the goal was read from, or ``None``.
+    """
+
+    position: tuple[float, float, float]
+    dwell: float = 0.0
+    site: str | None = None
+
+
+@dataclass(frozen=True)
+class TaskConfig:
+    """The nominal task: reach the goals in order.
+
+    Attributes:
+        goals: The goals, in order.
+        loop: Start again at the first goal after the last one.
+        tolerance: Distance [m] below which a goal counts as reached.
+        duration: Default episode length [s].
+    """
+
+    goals: tuple[Goal, ...]
+    loop: bool = True
+    tolerance: float = 0.02
+    duration: float = 10.0
+
+
+@dataclass(frozen=True)
+class BarrierConfig:
+    """Barrier parameters.
+
+    Attributes:
+        margin: Safety margin on the robot-obstacle distance [m]: ``h = dist - margin``.
+        self_margin: Margin on robot-robot distances [m] (only with ``self_collision``).
+        joint_margin: Margin on the joint limits [rad]: ``h = q - q_min - joint_margin``.
+        cutoff: Broad-phase cut-off [m]: pairs whose bounding spheres are farther apart than
+            this are reported inactive (h from the bounding-sphere distance, zero gradient).
+    """
+
+    margin: float = 0.02
+    self_margin: float = 0.01
+    joint_margin: float = 0.05
+    cutoff: float = 0.3
+
+
+@dataclass(frozen=True)
+class GainsConfig:
+    """Gains of the nominal and low-level controllers.
+
+    Attributes:
+        task_kp: Task-space proportional gain of the reaching controller [1/s].
+        dls_damping: Damping of the damped-least-squares inverse [m].
+        max_ee_speed: Cap on the commanded end-effector speed [m/s].
+        max_joint_speed: Cap on the commanded joint speeds [rad/s].
+        joint_kp: Joint-space proportional gain of the joint PD nominal [1/s].
+        tracking_kp: Low-level tracking gain per joint (or one for all); its unit depends on the
+            low-level controller that reads it.
+        tracking_kd: Low-level damping gain per joint (or one for all).
+        extra: Any further numeric entries of the ``[gains]`` table, by key.
+    """
+
+    task_kp: float = 4.0
+    dls_damping: float = 0.05
+    max_ee_speed: float = 0.5
+    max_joint_speed: float = 2.0
+    joint_kp: float = 2.0
+    tracking_kp: tuple[float, ...] = (100.0,)
+    tracking_kd: tuple[float, ...] = (20.0,)
+    extra: Mapping[str, float | tuple[float, ...]] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class FilterConfig:
+    """Default safety-filter parameters for the scene (see :mod:`isf_robot.core`).
+
+    Attributes:
+        alpha: Slope of the linear class-K function ``alpha(h) = alpha * h`` [1/s].
+        c: Off-trigger threshold: the filter turns off once every ``Xi_on >= c``.
+        b: Promotion level of the safety-promoting filter, ``b > 0``.
+        d_bar: Bound on the disturbance ``|d|`` of ``q_dot = u + d`` [rad/s].
+    """
+
+    alpha: float = 5.0
+    c: float = 0.05
+    b: float = 0.02
+    d_bar: float = 0.0
+
+
+@dataclass(frozen=True)
+class ControlConfig:
+    """Control timing.
+
+    Attributes:
+        period: Control period [s]; an integer multiple of the model's physics timestep.
+    """
+
+    period: float = 0.002
+
+
+# ----------------------------------------------------------------------------- paths
+
+
+def _plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Orthonormal in-plane axes (e1, e2) of the plane with unit ``normal``.
+
+    e1 is the projection of the world x axis (y axis when the normal is along x) onto the
+    plane, normalised; e2 = normal x e1.
+    """
+    ref = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = ref - normal * float(normal @ ref)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(normal, e1)
+
+
+@dataclass(frozen=True)
+class CirclePath:
+    """Uniform motion on a circle: ``p(t) = c + r (cos th e1 + sin th e2)``.
+
+    ``th = 2 pi (phase + t / period)``; e1, e2 span the plane normal to ``normal`` (e1 is the
+    world x axis projected onto that plane, e2 = normal x e1).
+
+    Attributes:
+        center: Circle centre [m], shape (3,).
+        radius: Radius [m].
+        period: Time for one revolution [s] (negative: clockwise about ``normal``).
+        normal: Unit normal of the circle's plane, shape (3,).
+        phase: Start angle as a fraction of a revolution.
+    """
+
+    center: tuple[float, float, float]
+    radius: float
+    period: float
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    phase: float = 0.0
+
+    def _angle(self, t: float) -> tuple[float, np.ndarray, np.ndarray]:
+        e1, e2 = _plane_basis(np.asarray(self.normal, dtype=float))
+        return 2.0 * math.pi * (self.phase + t / self.period), e1, e2
+
+    def position(self, t: float) -> np.ndarray:
+        """Position at time ``t`` [s]; shape (3,) [m]."""
+        th, e1, e2 = self._angle(t)
+        return np.asarray(self.center) + self.radius * (math.cos(th) * e1 + math.sin(th) * e2)
+
+    def velocity(self, t: float) -> np.ndarray:
+        """Velocity at time ``t`` [s]; shape (3,) [m/s]."""
+        th, e1, e2 = self._angle(t)
+        w = 2.0 * math.pi / self.period
+        return self.radius * w * (-math.sin(th) * e1 + math.cos(th) * e2)
+
+
+@dataclass(frozen=True)
+class LinearBouncePath:
+    """Back-and-forth motion at constant speed on the segment from ``start`` to ``end``.
+
+    With ``L = |end - start|`` and ``s = (speed t + 2 L phase) mod 2L``, the position is
+    ``start + min(s, 2L - s) e`` (e the unit direction); the velocity is ``+speed e`` on the
+    way out and ``-speed e`` on the way back (it jumps at the turning points).
+
+    Attributes:
+        start: One end of the segment [m], shape (3,).
+        end: The other end [m], shape (3,).
+        speed: Speed [m/s], > 0.
+        phase: Start point as a fraction of the round trip (0: at ``start`` going out).
+    """
+
+    start: tuple[float, float, float]
+    end: tuple[float, float, float]
+    speed: float
+    phase: float = 0.0
+
+    def _arc(self, t: float) -> tuple[float, float, np.ndarray]:
+        a = np.asarray(self.start, dtype=float)
+        seg = np.asarray(self.end, dtype=float) - a
+        length = float(np.linalg.norm(seg))
+        s = (self.speed * t + 2.0 * length * self.phase) % (2.0 * length)
+        return s, length, seg / length
+
+    def position(self, t: float) -> np.ndarray:
+        """Position at time ``t`` [s]; shape (3,) [m]."""
+        s, length, e = self._arc(t)
+        return np.asarray(self.start, dtype=float) + min(s, 2.0 * length - s) * e
+
+    def velocity(self, t: float) -> np.ndarray:
+        """Velocity at time ``t`` [s]; shape (3,) [m/s] (one-sided at the turning points)."""
+        s, length, e = self._arc(t)
+        return (self.speed if s < length else -self.speed) * e
+
+
+ObstaclePath = CirclePath | LinearBouncePath
+
+
+@dataclass(frozen=True)
+class MovingObstacle:
+    """A mocap body that moves on a known path (its orientation stays fixed).
+
+    Attributes:
+        body: Name of the mocap body.
+        path: Its path; ``position(t)`` and ``velocity(t)`` are analytic.
+    """
+
+    body: str
+    path: ObstaclePath
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """Everything a scene's TOML file says.
+
+    Attributes:
+        name: Scene name.
+        description: One-line description.
+        model: MJCF file name, relative to the TOML file's folder.
+        robot: The arm.
+        obstacles: The obstacle geoms.
+        task: The reaching task.
+        barrier: Barrier margins and broad-phase cut-off.
+        gains: Controller gains.
+        filter: Default safety-filter parameters.
+        control: Control timing.
+        moving: Mocap obstacles with known paths.
+        source: The TOML file this was read from, or ``None``.
+    """
+
+    name: str
+    description: str
+    model: str
+    robot: RobotConfig
+    obstacles: ObstacleConfig
+    task: TaskConfig
+    barrier: BarrierConfig = BarrierConfig()
+    gains: GainsConfig = GainsConfig()
+    filter: FilterConfig = FilterConfig()
+    control: ControlConfig = ControlConfig()
+    moving: tuple[MovingObstacle, ...] = ()
+    source: Path | None = None
+
+
+# ----------------------------------------------------------------------------- parsing
+
+
+class _Reader:
+    """Typed access to one TOML table, with errors naming the file and the key."""
+
+    def __init__(self, table: Mapping[str, Any], where: str, origin: str) -> None:
+        self.table = table
+        self.where = where
+        self.origin = origin
+        self.used: set[str] = set()
+
+    def _err(self, key: str, msg: str) -> ConfigError:
+        return ConfigError(f"{self.origin}: [{self.where}] {key}: {msg}")
+
+    def has(self, key: str) -> bool:
+        return key in self.table
+
+    def raw(self, key: str, default: Any = ...) -> Any:
+        self.used.add(key)
+        if key not in self.table:
+            if default is ...:
+                raise self._err(key, "missing (required)")
+            return default
+        return self.table[key]
+
+    def string(self, key: str, default: Any = ...) -> Any:
+        v = self.raw(key, default)
+        if v is not default and not isinstance(v, str):
+            raise self._err(key, f"expected a string, got {v!r}")
+        return v
+
+    def boolean(self, key: str, default: bool) -> bool:
+        v = self.raw(key, default)
+        if not isinstance(v, bool):
+            raise self._err(key, f"expected true or false, got {v!r}")
+        return v
+
+    def number(self, key: str, default: Any = ..., *, positive: bool = False,
+               nonneg: bool = False) -> float:
+        v = self.raw(key, default)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise self._err(key, f"expected a finite number, got {v!r}")
+        if positive and v <= 0:
+            raise self._err(key, f"must be > 0, got {v}")
+        if nonneg and v < 0:
+            raise self._err(key, f"must be >= 0, got {v}")
+        return float(v)
+
+    def numbers(self, key: str, default: Any = ..., *, length: int | None = None) -> Any:
+        v = self.raw(key, default)
+        if v is default:
+            return v
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            v = [v]
+        if not isinstance(v, list) or not all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v
+        ):
+            raise self._err(key, f"expected a list of finite numbers, got {v!r}")
+        if length is not None and len(v) != length:
+            raise self._err(key, f"expected {length} numbers, got {len(v)}")
+        return tuple(float(x) for x in v)
+
+    def strings(self, key: str, default: Any = ...) -> Any:
+        v = self.raw(key, default)
+        if v is default:
+            return v
+        if not isinstance(v, list) or not all(isinstance(x, str) for x in v) or not v:
+            raise self._err(key, f"expected a non-empty list of strings, got {v!r}")
+        if len(set(v)) != len(v):
+            raise self._err(key, f"names repeat: {v!r}")
+        return tuple(v)
+
+    def sub(self, key: str, required: bool = False) -> _Reader:
+        v = self.raw(key, ... if required else {})
+        if not isinstance(v, Mapping):
+            raise self._err(key, "expected a table")
+        return _Reader(v, f"{self.where}.{key}" if self.where else key, self.origin)
+
+    def finish(self) -> None:
+        unknown = sorted(set(self.table) - self.used)
+        if unknown:
+            raise ConfigError(
+                f"{self.origin}: unknown key(s) {unknown} in [{self.where or 'top level'}]; "
+                f"valid keys: {sorted(self.used)}"
+            )
+
+
+def _goal(tab: Any, origin: str, i: int) -> Goal:
+    if not isinstance(tab, Mapping):
+        raise ConfigError(f"{origin}: [[task.goals]] entry {i} must be a table")
+    r = _Reader(tab, f"task.goals[{i}]", origin)
+    site = r.string("site", None)
+    pos = r.numbers("pos", None, length=3)
+    dwell = r.number("dwell", 0.0, nonneg=True)
+    r.finish()
+    if (site is None) == (pos is None):
+        raise ConfigError(f"{origin}: [task.goals[{i}]] give exactly one of 'pos' or 'site'")
+    return Goal(position=pos if pos is not None else (math.nan,) * 3, dwell=dwell, site=site)
+
+
+def _path(r: _Reader) -> ObstaclePath:
+    kind = r.string("type")
+    if kind == "circle":
+        normal = np.asarray(r.numbers("normal", (0.0, 0.0, 1.0), length=3))
+        if np.linalg.norm(normal) < 1e-9:
+            raise r._err("normal", "must be non-zero")
+        period = r.number("period")
+        if period == 0.0:
+            raise r._err("period", "must be non-zero")
+        return CirclePath(
+            center=r.numbers("center", length=3),
+            radius=r.number("radius", positive=True),
+            period=period,
+            normal=tuple(float(x) for x in normal / np.linalg.norm(normal)),  # type: ignore[arg-type]
+            phase=r.number("phase", 0.0),
+        )
+    if kind == "linear_bounce":
+        start = r.numbers("start", length=3)
+        end = r.numbers("end", length=3)
+        if np.linalg.norm(np.subtract(end, start)) < 1e-9:
+            raise r._err("end", "must differ from 'start'")
+        return LinearBouncePath(start=start, end=end, speed=r.number("speed", positive=True),
+                                phase=r.number("phase", 0.0))
+    raise r._err("type", f"unknown path type {kind!r}; valid types: 'circle', 'linear_bounce'")
+
+
+def parse_config(data: Mapping[str, Any], origin: str = "<config>",
+                 source: Path | None = None, default_name: str | None = None) -> SceneConfig:
+    """Build a :class:`SceneConfig` from a parsed TOML mapping.
+
+    Args:
+        data: The TOML document as a mapping.
+        origin: Label for error messages (usually the file path).
+        source: The file it came from, stored in the result.
+        default_name: Scene name used when ``[scene] name`` is absent (the file stem).
+
+    Returns:
+        The configuration.
+
+    Raises:
+        ConfigError: A key is missing, unknown or has the wrong type or value.
+    """
+    top = _Reader(data, "", origin)
+
+    s = top.sub("scene", required=True)
+    name = s.string("name", default_name if default_name is not None else ...)
+    description = s.string("description", "")
+    model = s.string("model", f"{name}.xml")
+    s.finish()
+
+    r = top.sub("robot", required=True)
+    joints = r.strings("joints")
+    robot = RobotConfig(
+        joints=joints,
+        ee_site=r.string("ee_site"),
+        geoms=r.strings("geoms"),
+        home=r.numbers("home", None, length=len(joints)),
+        self_collision=r.boolean("self_collision", False),
+    )
+    r.finish()
+
+    o = top.sub("obstacles", required=True)
+    obstacles = ObstacleConfig(geoms=o.strings("geoms"))
+    o.finish()
+
+    t = top.sub("task", required=True)
+    goals_raw = t.raw("goals")
+    if not isinstance(goals_raw, list) or not goals_raw:
+        raise ConfigError(f"{origin}: [task] goals: expected a non-empty array of tables")
+    task = TaskConfig(
+        goals=tuple(_goal(g, origin, i) for i, g in enumerate(goals_raw)),
+        loop=t.boolean("loop", True),
+        tolerance=t.number("tolerance", 0.02, positive=True),
+        duration=t.number("duration", 10.0, positive=True),
+    )
+    t.finish()
+
+    b = top.sub("barrier")
+    d = BarrierConfig()
+    barrier = BarrierConfig(
+        margin=b.number("margin", d.margin, nonneg=True),
+        self_margin=b.number("self_margin", d.self_margin, nonneg=True),
+        joint_margin=b.number("joint_margin", d.joint_margin, nonneg=True),
+        cutoff=b.number("cutoff", d.cutoff, positive=True),
+    )
+    b.finish()
+
+    g = top.sub("gains")
+    dg = GainsConfig()
+    known = {"task_kp", "dls_damping", "max_ee_speed", "max_joint_speed", "joint_kp",
+             "tracking_kp", "tracking_kd"}
+    extra = {k: g.numbers(k) if isinstance(v, list) else g.number(k)
+             for k, v in g.table.items() if k not in known}
+    gains = GainsConfig(
+        task_kp=g.number("task_kp", dg.task_kp, positive=True),
+        dls_damping=g.number("dls_damping", dg.dls_damping, nonneg=True),
+        max_ee_speed=g.number("max_ee_speed", dg.max_ee_speed, positive=True),
+        max_joint_speed=g.number("max_joint_speed", dg.max_joint_speed, positive=True),
+        joint_kp=g.number("joint_kp", dg.joint_kp, positive=True),
+        tracking_kp=g.numbers("tracking_kp", dg.tracking_kp),
+        tracking_kd=g.numbers("tracking_kd", dg.tracking_kd),
+        extra=extra,
+    )
+    for key in ("tracking_kp", "tracking_kd"):
+        n = len(getattr(gains, key))
+        if n not in (1, len(joints)):
+            raise ConfigError(f"{origin}: [gains] {key}: expected 1 or {len(joints)} numbers, got {n}")
+    g.finish()
+
+    f = top.sub("filter")
+    df = FilterConfig()
+    filt = FilterConfig(
+        alpha=f.number("alpha", df.alpha, positive=True),
+        c=f.number("c", df.c, positive=True),
+        b=f.number("b", df.b, positive=True),
+        d_bar=f.number("d_bar", df.d_bar, nonneg=True),
+    )
+    f.finish()
+
+    c = top.sub("control")
+    control = ControlConfig(period=c.number("period", ControlConfig().period, positive=True))
+    c.finish()
+
+    moving_raw = top.raw("moving", [])
+    if not isinstance(moving_raw, list):
+        raise ConfigError(f"{origin}: 'moving' must be an array of tables ([[moving]])")
+    moving = []
+    for i, m in enumerate(moving_raw):
+        if not isinstance(m, Mapping):
+            raise ConfigError(f"{origin}: [[moving]] entry {i} must be a table")
+        mr = _Reader(m, f"moving[{i}]", origin)
+        moving.append(MovingObstacle(body=mr.string("body"), path=_path(mr)))
+        mr.finish()
+    top.finish()
+
+    return SceneConfig(name=name, description=description, model=model, robot=robot,
+                       obstacles=obstacles, task=task, barrier=barrier, gains=gains,
+                       filter=filt, control=control, moving=tuple(moving), source=source)
+
+
+def load_config(path: str | Path) -> SceneConfig:
+    """Read and parse a scene's TOML file.
+
+    Args:
+        path: The TOML file.
+
+    Returns:
+        The configuration.
+
+    Raises:
+        ConfigError: The file is missing, is not valid TOML, or breaks the schema; the
+            message names the file.
+    """
+    path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            data = tomllib.load(fh)
+    except FileNotFoundError as exc:
+        raise ConfigError(f"scene config file not found: {path}") from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: malformed TOML: {exc}") from exc
+    return parse_config(data, origin=str(path), source=path, default_name=path.stem)

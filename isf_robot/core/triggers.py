@@ -1,0 +1,122 @@
+"""Trigger logic (paper, eqs. trigger:filter_on, trigger:filter_off, trigger:greedy, trigger:int_time).
+
+The trigger values themselves are plain functions of Lie data; the stateful parts are small
+state machines driven by the caller's clock, so they can be tested with a fake clock.
+
+**The off trigger's sign.** The paper writes the off trigger as ``Xi_off = Xi_on - c <= 0``.
+Read literally this holds the instant the filter turns on (``Xi_on <= 0 < c``), so the filter
+would switch off at once. The text and the proof of Theorem 1 need every off period to start
+with ``Xi_on >= c``; we implement exactly that: the filter turns OFF at the first time after
+an on-time with ``Xi_on >= c``. On at ``Xi_on <= 0``, off at ``Xi_on >= c``: hysteresis.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .class_k import ClassK
+from .exceptions import ConfigError
+from .system import LieData
+from .validation import check_finite_scalar, check_positive
+
+__all__ = ["SwitchEvent", "OnOffTrigger", "xi_on", "xi_tau"]
+
+
+def xi_on(lie: LieData, u_nom: np.ndarray, alpha: ClassK, d_bar: float) -> np.ndarray:
+    """Per-barrier on-trigger values ``Xi_on = Lf h(x, u_nom) - |dh/dx| d_bar + alpha(h)``.
+
+    Also the greedy impulsive trigger ``Xi`` (eq. greedy_cond) when ``lg`` is empty / u_nom
+    is the flow's (the input term then vanishes).
+
+    Args:
+        lie: Lie data at the current state, k barriers.
+        u_nom: Nominal command, shape (m,).
+        alpha: Class-K function.
+        d_bar: Disturbance bound.
+
+    Returns:
+        Shape (k,).
+    """
+    return lie.lf + lie.lg @ u_nom - lie.grad_norm * d_bar + alpha.vector(lie.h)
+
+
+def xi_tau(dtau_dh: float, lf_h: float) -> float:
+    """Maneuver trigger value ``Xi_tau = (1 + tau_p_dot) / 2`` with ``tau_p_dot = tau_p'(h) LF h``.
+
+    Args:
+        dtau_dh: Derivative of the fitted inter-event time with respect to h at h(x).
+        lf_h: Lie derivative of h along the flow at x.
+    """
+    return 0.5 * (1.0 + dtau_dh * lf_h)
+
+
+@dataclass(frozen=True)
+class SwitchEvent:
+    """A filter switch.
+
+    Attributes:
+        t: Time of the switch [s].
+        kind: ``"on"`` or ``"off"``.
+        xi_min: Smallest ``Xi_on`` over the barriers at the switch.
+        index: 1-based count of switches of this kind so far.
+        duration_s: Length of the period that just ended [s] (the off period before an
+            "on", the on period before an "off"), or ``None`` for the first on after start.
+    """
+
+    t: float
+    kind: str
+    xi_min: float
+    index: int
+    duration_s: float | None = None
+
+
+class OnOffTrigger:
+    """Hysteresis between the on trigger (``Xi_on <= 0``) and the off trigger (``Xi_on >= c``).
+
+    With several barriers, pass ``min_i Xi_on,i``: the filter turns on when any barrier's
+    value reaches 0 and off when every barrier's value is at least ``c``.
+
+    Args:
+        c: Margin ``c > 0`` required before the filter may turn off.
+        t0: Start time [s].
+        start_on: Start in the on mode.
+    """
+
+    def __init__(self, c: float, t0: float = 0.0, start_on: bool = False) -> None:
+        self.c = check_positive(c, "c (off-trigger margin)")
+        self.reset(t0, start_on)
+
+    def reset(self, t0: float = 0.0, start_on: bool = False) -> None:
+        """Forget history; start at ``t0`` in the given mode."""
+        self.on = bool(start_on)
+        self._t_last = check_finite_scalar(t0, "t0")
+        self._t_switch: float | None = None
+        self.n_on = 0
+        self.n_off = 0
+
+    def update(self, t: float, xi_min: float) -> SwitchEvent | None:
+        """Advance to time ``t`` given the current ``min_i Xi_on,i``.
+
+        Returns:
+            The switch event if the mode changed at ``t``, else ``None``.
+        """
+        if t < self._t_last:
+            raise ConfigError(f"trigger time went backwards: {t} < {self._t_last}")
+        if xi_min != xi_min:  # NaN
+            raise ConfigError(f"trigger value is NaN at t={t}")
+        self._t_last = t
+        if not self.on and xi_min <= 0.0:
+            self.on = True
+            self.n_on += 1
+            dur = None if self._t_switch is None else t - self._t_switch
+            self._t_switch = t
+            return SwitchEvent(t, "on", float(xi_min), self.n_on, dur)
+        if self.on and xi_min >= self.c:
+            self.on = False
+            self.n_off += 1
+            dur = None if self._t_switch is None else t - self._t_switch
+            self._t_switch = t
+            return SwitchEvent(t, "off", float(xi_min), self.n_off, dur)
+        return None
