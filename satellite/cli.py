@@ -1,0 +1,72 @@
+"""Command line of the satellite study: ``isf-satellite COMMAND ...``.
+
+Each subcommand lives in its own module ``satellite.cmd_<name>`` exposing
+``register(subparsers)``, which adds its parser and sets ``func`` (a callable taking the parsed
+``argparse.Namespace`` and returning an exit code). To add a subcommand, write the module and
+list it in :data:`SUBCOMMAND_MODULES`; modules that do not exist (yet) are skipped.
+
+User errors (missing files, bad meshes, invalid parameters) print one line to stderr and exit
+with status 2, without a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import sys
+from collections.abc import Sequence
+
+from isf_robot.core.exceptions import IsfError
+
+__all__ = ["SUBCOMMAND_MODULES", "build_parser", "main"]
+
+SUBCOMMAND_MODULES: tuple[str, ...] = (
+    "satellite.cmd_gravity",
+    "satellite.cmd_run",
+    "satellite.cmd_tau",
+)
+"""Modules providing subcommands, in ``--help`` order; missing ones are skipped."""
+
+EXIT_USAGE = 2
+"""Exit status for user errors (as argparse uses for bad arguments)."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Build the ``isf-satellite`` parser with every available subcommand registered."""
+    parser = argparse.ArgumentParser(
+        prog="isf-satellite",
+        description=(
+            "Event-triggered safety of a satellite orbiting asteroid 25143 Itokawa: gravity "
+            "model generation and orbit studies."
+        ),
+    )
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name in SUBCOMMAND_MODULES:
+        if importlib.util.find_spec(name) is None:
+            continue
+        importlib.import_module(name).register(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line.
+
+    Args:
+        argv: Arguments without the program name; default ``sys.argv[1:]``.
+
+    Returns:
+        The exit status: 0 on success, 2 on a user error (one-line message on stderr).
+    """
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (IsfError, OSError, ValueError) as exc:
+        message = " ".join(str(exc).split()) or type(exc).__name__
+        print(f"isf-satellite {args.command}: error: {message}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

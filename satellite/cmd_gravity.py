@@ -1,0 +1,129 @@
+"""``isf-satellite gravity``: spherical-harmonic coefficients of a constant-density shape model."""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import hashlib
+import sys
+from pathlib import Path
+from typing import Any
+
+from satellite.errors import GravityModelError
+from satellite.gravity import G_CODATA2018, ITOKAWA_MASS_KG, MAX_DEGREE, GravityField
+from satellite.mesh import UNIT_SCALES
+
+__all__ = ["KNOWN_SHAPES", "register", "run", "provenance_for"]
+
+ITOKAWA_CITATION = (
+    "Gaskell, R., Saito, J., Ishiguro, M., Kubota, T., Hashimoto, T., Hirata, N., Abe, S., "
+    "Barnouin-Jha, O., and Scheeres, D., Gaskell Itokawa Shape Model V1.0, "
+    "HAY-A-AMICA-5-ITOKAWASHAPE-V1.0, NASA Planetary Data System, 2008"
+)
+
+KNOWN_SHAPES: dict[str, dict[str, str]] = {
+    "1879abcde28ca60f8616da212d6f7ae51dbc0cfc47ef271228d1bd2719b2a26b": {
+        "name": "Itokawa, Gaskell shape model, 64 resolution level (itokawa_low.obj)",
+        "citation": ITOKAWA_CITATION,
+    },
+}
+"""Shape files recognised by sha256, whose citation is written into the provenance."""
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``gravity`` subcommand to an ``argparse`` subparsers object."""
+    parser = subparsers.add_parser(
+        "gravity",
+        help="compute a spherical-harmonic gravity table from a closed triangle mesh",
+        description=(
+            "Exact volume integration of the fully normalised (4-pi, no Condon-Shortley phase) "
+            "spherical-harmonic coefficients of a constant-density body bounded by a closed, "
+            "consistently oriented triangle mesh (Wavefront OBJ). Origin at the centre of mass, "
+            "the mesh's axes, reference radius = volume-equivalent radius, GM = G * mass with "
+            f"G = {G_CODATA2018:g}. Writes JSON with degree, r_ref_m, gm, C and S (rows C[n][m]) "
+            "and a provenance record."
+        ),
+    )
+    parser.add_argument("--shape", required=True, metavar="PATH.obj", help="closed triangle mesh (OBJ)")
+    parser.add_argument(
+        "--degree", required=True, type=int, metavar="N", help=f"degree and order, 0..{MAX_DEGREE}"
+    )
+    parser.add_argument(
+        "--mass",
+        type=float,
+        default=ITOKAWA_MASS_KG,
+        metavar="KG",
+        help=f"body mass in kg (default {ITOKAWA_MASS_KG:g}, Itokawa, Fujiwara et al. 2006)",
+    )
+    parser.add_argument(
+        "--units",
+        choices=sorted(UNIT_SCALES),
+        default="km",
+        help="length unit of the OBJ coordinates (default km, as in the Gaskell model)",
+    )
+    parser.add_argument("--out", required=True, metavar="FILE.json", help="output JSON file")
+    parser.set_defaults(func=run)
+
+
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def provenance_for(shape: Path, degree: int, mass_kg: float, units: str) -> dict[str, Any]:
+    """Provenance record of a table generated from ``shape``.
+
+    Args:
+        shape: The OBJ file.
+        degree: Degree and order.
+        mass_kg: Mass [kg].
+        units: OBJ length unit.
+
+    Returns:
+        JSON-ready mapping: shape file name and sha256 (with the data-set citation when the file
+        is a known one), mass and G with sources, the generator command, and the UTC date.
+    """
+    sha = _sha256(shape)
+    record: dict[str, Any] = {"shape_file": shape.name, "shape_sha256": sha}
+    if sha in KNOWN_SHAPES:
+        record["shape_model"] = KNOWN_SHAPES[sha]["name"]
+        record["citation"] = KNOWN_SHAPES[sha]["citation"]
+    record["mass_kg"] = mass_kg
+    if mass_kg == ITOKAWA_MASS_KG:
+        record["mass_source"] = "Fujiwara et al. 2006, Science 312:1330"
+    record["G"] = G_CODATA2018
+    record["G_source"] = "CODATA 2018"
+    record["density"] = "constant"
+    record["conventions"] = (
+        "origin at the centre of mass, the mesh's own axes, r_ref = volume-equivalent radius, "
+        "fully normalised (4-pi), no Condon-Shortley phase, U = GM/r sum (R/r)^n Pbar_nm "
+        "(C cos m lambda + S sin m lambda), a = grad U"
+    )
+    record["generator"] = (
+        f"isf-satellite gravity --shape {shape.name} --degree {degree} --mass {mass_kg:g} "
+        f"--units {units} --out <file>"
+    )
+    record["date"] = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d")
+    return record
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute ``isf-satellite gravity`` with parsed arguments; return the exit status."""
+    shape = Path(args.shape)
+    if not shape.is_file():
+        raise FileNotFoundError(f"shape file not found: {shape}")
+    if not 0 <= args.degree <= MAX_DEGREE:
+        raise GravityModelError(f"--degree must be in 0..{MAX_DEGREE}, got {args.degree}")
+    if not args.mass > 0.0 or args.mass == float("inf"):
+        raise GravityModelError(f"--mass must be a positive number of kg, got {args.mass:g}")
+    field = GravityField.from_mesh(shape, args.degree, mass_kg=args.mass, units=args.units)
+    out = Path(args.out)
+    field.to_json(out, provenance=provenance_for(shape, args.degree, args.mass, args.units))
+    print(
+        f"wrote {out}: degree {field.degree}, r_ref {field.r_ref_m:.6g} m, gm {field.gm:.6g} m^3/s^2",
+        file=sys.stdout,
+    )
+    return 0

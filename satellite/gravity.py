@@ -1,0 +1,491 @@
+"""Spherical-harmonic gravity of a constant-density body, from its shape by exact integration.
+
+Convention (fully normalised, 4-pi geodesy normalisation, no Condon-Shortley phase): in the
+body frame, with ``r = |r|``, latitude ``phi`` and longitude ``lambda``, the potential is
+
+    U(r) = GM / r * sum_{n=0}^{N} (R / r)^n sum_{m=0}^{n}
+               Pbar_nm(sin phi) (Cbar_nm cos(m lambda) + Sbar_nm sin(m lambda)),
+
+    Pbar_nm = sqrt((2 - delta_m0) (2n + 1) (n - m)! / (n + m)!) P_nm,
+
+``P_nm(t) = (1 - t^2)^(m/2) d^m P_n / dt^m`` (no ``(-1)^m``). ``U`` is positive (``U = GM / r``
+for a point mass) and the acceleration is its gradient, ``a = grad U``. The series converges
+outside the body's Brillouin sphere (radius 311.7 m for Itokawa) and is only an approximation
+closer in; it is not the gravity inside the body.
+
+For a constant-density body of volume ``V`` whose origin is its centre of mass,
+
+    Cbar_nm + i Sbar_nm = 1 / ((2n + 1) V R^n) * integral over the body of
+                          Nbar_nm r^n P_nm(sin phi) exp(i m lambda) dV,
+
+and ``r^n P_nm(sin phi) cos(m lambda)``, ``r^n P_nm(sin phi) sin(m lambda)`` are homogeneous
+harmonic polynomials of degree ``n`` in ``x, y, z`` (solid harmonics, built by
+:func:`solid_harmonics`), so the coefficients are exact linear combinations of the body's
+monomial moments (:meth:`satellite.mesh.TriangleMesh.monomial_moments`).
+
+Conventions of :meth:`GravityField.from_mesh`: origin at the centre of mass, the mesh's own
+axes, ``R`` = volume-equivalent radius, ``GM = G * mass``.
+
+Itokawa (Gaskell 64-level mesh ``itokawa_low.obj``, 3.51e10 kg, degree 8), as committed in
+``satellite/data/itokawa_degree8.json``: volume 1.778560e7 m^3, R = 161.930 m,
+GM = 2.342679 m^3/s^2, Cbar20 = -0.1438, Cbar22 = +0.2093 (unnormalised C20 = -0.3215,
+C22 = 0.1351).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from importlib import resources
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from satellite.errors import GravityModelError
+from satellite.mesh import TriangleMesh, read_obj
+
+__all__ = [
+    "G_CODATA2018",
+    "ITOKAWA_MASS_KG",
+    "MAX_DEGREE",
+    "DEFAULT_TABLE",
+    "GravityField",
+    "PolyhedronHarmonics",
+    "normalisation",
+    "solid_harmonics",
+    "polyhedron_harmonics",
+    "load_default_field",
+]
+
+G_CODATA2018 = 6.67430e-11
+"""Newtonian constant of gravitation [m^3 kg^-1 s^-2] (CODATA 2018)."""
+
+ITOKAWA_MASS_KG = 3.51e10
+"""Mass of 25143 Itokawa [kg] (Fujiwara et al. 2006, Science 312:1330)."""
+
+MAX_DEGREE = 20
+"""Highest degree accepted. The monomial forms used here lose accuracy as the degree grows
+(alternating sums with large coefficients); up to degree 20 the loss stays below about 1e-9
+relative to the largest coefficient, far below the model's own error."""
+
+DEFAULT_TABLE = "itokawa_degree8.json"
+"""File name of the committed Itokawa table in ``satellite/data/``."""
+
+
+def _check_degree(degree: int) -> int:
+    if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)):
+        raise GravityModelError(f"degree must be an integer, got {degree!r}")
+    if not 0 <= int(degree) <= MAX_DEGREE:
+        raise GravityModelError(f"degree must be in [0, {MAX_DEGREE}], got {degree}")
+    return int(degree)
+
+
+def normalisation(n: int, m: int) -> float:
+    """Full (4-pi) normalisation factor ``Nbar_nm = Pbar_nm / P_nm``.
+
+    Args:
+        n: Degree, >= 0.
+        m: Order, ``0 <= m <= n``.
+
+    Returns:
+        ``sqrt((2 - delta_m0) (2n + 1) (n - m)! / (n + m)!)``.
+    """
+    ratio = math.factorial(n - m) / math.factorial(n + m)
+    return math.sqrt((1.0 if m == 0 else 2.0) * (2 * n + 1) * ratio)
+
+
+def solid_harmonics(degree: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Unnormalised solid harmonics as dense monomial coefficient arrays.
+
+    ``V_nm(x, y, z) = r^n P_nm(sin phi) cos(m lambda)`` and ``W_nm = r^n P_nm(sin phi) sin(m lambda)``
+    (no Condon-Shortley phase), from ``V_mm + i W_mm = (2m - 1)!! (x + i y)^m`` and
+    ``(n - m) V_nm = (2n - 1) z V_{n-1,m} - (n + m - 1) r^2 V_{n-2,m}`` (same for ``W``).
+
+    Args:
+        degree: Highest degree ``N``, ``0 <= N <= MAX_DEGREE``.
+
+    Returns:
+        ``(V, W)``, each of shape (N+1, N+1, N+1, N+1, N+1): ``V[n, m, i, j, k]`` is the coefficient
+        of ``x^i y^j z^k`` in ``V_nm`` (zero for ``m > n``).
+    """
+    nmax = _check_degree(degree)
+    d = nmax + 1
+    v = np.zeros((d, d, d, d, d))
+    w = np.zeros((d, d, d, d, d))
+
+    def times(p: NDArray[np.float64], axis: int, power: int = 1) -> NDArray[np.float64]:
+        out = np.zeros_like(p)
+        src = [slice(None)] * 3
+        dst = [slice(None)] * 3
+        src[axis] = slice(0, d - power)
+        dst[axis] = slice(power, d)
+        out[tuple(dst)] = p[tuple(src)]
+        return out
+
+    def times_r2(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        return times(p, 0, 2) + times(p, 1, 2) + times(p, 2, 2)
+
+    v[0, 0, 0, 0, 0] = 1.0
+    for m in range(1, d):
+        f = 2 * m - 1
+        v[m, m] = f * (times(v[m - 1, m - 1], 0) - times(w[m - 1, m - 1], 1))
+        w[m, m] = f * (times(w[m - 1, m - 1], 0) + times(v[m - 1, m - 1], 1))
+    for m in range(d):
+        for n in range(m + 1, d):
+            for arr in (v, w):
+                nxt = (2 * n - 1) * times(arr[n - 1, m], 2)
+                if n - 2 >= m:
+                    nxt -= (n + m - 1) * times_r2(arr[n - 2, m])
+                arr[n, m] = nxt / (n - m)
+    return v, w
+
+
+class PolyhedronHarmonics(NamedTuple):
+    """Normalised coefficients of a constant-density polyhedron (see :func:`polyhedron_harmonics`).
+
+    Attributes:
+        C: ``Cbar_nm``, shape (N+1, N+1), zero above the diagonal.
+        S: ``Sbar_nm``, shape (N+1, N+1), zero above the diagonal and in column 0.
+        r_ref_m: Reference radius [m] = volume-equivalent radius.
+        volume_m3: Volume of the mesh [m^3].
+        centre_of_mass_m: Centre of mass in the mesh's frame [m], shape (3,); the coefficients
+            are about this point.
+    """
+
+    C: NDArray[np.float64]
+    S: NDArray[np.float64]
+    r_ref_m: float
+    volume_m3: float
+    centre_of_mass_m: NDArray[np.float64]
+
+
+def polyhedron_harmonics(mesh: TriangleMesh, degree: int) -> PolyhedronHarmonics:
+    """Fully normalised harmonic coefficients of a constant-density closed mesh, exactly.
+
+    The origin is the centre of mass, the axes are the mesh's, and the reference radius is the
+    volume-equivalent radius ``R``. Moments are taken of ``(x - x_cm) / R`` for conditioning, so
+    ``Cbar_nm = Nbar_nm / ((2n + 1) V) * sum_ijk V_nm[i, j, k] M[i, j, k]``.
+
+    Args:
+        mesh: Checked, closed, outward-oriented mesh [m].
+        degree: Highest degree ``N``, ``0 <= N <= MAX_DEGREE``.
+
+    Returns:
+        The coefficients and the reference quantities.
+    """
+    nmax = _check_degree(degree)
+    com = mesh.centre_of_mass
+    r_ref = mesh.volume_equivalent_radius
+    moments = mesh.monomial_moments(nmax, origin=com, scale=r_ref)
+    volume = float(moments[0, 0, 0])
+    v, w = solid_harmonics(nmax)
+    c = np.zeros((nmax + 1, nmax + 1))
+    s = np.zeros((nmax + 1, nmax + 1))
+    for n in range(nmax + 1):
+        for m in range(n + 1):
+            factor = normalisation(n, m) / ((2 * n + 1) * volume)
+            c[n, m] = factor * float(np.sum(v[n, m] * moments))
+            if m > 0:
+                s[n, m] = factor * float(np.sum(w[n, m] * moments))
+    c[0, 0] = 1.0  # exact by construction; avoid a last-digit rounding
+    return PolyhedronHarmonics(c, s, float(r_ref), float(mesh.volume), com)
+
+
+def _square(rows: Any, degree: int, name: str) -> NDArray[np.float64]:
+    """Turn triangular or square row lists into a (N+1, N+1) array."""
+    out = np.zeros((degree + 1, degree + 1))
+    try:
+        if len(rows) != degree + 1:
+            raise GravityModelError(f"{name} has {len(rows)} rows, expected degree + 1 = {degree + 1}")
+        for n, row in enumerate(rows):
+            vals = np.asarray(row, dtype=np.float64).reshape(-1)
+            if vals.size < n + 1 or vals.size > degree + 1:
+                raise GravityModelError(f"{name}[{n}] has {vals.size} entries, expected {n + 1}..{degree + 1}")
+            out[n, : vals.size] = vals
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, GravityModelError):
+            raise
+        raise GravityModelError(f"{name} must be a list of numeric rows: {exc}") from None
+    return out
+
+
+class GravityField:
+    """Spherical-harmonic gravity field evaluated in the body frame.
+
+    See the module docstring for the convention. The potential and the acceleration are
+    evaluated as polynomials of the Kelvin-inverted point ``q = R r / |r|^2``: with
+    ``H(q) = sum_nm Nbar_nm (Cbar_nm V_nm(q) + Sbar_nm W_nm(q))`` (so that ``U = GM H(q) / r``)
+    and ``K = sum_n (2n + 1) H_n`` (``H_n`` the degree-``n`` part),
+
+        a = grad U = GM / r^2 * ((R / r) grad H(q) - (r_vec / r) K(q)).
+
+    Degree 0 (``Cbar00 = 1``) gives exactly the Kepler acceleration ``-GM r_vec / r^3``.
+
+    Args:
+        C: ``Cbar_nm``, shape (N+1, N+1) (entries above the diagonal must be zero).
+        S: ``Sbar_nm``, shape (N+1, N+1) (zero above the diagonal and in column 0).
+        r_ref_m: Reference radius ``R`` [m], > 0.
+        gm: Gravitational parameter ``GM`` [m^3/s^2], > 0.
+
+    Raises:
+        GravityModelError: On bad shapes, non-finite values, non-zero entries where the
+            convention has none, or non-positive ``R`` or ``GM``.
+    """
+
+    def __init__(self, C: ArrayLike, S: ArrayLike, r_ref_m: float, gm: float) -> None:
+        c = np.array(C, dtype=np.float64)
+        s = np.array(S, dtype=np.float64)
+        if c.ndim != 2 or c.shape[0] != c.shape[1] or s.shape != c.shape:
+            raise GravityModelError(f"C and S must be square (N+1, N+1) arrays, got {c.shape} and {s.shape}")
+        degree = _check_degree(c.shape[0] - 1)
+        if not (np.isfinite(c).all() and np.isfinite(s).all()):
+            raise GravityModelError("C and S must be finite")
+        if np.any(np.triu(c, 1)) or np.any(np.triu(s, 1)) or np.any(s[:, 0]):
+            raise GravityModelError("C[n][m] and S[n][m] must be zero for m > n, and S[n][0] must be zero")
+        if not (math.isfinite(r_ref_m) and r_ref_m > 0.0):
+            raise GravityModelError(f"r_ref_m must be a positive length in metres, got {r_ref_m}")
+        if not (math.isfinite(gm) and gm > 0.0):
+            raise GravityModelError(f"gm must be a positive GM in m^3/s^2, got {gm}")
+        c.setflags(write=False)
+        s.setflags(write=False)
+        self._degree = degree
+        self._c = c
+        self._s = s
+        self._r_ref = float(r_ref_m)
+        self._gm = float(gm)
+        self._build_tables()
+
+    # ------------------------------------------------------------------ construction helpers
+    def _build_tables(self) -> None:
+        d = self._degree + 1
+        v, w = solid_harmonics(self._degree)
+        norm = np.array([[normalisation(n, m) if m <= n else 0.0 for m in range(d)] for n in range(d)])
+        h = np.einsum("nm,nmijk->ijk", norm * self._c, v) + np.einsum("nm,nmijk->ijk", norm * self._s, w)
+        e = np.arange(d)
+        total = e[:, None, None] + e[None, :, None] + e[None, None, :]
+        tables = np.zeros((5, d, d, d))
+        tables[0, :-1] = h[1:] * e[1:, None, None]  # dH/dx
+        tables[1, :, :-1] = h[:, 1:] * e[None, 1:, None]  # dH/dy
+        tables[2, :, :, :-1] = h[:, :, 1:] * e[None, None, 1:]  # dH/dz
+        tables[3] = h * (2 * total + 1)  # K
+        tables[4] = h  # H
+        self._h_table = h
+        # Single-point evaluation contracts k, then j, then i with three 2-D np.dot calls
+        # (faster than batched matmul on such tiny arrays): T[row, i, j, k] -> (4 d d, d).
+        self._accel_table = np.ascontiguousarray(tables[:4].reshape(4 * d * d, d))
+        self._pot_table = np.ascontiguousarray(h.reshape(d * d, d))
+        self._batch_table = tables[:4].reshape(4, -1).T.copy()  # (d^3, 4)
+        self._exponents = e.astype(np.float64)
+        self._d = d
+
+    @classmethod
+    def from_mesh(
+        cls,
+        mesh: TriangleMesh | str | Path,
+        degree: int,
+        mass_kg: float = ITOKAWA_MASS_KG,
+        units: str = "km",
+    ) -> GravityField:
+        """Field of a constant-density body from its closed triangle mesh.
+
+        Args:
+            mesh: A :class:`~satellite.mesh.TriangleMesh` [m], or an OBJ file path.
+            degree: Highest degree and order ``N``, ``0 <= N <= MAX_DEGREE``.
+            mass_kg: Body mass [kg], > 0 (default Itokawa's).
+            units: Length unit of an OBJ file, ``"km"`` or ``"m"`` (ignored for a mesh object).
+
+        Returns:
+            The field about the centre of mass, in the mesh's axes, ``R`` = volume-equivalent
+            radius, ``GM = G_CODATA2018 * mass_kg``.
+        """
+        if not (math.isfinite(mass_kg) and mass_kg > 0.0):
+            raise GravityModelError(f"mass must be a positive number of kg, got {mass_kg}")
+        degree = _check_degree(degree)
+        if not isinstance(mesh, TriangleMesh):
+            mesh = read_obj(mesh, units=units)
+        harm = polyhedron_harmonics(mesh, degree)
+        return cls(harm.C, harm.S, harm.r_ref_m, G_CODATA2018 * mass_kg)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> GravityField:
+        """Build from a mapping with ``degree``, ``r_ref_m``, ``gm``, ``C``, ``S`` (rows ``C[n][m]``).
+
+        Rows may be triangular (``n + 1`` entries) or full (``degree + 1`` entries).
+        """
+        missing = [k for k in ("degree", "r_ref_m", "gm", "C", "S") if k not in data]
+        if missing:
+            raise GravityModelError(f"gravity table lacks key(s) {missing}; needs degree, r_ref_m, gm, C, S")
+        degree = _check_degree(data["degree"])
+        try:
+            r_ref, gm = float(data["r_ref_m"]), float(data["gm"])
+        except (TypeError, ValueError):
+            raise GravityModelError("r_ref_m and gm must be numbers") from None
+        return cls(_square(data["C"], degree, "C"), _square(data["S"], degree, "S"), r_ref, gm)
+
+    @classmethod
+    def from_json(cls, path: str | Path) -> GravityField:
+        """Read a table written by :meth:`to_json` (or the ``isf-satellite gravity`` command)."""
+        try:
+            data = json.loads(Path(path).read_text(encoding="utf-8"))
+        except json.JSONDecodeError as exc:
+            raise GravityModelError(f"{path}: not valid JSON ({exc})") from None
+        if not isinstance(data, dict):
+            raise GravityModelError(f"{path}: expected a JSON object")
+        return cls.from_dict(data)
+
+    def to_dict(self, provenance: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        """Return the JSON-ready table: ``degree``, ``r_ref_m``, ``gm``, triangular ``C`` and ``S``."""
+        out: dict[str, Any] = {}
+        if provenance is not None:
+            out["provenance"] = dict(provenance)
+        out["degree"] = self._degree
+        out["r_ref_m"] = self._r_ref
+        out["gm"] = self._gm
+        out["normalisation"] = "full (4-pi geodesy), no Condon-Shortley phase"
+        out["C"] = [self._c[n, : n + 1].tolist() for n in range(self._degree + 1)]
+        out["S"] = [self._s[n, : n + 1].tolist() for n in range(self._degree + 1)]
+        return out
+
+    def to_json(self, path: str | Path, provenance: Mapping[str, Any] | None = None) -> None:
+        """Write the table as JSON (see :meth:`to_dict`); floats are written round-trip exact."""
+        data = self.to_dict(provenance)
+        parts = []
+        for key, value in data.items():
+            if key in ("C", "S"):
+                rows = ",\n".join("  " + json.dumps(row) for row in value)
+                text = "[\n" + rows + "\n ]"
+            else:
+                text = json.dumps(value, indent=1).replace("\n", "\n ")
+            parts.append(f" {json.dumps(key)}: {text}")
+        Path(path).write_text("{\n" + ",\n".join(parts) + "\n}\n", encoding="utf-8")
+
+    # ------------------------------------------------------------------ read-only data
+    @property
+    def degree(self) -> int:
+        """Highest degree and order ``N``."""
+        return self._degree
+
+    @property
+    def r_ref_m(self) -> float:
+        """Reference radius ``R`` [m]."""
+        return self._r_ref
+
+    @property
+    def gm(self) -> float:
+        """Gravitational parameter ``GM`` [m^3/s^2]."""
+        return self._gm
+
+    @property
+    def C(self) -> NDArray[np.float64]:  # noqa: N802
+        """``Cbar_nm``, read-only, shape (N+1, N+1)."""
+        return self._c
+
+    @property
+    def S(self) -> NDArray[np.float64]:  # noqa: N802
+        """``Sbar_nm``, read-only, shape (N+1, N+1)."""
+        return self._s
+
+    def __repr__(self) -> str:
+        return f"GravityField(degree={self._degree}, r_ref_m={self._r_ref:.6g}, gm={self._gm:.6g})"
+
+    # ------------------------------------------------------------------ evaluation
+    def potential(self, r_body: ArrayLike) -> float | NDArray[np.float64]:
+        """Gravitational potential ``U`` [m^2/s^2], positive convention (``a = grad U``).
+
+        Args:
+            r_body: Position(s) in the body frame [m], shape (3,) or (k, 3), outside the body.
+
+        Returns:
+            ``U`` as a float for shape (3,), else shape (k,).
+        """
+        p = np.asarray(r_body, dtype=np.float64)
+        if p.shape == (3,):
+            x, y, z = p.tolist()
+            r2 = x * x + y * y + z * z
+            r = math.sqrt(r2)
+            f = self._r_ref / r2
+            pw = np.array([x * f, y * f, z * f])[:, None] ** self._exponents
+            d = self._d
+            val = np.dot(np.dot(np.dot(self._pot_table, pw[2]).reshape(d, d), pw[1]), pw[0])
+            return self._gm / r * float(val)
+        pts = self._points(p)
+        r2 = np.einsum("ki,ki->k", pts, pts)
+        r = np.sqrt(r2)
+        mono = self._monomials(pts * (self._r_ref / r2)[:, None])
+        return self._gm / r * (mono @ self._h_table.reshape(-1))
+
+    def acceleration(self, r_body: ArrayLike) -> NDArray[np.float64]:
+        """Gravitational acceleration ``a = grad U`` [m/s^2] in the body frame.
+
+        Cheap for a single point (a few numpy calls on tiny arrays); shape (k, 3) input is
+        passed to :meth:`acceleration_batch`.
+
+        Args:
+            r_body: Position in the body frame [m], shape (3,) (or (k, 3)), outside the body.
+
+        Returns:
+            Acceleration [m/s^2], shape (3,) (or (k, 3)).
+        """
+        p = np.asarray(r_body, dtype=np.float64)
+        if p.shape != (3,):
+            return self.acceleration_batch(p)
+        x, y, z = p.tolist()
+        r2 = x * x + y * y + z * z
+        r = math.sqrt(r2)
+        f = self._r_ref / r2
+        pw = np.array([x * f, y * f, z * f])[:, None] ** self._exponents
+        d = self._d
+        dot = np.dot
+        gx, gy, gz, k = dot(dot(dot(self._accel_table, pw[2]).reshape(4 * d, d), pw[1]).reshape(4, d), pw[0]).tolist()
+        rho = self._r_ref / r
+        g = self._gm / r2
+        k /= r
+        return np.array([g * (rho * gx - x * k), g * (rho * gy - y * k), g * (rho * gz - z * k)])
+
+    def acceleration_batch(self, r_body: ArrayLike) -> NDArray[np.float64]:
+        """Acceleration ``a = grad U`` [m/s^2] at many points.
+
+        Args:
+            r_body: Positions in the body frame [m], shape (k, 3).
+
+        Returns:
+            Accelerations [m/s^2], shape (k, 3).
+        """
+        pts = self._points(np.asarray(r_body, dtype=np.float64))
+        r2 = np.einsum("ki,ki->k", pts, pts)
+        r = np.sqrt(r2)
+        out = np.empty_like(pts)
+        chunk = 4096
+        for start in range(0, pts.shape[0], chunk):
+            sl = slice(start, start + chunk)
+            q = pts[sl] * (self._r_ref / r2[sl])[:, None]
+            vals = self._monomials(q) @ self._batch_table  # (k, 4)
+            rho = (self._r_ref / r[sl])[:, None]
+            out[sl] = (self._gm / r2[sl])[:, None] * (rho * vals[:, :3] - pts[sl] / r[sl][:, None] * vals[:, 3:4])
+        return out
+
+    def _points(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
+        if p.ndim != 2 or p.shape[1] != 3:
+            raise GravityModelError(f"positions must have shape (3,) or (k, 3) in metres, got {p.shape}")
+        return p
+
+    def _monomials(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """All ``q_x^i q_y^j q_z^k`` for ``i, j, k < N+1``, shape (k, (N+1)^3), C order."""
+        pw = q[:, :, None] ** self._exponents  # (k, 3, d)
+        d = self._d
+        m = pw[:, 0, :, None, None] * pw[:, 1, None, :, None] * pw[:, 2, None, None, :]
+        return m.reshape(q.shape[0], d * d * d)
+
+
+def load_default_field() -> GravityField:
+    """Return the committed degree-8 Itokawa field (``satellite/data/itokawa_degree8.json``).
+
+    Generated by :meth:`GravityField.from_mesh` from Gaskell's 64-level shape model
+    (HAY-A-AMICA-5-ITOKAWASHAPE-V1.0) with mass 3.51e10 kg; see the file's ``provenance`` key.
+    """
+    resource = resources.files("satellite").joinpath("data", DEFAULT_TABLE)
+    with resources.as_file(resource) as path:
+        return GravityField.from_json(path)
