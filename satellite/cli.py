@@ -57,6 +57,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     Returns:
         The exit status: 0 on success, 2 on a user error (one-line message on stderr).
+
     """
     parser = build_parser()
     args = parser.parse_args(argv)

@@ -44,7 +44,9 @@ def register(subparsers: Any) -> None:
             "and a provenance record."
         ),
     )
-    parser.add_argument("--shape", required=True, metavar="PATH.obj", help="closed triangle mesh (OBJ)")
+    parser.add_argument(
+        "--shape", required=True, metavar="PATH.obj", help="closed triangle mesh (OBJ)"
+    )
     parser.add_argument(
         "--degree", required=True, type=int, metavar="N", help=f"degree and order, 0..{MAX_DEGREE}"
     )
@@ -85,6 +87,7 @@ def provenance_for(shape: Path, degree: int, mass_kg: float, units: str) -> dict
     Returns:
         JSON-ready mapping: shape file name and sha256 (with the data-set citation when the file
         is a known one), mass and G with sources, the generator command, and the UTC date.
+
     """
     sha = _sha256(shape)
     record: dict[str, Any] = {"shape_file": shape.name, "shape_sha256": sha}
@@ -123,7 +126,8 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     field.to_json(out, provenance=provenance_for(shape, args.degree, args.mass, args.units))
     print(
-        f"wrote {out}: degree {field.degree}, r_ref {field.r_ref_m:.6g} m, gm {field.gm:.6g} m^3/s^2",
+        f"wrote {out}: degree {field.degree}, r_ref {field.r_ref_m:.6g} m, "
+        f"gm {field.gm:.6g} m^3/s^2",
         file=sys.stdout,
     )
     return 0

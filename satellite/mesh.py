@@ -51,8 +51,11 @@ def monomials(degree: int) -> list[tuple[int, int, int]]:
 
     Returns:
         The ``(n + 1)(n + 2) / 2`` exponent triples, ``i`` descending, then ``j`` descending.
+
     """
-    return [(i, j, degree - i - j) for i in range(degree, -1, -1) for j in range(degree - i, -1, -1)]
+    return [
+        (i, j, degree - i - j) for i in range(degree, -1, -1) for j in range(degree - i, -1, -1)
+    ]
 
 
 def _shift_maps(max_degree: int) -> list[NDArray[np.intp]]:
@@ -62,6 +65,7 @@ def _shift_maps(max_degree: int) -> list[NDArray[np.intp]]:
         For each ``n`` in ``1..max_degree``, an int array of shape (3, D_{n-1}) whose row ``d``
         gives, for each monomial of degree ``n - 1``, the position of that monomial times the
         ``d``-th coordinate in the degree-``n`` list of :func:`monomials`.
+
     """
     maps: list[NDArray[np.intp]] = [np.zeros((3, 0), dtype=np.intp)]
     for n in range(1, max_degree + 1):
@@ -88,6 +92,7 @@ def _times_linear(
 
     Returns:
         Coefficients of ``(v . t) * poly``, shape (F, D_n).
+
     """
     out = np.zeros((poly.shape[0], size))
     for d in range(3):
@@ -110,15 +115,21 @@ def check_closed_oriented(faces: NDArray[np.intp], n_vertices: int) -> None:
             degenerate (repeated vertex), an edge belongs to a single face (open mesh), to more
             than two faces (non-manifold), or two faces run along a shared edge in the same
             direction (inconsistent orientation).
+
     """
     if faces.ndim != 2 or faces.shape[1] != 3 or faces.shape[0] < 4:
-        raise MeshError(f"a closed triangle mesh needs at least 4 faces of shape (F, 3), got {faces.shape}")
+        raise MeshError(
+            f"a closed triangle mesh needs at least 4 faces of shape (F, 3), got {faces.shape}"
+        )
     if faces.min() < 0 or faces.max() >= n_vertices:
         raise MeshError(f"face vertex index out of range [0, {n_vertices - 1}]")
     bad = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
     if bad.any():
         f = int(np.flatnonzero(bad)[0])
-        raise MeshError(f"{int(bad.sum())} degenerate face(s) with a repeated vertex, e.g. face {f}: {faces[f].tolist()}")
+        raise MeshError(
+            f"{int(bad.sum())} degenerate face(s) with a repeated vertex, "
+            f"e.g. face {f}: {faces[f].tolist()}"
+        )
     tail = faces.reshape(-1)
     head = faces[:, [1, 2, 0]].reshape(-1)
     nv = np.int64(n_vertices)
@@ -129,7 +140,8 @@ def check_closed_oriented(faces: NDArray[np.intp], n_vertices: int) -> None:
         key = int(undirected[counts == 1][0])
         raise MeshError(
             f"mesh is not closed: {int((counts == 1).sum())} boundary edge(s) belong to a single "
-            f"face, e.g. edge ({key // n_vertices}, {key % n_vertices}); a closed surface is required"
+            f"face, e.g. edge ({key // n_vertices}, {key % n_vertices}); "
+            "a closed surface is required"
         )
     if (counts > 2).any():
         key = int(undirected[counts > 2][0])
@@ -161,6 +173,7 @@ class TriangleMesh:
         vertices: Vertex positions [m], shape (V, 3), all referenced by a face.
         faces: Triangles as 0-based vertex indices, shape (F, 3), counter-clockwise seen from
             outside (outward normals).
+
     """
 
     vertices: NDArray[np.float64]
@@ -184,6 +197,7 @@ class TriangleMesh:
         Raises:
             MeshError: If the arrays have the wrong shapes, hold non-finite values, or the
                 surface is open, non-manifold, inconsistently oriented or of zero volume.
+
         """
         v = np.asarray(vertices, dtype=np.float64)
         f = np.asarray(faces)
@@ -228,6 +242,7 @@ class TriangleMesh:
             ``M[i, j, k] = integral over the body of u^i v^j w^k dV`` with
             ``(u, v, w) = (x - o) / L`` dimensionless and ``dV`` in [m^3]; shape
             (max_degree + 1,) * 3, zero where ``i + j + k > max_degree``.
+
         """
         if max_degree < 0:
             raise MeshError(f"max_degree must be >= 0, got {max_degree}")
@@ -267,7 +282,7 @@ class TriangleMesh:
 
     @property
     def centre_of_mass(self) -> NDArray[np.float64]:
-        """Centroid of the enclosed volume [m], shape (3,) (the centre of mass at constant density)."""
+        """Centroid of the volume [m], shape (3,): the centre of mass at constant density."""
         m = self.monomial_moments(1)
         return np.array([m[1, 0, 0], m[0, 1, 0], m[0, 0, 1]]) / m[0, 0, 0]
 
@@ -276,6 +291,7 @@ class TriangleMesh:
 
         Args:
             origin: Reference point [m], shape (3,); default the centre of mass.
+
         """
         o = self.centre_of_mass if origin is None else np.asarray(origin, dtype=np.float64)
         m = self.monomial_moments(2, origin=o)
@@ -287,7 +303,9 @@ class TriangleMesh:
             ]
         )
 
-    def inertia_tensor(self, mass_kg: float, origin: ArrayLike | None = None) -> NDArray[np.float64]:
+    def inertia_tensor(
+        self, mass_kg: float, origin: ArrayLike | None = None
+    ) -> NDArray[np.float64]:
         """Inertia tensor [kg m^2] of the body at constant density, shape (3, 3).
 
         ``I = rho (tr(S) 1 - S)`` with ``S`` from :meth:`second_moments` and ``rho = m / V``;
@@ -297,6 +315,7 @@ class TriangleMesh:
         Args:
             mass_kg: Body mass [kg], > 0.
             origin: Reference point [m], shape (3,); default the centre of mass.
+
         """
         s = self.second_moments(origin)
         rho = mass_kg / self.volume
@@ -328,6 +347,7 @@ def read_obj(path: str | Path, units: str = "km") -> TriangleMesh:
         FileNotFoundError: If the file does not exist.
         MeshError: If the unit is unknown, a record is malformed, or the mesh is not a closed,
             consistently oriented 2-manifold surface.
+
     """
     if units not in UNIT_SCALES:
         raise MeshError(f"unknown length unit {units!r}; valid units: {', '.join(UNIT_SCALES)}")
@@ -354,7 +374,11 @@ def read_obj(path: str | Path, units: str = "km") -> TriangleMesh:
                         raise ValueError("fewer than 3 vertices")
                     faces.extend((idx[0], idx[q], idx[q + 1]) for q in range(1, len(idx) - 1))
             except (ValueError, IndexError) as exc:
-                raise MeshError(f"{path}:{lineno}: malformed {tag!r} record ({exc}): {line.strip()[:80]}") from None
+                raise MeshError(
+                    f"{path}:{lineno}: malformed {tag!r} record ({exc}): {line.strip()[:80]}"
+                ) from None
     if not faces:
         raise MeshError(f"{path}: no faces ('f' records) found")
-    return TriangleMesh.from_arrays(np.array(verts) * UNIT_SCALES[units], np.array(faces, dtype=np.intp))
+    return TriangleMesh.from_arrays(
+        np.array(verts) * UNIT_SCALES[units], np.array(faces, dtype=np.intp)
+    )
