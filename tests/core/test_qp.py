@@ -1,0 +1,113 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from isf_robot.core import (
+    FilterQP,
+    InfeasibleFilterError,
+    IsfWarning,
+    LieData,
+    Linear,
+    QPSolver,
+    SafetyFilter,
+    build_filter_qp,
+    project_halfspace,
+)
+
+vec = st.lists(st.floats(-5, 5, allow_nan=False), min_size=3, max_size=3)
+
+
+@settings(max_examples=60, deadline=None)
+@given(u_nom=vec, a=vec, lb=st.floats(-5, 5))
+def test_qp_equals_closed_form_projection(u_nom, a, lb):
+    u_nom, a = np.array(u_nom), np.array(a)
+    if np.linalg.norm(a) < 1e-2:
+        a = a + np.array([0.5, 0.0, 0.0])
+    qp = FilterQP(u_nom, a[None, :], np.array([lb]))
+    res = QPSolver(closed_form=False).solve(qp)
+    assert res.status == "optimal"
+    expected = project_halfspace(u_nom, a, lb)
+    np.testing.assert_allclose(res.u, expected, atol=1e-8, rtol=0)
+
+
+def test_projection_known_answer():
+    # min |u - (1, 0)|^2 s.t. u_x >= 3  ->  (3, 0)
+    np.testing.assert_allclose(project_halfspace(np.array([1.0, 0.0]), np.array([1.0, 0.0]), 3.0), [3.0, 0.0])
+    # already feasible: untouched
+    np.testing.assert_allclose(project_halfspace(np.array([4.0, 2.0]), np.array([1.0, 0.0]), 3.0), [4.0, 2.0])
+    # slanted: a = (1, 1), lb = 2, u_nom = 0 -> (1, 1)
+    np.testing.assert_allclose(project_halfspace(np.zeros(2), np.array([1.0, 1.0]), 2.0), [1.0, 1.0])
+
+
+def test_closed_form_path_used_and_agrees_with_proxqp_and_qpsolvers():
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        u_nom = rng.normal(size=4)
+        a = rng.normal(size=(1, 4))
+        lb = rng.normal(size=1) + 1.0
+        qp = FilterQP(u_nom, a, lb)
+        r_cf = QPSolver().solve(qp)
+        r_px = QPSolver(closed_form=False).solve(qp)
+        r_qs = QPSolver(closed_form=False, backend="qpsolvers").solve(qp)
+        assert r_cf.status == "closed_form"
+        np.testing.assert_allclose(r_px.u, r_cf.u, atol=1e-8)
+        np.testing.assert_allclose(r_qs.u, r_cf.u, atol=1e-7)
+
+
+def test_box_bounds_known_answer_and_active_set():
+    # two rows u0 >= 1, u1 >= 1 and box [-0.5, 2]: answer (1, 1), both rows active
+    qp = FilterQP(np.zeros(2), np.eye(2), np.ones(2), u_min=-0.5 * np.ones(2), u_max=2 * np.ones(2))
+    res = QPSolver().solve(qp)
+    np.testing.assert_allclose(res.u, [1.0, 1.0], atol=1e-8)
+    assert res.active.tolist() == [True, True]
+    # nominal above the row bound: row inactive, bound clips
+    qp = FilterQP(np.array([3.0, 1.5]), np.eye(2), np.ones(2), u_max=2 * np.ones(2))
+    res = QPSolver().solve(qp)
+    np.testing.assert_allclose(res.u, [2.0, 1.5], atol=1e-8)
+    assert res.active.tolist() == [False, False]
+
+
+def test_infeasible_qp_is_reported_not_returned_as_safe():
+    qp = FilterQP(np.zeros(2), np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([1.0, 1.0]))
+    res = QPSolver().solve(qp)
+    assert res.status == "infeasible"
+    assert not res.ok
+    assert res.max_violation > 0.5
+
+
+def _lie(h, lg, lf=None):
+    h = np.asarray(h, float)
+    lg = np.asarray(lg, float)
+    return LieData(h, np.zeros_like(h) if lf is None else np.asarray(lf, float), lg, np.linalg.norm(lg, axis=1), tuple(f"b{i}" for i in range(len(h))))
+
+
+def test_infeasible_filter_raises_with_evidence():
+    # rows: u0 >= 1 (h=-1 with alpha gain 1 -> rhs = 1) and -u0 >= 1: impossible
+    f = SafetyFilter(Linear(1.0))
+    lie = _lie([-1.0, -1.0], [[1.0, 0.0], [-1.0, 0.0]])
+    with pytest.raises(InfeasibleFilterError) as info:
+        f.step_lie(0.5, lie, np.zeros(2), x=np.array([7.0, 8.0]))
+    err = info.value
+    assert err.qp is not None and err.qp.k == 2
+    np.testing.assert_array_equal(err.barrier_values, [-1.0, -1.0])
+    np.testing.assert_array_equal(err.state, [7.0, 8.0])
+    assert err.t == 0.5
+
+
+def test_infeasible_filter_fallback_is_recorded_and_warned():
+    f = SafetyFilter(Linear(1.0), on_infeasible="fallback", fallback=lambda t, x, lie, res: np.zeros(2))
+    lie = _lie([-1.0, -1.0], [[1.0, 0.0], [-1.0, 0.0]])
+    with pytest.warns(IsfWarning):
+        step = f.step_lie(0.0, lie, np.array([0.3, 0.0]))
+    assert step.fallback
+    assert step.qp.status == "fallback"
+    np.testing.assert_array_equal(step.u, [0.0, 0.0])
+
+
+def test_build_filter_qp_rows_match_robust_condition():
+    lie = _lie([0.5], [[2.0, 0.0]], lf=[0.1])
+    qp = build_filter_qp(np.zeros(2), lie.lf, lie.lg, lie.grad_norm, np.array([-0.5]), d_bar=0.2)
+    # row: lf + lg u - |grad| d_bar >= -alpha(h)  <=>  lg u >= -alpha(h) - lf + |grad| d_bar
+    np.testing.assert_allclose(qp.lb, [-0.5 - 0.1 + 2.0 * 0.2])
+    assert qp.max_violation(np.array([1.0, 0.0])) == 0.0
