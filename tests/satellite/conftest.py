@@ -1,19 +1,23 @@
-"""Synthetic closed meshes and independent oracles for the satellite tests."""
+"""Synthetic closed meshes and independent oracles for the satellite tests.
+
+The tests run in pytest's importlib mode, so they cannot import this module: the helpers are
+handed out by the ``helpers`` fixture, and the Itokawa shape file by ``itokawa_obj`` (which
+skips the test when ``../shared/data/itokawa/itokawa_low.obj`` is absent).
+"""
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from satellite.mesh import TriangleMesh
+
 ITOKAWA_OBJ = (
     Path(__file__).resolve().parents[2].parent / "shared" / "data" / "itokawa" / "itokawa_low.obj"
-)
-
-needs_itokawa = pytest.mark.skipif(
-    not ITOKAWA_OBJ.is_file(), reason=f"shape file absent: {ITOKAWA_OBJ}"
 )
 
 
@@ -180,3 +184,37 @@ def coefficients_by_quadrature(vertices: np.ndarray, faces: np.ndarray, nmax: in
             c[n, m] = (base * np.cos(m * lon)).sum() / ((2 * n + 1) * vol)
             s[n, m] = (base * np.sin(m * lon)).sum() / ((2 * n + 1) * vol)
     return c, s, r_ref, vol
+
+
+def lumpy_body() -> TriangleMesh:
+    """An asymmetric closed body: a stretched, rotated, shifted icosphere with a bump."""
+    v, f = icosphere(2)
+    v = v * np.array([1.3, 0.8, 0.6])
+    v[0] *= 1.25
+    v[17] *= 0.9
+    v = v @ rotation(0.3, 0.5, 0.7).T + np.array([0.2, -0.1, 0.05])
+    return TriangleMesh.from_arrays(v * 100.0, f)
+
+
+@pytest.fixture(scope="session")
+def helpers() -> SimpleNamespace:
+    """The mesh builders and oracles of this module."""
+    return SimpleNamespace(
+        box_mesh=box_mesh,
+        icosphere=icosphere,
+        rotation=rotation,
+        write_obj=write_obj,
+        simplex_quadrature=simplex_quadrature,
+        pbar_table=pbar_table,
+        potential_reference=potential_reference,
+        coefficients_by_quadrature=coefficients_by_quadrature,
+        lumpy_body=lumpy_body,
+    )
+
+
+@pytest.fixture(scope="session")
+def itokawa_obj() -> Path:
+    """Path of the Itokawa shape file; skips the test when it is absent."""
+    if not ITOKAWA_OBJ.is_file():
+        pytest.skip(f"shape file absent: {ITOKAWA_OBJ}")
+    return ITOKAWA_OBJ

@@ -6,16 +6,15 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import box_mesh, write_obj
 
 from satellite.cli import SUBCOMMAND_MODULES, build_parser, main
 from satellite.gravity import G_CODATA2018, GravityField
 
 
 @pytest.fixture
-def box_obj(tmp_path):
-    v, f = box_mesh(0.3, 0.2, 0.1)  # km
-    return write_obj(tmp_path / "box.obj", v, f)
+def box_obj(tmp_path, helpers):
+    v, f = helpers.box_mesh(0.3, 0.2, 0.1)  # km
+    return helpers.write_obj(tmp_path / "box.obj", v, f)
 
 
 def test_gravity_command_writes_table(box_obj, tmp_path, capsys):
@@ -77,7 +76,7 @@ def test_bad_parameters_exit_2_with_one_line(box_obj, tmp_path, capsys, extra, p
     assert not (tmp_path / "x.json").exists()
 
 
-def test_missing_file_and_open_mesh_exit_2(tmp_path, capsys):
+def test_missing_file_and_open_mesh_exit_2(tmp_path, capsys, helpers):
     code = main(
         [
             "gravity",
@@ -91,8 +90,8 @@ def test_missing_file_and_open_mesh_exit_2(tmp_path, capsys):
     )
     err = capsys.readouterr().err
     assert code == 2 and "shape file not found" in err and err.count("\n") == 1
-    v, f = box_mesh()
-    opened = write_obj(tmp_path / "open.obj", v, f[:-2])
+    v, f = helpers.box_mesh()
+    opened = helpers.write_obj(tmp_path / "open.obj", v, f[:-2])
     code = main(
         ["gravity", "--shape", str(opened), "--degree", "2", "--out", str(tmp_path / "x.json")]
     )

@@ -5,15 +5,6 @@ import math
 
 import numpy as np
 import pytest
-from conftest import (
-    ITOKAWA_OBJ,
-    box_mesh,
-    coefficients_by_quadrature,
-    icosphere,
-    needs_itokawa,
-    potential_reference,
-    rotation,
-)
 
 from satellite.errors import GravityModelError
 from satellite.gravity import (
@@ -30,16 +21,6 @@ from satellite.mesh import TriangleMesh, read_obj
 RNG_SEED = 20260101
 
 
-def lumpy_body() -> TriangleMesh:
-    """An asymmetric closed body: a stretched, rotated, shifted icosphere with a bump."""
-    v, f = icosphere(2)
-    v = v * np.array([1.3, 0.8, 0.6])
-    v[0] *= 1.25
-    v[17] *= 0.9
-    v = v @ rotation(0.3, 0.5, 0.7).T + np.array([0.2, -0.1, 0.05])
-    return TriangleMesh.from_arrays(v * 100.0, f)
-
-
 def random_points(radius_min: float, radius_max: float, k: int = 20) -> np.ndarray:
     rng = np.random.default_rng(RNG_SEED)
     p = rng.normal(size=(k, 3))
@@ -50,18 +31,18 @@ def random_points(radius_min: float, radius_max: float, k: int = 20) -> np.ndarr
 # ---------------------------------------------------------------- coefficients
 
 
-def test_c00_is_one_and_degree_one_vanishes_for_an_offset_body():
-    h = polyhedron_harmonics(lumpy_body(), 4)
+def test_c00_is_one_and_degree_one_vanishes_for_an_offset_body(helpers):
+    h = polyhedron_harmonics(helpers.lumpy_body(), 4)
     assert h.C[0, 0] == 1.0
     np.testing.assert_allclose(h.C[1], 0.0, atol=1e-14)
     np.testing.assert_allclose(h.S[1], 0.0, atol=1e-14)
     assert np.abs(h.C[2:]).max() > 1e-2  # the body is not spherical
 
 
-def test_box_coefficients_match_inertia_closed_forms():
+def test_box_coefficients_match_inertia_closed_forms(helpers):
     a, b, c = 3.0, 2.0, 0.5
-    v, f = box_mesh(a, b, c)
-    q = rotation(0.3, -0.7, 1.1)
+    v, f = helpers.box_mesh(a, b, c)
+    q = helpers.rotation(0.3, -0.7, 1.1)
     mesh = TriangleMesh.from_arrays(v @ q.T + np.array([4.0, 1.0, -2.0]), f)
     mass = 1.0
     inertia = q @ (mass / 12 * np.diag([b**2 + c**2, a**2 + c**2, a**2 + b**2])) @ q.T
@@ -89,17 +70,17 @@ def test_box_coefficients_match_inertia_closed_forms():
     np.testing.assert_allclose(h.S[3], 0.0, atol=1e-14)
 
 
-def test_aligned_box_c20_negative_when_oblate():
-    h = polyhedron_harmonics(TriangleMesh.from_arrays(*box_mesh(2.0, 2.0, 1.0)), 2)
+def test_aligned_box_c20_negative_when_oblate(helpers):
+    h = polyhedron_harmonics(TriangleMesh.from_arrays(*helpers.box_mesh(2.0, 2.0, 1.0)), 2)
     assert h.C[2, 0] < 0
     assert h.C[2, 2] == pytest.approx(0.0, abs=1e-15)
     assert h.S[2, 2] == pytest.approx(0.0, abs=1e-15)
 
 
-def test_icosphere_has_no_terms_below_degree_six():
+def test_icosphere_has_no_terms_below_degree_six(helpers):
     # icosahedral symmetry leaves no invariant harmonic of degree 1..5
-    v, f = icosphere(3, radius=50.0)
-    mesh = TriangleMesh.from_arrays(v @ rotation(0.2, 0.4, 0.9).T, f)
+    v, f = helpers.icosphere(3, radius=50.0)
+    mesh = TriangleMesh.from_arrays(v @ helpers.rotation(0.2, 0.4, 0.9).T, f)
     h = polyhedron_harmonics(mesh, 6)
     assert np.abs(h.C[1:6]).max() < 1e-14
     assert np.abs(h.S[1:6]).max() < 1e-14
@@ -109,10 +90,10 @@ def test_icosphere_has_no_terms_below_degree_six():
 
 
 @pytest.mark.parametrize("degree", [8, 12])
-def test_exact_integration_matches_independent_quadrature(degree):
-    mesh = lumpy_body()
+def test_exact_integration_matches_independent_quadrature(degree, helpers):
+    mesh = helpers.lumpy_body()
     h = polyhedron_harmonics(mesh, degree)
-    c, s, r_ref, vol = coefficients_by_quadrature(
+    c, s, r_ref, vol = helpers.coefficients_by_quadrature(
         np.asarray(mesh.vertices), np.asarray(mesh.faces), degree
     )
     assert h.r_ref_m == pytest.approx(r_ref, rel=1e-14)
@@ -135,8 +116,8 @@ def test_solid_harmonics_are_harmonic_polynomials():
                 assert np.abs(lap).max() < 1e-9 * max(1.0, np.abs(p).max())
 
 
-def test_bad_degree_and_mass_are_rejected():
-    mesh = TriangleMesh.from_arrays(*box_mesh())
+def test_bad_degree_and_mass_are_rejected(helpers):
+    mesh = TriangleMesh.from_arrays(*helpers.box_mesh())
     for degree in (-1, 21, 2.5):
         with pytest.raises(GravityModelError, match="degree"):
             polyhedron_harmonics(mesh, degree)  # type: ignore[arg-type]
@@ -170,9 +151,8 @@ def test_committed_table_loads_with_provenance():
     assert "isf-satellite gravity" in prov["generator"] and prov["date"]
 
 
-@needs_itokawa
-def test_regeneration_equals_committed_table():
-    mesh = read_obj(ITOKAWA_OBJ)
+def test_regeneration_equals_committed_table(itokawa_obj):
+    mesh = read_obj(itokawa_obj)
     fresh = GravityField.from_mesh(mesh, 8)
     committed = load_default_field()
     assert fresh.r_ref_m == pytest.approx(committed.r_ref_m, rel=1e-13)
@@ -215,10 +195,10 @@ def test_degree_zero_is_exactly_kepler():
     )
 
 
-def test_potential_matches_textbook_legendre_sum():
+def test_potential_matches_textbook_legendre_sum(helpers):
     g = random_field(8)
     pts = random_points(200.0, 600.0)
-    ref = potential_reference(g.C, g.S, g.r_ref_m, g.gm, pts)
+    ref = helpers.potential_reference(g.C, g.S, g.r_ref_m, g.gm, pts)
     np.testing.assert_allclose(g.potential(pts), ref, rtol=1e-13)
     assert g.potential(pts[0]) == pytest.approx(ref[0], rel=1e-13)
 
@@ -308,6 +288,13 @@ def test_invalid_tables_are_rejected(tmp_path):
         GravityField.from_json(bad)
     with pytest.raises(GravityModelError, match="shape"):
         random_field(2).acceleration(np.zeros((2, 2)))
+    for bad_point in (np.zeros(3), np.array([np.nan, 1.0, 0.0])):
+        with pytest.raises(GravityModelError, match="non-zero"):
+            random_field(2).acceleration(bad_point)
+        with pytest.raises(GravityModelError, match="non-zero"):
+            random_field(2).potential(bad_point)
+        with pytest.raises(GravityModelError, match="non-zero"):
+            random_field(2).acceleration_batch(bad_point[None, :])
 
 
 def test_coefficient_arrays_are_read_only():
