@@ -75,7 +75,9 @@ def _sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
-def provenance_for(shape: Path, degree: int, mass_kg: float, units: str) -> dict[str, Any]:
+def provenance_for(
+    shape: Path, degree: int, mass_kg: float, units: str, out: Path | None = None
+) -> dict[str, Any]:
     """Provenance record of a table generated from ``shape``.
 
     Args:
@@ -83,6 +85,7 @@ def provenance_for(shape: Path, degree: int, mass_kg: float, units: str) -> dict
         degree: Degree and order.
         mass_kg: Mass [kg].
         units: OBJ length unit.
+        out: Output file, as given on the command line (for the generator command).
 
     Returns:
         JSON-ready mapping: shape file name and sha256 (with the data-set citation when the file
@@ -106,8 +109,8 @@ def provenance_for(shape: Path, degree: int, mass_kg: float, units: str) -> dict
         "(C cos m lambda + S sin m lambda), a = grad U"
     )
     record["generator"] = (
-        f"isf-satellite gravity --shape {shape.name} --degree {degree} --mass {mass_kg:g} "
-        f"--units {units} --out <file>"
+        f"isf-satellite gravity --shape {shape.as_posix()} --degree {degree} --mass {mass_kg:g} "
+        f"--units {units} --out {out.as_posix() if out is not None else '<file>'}"
     )
     record["date"] = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d")
     return record
@@ -124,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
         raise GravityModelError(f"--mass must be a positive number of kg, got {args.mass:g}")
     field = GravityField.from_mesh(shape, args.degree, mass_kg=args.mass, units=args.units)
     out = Path(args.out)
-    field.to_json(out, provenance=provenance_for(shape, args.degree, args.mass, args.units))
+    field.to_json(out, provenance=provenance_for(shape, args.degree, args.mass, args.units, out))
     print(
         f"wrote {out}: degree {field.degree}, r_ref {field.r_ref_m:.6g} m, "
         f"gm {field.gm:.6g} m^3/s^2",
