@@ -246,6 +246,8 @@ def test_batch_and_single_point_agree():
     np.testing.assert_allclose(g.acceleration(pts), single, rtol=1e-13, atol=1e-22)
     pots = np.array([g.potential(p) for p in pts])
     np.testing.assert_allclose(g.potential(pts), pots, rtol=1e-14)
+    xyz = np.array([g.acceleration_xyz(*p) for p in pts.tolist()])
+    np.testing.assert_array_equal(xyz, single)
     assert g.acceleration(pts[0]).shape == (3,)
     assert isinstance(g.potential(pts[0]), float)
 
