@@ -285,18 +285,17 @@ class GravityField:
         )
         e = np.arange(d)
         total = e[:, None, None] + e[None, :, None] + e[None, None, :]
-        tables = np.zeros((5, d, d, d))
+        tables = np.zeros((4, d, d, d))
         tables[0, :-1] = h[1:] * e[1:, None, None]  # dH/dx
         tables[1, :, :-1] = h[:, 1:] * e[None, 1:, None]  # dH/dy
         tables[2, :, :, :-1] = h[:, :, 1:] * e[None, None, 1:]  # dH/dz
         tables[3] = h * (2 * total + 1)  # K
-        tables[4] = h  # H
         self._h_table = h
         # Single-point evaluation contracts k, then j, then i with three 2-D np.dot calls
         # (faster than batched matmul on such tiny arrays): T[row, i, j, k] -> (4 d d, d).
-        self._accel_table = np.ascontiguousarray(tables[:4].reshape(4 * d * d, d))
+        self._accel_table = np.ascontiguousarray(tables.reshape(4 * d * d, d))
         self._pot_table = np.ascontiguousarray(h.reshape(d * d, d))
-        self._batch_table = tables[:4].reshape(4, -1).T.copy()  # (d^3, 4)
+        self._batch_table = tables.reshape(4, -1).T.copy()  # (d^3, 4)
         self._exponents = e.astype(np.float64)
         self._d = d
 
