@@ -1,0 +1,264 @@
+"""Safeguarding impulsive controller (paper, Section III-B; DESIGN.md section 4) and triggers.
+
+At the current radius ``r`` the controller aims at the apsis ``r_t = 2R + 0.5 (r - 2R)``:
+
+* ``r >= 2R``: ``r_t`` becomes the new **periapsis** and the satellite is placed at true anomaly
+  ``nu = -pi + (pi / 2) (r - 2R) / (0.4 R)`` (from -pi at 2R to -pi/2 at 2.4R);
+* ``r < 2R``: ``r_t`` becomes the new **apoapsis**, ``nu = (pi / 2) (2R - r) / (0.4 R)``
+  (from 0 at 2R to pi/2 at 1.6R).
+
+The conic ``r = p / (1 + e cos nu)`` with ``r_t = p / (1 + e)`` (periapsis) gives
+``e = (r - r_t) / (r_t - r cos nu)``; with ``r_t = p / (1 - e)`` (apoapsis)
+``e = (r_t - r) / (r_t + r cos nu)``; then ``p = r (1 + e cos nu)``. The new velocity, in the
+current orbital plane, is ``v+ = (mu / H) e sin(nu) r_hat + (H / r) t_hat`` with
+``H = sqrt(mu p)`` and ``t_hat = k_hat x r_hat`` (``k_hat`` the current angular-momentum
+direction, so the sense of motion is kept); the impulse is ``v+ - v``. When the velocity is
+(almost) radial the plane is undefined; the controller then uses the plane through ``r`` and
+the z axis (or the x axis when ``r`` is along z). Only the Kepler model is used (as in the paper).
+
+Trigger (eq. greedy_cond): ``Xi(x) = LF h - |dh/dx| d_bar + alpha(h)`` with
+``LF h = -2 (r - 2R) r_dot`` and ``|dh/dx| = 2 |r - 2R|``. After an impulse, ``h`` is unchanged
+and ``r_dot = (mu / H) e sin nu`` depends on ``r`` only, so ``Xi(G(x, K(x)))`` is a function of
+``r`` alone (:meth:`SafeguardingController.post_jump_xi`); the margin ``c`` is chosen from it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from isf_robot.core import ClassK, ConfigError, EventTriggeredImpulsiveController, Linear, ZenoGuard
+from satellite.model import BAND_INNER, BAND_OUTER, BandBarrier, OrbitModel
+
+__all__ = [
+    "SafeguardingController",
+    "ControlParams",
+    "ResolvedControl",
+    "FastTriggers",
+    "resolve_control",
+    "make_controller",
+    "jump_map",
+]
+
+
+class SafeguardingController:
+    """The paper's impulsive safeguarding controller ``K(x)`` (Kepler model only).
+
+    Args:
+        model: Supplies R and mu.
+    """
+
+    def __init__(self, model: OrbitModel) -> None:
+        self.mu = model.mu
+        self.r_centre = model.r_centre
+        self.half_width = model.half_width
+
+    def target(self, r: float) -> tuple[float, float, str]:
+        """Target apsis ``r_t`` [m], true anomaly ``nu`` [rad] and ``"periapsis"``/``"apoapsis"``."""
+        dr = r - self.r_centre
+        r_t = self.r_centre + 0.5 * dr
+        if dr >= 0.0:
+            return r_t, -math.pi + 0.5 * math.pi * dr / self.half_width, "periapsis"
+        return r_t, 0.5 * math.pi * (-dr) / self.half_width, "apoapsis"
+
+    def conic(self, r: float) -> tuple[float, float, float]:
+        """Semi-latus rectum ``p`` [m], eccentricity ``e`` and true anomaly ``nu`` [rad] after the jump."""
+        r_t, nu, kind = self.target(r)
+        cn = math.cos(nu)
+        if kind == "periapsis":
+            e = (r - r_t) / (r_t - r * cn)
+        else:
+            e = (r_t - r) / (r_t + r * cn)
+        return r * (1.0 + e * cn), e, nu
+
+    def post_jump_speeds(self, r: float) -> tuple[float, float]:
+        """Radial and transverse speed after the jump at radius ``r`` [m/s]."""
+        p, e, nu = self.conic(r)
+        hh = math.sqrt(self.mu * p)
+        return self.mu / hh * e * math.sin(nu), hh / r
+
+    def post_jump_xi(self, r: float, alpha: ClassK, d_bar: float = 0.0) -> float:
+        """``Xi(G(x, K(x)))`` at radius ``r`` [m^2/s] (independent of the pre-jump velocity)."""
+        v_r, _ = self.post_jump_speeds(r)
+        dr = r - self.r_centre
+        return -2.0 * dr * v_r - 2.0 * abs(dr) * d_bar + alpha(self.half_width**2 - dr * dr)
+
+    def velocity_after(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Velocity ``v+`` [m/s] after the jump at state ``x``, shape (3,)."""
+        rv = np.asarray(x[:3], dtype=float)
+        vv = np.asarray(x[3:6], dtype=float)
+        r = float(np.linalg.norm(rv))
+        if not (math.isfinite(r) and r > 0.0):
+            raise ConfigError(f"controller needs a finite non-zero position, got {rv}")
+        rhat = rv / r
+        k = np.cross(rv, vv)
+        kn = float(np.linalg.norm(k))
+        if not kn > 1e-9 * r * max(float(np.linalg.norm(vv)), 1e-300):
+            axis = np.array([0.0, 0.0, 1.0]) if abs(rhat[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+            k = np.cross(rhat, axis)
+            kn = float(np.linalg.norm(k))
+        that = np.cross(k / kn, rhat)
+        v_r, v_t = self.post_jump_speeds(r)
+        return v_r * rhat + v_t * that
+
+    def __call__(self, t: float, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Impulse ``dv = v+ - v`` [m/s], shape (3,)."""
+        return self.velocity_after(x) - np.asarray(x[3:6], dtype=float)
+
+
+def jump_map(x: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Impulsive jump ``G(x, dv) = [r, v + dv]``, shape (6,)."""
+    out = np.array(x, dtype=float)
+    out[3:6] += v
+    return out
+
+
+@dataclass(frozen=True)
+class ControlParams:
+    """Trigger and margin settings (the paper gives none of them).
+
+    Attributes:
+        alpha_gain: Gain of ``alpha(h) = gain * h`` [1/s]; default (``None``) the mean motion of
+            the circular orbit at 2R, ``sqrt(mu / (2R)^3)`` (2.62e-4 1/s for Itokawa): ``h`` may
+            shrink at most at the natural orbital rate.
+        d_bar: Disturbance bound in ``Xi`` (default 0). ``h`` depends on position only and the
+            disturbance acts on the velocity equation, so ``dh/dx . d = 0`` exactly and the
+            robust term is not needed for safety; a positive value adds conservatism.
+        c: Post-jump margin [m^2/s]; default (``None``) ``c_fraction`` times the smallest
+            ``Xi(G(x, K(x)))`` over the band (sampled on 4001 radii).
+        c_fraction: Fraction used for the default ``c``, in (0, 1].
+    """
+
+    alpha_gain: float | None = None
+    d_bar: float = 0.0
+    c: float | None = None
+    c_fraction: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.alpha_gain is not None and not (math.isfinite(self.alpha_gain) and self.alpha_gain > 0.0):
+            raise ConfigError(f"alpha gain must be positive [1/s], got {self.alpha_gain}")
+        if not (math.isfinite(self.d_bar) and self.d_bar >= 0.0):
+            raise ConfigError(f"d_bar must be >= 0, got {self.d_bar}")
+        if self.c is not None and not (math.isfinite(self.c) and self.c > 0.0):
+            raise ConfigError(f"c must be positive [m^2/s], got {self.c}")
+        if not (0.0 < self.c_fraction <= 1.0):
+            raise ConfigError(f"c_fraction must be in (0, 1], got {self.c_fraction}")
+
+
+@dataclass(frozen=True)
+class ResolvedControl:
+    """Settings with defaults filled in.
+
+    Attributes:
+        alpha_gain: [1/s].
+        d_bar: Disturbance bound used in ``Xi``.
+        c: Post-jump margin [m^2/s].
+        min_post_jump_xi: Smallest sampled ``Xi(G(x, K(x)))`` over the band [m^2/s].
+        argmin_r_over_R: Radius of that minimum [R].
+    """
+
+    alpha_gain: float
+    d_bar: float
+    c: float
+    min_post_jump_xi: float
+    argmin_r_over_R: float
+
+
+def resolve_control(model: OrbitModel, params: ControlParams | None = None, samples: int = 4001) -> ResolvedControl:
+    """Fill in the defaults and check that the controller meets ``Xi(G(x, K(x))) >= c`` on the band.
+
+    Raises:
+        ConfigError: The sampled post-jump ``Xi`` is not positive somewhere on the band, or the
+            given ``c`` exceeds its minimum (the run would fail its post-jump check).
+    """
+    params = params or ControlParams()
+    gain = params.alpha_gain if params.alpha_gain is not None else model.mean_motion_centre()
+    alpha = Linear(gain)
+    ctrl = SafeguardingController(model)
+    radii = np.linspace(BAND_INNER, BAND_OUTER, samples) * model.R
+    vals = np.array([ctrl.post_jump_xi(float(r), alpha, params.d_bar) for r in radii])
+    i = int(np.argmin(vals))
+    low = float(vals[i])
+    if not low > 0.0:
+        raise ConfigError(
+            f"the safeguarding controller gives Xi(G(x,K(x))) = {low:.3g} <= 0 at r = "
+            f"{radii[i] / model.R:.4f} R with alpha gain {gain:g} and d_bar {params.d_bar:g}; "
+            "no positive margin c exists (lower d_bar or raise alpha)"
+        )
+    c = params.c if params.c is not None else params.c_fraction * low
+    if c > low:
+        raise ConfigError(
+            f"c = {c:g} exceeds the smallest post-jump Xi over the band, {low:g} at r = "
+            f"{radii[i] / model.R:.4f} R; the post-jump check would fail"
+        )
+    return ResolvedControl(gain, params.d_bar, c, low, float(radii[i] / model.R))
+
+
+class FastTriggers:
+    """Plain-float trigger values for the integrator's event functions.
+
+    Same values as :meth:`EventTriggeredImpulsiveController.xi` for the band barrier and the
+    Kepler flow (a test checks it), without per-call array work.
+
+    Args:
+        model: Supplies R.
+        alpha: Class-K function.
+        d_bar: Disturbance bound.
+    """
+
+    def __init__(self, model: OrbitModel, alpha: ClassK, d_bar: float) -> None:
+        self.r_centre = model.r_centre
+        self.h_max = model.h_max
+        self.alpha = alpha
+        self.d_bar = d_bar
+
+    def parts(self, y: NDArray[np.float64]) -> tuple[float, float, float]:
+        """Return ``(r, h, LF h)`` at state ``y``."""
+        px, py, pz, vx, vy, vz = y.tolist()
+        r = math.sqrt(px * px + py * py + pz * pz)
+        dr = r - self.r_centre
+        return r, self.h_max - dr * dr, -2.0 * dr * (px * vx + py * vy + pz * vz) / r
+
+    def xi(self, t: float, y: NDArray[np.float64]) -> float:
+        """Greedy trigger ``Xi`` [m^2/s]."""
+        r, h, lfh = self.parts(y)
+        return lfh - 2.0 * abs(r - self.r_centre) * self.d_bar + self.alpha(h)
+
+    def h(self, t: float, y: NDArray[np.float64]) -> float:
+        """Barrier value [m^2]."""
+        return self.parts(y)[1]
+
+    def r_dot(self, t: float, y: NDArray[np.float64]) -> float:
+        """Radial speed ``r . v`` (scaled; only its sign matters) for apsis detection."""
+        px, py, pz, vx, vy, vz = y.tolist()
+        return px * vx + py * vy + pz * vz
+
+    def xi_tau_fn(self, dtau_dh: Callable[[float], float]) -> Callable[[float, NDArray[np.float64]], float]:
+        """Event function ``Xi_tau = (1 + tau_p'(h) LF h) / 2`` for a fitted ``tau_p``."""
+
+        def xi_tau(t: float, y: NDArray[np.float64]) -> float:
+            _, h, lfh = self.parts(y)
+            return 0.5 * (1.0 + dtau_dh(h) * lfh)
+
+        return xi_tau
+
+
+def make_controller(
+    model: OrbitModel, resolved: ResolvedControl, *, tol: float = 1e-9, zeno: ZenoGuard | None = None
+) -> EventTriggeredImpulsiveController:
+    """Core controller: Kepler flow model, jump ``[r, v + dv]``, band barrier, safeguarding ``K``."""
+    return EventTriggeredImpulsiveController(
+        flow_model=model.kepler_rhs,
+        jump_map=jump_map,
+        barrier=BandBarrier(model),
+        controller=SafeguardingController(model),
+        alpha=Linear(resolved.alpha_gain),
+        c=resolved.c,
+        d_bar=resolved.d_bar,
+        tol=tol,
+        zeno=zeno,
+    )
