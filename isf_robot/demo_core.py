@@ -46,6 +46,7 @@ class DemoScene:
         goal: Goal position [m], shape (2,).
         centers: Disc centres [m], shape (k, 2).
         radii: Disc radii [m], shape (k,).
+
     """
 
     start: np.ndarray
@@ -93,7 +94,9 @@ def run_episode(
         raise ConfigError(f"duration and dt must be > 0, got {duration}, {dt}")
     scene = make_scene(seed, n_obstacles)
     system = SingleIntegrator(2)
-    barriers = [DiscObstacleBarrier(cc, r, name=f"disc{i}") for i, (cc, r) in enumerate(zip(scene.centers, scene.radii))]
+    barriers = [
+        DiscObstacleBarrier(cc, r, name=f"disc{i}") for i, (cc, r) in enumerate(zip(scene.centers, scene.radii))
+    ]
     alpha = Linear(alpha_gain)
     filt: SafetyFilter | IntermittentSafetyFilter | None
     if strategy == "cbf":

@@ -35,6 +35,7 @@ class BarrierEval:
         grad: Gradients ``dh/dx``, shape (k, n).
         dhdt: Explicit time derivatives ``dh/dt`` (0 for static barriers), shape (k,).
         names: One name per barrier.
+
     """
 
     h: np.ndarray
@@ -75,6 +76,7 @@ class DiscObstacleBarrier(Barrier):
         velocity: Constant obstacle velocity [m/s], shape (d,), for a moving obstacle
             ``c(t) = center + velocity * t``.
         name: Label.
+
     """
 
     def __init__(
@@ -117,6 +119,7 @@ class HalfSpaceBarrier(Barrier):
         a: Normal, shape (n,), non-zero.
         b: Offset.
         name: Label.
+
     """
 
     def __init__(self, a: Sequence[float] | np.ndarray, b: float, name: str = "halfspace") -> None:
@@ -141,6 +144,7 @@ class FunctionBarrier(Barrier):
         grad: ``grad(x, t) -> (n,)``.
         dhdt: Optional ``dhdt(x, t) -> float``.
         name: Label.
+
     """
 
     def __init__(
@@ -175,6 +179,7 @@ def evaluate_barriers(barriers: Sequence[Barrier], x: np.ndarray, t: float = 0.0
 
     Returns:
         The stacked :class:`BarrierEval`.
+
     """
     if len(barriers) == 0:
         raise ConfigError("at least one barrier is needed")

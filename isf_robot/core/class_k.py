@@ -58,6 +58,7 @@ class Linear(ClassK):
 
     Args:
         gain: Slope [1/s], > 0.
+
     """
 
     def __init__(self, gain: float) -> None:
@@ -82,6 +83,7 @@ class Power(ClassK):
     Args:
         gain: Scale, > 0.
         exponent: Power, > 0 (values below 1 make alpha steep near the boundary).
+
     """
 
     def __init__(self, gain: float, exponent: float) -> None:
@@ -109,6 +111,7 @@ class CustomClassK(ClassK):
     Args:
         fn: Function of one float returning a float.
         name: Label used in messages.
+
     """
 
     def __init__(self, fn: Callable[[float], float], name: str | None = None) -> None:

@@ -52,6 +52,7 @@ class UnknownNameError(ConfigError, KeyError):
         kind: What kind of name it is, e.g. ``"scene"`` or ``"geom"``.
         name: The name that was asked for.
         valid: The names that exist.
+
     """
 
     def __init__(self, kind: str, name: str, valid: Iterable[str]) -> None:
@@ -75,6 +76,7 @@ class InfeasibleFilterError(IsfError):
         state: The state at which it was built (or ``None`` when unknown).
         barrier_values: Barrier values ``h`` at that state, shape (k,).
         t: Time [s] of the failure, or ``None``.
+
     """
 
     def __init__(
@@ -111,6 +113,7 @@ class PostJumpConditionError(IsfError):
         h_after: Barrier value after the jump.
         xi_after: Trigger value after the jump.
         c: The required margin.
+
     """
 
     def __init__(
@@ -139,6 +142,7 @@ class ZenoError(IsfError):
     Attributes:
         t: Time [s] at which the guard fired.
         intervals: The most recent inter-event intervals [s].
+
     """
 
     def __init__(self, message: str, *, t: float, intervals: Any = None) -> None:

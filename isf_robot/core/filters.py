@@ -61,6 +61,7 @@ class FilterStep:
         relaxed: Names of barriers whose promotion was relaxed in this step.
         fallback: Whether the command came from the infeasibility fallback.
         names: Barrier labels.
+
     """
 
     t: float
@@ -143,7 +144,9 @@ class _FilterBase:
     def _check_u_nom(self, u_nom: np.ndarray, lie: LieData) -> np.ndarray:
         return as_vector(u_nom, "nominal command u_nom", lie.m)
 
-    def build_qp(self, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None = None, b: float = 0.0) -> FilterQP:
+    def build_qp(
+        self, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None = None, b: float = 0.0
+    ) -> FilterQP:
         """Build the filter QP: robust rows, or promoting rows where ``promote`` is True."""
         rhs = -self.alpha.vector(lie.h)
         kinds: tuple[str, ...]
@@ -159,7 +162,9 @@ class _FilterBase:
         self.qp_solves += 1
         return self.solver.solve(qp)
 
-    def _infeasible(self, t: float, x: np.ndarray | None, lie: LieData, qp: FilterQP, res: QPResult) -> tuple[np.ndarray, QPResult]:
+    def _infeasible(
+        self, t: float, x: np.ndarray | None, lie: LieData, qp: FilterQP, res: QPResult
+    ) -> tuple[np.ndarray, QPResult]:
         if self.on_infeasible == "raise":
             raise InfeasibleFilterError(
                 f"safety filter infeasible at t={t:.6g}: no command satisfies the robust barrier "
@@ -192,6 +197,7 @@ class SafetyFilter(_FilterBase):
         solver: QP solver (default :class:`QPSolver` with eps_abs 1e-9).
         on_infeasible: ``"raise"`` or ``"fallback"`` (see module docstring).
         fallback: Optional fallback command function.
+
     """
 
     def step(self, t: float, x: np.ndarray, u_nom: np.ndarray) -> FilterStep:
@@ -232,6 +238,7 @@ class IntermittentSafetyFilter(_FilterBase):
         system, barriers, u_min, u_max, solver, on_infeasible, fallback: as
             :class:`SafetyFilter`.
         t0: Start time [s].
+
     """
 
     def __init__(
@@ -288,7 +295,8 @@ class IntermittentSafetyFilter(_FilterBase):
             relaxed = tuple(lie.names[i] if i < len(lie.names) else str(i) for i in relaxed_idx)
             qp = self.build_qp(lie, u_nom)
             res = self._solve(qp)
-            res = QPResult(res.u, res.status, res.active, res.solve_time_s, res.iterations, res.max_violation, relaxed_idx)
+            res = QPResult(res.u, res.status, res.active, res.solve_time_s, res.iterations,
+                           res.max_violation, relaxed_idx)
         fb = False
         if not res.ok:
             _, res = self._infeasible(t, x, lie, qp, res)

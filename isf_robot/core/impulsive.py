@@ -49,6 +49,7 @@ class JumpEvent:
         xi_before: Trigger value before.
         xi_after: Trigger value after (>= c by the run-time check).
         interval_s: Time since the previous jump (or since the start for the first) [s].
+
     """
 
     t: float
@@ -80,6 +81,7 @@ class EventTriggeredImpulsiveController:
         tol: Slack allowed in the post-jump checks (round-off), >= 0.
         zeno: Zeno guard (default: stop when 50 jumps fall within 1e-6 s... see ZenoGuard).
         t0: Start time [s].
+
     """
 
     def __init__(
@@ -136,6 +138,7 @@ class EventTriggeredImpulsiveController:
         Raises:
             PostJumpConditionError: ``h(x+) < 0`` or ``Xi(x+) < c`` (beyond ``tol``).
             ZenoError: The Zeno guard fired.
+
         """
         t = check_finite_scalar(t, "t")
         x = as_vector(x, "state x")
@@ -182,6 +185,7 @@ class ManeuverScheduler:
         controller: The greedy controller (owns the flow model, jump and checks).
         tau_p: Fitted expected inter-event time ``tau_p(h)`` [s].
         dtau_p_dh: Its derivative ``d tau_p / dh`` [s per unit of h].
+
     """
 
     def __init__(
@@ -219,6 +223,7 @@ class ManeuverScheduler:
             t: Time [s].
             x: State before the jump.
             kind: ``"greedy"`` in the first phase; ``"safe"`` or ``"tau"`` in the second.
+
         """
         if self.phase == "first" and kind != "greedy":
             raise ConfigError(f"first impulse of a maneuver must be 'greedy', got {kind!r}")

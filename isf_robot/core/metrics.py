@@ -77,6 +77,7 @@ def compute_metrics(
         on: Filter mode per step, shape (N,) bool.
         intervention_rate: ``|u - u_nom|^2`` per step, shape (N,).
         qp_solved: Per-step bool array of QP solves, shape (N,), or a total count.
+
     """
     t = np.asarray(t, dtype=float)
     n = t.shape[0]

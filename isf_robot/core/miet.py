@@ -28,6 +28,7 @@ def miet_bound(c: float, lipschitz_xi: float, flow_bound: float, d_bar: float = 
         lipschitz_xi: ``L_Xi`` > 0.
         flow_bound: ``B`` >= 0.
         d_bar: Disturbance bound >= 0.
+
     """
     c = check_positive(c, "c")
     L = check_positive(lipschitz_xi, "L_Xi (Lipschitz constant of Xi)")
@@ -47,6 +48,7 @@ class MietConstants:
         flow_bound: Largest sampled ``|F(x)|``.
         bound_s: ``c / (L_Xi (B + d_bar))`` [s].
         samples: Number of samples used.
+
     """
 
     lipschitz_xi: float
@@ -109,6 +111,7 @@ class ZenoGuard:
         window: Number of events considered, >= 2.
         min_span: Shortest allowed time span of ``window`` events [s], >= 0.
         min_interval: Shortest allowed single interval [s], >= 0.
+
     """
 
     def __init__(self, window: int = 20, min_span: float = 1e-6, min_interval: float = 0.0) -> None:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -42,6 +42,7 @@ class FilterQP:
         u_max: Upper input bounds, shape (m,), or ``None``.
         kinds: Per row ``"robust"`` or ``"promote"``.
         names: Per row barrier label.
+
     """
 
     u_nom: np.ndarray
@@ -96,6 +97,7 @@ class QPResult:
         iterations: Solver iterations (0 for closed forms).
         max_violation: Largest constraint violation of ``u`` (0 up to tolerance when solved).
         relaxed: Indices of rows whose promotion was relaxed to the robust condition.
+
     """
 
     u: np.ndarray
@@ -144,6 +146,7 @@ def build_filter_qp(
 
     Returns:
         The :class:`FilterQP`.
+
     """
     m = u_nom.shape[0]
     if lg.ndim != 2 or lg.shape[1] != m:
@@ -172,7 +175,7 @@ class _Workspace:
 
     __slots__ = ("qp", "initialised")
 
-    def __init__(self, qp: object) -> None:
+    def __init__(self, qp: Any) -> None:
         self.qp = qp
         self.initialised = False
 
@@ -189,6 +192,7 @@ class QPSolver:
         closed_form: Use :func:`project_halfspace` for a single row without bounds.
         backend: ``"proxsuite"`` (direct, reuses workspaces) or ``"qpsolvers"``
             (``qpsolvers.solve_problem(..., solver="proxqp")``, no reuse).
+
     """
 
     def __init__(
@@ -239,13 +243,16 @@ class QPSolver:
         return qp.residuals(u) <= self.active_tol
 
     def solve(self, qp: FilterQP) -> QPResult:
-        """Solve ``qp``; the returned result has status ``"optimal"``/``"closed_form"``/
-        ``"unconstrained"`` when the command satisfies every row and bound, or
+        """Solve ``qp`` and check the answer against its constraints.
+
+        The result has status ``"optimal"``/``"closed_form"``/``"unconstrained"`` when the
+        command satisfies every row and bound, or
         ``"infeasible"`` (``u`` is then the least-violation command: evidence, not safe).
 
         Raises:
             SolverError: The solver failed for another reason (iteration limit, numerical
                 trouble) or returned a command violating the constraints beyond ``feas_tol``.
+
         """
         t0 = time.perf_counter()
         m, k = qp.m, qp.k
@@ -325,6 +332,7 @@ class QPSolver:
         Returns:
             ``(max row violation of the returned u, u)``. A violation above ``feas_tol``
             certifies (to tolerance) that ``qp`` is infeasible.
+
         """
         from proxsuite import proxqp
 

@@ -20,6 +20,7 @@ class ControlAffineSystem(ABC):
     Attributes:
         n: State dimension.
         m: Input dimension.
+
     """
 
     n: int
@@ -63,6 +64,7 @@ class FunctionSystem(ControlAffineSystem):
         m: Input dimension.
         f0: Drift callable returning shape (n,).
         g: Input-matrix callable returning shape (n, m).
+
     """
 
     def __init__(
@@ -97,6 +99,7 @@ class LieData:
         lg: Input terms, shape (k, m).
         grad_norm: Gradient norms ``|dh/dx|``, shape (k,).
         names: One label per barrier.
+
     """
 
     h: np.ndarray

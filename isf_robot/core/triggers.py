@@ -38,6 +38,7 @@ def xi_on(lie: LieData, u_nom: np.ndarray, alpha: ClassK, d_bar: float) -> np.nd
 
     Returns:
         Shape (k,).
+
     """
     return lie.lf + lie.lg @ u_nom - lie.grad_norm * d_bar + alpha.vector(lie.h)
 
@@ -48,6 +49,7 @@ def xi_tau(dtau_dh: float, lf_h: float) -> float:
     Args:
         dtau_dh: Derivative of the fitted inter-event time with respect to h at h(x).
         lf_h: Lie derivative of h along the flow at x.
+
     """
     return 0.5 * (1.0 + dtau_dh * lf_h)
 
@@ -63,6 +65,7 @@ class SwitchEvent:
         index: 1-based count of switches of this kind so far.
         duration_s: Length of the period that just ended [s] (the off period before an
             "on", the on period before an "off"), or ``None`` for the first on after start.
+
     """
 
     t: float
@@ -82,6 +85,7 @@ class OnOffTrigger:
         c: Margin ``c > 0`` required before the filter may turn off.
         t0: Start time [s].
         start_on: Start in the on mode.
+
     """
 
     def __init__(self, c: float, t0: float = 0.0, start_on: bool = False) -> None:
@@ -101,6 +105,7 @@ class OnOffTrigger:
 
         Returns:
             The switch event if the mode changed at ``t``, else ``None``.
+
         """
         if t < self._t_last:
             raise ConfigError(f"trigger time went backwards: {t} < {self._t_last}")

@@ -21,6 +21,7 @@ def as_vector(value: object, name: str, size: int | None = None) -> np.ndarray:
 
     Returns:
         A 1-D float64 array (a view when possible).
+
     """
     try:
         arr = np.asarray(value, dtype=float)
@@ -29,7 +30,8 @@ def as_vector(value: object, name: str, size: int | None = None) -> np.ndarray:
     if arr.ndim == 0 and size == 1:
         arr = arr.reshape(1)
     if arr.ndim != 1:
-        raise ShapeError(f"{name} must be a vector of shape ({size if size is not None else 'n'},), got shape {arr.shape}")
+        want = size if size is not None else "n"
+        raise ShapeError(f"{name} must be a vector of shape ({want},), got shape {arr.shape}")
     if size is not None and arr.shape[0] != size:
         raise ShapeError(f"{name} must have shape ({size},), got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
