@@ -55,6 +55,7 @@ class RobotConfig:
         geoms: Names of the robot's collision geoms.
         home: Initial joint positions [rad], shape (n,), or ``None`` for the model's qpos0.
         self_collision: Also build barriers for non-adjacent robot-robot geom pairs.
+
     """
 
     joints: tuple[str, ...]
@@ -70,6 +71,7 @@ class ObstacleConfig:
 
     Attributes:
         geoms: Names of the obstacle geoms.
+
     """
 
     geoms: tuple[str, ...]
@@ -84,6 +86,7 @@ class Goal:
             when the config names a site instead of a position).
         dwell: Time to hold the goal once reached [s].
         site: Name of the site the goal was read from, or ``None``.
+
     """
 
     position: tuple[float, float, float]
@@ -100,6 +103,7 @@ class TaskConfig:
         loop: Start again at the first goal after the last one.
         tolerance: Distance [m] below which a goal counts as reached.
         duration: Default episode length [s].
+
     """
 
     goals: tuple[Goal, ...]
@@ -118,6 +122,7 @@ class BarrierConfig:
         joint_margin: Margin on the joint limits [rad]: ``h = q - q_min - joint_margin``.
         cutoff: Broad-phase cut-off [m]: pairs whose bounding spheres are farther apart than
             this are reported inactive (h from the bounding-sphere distance, zero gradient).
+
     """
 
     margin: float = 0.02
@@ -140,6 +145,7 @@ class GainsConfig:
             low-level controller that reads it.
         tracking_kd: Low-level damping gain per joint (or one for all).
         extra: Any further numeric entries of the ``[gains]`` table, by key.
+
     """
 
     task_kp: float = 4.0
@@ -161,6 +167,7 @@ class FilterConfig:
         c: Off-trigger threshold: the filter turns off once every ``Xi_on >= c``.
         b: Promotion level of the safety-promoting filter, ``b > 0``.
         d_bar: Bound on the disturbance ``|d|`` of ``q_dot = u + d`` [rad/s].
+
     """
 
     alpha: float = 5.0
@@ -175,6 +182,7 @@ class ControlConfig:
 
     Attributes:
         period: Control period [s]; an integer multiple of the model's physics timestep.
+
     """
 
     period: float = 0.002
@@ -208,6 +216,7 @@ class CirclePath:
         period: Time for one revolution [s] (negative: clockwise about ``normal``).
         normal: Unit normal of the circle's plane, shape (3,).
         phase: Start angle as a fraction of a revolution.
+
     """
 
     center: tuple[float, float, float]
@@ -245,6 +254,7 @@ class LinearBouncePath:
         end: The other end [m], shape (3,).
         speed: Speed [m/s], > 0.
         phase: Start point as a fraction of the round trip (0: at ``start`` going out).
+
     """
 
     start: tuple[float, float, float]
@@ -280,6 +290,7 @@ class MovingObstacle:
     Attributes:
         body: Name of the mocap body.
         path: Its path; ``position(t)`` and ``velocity(t)`` are analytic.
+
     """
 
     body: str
@@ -303,6 +314,7 @@ class SceneConfig:
         control: Control timing.
         moving: Mocap obstacles with known paths.
         source: The TOML file this was read from, or ``None``.
+
     """
 
     name: str
@@ -461,6 +473,7 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
 
     Raises:
         ConfigError: A key is missing, unknown or has the wrong type or value.
+
     """
     top = _Reader(data, "", origin)
 
@@ -572,6 +585,7 @@ def load_config(path: str | Path) -> SceneConfig:
     Raises:
         ConfigError: The file is missing, is not valid TOML, or breaks the schema; the
             message names the file.
+
     """
     path = Path(path)
     try:

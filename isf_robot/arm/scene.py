@@ -71,6 +71,7 @@ class Scene:
         moving_mocap_ids: Mocap index (row of ``data.mocap_pos``) of each, shape (p,).
         goal_positions: Goal positions in the world frame [m], shape (g, 3).
         goal_dwell: Dwell time per goal [s], shape (g,).
+
     """
 
     name: str
@@ -118,6 +119,7 @@ class Scene:
             ``(lin, ang)``, each shape (nmocap, 3), in [m/s] and [rad/s] (world frame);
             rows of mocap bodies without a path are zero. Pass them to
             :meth:`isf_robot.arm.CollisionBarriers.evaluate` for ``dh/dt``.
+
         """
         lin = np.zeros((self.model.nmocap, 3))
         for mocap, mv in zip(self.moving_mocap_ids, self.config.moving):
@@ -140,7 +142,7 @@ def _resolve(model: mujoco.MjModel, cfg: SceneConfig, xml_path: Path) -> Scene:
     joint_ids = []
     for name in cfg.robot.joints:
         j = _lookup(model, mujoco.mjtObj.mjOBJ_JOINT, "joint", name, model.njnt)
-        if model.jnt_type[j] not in (jt.mjJNT_HINGE, jt.mjJNT_SLIDE):
+        if int(model.jnt_type[j]) not in (int(jt.mjJNT_HINGE), int(jt.mjJNT_SLIDE)):
             raise ConfigError(f"{origin}: [robot] joint {name!r} must be a hinge or slide joint")
         joint_ids.append(j)
     joint_ids_a = np.array(joint_ids, dtype=np.int32)
@@ -152,7 +154,7 @@ def _resolve(model: mujoco.MjModel, cfg: SceneConfig, xml_path: Path) -> Scene:
     act = np.full(len(joint_ids), -1, dtype=np.int32)
     tau = np.full(len(joint_ids), np.inf)
     for a in range(model.nu):
-        if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT:
+        if int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT):
             hit = np.nonzero(joint_ids_a == model.actuator_trnid[a, 0])[0]
             if hit.size:
                 act[hit[0]] = a
@@ -245,6 +247,7 @@ def load_scene_from_files(xml_path: str | Path, toml_path: str | Path) -> Scene:
             inconsistent with the model.
         UnknownNameError: The config names a joint, geom, site or body the model lacks; the
             message lists the valid names.
+
     """
     cfg = load_config(toml_path)
     xml = Path(xml_path)
@@ -274,6 +277,7 @@ def load_scene(name: str) -> Scene:
     Raises:
         UnknownNameError: No such scene; the message lists the valid scene names.
         ConfigError: Its files are malformed.
+
     """
     files = _scene_files()
     if name not in files:

@@ -1,0 +1,67 @@
+"""The MuJoCo layer: scenes and models, collision barriers, nominal control, simulation.
+
+Scenes and barriers (:mod:`.scene`, :mod:`.config`, :mod:`.barriers`) are listed first;
+other modules append their names below.
+"""
+
+from .barriers import (
+    BarrierBatch,
+    Clearance,
+    CollisionBarriers,
+    CollisionPairs,
+    JointLimitBarriers,
+    collision_pairs,
+    min_distance,
+    stack_batches,
+)
+from .config import (
+    BarrierConfig,
+    CirclePath,
+    ControlConfig,
+    FilterConfig,
+    GainsConfig,
+    Goal,
+    LinearBouncePath,
+    MovingObstacle,
+    ObstacleConfig,
+    ObstaclePath,
+    RobotConfig,
+    SceneConfig,
+    TaskConfig,
+    load_config,
+    parse_config,
+)
+from .scene import Scene, SceneInfo, list_scenes, load_scene, load_scene_from_files
+
+__all__ = [
+    # scenes and config
+    "Scene",
+    "SceneInfo",
+    "list_scenes",
+    "load_scene",
+    "load_scene_from_files",
+    "SceneConfig",
+    "RobotConfig",
+    "ObstacleConfig",
+    "Goal",
+    "TaskConfig",
+    "BarrierConfig",
+    "GainsConfig",
+    "FilterConfig",
+    "ControlConfig",
+    "CirclePath",
+    "LinearBouncePath",
+    "ObstaclePath",
+    "MovingObstacle",
+    "load_config",
+    "parse_config",
+    # barriers
+    "BarrierBatch",
+    "stack_batches",
+    "CollisionPairs",
+    "collision_pairs",
+    "CollisionBarriers",
+    "JointLimitBarriers",
+    "Clearance",
+    "min_distance",
+]

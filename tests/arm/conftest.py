@@ -1,0 +1,98 @@
+"""Fixtures for the arm tests: shipped scenes, finite-difference helpers, a kinematic rollout."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import mujoco
+import numpy as np
+import pytest
+
+from isf_robot.arm import CollisionBarriers, Scene, load_scene
+
+
+@pytest.fixture(scope="session")
+def planar() -> Scene:
+    return load_scene("planar")
+
+
+@pytest.fixture(scope="session")
+def planar_moving() -> Scene:
+    return load_scene("planar_moving")
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(20261121)
+
+
+@pytest.fixture(scope="session")
+def fd_grad() -> Callable[..., np.ndarray]:
+    """Central finite differences of ``f(data) -> (k,)`` w.r.t. the joints at ``qpos_adr``.
+
+    Hinge/slide joints: the perturbation is added to qpos (``mj_integratePos`` with a unit
+    velocity on one dof does the same for these joint types); kinematics are recomputed.
+    """
+
+    def fd(model: mujoco.MjModel, data: mujoco.MjData, f: Callable[[mujoco.MjData], np.ndarray],
+           dof_adr: np.ndarray, eps: float = 1e-6) -> np.ndarray:
+        q0 = data.qpos.copy()
+        cols = []
+        for dof in dof_adr:
+            vals = []
+            for sign in (1.0, -1.0):
+                data.qpos[:] = q0
+                v = np.zeros(model.nv)
+                v[dof] = sign
+                mujoco.mj_integratePos(model, data.qpos, v, eps)
+                mujoco.mj_forward(model, data)
+                vals.append(np.asarray(f(data), dtype=float))
+            cols.append((vals[0] - vals[1]) / (2 * eps))
+        data.qpos[:] = q0
+        mujoco.mj_forward(model, data)
+        return np.stack(cols, axis=1)
+
+    return fd
+
+
+@pytest.fixture(scope="session")
+def nominal_rollout() -> Callable[[Scene, float], float]:
+    """Kinematic rollout of the nominal reaching task, q_dot = DLS(kp (goal - ee)).
+
+    Returns the smallest signed robot-obstacle distance seen [m]: negative means the nominal
+    motion collides (every shipped scene must make the filter matter).
+    """
+
+    def run(scene: Scene, duration: float, dt: float = 0.005) -> float:
+        m, g, task = scene.model, scene.config.gains, scene.config.task
+        data = scene.make_data()
+        cb = CollisionBarriers.from_scene(scene)
+        q = scene.home.copy()
+        jac = np.zeros((3, m.nv))
+        goal, held, worst = 0, 0.0, np.inf
+        for step in range(int(duration / dt)):
+            t = step * dt
+            data.qpos[scene.qpos_adr] = q
+            scene.set_moving_obstacles(data, t)
+            mujoco.mj_kinematics(m, data)
+            mujoco.mj_comPos(m, data)
+            worst = min(worst, cb.min_distance(data).distance)
+            err = scene.goal_positions[goal] - data.site_xpos[scene.ee_site_id]
+            if np.linalg.norm(err) < task.tolerance:
+                held += dt
+                if held >= scene.goal_dwell[goal]:
+                    goal, held = (goal + 1) % len(scene.goal_positions), 0.0
+            v = g.task_kp * err
+            speed = np.linalg.norm(v)
+            if speed > g.max_ee_speed:
+                v *= g.max_ee_speed / speed
+            mujoco.mj_jacSite(m, data, jac, None, scene.ee_site_id)
+            J = jac[:, scene.dof_adr]
+            u = J.T @ np.linalg.solve(J @ J.T + g.dls_damping**2 * np.eye(3), v)
+            top = np.max(np.abs(u)) / g.max_joint_speed
+            if top > 1:
+                u /= top
+            q = np.clip(q + dt * u, scene.joint_range[:, 0], scene.joint_range[:, 1])
+        return worst
+
+    return run
