@@ -1,0 +1,76 @@
+"""``isf-robot replay FILE.rrd [FILE.rrd ...] [--json]``: metrics from recordings, no simulation.
+
+Each recording's duty-cycle metrics are recomputed with
+:func:`isf_robot.core.metrics.compute_metrics` from its logged per-step columns. One file
+prints a list of metrics; several (or a file holding several recordings, or a directory of
+``.rrd`` files) print a side-by-side table. ``--json`` prints the metrics as JSON: for a single
+recording the same object as the run's own ``--json`` metrics, otherwise
+``{"recordings": [{"file", "recording_id", "label", "kind", "metrics"}, ...]}``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+__all__ = ["register", "handle", "add_arguments"]
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Arguments of ``replay``."""
+    p.add_argument("files", nargs="+", type=Path, metavar="FILE.rrd",
+                   help="recordings saved with --rrd (a directory stands for the .rrd files in it)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+
+
+def handle(args: argparse.Namespace) -> int:
+    """Read the recordings, recompute and print their metrics."""
+    from .recorder import to_jsonable
+    from .replay import format_table, read_many, replay_metrics
+
+    logs = read_many(args.files)
+    results = [(log, replay_metrics(log)) for log in logs]
+    if args.json:
+        if len(results) == 1:
+            out: Any = results[0][1]
+        else:
+            out = {"recordings": [
+                {"file": str(log.path), "recording_id": log.recording_id, "label": log.label,
+                 "kind": log.kind, "info": log.info, "metrics": m}
+                for log, m in results
+            ]}
+        print(json.dumps(to_jsonable(out)))
+        return 0
+    labels = _unique_labels([log.label for log, _ in results], [log.path.stem for log, _ in results])
+    print(format_table(list(zip(labels, [m for _, m in results]))))
+    if len(results) > 1:
+        for lab, (log, _) in zip(labels, results):
+            print(f"  {lab}: {log.path}", file=sys.stderr)
+    return 0
+
+
+def _unique_labels(labels: list[str], stems: list[str]) -> list[str]:
+    if len(set(labels)) == len(labels):
+        return labels
+    if len(set(stems)) == len(stems):
+        return stems
+    return [f"{i + 1}:{lab}" for i, lab in enumerate(labels)]
+
+
+def register(sub: Any) -> None:
+    """Register ``replay`` on the ``isf-robot`` subparsers."""
+    p = sub.add_parser(
+        "replay",
+        help="recompute duty-cycle metrics from saved Rerun recordings (no simulation)",
+        description=(
+            "Read .rrd recordings saved with --rrd using Rerun's own reader and recompute the "
+            "duty-cycle metrics (duty_cycle, on_switches, mean_off_s, min_off_s, min_barrier, "
+            "intervention) from the logged per-step columns, without simulating. Several "
+            "recordings give a side-by-side table."
+        ),
+    )
+    add_arguments(p)
+    p.set_defaults(handler=handle)

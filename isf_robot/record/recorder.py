@@ -1,0 +1,196 @@
+"""The base Rerun recorder: a core :class:`~isf_robot.core.hooks.Observer` that logs a run.
+
+:class:`RerunRecorder` logs what every run has: metadata, the per-step replay columns (the
+inputs of :func:`~isf_robot.core.metrics.compute_metrics`), the filter mode, the minimum
+barrier value, and each switch or jump event (structured and as a text log). Subclasses
+(:class:`~isf_robot.record.arm.ArmRecorder`,
+:class:`~isf_robot.record.satellite.SatelliteRecorder`) add their 3-D content by overriding
+:meth:`RerunRecorder.start_content`, :meth:`RerunRecorder.step_content` and
+:meth:`RerunRecorder.event_content`, and say how to read a step record by overriding
+:meth:`RerunRecorder.replay_row`.
+
+Everything per step goes through a :class:`~isf_robot.record.buffer.ColumnBuffer`, so the
+cost per step is a few array writes; the stream is closed (file footer written) by
+:meth:`RerunRecorder.close`, which ``on_finish`` calls.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import rerun as rr
+
+from isf_robot.core.hooks import Observer
+
+from . import schema
+from .buffer import ColumnBuffer
+from .stream import close_stream
+
+__all__ = ["RerunRecorder", "to_jsonable"]
+
+
+def to_jsonable(obj: Any) -> Any:
+    """Convert numpy values, paths, dataclasses and the like into JSON-ready values."""
+    if isinstance(obj, Mapping):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return to_jsonable(obj.tolist())
+    if isinstance(obj, (np.floating, float)):
+        f = float(obj)
+        return f if math.isfinite(f) else str(f)
+    if isinstance(obj, (np.integer, np.bool_)):
+        return obj.item()
+    if obj is None or isinstance(obj, (str, int, bool)):
+        return obj
+    if hasattr(obj, "as_dict"):
+        return to_jsonable(obj.as_dict())
+    return str(obj)
+
+
+def _event_columns(rows: list[tuple[float, str, int, float, float]]) -> Any:
+    t, kind, index, xi, dur = zip(*rows)
+    return rr.AnyValues.columns(
+        t=np.asarray(t, dtype=np.float64),
+        kind=list(kind),
+        index=np.asarray(index, dtype=np.int64),
+        xi=np.asarray(xi, dtype=np.float64),
+        duration_s=np.asarray(dur, dtype=np.float64),
+    )
+
+
+def _text_columns(rows: list[tuple[str, str]]) -> Any:
+    text, level = zip(*rows)
+    return rr.TextLog.columns(text=list(text), level=list(level))
+
+
+class RerunRecorder(Observer):
+    """Log a run to an explicit Rerun recording stream.
+
+    Args:
+        stream: The recording stream (see :func:`~isf_robot.record.stream.open_stream`).
+        kind: Recording kind stored in ``/run/info`` (``"arm"``, ``"satellite"``, ...).
+        capacity: Rows buffered per channel before a ``send_columns`` call.
+        close_on_finish: Close the stream in ``on_finish`` (writes the file footer).
+
+    """
+
+    kind = "generic"
+
+    def __init__(
+        self,
+        stream: rr.RecordingStream,
+        *,
+        kind: str | None = None,
+        capacity: int = 2048,
+        close_on_finish: bool = True,
+    ) -> None:
+        self.stream = stream
+        if kind is not None:
+            self.kind = kind
+        self.buffer = ColumnBuffer(stream, capacity)
+        self.close_on_finish = close_on_finish
+        self.closed = False
+        self.steps = 0
+        self.events = 0
+        fields = {
+            "t": ((), np.float64), "dt": ((), np.float64), "on": ((), np.bool_),
+            "intervention_rate": ((), np.float64), "qp_solved": ((), np.bool_),
+            "min_barrier": ((), np.float64),
+        }
+        self._steps = self.buffer.channel(schema.STEPS, fields, lambda **a: rr.AnyValues.columns(**a))
+        self._mode = self.buffer.scalars(f"{schema.PLOTS}/mode")
+        self._hmin = self.buffer.scalars(f"{schema.PLOTS}/barrier/min")
+        self._events = self.buffer.ragged(schema.EVENTS, _event_columns)
+        self._log = self.buffer.ragged(schema.EVENT_LOG, _text_columns)
+
+    # -- observer hooks ------------------------------------------------------------------
+    def on_start(self, info: Mapping[str, Any]) -> None:
+        """Log the run's metadata (static) and the subclass's static content."""
+        self.stream.log(schema.INFO, rr.AnyValues(kind=self.kind, info_json=json.dumps(to_jsonable(info))),
+                        static=True)
+        self.stream.log(f"{schema.PLOTS}/mode", rr.SeriesLines(names="filter on"), static=True)
+        self.stream.log(f"{schema.PLOTS}/barrier/min", rr.SeriesLines(names="min h", colors=[220, 40, 40]),
+                        static=True)
+        self.start_content(info)
+
+    def on_step(self, record: Any) -> None:
+        """Buffer the step's replay row, mode, minimum barrier and the subclass's content."""
+        t, dt, on, rate, solved, h_min = self.replay_row(record)
+        self._steps.push(t, t, dt, on, rate, solved, h_min)
+        self._mode.push(t, 1.0 if on else 0.0)
+        self._hmin.push(t, h_min)
+        self.step_content(t, record)
+        self.steps += 1
+
+    def on_event(self, event: Any) -> None:
+        """Buffer a switch or jump event (structured row and text line)."""
+        t = float(event.t)
+        kind = str(getattr(event, "kind", "event"))
+        index = int(getattr(event, "index", self.events + 1))
+        xi = getattr(event, "xi_min", getattr(event, "xi_before", float("nan")))
+        dur = getattr(event, "duration_s", getattr(event, "interval_s", None))
+        xi = float("nan") if xi is None else float(xi)
+        dur_f = float("nan") if dur is None else float(dur)
+        self._events.push(t, (t, kind, index, xi, dur_f))
+        self._log.push(t, (self.describe_event(event), "INFO" if kind != "off" else "DEBUG"))
+        self.event_content(t, event)
+        self.events += 1
+
+    def on_finish(self, summary: Mapping[str, Any]) -> None:
+        """Flush the buffers, log the summary (static) and close the stream if configured."""
+        self.stream.log(schema.SUMMARY, rr.AnyValues(summary_json=json.dumps(to_jsonable(summary)),
+                                                     steps=self.steps, events=self.events), static=True)
+        self.finish_content(summary)
+        self.buffer.flush()
+        if self.close_on_finish:
+            self.close()
+
+    def close(self) -> None:
+        """Flush whatever is buffered and close the stream (idempotent)."""
+        if self.closed:
+            return
+        self.buffer.flush()
+        close_stream(self.stream)
+        self.closed = True
+
+    # -- what subclasses give --------------------------------------------------------------
+    def replay_row(self, record: Any) -> tuple[float, float, bool, float, bool, float]:
+        """Extract ``(t, dt, on, |u - u_nom|^2, qp_solved, min_barrier)`` from a step record.
+
+        The default reads attributes ``t``, ``dt``, ``on``, then ``intervention_rate`` or
+        ``u``/``u_nom``, then ``qp_solved`` (or ``solved_qp``), then ``min_barrier`` (or
+        ``h_min``).
+        """
+        rate = getattr(record, "intervention_rate", None)
+        if rate is None:
+            d = np.asarray(record.u, dtype=float) - np.asarray(record.u_nom, dtype=float)
+            rate = float(d @ d)
+        solved = getattr(record, "qp_solved", getattr(record, "solved_qp", False))
+        h_min = getattr(record, "min_barrier", getattr(record, "h_min", float("nan")))
+        return (float(record.t), float(record.dt), bool(record.on), float(rate), bool(solved), float(h_min))
+
+    def describe_event(self, event: Any) -> str:
+        """One text line for the event log."""
+        kind = getattr(event, "kind", "event")
+        t = float(event.t)
+        dur = getattr(event, "duration_s", None)
+        extra = "" if dur is None else f" after {float(dur):.4g} s"
+        return f"t = {t:.6g} s: {kind} #{getattr(event, 'index', '?')}{extra}"
+
+    def start_content(self, info: Mapping[str, Any]) -> None:
+        """Log static content (geometry, ...); default: nothing."""
+
+    def step_content(self, t: float, record: Any) -> None:
+        """Buffer per-step content; default: nothing."""
+
+    def event_content(self, t: float, event: Any) -> None:
+        """Log per-event content (arrows, ...); default: nothing."""
+
+    def finish_content(self, summary: Mapping[str, Any]) -> None:
+        """Log end-of-run content; default: nothing."""

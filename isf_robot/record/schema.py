@@ -1,0 +1,53 @@
+"""Entity paths and replay columns shared by the recorders, the blueprints and the replay reader.
+
+Layout of a recording (every time-varying entity is on the ``sim_time`` timeline, seconds):
+
+``/run/info``, ``/run/summary``
+    Static: the run's metadata (``on_start``) and summary (``on_finish``) as JSON strings,
+    plus ``kind`` (``"arm"`` or ``"satellite"``).
+``/replay/steps``
+    One row per control step, exactly the inputs of
+    :func:`isf_robot.core.metrics.compute_metrics` in float64/bool: ``t``, ``dt``, ``on``,
+    ``intervention_rate`` (``|u - u_nom|^2``), ``qp_solved``, and ``min_barrier`` (the
+    true-geometry minimum of that step). Replay recomputes the metrics from these alone.
+``/replay/impulses``
+    Impulsive runs only: one row per impulse with ``dv`` (``dv_x``, ``dv_y``, ``dv_z``),
+    ``h_after``, ``xi_after``, ``interval_s``.
+``/replay/events``
+    One row per switch or jump event: ``t``, ``kind``, ``index``, ``xi`` (``Xi`` at the
+    event), ``duration_s`` (NaN when undefined).
+``/events``
+    The same events as a text log.
+``/plots/...``
+    Time series for the viewer (barrier values, trigger values, mode, commands).
+``/world/...``
+    3-D content (geometry, poses, witness segments, goals; the satellite's body, band,
+    trajectory and impulses).
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "INFO", "SUMMARY", "STEPS", "EVENTS", "EVENT_LOG", "STEP_FIELDS", "EVENT_FIELDS",
+    "PLOTS", "WORLD", "IMPULSES", "IMPULSE_FIELDS",
+]
+
+INFO = "/run/info"
+SUMMARY = "/run/summary"
+STEPS = "/replay/steps"
+EVENTS = "/replay/events"
+IMPULSES = "/replay/impulses"
+EVENT_LOG = "/events"
+PLOTS = "/plots"
+WORLD = "/world"
+
+STEP_FIELDS: tuple[str, ...] = ("t", "dt", "on", "intervention_rate", "qp_solved", "min_barrier")
+"""Columns of :data:`STEPS`, in order."""
+
+EVENT_FIELDS: tuple[str, ...] = ("t", "kind", "index", "xi", "duration_s")
+"""Columns of :data:`EVENTS`, in order."""
+
+IMPULSE_FIELDS: tuple[str, ...] = (
+    "t", "kind", "index", "dv_x", "dv_y", "dv_z", "h_after", "xi_after", "interval_s",
+)
+"""Columns of :data:`IMPULSES` (impulsive runs), in order."""
