@@ -1,0 +1,146 @@
+"""``isf-satellite run``: one orbit run with a chosen trigger, summary as text or JSON."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from collections.abc import Mapping
+from typing import Any, TextIO
+
+from isf_robot.core import ConfigError, Observer, UnknownNameError
+from satellite.controller import ControlParams
+from satellite.model import InitialOrbit, OrbitModel
+from satellite.simulate import TRIGGERS, RunResult, SatelliteSample, simulate
+
+__all__ = ["register", "run", "ProgressObserver", "format_text"]
+
+
+class ProgressObserver(Observer):
+    """Writes a line to a stream at every ``step`` fraction of the simulated time.
+
+    Args:
+        stream: Where to write (stderr in the CLI).
+        step: Fraction of the run between lines, in (0, 1].
+    """
+
+    def __init__(self, stream: TextIO, step: float = 0.1) -> None:
+        self.stream = stream
+        self.step = step
+        self.total_s = 0.0
+        self.next_frac = step
+        self.jumps = 0
+        self.wall0 = time.perf_counter()
+
+    def on_start(self, info: Mapping[str, Any]) -> None:
+        self.total_s = float(info["hours"]) * 3600.0
+        self.wall0 = time.perf_counter()
+
+    def on_step(self, record: SatelliteSample) -> None:
+        if self.total_s <= 0.0:
+            return
+        frac = record.t / self.total_s
+        if frac + 1e-12 >= self.next_frac:
+            while self.next_frac <= frac + 1e-12:
+                self.next_frac += self.step
+            self.stream.write(
+                f"isf-satellite run: {100 * min(frac, 1.0):3.0f}% ({record.t / 3600:.0f} h), "
+                f"{self.jumps} impulses, {time.perf_counter() - self.wall0:.1f} s\n"
+            )
+            self.stream.flush()
+
+    def on_event(self, event: Any) -> None:
+        self.jumps += 1
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``run`` subcommand."""
+    p = subparsers.add_parser(
+        "run",
+        help="simulate the orbit with no control, the greedy trigger or two-impulse maneuvers",
+        description=(
+            "Integrates the satellite about Itokawa (degree-8 spherical harmonics, spinning body) "
+            "and applies the safeguarding impulsive controller when the trigger fires. "
+            "Band [1.6R, 2.4R], h = (0.4R)^2 - (r - 2R)^2."
+        ),
+    )
+    p.add_argument("--trigger", default="greedy", metavar="{" + ",".join(TRIGGERS) + "}",
+                   help="none | greedy (default) | maneuver (needs --tau)")
+    p.add_argument("--hours", type=float, default=2400.0, help="simulated time in hours (default 2400)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the initial orbit's node, latitude and body phase")
+    p.add_argument("--tau", metavar="FILE", help="tau_p fit written by `isf-satellite tau` (maneuver trigger)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout (nothing else)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    p.add_argument("--no-spin", action="store_true", help="freeze the body (default: 12.1324 h spin)")
+    p.add_argument("--inclination", type=float, default=45.0, metavar="DEG",
+                   help="inclination to the body's equator (default 45)")
+    p.add_argument("--radius", type=float, default=2.0, metavar="R_OVER_R",
+                   help="initial radius in units of R, inside [1.6, 2.4] (default 2.0, circular speed)")
+    p.add_argument("--alpha-gain", type=float, default=None, metavar="PER_S",
+                   help="alpha(h) = gain * h (default: mean motion at 2R, 2.63e-4 1/s)")
+    p.add_argument("--d-bar", type=float, default=0.0, help="disturbance bound used in Xi (default 0)")
+    p.add_argument("--c", type=float, default=None, help="post-jump margin (default: half the smallest post-jump Xi)")
+    p.add_argument("--gravity", metavar="FILE.json", help="gravity table (default: committed Itokawa degree 8)")
+    p.add_argument("--events", action="store_true", help="with --json, include the impulse list")
+    p.set_defaults(func=run)
+
+
+def format_text(res: RunResult) -> str:
+    """Human-readable summary."""
+
+    def f(v: Any, fmt: str) -> str:
+        return "-" if v is None else format(v, fmt)
+
+    lines = [
+        f"trigger            {res.trigger}",
+        f"hours              {res.hours:g} (simulated {res.simulated_h:.4g})",
+        f"triggers           {res.triggers} {res.kinds if res.kinds else ''}".rstrip(),
+        f"min_h              {res.min_h:.6g} m^2",
+        f"r range            [{res.r_min_over_R:.4f}, {res.r_max_over_R:.4f}] R",
+        f"total_dv           {res.total_dv:.6g} m/s",
+        f"inter-event        min {f(res.min_inter_event_h, '.4g')} h, mean {f(res.mean_inter_event_h, '.4g')} h",
+        f"miet_bound         {res.miet_bound_h:.3g} h",
+    ]
+    if res.trigger == "none":
+        lines.append(f"left_band          {f(res.left_band_h, '.4g')} h")
+    lines.append(f"wall               {res.wall_s:.2f} s")
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute ``isf-satellite run``; return the exit status."""
+    if args.trigger not in TRIGGERS:
+        raise UnknownNameError("trigger", args.trigger, TRIGGERS)
+    if not math.isfinite(args.hours) or args.hours < 0:
+        raise ConfigError(f"--hours must be a finite number >= 0, got {args.hours:g}")
+    tau = None
+    if args.trigger == "maneuver":
+        if not args.tau:
+            raise ConfigError("--trigger maneuver needs --tau FILE (make one with `isf-satellite tau --out FILE`)")
+        from satellite.tau import load_tau
+
+        tau = load_tau(args.tau)
+    field = None
+    if args.gravity:
+        from satellite.gravity import GravityField
+
+        field = GravityField.from_json(args.gravity)
+    model = OrbitModel(field, spin=not args.no_spin)
+    initial = InitialOrbit(radius_over_R=args.radius, inclination_deg=args.inclination, seed=args.seed)
+    control = ControlParams(alpha_gain=args.alpha_gain, d_bar=args.d_bar, c=args.c)
+    observers = [] if args.quiet else [ProgressObserver(sys.stderr)]
+    res = simulate(args.trigger, args.hours, initial=initial, model=model, control=control, tau=tau,
+                   observers=observers)
+    if args.json:
+        out = res.summary()
+        if args.events:
+            out["events"] = [
+                {"t_h": e.t / 3600.0, "kind": e.kind, "dv": e.v.tolist(), "h_before": e.h_before,
+                 "xi_after": e.xi_after} for e in res.events
+            ]
+        sys.stdout.write(json.dumps(out) + "\n")
+    else:
+        sys.stdout.write(format_text(res) + "\n")
+    return 0
