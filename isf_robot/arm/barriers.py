@@ -23,7 +23,10 @@ Accuracy (checked against finite differences, MuJoCo 4.0): exact for pairs among
 capsules, boxes-vs-spheres and box-box; pairs routed through GJK/EPA (convex meshes,
 cylinders, ellipsoids) are as accurate as the model's ``ccd_tolerance`` (our models set
 1e-10); capsule-box pairs are exact while apart but wrong while overlapping (a warning
-says so), so our models build boxes that capsules may touch as convex meshes.
+says so), so our models build boxes that capsules may touch as convex meshes. Where the
+witness points are not unique (a capsule parallel to a face, crossing capsule axes) the
+distance has a kink; the gradient returned is then that of the piece MuJoCo's witness
+points belong to (a one-sided derivative), while central differences give the average.
 """
 
 from __future__ import annotations
@@ -75,6 +78,9 @@ class BarrierBatch:
         witness: Witness points (on geom 1, on geom 2) [m], shape (k, 2, 3); NaN for rows
             without geometry (joint limits) and for inactive pairs.
         pair_geoms: Geom ids of each pair, shape (k, 2); -1 for joint-limit rows.
+
+    Arrays that do not change between calls (``pair_geoms``; the constant parts of
+    joint-limit batches) are shared and read-only: copy them before modifying.
 
     """
 
@@ -300,8 +306,8 @@ class CollisionBarriers:
         b2 = np.asarray(self._b2, dtype=np.int64)
         mocap = np.where(pairs.is_self, -1, model.body_mocapid[b2])
         self._mocap = mocap.astype(np.int64)
-        self._moving_rows = np.nonzero(self._mocap >= 0)[0]
-        self._mocap_body = b2[self._moving_rows]
+        self._is_moving = (self._mocap >= 0).tolist()
+        self._obstacle_body = b2
 
     @classmethod
     def from_scene(cls, scene: Scene) -> CollisionBarriers:
@@ -327,10 +333,11 @@ class CollisionBarriers:
 
         Args:
             data: The data.
-            mocap_lin: Linear velocity of every mocap body [m/s], shape (nmocap, 3), or
-                ``None`` for static obstacles (dh/dt = 0).
-            mocap_ang: Angular velocity of every mocap body [rad/s], shape (nmocap, 3), or
-                ``None`` (zero).
+            mocap_lin: Linear velocity of every mocap body [m/s], float array of shape
+                (nmocap, 3) (rows indexed like ``data.mocap_pos``), or ``None`` for static
+                obstacles (dh/dt = 0). :meth:`Scene.mocap_velocities` gives it.
+            mocap_ang: Angular velocity of every mocap body [rad/s] about its origin, world
+                frame, shape (nmocap, 3), or ``None`` (zero).
 
         Returns:
             The batch, one row per pair.
@@ -339,7 +346,7 @@ class CollisionBarriers:
         m = self.model
         p = self.pairs
         diff = self._dmat @ data.geom_xpos
-        candidates = np.flatnonzero(np.einsum("ij,ij->i", diff, diff) < self._thresh2).tolist()
+        candidates = np.nonzero(np.einsum("ij,ij->i", diff, diff) < self._thresh2)[0].tolist()
 
         dist, inv = self._dist, self._inv
         dist.fill(self.cutoff)
@@ -347,16 +354,19 @@ class CollisionBarriers:
         g1, g2, b1, b2, cutoff = self._g1, self._g2, self._b1, self._b2, self.cutoff
         ft, p1r, p2r, j1r, j2r = (self._ft_rows, self._p1_rows, self._p2_rows, self._j1_rows,
                                   self._j2_rows)
-        is_self = self._self
-        touching = []
+        is_self, is_moving = self._self, self._is_moving
+        geom_distance, jac = mujoco.mj_geomDistance, mujoco.mj_jac
+        touching, moving = [], []
         for i in candidates:
-            di = mujoco.mj_geomDistance(m, data, g1[i], g2[i], cutoff, ft[i])
+            di = geom_distance(m, data, g1[i], g2[i], cutoff, ft[i])
             if di >= cutoff:
                 continue
             dist[i] = di
-            mujoco.mj_jac(m, data, j1r[i], None, p1r[i], b1[i])
+            jac(m, data, j1r[i], None, p1r[i], b1[i])
             if is_self[i]:
-                mujoco.mj_jac(m, data, j2r[i], None, p2r[i], b2[i])
+                jac(m, data, j2r[i], None, p2r[i], b2[i])
+            elif is_moving[i]:
+                moving.append(i)
             if -_EPS_DIST < di < _EPS_DIST:
                 touching.append(i)
             else:
@@ -377,14 +387,13 @@ class CollisionBarriers:
 
         active = dist < cutoff
         dhdt = np.zeros(p.k)
-        rows = self._moving_rows
-        if mocap_lin is not None and rows.size:
-            mi = self._mocap[rows]
-            v = np.asarray(mocap_lin, dtype=float)[mi]
-            if mocap_ang is not None:
-                v = v + _cross(np.asarray(mocap_ang, dtype=float)[mi],
-                               self._p2[rows] - data.xpos[self._mocap_body])
-            dhdt[rows] = -np.einsum("ij,ij->i", n[rows], v)
+        if moving and mocap_lin is not None:  # active pairs with a mocap obstacle
+            mi = self._mocap[moving]
+            v = mocap_lin[mi]
+            if mocap_ang is not None and np.any(mocap_ang):
+                r = self._p2[moving] - data.xpos[self._obstacle_body[moving]]
+                v = v + _cross(mocap_ang[mi], r)
+            dhdt[moving] = -np.einsum("ij,ij->i", n[moving], v)
 
         witness = np.where(active[:, None, None], self._fromto.reshape(-1, 2, 3), np.nan)
         return BarrierBatch(h=dist - p.margin, grad=grad, dhdt=dhdt, names=p.names,
@@ -433,6 +442,14 @@ class JointLimitBarriers:
         self._grad = np.zeros((2 * limited.size, n))
         self._grad[np.arange(2 * limited.size), np.repeat(limited, 2)] = self._sign
         self.names = tuple(f"{joint_names[int(i)]}:{s}" for i in limited for s in ("min", "max"))
+        # Constant parts of every result, shared between calls and therefore read-only.
+        k = self._sign.size
+        self._const = {
+            "grad": self._grad, "dhdt": np.zeros(k), "active": np.ones(k, dtype=bool),
+            "witness": np.full((k, 2, 3), np.nan), "pair_geoms": np.full((k, 2), -1, dtype=np.int64),
+        }
+        for arr in self._const.values():
+            arr.flags.writeable = False
 
     @classmethod
     def from_scene(cls, scene: Scene) -> JointLimitBarriers:
@@ -441,12 +458,13 @@ class JointLimitBarriers:
                    scene.joint_names)
 
     def evaluate(self, data: mujoco.MjData) -> BarrierBatch:
-        """Barrier rows at ``data.qpos`` (no kinematics needed)."""
-        k = self._sign.size
+        """Barrier rows at ``data.qpos`` (no kinematics needed).
+
+        Only ``h`` is computed; ``grad``, ``dhdt``, ``active``, ``witness`` and ``pair_geoms``
+        are constant, shared, read-only arrays.
+        """
         h = self._sign * data.qpos[self._qadr] + self._offset
-        return BarrierBatch(h=h, grad=self._grad.copy(), dhdt=np.zeros(k), names=self.names,
-                            active=np.ones(k, dtype=bool), witness=np.full((k, 2, 3), np.nan),
-                            pair_geoms=np.full((k, 2), -1, dtype=np.int64))
+        return BarrierBatch(h=h, names=self.names, **self._const)
 
 
 # ----------------------------------------------------------------------------- clearance
