@@ -73,6 +73,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--tau", metavar="FILE", help="tau_p fit written by `isf-satellite tau` (maneuver trigger)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout (nothing else)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    p.add_argument("--disturbance-scale", type=float, default=1.0, metavar="K",
+                   help="experiment: scale the non-Kepler gravity by K (default 1, the full field)")
     p.add_argument("--no-spin", action="store_true", help="freeze the body (default: 12.1324 h spin)")
     p.add_argument("--inclination", type=float, default=45.0, metavar="DEG",
                    help="inclination to the body's equator (default 45)")
@@ -127,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
         from satellite.gravity import GravityField
 
         field = GravityField.from_json(args.gravity)
-    model = OrbitModel(field, spin=not args.no_spin)
+    model = OrbitModel(field, spin=not args.no_spin, disturbance_scale=args.disturbance_scale)
     initial = InitialOrbit(radius_over_R=args.radius, inclination_deg=args.inclination, seed=args.seed)
     control = ControlParams(alpha_gain=args.alpha_gain, d_bar=args.d_bar, c=args.c)
     observers = [] if args.quiet else [ProgressObserver(sys.stderr)]

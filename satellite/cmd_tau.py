@@ -34,6 +34,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
     p.add_argument("--max-hours", type=float, default=100.0, help="censoring time per sample in hours (default 100)")
     p.add_argument("--degree", type=int, default=2, help="degree of the polynomial fit in h (default 2)")
+    p.add_argument("--disturbance-scale", type=float, default=1.0, metavar="K",
+                   help="experiment: scale the non-Kepler gravity by K (default 1, the full field)")
     p.add_argument("--no-spin", action="store_true", help="freeze the body")
     p.add_argument("--alpha-gain", type=float, default=None, metavar="PER_S", help="alpha gain (default: mean motion at 2R)")
     p.add_argument("--d-bar", type=float, default=0.0, help="disturbance bound used in Xi (default 0)")
@@ -49,6 +51,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--workers must be >= 1, got {args.workers}")
     if not (math.isfinite(args.max_hours) and args.max_hours > 0):
         raise ConfigError(f"--max-hours must be positive, got {args.max_hours:g}")
+    if not (math.isfinite(args.disturbance_scale) and args.disturbance_scale >= 0):
+        raise ConfigError(f"--disturbance-scale must be >= 0, got {args.disturbance_scale:g}")
     if args.degree < 1:
         raise ConfigError(f"--degree must be >= 1, got {args.degree}")
     out = Path(args.out)
@@ -56,10 +60,12 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"output directory does not exist: {out.parent}")
     control = ControlParams(alpha_gain=args.alpha_gain, d_bar=args.d_bar)
     data = collect_tau(args.samples, seed=args.seed, workers=args.workers, spin=not args.no_spin,
-                       control=control, max_hours=args.max_hours)
+                       control=control, max_hours=args.max_hours,
+                       disturbance_scale=args.disturbance_scale)
     model = OrbitModel(spin=not args.no_spin)
     fit = fit_tau(data, model.h_max, model.R, args.degree)
-    settings = {"alpha_gain": args.alpha_gain, "d_bar": args.d_bar, "degree": args.degree}
+    settings = {"alpha_gain": args.alpha_gain, "d_bar": args.d_bar, "degree": args.degree,
+                "disturbance_scale": args.disturbance_scale}
     out.write_text(json.dumps(tau_document(data, fit, settings), indent=1) + "\n", encoding="utf-8")
     if not args.quiet:
         sys.stdout.write(f"wrote {out}: {args.samples} samples x {len(data.radii_over_R)} radii, "

@@ -66,6 +66,9 @@ class OrbitModel:
         spin: Whether the body turns (default True).
         spin_period_h: Rotation period [h], > 0.
         body_phase: Body rotation angle ``theta0`` at ``t = 0`` [rad].
+        disturbance_scale: Factor ``k`` on the non-Kepler part of the truth,
+            ``a = a_Kepler + k (a_SH - a_Kepler)`` (default 1: the full field). An
+            experiment knob for studying how the results depend on the disturbance's size.
 
     Attributes:
         R: Reference (volume-equivalent) radius [m].
@@ -80,7 +83,10 @@ class OrbitModel:
         spin: bool = True,
         spin_period_h: float = SPIN_PERIOD_H,
         body_phase: float = 0.0,
+        disturbance_scale: float = 1.0,
     ) -> None:
+        if not (math.isfinite(disturbance_scale) and disturbance_scale >= 0.0):
+            raise ConfigError(f"disturbance_scale must be >= 0, got {disturbance_scale}")
         if not (math.isfinite(spin_period_h) and spin_period_h > 0.0):
             raise ConfigError(f"spin_period_h must be a positive number of hours, got {spin_period_h}")
         if not math.isfinite(body_phase):
@@ -92,6 +98,7 @@ class OrbitModel:
         self.spin_period_h = float(spin_period_h)
         self.omega = 2.0 * math.pi / (spin_period_h * 3600.0) if spin else 0.0
         self.body_phase = float(body_phase)
+        self.disturbance_scale = float(disturbance_scale)
         self.r_centre = BAND_CENTRE * self.R
         self.half_width = (BAND_OUTER - BAND_CENTRE) * self.R
         self.h_max = self.half_width**2
@@ -124,7 +131,13 @@ class OrbitModel:
         th = self.body_phase + self.omega * t
         c = math.cos(th)
         s = math.sin(th)
-        bx, by, bz = self.field.acceleration((c * px + s * py, c * py - s * px, pz)).tolist()
+        qx, qy = c * px + s * py, c * py - s * px
+        bx, by, bz = self.field.acceleration((qx, qy, pz)).tolist()
+        k = self.disturbance_scale
+        if k != 1.0:
+            r2 = px * px + py * py + pz * pz
+            g = -self.mu / (r2 * math.sqrt(r2))
+            bx, by, bz = g * qx + k * (bx - g * qx), g * qy + k * (by - g * qy), g * pz + k * (bz - g * pz)
         return np.array([vx, vy, vz, c * bx - s * by, s * bx + c * by, bz])
 
     def truth_acceleration(self, t: float, r: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -147,7 +160,14 @@ class OrbitModel:
         rad = rng.uniform(BAND_INNER, BAND_OUTER, size=samples) * self.R
         pts = u * rad[:, None]
         a = self.field.acceleration_batch(pts) + self.mu * pts / (rad**3)[:, None]
-        return float(np.max(np.linalg.norm(a, axis=1)))
+        return self.disturbance_scale * float(np.max(np.linalg.norm(a, axis=1)))
+
+    def with_phase(self, body_phase: float) -> OrbitModel:
+        """Same model with another body phase at ``t = 0`` [rad]."""
+        return OrbitModel(
+            self.field, spin=self.spin, spin_period_h=self.spin_period_h, body_phase=body_phase,
+            disturbance_scale=self.disturbance_scale,
+        )
 
 
 class BandBarrier(Barrier):

@@ -300,7 +300,7 @@ def simulate(
         raise ConfigError("the maneuver trigger needs a fitted tau_p (make one with `isf-satellite tau`)")
     initial = initial or InitialOrbit()
     base = model or OrbitModel()
-    model = OrbitModel(base.field, spin=base.spin, spin_period_h=base.spin_period_h, body_phase=initial.body_phase())
+    model = base.with_phase(initial.body_phase())
     resolved = resolve_control(model, control)
     integ = integrator or IntegratorSettings()
     ctrl = make_controller(model, resolved)
@@ -323,6 +323,7 @@ def simulate(
         "spin": model.spin,
         "spin_period_h": model.spin_period_h,
         "gravity_degree": model.field.degree,
+        "disturbance_scale": model.disturbance_scale,
         "R_m": model.R,
         "mu": model.mu,
         "inclination_deg": initial.inclination_deg,

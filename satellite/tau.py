@@ -70,6 +70,7 @@ class TauData:
         spin: Whether the body turned.
         wall_s: Wall time of the collection [s].
         workers: Processes used.
+        disturbance_scale: Factor on the non-Kepler gravity (see :class:`OrbitModel`).
     """
 
     radii_over_R: NDArray[np.float64]
@@ -79,6 +80,7 @@ class TauData:
     spin: bool
     wall_s: float
     workers: int
+    disturbance_scale: float = 1.0
 
     @property
     def medians_h(self) -> NDArray[np.float64]:
@@ -160,12 +162,12 @@ def fit_tau(data: TauData, h_max: float, R: float, degree: int = 2) -> TauFit:
 _FIELD_CACHE: dict[str, Any] = {}
 
 
-def _worker_model(spin: bool, phase: float) -> OrbitModel:
+def _worker_model(spin: bool, phase: float, scale: float = 1.0) -> OrbitModel:
     field = _FIELD_CACHE.get("field")
     if field is None:
         field = OrbitModel().field
         _FIELD_CACHE["field"] = field
-    return OrbitModel(field, spin=spin, body_phase=phase)
+    return OrbitModel(field, spin=spin, body_phase=phase, disturbance_scale=scale)
 
 
 def time_to_trigger(
@@ -175,6 +177,7 @@ def time_to_trigger(
     spin: bool = True,
     control: ControlParams | None = None,
     max_hours: float = 100.0,
+    disturbance_scale: float = 1.0,
 ) -> float:
     """Time [h] from one controller impulse at a random state of radius ``radius_over_R`` to the trigger.
 
@@ -184,6 +187,7 @@ def time_to_trigger(
         spin: Body spin.
         control: Trigger settings.
         max_hours: Censoring time [h].
+        disturbance_scale: Factor on the non-Kepler gravity.
     """
     rng = np.random.default_rng(list(seed))
     u = rng.normal(size=3)
@@ -192,7 +196,7 @@ def time_to_trigger(
     w -= (w @ u) * u
     w /= np.linalg.norm(w)
     phase = float(rng.uniform(0.0, 2.0 * math.pi))
-    model = _worker_model(spin, phase)
+    model = _worker_model(spin, phase, disturbance_scale)
     key = ("resolved", control)
     resolved = _FIELD_CACHE.get(key)
     if resolved is None:
@@ -217,10 +221,12 @@ def time_to_trigger(
     return float(max_hours)
 
 
-def _task(args: tuple[float, int, int, list[int], bool, ControlParams | None, float]) -> tuple[int, list[float]]:
-    radius, index, seed, sample_ids, spin, control, max_hours = args
+def _task(args: tuple[Any, ...]) -> tuple[int, list[float]]:
+    radius, index, seed, sample_ids, spin, control, max_hours, scale = args
     out = [
-        time_to_trigger(radius, (seed, index, j), spin=spin, control=control, max_hours=max_hours)
+        time_to_trigger(
+            radius, (seed, index, j), spin=spin, control=control, max_hours=max_hours, disturbance_scale=scale
+        )
         for j in sample_ids
     ]
     return index, out
@@ -236,6 +242,7 @@ def collect_tau(
     control: ControlParams | None = None,
     max_hours: float = 100.0,
     chunk: int = 10,
+    disturbance_scale: float = 1.0,
 ) -> TauData:
     """Collect time-to-trigger samples over the radius grid, in parallel processes.
 
@@ -250,6 +257,7 @@ def collect_tau(
         control: Trigger settings.
         max_hours: Censoring time [h], > 0.
         chunk: Samples per task.
+        disturbance_scale: Factor on the non-Kepler gravity.
     """
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
         raise SatelliteError(f"samples must be a positive integer, got {samples!r}")
@@ -265,7 +273,7 @@ def collect_tau(
     for i, rad in enumerate(radii_over_R):
         for start in range(0, samples, chunk):
             ids = list(range(start, min(samples, start + chunk)))
-            tasks.append((float(rad), i, int(seed), ids, spin, control, float(max_hours)))
+            tasks.append((float(rad), i, int(seed), ids, spin, control, float(max_hours), float(disturbance_scale)))
     times = np.zeros((len(radii_over_R), samples))
     if workers == 1:
         results = map(_task, tasks)
@@ -277,7 +285,7 @@ def collect_tau(
                 times[i, ids] = vals
     return TauData(
         np.asarray(radii_over_R, dtype=float), times, float(max_hours), int(seed), bool(spin),
-        time.perf_counter() - wall0, int(workers),
+        time.perf_counter() - wall0, int(workers), float(disturbance_scale),
     )
 
 
@@ -288,6 +296,7 @@ def tau_document(data: TauData, fit: TauFit, settings: dict[str, Any]) -> dict[s
         "samples": int(data.times_h.shape[1]),
         "seed": data.seed,
         "spin": data.spin,
+        "disturbance_scale": data.disturbance_scale,
         "max_hours": data.max_hours,
         "radii_over_R": data.radii_over_R.tolist(),
         "h_over_h_max": [1.0 - ((r - 2.0) / 0.4) ** 2 for r in data.radii_over_R.tolist()],
