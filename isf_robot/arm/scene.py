@@ -283,6 +283,9 @@ def load_scene(name: str) -> Scene:
     if name not in files:
         raise UnknownNameError("scene", name, files)
     cfg = load_config(files[name])
+    if cfg.name != name:
+        raise ConfigError(f"{files[name]}: [scene] name {cfg.name!r} differs from the file name "
+                          f"{name!r}; a shipped scene's name is its file stem")
     xml = files[name].parent / cfg.model
     return _resolve(_compile(xml), cfg, xml)
 

@@ -176,6 +176,25 @@ def test_self_collision_pair_gradient(rng, fd_grad) -> None:  # type: ignore[no-
         assert b.grad[0, 0] == pytest.approx(0.0, abs=1e-9)  # q1 moves both links rigidly
 
 
+def test_panda_self_collision_pairs(rng, fd_grad) -> None:  # type: ignore[no-untyped-def]
+    sc = load_scene("panda_pole")
+    m = sc.model
+    pairs = collision_pairs(m, sc.robot_geom_ids, [], margin=0.0, self_collision=True,
+                            self_margin=0.01)
+    assert pairs.k > 30 and pairs.is_self.all()
+    reasons = {why for _, why in pairs.excluded}
+    assert reasons == {"same body", "parent-child"}
+    cb = CollisionBarriers(m, pairs, sc.dof_adr, cutoff=0.2)
+    d = sc.make_data()
+    assert np.all(cb.evaluate(d).h > 0.0), "home pose is free of self-collision"
+    for _ in range(15):
+        d.qpos[sc.qpos_adr] = rng.uniform(sc.joint_range[:, 0], sc.joint_range[:, 1])
+        mujoco.mj_forward(m, d)
+        b = cb.evaluate(d)
+        fd = fd_grad(m, d, lambda dd: cb.evaluate(dd).h, sc.dof_adr)
+        np.testing.assert_allclose(b.grad, fd, atol=1e-6)
+
+
 # ----------------------------------------------------------------------------- values, cut-off
 
 

@@ -295,3 +295,17 @@ def test_unlimited_joint_and_no_actuator(tmp_path: Path) -> None:
     assert np.all(np.isinf(sc.joint_range))
     assert sc.actuator_ids[0] == -1 and np.isinf(sc.torque_limit[0])
     assert isinstance(sc.model, mujoco.MjModel)
+
+
+def test_load_scene_uses_the_models_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import isf_robot.arm.scene as scene_mod
+
+    write(tmp_path)
+    (tmp_path / "broken.toml").write_text("[scene\n")
+    monkeypatch.setattr(scene_mod, "models_dir", lambda: tmp_path)
+    infos = {s.name: s.description for s in list_scenes()}
+    assert infos == {"broken": "(unreadable config)", "tiny": "one link"}
+    assert load_scene("tiny").n_joints == 1
+    (tmp_path / "tiny.toml").write_text(TINY_TOML.replace('name = "tiny"', 'name = "other"'))
+    with pytest.raises(ConfigError, match="differs from the file name"):
+        load_scene("tiny")
