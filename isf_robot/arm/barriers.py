@@ -239,7 +239,12 @@ class CollisionBarriers:
     """Collision barriers ``h = min(dist, cutoff) - margin`` for a fixed set of geom pairs.
 
     Index arrays and scratch buffers are built once; :meth:`evaluate` returns fresh output
-    arrays and keeps no state between calls (the scratch buffers are overwritten each call).
+    arrays and keeps no state between calls (the scratch buffers are overwritten each call,
+    so one instance must not be evaluated from two threads at once).
+
+    Cost: one ``mj_geomDistance`` per pair that passes the bounding-sphere test and one
+    ``mj_jac`` per pair closer than ``cutoff`` (two for robot-robot pairs), plus about a dozen
+    small numpy operations; 12-23 us per call on the shipped scenes (4-56 pairs).
 
     Args:
         model: The model.
@@ -388,6 +393,11 @@ class CollisionBarriers:
         active = dist < cutoff
         dhdt = np.zeros(p.k)
         if moving and mocap_lin is not None:  # active pairs with a mocap obstacle
+            shape = (self.model.nmocap, 3)
+            if mocap_lin.shape != shape or (mocap_ang is not None and mocap_ang.shape != shape):
+                raise ShapeError(f"mocap velocities must have shape {shape} (rows like "
+                                 f"data.mocap_pos); got {mocap_lin.shape} and "
+                                 f"{None if mocap_ang is None else mocap_ang.shape}")
             mi = self._mocap[moving]
             v = mocap_lin[mi]
             if mocap_ang is not None and np.any(mocap_ang):

@@ -277,6 +277,19 @@ def test_dhdt_matches_time_finite_difference(planar_moving, rng) -> None:  # typ
     assert not cb.evaluate(d).dhdt.any()  # no velocities given: dh/dt = 0
 
 
+def test_mocap_velocity_shape_is_checked(planar_moving) -> None:  # type: ignore[no-untyped-def]
+    sc = planar_moving
+    d = sc.make_data()
+    d.qpos[sc.qpos_adr] = [0.0, 0.0, 0.0]  # stretched along x, through the ball's circle
+    sc.set_moving_obstacles(d, 0.0)
+    mujoco.mj_forward(sc.model, d)
+    cb = CollisionBarriers.from_scene(sc)
+    lin, _ = sc.mocap_velocities(0.0)
+    assert cb.evaluate(d, lin).active.any()
+    with pytest.raises(ShapeError, match="mocap velocities"):
+        cb.evaluate(d, lin[0])
+
+
 def test_dhdt_with_rotating_mocap_obstacle(rng) -> None:  # type: ignore[no-untyped-def]
     xml = """
     <mujoco><compiler angle="radian"/><option ccd_tolerance="1e-10"/>
