@@ -31,6 +31,7 @@ points belong to (a one-sided derivative), while central differences give the av
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -313,6 +314,7 @@ class CollisionBarriers:
         self._mocap = mocap.astype(np.int64)
         self._is_moving = (self._mocap >= 0).tolist()
         self._obstacle_body = b2
+        self._clearance = _ClearanceSearch(model, pairs)
 
     @classmethod
     def from_scene(cls, scene: Scene) -> CollisionBarriers:
@@ -410,8 +412,11 @@ class CollisionBarriers:
                             active=active, witness=witness, pair_geoms=self._pair_geoms)
 
     def min_distance(self, data: mujoco.MjData) -> Clearance:
-        """True minimum signed distance over this object's pairs (no cut-off, no margin)."""
-        return min_distance(self.model, data, self.pairs)
+        """True minimum signed distance over this object's pairs (no cut-off, no margin).
+
+        See :func:`min_distance`; needs the kinematics of the current state only.
+        """
+        return self._clearance(data)
 
 
 # ----------------------------------------------------------------------------- joint limits
@@ -496,27 +501,44 @@ class Clearance:
     name: str
 
 
+class _ClearanceSearch:
+    """Precomputed index arrays for :func:`min_distance` over a fixed set of pairs."""
+
+    def __init__(self, model: mujoco.MjModel, pairs: CollisionPairs) -> None:
+        k = pairs.k
+        self.model = model
+        self.names = pairs.names
+        self.g1, self.g2 = pairs.geom1.tolist(), pairs.geom2.tolist()
+        self.dmat = np.zeros((k, model.ngeom))
+        self.dmat[np.arange(k), pairs.geom1] += 1.0
+        self.dmat[np.arange(k), pairs.geom2] -= 1.0
+        rb1, rb2 = model.geom_rbound[pairs.geom1], model.geom_rbound[pairs.geom2]
+        # Unbounded geoms (planes, rbound 0) get an infinite allowance: always searched first.
+        self.rbsum = np.where((rb1 == 0) | (rb2 == 0), np.inf, rb1 + rb2)
+
+    def __call__(self, data: mujoco.MjData) -> Clearance:
+        diff = self.dmat @ data.geom_xpos
+        bound = np.sqrt(np.einsum("ij,ij->i", diff, diff)) - self.rbsum
+        order = np.argsort(bound).tolist()
+        bounds = bound.tolist()
+        m, g1, g2 = self.model, self.g1, self.g2
+        geom_distance = mujoco.mj_geomDistance
+        best, best_i = math.inf, order[0]
+        for i in order:
+            if bounds[i] >= best:
+                break
+            d = geom_distance(m, data, g1[i], g2[i], best if best < math.inf else 1e6, None)
+            if d < best:
+                best, best_i = d, i
+        return Clearance(distance=float(best), index=int(best_i), name=self.names[best_i])
+
+
 def min_distance(model: mujoco.MjModel, data: mujoco.MjData, pairs: CollisionPairs) -> Clearance:
     """True minimum signed distance over all pairs: no cut-off, no margin, no Jacobians.
 
     Pairs are visited in order of their bounding-sphere distance (a lower bound on the true
     distance) and the search stops once that bound exceeds the best distance found.
     Needs the kinematics of the current state (``mj_kinematics`` or ``mj_forward``).
+    :meth:`CollisionBarriers.min_distance` does the same with its index arrays precomputed.
     """
-    gx = data.geom_xpos
-    diff = gx[pairs.geom1] - gx[pairs.geom2]
-    bound = np.sqrt(np.einsum("ij,ij->i", diff, diff))
-    bound -= model.geom_rbound[pairs.geom1] + model.geom_rbound[pairs.geom2]
-    unbounded = (model.geom_rbound[pairs.geom1] == 0) | (model.geom_rbound[pairs.geom2] == 0)
-    bound[unbounded] = -np.inf
-    order = np.argsort(bound).tolist()
-    best, best_i = np.inf, order[0]
-    g1, g2 = pairs.geom1.tolist(), pairs.geom2.tolist()
-    for i in order:
-        if bound[i] >= best:
-            break
-        dmax = best if np.isfinite(best) else 1e6
-        d = mujoco.mj_geomDistance(model, data, g1[i], g2[i], dmax, None)
-        if d < best:
-            best, best_i = d, i
-    return Clearance(distance=float(best), index=int(best_i), name=pairs.names[best_i])
+    return _ClearanceSearch(model, pairs)(data)
