@@ -12,6 +12,7 @@ import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -144,7 +145,7 @@ class GainsConfig:
         tracking_kp: Low-level tracking gain per joint (or one for all); its unit depends on the
             low-level controller that reads it.
         tracking_kd: Low-level damping gain per joint (or one for all).
-        extra: Any further numeric entries of the ``[gains]`` table, by key.
+        extra: Any further numeric entries of the ``[gains]`` table, by key (read-only).
 
     """
 
@@ -534,7 +535,7 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
         joint_kp=g.number("joint_kp", dg.joint_kp, positive=True),
         tracking_kp=g.numbers("tracking_kp", dg.tracking_kp),
         tracking_kd=g.numbers("tracking_kd", dg.tracking_kd),
-        extra=extra,
+        extra=MappingProxyType(extra),
     )
     for key in ("tracking_kp", "tracking_kd"):
         n = len(getattr(gains, key))

@@ -309,3 +309,33 @@ def test_load_scene_uses_the_models_dir(tmp_path: Path, monkeypatch: pytest.Monk
     (tmp_path / "tiny.toml").write_text(TINY_TOML.replace('name = "tiny"', 'name = "other"'))
     with pytest.raises(ConfigError, match="differs from the file name"):
         load_scene("tiny")
+
+
+@pytest.mark.parametrize("name", ALL_SCENES)
+def test_every_goal_has_a_collision_free_pose(name: str) -> None:
+    """The filter can only finish the task if each goal is reachable with clearance > margin."""
+    sc = load_scene(name)
+    m, d = sc.model, sc.make_data()
+    cb = CollisionBarriers.from_scene(sc)
+    rng = np.random.default_rng(7)
+    jm = sc.config.barrier.joint_margin + 0.01
+    lo, hi = sc.joint_range[:, 0] + jm, sc.joint_range[:, 1] - jm
+    jac = np.zeros((3, m.nv))
+    for goal in sc.goal_positions:
+        found = False
+        for trial in range(40):
+            q = np.clip(sc.home + (rng.normal(0.0, 0.6, sc.n_joints) if trial else 0.0), lo, hi)
+            for _ in range(100):  # damped least-squares IK on the ee position
+                d.qpos[sc.qpos_adr] = q
+                mujoco.mj_kinematics(m, d)
+                mujoco.mj_comPos(m, d)
+                err = goal - d.site_xpos[sc.ee_site_id]
+                if np.linalg.norm(err) < 1e-4:
+                    break
+                mujoco.mj_jacSite(m, d, jac, None, sc.ee_site_id)
+                J = jac[:, sc.dof_adr]
+                q = np.clip(q + J.T @ np.linalg.solve(J @ J.T + 1e-4 * np.eye(3), err), lo, hi)
+            if np.linalg.norm(err) < 1e-3 and cb.min_distance(d).distance > sc.config.barrier.margin:
+                found = True
+                break
+        assert found, f"goal {goal} of {name} has no collision-free pose"
