@@ -1,0 +1,157 @@
+"""Low-level joint-velocity tracking at the physics rate.
+
+The safety filter commands a joint velocity ``u`` for the reduced-order model
+``q_dot = u + d``; MuJoCo simulates the full dynamics, and this controller turns ``u`` into
+actuator torques at every physics step (computed torque on a velocity reference)::
+
+    q_ref <- q_ref + u dt                                  (integrated reference [rad])
+    a     =  a_ff + kd (u - q_dot) + kp clip(q_ref - q, +-e_max)   (desired acc. [rad/s^2])
+    tau   =  M(q) a + c(q, q_dot) - f_passive(q, q_dot)    (torque [Nm])
+    ctrl  =  clip(tau / gear, ctrlrange)
+
+``M a`` uses the mass matrix through ``mj_mulM``; ``c`` is ``qfrc_bias`` (Coriolis,
+centrifugal, gravity) and ``f_passive`` ``qfrc_passive`` (joint damping, springs), all
+computed by ``mj_step1`` for the current state. With ``kp = w^2`` and ``kd = 2 zeta w`` the
+velocity error decays like a critically damped (zeta = 1) second-order system of natural
+frequency w [rad/s]. The feedforward ``a_ff = (u_k - u_{k-1}) / T`` (T the control period) is applied during the
+control period that follows a change of the command, so a ramping command is tracked with
+one period of lag instead of a lag of ``u_dot / kd``. The integrated reference removes the
+steady-state drift of a pure velocity loop; its error is clipped so that a blocked arm (in contact) does not wind it up.
+The remaining velocity error ``q_dot - u`` is the disturbance ``d`` of the reduced-order
+model (its bound is measured by :mod:`isf_robot.arm.calibration`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+from isf_robot.core.exceptions import ConfigError
+
+from .scene import Scene
+
+__all__ = ["VelocityTracker"]
+
+
+def _per_joint(v: Sequence[float] | np.ndarray | float, n: int, label: str) -> np.ndarray:
+    a = np.atleast_1d(np.asarray(v, dtype=float))
+    if a.shape == (1,):
+        a = np.full(n, float(a[0]))
+    if a.shape != (n,) or not np.all(np.isfinite(a)) or np.any(a < 0):
+        raise ConfigError(f"{label} must be one non-negative number or {n}, got {v!r}")
+    return a
+
+
+def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
+    """A slice when the indices are contiguous and increasing (views are cheaper)."""
+    if idx.size and np.array_equal(idx, np.arange(idx[0], idx[0] + idx.size)):
+        return slice(int(idx[0]), int(idx[0]) + int(idx.size))
+    return idx
+
+
+class VelocityTracker:
+    """Computed-torque tracking of a commanded joint velocity.
+
+    Args:
+        scene: The scene (arm joints, their motor actuators).
+        kp: Reference-position gain [1/s^2], one number or shape (n,); default
+            ``[gains] tracking_kp``.
+        kd: Velocity gain [1/s], one number or shape (n,); default ``[gains] tracking_kd``.
+        max_ref_error: Clip on ``q_ref - q`` [rad].
+        feedforward: Use the acceleration feedforward (needs the control period in
+            :meth:`set_command`).
+
+    Raises:
+        ConfigError: An arm joint has no actuator, or its actuator is not a plain motor
+            (fixed gain, no bias).
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        kp: Sequence[float] | np.ndarray | float | None = None,
+        kd: Sequence[float] | np.ndarray | float | None = None,
+        *,
+        max_ref_error: float = 0.05,
+        feedforward: bool = True,
+    ) -> None:
+        model = scene.model
+        n = scene.n_joints
+        gains = scene.config.gains
+        self.n = n
+        self.kp = _per_joint(gains.tracking_kp if kp is None else kp, n, "tracking kp")
+        self.kd = _per_joint(gains.tracking_kd if kd is None else kd, n, "tracking kd")
+        if not max_ref_error > 0:
+            raise ConfigError(f"max_ref_error must be > 0 [rad], got {max_ref_error}")
+        self.max_ref_error = float(max_ref_error)
+        act = scene.actuator_ids
+        missing = [scene.joint_names[i] for i in range(n) if act[i] < 0]
+        if missing:
+            raise ConfigError(f"arm joints {missing} have no actuator; the velocity tracker "
+                              "needs one motor per arm joint")
+        for i, a in enumerate(act):
+            if (int(model.actuator_gaintype[a]) != int(mujoco.mjtGain.mjGAIN_FIXED)
+                    or int(model.actuator_biastype[a]) != int(mujoco.mjtBias.mjBIAS_NONE)):
+                raise ConfigError(f"actuator of joint {scene.joint_names[i]!r} is not a motor "
+                                  "(fixed gain, no bias); the velocity tracker commands torques")
+        self.model = model
+        self._gain = (model.actuator_gear[act, 0] * model.actuator_gainprm[act, 0]).copy()
+        limited = model.actuator_ctrllimited[act].astype(bool)
+        rng = model.actuator_ctrlrange[act]
+        self._lo = np.where(limited, rng[:, 0], -np.inf)
+        self._hi = np.where(limited, rng[:, 1], np.inf)
+        self._act = _as_slice(np.asarray(act))
+        self._dof = _as_slice(np.asarray(scene.dof_adr))
+        self._qadr = _as_slice(np.asarray(scene.qpos_adr))
+        self._acc_full = np.zeros(model.nv)
+        self._tau_full = np.zeros(model.nv)
+        self.feedforward = bool(feedforward)
+        self.q_ref = np.zeros(n)
+        self.u = np.zeros(n)
+        self.a_ff = np.zeros(n)
+        self._dt = float(model.opt.timestep)
+
+    def reset(self, data: mujoco.MjData) -> None:
+        """Set the reference to the current joint positions and the command to zero."""
+        self.q_ref[:] = data.qpos[self._qadr]
+        self.u[:] = data.qvel[self._dof]
+        self.a_ff[:] = 0.0
+
+    def set_command(self, u: np.ndarray, period: float | None = None) -> None:
+        """Hold the commanded joint velocity ``u`` [rad/s], shape (n,), until the next call.
+
+        Args:
+            u: The command, shape (n,).
+            period: Time until the next call [s]; with ``feedforward`` the acceleration
+                ``(u - u_previous) / period`` is fed forward until then. ``None``: no
+                feedforward.
+        """
+        if self.feedforward and period is not None and period > 0:
+            np.subtract(u, self.u, out=self.a_ff)
+            self.a_ff *= 1.0 / period
+        else:
+            self.a_ff[:] = 0.0
+        self.u[:] = u
+
+    def apply(self, data: mujoco.MjData) -> None:
+        """Write ``data.ctrl`` for the current state; call between ``mj_step1`` and ``mj_step2``.
+
+        Advances the reference by one physics step.
+        """
+        q = data.qpos[self._qadr]
+        qd = data.qvel[self._dof]
+        u = self.u
+        ref = self.q_ref
+        ref += u * self._dt
+        err = ref - q
+        np.clip(err, -self.max_ref_error, self.max_ref_error, out=err)
+        ref[:] = q + err
+        acc = self._acc_full
+        acc[self._dof] = self.a_ff + self.kd * (u - qd) + self.kp * err
+        mujoco.mj_mulM(self.model, data, self._tau_full, acc)
+        tau = self._tau_full[self._dof] + data.qfrc_bias[self._dof] - data.qfrc_passive[self._dof]
+        ctrl = tau / self._gain
+        np.clip(ctrl, self._lo, self._hi, out=ctrl)
+        data.ctrl[self._act] = ctrl

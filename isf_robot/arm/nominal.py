@@ -1,0 +1,307 @@
+"""Nominal controllers: the task the safety filter protects.
+
+Both controllers output a commanded joint velocity ``u_nom`` (shape (n,), [rad/s]) for the
+reduced-order model ``q_dot = u + d`` (DESIGN.md, section 3). They read the current state
+from ``MjData`` and need its kinematics up to date (``mj_step1`` / ``mj_kinematics`` done).
+
+* :class:`ReachingController`: task-space reaching through a sequence of end-effector goals,
+  ``v = kp (p_goal - p_ee)`` (speed capped at ``max_ee_speed``), mapped to joint space with the
+  damped least-squares inverse ``u = J^T (J J^T + lambda^2 I)^-1 v`` (J: the ee site's
+  translational Jacobian restricted to the arm joints, shape (3, n)).
+* :class:`JointPDController`: joint-space proportional control through a sequence of joint
+  targets, ``u = kp (q_goal - q)``.
+
+Both cap the joint speeds by scaling the whole command (direction kept), limit its rate of
+change (``max_joint_acc``: a real task does not ask for velocity steps), count goals
+reached, hold each goal for its dwell time and then move to the next (looping if asked).
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+from isf_robot.core.exceptions import ConfigError, ShapeError
+
+from .scene import Scene
+
+__all__ = ["NominalController", "GoalSequence", "ReachingController", "JointPDController"]
+
+
+class GoalSequence:
+    """Goal bookkeeping shared by the nominal controllers.
+
+    A goal is *reached* the first time the error falls below the tolerance; after its dwell
+    time the sequence moves to the next goal (back to the first when ``loop``; the last goal
+    is held otherwise).
+
+    Args:
+        n_goals: Number of goals, >= 1.
+        dwell: Dwell time per goal [s], shape (n_goals,).
+        tolerance: Error below which a goal counts as reached (controller units: [m] or [rad]).
+        loop: Restart at the first goal after the last one.
+    """
+
+    def __init__(self, n_goals: int, dwell: Sequence[float] | np.ndarray, tolerance: float,
+                 loop: bool = True) -> None:
+        if n_goals < 1:
+            raise ConfigError("a goal sequence needs at least one goal")
+        self.n_goals = int(n_goals)
+        self.dwell = np.asarray(dwell, dtype=float).reshape(-1)
+        if self.dwell.shape != (self.n_goals,) or np.any(self.dwell < 0):
+            raise ConfigError(f"dwell must be {self.n_goals} non-negative times [s], got {dwell!r}")
+        if not tolerance > 0:
+            raise ConfigError(f"goal tolerance must be > 0, got {tolerance}")
+        self.tolerance = float(tolerance)
+        self.loop = bool(loop)
+        self.reset()
+
+    def reset(self) -> None:
+        """Start again at the first goal with nothing reached."""
+        self.index = 0
+        self.reached = 0
+        self._arrived: float | None = None
+        self._done = False
+
+    def update(self, t: float, error: float) -> None:
+        """Advance the sequence given the current goal error at time ``t`` [s]."""
+        if self._done:
+            return
+        if self._arrived is None:
+            if error < self.tolerance:
+                self._arrived = t
+                self.reached += 1
+            return
+        if t - self._arrived >= self.dwell[self.index]:
+            if self.index + 1 < self.n_goals:
+                self.index += 1
+            elif self.loop:
+                self.index = 0
+            else:
+                self._done = True
+                return
+            self._arrived = None
+
+
+class NominalController(ABC):
+    """A nominal joint-velocity controller ``u_nom = k_nom(t, q)``.
+
+    Attributes:
+        n: Number of arm joints (the command's length).
+        goals: The goal bookkeeping (``goals.index``, ``goals.reached``).
+    """
+
+    n: int
+    goals: GoalSequence
+
+    @property
+    def goal_index(self) -> int:
+        """Index of the goal being pursued."""
+        return self.goals.index
+
+    @property
+    def goals_reached(self) -> int:
+        """Number of goal arrivals so far."""
+        return self.goals.reached
+
+    _rate: _RateLimit
+
+    def reset(self) -> None:
+        """Start the task again (first goal, nothing reached, command at rest)."""
+        self.goals.reset()
+        self._rate.reset()
+
+    @abstractmethod
+    def __call__(self, t: float, data: mujoco.MjData) -> np.ndarray:
+        """The nominal command at time ``t`` [s]; shape (n,) [rad/s]. May reuse a buffer."""
+
+
+def _cap(u: np.ndarray, limit: float) -> np.ndarray:
+    peak = float(np.max(np.abs(u)))
+    if peak > limit:
+        u *= limit / peak
+    return u
+
+
+class _RateLimit:
+    """Limits the change of a command between calls: ``|u_k - u_{k-1}| <= a_max (t_k - t_{k-1})``.
+
+    The whole change is scaled (its direction kept). ``a_max = inf`` disables it.
+    """
+
+    def __init__(self, n: int, a_max: float) -> None:
+        if not a_max > 0:
+            raise ConfigError(f"max_joint_acc must be > 0 [rad/s^2], got {a_max}")
+        self.a_max = float(a_max)
+        self.prev = np.zeros(n)
+        self.t_prev: float | None = None
+
+    def reset(self) -> None:
+        self.prev[:] = 0.0
+        self.t_prev = None
+
+    def __call__(self, t: float, u: np.ndarray) -> np.ndarray:
+        if self.t_prev is not None and math.isfinite(self.a_max):
+            step = max(t - self.t_prev, 0.0) * self.a_max
+            du = u - self.prev
+            peak = float(np.max(np.abs(du)))
+            if peak > step:
+                u = self.prev + du * (step / peak)
+        elif self.t_prev is None and math.isfinite(self.a_max):
+            u = np.zeros_like(u)  # the arm starts at rest
+        self.t_prev = t
+        self.prev[:] = u
+        return u
+
+
+def _max_acc(scene: Scene, value: float | None) -> float:
+    if value is not None:
+        return float(value)
+    extra = scene.config.gains.extra.get("max_joint_acc", 10.0)
+    return float(extra if not isinstance(extra, tuple) else min(extra))
+
+
+class ReachingController(NominalController):
+    """Task-space reaching by damped least squares through a sequence of ee goals.
+
+    Args:
+        scene: The scene (arm joints, ee site, default goals and gains).
+        goals: Goal positions [m], shape (g, 3); default the scene's.
+        dwell: Dwell per goal [s], shape (g,); default the scene's.
+        kp: Task-space gain [1/s]; default ``[gains] task_kp``.
+        damping: DLS damping lambda [m]; default ``[gains] dls_damping``.
+        max_ee_speed: Cap on the commanded ee speed [m/s].
+        max_joint_speed: Cap on the joint speeds [rad/s] (the command is scaled as a whole).
+        tolerance: Goal tolerance [m]; default ``[task] tolerance``.
+        loop: Loop over the goals; default ``[task] loop``.
+        max_joint_acc: Limit on the change of the command [rad/s^2] (the whole change is
+            scaled; the first command is zero: the arm starts at rest); default
+            ``[gains] max_joint_acc`` or 10. ``inf`` disables it.
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        goals: np.ndarray | None = None,
+        dwell: Sequence[float] | np.ndarray | None = None,
+        *,
+        kp: float | None = None,
+        damping: float | None = None,
+        max_ee_speed: float | None = None,
+        max_joint_speed: float | None = None,
+        tolerance: float | None = None,
+        loop: bool | None = None,
+        max_joint_acc: float | None = None,
+    ) -> None:
+        gains, task = scene.config.gains, scene.config.task
+        self.scene = scene
+        self.n = scene.n_joints
+        g = np.array(scene.goal_positions if goals is None else goals, dtype=float)
+        if g.ndim != 2 or g.shape[1] != 3 or g.shape[0] < 1:
+            raise ShapeError(f"goals must have shape (g, 3) with g >= 1, got {g.shape}")
+        self.goal_positions = g
+        dw = scene.goal_dwell if dwell is None else dwell
+        if dwell is None and g.shape[0] != scene.goal_dwell.shape[0]:
+            dw = np.zeros(g.shape[0])
+        self.goals = GoalSequence(g.shape[0], dw, task.tolerance if tolerance is None else tolerance,
+                                  task.loop if loop is None else loop)
+        self.kp = float(gains.task_kp if kp is None else kp)
+        self.damping = float(gains.dls_damping if damping is None else damping)
+        self.max_ee_speed = float(gains.max_ee_speed if max_ee_speed is None else max_ee_speed)
+        self.max_joint_speed = float(gains.max_joint_speed if max_joint_speed is None
+                                     else max_joint_speed)
+        for label, v in (("kp", self.kp), ("max_ee_speed", self.max_ee_speed),
+                         ("max_joint_speed", self.max_joint_speed)):
+            if not v > 0:
+                raise ConfigError(f"ReachingController {label} must be > 0, got {v}")
+        if self.damping < 0:
+            raise ConfigError(f"ReachingController damping must be >= 0, got {self.damping}")
+        self._jac = np.zeros((3, scene.model.nv))
+        self._damp = (self.damping ** 2) * np.eye(3)
+        self._dofs = scene.dof_adr
+        self._site = scene.ee_site_id
+        self._rate = _RateLimit(self.n, _max_acc(scene, max_joint_acc))
+
+    def ee_position(self, data: mujoco.MjData) -> np.ndarray:
+        """End-effector position [m], shape (3,) (a view into ``data``)."""
+        return data.site_xpos[self._site]
+
+    def __call__(self, t: float, data: mujoco.MjData) -> np.ndarray:
+        """DLS command toward the current goal; shape (n,) [rad/s]."""
+        index = self.goals.index
+        err = self.goal_positions[index] - data.site_xpos[self._site]
+        dist = math.sqrt(float(err @ err))
+        self.goals.update(t, dist)
+        if self.goals.index != index:
+            err = self.goal_positions[self.goals.index] - data.site_xpos[self._site]
+            dist = math.sqrt(float(err @ err))
+        v = self.kp * err
+        speed = self.kp * dist
+        if speed > self.max_ee_speed:
+            v *= self.max_ee_speed / speed
+        mujoco.mj_jacSite(self.scene.model, data, self._jac, None, self._site)
+        jac = self._jac[:, self._dofs]
+        u = jac.T @ np.linalg.solve(jac @ jac.T + self._damp, v)
+        return self._rate(t, _cap(u, self.max_joint_speed))
+
+
+class JointPDController(NominalController):
+    """Joint-space proportional control through a sequence of joint targets.
+
+    ``u = kp (q_goal - q)``, capped at ``max_joint_speed`` (scaled as a whole).
+
+    Args:
+        scene: The scene (arm joints, gains).
+        targets: Joint targets [rad], shape (g, n).
+        dwell: Dwell per target [s], shape (g,); default zeros.
+        kp: Gain [1/s]; default ``[gains] joint_kp``.
+        max_joint_speed: Cap [rad/s]; default ``[gains] max_joint_speed``.
+        tolerance: Max-norm joint error [rad] below which a target counts as reached.
+        loop: Loop over the targets.
+        max_joint_acc: Limit on the change of the command [rad/s^2], as
+            :class:`ReachingController`.
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        targets: np.ndarray,
+        dwell: Sequence[float] | np.ndarray | None = None,
+        *,
+        kp: float | None = None,
+        max_joint_speed: float | None = None,
+        tolerance: float = 0.02,
+        loop: bool = True,
+        max_joint_acc: float | None = None,
+    ) -> None:
+        self.scene = scene
+        self.n = scene.n_joints
+        q = np.array(targets, dtype=float)
+        if q.ndim == 1:
+            q = q[None, :]
+        if q.ndim != 2 or q.shape[1] != self.n or q.shape[0] < 1:
+            raise ShapeError(f"targets must have shape (g, {self.n}), got {np.shape(targets)}")
+        self.targets = q
+        self.goals = GoalSequence(q.shape[0], np.zeros(q.shape[0]) if dwell is None else dwell,
+                                  tolerance, loop)
+        gains = scene.config.gains
+        self.kp = float(gains.joint_kp if kp is None else kp)
+        self.max_joint_speed = float(gains.max_joint_speed if max_joint_speed is None
+                                     else max_joint_speed)
+        if not (self.kp > 0 and self.max_joint_speed > 0):
+            raise ConfigError("JointPDController kp and max_joint_speed must be > 0")
+        self._qadr = scene.qpos_adr
+        self._rate = _RateLimit(self.n, _max_acc(scene, max_joint_acc))
+
+    def __call__(self, t: float, data: mujoco.MjData) -> np.ndarray:
+        """Proportional command toward the current target; shape (n,) [rad/s]."""
+        index = self.goals.index
+        err = self.targets[index] - data.qpos[self._qadr]
+        self.goals.update(t, float(np.max(np.abs(err))))
+        if self.goals.index != index:
+            err = self.targets[self.goals.index] - data.qpos[self._qadr]
+        return self._rate(t, _cap(self.kp * err, self.max_joint_speed))

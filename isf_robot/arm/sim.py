@@ -1,0 +1,753 @@
+"""The arm simulation loop: nominal task, safety filter, low-level tracking, MuJoCo physics.
+
+One control step at ``t_k = k T`` (T the control period, a whole multiple of the physics
+timestep dt; ``S = T / dt`` physics steps per control step)::
+
+    mj_step1                               kinematics, M(q), bias forces at the current state
+    safety check on the true geometry      (every physics step)
+    barriers  h, dh/dq, dh/dt              collision pairs (cut-off) and joint limits
+    u_nom = nominal(t_k)                   task-space reaching (or any NominalController)
+    u     = filter(t_k, barriers, u_nom)   strategy: nominal | cbf | isf
+    tracker.apply; mj_step2                torques for the held u, then S - 1 more physics steps
+
+Strategies (DESIGN.md, section 3), on the same scene, seed and nominal task:
+
+* ``nominal``: no filter (shows the danger); "on" never.
+* ``cbf``: the standard robust safety filter (:class:`~isf_robot.core.SafetyFilter`) solved
+  at every control step; the step counts as "on" when a constraint is active.
+* ``isf``: the event-triggered intermittent safety filter
+  (:class:`~isf_robot.core.IntermittentSafetyFilter`): off until ``min_i Xi_on,i <= 0``, then
+  the safety-promoting filter until every ``Xi_on,i >= c``.
+
+Safety is judged on the true MuJoCo geometry at every physics step (not only at control
+ticks): ``min_barrier`` is the smallest ``dist - margin`` over all collision pairs and all
+physics steps (signed distances from ``mj_geomDistance``, no cut-off), and ``collisions``
+counts the physics steps at which some pair has ``dist - margin < 0``. Joint-limit barriers
+are reported separately (``min_joint_barrier``, at control steps).
+
+If the filter's QP is infeasible even with every promotion relaxed, the arm brakes
+(``u = 0``); such steps are counted in ``fallbacks`` and never hidden.
+
+Observers (:class:`isf_robot.core.Observer`) receive ``on_start(info)``, ``on_step`` with an
+:class:`ArmStepRecord` per control step, ``on_event`` per :class:`~isf_robot.core.SwitchEvent`
+and ``on_finish(summary)``. Records are built only when an observer is attached.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from isf_robot.core import (
+    ConfigError,
+    IntermittentSafetyFilter,
+    LieData,
+    MetricsAccumulator,
+    Observer,
+    Observers,
+    QPSolver,
+    SafetyFilter,
+    SwitchEvent,
+    UnknownNameError,
+)
+
+from .barriers import CollisionBarriers, JointLimitBarriers
+from .lowlevel import VelocityTracker
+from .nominal import NominalController, ReachingController
+from .scene import Scene
+
+__all__ = [
+    "STRATEGIES",
+    "ArmStepRecord",
+    "RunResult",
+    "FilterParams",
+    "ArmSimulation",
+    "EpisodeSetup",
+    "episode_setup",
+    "run_episode",
+    "check_control_period",
+]
+
+STRATEGIES: tuple[str, ...] = ("nominal", "cbf", "isf")
+
+
+# ----------------------------------------------------------------------------- records
+
+
+@dataclass(frozen=True, eq=False)
+class ArmStepRecord:
+    """What an observer sees of one control step (built only when an observer is attached).
+
+    Arrays are copies owned by the record. k is the number of barriers (collision pairs
+    first, then joint-limit rows), n the number of arm joints.
+
+    Attributes:
+        t: Time at the start of the step [s].
+        dt: Control period [s].
+        q: Arm joint positions [rad], shape (n,).
+        qd: Arm joint velocities [rad/s], shape (n,).
+        u: Applied command [rad/s], shape (n,).
+        u_nom: Nominal command [rad/s], shape (n,).
+        on: Filter mode in this step (cbf: a constraint active).
+        h_min: Smallest barrier value at ``t`` over all k barriers.
+        xi_min: Smallest ``Xi_on`` of the barriers the filter saw (inf for ``nominal``).
+        dist_min: Smallest true signed distance [m] over the collision pairs and over the
+            physics steps of this control step (no margin).
+        qp_solved: Whether a QP was solved in this step.
+        h: Barrier values, shape (k,) ([m] for pairs, [rad] for joint limits).
+        names: Barrier names, length k (the same tuple every step).
+        closest: Names of the (up to) three collision pairs with the smallest h, closest first.
+        witness: Witness points of the pairs within the cut-off [m], shape (a, 2, 3)
+            (on the robot geom, on the other geom).
+        witness_names: Names of those pairs, length a.
+        mocap_pos: Mocap body positions [m], shape (nmocap, 3).
+        mocap_quat: Mocap body orientations (w, x, y, z), shape (nmocap, 4).
+        ee_pos: End-effector position [m], shape (3,).
+        goal_index: Index of the goal pursued by the nominal task.
+        goal_pos: That goal's position [m], shape (3,) (NaN for non-reaching nominals).
+        event: The switch at this step, if any.
+        fallback: Whether the braking fallback was applied.
+        relaxed: Names of barriers whose promotion was relaxed in this step.
+    """
+
+    t: float
+    dt: float
+    q: np.ndarray
+    qd: np.ndarray
+    u: np.ndarray
+    u_nom: np.ndarray
+    on: bool
+    h_min: float
+    xi_min: float
+    dist_min: float
+    qp_solved: bool
+    h: np.ndarray
+    names: tuple[str, ...]
+    closest: tuple[str, ...]
+    witness: np.ndarray
+    witness_names: tuple[str, ...]
+    mocap_pos: np.ndarray
+    mocap_quat: np.ndarray
+    ee_pos: np.ndarray
+    goal_index: int
+    goal_pos: np.ndarray
+    event: SwitchEvent | None = None
+    fallback: bool = False
+    relaxed: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class FilterParams:
+    """Resolved filter parameters of a run.
+
+    Attributes:
+        alpha: Linear class-K gain ``alpha(h) = alpha h`` [1/s].
+        c: Off-trigger margin of the intermittent filter.
+        b: Promotion rate of the intermittent filter [m/s or rad/s].
+        d_bar: Tracking-error bound [rad/s].
+        d_bar_source: ``"argument"``, ``"config"`` or ``"calibration"``.
+    """
+
+    alpha: float
+    c: float
+    b: float
+    d_bar: float
+    d_bar_source: str
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """Summary of one episode. Metric fields come from :class:`isf_robot.core.MetricsAccumulator`.
+
+    Attributes:
+        scene: Scene name.
+        filter: Strategy (``nominal``, ``cbf``, ``isf``).
+        seed: Episode seed.
+        duration_s: Simulated time [s].
+        control_steps: Number of control steps.
+        physics_steps: Number of physics steps.
+        duty_cycle: Fraction of time the filter is on.
+        on_switches: Off-to-on switches.
+        off_switches: On-to-off switches.
+        mean_on_s: Mean complete on period [s] (None: none).
+        min_on_s: Shortest complete on period [s].
+        mean_off_s: Mean complete off period [s].
+        min_off_s: Shortest complete off period [s] (the measured inter-event time).
+        max_off_s: Longest complete off period [s].
+        intervention: ``sum |u - u_nom|^2 T`` [rad^2/s].
+        qp_solves: Control steps with a QP solve.
+        min_barrier: Smallest ``dist - margin`` [m], true geometry, all physics steps.
+        collisions: Physics steps with some collision barrier below 0.
+        min_joint_barrier: Smallest joint-limit barrier [rad] over the control steps.
+        goals_reached: Goal arrivals of the nominal task.
+        fallbacks: Steps where the filter was infeasible and the arm braked.
+        relaxations: Steps where promotions were relaxed (intermittent filter).
+        d_bar: Tracking-error bound used [rad/s].
+        d_bar_source: Where it came from.
+        alpha: Class-K gain [1/s].
+        c: Off-trigger margin.
+        b: Promotion rate.
+        control_period: Control period T [s].
+        timestep: Physics timestep dt [s].
+        tracking_error_q99: 99th percentile of ``|q_dot - u|`` at the control ticks [rad/s].
+        qp_time_median_us: Median QP solve time [us] (None: no QP).
+        wall_s: Wall time of the loop [s].
+        timings: Wall time per phase [s] when timing was requested, else empty.
+    """
+
+    scene: str
+    filter: str
+    seed: int
+    duration_s: float
+    control_steps: int
+    physics_steps: int
+    duty_cycle: float
+    on_switches: int
+    off_switches: int
+    mean_on_s: float | None
+    min_on_s: float | None
+    mean_off_s: float | None
+    min_off_s: float | None
+    max_off_s: float | None
+    intervention: float
+    qp_solves: int
+    min_barrier: float
+    collisions: int
+    min_joint_barrier: float
+    goals_reached: int
+    fallbacks: int
+    relaxations: int
+    d_bar: float
+    d_bar_source: str
+    alpha: float
+    c: float
+    b: float
+    control_period: float
+    timestep: float
+    tracking_error_q99: float
+    qp_time_median_us: float | None
+    wall_s: float
+    timings: Mapping[str, float] = dataclasses.field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready dict."""
+        d = dataclasses.asdict(self)
+        d["timings"] = dict(self.timings)
+        return d
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def check_control_period(period: float, timestep: float) -> int:
+    """Physics steps per control step; the period must be a whole multiple of the timestep.
+
+    Raises:
+        ConfigError: ``period`` is not positive or not a whole multiple of ``timestep``.
+    """
+    if not (isinstance(period, (int, float)) and math.isfinite(period) and period > 0):
+        raise ConfigError(f"control period must be a positive number of seconds, got {period!r}")
+    ratio = period / timestep
+    steps = int(round(ratio))
+    if steps < 1 or abs(ratio - steps) > 1e-6 * max(1.0, ratio):
+        raise ConfigError(f"control period {period} s is not a whole multiple of the physics "
+                          f"timestep {timestep} s (ratio {ratio:.6g})")
+    return steps
+
+
+def _path_period(mv: Any) -> float:
+    path = mv.path
+    if hasattr(path, "period"):
+        return abs(float(path.period))
+    seg = np.asarray(path.end, dtype=float) - np.asarray(path.start, dtype=float)
+    return 2.0 * float(np.linalg.norm(seg)) / float(path.speed)
+
+
+@dataclass(frozen=True)
+class EpisodeSetup:
+    """The seeded variation of an episode.
+
+    Attributes:
+        q0: Initial arm joint positions [rad], shape (n,).
+        goals: Goal positions [m], shape (g, 3).
+        time_offset: Offset of the moving obstacles' clock [s] (their position at sim time
+            t is the path's position at ``t + time_offset``).
+    """
+
+    q0: np.ndarray
+    goals: np.ndarray
+    time_offset: float
+
+
+def episode_setup(scene: Scene, seed: int, *, q_noise: float = 0.05, goal_noise: float = 0.03,
+                  max_tries: int = 100) -> EpisodeSetup:
+    """Draw an episode's initial configuration, goal jitter and obstacle phase from ``seed``.
+
+    ``q0 = home + N(0, q_noise^2)`` per joint (clipped inside the joint-limit margins), goals
+    jittered uniformly by ``+-goal_noise`` [m] in x and y, moving obstacles started at a random
+    point of their path. Draws are repeated until every barrier (collision pairs, joint limits)
+    is positive at t = 0.
+
+    Raises:
+        ConfigError: No safe initial state was found in ``max_tries`` draws.
+    """
+    rng = np.random.default_rng(seed)
+    n = scene.n_joints
+    margin = scene.config.barrier.joint_margin
+    lo = scene.joint_range[:, 0] + margin
+    hi = scene.joint_range[:, 1] - margin
+    coll = CollisionBarriers.from_scene(scene)
+    period = max([_path_period(mv) for mv in scene.config.moving] or [0.0])
+    for _ in range(max_tries):
+        q0 = np.clip(scene.home + rng.normal(0.0, q_noise, n), lo + 1e-3, hi - 1e-3)
+        goals = scene.goal_positions.copy()
+        goals[:, :2] += rng.uniform(-goal_noise, goal_noise, (goals.shape[0], 2))
+        offset = float(rng.uniform(0.0, period)) if period > 0 else 0.0
+        data = mujoco.MjData(scene.model)
+        data.qpos[scene.qpos_adr] = q0
+        scene.set_moving_obstacles(data, offset)
+        mujoco.mj_forward(scene.model, data)
+        if float(np.min(coll.evaluate(data).h)) > 0.0:
+            return EpisodeSetup(q0=q0, goals=goals, time_offset=offset)
+    raise ConfigError(f"scene {scene.name!r}: no safe initial state in {max_tries} draws "
+                      f"(seed {seed}); is the home configuration inside the safe set?")
+
+
+class _SafetyMonitor:
+    """True-geometry clearance of every collision pair, checked at every physics step.
+
+    Bounding spheres give a lower bound on each pair's distance; ``mj_geomDistance`` is
+    called only for pairs whose bound could lower the running minimum or reach below zero
+    (``exact=True``: the exact per-step minimum, for observers).
+    """
+
+    def __init__(self, model: mujoco.MjModel, coll: CollisionBarriers) -> None:
+        p = coll.pairs
+        self.model = model
+        self.g1, self.g2 = p.geom1, p.geom2
+        self.g1l, self.g2l = p.geom1.tolist(), p.geom2.tolist()
+        self.margin = p.margin.copy()
+        self.marginl = p.margin.tolist()
+        rb1, rb2 = model.geom_rbound[p.geom1], model.geom_rbound[p.geom2]
+        self.rsum = rb1 + rb2 + self.margin
+        self.unbounded = np.flatnonzero((rb1 == 0) | (rb2 == 0))
+        self.min_h = math.inf
+        self.collisions = 0
+        self.steps = 0
+
+    def check(self, data: mujoco.MjData, exact: bool = False) -> float:
+        """Check the current geometry; return this step's minimum distance (exact mode) or inf."""
+        gx = data.geom_xpos
+        diff = gx[self.g1] - gx[self.g2]
+        lb = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+        lb -= self.rsum
+        if self.unbounded.size:
+            lb[self.unbounded] = -math.inf
+        self.steps += 1
+        m, g1, g2, marg = self.model, self.g1l, self.g2l, self.marginl
+        step_min_h = math.inf
+        step_min_d = math.inf
+        if exact:
+            for i in np.argsort(lb).tolist():
+                if lb[i] >= step_min_h:
+                    break
+                cap = step_min_h + marg[i] if math.isfinite(step_min_h) else 1e6
+                d = mujoco.mj_geomDistance(m, data, g1[i], g2[i], cap, None)
+                if d - marg[i] < step_min_h:
+                    step_min_h = d - marg[i]
+                if d < step_min_d:
+                    step_min_d = d
+        else:
+            thresh = max(self.min_h, 0.0)
+            for i in np.flatnonzero(lb < thresh).tolist():
+                d = mujoco.mj_geomDistance(m, data, g1[i], g2[i], thresh + marg[i] + 1e-6, None)
+                if d - marg[i] < step_min_h:
+                    step_min_h = d - marg[i]
+        if step_min_h < 0.0:
+            self.collisions += 1
+        if step_min_h < self.min_h:
+            self.min_h = step_min_h
+        return step_min_d
+
+
+class _Timer:
+    """Accumulates wall time per phase (a no-op when disabled)."""
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled = enabled
+        self.totals: dict[str, float] = {}
+
+    def add(self, key: str, seconds: float) -> None:
+        self.totals[key] = self.totals.get(key, 0.0) + seconds
+
+
+# ----------------------------------------------------------------------------- simulation
+
+
+class ArmSimulation:
+    """One episode of an arm scene under a strategy.
+
+    Args:
+        scene: The scene.
+        strategy: ``"nominal"``, ``"cbf"`` or ``"isf"``.
+        seed: Episode seed (initial configuration, goal jitter, obstacle phase; see
+            :func:`episode_setup`). ``None``: the scene exactly as configured.
+        nominal: The nominal controller; default a :class:`ReachingController` through the
+            (seeded) goals.
+        tracker: The low-level controller; default :class:`VelocityTracker` with the scene's
+            gains.
+        alpha: Class-K gain [1/s]; default ``[filter] alpha``.
+        c: Off-trigger margin; default ``[filter] c``.
+        b: Promotion rate; default ``[filter] b``.
+        d_bar: Tracking-error bound [rad/s]; default ``[filter] d_bar`` when positive, else
+            the calibrated bound (:func:`isf_robot.arm.calibration.calibrate_d_bar`).
+        control_period: Control period [s]; default ``[control] period``. Must be a whole
+            multiple of the model timestep.
+        observers: Observers called during :meth:`run`.
+        timing: Accumulate wall time per phase (physics, safety check, barriers, nominal,
+            trigger, QP) into ``RunResult.timings``.
+        solver: QP solver for the filters (default ProxQP at eps_abs 1e-9).
+
+    Raises:
+        UnknownNameError: Unknown strategy (the message lists the valid ones).
+        ConfigError: Invalid parameters.
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        strategy: str = "isf",
+        *,
+        seed: int | None = 0,
+        nominal: NominalController | None = None,
+        tracker: VelocityTracker | None = None,
+        alpha: float | None = None,
+        c: float | None = None,
+        b: float | None = None,
+        d_bar: float | None = None,
+        control_period: float | None = None,
+        observers: Iterable[Observer] = (),
+        timing: bool = False,
+        solver: QPSolver | None = None,
+    ) -> None:
+        if strategy not in STRATEGIES:
+            raise UnknownNameError("strategy", strategy, STRATEGIES)
+        self.scene = scene
+        self.strategy = strategy
+        self.seed = seed
+        model = scene.model
+        self.timestep = float(model.opt.timestep)
+        self.control_period = float(scene.config.control.period if control_period is None
+                                    else control_period)
+        self.substeps = check_control_period(self.control_period, self.timestep)
+        self.setup = (episode_setup(scene, seed) if seed is not None else
+                      EpisodeSetup(scene.home.copy(), scene.goal_positions.copy(), 0.0))
+        self.nominal = nominal if nominal is not None else ReachingController(
+            scene, goals=self.setup.goals)
+        if self.nominal.n != scene.n_joints:
+            raise ConfigError(f"nominal controller has {self.nominal.n} joints, the scene "
+                              f"{scene.n_joints}")
+        self.tracker = tracker if tracker is not None else VelocityTracker(scene)
+        self.params = self._resolve_params(alpha, c, b, d_bar)
+        self.coll = CollisionBarriers.from_scene(scene)
+        self.joints = JointLimitBarriers.from_scene(scene)
+        self.names = self.coll.names + self.joints.names
+        self.observers = Observers(observers)
+        self.timing = bool(timing)
+        p = self.params
+        cutoff_h = float(np.min(self.coll.cutoff - self.coll.pairs.margin))
+        if strategy == "isf" and p.alpha * cutoff_h < p.c:
+            raise ConfigError(
+                f"alpha * (cutoff - margin) = {p.alpha * cutoff_h:.3g} < c = {p.c}: pairs beyond "
+                "the broad-phase cut-off would keep the intermittent filter on; raise the cut-off")
+        solver = solver if solver is not None else QPSolver()
+        self.filter: SafetyFilter | IntermittentSafetyFilter | None
+        if strategy == "cbf":
+            self.filter = SafetyFilter(p.alpha, p.d_bar, solver=solver, on_infeasible="fallback",
+                                       fallback=self._brake)
+        elif strategy == "isf":
+            self.filter = IntermittentSafetyFilter(p.alpha, p.c, p.b, p.d_bar, solver=solver,
+                                                   on_infeasible="fallback", fallback=self._brake)
+        else:
+            self.filter = None
+
+    # -- parameters ----------------------------------------------------------------------
+    def _resolve_params(self, alpha: float | None, c: float | None, b: float | None,
+                        d_bar: float | None) -> FilterParams:
+        fc = self.scene.config.filter
+        a = float(fc.alpha if alpha is None else alpha)
+        cc = float(fc.c if c is None else c)
+        bb = float(fc.b if b is None else b)
+        for label, v in (("alpha", a), ("c", cc), ("b", bb)):
+            if not (math.isfinite(v) and v > 0):
+                raise ConfigError(f"filter parameter {label} must be > 0, got {v}")
+        if d_bar is not None:
+            if not (math.isfinite(d_bar) and d_bar >= 0):
+                raise ConfigError(f"d_bar must be >= 0 [rad/s], got {d_bar}")
+            return FilterParams(a, cc, bb, float(d_bar), "argument")
+        if fc.d_bar > 0:
+            return FilterParams(a, cc, bb, float(fc.d_bar), "config")
+        from .calibration import calibrate_d_bar
+
+        return FilterParams(a, cc, bb, calibrate_d_bar(self.scene).d_bar, "calibration")
+
+    @staticmethod
+    def _brake(t: float, x: Any, lie: LieData, res: Any) -> np.ndarray:
+        """Fallback when no command satisfies the safety constraints: stop (u = 0)."""
+        return np.zeros(lie.m)
+
+    # -- the loop ------------------------------------------------------------------------
+    def run(self, duration: float | None = None) -> RunResult:
+        """Simulate ``duration`` seconds (default ``[task] duration``) and summarise.
+
+        Raises:
+            ConfigError: ``duration`` is not a positive number.
+        """
+        dur = float(self.scene.config.task.duration if duration is None else duration)
+        if not (math.isfinite(dur) and dur > 0):
+            raise ConfigError(f"duration must be a positive number of seconds, got {duration!r}")
+        scene, model = self.scene, self.scene.model
+        T, dt, S = self.control_period, self.timestep, self.substeps
+        n_ctrl = max(1, int(round(dur / T)))
+        observers = self.observers
+        recording = bool(observers)
+        timing = self.timing
+        tm = _Timer(timing)
+        perf = time.perf_counter
+
+        data = mujoco.MjData(model)
+        data.qpos[scene.qpos_adr] = self.setup.q0
+        moving = len(scene.config.moving) > 0
+        off = self.setup.time_offset
+        if moving:
+            t_phys = np.arange(n_ctrl * S + 1) * dt + off
+            mocap_track = np.array([[mv.path.position(t) for mv in scene.config.moving]
+                                    for t in t_phys])
+            mocap_rows = scene.moving_mocap_ids
+            lin_all = np.zeros((n_ctrl, model.nmocap, 3))
+            for k in range(n_ctrl):
+                for j, mv in enumerate(scene.config.moving):
+                    lin_all[k, mocap_rows[j]] = mv.path.velocity(k * T + off)
+            data.mocap_pos[mocap_rows] = mocap_track[0]
+        mujoco.mj_forward(model, data)
+        self.nominal.reset()
+        self.tracker.reset(data)
+        flt = self.filter
+        if isinstance(flt, IntermittentSafetyFilter):
+            flt.reset(0.0)
+        monitor = _SafetyMonitor(model, self.coll)
+        metrics = MetricsAccumulator()
+        coll, joints, nominal, tracker = self.coll, self.joints, self.nominal, self.tracker
+        cnames, jnames = self.coll.names, self.joints.names
+        strategy = self.strategy
+        need_barriers = flt is not None or recording
+        qadr, dofs = scene.qpos_adr, scene.dof_adr
+        reaching = isinstance(nominal, ReachingController)
+        min_joint = math.inf
+        fallbacks = relaxations = 0
+        qp_times: list[float] = []
+        track_err = np.empty(n_ctrl)
+        prev_on = False
+        n_on = n_off = 0
+        t_switch: float | None = None
+
+        if recording:
+            observers.on_start({
+                "scene": scene.name, "model_path": str(scene.xml_path),
+                "config_path": str(scene.config.source) if scene.config.source else None,
+                "strategy": strategy, "seed": self.seed, "dt": dt, "control_period": T,
+                "duration": n_ctrl * T, "names": self.names, "joint_names": scene.joint_names,
+                "n_collision": coll.pairs.k, "goals": getattr(nominal, "goal_positions", None),
+                "alpha": self.params.alpha, "c": self.params.c, "b": self.params.b,
+                "d_bar": self.params.d_bar,
+            })
+
+        wall0 = perf()
+        lin = None
+        for k in range(n_ctrl):
+            t = k * T
+            base = k * S
+            # -- first physics step of the control step: sense, decide, act
+            t0 = perf() if timing else 0.0
+            if moving:
+                data.mocap_pos[mocap_rows] = mocap_track[base]
+                lin = lin_all[k]
+            mujoco.mj_step1(model, data)
+            if timing:
+                t1 = perf()
+                tm.add("physics", t1 - t0)
+            dmin = monitor.check(data, recording)
+            if timing:
+                t2 = perf()
+                tm.add("safety_check", t2 - t1)
+            if need_barriers:
+                cb = coll.evaluate(data, lin)
+                jb = joints.evaluate(data)
+                act = np.flatnonzero(cb.active)
+                if act.size == cb.k:
+                    h = np.concatenate((cb.h, jb.h))
+                    grad = np.concatenate((cb.grad, jb.grad))
+                    dhdt = np.concatenate((cb.dhdt, jb.dhdt))
+                    lnames = self.names
+                else:
+                    h = np.concatenate((cb.h[act], jb.h))
+                    grad = np.concatenate((cb.grad[act], jb.grad))
+                    dhdt = np.concatenate((cb.dhdt[act], jb.dhdt))
+                    lnames = tuple(cnames[i] for i in act.tolist()) + jnames
+                lie = LieData(h, dhdt, grad, np.sqrt(np.einsum("ij,ij->i", grad, grad)), lnames)
+                jmin = float(jb.h.min()) if jb.k else math.inf
+                if jmin < min_joint:
+                    min_joint = jmin
+            if timing:
+                t3 = perf()
+                tm.add("barriers", t3 - t2)
+            u_nom = nominal(t, data)
+            if timing:
+                t4 = perf()
+                tm.add("nominal", t4 - t3)
+            qd = data.qvel[dofs]
+            if flt is None:
+                u = u_nom
+                on = False
+                step = None
+                metrics.add(t, T, False, u, u_nom, False)
+            else:
+                step = flt.step_lie(t, lie, u_nom)
+                u, on = step.u, step.on
+                metrics.add_step(step, T)
+                if step.qp is not None:
+                    qp_times.append(step.qp.solve_time_s)
+                if step.fallback:
+                    fallbacks += 1
+                if step.relaxed:
+                    relaxations += 1
+            e = qd - tracker.u
+            track_err[k] = math.sqrt(float(e @ e))
+            tracker.set_command(u, T)
+            if timing:
+                t5 = perf()
+                tm.add("filter", t5 - t4)
+                if step is not None and step.qp is not None:
+                    tm.add("qp", step.qp.solve_time_s)
+            tracker.apply(data)
+            mujoco.mj_step2(model, data)
+            if timing:
+                tm.add("physics", perf() - t5)
+            # -- the remaining physics steps hold u
+            for s in range(1, S):
+                if timing:
+                    t6 = perf()
+                if moving:
+                    data.mocap_pos[mocap_rows] = mocap_track[base + s]
+                mujoco.mj_step1(model, data)
+                if timing:
+                    t7 = perf()
+                d2 = monitor.check(data, recording)
+                if timing:
+                    t8 = perf()
+                if d2 < dmin:
+                    dmin = d2
+                tracker.apply(data)
+                mujoco.mj_step2(model, data)
+                if timing:
+                    t9 = perf()
+                    tm.add("physics", (t7 - t6) + (t9 - t8))
+                    tm.add("safety_check", t8 - t7)
+
+            # -- events and records
+            event = step.event if step is not None else None
+            if flt is not None and strategy == "cbf" and on != prev_on:
+                if on:
+                    n_on += 1
+                else:
+                    n_off += 1
+                event = SwitchEvent(t, "on" if on else "off", step.xi_min,
+                                    n_on if on else n_off,
+                                    None if t_switch is None else t - t_switch)
+                t_switch = t
+            prev_on = on
+            if recording:
+                if event is not None:
+                    observers.on_event(event)
+                observers.on_step(self._record(data, t, T, u, u_nom, on, step, event, cb, jb,
+                                               dmin, reaching))
+
+        # the state after the last step
+        if moving:
+            data.mocap_pos[mocap_rows] = mocap_track[n_ctrl * S]
+        mujoco.mj_kinematics(model, data)
+        monitor.check(data, recording)
+        wall = perf() - wall0
+
+        mres = metrics.result()
+        q99 = float(np.quantile(track_err, 0.99)) if n_ctrl else 0.0
+        timings = {k: v for k, v in tm.totals.items()} if timing else {}
+        if timing:
+            timings["trigger"] = timings.get("filter", 0.0) - timings.get("qp", 0.0)
+        p = self.params
+        result = RunResult(
+            scene=scene.name, filter=strategy, seed=-1 if self.seed is None else int(self.seed),
+            duration_s=mres.duration_s, control_steps=mres.control_steps,
+            physics_steps=monitor.steps, duty_cycle=mres.duty_cycle,
+            on_switches=mres.on_switches, off_switches=mres.off_switches,
+            mean_on_s=mres.mean_on_s, min_on_s=mres.min_on_s, mean_off_s=mres.mean_off_s,
+            min_off_s=mres.min_off_s, max_off_s=mres.max_off_s,
+            intervention=mres.intervention, qp_solves=mres.qp_solves,
+            min_barrier=float(monitor.min_h), collisions=monitor.collisions,
+            min_joint_barrier=float(min_joint) if math.isfinite(min_joint) else float(
+                np.min(joints.evaluate(data).h)) if joints.names else math.inf,
+            goals_reached=nominal.goals_reached, fallbacks=fallbacks, relaxations=relaxations,
+            d_bar=p.d_bar, d_bar_source=p.d_bar_source, alpha=p.alpha, c=p.c, b=p.b,
+            control_period=T, timestep=dt, tracking_error_q99=q99,
+            qp_time_median_us=float(np.median(qp_times)) * 1e6 if qp_times else None,
+            wall_s=wall, timings=timings,
+        )
+        self.metrics = metrics
+        self.data = data
+        if recording:
+            observers.on_finish(result.as_dict())
+        return result
+
+    def _record(self, data: mujoco.MjData, t: float, T: float, u: np.ndarray,
+                u_nom: np.ndarray, on: bool, step: Any, event: SwitchEvent | None, cb: Any,
+                jb: Any, dmin: float, reaching: bool) -> ArmStepRecord:
+        scene = self.scene
+        h = np.concatenate((cb.h, jb.h))
+        order = np.argsort(cb.h)[:3].tolist()
+        act = np.flatnonzero(cb.active)
+        nominal = self.nominal
+        gi = nominal.goal_index
+        goal = (nominal.goal_positions[gi].copy() if reaching
+                else np.full(3, np.nan))  # type: ignore[attr-defined]
+        return ArmStepRecord(
+            t=t, dt=T, q=data.qpos[scene.qpos_adr].copy(), qd=data.qvel[scene.dof_adr].copy(),
+            u=np.array(u, dtype=float), u_nom=np.array(u_nom, dtype=float), on=bool(on),
+            h_min=float(h.min()), xi_min=step.xi_min if step is not None else math.inf,
+            dist_min=float(dmin), qp_solved=step is not None and step.qp is not None, h=h,
+            names=self.names, closest=tuple(cb.names[i] for i in order),
+            witness=cb.witness[act].copy(), witness_names=tuple(cb.names[i] for i in act.tolist()),
+            mocap_pos=data.mocap_pos.copy(), mocap_quat=data.mocap_quat.copy(),
+            ee_pos=data.site_xpos[scene.ee_site_id].copy(), goal_index=gi, goal_pos=goal,
+            event=event,
+            fallback=bool(step.fallback) if step is not None else False,
+            relaxed=tuple(step.relaxed) if step is not None else (),
+        )
+
+
+def run_episode(
+    scene: Scene,
+    strategy: str = "isf",
+    duration: float | None = None,
+    seed: int | None = 0,
+    **kwargs: Any,
+) -> RunResult:
+    """Build an :class:`ArmSimulation` and run it once (keyword arguments as its constructor)."""
+    return ArmSimulation(scene, strategy, seed=seed, **kwargs).run(duration)
+
