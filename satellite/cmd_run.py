@@ -24,6 +24,7 @@ class ProgressObserver(Observer):
     Args:
         stream: Where to write (stderr in the CLI).
         step: Fraction of the run between lines, in (0, 1].
+
     """
 
     def __init__(self, stream: TextIO, step: float = 0.1) -> None:

@@ -37,7 +37,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--disturbance-scale", type=float, default=1.0, metavar="K",
                    help="experiment: scale the non-Kepler gravity by K (default 1, the full field)")
     p.add_argument("--no-spin", action="store_true", help="freeze the body")
-    p.add_argument("--alpha-gain", type=float, default=None, metavar="PER_S", help="alpha gain (default: mean motion at 2R)")
+    p.add_argument("--alpha-gain", type=float, default=None, metavar="PER_S",
+                   help="alpha gain (default: mean motion at 2R)")
     p.add_argument("--d-bar", type=float, default=0.0, help="disturbance bound used in Xi (default 0)")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
     p.set_defaults(func=run)

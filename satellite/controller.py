@@ -50,6 +50,7 @@ class SafeguardingController:
 
     Args:
         model: Supplies R and mu.
+
     """
 
     def __init__(self, model: OrbitModel) -> None:
@@ -131,6 +132,7 @@ class ControlParams:
         c: Post-jump margin [m^2/s]; default (``None``) ``c_fraction`` times the smallest
             ``Xi(G(x, K(x)))`` over the band (sampled on 4001 radii).
         c_fraction: Fraction used for the default ``c``, in (0, 1].
+
     """
 
     alpha_gain: float | None = None
@@ -159,6 +161,7 @@ class ResolvedControl:
         c: Post-jump margin [m^2/s].
         min_post_jump_xi: Smallest sampled ``Xi(G(x, K(x)))`` over the band [m^2/s].
         argmin_r_over_R: Radius of that minimum [R].
+
     """
 
     alpha_gain: float
@@ -174,6 +177,7 @@ def resolve_control(model: OrbitModel, params: ControlParams | None = None, samp
     Raises:
         ConfigError: The sampled post-jump ``Xi`` is not positive somewhere on the band, or the
             given ``c`` exceeds its minimum (the run would fail its post-jump check).
+
     """
     params = params or ControlParams()
     gain = params.alpha_gain if params.alpha_gain is not None else model.mean_motion_centre()
@@ -208,6 +212,7 @@ class FastTriggers:
         model: Supplies R.
         alpha: Class-K function.
         d_bar: Disturbance bound.
+
     """
 
     def __init__(self, model: OrbitModel, alpha: ClassK, d_bar: float) -> None:

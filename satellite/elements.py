@@ -30,6 +30,7 @@ class OrbitalElements:
         periapsis: ``p / (1 + e)`` [m].
         apoapsis: ``p / (1 - e)`` [m] (``inf`` when ``e >= 1``).
         h_vec: Specific angular momentum ``r x v`` [m^2/s], shape (3,).
+
     """
 
     p: float
@@ -51,6 +52,7 @@ def osculating_elements(x: ArrayLike, mu: float) -> OrbitalElements:
 
     Returns:
         The elements (true anomaly signed by the sign of ``r . v``).
+
     """
     s = np.asarray(x, dtype=float)
     r_vec, v_vec = s[:3], s[3:]

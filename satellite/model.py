@@ -74,6 +74,7 @@ class OrbitModel:
         R: Reference (volume-equivalent) radius [m].
         mu: Gravitational parameter ``GM`` [m^3/s^2].
         omega: Spin rate [rad/s] (0 without spin).
+
     """
 
     def __init__(
@@ -178,6 +179,7 @@ class BandBarrier(Barrier):
 
     Args:
         model: Supplies R.
+
     """
 
     name = "band"
@@ -219,6 +221,7 @@ class InitialOrbit:
         raan_deg: Overrides the drawn node [deg] when given.
         arg_lat_deg: Overrides the drawn argument of latitude [deg] when given.
         body_phase_deg: Overrides the drawn body phase [deg] when given.
+
     """
 
     radius_over_R: float = BAND_CENTRE

@@ -30,7 +30,6 @@ from scipy.integrate import solve_ivp
 
 from isf_robot.core import (
     ConfigError,
-    EventTriggeredImpulsiveController,
     IsfError,
     JumpEvent,
     Linear,
@@ -69,6 +68,7 @@ class IntegratorSettings:
         rtol: Relative tolerance.
         atol: Absolute tolerance.
         max_step_s: Largest step [s] (default 1200 s, about 1/20 of the 6.65 h period at 2R).
+
     """
 
     rtol: float = 1e-10
@@ -93,6 +93,7 @@ class SatelliteSample:
         phase: ``"none"``, ``"greedy"``, or for maneuvers ``"first"``, ``"second"`` (before the
             gate), ``"second-gated"`` (after it).
         body_angle: Body rotation angle [rad].
+
     """
 
     t: float
@@ -129,6 +130,7 @@ class RunResult:
         settings: Resolved settings (JSON-ready).
         events: The impulses.
         nfev: Right-hand-side evaluations.
+
     """
 
     trigger: str
@@ -171,6 +173,7 @@ def miet_estimate(
 
     Returns:
         ``(bound_s, L_Xi, d_bar_flow)``.
+
     """
     rng = np.random.default_rng(seed)
     trig = FastTriggers(model, Linear(resolved.alpha_gain), resolved.d_bar)
@@ -288,6 +291,7 @@ def simulate(
         ConfigError: Bad duration, missing ``tau`` for maneuvers, initial state outside the band.
         PostJumpConditionError: The controller broke ``h(x+) >= 0`` or ``Xi(x+) >= c``.
         SimulationError: The integrator failed.
+
     """
     wall0 = time.perf_counter()
     if trigger not in TRIGGERS:

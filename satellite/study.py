@@ -60,11 +60,14 @@ def compare(
         JSON-ready dict: ``rows`` (one per seed with both counts), ``reduction`` statistics
         (``1 - maneuver / greedy``: mean, sample standard deviation, min, max, count of seeds with
         fewer maneuver triggers) and the settings.
+
     """
     jobs = []
     for s in seeds:
         for trig, rtol in (("greedy", 1e-10), ("maneuver", 1e-10)) + ((("greedy", 1e-11),) if rtol_check else ()):
-            jobs.append((trig, int(s), float(hours), tau_path, spin, disturbance_scale, alpha_gain, inclination_deg, rtol))
+            jobs.append(
+                (trig, int(s), float(hours), tau_path, spin, disturbance_scale, alpha_gain, inclination_deg, rtol)
+            )
     with ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1) as pool:
         results = list(pool.map(_one, jobs))
     rows = []
@@ -111,7 +114,8 @@ def compare(
     }
     if rtol_check:
         noise = np.array([1.0 - r["greedy_rtol1e-11"] / r["greedy"] for r in rows])
-        out["greedy_rtol_noise"] = {"mean": float(noise.mean()), "std": float(noise.std(ddof=1)) if noise.size > 1 else 0.0}
+        sd = float(noise.std(ddof=1)) if noise.size > 1 else 0.0
+        out["greedy_rtol_noise"] = {"mean": float(noise.mean()), "std": sd}
     return out
 
 

@@ -71,6 +71,7 @@ class TauData:
         wall_s: Wall time of the collection [s].
         workers: Processes used.
         disturbance_scale: Factor on the non-Kepler gravity (see :class:`OrbitModel`).
+
     """
 
     radii_over_R: NDArray[np.float64]
@@ -99,6 +100,7 @@ class TauFit:
     Args:
         coef_s: Coefficients ``a_k`` [s], lowest degree first.
         h_max: ``(0.4 R)^2`` [m^2], > 0.
+
     """
 
     def __init__(self, coef_s: list[float] | NDArray[np.float64], h_max: float) -> None:
@@ -150,6 +152,7 @@ def fit_tau(data: TauData, h_max: float, R: float, degree: int = 2) -> TauFit:
         h_max: ``(0.4 R)^2`` [m^2].
         R: Reference radius [m].
         degree: Polynomial degree, >= 1.
+
     """
     if degree < 1:
         raise SatelliteError(f"fit degree must be >= 1, got {degree}")
@@ -188,6 +191,7 @@ def time_to_trigger(
         control: Trigger settings.
         max_hours: Censoring time [h].
         disturbance_scale: Factor on the non-Kepler gravity.
+
     """
     rng = np.random.default_rng(list(seed))
     u = rng.normal(size=3)
@@ -258,6 +262,7 @@ def collect_tau(
         max_hours: Censoring time [h], > 0.
         chunk: Samples per task.
         disturbance_scale: Factor on the non-Kepler gravity.
+
     """
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
         raise SatelliteError(f"samples must be a positive integer, got {samples!r}")
@@ -315,6 +320,7 @@ def load_tau(path: str | Path) -> TauFit:
 
     Raises:
         TauFileError: Missing file, invalid JSON, or not a tau file.
+
     """
     p = Path(path)
     if not p.is_file():
@@ -324,7 +330,9 @@ def load_tau(path: str | Path) -> TauFit:
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise TauFileError(f"{p}: not a tau file (invalid JSON: {exc})") from None
     if not isinstance(doc, dict) or doc.get("format") != TAU_FORMAT:
-        raise TauFileError(f"{p}: not a tau file (expected \"format\": \"{TAU_FORMAT}\"; make one with `isf-satellite tau`)")
+        raise TauFileError(
+            f"{p}: not a tau file (expected \"format\": \"{TAU_FORMAT}\"; make one with `isf-satellite tau`)"
+        )
     fit = doc.get("fit")
     if not isinstance(fit, dict) or "coef_s" not in fit or "h_max" not in fit:
         raise TauFileError(f"{p}: tau file lacks fit.coef_s / fit.h_max")

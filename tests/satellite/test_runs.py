@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numpy as np
 import pytest
 
 from isf_robot.core import ConfigError, Observer, UnknownNameError
