@@ -173,11 +173,15 @@ def project_halfspace(u_nom: np.ndarray, a: np.ndarray, lb: float) -> np.ndarray
 class _Workspace:
     """A ProxQP dense workspace and whether it has been initialised."""
 
-    __slots__ = ("qp", "initialised")
+    __slots__ = ("qp", "initialised", "H", "upper", "free_lo", "free_hi")
 
-    def __init__(self, qp: Any) -> None:
+    def __init__(self, qp: Any, m: int, k: int) -> None:
         self.qp = qp
         self.initialised = False
+        self.H = np.eye(m)
+        self.upper = np.full(k, 1e30)
+        self.free_lo = np.full(m, -1e30)
+        self.free_hi = np.full(m, 1e30)
 
 
 class QPSolver:
@@ -233,7 +237,7 @@ class QPSolver:
             s.eps_duality_gap_rel = 0.0
             s.max_iter = self.max_iter
             s.initial_guess = proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
-            qp = _Workspace(qp)
+            qp = _Workspace(qp, m, k)
             self._cache[key] = qp
         return qp
 
@@ -290,11 +294,11 @@ class QPSolver:
 
         wrap = self._workspace(m, k, box)
         ws = wrap.qp
-        H = np.eye(m)
+        H = wrap.H
         g = -qp.u_nom
-        upper = np.full(k, 1e30)
-        lbox = qp.u_min if qp.u_min is not None else np.full(m, -1e30)
-        ubox = qp.u_max if qp.u_max is not None else np.full(m, 1e30)
+        upper = wrap.upper
+        lbox = qp.u_min if qp.u_min is not None else wrap.free_lo
+        ubox = qp.u_max if qp.u_max is not None else wrap.free_hi
         if not wrap.initialised:
             if box:
                 ws.init(H, g, None, None, qp.A, qp.lb, upper, lbox, ubox)
@@ -303,9 +307,9 @@ class QPSolver:
             wrap.initialised = True
         else:
             if box:
-                ws.update(g=g, C=qp.A, l=qp.lb, u=upper, l_box=lbox, u_box=ubox, update_preconditioner=True)
+                ws.update(g=g, C=qp.A, l=qp.lb, l_box=lbox, u_box=ubox, update_preconditioner=True)
             else:
-                ws.update(g=g, C=qp.A, l=qp.lb, u=upper, update_preconditioner=True)
+                ws.update(g=g, C=qp.A, l=qp.lb, update_preconditioner=True)
         ws.solve()
         st = ws.results.info.status
         iters = int(ws.results.info.iter)

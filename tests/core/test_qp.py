@@ -111,3 +111,28 @@ def test_build_filter_qp_rows_match_robust_condition():
     # row: lf + lg u - |grad| d_bar >= -alpha(h)  <=>  lg u >= -alpha(h) - lf + |grad| d_bar
     np.testing.assert_allclose(qp.lb, [-0.5 - 0.1 + 2.0 * 0.2])
     assert qp.max_violation(np.array([1.0, 0.0])) == 0.0
+
+
+def test_reused_warm_started_workspace_matches_fresh_solves():
+    rng = np.random.default_rng(7)
+    reused = QPSolver()
+    for _ in range(50):
+        k, m = int(rng.integers(2, 6)), 4
+        A = rng.normal(size=(k, m))
+        lb = A @ rng.normal(size=m) - rng.uniform(0, 0.5, k)  # feasible by construction
+        u_nom = 2 * rng.normal(size=m)
+        bounds = rng.random() < 0.5
+        qp = FilterQP(u_nom, A, lb, u_min=-10 * np.ones(m) if bounds else None, u_max=10 * np.ones(m) if bounds else None)
+        a = reused.solve(qp)
+        b = QPSolver().solve(qp)
+        assert a.status == b.status == "optimal"
+        np.testing.assert_allclose(a.u, b.u, atol=1e-7)
+        assert qp.max_violation(a.u) <= 1e-7
+        # KKT: u - u_nom = A_act^T lam with lam >= 0 (no bound active at this scale)
+        act = a.active
+        if act.any():
+            lam, *_ = np.linalg.lstsq(A[act].T, a.u - u_nom, rcond=None)
+            np.testing.assert_allclose(A[act].T @ lam, a.u - u_nom, atol=1e-6)
+            assert np.all(lam >= -1e-6)
+        else:
+            np.testing.assert_allclose(a.u, u_nom, atol=1e-8)
