@@ -96,7 +96,7 @@ def calibrate_d_bar(
     duration: float = 4.0,
     quantile: float = 0.99,
     factor: float = 1.5,
-    excitation: float = 0.25,
+    excitation: float = 0.05,
     switch_period: float = 0.2,
     seed: int = 0,
     use_cache: bool = True,

@@ -111,6 +111,9 @@ class VelocityTracker:
         self.q_ref = np.zeros(n)
         self.u = np.zeros(n)
         self.a_ff = np.zeros(n)
+        self._err = np.zeros(n)
+        self._tmp = np.zeros(n)
+        self._inv_gain = 1.0 / self._gain
         self._dt = float(model.opt.timestep)
 
     def reset(self, data: mujoco.MjData) -> None:
@@ -138,20 +141,32 @@ class VelocityTracker:
     def apply(self, data: mujoco.MjData) -> None:
         """Write ``data.ctrl`` for the current state; call between ``mj_step1`` and ``mj_step2``.
 
-        Advances the reference by one physics step.
+        Advances the reference by one physics step. Works in preallocated buffers (it runs at
+        the physics rate).
         """
+        dof = self._dof
         q = data.qpos[self._qadr]
-        qd = data.qvel[self._dof]
         u = self.u
-        ref = self.q_ref
-        ref += u * self._dt
-        err = ref - q
-        np.clip(err, -self.max_ref_error, self.max_ref_error, out=err)
-        ref[:] = q + err
-        acc = self._acc_full
-        acc[self._dof] = self.a_ff + self.kd * (u - qd) + self.kp * err
+        ref, err, tmp, acc = self.q_ref, self._err, self._tmp, self._acc_full
+        # reference: ref <- q + clip(ref + u dt - q, +-e_max)
+        np.multiply(u, self._dt, out=tmp)
+        ref += tmp
+        np.subtract(ref, q, out=err)
+        np.minimum(err, self.max_ref_error, out=err)
+        np.maximum(err, -self.max_ref_error, out=err)
+        np.add(q, err, out=ref)
+        # desired acceleration: a_ff + kd (u - qd) + kp err
+        np.subtract(u, data.qvel[dof], out=tmp)
+        tmp *= self.kd
+        err *= self.kp
+        tmp += err
+        tmp += self.a_ff
+        acc[dof] = tmp
         mujoco.mj_mulM(self.model, data, self._tau_full, acc)
-        tau = self._tau_full[self._dof] + data.qfrc_bias[self._dof] - data.qfrc_passive[self._dof]
-        ctrl = tau / self._gain
-        np.clip(ctrl, self._lo, self._hi, out=ctrl)
-        data.ctrl[self._act] = ctrl
+        tau = self._tau_full
+        tau += data.qfrc_bias
+        tau -= data.qfrc_passive
+        np.multiply(tau[dof], self._inv_gain, out=tmp)
+        np.minimum(tmp, self._hi, out=tmp)
+        np.maximum(tmp, self._lo, out=tmp)
+        data.ctrl[self._act] = tmp

@@ -37,17 +37,20 @@ class GoalSequence:
 
     A goal is *reached* the first time the error falls below the tolerance; after its dwell
     time the sequence moves to the next goal (back to the first when ``loop``; the last goal
-    is held otherwise).
+    is held otherwise). A goal not reached within ``timeout`` seconds is given up (counted in
+    ``missed``) and the sequence moves on, so that an arm held back by a safety filter keeps
+    working on its task instead of pushing against an obstacle for the rest of the episode.
 
     Args:
         n_goals: Number of goals, >= 1.
         dwell: Dwell time per goal [s], shape (n_goals,).
         tolerance: Error below which a goal counts as reached (controller units: [m] or [rad]).
         loop: Restart at the first goal after the last one.
+        timeout: Time [s] after which an unreached goal is given up (``inf``: never).
     """
 
     def __init__(self, n_goals: int, dwell: Sequence[float] | np.ndarray, tolerance: float,
-                 loop: bool = True) -> None:
+                 loop: bool = True, timeout: float = math.inf) -> None:
         if n_goals < 1:
             raise ConfigError("a goal sequence needs at least one goal")
         self.n_goals = int(n_goals)
@@ -58,33 +61,46 @@ class GoalSequence:
             raise ConfigError(f"goal tolerance must be > 0, got {tolerance}")
         self.tolerance = float(tolerance)
         self.loop = bool(loop)
+        if not timeout > 0:
+            raise ConfigError(f"goal timeout must be > 0 [s], got {timeout}")
+        self.timeout = float(timeout)
         self.reset()
 
     def reset(self) -> None:
         """Start again at the first goal with nothing reached."""
         self.index = 0
         self.reached = 0
+        self.missed = 0
         self._arrived: float | None = None
+        self._started: float | None = None
         self._done = False
+
+    def _advance(self) -> None:
+        if self.index + 1 < self.n_goals:
+            self.index += 1
+        elif self.loop:
+            self.index = 0
+        else:
+            self._done = True
+        self._arrived = None
+        self._started = None
 
     def update(self, t: float, error: float) -> None:
         """Advance the sequence given the current goal error at time ``t`` [s]."""
         if self._done:
             return
+        if self._started is None:
+            self._started = t
         if self._arrived is None:
             if error < self.tolerance:
                 self._arrived = t
                 self.reached += 1
+            elif t - self._started >= self.timeout:
+                self.missed += 1
+                self._advance()
             return
         if t - self._arrived >= self.dwell[self.index]:
-            if self.index + 1 < self.n_goals:
-                self.index += 1
-            elif self.loop:
-                self.index = 0
-            else:
-                self._done = True
-                return
-            self._arrived = None
+            self._advance()
 
 
 class NominalController(ABC):
@@ -107,6 +123,11 @@ class NominalController(ABC):
     def goals_reached(self) -> int:
         """Number of goal arrivals so far."""
         return self.goals.reached
+
+    @property
+    def goals_missed(self) -> int:
+        """Number of goals given up after the timeout."""
+        return self.goals.missed
 
     _rate: _RateLimit
 
@@ -181,6 +202,8 @@ class ReachingController(NominalController):
         max_joint_acc: Limit on the change of the command [rad/s^2] (the whole change is
             scaled; the first command is zero: the arm starts at rest); default
             ``[gains] max_joint_acc`` or 10. ``inf`` disables it.
+        timeout: Give up a goal not reached within this time [s]; default
+            ``[gains] goal_timeout`` or 4 s.
     """
 
     def __init__(
@@ -196,6 +219,7 @@ class ReachingController(NominalController):
         tolerance: float | None = None,
         loop: bool | None = None,
         max_joint_acc: float | None = None,
+        timeout: float | None = None,
     ) -> None:
         gains, task = scene.config.gains, scene.config.task
         self.scene = scene
@@ -207,8 +231,11 @@ class ReachingController(NominalController):
         dw = scene.goal_dwell if dwell is None else dwell
         if dwell is None and g.shape[0] != scene.goal_dwell.shape[0]:
             dw = np.zeros(g.shape[0])
+        if timeout is None:
+            extra = gains.extra.get("goal_timeout", 4.0)
+            timeout = float(extra if not isinstance(extra, tuple) else extra[0])
         self.goals = GoalSequence(g.shape[0], dw, task.tolerance if tolerance is None else tolerance,
-                                  task.loop if loop is None else loop)
+                                  task.loop if loop is None else loop, timeout)
         self.kp = float(gains.task_kp if kp is None else kp)
         self.damping = float(gains.dls_damping if damping is None else damping)
         self.max_ee_speed = float(gains.max_ee_speed if max_ee_speed is None else max_ee_speed)
@@ -218,11 +245,15 @@ class ReachingController(NominalController):
                          ("max_joint_speed", self.max_joint_speed)):
             if not v > 0:
                 raise ConfigError(f"ReachingController {label} must be > 0, got {v}")
-        if self.damping < 0:
-            raise ConfigError(f"ReachingController damping must be >= 0, got {self.damping}")
+        if not self.damping > 0:
+            raise ConfigError(f"ReachingController damping must be > 0 [m], got {self.damping}")
         self._jac = np.zeros((3, scene.model.nv))
         self._damp = (self.damping ** 2) * np.eye(3)
-        self._dofs = scene.dof_adr
+        dofs = np.asarray(scene.dof_adr)
+        contiguous = dofs.size and np.array_equal(dofs, np.arange(dofs[0], dofs[0] + dofs.size))
+        self._dofs = slice(int(dofs[0]), int(dofs[0]) + dofs.size) if contiguous else dofs
+        self._a = np.zeros((3, 3))
+        self._y = np.zeros(3)
         self._site = scene.ee_site_id
         self._rate = _RateLimit(self.n, _max_acc(scene, max_joint_acc))
 
@@ -245,7 +276,12 @@ class ReachingController(NominalController):
             v *= self.max_ee_speed / speed
         mujoco.mj_jacSite(self.scene.model, data, self._jac, None, self._site)
         jac = self._jac[:, self._dofs]
-        u = jac.T @ np.linalg.solve(jac @ jac.T + self._damp, v)
+        a = self._a
+        np.matmul(jac, jac.T, out=a)
+        a += self._damp
+        mujoco.mju_cholFactor(a, 0.0)
+        mujoco.mju_cholSolve(self._y, a, v)
+        u = jac.T @ self._y
         return self._rate(t, _cap(u, self.max_joint_speed))
 
 

@@ -187,6 +187,7 @@ class RunResult:
         collisions: Physics steps with some collision barrier below 0.
         min_joint_barrier: Smallest joint-limit barrier [rad] over the control steps.
         goals_reached: Goal arrivals of the nominal task.
+        goals_missed: Goals given up after the nominal task's timeout.
         fallbacks: Steps where the filter was infeasible and the arm braked.
         relaxations: Steps where promotions were relaxed (intermittent filter).
         d_bar: Tracking-error bound used [rad/s].
@@ -222,6 +223,7 @@ class RunResult:
     collisions: int
     min_joint_barrier: float
     goals_reached: int
+    goals_missed: int
     fallbacks: int
     relaxations: int
     d_bar: float
@@ -321,60 +323,63 @@ def episode_setup(scene: Scene, seed: int, *, q_noise: float = 0.05, goal_noise:
 
 
 class _SafetyMonitor:
-    """True-geometry clearance of every collision pair, checked at every physics step.
+    """True-geometry clearance of the collision pairs, checked at every physics step.
 
-    Bounding spheres give a lower bound on each pair's distance; ``mj_geomDistance`` is
-    called only for pairs whose bound could lower the running minimum or reach below zero
-    (``exact=True``: the exact per-step minimum, for observers).
+    At a control tick the collision barriers have just been evaluated: their ``h`` is the
+    exact ``dist - margin`` of every pair within the cut-off (``mj_geomDistance``), and every
+    other pair is at least ``cutoff - margin`` away. At the other physics steps of the control
+    step, ``mj_geomDistance`` is called for the pairs that were within the cut-off at the tick,
+    with ``distmax`` just above what could change the running minimum or count a collision (a
+    pair beyond the cut-off, e.g. 0.25 m, cannot close that gap within one control period).
+    So ``min_h`` is exact whenever it is below ``cutoff - margin`` and saturates there when
+    the arm never comes within the cut-off.
     """
 
-    def __init__(self, model: mujoco.MjModel, coll: CollisionBarriers) -> None:
+    def __init__(self, coll: CollisionBarriers) -> None:
         p = coll.pairs
-        self.model = model
-        self.g1, self.g2 = p.geom1, p.geom2
+        self.model = coll.model
         self.g1l, self.g2l = p.geom1.tolist(), p.geom2.tolist()
-        self.margin = p.margin.copy()
         self.marginl = p.margin.tolist()
-        rb1, rb2 = model.geom_rbound[p.geom1], model.geom_rbound[p.geom2]
-        self.rsum = rb1 + rb2 + self.margin
-        self.unbounded = np.flatnonzero((rb1 == 0) | (rb2 == 0))
         self.min_h = math.inf
         self.collisions = 0
         self.steps = 0
+        self.rows: list[int] = []
 
-    def check(self, data: mujoco.MjData, exact: bool = False) -> float:
-        """Check the current geometry; return this step's minimum distance (exact mode) or inf."""
-        gx = data.geom_xpos
-        diff = gx[self.g1] - gx[self.g2]
-        lb = np.sqrt(np.einsum("ij,ij->i", diff, diff))
-        lb -= self.rsum
-        if self.unbounded.size:
-            lb[self.unbounded] = -math.inf
+    def tick(self, h: np.ndarray, active: np.ndarray, margin: np.ndarray) -> float:
+        """Account the tick's barrier values; return the smallest true distance [m] (inf: none)."""
         self.steps += 1
-        m, g1, g2, marg = self.model, self.g1l, self.g2l, self.marginl
-        step_min_h = math.inf
-        step_min_d = math.inf
-        if exact:
-            for i in np.argsort(lb).tolist():
-                if lb[i] >= step_min_h:
-                    break
-                cap = step_min_h + marg[i] if math.isfinite(step_min_h) else 1e6
-                d = mujoco.mj_geomDistance(m, data, g1[i], g2[i], cap, None)
-                if d - marg[i] < step_min_h:
-                    step_min_h = d - marg[i]
-                if d < step_min_d:
-                    step_min_d = d
-        else:
-            thresh = max(self.min_h, 0.0)
-            for i in np.flatnonzero(lb < thresh).tolist():
-                d = mujoco.mj_geomDistance(m, data, g1[i], g2[i], thresh + marg[i] + 1e-6, None)
-                if d - marg[i] < step_min_h:
-                    step_min_h = d - marg[i]
-        if step_min_h < 0.0:
+        self.rows = np.flatnonzero(active).tolist()
+        hmin = float(h.min())
+        if hmin < 0.0:
             self.collisions += 1
-        if step_min_h < self.min_h:
-            self.min_h = step_min_h
-        return step_min_d
+        if hmin < self.min_h:
+            self.min_h = hmin
+        if not self.rows:
+            return math.inf
+        return float(np.min(h[self.rows] + margin[self.rows]))
+
+    def substep(self, data: mujoco.MjData, exact: bool) -> float:
+        """Check the pairs near at the last tick; return their smallest distance (exact mode)."""
+        self.steps += 1
+        rows = self.rows
+        if not rows:
+            return math.inf
+        m, g1, g2, marg = self.model, self.g1l, self.g2l, self.marginl
+        thresh = max(self.min_h, 0.0)
+        step_h = math.inf
+        step_d = math.inf
+        for i in rows:
+            cap = 1e6 if exact else thresh + marg[i] + 1e-6
+            d = mujoco.mj_geomDistance(m, data, g1[i], g2[i], cap, None)
+            if d - marg[i] < step_h:
+                step_h = d - marg[i]
+            if d < step_d:
+                step_d = d
+        if step_h < 0.0:
+            self.collisions += 1
+        if step_h < self.min_h:
+            self.min_h = step_h
+        return step_d
 
 
 class _Timer:
@@ -542,12 +547,13 @@ class ArmSimulation:
         flt = self.filter
         if isinstance(flt, IntermittentSafetyFilter):
             flt.reset(0.0)
-        monitor = _SafetyMonitor(model, self.coll)
+        monitor = _SafetyMonitor(self.coll)
+        margins = self.coll.pairs.margin
         metrics = MetricsAccumulator()
         coll, joints, nominal, tracker = self.coll, self.joints, self.nominal, self.tracker
         cnames, jnames = self.coll.names, self.joints.names
         strategy = self.strategy
-        need_barriers = flt is not None or recording
+        need_barriers = flt is not None or recording  # the filter's rows (cb is always needed)
         qadr, dofs = scene.qpos_adr, scene.dof_adr
         reaching = isinstance(nominal, ReachingController)
         min_joint = math.inf
@@ -583,12 +589,11 @@ class ArmSimulation:
             if timing:
                 t1 = perf()
                 tm.add("physics", t1 - t0)
-            dmin = monitor.check(data, recording)
             if timing:
-                t2 = perf()
-                tm.add("safety_check", t2 - t1)
+                t2 = t1
+            cb = coll.evaluate(data, lin)
+            dmin = monitor.tick(cb.h, cb.active, margins)
             if need_barriers:
-                cb = coll.evaluate(data, lin)
                 jb = joints.evaluate(data)
                 act = np.flatnonzero(cb.active)
                 if act.size == cb.k:
@@ -607,7 +612,7 @@ class ArmSimulation:
                     min_joint = jmin
             if timing:
                 t3 = perf()
-                tm.add("barriers", t3 - t2)
+                tm.add("barriers", t3 - t2)  # includes the tick's safety accounting
             u_nom = nominal(t, data)
             if timing:
                 t4 = perf()
@@ -649,7 +654,7 @@ class ArmSimulation:
                 mujoco.mj_step1(model, data)
                 if timing:
                     t7 = perf()
-                d2 = monitor.check(data, recording)
+                d2 = monitor.substep(data, recording)
                 if timing:
                     t8 = perf()
                 if d2 < dmin:
@@ -683,7 +688,8 @@ class ArmSimulation:
         if moving:
             data.mocap_pos[mocap_rows] = mocap_track[n_ctrl * S]
         mujoco.mj_kinematics(model, data)
-        monitor.check(data, recording)
+        mujoco.mj_comPos(model, data)
+        monitor.tick(*((lambda b: (b.h, b.active))(coll.evaluate(data))), margins)
         wall = perf() - wall0
 
         mres = metrics.result()
@@ -703,7 +709,8 @@ class ArmSimulation:
             min_barrier=float(monitor.min_h), collisions=monitor.collisions,
             min_joint_barrier=float(min_joint) if math.isfinite(min_joint) else float(
                 np.min(joints.evaluate(data).h)) if joints.names else math.inf,
-            goals_reached=nominal.goals_reached, fallbacks=fallbacks, relaxations=relaxations,
+            goals_reached=nominal.goals_reached, goals_missed=nominal.goals_missed,
+            fallbacks=fallbacks, relaxations=relaxations,
             d_bar=p.d_bar, d_bar_source=p.d_bar_source, alpha=p.alpha, c=p.c, b=p.b,
             control_period=T, timestep=dt, tracking_error_q99=q99,
             qp_time_median_us=float(np.median(qp_times)) * 1e6 if qp_times else None,
