@@ -153,7 +153,7 @@ class ColumnBuffer:
         self.stream = stream
         self.capacity = int(capacity)
         self.timeline = timeline
-        self._channels: dict[str, Channel | RaggedChannel] = {}
+        self._channels: dict[str, Any] = {}
 
     def channel(self, path: str, fields: Mapping[str, tuple[tuple[int, ...], Any]], build: Builder) -> Channel:
         """Create (or return the existing) fixed-shape channel at ``path``."""
@@ -180,6 +180,13 @@ class ColumnBuffer:
         if not isinstance(ch, RaggedChannel):
             raise RecordError(f"entity {path!r} already has a fixed-shape channel")
         return ch
+
+    def add(self, path: str, channel: Any) -> Any:
+        """Register a custom channel (any object with ``flush()`` and ``__len__``) under ``path``."""
+        if path in self._channels:
+            raise RecordError(f"entity {path!r} already has a channel")
+        self._channels[path] = channel
+        return channel
 
     def flush(self) -> None:
         """Send every channel's buffered rows."""

@@ -63,6 +63,8 @@ class RunLog:
             shape (E,), in time order.
         impulses: Impulse columns of impulsive runs (``t``, ``kind``, ``index``, ``dv_x``,
             ``dv_y``, ``dv_z``, ``h_after``, ``xi_after``, ``interval_s``), in time order.
+        terminal: True-geometry barrier of the final state when the loop's last check set
+            the run's minimum (arm runs), shape (0,) or (1,).
 
     """
 
@@ -75,6 +77,7 @@ class RunLog:
     steps: dict[str, np.ndarray]
     events: dict[str, np.ndarray] = field(default_factory=dict)
     impulses: dict[str, np.ndarray] = field(default_factory=dict)
+    terminal: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def label(self) -> str:
@@ -127,7 +130,7 @@ def _static_value(batches: list[pa.RecordBatch], name: str) -> Any:
 
 def _read_store(path: Path, reader: RrdReader, entry: Any) -> RunLog:
     by_entity: dict[str, list[pa.RecordBatch]] = {}
-    wanted = {schema.INFO, schema.SUMMARY, schema.STEPS, schema.EVENTS, schema.IMPULSES}
+    wanted = {schema.INFO, schema.SUMMARY, schema.STEPS, schema.EVENTS, schema.IMPULSES, schema.TERMINAL}
     for chunk in reader.stream(store=entry):
         ep = chunk.entity_path
         if ep in wanted:
@@ -147,6 +150,7 @@ def _read_store(path: Path, reader: RrdReader, entry: Any) -> RunLog:
         steps = _collect(by_entity[schema.STEPS], schema.STEP_FIELDS)
         events = _collect(by_entity.get(schema.EVENTS, []), schema.EVENT_FIELDS)
         impulses = _collect(by_entity.get(schema.IMPULSES, []), schema.IMPULSE_FIELDS)
+        terminal = _collect(by_entity.get(schema.TERMINAL, []), ("min_barrier",))["min_barrier"]
     except (ValueError, pa.ArrowException) as exc:
         raise RecordingReadError(path, f"malformed replay columns: {exc}") from exc
     order = np.argsort(steps["t"], kind="stable")
@@ -170,7 +174,7 @@ def _read_store(path: Path, reader: RrdReader, entry: Any) -> RunLog:
             "logged steps could be read"
         )
     return RunLog(path, entry.application_id, entry.recording_id, str(kind), info, summary, steps, events,
-                  impulses)
+                  impulses, np.asarray(terminal, dtype=float))
 
 
 def read_rrd(path: str | Path) -> list[RunLog]:
@@ -279,7 +283,7 @@ def replay_metrics(log: RunLog) -> dict[str, Any]:
     s = log.steps
     m = compute_metrics(s["t"], s["dt"], s["on"], s["intervention_rate"], s["qp_solved"])
     out = m.as_dict()
-    out["min_barrier"] = _min_or_none(s["min_barrier"])
+    out["min_barrier"] = _min_or_none(np.concatenate([s["min_barrier"], log.terminal]))
     if log.kind == "satellite":
         out.update(impulse_metrics(log))
     return out

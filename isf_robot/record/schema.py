@@ -13,6 +13,9 @@ Layout of a recording (every time-varying entity is on the ``sim_time`` timeline
 ``/replay/impulses``
     Impulsive runs only: one row per impulse with ``dv`` (``dv_x``, ``dv_y``, ``dv_z``),
     ``h_after``, ``xi_after``, ``interval_s``.
+``/replay/terminal``
+    Arm runs only, at most one row: ``min_barrier`` of the state after the last step (the
+    loop checks it without a step record), logged only when it is the run's minimum.
 ``/replay/events``
     One row per switch or jump event: ``t``, ``kind``, ``index``, ``xi`` (``Xi`` at the
     event), ``duration_s`` (NaN when undefined).
@@ -29,7 +32,7 @@ from __future__ import annotations
 
 __all__ = [
     "INFO", "SUMMARY", "STEPS", "EVENTS", "EVENT_LOG", "STEP_FIELDS", "EVENT_FIELDS",
-    "PLOTS", "WORLD", "IMPULSES", "IMPULSE_FIELDS",
+    "PLOTS", "WORLD", "IMPULSES", "IMPULSE_FIELDS", "TERMINAL",
 ]
 
 INFO = "/run/info"
@@ -37,6 +40,7 @@ SUMMARY = "/run/summary"
 STEPS = "/replay/steps"
 EVENTS = "/replay/events"
 IMPULSES = "/replay/impulses"
+TERMINAL = "/replay/terminal"
 EVENT_LOG = "/events"
 PLOTS = "/plots"
 WORLD = "/world"

@@ -1,0 +1,178 @@
+"""Drawing a MuJoCo model in Rerun: geometry once (static), body poses per step (buffered).
+
+Layout: ``<root>/<body>`` carries the body's world pose (static for bodies welded to the
+world, per step for the others); ``<root>/<body>/<geom>`` carries the geom's shape in its
+own frame with a static transform relative to the body. Shapes follow MuJoCo's size
+conventions: sphere (radius), capsule and cylinder (radius, half-length along z), ellipsoid
+and box (half sizes), plane (half extents in x and y; 0 means infinite, drawn 2 m wide),
+mesh (the compiled vertices, already in the geom frame). Height fields and SDFs are skipped.
+
+This module imports mujoco, as it draws MuJoCo geometry (the layering rule allows it here).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import mujoco
+import numpy as np
+import rerun as rr
+
+from .buffer import TIMELINE
+
+__all__ = ["MujocoDrawing", "VISIBLE_GROUPS"]
+
+VISIBLE_GROUPS = (0, 1, 2)
+"""Geom groups drawn (MuJoCo's viewer shows groups 0-2 by default)."""
+
+_PLANE_HALF = 1.0  # [m] half extent drawn for an infinite plane
+
+
+def _xyzw(q_wxyz: np.ndarray) -> np.ndarray:
+    return np.asarray(q_wxyz, dtype=np.float64)[..., [1, 2, 3, 0]]
+
+
+def _rgba(model: mujoco.MjModel, g: int) -> list[int]:
+    rgba = model.geom_rgba[g]
+    mat = int(model.geom_matid[g])
+    if mat >= 0 and np.allclose(rgba, [0.5, 0.5, 0.5, 1.0]):
+        rgba = model.mat_rgba[mat]
+    return [int(round(255 * float(np.clip(c, 0.0, 1.0)))) for c in rgba]
+
+
+def _name(model: mujoco.MjModel, obj: mujoco.mjtObj, i: int, prefix: str) -> str:
+    return rr.escape_entity_path_part(mujoco.mj_id2name(model, obj, i) or f"{prefix}{i}")
+
+
+def _shape(model: mujoco.MjModel, g: int, color: list[int]) -> Any | None:
+    """The Rerun archetype of geom ``g`` in its own frame, or None for unsupported types."""
+    t = int(model.geom_type[g])
+    size = np.asarray(model.geom_size[g], dtype=np.float64)
+    G = mujoco.mjtGeom
+    if t == G.mjGEOM_SPHERE:
+        return rr.Ellipsoids3D(half_sizes=[[size[0]] * 3], colors=[color], fill_mode="solid")
+    if t == G.mjGEOM_ELLIPSOID:
+        return rr.Ellipsoids3D(half_sizes=[size[:3]], colors=[color], fill_mode="solid")
+    if t == G.mjGEOM_CAPSULE:
+        return rr.Capsules3D(lengths=[2.0 * size[1]], radii=[size[0]], translations=[[0.0, 0.0, -size[1]]],
+                             colors=[color])
+    if t == G.mjGEOM_CYLINDER:
+        return rr.Cylinders3D(lengths=[2.0 * size[1]], radii=[size[0]], colors=[color], fill_mode="solid")
+    if t == G.mjGEOM_BOX:
+        return rr.Boxes3D(half_sizes=[size[:3]], colors=[color], fill_mode="solid")
+    if t == G.mjGEOM_PLANE:
+        hx = size[0] if size[0] > 0 else _PLANE_HALF
+        hy = size[1] if size[1] > 0 else _PLANE_HALF
+        return rr.Boxes3D(half_sizes=[[hx, hy, 0.0]], colors=[color], fill_mode="solid")
+    if t == G.mjGEOM_MESH:
+        mid = int(model.geom_dataid[g])
+        if mid < 0:
+            return None
+        va, vn = int(model.mesh_vertadr[mid]), int(model.mesh_vertnum[mid])
+        fa, fn = int(model.mesh_faceadr[mid]), int(model.mesh_facenum[mid])
+        verts = np.asarray(model.mesh_vert[va:va + vn], dtype=np.float64)
+        faces = np.asarray(model.mesh_face[fa:fa + fn], dtype=np.uint32)
+        return rr.Mesh3D(vertex_positions=verts, triangle_indices=faces, albedo_factor=color)
+    return None
+
+
+class _PoseChannel:
+    """Buffered world poses of several bodies (one ``send_columns`` per body per flush)."""
+
+    def __init__(self, stream: rr.RecordingStream, paths: Sequence[str], capacity: int) -> None:
+        self.stream = stream
+        self.paths = list(paths)
+        nb = len(self.paths)
+        self.t = np.zeros(capacity)
+        self.pos = np.zeros((capacity, nb, 3))
+        self.quat = np.zeros((capacity, nb, 4))
+        self.n = 0
+
+    def __len__(self) -> int:
+        return self.n
+
+    def push(self, t: float, pos: np.ndarray, quat_xyzw: np.ndarray) -> None:
+        n = self.n
+        self.t[n] = t
+        self.pos[n] = pos
+        self.quat[n] = quat_xyzw
+        self.n = n + 1
+        if self.n == self.t.shape[0]:
+            self.flush()
+
+    def flush(self) -> None:
+        n = self.n
+        if n == 0:
+            return
+        idx = [rr.TimeColumn(TIMELINE, duration=self.t[:n])]
+        for i, path in enumerate(self.paths):
+            self.stream.send_columns(path, indexes=idx, columns=rr.Transform3D.columns(
+                translation=self.pos[:n, i], quaternion=self.quat[:n, i]))
+        self.n = 0
+
+
+class MujocoDrawing:
+    """Static geometry and per-step body poses of a MuJoCo model.
+
+    Args:
+        model: The compiled model.
+        root: Entity path under which bodies are logged.
+        groups: Geom groups to draw.
+
+    """
+
+    def __init__(self, model: mujoco.MjModel, root: str = "/world/bodies",
+                 groups: Sequence[int] = VISIBLE_GROUPS) -> None:
+        self.model = model
+        self.root = root.rstrip("/")
+        self.groups = tuple(int(g) for g in groups)
+        self.data = mujoco.MjData(model)
+        names = [_name(model, mujoco.mjtObj.mjOBJ_BODY, b, "body") for b in range(model.nbody)]
+        self.body_paths = [f"{self.root}/{n}" for n in names]
+        self.moving = np.flatnonzero(np.asarray(model.body_weldid) != 0)
+        self.geoms_drawn = 0
+        self.geoms_skipped: list[str] = []
+        self._poses: _PoseChannel | None = None
+
+    def log_static(self, stream: rr.RecordingStream) -> None:
+        """Log every drawable geom (static) and the poses of bodies welded to the world."""
+        m = self.model
+        mujoco.mj_kinematics(m, self.data)
+        for g in range(m.ngeom):
+            gname = _name(m, mujoco.mjtObj.mjOBJ_GEOM, g, "geom")
+            color = _rgba(m, g)
+            if int(m.geom_group[g]) not in self.groups or color[3] == 0:
+                continue
+            shape = _shape(m, g, color)
+            if shape is None:
+                self.geoms_skipped.append(gname)
+                continue
+            path = f"{self.body_paths[int(m.geom_bodyid[g])]}/{gname}"
+            stream.log(path, rr.Transform3D(translation=m.geom_pos[g], quaternion=_xyzw(m.geom_quat[g])),
+                       static=True)
+            stream.log(path, shape, static=True)
+            self.geoms_drawn += 1
+        moving = set(self.moving.tolist())
+        for b in range(m.nbody):
+            if b not in moving:
+                stream.log(self.body_paths[b], rr.Transform3D(translation=self.data.xpos[b],
+                                                              quaternion=_xyzw(self.data.xquat[b])), static=True)
+
+    def pose_channel(self, stream: rr.RecordingStream, capacity: int) -> _PoseChannel:
+        """The buffered channel of the moving bodies' world poses."""
+        self._poses = _PoseChannel(stream, [self.body_paths[b] for b in self.moving], capacity)
+        return self._poses
+
+    def push_state(self, t: float, qpos_adr: np.ndarray, q: np.ndarray,
+                   mocap_pos: np.ndarray | None = None, mocap_quat: np.ndarray | None = None) -> None:
+        """Forward kinematics at ``(q, mocap)`` and buffer the moving bodies' poses at ``t``."""
+        d = self.data
+        d.qpos[qpos_adr] = q
+        if mocap_pos is not None and mocap_pos.size:
+            d.mocap_pos[:] = mocap_pos
+        if mocap_quat is not None and mocap_quat.size:
+            d.mocap_quat[:] = mocap_quat
+        mujoco.mj_kinematics(self.model, d)
+        if self._poses is not None and self.moving.size:
+            self._poses.push(t, d.xpos[self.moving], _xyzw(d.xquat[self.moving]))
