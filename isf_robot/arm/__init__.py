@@ -65,3 +65,46 @@ __all__ = [
     "Clearance",
     "min_distance",
 ]
+
+# nominal control, low-level tracking, calibration, simulation (appended by the sim layer)
+from .calibration import Calibration, calibrate_d_bar, clear_calibration_cache  # noqa: E402
+from .lowlevel import VelocityTracker  # noqa: E402
+from .nominal import (  # noqa: E402
+    GoalSequence,
+    JointPDController,
+    NominalController,
+    ReachingController,
+)
+from .sim import (  # noqa: E402
+    STRATEGIES,
+    ArmSimulation,
+    ArmStepRecord,
+    EpisodeSetup,
+    FilterParams,
+    RunResult,
+    check_control_period,
+    episode_setup,
+    run_episode,
+)
+
+__all__ += [
+    # nominal control and tracking
+    "NominalController",
+    "GoalSequence",
+    "ReachingController",
+    "JointPDController",
+    "VelocityTracker",
+    "Calibration",
+    "calibrate_d_bar",
+    "clear_calibration_cache",
+    # simulation
+    "STRATEGIES",
+    "ArmSimulation",
+    "ArmStepRecord",
+    "EpisodeSetup",
+    "FilterParams",
+    "RunResult",
+    "check_control_period",
+    "episode_setup",
+    "run_episode",
+]

@@ -1,0 +1,286 @@
+"""Comparing the strategies over seeded episodes, optionally in parallel processes.
+
+Every strategy runs on the same seeds (same initial configuration, goal jitter and obstacle
+phase per seed) and the same ``d_bar``, computed once in the calling process. Workers receive
+only plain values (scene name or file paths, parameters) and rebuild the scene, so the pool
+works with the ``spawn`` start method.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from isf_robot.core import ConfigError, UnknownNameError
+
+from .scene import Scene, load_scene, load_scene_from_files
+from .sim import STRATEGIES, run_episode
+
+__all__ = [
+    "SceneSpec",
+    "EpisodeTask",
+    "Comparison",
+    "SUMMARY_KEYS",
+    "run_task",
+    "compare_strategies",
+    "summarize",
+    "format_table",
+    "json_safe",
+]
+
+# Per-run keys averaged in a comparison (mean and standard deviation over episodes).
+SUMMARY_KEYS: tuple[str, ...] = (
+    "duration_s", "control_steps", "duty_cycle", "on_switches", "mean_off_s", "min_off_s",
+    "min_barrier", "collisions", "goals_reached", "goals_missed", "intervention", "qp_solves",
+    "fallbacks", "relaxations", "min_joint_barrier", "tracking_error_q99", "qp_time_median_us",
+    "d_bar", "wall_s",
+)
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """How to load a scene in any process: a shipped name, or an MJCF and a TOML path.
+
+    Attributes:
+        name: Shipped scene name, or ``None``.
+        model: MJCF path, or ``None``.
+        config: TOML path, or ``None``.
+    """
+
+    name: str | None = None
+    model: str | None = None
+    config: str | None = None
+
+    def __post_init__(self) -> None:
+        files = self.model is not None or self.config is not None
+        if self.name is not None and files:
+            raise ConfigError("give either a scene name or --model and --config, not both")
+        if self.name is None and (self.model is None or self.config is None):
+            raise ConfigError("give a scene name (--scene NAME) or both --model PATH.xml and "
+                              "--config PATH.toml")
+
+    def load(self) -> Scene:
+        """Load the scene (errors are :class:`~isf_robot.core.ConfigError` subclasses)."""
+        if self.name is not None:
+            return load_scene(self.name)
+        assert self.model is not None and self.config is not None  # checked in __post_init__
+        return load_scene_from_files(self.model, self.config)
+
+
+@dataclass(frozen=True)
+class EpisodeTask:
+    """One episode to run (picklable).
+
+    Attributes:
+        spec: The scene.
+        strategy: ``nominal``, ``cbf`` or ``isf``.
+        seed: Episode seed.
+        duration: Simulated time [s] (``None``: the scene's).
+        params: Keyword arguments for :class:`~isf_robot.arm.ArmSimulation` (alpha, c, b,
+            d_bar, control_period).
+    """
+
+    spec: SceneSpec
+    strategy: str
+    seed: int
+    duration: float | None
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+
+def run_task(task: EpisodeTask) -> dict[str, Any]:
+    """Run one episode and return its JSON-ready result (used by the worker processes)."""
+    scene = task.spec.load()
+    res = run_episode(scene, task.strategy, task.duration, task.seed, **dict(task.params))
+    return json_safe(res.as_dict())
+
+
+def json_safe(obj: Any) -> Any:
+    """Replace non-finite floats by ``None`` (JSON has no infinity or NaN), recursively."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, Mapping):
+        return {str(k): json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, np.generic):
+        return json_safe(obj.item())
+    return obj
+
+
+def _stats(values: Sequence[Any]) -> tuple[float | None, float | None, int]:
+    vals = [float(v) for v in values if isinstance(v, (int, float)) and not isinstance(v, bool)
+            and math.isfinite(float(v))]
+    if not vals:
+        return None, None, 0
+    return float(np.mean(vals)), float(np.std(vals)), len(vals)
+
+
+def summarize(runs: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """Mean of every :data:`SUMMARY_KEYS` entry over runs, plus ``std`` and ``episodes``.
+
+    Runs where a key is ``None`` (e.g. ``min_off_s`` without a complete off period) are left
+    out of that key's mean; ``count`` says how many runs each mean is over.
+    """
+    out: dict[str, Any] = {}
+    std: dict[str, float | None] = {}
+    count: dict[str, int] = {}
+    for key in SUMMARY_KEYS:
+        m, s, c = _stats([r.get(key) for r in runs])
+        out[key] = m
+        std[key] = s
+        count[key] = c
+    out["std"] = std
+    out["count"] = count
+    out["episodes"] = list(runs)
+    return out
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Result of :func:`compare_strategies`.
+
+    Attributes:
+        scene: Scene name.
+        episodes: Episodes per strategy.
+        seeds: The seeds used.
+        results: Per strategy, :func:`summarize` of its runs (runs sorted by seed).
+    """
+
+    scene: str
+    episodes: int
+    seeds: tuple[int, ...]
+    results: Mapping[str, Mapping[str, Any]]
+
+    def as_dict(self) -> dict[str, Any]:
+        """``{"scene", "episodes", "seeds", "results": {strategy: {key: mean, ..., "episodes": [...]}}}``."""
+        return json_safe({"scene": self.scene, "episodes": self.episodes,
+                          "seeds": list(self.seeds), "results": self.results})
+
+
+ProgressFn = Callable[[int, int, EpisodeTask, Mapping[str, Any]], None]
+
+
+def compare_strategies(
+    spec: SceneSpec,
+    episodes: int,
+    *,
+    strategies: Sequence[str] = STRATEGIES,
+    duration: float | None = None,
+    seed0: int = 0,
+    jobs: int = 1,
+    params: Mapping[str, Any] | None = None,
+    progress: ProgressFn | None = None,
+) -> Comparison:
+    """Run every strategy on seeds ``seed0 .. seed0 + episodes - 1`` and summarise.
+
+    The scene, the parameters and ``d_bar`` (calibrated once here unless given) are checked
+    in this process before any worker starts, so bad input fails fast with a clear error.
+
+    Args:
+        spec: The scene.
+        episodes: Episodes per strategy, >= 1.
+        strategies: Strategies to compare (each in :data:`STRATEGIES`, no repeats).
+        duration: Simulated time per episode [s] (``None``: the scene's).
+        seed0: First seed.
+        jobs: Worker processes (1: run here, sequentially).
+        params: Extra :class:`~isf_robot.arm.ArmSimulation` keyword arguments.
+        progress: Called after each episode as ``progress(done, total, task, result)``.
+
+    Returns:
+        The :class:`Comparison`.
+    """
+    if int(episodes) < 1:
+        raise ConfigError(f"--episodes must be >= 1, got {episodes}")
+    if int(jobs) < 1:
+        raise ConfigError(f"--jobs must be >= 1, got {jobs}")
+    strategies = list(strategies)
+    if not strategies:
+        raise ConfigError("no strategies to compare")
+    for s in strategies:
+        if s not in STRATEGIES:
+            raise UnknownNameError("strategy", s, STRATEGIES)
+    if len(set(strategies)) != len(strategies):
+        raise ConfigError(f"strategies repeat: {strategies}")
+    if duration is not None and not (math.isfinite(duration) and duration > 0):
+        raise ConfigError(f"duration must be a positive number of seconds, got {duration}")
+    scene = spec.load()
+    params = dict(params or {})
+    # validates the parameters and the control period, and fixes d_bar for every worker
+    from .sim import ArmSimulation
+
+    probe = ArmSimulation(scene, strategies[0], seed=seed0, **params)
+    params["d_bar"] = probe.params.d_bar
+    seeds = tuple(range(int(seed0), int(seed0) + int(episodes)))
+    tasks = [EpisodeTask(spec, s, seed, duration, params) for seed in seeds for s in strategies]
+    results: dict[tuple[str, int], dict[str, Any]] = {}
+    total = len(tasks)
+    if jobs == 1:
+        for i, t in enumerate(tasks):
+            r = run_task(t)
+            results[(t.strategy, t.seed)] = r
+            if progress is not None:
+                progress(i + 1, total, t, r)
+    else:
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=int(jobs), mp_context=ctx) as pool:
+            futures = {pool.submit(run_task, t): t for t in tasks}
+            for i, fut in enumerate(as_completed(futures)):
+                t = futures[fut]
+                r = fut.result()
+                results[(t.strategy, t.seed)] = r
+                if progress is not None:
+                    progress(i + 1, total, t, r)
+    summary = {s: summarize([results[(s, seed)] for seed in seeds]) for s in strategies}
+    return Comparison(scene=scene.name, episodes=int(episodes), seeds=seeds, results=summary)
+
+
+# ----------------------------------------------------------------------------- table
+
+_COLUMNS: tuple[tuple[str, str, str], ...] = (
+    # (key, header, format)
+    ("duty_cycle", "duty cycle", ".3f"),
+    ("on_switches", "switches", ".1f"),
+    ("mean_off_s", "mean off [s]", ".3f"),
+    ("min_off_s", "min off [s]", ".3f"),
+    ("min_barrier", "min h [m]", ".4f"),
+    ("collisions", "collisions", ".1f"),
+    ("goals_reached", "goals", ".2f"),
+    ("intervention", "intervention", ".3f"),
+    ("qp_solves", "QP solves", ".0f"),
+    ("wall_s", "wall [s]", ".3f"),
+)
+
+
+def _cell(mean: float | None, std: float | None, fmt: str) -> str:
+    if mean is None:
+        return "-"
+    return f"{mean:{fmt}} ± {(std or 0.0):{fmt}}"
+
+
+def format_table(comp: Comparison) -> str:
+    """Plain-text table, one row per strategy: mean ± standard deviation over episodes.
+
+    ``-`` marks a mean over no episode (e.g. no complete off period in any run).
+    """
+    headers = ["strategy"] + [h for _, h, _ in _COLUMNS]
+    rows = []
+    for strategy, res in comp.results.items():
+        std = res.get("std", {})
+        rows.append([strategy] + [_cell(res.get(k), std.get(k), f) for k, _, f in _COLUMNS])
+    widths = [max(len(r[i]) for r in [headers] + rows) for i in range(len(headers))]
+
+    def line(cells: Sequence[str]) -> str:
+        first = cells[0].ljust(widths[0])
+        return "  ".join([first] + [c.rjust(w) for c, w in zip(cells[1:], widths[1:])])
+
+    out = [f"scene {comp.scene}: {comp.episodes} episode(s) per strategy, seeds "
+           f"{comp.seeds[0]}..{comp.seeds[-1]} (mean ± std)",
+           line(headers), line(["-" * w for w in widths])]
+    out += [line(r) for r in rows]
+    return "\n".join(out)
