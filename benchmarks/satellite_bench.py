@@ -66,7 +66,8 @@ def bench(repeats: int, tau_repeats: int, workers: int) -> str:
         "",
         f"Machine: {platform.platform()}; CPU {cpu_model()}; {os.cpu_count()} cores; Python "
         f"{platform.python_version()}. Date (UTC): {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M}.",
-        "BLAS threads pinned to 1. Wall times are medians of the repeats listed.",
+        "BLAS threads pinned to 1. Wall times are medians of the repeats listed. Load average at the end "
+        f"(1/5/15 min): {', '.join(f'{v:.2f}' for v in os.getloadavg())} (a shared machine: other jobs may run).",
         "",
         "| case | target | median wall | all repeats [s] | result |",
         "|---|---|---|---|---|",
