@@ -14,7 +14,8 @@ Logged, besides the base recorder's replay columns, mode and events:
 
 Replay row: ``t``, ``dt``, ``on``, ``|u - u_nom|^2``, ``qp_solved`` from the record, and
 ``min_barrier`` the true-geometry minimum of ``dist - margin`` over the step's physics steps:
-the record's ``barrier_min`` when the loop provides it, else ``dist_min - margin`` (exact when
+the record's ``barrier_min`` when the loop provides it, else the smaller of the tick's
+collision barriers (``h[:n_collision]``) and ``dist_min - margin`` (exact up to rounding when
 every collision pair has the same margin, which :attr:`ArmRecorder.exact_min_barrier` says).
 The loop also checks the state after the last step without a step record; when that final
 check is the run's minimum, it is logged as one extra row ``/replay/terminal``.
@@ -31,16 +32,29 @@ import rerun as rr
 
 from .errors import RecordError
 from .mjgeometry import MujocoDrawing
-from .recorder import RerunRecorder
+from .recorder import RerunRecorder, finite_scalars
 from .schema import TERMINAL
 
 __all__ = ["ArmRecorder"]
 
 
 def _witness_columns(rows: list[np.ndarray]) -> Any:
-    strips = [seg for w in rows for seg in w]
-    lengths = [len(w) for w in rows]
-    return rr.LineStrips3D.columns(strips=strips if strips else np.zeros((0, 2, 3))).partition(lengths)
+    """Segments (on geom 1, on geom 2) of each row; segments with NaN points are dropped."""
+    segs = np.concatenate([np.asarray(w, dtype=np.float64).reshape(-1, 2, 3) for w in rows])
+    ok = np.all(np.isfinite(segs), axis=(1, 2))
+    lengths = np.fromiter((len(w) for w in rows), dtype=np.int64, count=len(rows))
+    if not ok.all():
+        row_of = np.repeat(np.arange(len(rows)), lengths)
+        lengths = np.bincount(row_of[ok], minlength=len(rows))
+        segs = segs[ok]
+    return rr.LineStrips3D.columns(strips=segs).partition(lengths.tolist())
+
+
+def _goal_columns(t: np.ndarray, a: dict[str, np.ndarray]) -> tuple[np.ndarray, Any] | None:
+    ok = np.all(np.isfinite(a["goal"]), axis=1)
+    if not ok.any():
+        return None
+    return t[ok], rr.Points3D.columns(positions=a["goal"][ok])
 
 
 class ArmRecorder(RerunRecorder):
@@ -80,17 +94,20 @@ class ArmRecorder(RerunRecorder):
         self.exact_min_barrier = uniform
         self._margin = float(self.margins.max()) if self.margins.size else 0.0
         self._running_min = math.inf
+        self._n_collision = int(self.margins.size)
         buf = self.buffer
         self._poses = buf.add("/world/bodies", self.drawing.pose_channel(stream, buf.capacity))
         n = int(scene.n_joints)
-        self._u_nom = buf.scalars("/plots/command/nominal", n)
-        self._u = buf.scalars("/plots/command/filtered", n)
-        self._hfilt = buf.scalars("/plots/barrier/filter_min")
-        self._xi = buf.scalars("/plots/xi/min")
-        self._ee = buf.channel("/world/ee", {"positions": ((3,), np.float64)},
-                               lambda positions: rr.Points3D.columns(positions=positions))
-        self._goal = buf.channel("/world/goal", {"positions": ((3,), np.float64)},
-                                 lambda positions: rr.Points3D.columns(positions=positions))
+        fields = {"u_nom": ((n,), np.float64), "u": ((n,), np.float64), "h_filter": ((), np.float64),
+                  "xi": ((), np.float64), "ee": ((3,), np.float64), "goal": ((3,), np.float64)}
+        self._arm = buf.channel("/plots/command", fields, None, derived=(
+            ("/plots/command/nominal", lambda t, a: (t, rr.Scalars.columns(scalars=a["u_nom"]))),
+            ("/plots/command/filtered", lambda t, a: (t, rr.Scalars.columns(scalars=a["u"]))),
+            ("/plots/barrier/filter_min", lambda t, a: finite_scalars(t, a["h_filter"])),
+            ("/plots/xi/min", lambda t, a: finite_scalars(t, a["xi"])),
+            ("/world/ee", lambda t, a: (t, rr.Points3D.columns(positions=a["ee"]))),
+            ("/world/goal", _goal_columns),
+        ))
         self._witness = buf.ragged("/world/witness", _witness_columns)
         self._pairs: dict[str, Any] = {}
         self._name_index: dict[str, int] = {}
@@ -108,6 +125,8 @@ class ArmRecorder(RerunRecorder):
     # -- static --------------------------------------------------------------------------
     def start_content(self, info: Mapping[str, Any]) -> None:
         """Geometry, goals, plot styles."""
+        if info.get("n_collision") is not None:
+            self._n_collision = int(info["n_collision"])
         rec = self.stream
         rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         self.drawing.log_static(rec)
@@ -135,11 +154,15 @@ class ArmRecorder(RerunRecorder):
     # -- per step ------------------------------------------------------------------------
     def replay_row(self, record: Any) -> tuple[float, float, bool, float, bool, float]:
         """``(t, dt, on, |u - u_nom|^2, qp_solved, true-geometry min barrier)``."""
-        d = np.asarray(record.u, dtype=float) - np.asarray(record.u_nom, dtype=float)
+        d = record.u - record.u_nom
         hmin = getattr(record, "barrier_min", None)
         if hmin is None:
+            nc = self._n_collision
+            tick = float(record.h[:nc].min()) if nc else math.inf
             dist = float(record.dist_min)
-            hmin = dist - self._margin if math.isfinite(dist) else float("nan")
+            hmin = min(tick, dist - self._margin) if math.isfinite(dist) else tick
+            if not math.isfinite(hmin):
+                hmin = math.nan
         hmin = float(hmin)
         if hmin < self._running_min:
             self._running_min = hmin
@@ -148,18 +171,8 @@ class ArmRecorder(RerunRecorder):
     def step_content(self, t: float, record: Any) -> None:
         """Poses, commands, barrier and trigger series, witness segments, goal."""
         self.drawing.push_state(t, self.scene.qpos_adr, record.q, record.mocap_pos, record.mocap_quat)
-        self._u_nom.push(t, record.u_nom)
-        self._u.push(t, record.u)
-        self._hfilt.push(t, float(record.h_min))
-        xi = float(record.xi_min)
-        if math.isfinite(xi):
-            self._xi.push(t, xi)
-        self._ee.push(t, record.ee_pos)
-        goal = np.asarray(record.goal_pos, dtype=float)
-        if np.all(np.isfinite(goal)):
-            self._goal.push(t, goal)
-        w = np.asarray(record.witness, dtype=float)
-        self._witness.push(t, w[np.all(np.isfinite(w), axis=(1, 2))] if w.size else np.zeros((0, 2, 3)))
+        self._arm.push(t, record.u_nom, record.u, record.h_min, record.xi_min, record.ee_pos, record.goal_pos)
+        self._witness.push(t, record.witness)
         if record.names is not self._names:
             self._names = record.names
             self._name_index = {n: i for i, n in enumerate(record.names)}

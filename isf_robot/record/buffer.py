@@ -14,7 +14,7 @@ saved recording equals what was pushed.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -30,6 +30,9 @@ TIMELINE = "sim_time"
 Builder = Callable[..., Any]
 """``build(**arrays) -> ComponentColumnList``: turns the buffered arrays into Rerun columns."""
 
+Derived = Callable[[np.ndarray, dict[str, np.ndarray]], "tuple[np.ndarray, Any] | None"]
+"""``fn(t, arrays) -> (t_selected, columns) | None``: another entity built from a channel's rows."""
+
 
 class Channel:
     """A fixed-shape per-row quantity of one entity, buffered for ``send_columns``.
@@ -39,18 +42,22 @@ class Channel:
         path: Entity path.
         fields: Field name -> ``(shape, dtype)`` of one row's value of that field.
         build: ``build(**arrays)`` with each array of shape ``(n, *shape)``, returning the
-            component columns (e.g. ``rr.Scalars.columns``).
+            component columns (e.g. ``rr.Scalars.columns``); ``None`` sends nothing at ``path``.
+        derived: Further entities sent from the same rows at each flush, as
+            ``(path, fn)`` with ``fn(t, arrays) -> (t_selected, columns)`` or ``None`` to
+            skip; one push then feeds several entities.
 
     """
 
-    __slots__ = ("_buffer", "path", "_names", "_arrays", "_t", "_n", "_build", "rows_sent")
+    __slots__ = ("_buffer", "path", "_names", "_arrays", "_t", "_n", "_build", "_derived", "rows_sent")
 
     def __init__(
         self,
         buffer: ColumnBuffer,
         path: str,
         fields: Mapping[str, tuple[tuple[int, ...], Any]],
-        build: Builder,
+        build: Builder | None,
+        derived: Sequence[tuple[str, Derived]] = (),
     ) -> None:
         if not fields:
             raise RecordError(f"channel {path!r} needs at least one field")
@@ -62,6 +69,7 @@ class Channel:
         self._t = np.zeros(cap, dtype=np.float64)
         self._n = 0
         self._build = build
+        self._derived = tuple(derived)
         self.rows_sent = 0
 
     def __len__(self) -> int:
@@ -82,10 +90,15 @@ class Channel:
         n = self._n
         if n == 0:
             return
-        cols = self._build(**{k: a[:n] for k, a in zip(self._names, self._arrays)})
-        self._buffer.stream.send_columns(
-            self.path, indexes=[rr.TimeColumn(self._buffer.timeline, duration=self._t[:n])], columns=cols
-        )
+        arrays = {k: a[:n] for k, a in zip(self._names, self._arrays)}
+        stream, timeline, t = self._buffer.stream, self._buffer.timeline, self._t[:n]
+        if self._build is not None:
+            stream.send_columns(self.path, indexes=[rr.TimeColumn(timeline, duration=t)],
+                                columns=self._build(**arrays))
+        for path, fn in self._derived:
+            out = fn(t, arrays)
+            if out is not None and len(out[0]):
+                stream.send_columns(path, indexes=[rr.TimeColumn(timeline, duration=out[0])], columns=out[1])
         self.rows_sent += n
         self._n = 0
 
@@ -155,11 +168,12 @@ class ColumnBuffer:
         self.timeline = timeline
         self._channels: dict[str, Any] = {}
 
-    def channel(self, path: str, fields: Mapping[str, tuple[tuple[int, ...], Any]], build: Builder) -> Channel:
-        """Create (or return the existing) fixed-shape channel at ``path``."""
+    def channel(self, path: str, fields: Mapping[str, tuple[tuple[int, ...], Any]], build: Builder | None,
+                derived: Sequence[tuple[str, Derived]] = ()) -> Channel:
+        """Create (or return the existing) fixed-shape channel at ``path`` (see :class:`Channel`)."""
         ch = self._channels.get(path)
         if ch is None:
-            ch = Channel(self, path, fields, build)
+            ch = Channel(self, path, fields, build, derived)
             self._channels[path] = ch
         if not isinstance(ch, Channel):
             raise RecordError(f"entity {path!r} already has a ragged channel")

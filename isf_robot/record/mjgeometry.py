@@ -92,11 +92,11 @@ class _PoseChannel:
     def __len__(self) -> int:
         return self.n
 
-    def push(self, t: float, pos: np.ndarray, quat_xyzw: np.ndarray) -> None:
+    def push(self, t: float, pos: np.ndarray, quat_wxyz: np.ndarray) -> None:
         n = self.n
         self.t[n] = t
         self.pos[n] = pos
-        self.quat[n] = quat_xyzw
+        self.quat[n] = quat_wxyz
         self.n = n + 1
         if self.n == self.t.shape[0]:
             self.flush()
@@ -106,9 +106,10 @@ class _PoseChannel:
         if n == 0:
             return
         idx = [rr.TimeColumn(TIMELINE, duration=self.t[:n])]
+        quat = _xyzw(self.quat[:n])
         for i, path in enumerate(self.paths):
             self.stream.send_columns(path, indexes=idx, columns=rr.Transform3D.columns(
-                translation=self.pos[:n, i], quaternion=self.quat[:n, i]))
+                translation=self.pos[:n, i], quaternion=quat[:, i]))
         self.n = 0
 
 
@@ -134,6 +135,10 @@ class MujocoDrawing:
         self.geoms_drawn = 0
         self.geoms_skipped: list[str] = []
         self._poses: _PoseChannel | None = None
+        self._sel: slice | np.ndarray | None = None
+        if self.moving.size:
+            lo, hi = int(self.moving[0]), int(self.moving[-1]) + 1
+            self._sel = slice(lo, hi) if hi - lo == self.moving.size else self.moving
 
     def log_static(self, stream: rr.RecordingStream) -> None:
         """Log every drawable geom (static) and the poses of bodies welded to the world."""
@@ -174,5 +179,5 @@ class MujocoDrawing:
         if mocap_quat is not None and mocap_quat.size:
             d.mocap_quat[:] = mocap_quat
         mujoco.mj_kinematics(self.model, d)
-        if self._poses is not None and self.moving.size:
-            self._poses.push(t, d.xpos[self.moving], _xyzw(d.xquat[self.moving]))
+        if self._poses is not None and self._sel is not None:
+            self._poses.push(t, d.xpos[self._sel], d.xquat[self._sel])

@@ -30,7 +30,7 @@ from . import schema
 from .buffer import ColumnBuffer
 from .stream import close_stream
 
-__all__ = ["RerunRecorder", "to_jsonable"]
+__all__ = ["RerunRecorder", "to_jsonable", "finite_scalars"]
 
 
 def to_jsonable(obj: Any) -> Any:
@@ -51,6 +51,16 @@ def to_jsonable(obj: Any) -> Any:
     if hasattr(obj, "as_dict"):
         return to_jsonable(obj.as_dict())
     return str(obj)
+
+
+def finite_scalars(t: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, Any] | None:
+    """``(t, Scalars columns)`` of the rows whose value is finite (``None`` if there is none)."""
+    ok = np.isfinite(values)
+    if not ok.any():
+        return None
+    if ok.all():
+        return t, rr.Scalars.columns(scalars=values)
+    return t[ok], rr.Scalars.columns(scalars=values[ok])
 
 
 def _event_columns(rows: list[tuple[float, str, int, float, float]]) -> Any:
@@ -103,9 +113,10 @@ class RerunRecorder(Observer):
             "intervention_rate": ((), np.float64), "qp_solved": ((), np.bool_),
             "min_barrier": ((), np.float64),
         }
-        self._steps = self.buffer.channel(schema.STEPS, fields, lambda **a: rr.AnyValues.columns(**a))
-        self._mode = self.buffer.scalars(f"{schema.PLOTS}/mode")
-        self._hmin = self.buffer.scalars(f"{schema.PLOTS}/barrier/min")
+        self._steps = self.buffer.channel(schema.STEPS, fields, lambda **a: rr.AnyValues.columns(**a), derived=(
+            (f"{schema.PLOTS}/mode", lambda t, a: (t, rr.Scalars.columns(scalars=a["on"].astype(np.float64)))),
+            (f"{schema.PLOTS}/barrier/min", lambda t, a: finite_scalars(t, a["min_barrier"])),
+        ))
         self._events = self.buffer.ragged(schema.EVENTS, _event_columns)
         self._log = self.buffer.ragged(schema.EVENT_LOG, _text_columns)
 
@@ -123,8 +134,6 @@ class RerunRecorder(Observer):
         """Buffer the step's replay row, mode, minimum barrier and the subclass's content."""
         t, dt, on, rate, solved, h_min = self.replay_row(record)
         self._steps.push(t, t, dt, on, rate, solved, h_min)
-        self._mode.push(t, 1.0 if on else 0.0)
-        self._hmin.push(t, h_min)
         self.step_content(t, record)
         self.steps += 1
 
