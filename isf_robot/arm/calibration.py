@@ -53,6 +53,7 @@ class Calibration:
         factor: Safety factor applied.
         duration_s: Simulated time [s].
         samples: Number of physics steps measured.
+
     """
 
     d_bar: float
@@ -78,7 +79,7 @@ def clear_calibration_cache() -> None:
 
 
 def _key(scene: Scene, params: tuple[Any, ...]) -> tuple[Any, ...]:
-    files = []
+    files: list[tuple[str, int | None] | None] = []
     for p in (scene.xml_path, scene.config.source):
         if p is None:
             files.append(None)
@@ -115,6 +116,7 @@ def calibrate_d_bar(
 
     Returns:
         The :class:`Calibration`.
+
     """
     if not duration > 0:
         raise ConfigError(f"calibration duration must be > 0 [s], got {duration}")

@@ -9,10 +9,14 @@ stderr.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import sys
+from collections.abc import Callable
 from typing import Any
+
+from isf_robot.core.exceptions import IsfError
 
 __all__ = ["register", "DEMO_SCENE"]
 
@@ -107,6 +111,25 @@ def register(subparsers: Any) -> None:
 # ----------------------------------------------------------------------------- handlers
 
 
+def _one_line_errors(fn: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+    """Report an :class:`IsfError` as one line on stderr (exit code 2), whatever its message.
+
+    Messages from MuJoCo's XML parser span several lines; they are joined here.
+    """
+
+    @functools.wraps(fn)
+    def wrapper(args: argparse.Namespace) -> int:
+        try:
+            return fn(args)
+        except IsfError as exc:
+            print(f"isf-robot {args.command}: error: {' '.join(str(exc).split())}",
+                  file=sys.stderr)
+            return 2
+
+    return wrapper
+
+
+@_one_line_errors
 def _cmd_scenes(args: argparse.Namespace) -> int:
     from .scene import list_scenes
 
@@ -125,6 +148,7 @@ def _fmt(v: Any, fmt: str = ".4g") -> str:
     return str(v)
 
 
+@_one_line_errors
 def _cmd_run(args: argparse.Namespace) -> int:
     from .compare import json_safe
     from .sim import run_episode
@@ -165,6 +189,7 @@ def _progress(quiet: bool) -> Any:
     return report
 
 
+@_one_line_errors
 def _cmd_compare(args: argparse.Namespace) -> int:
     from .compare import compare_strategies, format_table
 
@@ -178,6 +203,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+@_one_line_errors
 def _cmd_demo(args: argparse.Namespace) -> int:
     from .compare import SceneSpec, compare_strategies, format_table
 

@@ -51,6 +51,7 @@ class SceneSpec:
         name: Shipped scene name, or ``None``.
         model: MJCF path, or ``None``.
         config: TOML path, or ``None``.
+
     """
 
     name: str | None = None
@@ -84,6 +85,7 @@ class EpisodeTask:
         duration: Simulated time [s] (``None``: the scene's).
         params: Keyword arguments for :class:`~isf_robot.arm.ArmSimulation` (alpha, c, b,
             d_bar, control_period).
+
     """
 
     spec: SceneSpec
@@ -150,6 +152,7 @@ class Comparison:
         episodes: Episodes per strategy.
         seeds: The seeds used.
         results: Per strategy, :func:`summarize` of its runs (runs sorted by seed).
+
     """
 
     scene: str
@@ -194,6 +197,7 @@ def compare_strategies(
 
     Returns:
         The :class:`Comparison`.
+
     """
     if int(episodes) < 1:
         raise ConfigError(f"--episodes must be >= 1, got {episodes}")

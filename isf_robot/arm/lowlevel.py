@@ -66,6 +66,7 @@ class VelocityTracker:
     Raises:
         ConfigError: An arm joint has no actuator, or its actuator is not a plain motor
             (fixed gain, no bias).
+
     """
 
     def __init__(
@@ -130,6 +131,7 @@ class VelocityTracker:
             period: Time until the next call [s]; with ``feedforward`` the acceleration
                 ``(u - u_previous) / period`` is fed forward until then. ``None``: no
                 feedforward.
+
         """
         if self.feedforward and period is not None and period > 0:
             np.subtract(u, self.u, out=self.a_ff)

@@ -47,6 +47,7 @@ class GoalSequence:
         tolerance: Error below which a goal counts as reached (controller units: [m] or [rad]).
         loop: Restart at the first goal after the last one.
         timeout: Time [s] after which an unreached goal is given up (``inf``: never).
+
     """
 
     def __init__(self, n_goals: int, dwell: Sequence[float] | np.ndarray, tolerance: float,
@@ -109,6 +110,7 @@ class NominalController(ABC):
     Attributes:
         n: Number of arm joints (the command's length).
         goals: The goal bookkeeping (``goals.index``, ``goals.reached``).
+
     """
 
     n: int
@@ -204,6 +206,7 @@ class ReachingController(NominalController):
             ``[gains] max_joint_acc`` or 10. ``inf`` disables it.
         timeout: Give up a goal not reached within this time [s]; default
             ``[gains] goal_timeout`` or 4 s.
+
     """
 
     def __init__(
@@ -300,6 +303,7 @@ class JointPDController(NominalController):
         loop: Loop over the targets.
         max_joint_acc: Limit on the change of the command [rad/s^2], as
             :class:`ReachingController`.
+
     """
 
     def __init__(

@@ -115,6 +115,7 @@ class ArmStepRecord:
         event: The switch at this step, if any.
         fallback: Whether the braking fallback was applied.
         relaxed: Names of barriers whose promotion was relaxed in this step.
+
     """
 
     t: float
@@ -153,6 +154,7 @@ class FilterParams:
         b: Promotion rate of the intermittent filter [m/s or rad/s].
         d_bar: Tracking-error bound [rad/s].
         d_bar_source: ``"argument"``, ``"config"`` or ``"calibration"``.
+
     """
 
     alpha: float
@@ -201,6 +203,7 @@ class RunResult:
         qp_time_median_us: Median QP solve time [us] (None: no QP).
         wall_s: Wall time of the loop [s].
         timings: Wall time per phase [s] when timing was requested, else empty.
+
     """
 
     scene: str
@@ -253,6 +256,7 @@ def check_control_period(period: float, timestep: float) -> int:
 
     Raises:
         ConfigError: ``period`` is not positive or not a whole multiple of ``timestep``.
+
     """
     if not (isinstance(period, (int, float)) and math.isfinite(period) and period > 0):
         raise ConfigError(f"control period must be a positive number of seconds, got {period!r}")
@@ -281,6 +285,7 @@ class EpisodeSetup:
         goals: Goal positions [m], shape (g, 3).
         time_offset: Offset of the moving obstacles' clock [s] (their position at sim time
             t is the path's position at ``t + time_offset``).
+
     """
 
     q0: np.ndarray
@@ -299,6 +304,7 @@ def episode_setup(scene: Scene, seed: int, *, q_noise: float = 0.05, goal_noise:
 
     Raises:
         ConfigError: No safe initial state was found in ``max_tries`` draws.
+
     """
     rng = np.random.default_rng(seed)
     n = scene.n_joints
@@ -423,6 +429,7 @@ class ArmSimulation:
     Raises:
         UnknownNameError: Unknown strategy (the message lists the valid ones).
         ConfigError: Invalid parameters.
+
     """
 
     def __init__(
@@ -514,6 +521,7 @@ class ArmSimulation:
 
         Raises:
             ConfigError: ``duration`` is not a positive number.
+
         """
         dur = float(self.scene.config.task.duration if duration is None else duration)
         if not (math.isfinite(dur) and dur > 0):
@@ -554,7 +562,7 @@ class ArmSimulation:
         cnames, jnames = self.coll.names, self.joints.names
         strategy = self.strategy
         need_barriers = flt is not None or recording  # the filter's rows (cb is always needed)
-        qadr, dofs = scene.qpos_adr, scene.dof_adr
+        dofs = scene.dof_adr
         reaching = isinstance(nominal, ReachingController)
         min_joint = math.inf
         fallbacks = relaxations = 0
@@ -668,7 +676,7 @@ class ArmSimulation:
 
             # -- events and records
             event = step.event if step is not None else None
-            if flt is not None and strategy == "cbf" and on != prev_on:
+            if step is not None and strategy == "cbf" and on != prev_on:
                 if on:
                     n_on += 1
                 else:
@@ -731,8 +739,8 @@ class ArmSimulation:
         act = np.flatnonzero(cb.active)
         nominal = self.nominal
         gi = nominal.goal_index
-        goal = (nominal.goal_positions[gi].copy() if reaching
-                else np.full(3, np.nan))  # type: ignore[attr-defined]
+        goal = (nominal.goal_positions[gi].copy() if isinstance(nominal, ReachingController)
+                else np.full(3, np.nan))
         return ArmStepRecord(
             t=t, dt=T, q=data.qpos[scene.qpos_adr].copy(), qd=data.qvel[scene.dof_adr].copy(),
             u=np.array(u, dtype=float), u_nom=np.array(u_nom, dtype=float), on=bool(on),

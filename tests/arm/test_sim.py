@@ -1,0 +1,228 @@
+"""The arm simulation loop: safety of the filters, QP counts, metrics, observers, bad input."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import mujoco
+import numpy as np
+import pytest
+
+from isf_robot.arm import (
+    ArmSimulation,
+    ArmStepRecord,
+    CollisionBarriers,
+    episode_setup,
+    load_scene,
+    min_distance,
+    run_episode,
+)
+from isf_robot.arm.sim import _SafetyMonitor, check_control_period
+from isf_robot.core import ConfigError, Observer, SwitchEvent, UnknownNameError, compute_metrics
+
+PANDA_SCENES = ("panda_pole", "panda_shelf", "panda_moving")
+SAFE_TOL = 1e-3  # [m] allowed barrier violation on the true geometry
+
+
+@pytest.fixture(scope="module")
+def panda() -> dict[str, Any]:
+    return {name: load_scene(name) for name in PANDA_SCENES}
+
+
+# ----------------------------------------------------------------------------- safety
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_planar_filters_safe_nominal_collides(planar, seed: int) -> None:  # type: ignore[no-untyped-def]
+    nominal = run_episode(planar, "nominal", 4.0, seed)
+    assert nominal.collisions > 0 and nominal.min_barrier < 0.0
+    for strategy in ("cbf", "isf"):
+        r = run_episode(planar, strategy, 4.0, seed)
+        assert r.min_barrier >= -SAFE_TOL, (strategy, r.min_barrier)
+        assert r.collisions == 0
+        assert r.fallbacks == 0
+
+
+@pytest.mark.parametrize("name", PANDA_SCENES)
+def test_panda_filters_safe_nominal_collides(panda, name: str) -> None:  # type: ignore[no-untyped-def]
+    scene = panda[name]
+    for seed in (0, 1):
+        nominal = run_episode(scene, "nominal", 3.0, seed)
+        assert nominal.collisions > 0, f"{name}: the nominal task must hit an obstacle"
+        cbf = run_episode(scene, "cbf", 3.0, seed)
+        isf = run_episode(scene, "isf", 3.0, seed)
+        for r in (cbf, isf):
+            assert r.min_barrier >= -SAFE_TOL, (name, r.filter, seed, r.min_barrier)
+        assert isf.qp_solves < cbf.qp_solves
+        assert cbf.qp_solves == cbf.control_steps  # the standard filter solves every step
+
+
+def test_moving_obstacle_planar(planar_moving) -> None:  # type: ignore[no-untyped-def]
+    nominal = run_episode(planar_moving, "nominal", 6.0, 0)
+    assert nominal.min_barrier < 0.0
+    for strategy in ("cbf", "isf"):
+        r = run_episode(planar_moving, strategy, 6.0, 0)
+        assert r.min_barrier >= -SAFE_TOL
+
+
+def test_isf_solves_fewer_qps_than_cbf(planar) -> None:  # type: ignore[no-untyped-def]
+    cbf = run_episode(planar, "cbf", 4.0, 3)
+    isf = run_episode(planar, "isf", 4.0, 3)
+    assert isf.qp_solves < cbf.qp_solves
+    assert isf.on_switches >= 1
+    assert isf.min_off_s is None or isf.min_off_s > 0.0
+
+
+# ----------------------------------------------------------------------------- metrics
+
+
+def test_metrics_fields_match_compute_metrics(planar) -> None:  # type: ignore[no-untyped-def]
+    sim = ArmSimulation(planar, "isf", seed=4)
+    r = sim.run(3.0)
+    a = sim.metrics.arrays()
+    m = compute_metrics(a["t"], a["dt"], a["on"], a["intervention_rate"], a["qp_solved"])
+    for key in ("duration_s", "control_steps", "duty_cycle", "on_switches", "mean_off_s",
+                "min_off_s", "intervention", "qp_solves"):
+        mine, ref = getattr(r, key), getattr(m, key)
+        if ref is None:
+            assert mine is None
+        else:
+            assert mine == pytest.approx(ref, abs=1e-9)
+    assert r.control_steps == 1500 and r.physics_steps == 3001
+
+
+def test_same_seed_same_episode(planar) -> None:  # type: ignore[no-untyped-def]
+    a = run_episode(planar, "isf", 2.0, 7).as_dict()
+    b = run_episode(planar, "isf", 2.0, 7).as_dict()
+    for d in (a, b):
+        d.pop("wall_s")
+        d.pop("qp_time_median_us")
+    assert a == b
+    c = run_episode(planar, "isf", 2.0, 8).as_dict()
+    assert c["intervention"] != a["intervention"]
+
+
+def test_episode_setup_is_safe_and_seeded(planar_moving) -> None:  # type: ignore[no-untyped-def]
+    s1, s2 = episode_setup(planar_moving, 5), episode_setup(planar_moving, 5)
+    np.testing.assert_array_equal(s1.q0, s2.q0)
+    assert s1.time_offset == s2.time_offset
+    data = mujoco.MjData(planar_moving.model)
+    data.qpos[planar_moving.qpos_adr] = s1.q0
+    planar_moving.set_moving_obstacles(data, s1.time_offset)
+    mujoco.mj_forward(planar_moving.model, data)
+    assert np.min(CollisionBarriers.from_scene(planar_moving).evaluate(data).h) > 0.0
+
+
+def test_safety_monitor_matches_min_distance_helper(planar, rng) -> None:  # type: ignore[no-untyped-def]
+    coll = CollisionBarriers.from_scene(planar)
+    data = mujoco.MjData(planar.model)
+    margin = coll.pairs.margin
+    for _ in range(30):
+        data.qpos[planar.qpos_adr] = planar.home + rng.normal(0.0, 0.4, 3)
+        mujoco.mj_forward(planar.model, data)
+        true = min_distance(planar.model, data, coll.pairs).distance
+        mon = _SafetyMonitor(coll)
+        b = coll.evaluate(data)
+        d_tick = mon.tick(b.h, b.active, margin)
+        d_sub = mon.substep(data, exact=True)
+        if true < coll.cutoff:
+            assert d_tick == pytest.approx(true, abs=1e-9)
+            assert d_sub == pytest.approx(true, abs=1e-9)
+            assert mon.min_h == pytest.approx(true - margin[0], abs=1e-9)
+            assert mon.collisions == (2 if true - margin[0] < 0 else 0)
+
+
+# ----------------------------------------------------------------------------- observers
+
+
+class _Collect(Observer):
+    def __init__(self) -> None:
+        self.info: dict[str, Any] | None = None
+        self.steps: list[ArmStepRecord] = []
+        self.events: list[SwitchEvent] = []
+        self.summary: dict[str, Any] | None = None
+
+    def on_start(self, info: Any) -> None:
+        self.info = dict(info)
+
+    def on_step(self, record: Any) -> None:
+        self.steps.append(record)
+
+    def on_event(self, event: Any) -> None:
+        self.events.append(event)
+
+    def on_finish(self, summary: Any) -> None:
+        self.summary = dict(summary)
+
+
+@pytest.mark.parametrize("strategy", ["isf", "cbf", "nominal"])
+def test_observer_sees_every_step_and_event(planar, strategy: str) -> None:  # type: ignore[no-untyped-def]
+    obs = _Collect()
+    plain = run_episode(planar, strategy, 2.0, 2)
+    r = run_episode(planar, strategy, 2.0, 2, observers=[obs])
+    assert obs.info is not None and obs.info["strategy"] == strategy
+    assert obs.info["control_period"] == pytest.approx(0.002) and obs.info["dt"] == 0.001
+    assert len(obs.steps) == r.control_steps
+    assert obs.summary is not None and obs.summary["qp_solves"] == r.qp_solves
+    # watching changes nothing
+    assert r.min_barrier == pytest.approx(plain.min_barrier, abs=1e-12)
+    assert r.intervention == pytest.approx(plain.intervention, abs=1e-12)
+    ons = [e for e in obs.events if e.kind == "on"]
+    assert len(ons) == r.on_switches
+    rec = obs.steps[100]
+    n, k = planar.n_joints, len(rec.names)
+    assert rec.q.shape == (n,) and rec.u.shape == (n,) and rec.h.shape == (k,)
+    assert rec.ee_pos.shape == (3,) and rec.goal_pos.shape == (3,)
+    assert rec.witness.shape[1:] == (2, 3) and len(rec.witness_names) == rec.witness.shape[0]
+    assert rec.h_min == pytest.approx(float(rec.h.min()))
+    # the run's minimum also covers the state after the last step (no record for it)
+    rec_min = min(s.dist_min for s in obs.steps) - 0.02
+    assert rec_min >= r.min_barrier - 1e-12
+    assert rec_min == pytest.approx(r.min_barrier, abs=1e-4)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        rec.t = 1.0  # type: ignore[misc]
+    # record metrics recompute the JSON metrics
+    t = np.array([s.t for s in obs.steps])
+    on = np.array([s.on for s in obs.steps])
+    rate = np.array([float((s.u - s.u_nom) @ (s.u - s.u_nom)) for s in obs.steps])
+    solved = np.array([s.qp_solved for s in obs.steps])
+    m = compute_metrics(t, np.array([s.dt for s in obs.steps]), on, rate, solved)
+    assert m.duty_cycle == pytest.approx(r.duty_cycle, abs=1e-9)
+    assert m.intervention == pytest.approx(r.intervention, abs=1e-9)
+    assert m.on_switches == r.on_switches
+
+
+# ----------------------------------------------------------------------------- bad input
+
+
+def test_control_period_must_be_whole_multiple(planar) -> None:  # type: ignore[no-untyped-def]
+    assert check_control_period(0.003, 0.001) == 3
+    for bad in (0.0015, 0.0005, -0.002, 0.0, float("nan")):
+        with pytest.raises(ConfigError):
+            ArmSimulation(planar, "isf", control_period=bad, d_bar=0.1)
+
+
+def test_negative_or_zero_duration_rejected(planar) -> None:  # type: ignore[no-untyped-def]
+    sim = ArmSimulation(planar, "isf", d_bar=0.1)
+    for bad in (-1.0, 0.0, float("inf")):
+        with pytest.raises(ConfigError, match="duration"):
+            sim.run(bad)
+
+
+def test_unknown_strategy_lists_valid(planar) -> None:  # type: ignore[no-untyped-def]
+    with pytest.raises(UnknownNameError, match="cbf, isf, nominal"):
+        ArmSimulation(planar, "mpc")
+
+
+@pytest.mark.parametrize("kw", [dict(alpha=-1.0), dict(c=0.0), dict(b=-0.1), dict(d_bar=-0.1)])
+def test_bad_filter_parameters_rejected(planar, kw: dict) -> None:  # type: ignore[no-untyped-def]
+    with pytest.raises(ConfigError):
+        ArmSimulation(planar, "isf", **kw)
+
+
+def test_one_khz_control_on_panda(panda) -> None:  # type: ignore[no-untyped-def]
+    r = run_episode(panda["panda_pole"], "isf", 1.0, 0, control_period=0.001)
+    assert r.control_steps == 1000 and r.physics_steps == 1001
+    assert math.isfinite(r.min_barrier)
