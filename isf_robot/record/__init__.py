@@ -10,41 +10,45 @@ Public API:
 * :class:`RerunRecorder`: replay columns, mode, min barrier, events (base of the others).
 * :class:`ArmRecorder` (MuJoCo geometry and poses, barriers, commands, witness segments) and
   :class:`SatelliteRecorder` (body, band, trajectory, triggers, impulses).
+* :class:`PerRunRecorder`: one recording file per run (picklable; for ``compare``).
 * :func:`arm_blueprint`, :func:`satellite_blueprint`, :func:`blueprint_for`.
 * :func:`read_rrd`, :func:`read_many`, :func:`replay_metrics`, :func:`format_table`,
   :class:`RunLog`.
 * :func:`add_recording_args`, :func:`make_observer`: the ``--rrd`` / ``--spawn`` glue.
 
-``ArmRecorder`` imports mujoco, so it is loaded on first use.
+Names load on first use, so importing this package (as the CLI does to register
+``replay``) does not import rerun or mujoco.
 """
 
 from __future__ import annotations
 
+import importlib
 from typing import Any
 
-from .blueprints import arm_blueprint, blueprint_for, generic_blueprint, satellite_blueprint
-from .buffer import TIMELINE, Channel, ColumnBuffer, RaggedChannel
-from .errors import RecordError, RecordingReadError, ViewerUnavailableError
-from .options import add_recording_args, make_observer, recording_path
-from .recorder import RerunRecorder
-from .replay import METRIC_KEYS, RunLog, format_table, impulse_metrics, read_many, read_rrd, replay_metrics
-from .satellite import SatelliteRecorder
-from .stream import close_stream, find_viewer, open_stream
+_EXPORTS: dict[str, str] = {
+    "TIMELINE": "buffer", "Channel": "buffer", "ColumnBuffer": "buffer", "RaggedChannel": "buffer",
+    "RecordError": "errors", "RecordingReadError": "errors", "ViewerUnavailableError": "errors",
+    "add_recording_args": "options", "make_observer": "options", "recording_path": "options",
+    "PerRunRecorder": "options",
+    "RerunRecorder": "recorder", "SatelliteRecorder": "satellite", "ArmRecorder": "arm",
+    "arm_blueprint": "blueprints", "satellite_blueprint": "blueprints", "generic_blueprint": "blueprints",
+    "blueprint_for": "blueprints",
+    "METRIC_KEYS": "replay", "RunLog": "replay", "format_table": "replay", "impulse_metrics": "replay",
+    "read_many": "replay", "read_rrd": "replay", "replay_metrics": "replay",
+    "close_stream": "stream", "find_viewer": "stream", "open_stream": "stream",
+}
 
-__all__ = [
-    "TIMELINE", "Channel", "ColumnBuffer", "RaggedChannel",
-    "RecordError", "RecordingReadError", "ViewerUnavailableError",
-    "add_recording_args", "make_observer", "recording_path",
-    "RerunRecorder", "SatelliteRecorder", "ArmRecorder",
-    "arm_blueprint", "satellite_blueprint", "generic_blueprint", "blueprint_for",
-    "METRIC_KEYS", "RunLog", "format_table", "impulse_metrics", "read_many", "read_rrd", "replay_metrics",
-    "close_stream", "find_viewer", "open_stream",
-]
+__all__ = sorted(_EXPORTS)
 
 
 def __getattr__(name: str) -> Any:
-    if name == "ArmRecorder":
-        from .arm import ArmRecorder
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'isf_robot.record' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
 
-        return ArmRecorder
-    raise AttributeError(f"module 'isf_robot.record' has no attribute {name!r}")
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

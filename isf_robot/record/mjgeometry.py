@@ -154,15 +154,16 @@ class MujocoDrawing:
                 self.geoms_skipped.append(gname)
                 continue
             path = f"{self.body_paths[int(m.geom_bodyid[g])]}/{gname}"
-            stream.log(path, rr.Transform3D(translation=m.geom_pos[g], quaternion=_xyzw(m.geom_quat[g])),
-                       static=True)
+            local = rr.Transform3D(translation=m.geom_pos[g], quaternion=rr.Quaternion(xyzw=_xyzw(m.geom_quat[g])))
+            stream.log(path, local, static=True)
             stream.log(path, shape, static=True)
             self.geoms_drawn += 1
         moving = set(self.moving.tolist())
         for b in range(m.nbody):
             if b not in moving:
-                stream.log(self.body_paths[b], rr.Transform3D(translation=self.data.xpos[b],
-                                                              quaternion=_xyzw(self.data.xquat[b])), static=True)
+                pose = rr.Transform3D(translation=self.data.xpos[b],
+                                      quaternion=rr.Quaternion(xyzw=_xyzw(self.data.xquat[b])))
+                stream.log(self.body_paths[b], pose, static=True)
 
     def pose_channel(self, stream: rr.RecordingStream, capacity: int) -> _PoseChannel:
         """The buffered channel of the moving bodies' world poses."""

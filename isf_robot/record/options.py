@@ -9,15 +9,17 @@ Recording layout:
 
 * ``isf-robot run --rrd PATH`` and ``isf-satellite run --rrd PATH``: one file, one recording.
 * ``isf-robot compare --rrd DIR``: one recording per strategy and episode, each in its own
-  file ``DIR/<name>.rrd`` (``<name>`` given by the caller, e.g. ``isf-seed3``), so that
-  ``isf-robot replay DIR`` (or ``DIR/*.rrd``) puts them side by side. With ``--spawn`` every
-  recording also streams to the one viewer, as distinct recordings.
+  file ``DIR/<strategy>-seed<seed>.rrd``, so that ``isf-robot replay DIR`` (or
+  ``DIR/*.rrd``) puts them side by side. With ``--spawn`` every recording also streams to
+  the one viewer, as distinct recordings. The observer is a picklable
+  :class:`PerRunRecorder`, so it can travel to worker processes inside the run parameters.
 """
 
 from __future__ import annotations
 
 import argparse
 import re
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +27,10 @@ from isf_robot.core.hooks import Observer
 
 from .errors import RecordError
 
-__all__ = ["add_recording_args", "make_observer", "recording_path", "APPLICATION_IDS"]
+__all__ = [
+    "add_recording_args", "make_observer", "open_recorder", "recording_path", "run_name", "PerRunRecorder",
+    "APPLICATION_IDS",
+]
 
 APPLICATION_IDS = {"arm": "isf_robot_arm", "satellite": "isf_robot_satellite", "generic": "isf_robot"}
 """Rerun application id per recording kind."""
@@ -44,7 +49,7 @@ def add_recording_args(parser: argparse.ArgumentParser, *, per_run: bool = False
     if per_run:
         group.add_argument(
             "--rrd", metavar="DIR", type=Path, default=None,
-            help="save one Rerun recording per strategy and episode as DIR/<strategy>-<episode>.rrd "
+            help="save one Rerun recording per strategy and episode as DIR/<strategy>-seed<seed>.rrd "
                  "(replay them with 'isf-robot replay DIR')",
         )
     else:
@@ -75,13 +80,15 @@ def make_observer(args: argparse.Namespace, kind: str, *, name: str | None = Non
     Args:
         args: Parsed arguments (from a parser prepared by :func:`add_recording_args`).
         kind: ``"arm"``, ``"satellite"`` or ``"generic"``.
-        name: Run name; required with per-run recording (``compare``), where it names the file.
+        name: Recording name shown by the viewer (single-run commands).
         **context: Passed to the recorder: for ``"arm"`` ``scene=`` (an
             :class:`isf_robot.arm.Scene`) and optionally ``closest=``; for ``"satellite"``
             optionally ``mesh_path=``, ``radius_m=``; anything else is ignored.
 
     Returns:
         An :class:`~isf_robot.core.hooks.Observer` to pass to the simulation loop, or ``None``.
+        With per-run recording (``compare``) a picklable :class:`PerRunRecorder` that opens
+        ``DIR/<strategy>-seed<seed>.rrd`` at each run's start.
 
     Raises:
         RecordError: Bad destination; ViewerUnavailableError: ``--spawn`` without a viewer.
@@ -93,22 +100,34 @@ def make_observer(args: argparse.Namespace, kind: str, *, name: str | None = Non
         return None
     if kind not in APPLICATION_IDS:
         raise RecordError(f"unknown recording kind {kind!r}; valid kinds: {', '.join(sorted(APPLICATION_IDS))}")
-    path: Path | None = None
-    if rrd is not None:
-        rrd = Path(rrd)
-        if getattr(args, "rrd_per_run", False):
-            if not name:
-                raise RecordError("per-run recording needs a run name")
-            path = recording_path(rrd, name)
-        else:
-            path = rrd
+    if spawn:
+        from .stream import find_viewer
+
+        find_viewer()  # fail before simulating
+    if getattr(args, "rrd_per_run", False):
+        if rrd is not None:
+            recording_path(Path(rrd), "check")  # a directory, not a .rrd file
+        return PerRunRecorder(None if rrd is None else Path(rrd), kind, spawn=spawn)
+    return open_recorder(kind, None if rrd is None else Path(rrd), spawn=spawn, name=name, **context)
+
+
+def open_recorder(kind: str, path: Path | None, *, spawn: bool = False, name: str | None = None,
+                  **context: Any) -> Observer:
+    """Open a stream (file and/or viewer) and the recorder of ``kind`` on it.
+
+    Args:
+        kind: ``"arm"``, ``"satellite"`` or ``"generic"``.
+        path: ``.rrd`` file, or ``None`` (viewer only).
+        spawn: Stream to a spawned viewer too.
+        name: Recording name shown by the viewer.
+        **context: Recorder arguments (see :func:`make_observer`).
+
+    """
     from .blueprints import blueprint_for
     from .stream import open_stream
 
-    stream = open_stream(
-        APPLICATION_IDS[kind], rrd_path=path, spawn=spawn, recording_name=name,
-        blueprint=blueprint_for(kind),
-    )
+    stream = open_stream(APPLICATION_IDS[kind], rrd_path=path, spawn=spawn, recording_name=name,
+                         blueprint=blueprint_for(kind))
     if kind == "arm":
         from .arm import ArmRecorder
 
@@ -124,3 +143,72 @@ def make_observer(args: argparse.Namespace, kind: str, *, name: str | None = Non
 
 def _pick(context: dict[str, Any], keys: tuple[str, ...]) -> dict[str, Any]:
     return {k: v for k, v in context.items() if k in keys}
+
+
+def run_name(info: Mapping[str, Any]) -> str:
+    """Name of a run from its ``on_start`` info: ``<strategy or trigger>-seed<seed>``."""
+    head = info.get("strategy") or info.get("trigger") or "run"
+    seed = info.get("seed")
+    return f"{head}-seed{seed}" if seed is not None else str(head)
+
+
+def _scene_from_info(info: Mapping[str, Any]) -> Any:
+    from isf_robot.arm.scene import load_scene, load_scene_from_files
+
+    model, config = info.get("model_path"), info.get("config_path")
+    if model and config:
+        return load_scene_from_files(model, config)
+    return load_scene(str(info["scene"]))
+
+
+class PerRunRecorder(Observer):
+    """One recording per run: each ``on_start`` opens ``<directory>/<strategy>-seed<seed>.rrd``.
+
+    Holds only paths and flags until a run starts, so it can be pickled into worker processes
+    (``compare --jobs K``) and reused for consecutive runs. For arm runs the scene is loaded
+    from the run info (``model_path``/``config_path`` or ``scene``).
+
+    Args:
+        directory: Folder receiving the files (created if missing), or ``None`` (viewer only).
+        kind: Recording kind (``"arm"``, ``"satellite"``, ``"generic"``).
+        spawn: Also stream each run to the viewer (one viewer, distinct recordings).
+
+    """
+
+    def __init__(self, directory: Path | None, kind: str, *, spawn: bool = False) -> None:
+        self.directory = directory
+        self.kind = kind
+        self.spawn = spawn
+        self.paths: list[Path] = []
+        self._current: Observer | None = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        state["_current"] = None
+        return state
+
+    def on_start(self, info: Mapping[str, Any]) -> None:
+        """Open this run's recording and start it."""
+        name = run_name(info)
+        path = None if self.directory is None else recording_path(self.directory, name)
+        context: dict[str, Any] = {"scene": _scene_from_info(info)} if self.kind == "arm" else {}
+        self._current = open_recorder(self.kind, path, spawn=self.spawn, name=name, **context)
+        if path is not None:
+            self.paths.append(path)
+        self._current.on_start(info)
+
+    def on_step(self, record: Any) -> None:
+        """Forward to the current run's recorder."""
+        if self._current is not None:
+            self._current.on_step(record)
+
+    def on_event(self, event: Any) -> None:
+        """Forward to the current run's recorder."""
+        if self._current is not None:
+            self._current.on_event(event)
+
+    def on_finish(self, summary: Mapping[str, Any]) -> None:
+        """Finish and close the current run's recording."""
+        if self._current is not None:
+            self._current.on_finish(summary)
+            self._current = None
