@@ -17,6 +17,7 @@ from collections.abc import Callable
 from typing import Any
 
 from isf_robot.core.exceptions import IsfError
+from isf_robot.record.options import add_recording_args, make_observer
 
 __all__ = ["register", "DEMO_SCENE"]
 
@@ -76,6 +77,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
     _add_filter_args(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    add_recording_args(p)
     p.set_defaults(handler=_cmd_run)
 
     p = subparsers.add_parser(
@@ -91,6 +93,7 @@ def register(subparsers: Any) -> None:
     _add_filter_args(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_recording_args(p, per_run=True)
     p.set_defaults(handler=_cmd_compare)
 
     p = subparsers.add_parser(
@@ -154,7 +157,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from .sim import run_episode
 
     scene = _spec(args).load()
-    res = run_episode(scene, args.filter, args.duration, args.seed, **_params(args))
+    obs = make_observer(args, "arm", scene=scene, name=f"{args.filter}-seed{args.seed}")
+    res = run_episode(scene, args.filter, args.duration, args.seed, **_params(args),
+                      observers=[obs] if obs else ())
     d = json_safe(res.as_dict())
     if args.json:
         print(json.dumps(d))
@@ -193,9 +198,11 @@ def _progress(quiet: bool) -> Any:
 def _cmd_compare(args: argparse.Namespace) -> int:
     from .compare import compare_strategies, format_table
 
+    obs = make_observer(args, "arm")
     comp = compare_strategies(_spec(args), args.episodes, strategies=args.filters,
                               duration=args.duration, seed0=args.seed, jobs=args.jobs,
-                              params=_params(args), progress=_progress(args.quiet))
+                              params={**_params(args), **({"observers": [obs]} if obs else {})},
+                              progress=_progress(args.quiet))
     if args.json:
         print(json.dumps(comp.as_dict()))
     else:
