@@ -34,7 +34,7 @@ _EXPORTS: dict[str, str] = {
     "arm_blueprint": "blueprints", "satellite_blueprint": "blueprints", "generic_blueprint": "blueprints",
     "blueprint_for": "blueprints",
     "METRIC_KEYS": "replay", "RunLog": "replay", "format_table": "replay", "impulse_metrics": "replay",
-    "read_many": "replay", "read_rrd": "replay", "replay_metrics": "replay",
+    "read_many": "replay", "read_rrd": "replay", "read_columns": "replay", "replay_metrics": "replay",
     "close_stream": "stream", "find_viewer": "stream", "open_stream": "stream",
 }
 

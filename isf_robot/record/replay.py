@@ -34,6 +34,7 @@ __all__ = [
     "RunLog",
     "read_rrd",
     "read_many",
+    "read_columns",
     "replay_metrics",
     "impulse_metrics",
     "format_table",
@@ -218,6 +219,69 @@ def read_rrd(path: str | Path) -> list[RunLog]:
     except Exception as exc:  # rerun raises RuntimeError/ValueError for damaged files
         msg = " ".join(str(exc).split())
         raise RecordingReadError(p, f"truncated or corrupt Rerun file ({msg})") from exc
+
+
+def read_columns(path: str | Path, entity: str, names: Sequence[str] | None = None,
+                 recording: int = 0) -> dict[str, np.ndarray]:
+    """Read the time-indexed columns of one entity back, in time order.
+
+    Single-instance columns come back as shape (N,), multi-instance ones (e.g. a ``Scalars``
+    entity with one series per joint, or 3-D points) as shape (N, k) or (N, k, d) when every
+    row has the same count, else as an object array of per-row arrays. ``sim_time`` [s] is
+    added (from the timeline, nanosecond resolution).
+
+    Args:
+        path: The ``.rrd`` file.
+        entity: Entity path, e.g. ``"/plots/mode"``.
+        names: Column names to return (default: every component column), e.g.
+            ``"Scalars:scalars"`` or an ``AnyValues`` field name.
+        recording: Index of the recording in the file.
+
+    Raises:
+        RecordingReadError: Unreadable file, or no such entity / column.
+
+    """
+    p = Path(path)
+    read_rrd(p)  # validates the file (clear errors)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        reader = RrdReader(p)
+        entry = reader.recordings()[recording]
+        batches = [c.to_record_batch() for c in reader.stream(store=entry)
+                   if c.entity_path == entity and not c.is_static]
+    if not batches:
+        raise RecordingReadError(p, f"no time-indexed entity {entity!r} in the recording")
+    available = [f.name for f in batches[0].schema
+                 if (f.metadata or {}).get(b"rerun:kind") == b"data"]
+    wanted = list(names) if names is not None else available
+    out: dict[str, list[Any]] = {n: [] for n in wanted}
+    times: list[np.ndarray] = []
+    for b in batches:
+        times.append(b.column("sim_time").cast(pa.int64()).to_numpy(zero_copy_only=False))
+        for n in wanted:
+            if n not in b.schema.names:
+                raise RecordingReadError(p, f"entity {entity!r} has no column {n!r} (has: {', '.join(available)})")
+            out[n].extend(_row_values(b.column(n)))
+    t_ns = np.concatenate(times)
+    order = np.argsort(t_ns, kind="stable")
+    result: dict[str, np.ndarray] = {"sim_time": t_ns[order] * 1e-9}
+    for n, rows in out.items():
+        rows = [rows[i] for i in order]
+        lens = {len(r) for r in rows}
+        if lens == {1}:
+            result[n] = np.asarray([r[0] for r in rows])
+        elif len(lens) == 1:
+            result[n] = np.asarray(rows)
+        else:
+            arr = np.empty(len(rows), dtype=object)
+            arr[:] = [np.asarray(r) for r in rows]
+            result[n] = arr
+    return result
+
+
+def _row_values(col: pa.ChunkedArray | pa.Array) -> list[Any]:
+    arr = col.combine_chunks() if isinstance(col, pa.ChunkedArray) else col
+    return [v if v is not None else [] for v in arr.to_pylist()]
 
 
 def read_many(paths: Iterable[str | Path]) -> list[RunLog]:
