@@ -192,6 +192,9 @@ class RunResult:
         goals_missed: Goals given up after the nominal task's timeout.
         fallbacks: Steps where the filter was infeasible and the arm braked.
         relaxations: Steps where promotions were relaxed (intermittent filter).
+        resolves: Steps where a joint-limit row left out of the QP (slack above the keep
+            threshold under ``u_nom``) was violated at the solution, so the QP was solved
+            again with every row (the pruning never changes the command).
         d_bar: Tracking-error bound used [rad/s].
         d_bar_source: Where it came from.
         alpha: Class-K gain [1/s].
@@ -229,6 +232,7 @@ class RunResult:
     goals_missed: int
     fallbacks: int
     relaxations: int
+    resolves: int
     d_bar: float
     d_bar_source: str
     alpha: float
@@ -471,6 +475,11 @@ class ArmSimulation:
         self.coll = CollisionBarriers.from_scene(scene)
         self.joints = JointLimitBarriers.from_scene(scene)
         self.names = self.coll.names + self.joints.names
+        # joint and sign of each joint-limit row (its gradient is +-e_j)
+        jgrad = self.joints.evaluate(scene.make_data()).grad
+        self._jidx = np.argmax(np.abs(jgrad), axis=1) if jgrad.size else np.zeros(0, int)
+        self._jsign = (jgrad[np.arange(jgrad.shape[0]), self._jidx] if jgrad.size
+                       else np.zeros(0))
         self.observers = Observers(observers)
         self.timing = bool(timing)
         p = self.params
@@ -565,7 +574,10 @@ class ArmSimulation:
         dofs = scene.dof_adr
         reaching = isinstance(nominal, ReachingController)
         min_joint = math.inf
-        fallbacks = relaxations = 0
+        fallbacks = relaxations = resolves = 0
+        alpha, d_bar = self.params.alpha, self.params.d_bar
+        keep = max(self.params.c, float(scene.config.gains.max_joint_speed))
+        jidx, jsign = self._jidx, self._jsign
         qp_times: list[float] = []
         track_err = np.empty(n_ctrl)
         prev_on = False
@@ -597,34 +609,37 @@ class ArmSimulation:
             if timing:
                 t1 = perf()
                 tm.add("physics", t1 - t0)
-            if timing:
-                t2 = t1
             cb = coll.evaluate(data, lin)
             dmin = monitor.tick(cb.h, cb.active, margins)
+            if timing:
+                t2 = perf()
+            u_nom = nominal(t, data)
+            if timing:
+                t3 = perf()
+                tm.add("nominal", t3 - t2)
             if need_barriers:
                 jb = joints.evaluate(data)
+                # rows for the filter: collision pairs within the cut-off, and joint-limit
+                # rows whose robust condition has slack < keep under u_nom (the others are
+                # checked at the solution below and the QP is re-solved with every row if
+                # one of them is violated, so the pruning never changes the answer)
                 act = np.flatnonzero(cb.active)
-                if act.size == cb.k:
-                    h = np.concatenate((cb.h, jb.h))
-                    grad = np.concatenate((cb.grad, jb.grad))
-                    dhdt = np.concatenate((cb.dhdt, jb.dhdt))
-                    lnames = self.names
-                else:
-                    h = np.concatenate((cb.h[act], jb.h))
-                    grad = np.concatenate((cb.grad[act], jb.grad))
-                    dhdt = np.concatenate((cb.dhdt[act], jb.dhdt))
-                    lnames = tuple(cnames[i] for i in act.tolist()) + jnames
+                jxi = jsign * u_nom[jidx] + alpha * jb.h - d_bar
+                jkeep = np.flatnonzero(jxi < keep)
+                if act.size == 0 and jkeep.size == 0 and jb.k:
+                    jkeep = np.array([int(np.argmin(jxi))])
+                h = np.concatenate((cb.h[act], jb.h[jkeep]))
+                grad = np.concatenate((cb.grad[act], jb.grad[jkeep]))
+                dhdt = np.concatenate((cb.dhdt[act], jb.dhdt[jkeep]))
+                lnames = (tuple(cnames[i] for i in act.tolist())
+                          + tuple(jnames[i] for i in jkeep.tolist()))
                 lie = LieData(h, dhdt, grad, np.sqrt(np.einsum("ij,ij->i", grad, grad)), lnames)
                 jmin = float(jb.h.min()) if jb.k else math.inf
                 if jmin < min_joint:
                     min_joint = jmin
             if timing:
-                t3 = perf()
-                tm.add("barriers", t3 - t2)  # includes the tick's safety accounting
-            u_nom = nominal(t, data)
-            if timing:
                 t4 = perf()
-                tm.add("nominal", t4 - t3)
+                tm.add("barriers", (t4 - t3) + (t2 - t1))  # with the tick's safety accounting
             qd = data.qvel[dofs]
             if flt is None:
                 u = u_nom
@@ -633,10 +648,26 @@ class ArmSimulation:
                 metrics.add(t, T, False, u, u_nom, False)
             else:
                 step = flt.step_lie(t, lie, u_nom)
+                qp_time = step.qp.solve_time_s if step.qp is not None else 0.0
+                if step.qp is not None and jkeep.size < jb.k:
+                    drop = np.ones(jb.k, dtype=bool)
+                    drop[jkeep] = False
+                    slack = jsign[drop] * step.u[jidx[drop]] + alpha * jb.h[drop] - d_bar
+                    if np.any(slack < 0.0):
+                        resolves += 1
+                        full = LieData(np.concatenate((cb.h[act], jb.h)),
+                                       np.concatenate((cb.dhdt[act], jb.dhdt)),
+                                       np.concatenate((cb.grad[act], jb.grad)),
+                                       np.concatenate((lie.grad_norm[:act.size],
+                                                       np.ones(jb.k))),
+                                       tuple(cnames[i] for i in act.tolist()) + jnames)
+                        again = flt.step_lie(t, full, u_nom)
+                        step = dataclasses.replace(again, event=step.event)
+                        qp_time += step.qp.solve_time_s if step.qp is not None else 0.0
                 u, on = step.u, step.on
                 metrics.add_step(step, T)
                 if step.qp is not None:
-                    qp_times.append(step.qp.solve_time_s)
+                    qp_times.append(qp_time)
                 if step.fallback:
                     fallbacks += 1
                 if step.relaxed:
@@ -648,7 +679,7 @@ class ArmSimulation:
                 t5 = perf()
                 tm.add("filter", t5 - t4)
                 if step is not None and step.qp is not None:
-                    tm.add("qp", step.qp.solve_time_s)
+                    tm.add("qp", qp_time)
             tracker.apply(data)
             mujoco.mj_step2(model, data)
             if timing:
@@ -718,7 +749,7 @@ class ArmSimulation:
             min_joint_barrier=float(min_joint) if math.isfinite(min_joint) else float(
                 np.min(joints.evaluate(data).h)) if joints.names else math.inf,
             goals_reached=nominal.goals_reached, goals_missed=nominal.goals_missed,
-            fallbacks=fallbacks, relaxations=relaxations,
+            fallbacks=fallbacks, relaxations=relaxations, resolves=resolves,
             d_bar=p.d_bar, d_bar_source=p.d_bar_source, alpha=p.alpha, c=p.c, b=p.b,
             control_period=T, timestep=dt, tracking_error_q99=q99,
             qp_time_median_us=float(np.median(qp_times)) * 1e6 if qp_times else None,
