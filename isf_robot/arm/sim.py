@@ -429,6 +429,10 @@ class ArmSimulation:
         timing: Accumulate wall time per phase (physics, safety check, barriers, nominal,
             trigger, QP) into ``RunResult.timings``.
         solver: QP solver for the filters (default ProxQP at eps_abs 1e-9).
+        joint_row_slack: Joint-limit rows whose robust condition has at least this slack
+            under ``u_nom`` [rad/s] are left out of the QP (and checked at its solution; a
+            violated one makes the QP be solved again with every row). Default
+            ``max(c, max_joint_speed)``; ``inf`` keeps every row.
 
     Raises:
         UnknownNameError: Unknown strategy (the message lists the valid ones).
@@ -452,6 +456,7 @@ class ArmSimulation:
         observers: Iterable[Observer] = (),
         timing: bool = False,
         solver: QPSolver | None = None,
+        joint_row_slack: float | None = None,
     ) -> None:
         if strategy not in STRATEGIES:
             raise UnknownNameError("strategy", strategy, STRATEGIES)
@@ -481,6 +486,10 @@ class ArmSimulation:
         self._jsign = (jgrad[np.arange(jgrad.shape[0]), self._jidx] if jgrad.size
                        else np.zeros(0))
         self.observers = Observers(observers)
+        self.joint_row_slack = (max(self.params.c, float(scene.config.gains.max_joint_speed))
+                                if joint_row_slack is None else float(joint_row_slack))
+        if not self.joint_row_slack > 0:
+            raise ConfigError(f"joint_row_slack must be > 0, got {joint_row_slack}")
         self.timing = bool(timing)
         p = self.params
         cutoff_h = float(np.min(self.coll.cutoff - self.coll.pairs.margin))
@@ -576,7 +585,7 @@ class ArmSimulation:
         min_joint = math.inf
         fallbacks = relaxations = resolves = 0
         alpha, d_bar = self.params.alpha, self.params.d_bar
-        keep = max(self.params.c, float(scene.config.gains.max_joint_speed))
+        keep = self.joint_row_slack
         jidx, jsign = self._jidx, self._jsign
         qp_times: list[float] = []
         track_err = np.empty(n_ctrl)

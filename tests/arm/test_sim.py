@@ -134,6 +134,15 @@ def test_safety_monitor_matches_min_distance_helper(planar, rng) -> None:  # typ
             assert mon.collisions == (2 if true - margin[0] < 0 else 0)
 
 
+@pytest.mark.parametrize("strategy", ["cbf", "isf"])
+def test_joint_row_pruning_does_not_change_the_run(planar, strategy: str) -> None:  # type: ignore[no-untyped-def]
+    # a tight slack threshold prunes rows that the filter then needs: the re-solve fixes it
+    runs = [run_episode(planar, strategy, 1.5, 1, joint_row_slack=v) for v in (math.inf, 0.3)]
+    full, pruned = runs
+    for key in ("duty_cycle", "on_switches", "qp_solves", "min_barrier", "intervention"):
+        assert getattr(pruned, key) == pytest.approx(getattr(full, key), rel=1e-6, abs=1e-9), key
+
+
 # ----------------------------------------------------------------------------- observers
 
 
