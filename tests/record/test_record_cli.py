@@ -1,0 +1,98 @@
+"""The CLI: replay --json reproduces run --json; compare writes one recording per run; --spawn fails cleanly."""
+
+from __future__ import annotations
+
+import json
+import math
+import pickle
+import subprocess
+import sys
+
+import pytest
+
+from isf_robot.cli import main
+
+KEYS_EXACT = ("duty_cycle", "on_switches", "off_switches", "control_steps", "qp_solves")
+KEYS_FLOAT = ("mean_off_s", "min_off_s", "max_off_s", "mean_on_s", "min_on_s", "min_barrier", "intervention",
+              "duration_s")
+
+
+def _json(capsys: pytest.CaptureFixture[str], argv: list[str]) -> dict:  # type: ignore[type-arg]
+    assert main(argv) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def _close(a: float | None, b: float | None) -> bool:
+    if a is None or b is None:
+        return a is b
+    return math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-300)
+
+
+def test_replay_json_reproduces_run_json(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    rrd = tmp_path / "run.rrd"
+    run = _json(capsys, ["run", "--scene", "planar_moving", "--filter", "isf", "--duration", "6", "--json",
+                         "--rrd", str(rrd)])
+    assert run["on_switches"] > 0
+    rep = _json(capsys, ["replay", str(rrd), "--json"])
+    for k in KEYS_EXACT:
+        assert rep[k] == run[k], k
+    for k in KEYS_FLOAT:
+        assert _close(rep[k], run[k]), (k, rep[k], run[k])
+
+
+def test_compare_one_recording_per_strategy_and_seed(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    out = tmp_path / "cmp"
+    comp = _json(capsys, ["compare", "--scene", "planar_moving", "--episodes", "2", "--duration", "1.5",
+                          "--filters", "cbf", "isf", "--quiet", "--json", "--rrd", str(out)])
+    files = sorted(p.name for p in out.glob("*.rrd"))
+    assert files == ["cbf-seed0.rrd", "cbf-seed1.rrd", "isf-seed0.rrd", "isf-seed1.rrd"]
+    rep = _json(capsys, ["replay", str(out), "--json"])
+    recs = rep["recordings"]
+    assert len(recs) == 4 and len({r["recording_id"] for r in recs}) == 4
+    for r in recs:
+        strat, seed = r["info"]["strategy"], r["info"]["seed"]
+        (run,) = [e for e in comp["results"][strat]["episodes"] if e["seed"] == seed]
+        for k in KEYS_EXACT:
+            assert r["metrics"][k] == run[k], (strat, seed, k)
+        for k in KEYS_FLOAT:
+            assert _close(r["metrics"][k], run[k]), (strat, seed, k)
+    assert main(["replay", str(out / "cbf-seed0.rrd"), str(out / "isf-seed0.rrd")]) == 0
+    table = capsys.readouterr().out
+    assert "duty_cycle" in table and "planar_moving/cbf/seed0" in table and "planar_moving/isf/seed0" in table
+
+
+def test_compare_rrd_must_be_a_directory(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    assert main(["compare", "--scene", "planar_moving", "--episodes", "1", "--duration", "0.2",
+                 "--rrd", str(tmp_path / "x.rrd")]) == 2
+    assert "pass a directory" in capsys.readouterr().err
+
+
+def test_per_run_recorder_pickles(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.record import PerRunRecorder
+
+    obs = PerRunRecorder(tmp_path, "arm")
+    clone = pickle.loads(pickle.dumps(obs))
+    assert clone.directory == tmp_path and clone.kind == "arm"
+
+
+def test_spawn_without_display_fails_clearly(monkeypatch, capsys) -> None:  # type: ignore[no-untyped-def]
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    if sys.platform.startswith("linux"):
+        assert main(["run", "--scene", "planar_moving", "--duration", "0.2", "--spawn"]) == 2
+        err = capsys.readouterr().err
+        assert "viewer" in err and ("display" in err or "executable" in err)
+
+
+def test_cli_help_does_not_import_rerun() -> None:
+    code = ("import sys; from isf_robot.cli import build_parser; build_parser(); "
+            "print('rerun' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_record_package_is_the_only_rerun_importer() -> None:
+    code = ("import sys, isf_robot.core, isf_robot.arm, satellite.simulate; "
+            "print('rerun' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
