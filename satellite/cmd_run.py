@@ -11,6 +11,7 @@ from collections.abc import Mapping
 from typing import Any, TextIO
 
 from isf_robot.core import ConfigError, Observer, UnknownNameError
+from isf_robot.record.options import add_recording_args, make_observer
 from satellite.controller import ControlParams
 from satellite.model import InitialOrbit, OrbitModel
 from satellite.simulate import TRIGGERS, RunResult, SatelliteSample, simulate
@@ -87,6 +88,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--c", type=float, default=None, help="post-jump margin (default: half the smallest post-jump Xi)")
     p.add_argument("--gravity", metavar="FILE.json", help="gravity table (default: committed Itokawa degree 8)")
     p.add_argument("--events", action="store_true", help="with --json, include the impulse list")
+    add_recording_args(p)
     p.set_defaults(func=run)
 
 
@@ -133,7 +135,10 @@ def run(args: argparse.Namespace) -> int:
     model = OrbitModel(field, spin=not args.no_spin, disturbance_scale=args.disturbance_scale)
     initial = InitialOrbit(radius_over_R=args.radius, inclination_deg=args.inclination, seed=args.seed)
     control = ControlParams(alpha_gain=args.alpha_gain, d_bar=args.d_bar, c=args.c)
-    observers = [] if args.quiet else [ProgressObserver(sys.stderr)]
+    observers: list[Observer] = [] if args.quiet else [ProgressObserver(sys.stderr)]
+    recorder = make_observer(args, "satellite", name=f"{args.trigger}-seed{args.seed}")
+    if recorder is not None:
+        observers.append(recorder)
     res = simulate(args.trigger, args.hours, initial=initial, model=model, control=control, tau=tau,
                    observers=observers)
     if args.json:
