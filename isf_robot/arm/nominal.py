@@ -144,7 +144,7 @@ class NominalController(ABC):
 
 
 def _cap(u: np.ndarray, limit: float) -> np.ndarray:
-    peak = float(np.max(np.abs(u)))
+    peak = max(float(u.max()), -float(u.min()))
     if peak > limit:
         u *= limit / peak
     return u
@@ -171,7 +171,7 @@ class _RateLimit:
         if self.t_prev is not None and math.isfinite(self.a_max):
             step = max(t - self.t_prev, 0.0) * self.a_max
             du = u - self.prev
-            peak = float(np.max(np.abs(du)))
+            peak = max(float(du.max()), -float(du.min()))
             if peak > step:
                 u = self.prev + du * (step / peak)
         elif self.t_prev is None and math.isfinite(self.a_max):
@@ -273,10 +273,8 @@ class ReachingController(NominalController):
         if self.goals.index != index:
             err = self.goal_positions[self.goals.index] - data.site_xpos[self._site]
             dist = math.sqrt(float(err @ err))
-        v = self.kp * err
         speed = self.kp * dist
-        if speed > self.max_ee_speed:
-            v *= self.max_ee_speed / speed
+        v = err * (self.kp if speed <= self.max_ee_speed else self.max_ee_speed / dist)
         mujoco.mj_jacSite(self.scene.model, data, self._jac, None, self._site)
         jac = self._jac[:, self._dofs]
         a = self._a
@@ -284,7 +282,7 @@ class ReachingController(NominalController):
         a += self._damp
         mujoco.mju_cholFactor(a, 0.0)
         mujoco.mju_cholSolve(self._y, a, v)
-        u = jac.T @ self._y
+        u = self._y @ jac
         return self._rate(t, _cap(u, self.max_joint_speed))
 
 

@@ -21,9 +21,12 @@ Strategies (DESIGN.md, section 3), on the same scene, seed and nominal task:
 
 Safety is judged on the true MuJoCo geometry at every physics step (not only at control
 ticks): ``min_barrier`` is the smallest ``dist - margin`` over all collision pairs and all
-physics steps (signed distances from ``mj_geomDistance``, no cut-off), and ``collisions``
-counts the physics steps at which some pair has ``dist - margin < 0``. Joint-limit barriers
-are reported separately (``min_joint_barrier``, at control steps).
+physics steps (signed distances from ``mj_geomDistance``), and ``collisions`` counts the
+physics steps at which some pair has ``dist - margin < 0``. Pairs farther apart than the
+broad-phase cut-off at a control tick are not re-checked within that control period (they
+cannot close the gap in a few milliseconds), so ``min_barrier`` saturates at
+``cutoff - margin`` when the arm never comes within the cut-off. Joint-limit barriers are
+reported separately (``min_joint_barrier``, at control steps).
 
 If the filter's QP is infeasible even with every promotion relaxed, the arm brakes
 (``u = 0``); such steps are counted in ``fallbacks`` and never hidden.
@@ -355,10 +358,17 @@ class _SafetyMonitor:
         self.steps = 0
         self.rows: list[int] = []
 
-    def tick(self, h: np.ndarray, active: np.ndarray, margin: np.ndarray) -> float:
-        """Account the tick's barrier values; return the smallest true distance [m] (inf: none)."""
+    def tick(self, h: np.ndarray, rows: np.ndarray, margin: np.ndarray) -> float:
+        """Account the tick's barrier values; return the smallest true distance [m] (inf: none).
+
+        Args:
+            h: Collision barrier values at the tick, shape (k,).
+            rows: Indices of the pairs within the cut-off.
+            margin: Margin per pair [m], shape (k,).
+
+        """
         self.steps += 1
-        self.rows = np.flatnonzero(active).tolist()
+        self.rows = rows.tolist()
         hmin = float(h.min())
         if hmin < 0.0:
             self.collisions += 1
@@ -366,7 +376,7 @@ class _SafetyMonitor:
             self.min_h = hmin
         if not self.rows:
             return math.inf
-        return float(np.min(h[self.rows] + margin[self.rows]))
+        return float((h[rows] + margin[rows]).min())
 
     def substep(self, data: mujoco.MjData, exact: bool) -> float:
         """Check the pairs near at the last tick; return their smallest distance (exact mode)."""
@@ -587,6 +597,7 @@ class ArmSimulation:
         alpha, d_bar = self.params.alpha, self.params.d_bar
         keep = self.joint_row_slack
         jidx, jsign = self._jidx, self._jsign
+        name_cache: dict[tuple[bytes, bytes], tuple[str, ...]] = {}
         qp_times: list[float] = []
         track_err = np.empty(n_ctrl)
         prev_on = False
@@ -619,7 +630,8 @@ class ArmSimulation:
                 t1 = perf()
                 tm.add("physics", t1 - t0)
             cb = coll.evaluate(data, lin)
-            dmin = monitor.tick(cb.h, cb.active, margins)
+            act = cb.active.nonzero()[0]
+            dmin = monitor.tick(cb.h, act, margins)
             if timing:
                 t2 = perf()
             u_nom = nominal(t, data)
@@ -632,16 +644,21 @@ class ArmSimulation:
                 # rows whose robust condition has slack < keep under u_nom (the others are
                 # checked at the solution below and the QP is re-solved with every row if
                 # one of them is violated, so the pruning never changes the answer)
-                act = np.flatnonzero(cb.active)
-                jxi = jsign * u_nom[jidx] + alpha * jb.h - d_bar
-                jkeep = np.flatnonzero(jxi < keep)
+                jxi = u_nom[jidx]
+                jxi *= jsign
+                jxi += alpha * jb.h
+                jkeep = (jxi < keep + d_bar).nonzero()[0]
                 if act.size == 0 and jkeep.size == 0 and jb.k:
                     jkeep = np.array([int(np.argmin(jxi))])
                 h = np.concatenate((cb.h[act], jb.h[jkeep]))
                 grad = np.concatenate((cb.grad[act], jb.grad[jkeep]))
                 dhdt = np.concatenate((cb.dhdt[act], jb.dhdt[jkeep]))
-                lnames = (tuple(cnames[i] for i in act.tolist())
-                          + tuple(jnames[i] for i in jkeep.tolist()))
+                key = (act.tobytes(), jkeep.tobytes())
+                lnames = name_cache.get(key)
+                if lnames is None:
+                    lnames = (tuple(cnames[i] for i in act.tolist())
+                              + tuple(jnames[i] for i in jkeep.tolist()))
+                    name_cache[key] = lnames
                 lie = LieData(h, dhdt, grad, np.sqrt(np.einsum("ij,ij->i", grad, grad)), lnames)
                 jmin = float(jb.h.min()) if jb.k else math.inf
                 if jmin < min_joint:
@@ -737,7 +754,8 @@ class ArmSimulation:
             data.mocap_pos[mocap_rows] = mocap_track[n_ctrl * S]
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
-        monitor.tick(*((lambda b: (b.h, b.active))(coll.evaluate(data))), margins)
+        last = coll.evaluate(data)
+        monitor.tick(last.h, last.active.nonzero()[0], margins)
         wall = perf() - wall0
 
         mres = metrics.result()

@@ -125,7 +125,7 @@ def test_safety_monitor_matches_min_distance_helper(planar, rng) -> None:  # typ
         true = min_distance(planar.model, data, coll.pairs).distance
         mon = _SafetyMonitor(coll)
         b = coll.evaluate(data)
-        d_tick = mon.tick(b.h, b.active, margin)
+        d_tick = mon.tick(b.h, b.active.nonzero()[0], margin)
         d_sub = mon.substep(data, exact=True)
         if true < coll.cutoff:
             assert d_tick == pytest.approx(true, abs=1e-9)
