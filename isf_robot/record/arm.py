@@ -14,11 +14,14 @@ Logged, besides the base recorder's replay columns, mode and events:
 
 Replay row: ``t``, ``dt``, ``on``, ``|u - u_nom|^2``, ``qp_solved`` from the record, and
 ``min_barrier`` the true-geometry minimum of ``dist - margin`` over the step's physics steps:
-the record's ``barrier_min`` when the loop provides it, else the smaller of the tick's
-collision barriers (``h[:n_collision]``) and ``dist_min - margin`` (exact up to rounding when
-every collision pair has the same margin, which :attr:`ArmRecorder.exact_min_barrier` says).
-The loop also checks the state after the last step without a step record; when that final
-check is the run's minimum, it is logged as one extra row ``/replay/terminal``.
+the smaller of the tick's collision barriers (``h[:n_collision]``) and ``dist_min - margin``
+(exact up to rounding when every collision pair has the same margin, which
+:attr:`ArmRecorder.exact_min_barrier` says). The loop also checks the state after the last
+step without a step record; when that final check is the run's minimum, it is logged as one
+extra row ``/replay/terminal``.
+
+Cost: one buffered row per step (a few array writes), forward kinematics for the poses, and
+the witness segments; every time series is derived from the buffered rows at each flush.
 """
 
 from __future__ import annotations
@@ -30,10 +33,11 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
+from .buffer import TIMELINE, Channel
 from .errors import RecordError
 from .mjgeometry import MujocoDrawing
 from .recorder import RerunRecorder, finite_scalars
-from .schema import TERMINAL
+from .schema import STEPS, TERMINAL
 
 __all__ = ["ArmRecorder"]
 
@@ -97,21 +101,73 @@ class ArmRecorder(RerunRecorder):
         self._n_collision = int(self.margins.size)
         buf = self.buffer
         self._poses = buf.add("/world/bodies", self.drawing.pose_channel(stream, buf.capacity))
-        n = int(scene.n_joints)
-        fields = {"u_nom": ((n,), np.float64), "u": ((n,), np.float64), "h_filter": ((), np.float64),
-                  "xi": ((), np.float64), "ee": ((3,), np.float64), "goal": ((3,), np.float64)}
-        self._arm = buf.channel("/plots/command", fields, None, derived=(
+        self._witness = buf.ragged("/world/witness", _witness_columns)
+        self._pair_paths: dict[int, str] = {}
+        self._names: tuple[str, ...] = ()
+        self._qpos_adr = MujocoDrawing.index(scene.qpos_adr)
+
+    def make_step_channel(self) -> Channel | None:
+        """Built at the first step, when the number of barriers is known (see :meth:`_open_steps`)."""
+        return None
+
+    def _open_steps(self, k: int) -> Channel:
+        """One channel for everything per step; its flush derives every time-series entity."""
+        n = int(self.scene.n_joints)
+        f8, b1 = np.float64, np.bool_
+        fields = {
+            "t": ((), f8), "dt": ((), f8), "on": ((), b1), "intervention_rate": ((), f8), "qp_solved": ((), b1),
+            "dist_min": ((), f8), "h": ((k,), f8), "u_nom": ((n,), f8), "u": ((n,), f8), "h_filter": ((), f8),
+            "xi": ((), f8), "ee": ((3,), f8), "goal": ((3,), f8),
+        }
+        derived = (
+            (STEPS, self._replay_columns),
+            *self.step_plots(),
             ("/plots/command/nominal", lambda t, a: (t, rr.Scalars.columns(scalars=a["u_nom"]))),
             ("/plots/command/filtered", lambda t, a: (t, rr.Scalars.columns(scalars=a["u"]))),
             ("/plots/barrier/filter_min", lambda t, a: finite_scalars(t, a["h_filter"])),
             ("/plots/xi/min", lambda t, a: finite_scalars(t, a["xi"])),
             ("/world/ee", lambda t, a: (t, rr.Points3D.columns(positions=a["ee"]))),
             ("/world/goal", _goal_columns),
-        ))
-        self._witness = buf.ragged("/world/witness", _witness_columns)
-        self._pairs: dict[str, Any] = {}
-        self._name_index: dict[str, int] = {}
-        self._names: tuple[str, ...] = ()
+            ("/plots/barrier/pairs", self._pair_columns),
+        )
+        return self.buffer.channel("/replay/arm_steps", fields, None, derived=derived)
+
+    def _min_barrier(self, a: dict[str, np.ndarray]) -> np.ndarray:
+        """Per-step true-geometry minimum of ``dist - margin`` (tick values and physics substeps)."""
+        nc = self._n_collision
+        tick = a["h"][:, :nc].min(axis=1) if nc else np.full(a["t"].shape, np.inf)
+        dist = a["dist_min"]
+        out = np.where(np.isfinite(dist), np.minimum(tick, dist - self._margin), tick)
+        out[~np.isfinite(out)] = np.nan
+        return out
+
+    def _replay_columns(self, t: np.ndarray, a: dict[str, np.ndarray]) -> tuple[np.ndarray, Any]:
+        mb = self._min_barrier(a)
+        a["min_barrier"] = mb  # for the derived plots that follow
+        if np.any(np.isfinite(mb)):
+            self._running_min = min(self._running_min, float(np.nanmin(mb)))
+        return t, rr.AnyValues.columns(t=a["t"], dt=a["dt"], on=a["on"], intervention_rate=a["intervention_rate"],
+                                       qp_solved=a["qp_solved"], min_barrier=mb)
+
+    def _pair_columns(self, t: np.ndarray, a: dict[str, np.ndarray]) -> None:
+        """Send each pair's barrier at the steps where it is among the closest (``None``: sent here)."""
+        nc = self._n_collision
+        m = min(self.closest, nc)
+        if m <= 0:
+            return None
+        h = a["h"][:, :nc]
+        idx = np.argsort(h, axis=1)[:, :m]
+        for j in np.unique(idx).tolist():
+            rows = np.flatnonzero(np.any(idx == j, axis=1))
+            path = self._pair_paths.get(j)
+            if path is None:
+                name = self._names[j] if j < len(self._names) else f"pair{j}"
+                path = f"/plots/barrier/pairs/{rr.escape_entity_path_part(name)}"
+                self.stream.log(path, rr.SeriesLines(names=name), static=True)
+                self._pair_paths[j] = path
+            self.stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=t[rows])],
+                                     columns=rr.Scalars.columns(scalars=h[rows, j]))
+        return None
 
     @staticmethod
     def _margins(scene: Any) -> np.ndarray:
@@ -152,39 +208,32 @@ class ArmRecorder(RerunRecorder):
                                          geoms_skipped=",".join(self.drawing.geoms_skipped)), static=True)
 
     # -- per step ------------------------------------------------------------------------
-    def replay_row(self, record: Any) -> tuple[float, float, bool, float, bool, float]:
-        """``(t, dt, on, |u - u_nom|^2, qp_solved, true-geometry min barrier)``."""
+    def on_step(self, record: Any) -> None:
+        """Buffer the step: one row of the step channel, the witness segments and the poses."""
+        t = record.t
+        if self._steps is None:
+            self._names = tuple(record.names)
+            self._steps = self._open_steps(int(record.h.shape[0]))
         d = record.u - record.u_nom
-        hmin = getattr(record, "barrier_min", None)
-        if hmin is None:
-            nc = self._n_collision
-            tick = float(record.h[:nc].min()) if nc else math.inf
-            dist = float(record.dist_min)
-            hmin = min(tick, dist - self._margin) if math.isfinite(dist) else tick
-            if not math.isfinite(hmin):
-                hmin = math.nan
-        hmin = float(hmin)
-        if hmin < self._running_min:
-            self._running_min = hmin
-        return (float(record.t), float(record.dt), bool(record.on), float(d @ d), bool(record.qp_solved), hmin)
-
-    def step_content(self, t: float, record: Any) -> None:
-        """Poses, commands, barrier and trigger series, witness segments, goal."""
-        self.drawing.push_state(t, self.scene.qpos_adr, record.q, record.mocap_pos, record.mocap_quat)
-        self._arm.push(t, record.u_nom, record.u, record.h_min, record.xi_min, record.ee_pos, record.goal_pos)
+        self._steps.push(t, t, record.dt, record.on, float(d @ d), record.qp_solved, record.dist_min, record.h,
+                         record.u_nom, record.u, record.h_min, record.xi_min, record.ee_pos, record.goal_pos)
         self._witness.push(t, record.witness)
-        if record.names is not self._names:
-            self._names = record.names
-            self._name_index = {n: i for i, n in enumerate(record.names)}
-        h = record.h
-        for name in record.closest[: self.closest]:
-            ch = self._pairs.get(name)
-            if ch is None:
-                path = f"/plots/barrier/pairs/{rr.escape_entity_path_part(name)}"
-                ch = self.buffer.scalars(path)
-                self.stream.log(path, rr.SeriesLines(names=name), static=True)
-                self._pairs[name] = ch
-            ch.push(t, float(h[self._name_index[name]]))
+        self.drawing.push_state(t, self._qpos_adr, record.q, record.mocap_pos, record.mocap_quat)
+        self.steps += 1
+
+    def replay_row(self, record: Any) -> tuple[float, float, bool, float, bool, float]:
+        """``(t, dt, on, |u - u_nom|^2, qp_solved, true-geometry min barrier)`` of one record.
+
+        (The recorder computes the same values in batch at each flush; this is the reference.)
+        """
+        d = record.u - record.u_nom
+        nc = self._n_collision
+        tick = float(record.h[:nc].min()) if nc else math.inf
+        dist = float(record.dist_min)
+        hmin = min(tick, dist - self._margin) if math.isfinite(dist) else tick
+        if not math.isfinite(hmin):
+            hmin = math.nan
+        return (float(record.t), float(record.dt), bool(record.on), float(d @ d), bool(record.qp_solved), hmin)
 
     def describe_event(self, event: Any) -> str:
         """``t = 1.234 s: filter on (#3, Xi_on = -0.001) after 0.82 s off``."""

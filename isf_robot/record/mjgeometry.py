@@ -135,10 +135,15 @@ class MujocoDrawing:
         self.geoms_drawn = 0
         self.geoms_skipped: list[str] = []
         self._poses: _PoseChannel | None = None
-        self._sel: slice | np.ndarray | None = None
+        self._mocap = model.nmocap > 0
+        self._mocap_pos = self.data.mocap_pos  # views into MjData (valid while self.data lives)
+        self._mocap_quat = self.data.mocap_quat
+        self._xpos: np.ndarray | None = None
+        self._xquat: np.ndarray | None = None
         if self.moving.size:
             lo, hi = int(self.moving[0]), int(self.moving[-1]) + 1
-            self._sel = slice(lo, hi) if hi - lo == self.moving.size else self.moving
+            if hi - lo == self.moving.size:  # contiguous: views, no copy per step
+                self._xpos, self._xquat = self.data.xpos[lo:hi], self.data.xquat[lo:hi]
 
     def log_static(self, stream: rr.RecordingStream) -> None:
         """Log every drawable geom (static) and the poses of bodies welded to the world."""
@@ -170,15 +175,26 @@ class MujocoDrawing:
         self._poses = _PoseChannel(stream, [self.body_paths[b] for b in self.moving], capacity)
         return self._poses
 
-    def push_state(self, t: float, qpos_adr: np.ndarray, q: np.ndarray,
+    @staticmethod
+    def index(adr: np.ndarray) -> slice | np.ndarray:
+        """A slice when the addresses are contiguous (cheaper to assign through), else the array."""
+        adr = np.asarray(adr, dtype=np.intp)
+        if adr.size and np.array_equal(adr, np.arange(adr[0], adr[0] + adr.size)):
+            return slice(int(adr[0]), int(adr[0]) + int(adr.size))
+        return adr
+
+    def push_state(self, t: float, qpos_adr: slice | np.ndarray, q: np.ndarray,
                    mocap_pos: np.ndarray | None = None, mocap_quat: np.ndarray | None = None) -> None:
         """Forward kinematics at ``(q, mocap)`` and buffer the moving bodies' poses at ``t``."""
         d = self.data
         d.qpos[qpos_adr] = q
-        if mocap_pos is not None and mocap_pos.size:
-            d.mocap_pos[:] = mocap_pos
-        if mocap_quat is not None and mocap_quat.size:
-            d.mocap_quat[:] = mocap_quat
+        if self._mocap:
+            self._mocap_pos[:] = mocap_pos
+            self._mocap_quat[:] = mocap_quat
         mujoco.mj_kinematics(self.model, d)
-        if self._poses is not None and self._sel is not None:
-            self._poses.push(t, d.xpos[self._sel], d.xquat[self._sel])
+        if self._poses is None or not self.moving.size:
+            return
+        if self._xpos is not None and self._xquat is not None:
+            self._poses.push(t, self._xpos, self._xquat)
+        else:
+            self._poses.push(t, d.xpos[self.moving], d.xquat[self.moving])

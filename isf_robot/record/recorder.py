@@ -27,7 +27,7 @@ import rerun as rr
 from isf_robot.core.hooks import Observer
 
 from . import schema
-from .buffer import ColumnBuffer
+from .buffer import Channel, ColumnBuffer
 from .stream import close_stream
 
 __all__ = ["RerunRecorder", "to_jsonable", "finite_scalars"]
@@ -108,17 +108,32 @@ class RerunRecorder(Observer):
         self.closed = False
         self.steps = 0
         self.events = 0
+        self._steps = self.make_step_channel()
+        self._events = self.buffer.ragged(schema.EVENTS, _event_columns)
+        self._log = self.buffer.ragged(schema.EVENT_LOG, _text_columns)
+
+    def make_step_channel(self) -> Channel | None:
+        """The per-step channel: the replay columns, plus the mode and minimum-barrier plots.
+
+        Subclasses may return ``None`` and build a wider channel whose flush derives the same
+        entities (see :class:`~isf_robot.record.arm.ArmRecorder`), with :meth:`on_step`
+        overridden.
+        """
         fields = {
             "t": ((), np.float64), "dt": ((), np.float64), "on": ((), np.bool_),
             "intervention_rate": ((), np.float64), "qp_solved": ((), np.bool_),
             "min_barrier": ((), np.float64),
         }
-        self._steps = self.buffer.channel(schema.STEPS, fields, lambda **a: rr.AnyValues.columns(**a), derived=(
+        return self.buffer.channel(schema.STEPS, fields, lambda **a: rr.AnyValues.columns(**a),
+                                   derived=self.step_plots())
+
+    @staticmethod
+    def step_plots() -> tuple[tuple[str, Any], ...]:
+        """Derived entities of the replay columns: ``/plots/mode`` and ``/plots/barrier/min``."""
+        return (
             (f"{schema.PLOTS}/mode", lambda t, a: (t, rr.Scalars.columns(scalars=a["on"].astype(np.float64)))),
             (f"{schema.PLOTS}/barrier/min", lambda t, a: finite_scalars(t, a["min_barrier"])),
-        ))
-        self._events = self.buffer.ragged(schema.EVENTS, _event_columns)
-        self._log = self.buffer.ragged(schema.EVENT_LOG, _text_columns)
+        )
 
     # -- observer hooks ------------------------------------------------------------------
     def on_start(self, info: Mapping[str, Any]) -> None:
@@ -133,6 +148,7 @@ class RerunRecorder(Observer):
     def on_step(self, record: Any) -> None:
         """Buffer the step's replay row, mode, minimum barrier and the subclass's content."""
         t, dt, on, rate, solved, h_min = self.replay_row(record)
+        assert self._steps is not None  # the base class always has its step channel
         self._steps.push(t, t, dt, on, rate, solved, h_min)
         self.step_content(t, record)
         self.steps += 1
@@ -155,6 +171,7 @@ class RerunRecorder(Observer):
         """Flush the buffers, log the summary (static) and close the stream if configured."""
         self.stream.log(schema.SUMMARY, rr.AnyValues(summary_json=json.dumps(to_jsonable(summary)),
                                                      steps=self.steps, events=self.events), static=True)
+        self.buffer.flush()
         self.finish_content(summary)
         self.buffer.flush()
         if self.close_on_finish:
