@@ -1,7 +1,8 @@
 """Comparing the strategies over seeded episodes, optionally in parallel processes.
 
 Every strategy runs on the same seeds (same initial configuration, goal jitter and obstacle
-phase per seed) and the same ``d_bar``, computed once in the calling process. Workers receive
+phase per seed) and the same ``d_bar`` (the calibration is deterministic; each process computes
+it once per scene and caches it). Workers receive
 only plain values (scene name or file paths, parameters) and rebuild the scene, so the pool
 works with the ``spawn`` start method.
 """
@@ -182,8 +183,8 @@ def compare_strategies(
 ) -> Comparison:
     """Run every strategy on seeds ``seed0 .. seed0 + episodes - 1`` and summarise.
 
-    The scene, the parameters and ``d_bar`` (calibrated once here unless given) are checked
-    in this process before any worker starts, so bad input fails fast with a clear error.
+    The scene and the parameters are checked in this process before any worker starts, so bad
+    input fails fast with a clear error.
 
     Args:
         spec: The scene.
@@ -215,11 +216,11 @@ def compare_strategies(
         raise ConfigError(f"duration must be a positive number of seconds, got {duration}")
     scene = spec.load()
     params = dict(params or {})
-    # validates the parameters and the control period, and fixes d_bar for every worker
+    # validates the parameters and the control period before any worker starts (and fills
+    # this process's calibration cache; workers calibrate once each, deterministically)
     from .sim import ArmSimulation
 
-    probe = ArmSimulation(scene, strategies[0], seed=seed0, **params)
-    params["d_bar"] = probe.params.d_bar
+    ArmSimulation(scene, strategies[0], seed=seed0, **params)
     seeds = tuple(range(int(seed0), int(seed0) + int(episodes)))
     tasks = [EpisodeTask(spec, s, seed, duration, params) for seed in seeds for s in strategies]
     results: dict[tuple[str, int], dict[str, Any]] = {}

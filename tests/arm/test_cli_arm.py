@@ -81,6 +81,8 @@ def test_compare_parallel_matches_serial(capsys) -> None:  # type: ignore[no-unt
     assert rc == 0 and err == ""
     rc, out2, _ = _run(capsys, *args)
     d1, d2 = json.loads(out1), json.loads(out2)
+    d_bars = {e["d_bar"] for r in d1["results"].values() for e in r["episodes"]}
+    assert len(d_bars) == 1  # every worker calibrates to the same bound
     for s in ("cbf", "isf"):
         e1 = [(e["seed"], e["qp_solves"], e["min_barrier"]) for e in d1["results"][s]["episodes"]]
         e2 = [(e["seed"], e["qp_solves"], e["min_barrier"]) for e in d2["results"][s]["episodes"]]
