@@ -441,8 +441,11 @@ class ArmSimulation:
         solver: QP solver for the filters (default ProxQP at eps_abs 1e-9).
         joint_row_slack: Joint-limit rows whose robust condition has at least this slack
             under ``u_nom`` [rad/s] are left out of the QP (and checked at its solution; a
-            violated one makes the QP be solved again with every row). Default
-            ``max(c, max_joint_speed)``; ``inf`` keeps every row.
+            violated or active one makes the QP be solved again with every row). Default
+            ``max(c, 0.5)``; ``inf`` keeps every row. The threshold is never below ``c``, so
+            a left-out row can neither be promoted nor decide a switch.
+        collision_row_slack: The same for the collision pairs within the cut-off [m/s];
+            default ``max(c, 0.1)``.
 
     Raises:
         UnknownNameError: Unknown strategy (the message lists the valid ones).
@@ -467,6 +470,7 @@ class ArmSimulation:
         timing: bool = False,
         solver: QPSolver | None = None,
         joint_row_slack: float | None = None,
+        collision_row_slack: float | None = None,
     ) -> None:
         if strategy not in STRATEGIES:
             raise UnknownNameError("strategy", strategy, STRATEGIES)
@@ -496,10 +500,12 @@ class ArmSimulation:
         self._jsign = (jgrad[np.arange(jgrad.shape[0]), self._jidx] if jgrad.size
                        else np.zeros(0))
         self.observers = Observers(observers)
-        self.joint_row_slack = (max(self.params.c, float(scene.config.gains.max_joint_speed))
-                                if joint_row_slack is None else float(joint_row_slack))
-        if not self.joint_row_slack > 0:
-            raise ConfigError(f"joint_row_slack must be > 0, got {joint_row_slack}")
+        self.joint_row_slack = 0.5 if joint_row_slack is None else float(joint_row_slack)
+        self.collision_row_slack = (max(self.params.c, 0.1) if collision_row_slack is None
+                                    else max(self.params.c, float(collision_row_slack)))
+        self.joint_row_slack = max(self.params.c, self.joint_row_slack)
+        if not (self.joint_row_slack > 0 and self.collision_row_slack > 0):
+            raise ConfigError("joint_row_slack and collision_row_slack must be > 0")
         self.timing = bool(timing)
         p = self.params
         cutoff_h = float(np.min(self.coll.cutoff - self.coll.pairs.margin))
@@ -595,7 +601,10 @@ class ArmSimulation:
         min_joint = math.inf
         fallbacks = relaxations = resolves = 0
         alpha, d_bar = self.params.alpha, self.params.d_bar
-        keep = self.joint_row_slack
+        keep_j = self.joint_row_slack
+        keep_c = self.collision_row_slack
+        ones = np.ones(max(1, self.joints.evaluate(data).k))
+        active_tol = flt.solver.active_tol if flt is not None else 0.0
         jidx, jsign = self._jidx, self._jsign
         name_cache: dict[tuple[bytes, bytes], tuple[str, ...]] = {}
         qp_times: list[float] = []
@@ -640,26 +649,40 @@ class ArmSimulation:
                 tm.add("nominal", t3 - t2)
             if need_barriers:
                 jb = joints.evaluate(data)
-                # rows for the filter: collision pairs within the cut-off, and joint-limit
-                # rows whose robust condition has slack < keep under u_nom (the others are
-                # checked at the solution below and the QP is re-solved with every row if
-                # one of them is violated, so the pruning never changes the answer)
+                # Rows for the filter: collision pairs within the cut-off and joint limits
+                # whose robust condition has a slack below the keep threshold under u_nom
+                # (>= c, so a left-out row is never promoted nor decides a switch). The
+                # left-out rows are checked at the solution below; if one is violated or
+                # active, the QP is solved again with every row, so the pruning never
+                # changes the answer.
+                ch, cg, cd = cb.h[act], cb.grad[act], cb.dhdt[act]
+                cn = np.sqrt(np.einsum("ij,ij->i", cg, cg))
+                cxi = cg @ u_nom
+                cxi += cd
+                cxi += alpha * ch
+                cxi -= cn * d_bar
+                ckeep = (cxi < keep_c).nonzero()[0]
                 jxi = u_nom[jidx]
                 jxi *= jsign
                 jxi += alpha * jb.h
-                jkeep = (jxi < keep + d_bar).nonzero()[0]
-                if act.size == 0 and jkeep.size == 0 and jb.k:
-                    jkeep = np.array([int(np.argmin(jxi))])
-                h = np.concatenate((cb.h[act], jb.h[jkeep]))
-                grad = np.concatenate((cb.grad[act], jb.grad[jkeep]))
-                dhdt = np.concatenate((cb.dhdt[act], jb.dhdt[jkeep]))
-                key = (act.tobytes(), jkeep.tobytes())
+                jkeep = (jxi < keep_j + d_bar).nonzero()[0]
+                if ckeep.size == 0 and jkeep.size == 0:
+                    if act.size:
+                        ckeep = np.array([int(np.argmin(cxi))])
+                    elif jb.k:
+                        jkeep = np.array([int(np.argmin(jxi))])
+                pruned = ckeep.size < act.size or jkeep.size < jb.k
+                crows = act[ckeep]
+                key = (crows.tobytes(), jkeep.tobytes())
                 lnames = name_cache.get(key)
                 if lnames is None:
-                    lnames = (tuple(cnames[i] for i in act.tolist())
+                    lnames = (tuple(cnames[i] for i in crows.tolist())
                               + tuple(jnames[i] for i in jkeep.tolist()))
                     name_cache[key] = lnames
-                lie = LieData(h, dhdt, grad, np.sqrt(np.einsum("ij,ij->i", grad, grad)), lnames)
+                lie = LieData(np.concatenate((ch[ckeep], jb.h[jkeep])),
+                              np.concatenate((cd[ckeep], jb.dhdt[jkeep])),
+                              np.concatenate((cg[ckeep], jb.grad[jkeep])),
+                              np.concatenate((cn[ckeep], ones[:jkeep.size])), lnames)
                 jmin = float(jb.h.min()) if jb.k else math.inf
                 if jmin < min_joint:
                     min_joint = jmin
@@ -675,18 +698,28 @@ class ArmSimulation:
             else:
                 step = flt.step_lie(t, lie, u_nom)
                 qp_time = step.qp.solve_time_s if step.qp is not None else 0.0
-                if step.qp is not None and jkeep.size < jb.k:
-                    drop = np.ones(jb.k, dtype=bool)
-                    drop[jkeep] = False
-                    slack = jsign[drop] * step.u[jidx[drop]] + alpha * jb.h[drop] - d_bar
-                    if np.any(slack < 0.0):
+                if step.qp is not None and pruned:
+                    u_f = step.u
+                    sc = cg @ u_f
+                    sc += cd
+                    sc += alpha * ch
+                    sc -= cn * d_bar
+                    sj = u_f[jidx]
+                    sj *= jsign
+                    sj += alpha * jb.h
+                    sj -= d_bar
+                    sc[ckeep] = np.inf
+                    sj[jkeep] = np.inf
+                    if (sc.size and sc.min() < active_tol) or (sj.size and sj.min() < active_tol):
                         resolves += 1
-                        full = LieData(np.concatenate((cb.h[act], jb.h)),
-                                       np.concatenate((cb.dhdt[act], jb.dhdt)),
-                                       np.concatenate((cb.grad[act], jb.grad)),
-                                       np.concatenate((lie.grad_norm[:act.size],
-                                                       np.ones(jb.k))),
-                                       tuple(cnames[i] for i in act.tolist()) + jnames)
+                        key = (act.tobytes(), b"all")
+                        fnames = name_cache.get(key)
+                        if fnames is None:
+                            fnames = tuple(cnames[i] for i in act.tolist()) + jnames
+                            name_cache[key] = fnames
+                        full = LieData(np.concatenate((ch, jb.h)), np.concatenate((cd, jb.dhdt)),
+                                       np.concatenate((cg, jb.grad)),
+                                       np.concatenate((cn, ones[:jb.k])), fnames)
                         again = flt.step_lie(t, full, u_nom)
                         step = dataclasses.replace(again, event=step.event)
                         qp_time += step.qp.solve_time_s if step.qp is not None else 0.0

@@ -135,12 +135,16 @@ def test_safety_monitor_matches_min_distance_helper(planar, rng) -> None:  # typ
 
 
 @pytest.mark.parametrize("strategy", ["cbf", "isf"])
-def test_joint_row_pruning_does_not_change_the_run(planar, strategy: str) -> None:  # type: ignore[no-untyped-def]
+def test_row_pruning_does_not_change_the_run(planar, strategy: str) -> None:  # type: ignore[no-untyped-def]
     # a tight slack threshold prunes rows that the filter then needs: the re-solve fixes it
-    runs = [run_episode(planar, strategy, 1.5, 1, joint_row_slack=v) for v in (math.inf, 0.3)]
-    full, pruned = runs
-    for key in ("duty_cycle", "on_switches", "qp_solves", "min_barrier", "intervention"):
-        assert getattr(pruned, key) == pytest.approx(getattr(full, key), rel=1e-6, abs=1e-9), key
+    full = run_episode(planar, strategy, 2.0, 1, joint_row_slack=math.inf,
+                       collision_row_slack=math.inf)
+    for slack in (0.0, 0.05):  # 0: only rows with slack below c stay in the QP
+        pruned = run_episode(planar, strategy, 2.0, 1, joint_row_slack=max(slack, 1e-9),
+                             collision_row_slack=slack)
+        for key in ("duty_cycle", "on_switches", "qp_solves", "min_barrier", "intervention"):
+            assert getattr(pruned, key) == pytest.approx(getattr(full, key), rel=1e-6,
+                                                         abs=1e-9), key
 
 
 # ----------------------------------------------------------------------------- observers
@@ -235,3 +239,17 @@ def test_one_khz_control_on_panda(panda) -> None:  # type: ignore[no-untyped-def
     r = run_episode(panda["panda_pole"], "isf", 1.0, 0, control_period=0.001)
     assert r.control_steps == 1000 and r.physics_steps == 1001
     assert math.isfinite(r.min_barrier)
+
+
+def test_pruned_rows_violated_at_the_solution_are_solved_again(panda) -> None:  # type: ignore[no-untyped-def]
+    # a tiny keep threshold leaves out rows that the solution then violates: the re-solve
+    # with every row must give the same run as keeping every row from the start
+    scene = panda["panda_pole"]
+    kw = dict(c=1e-4, d_bar=0.04)
+    pruned = run_episode(scene, "cbf", 4.0, 1, joint_row_slack=1e-4, collision_row_slack=1e-4,
+                         **kw)
+    full = run_episode(scene, "cbf", 4.0, 1, joint_row_slack=math.inf,
+                       collision_row_slack=math.inf, **kw)
+    assert pruned.resolves > 0 and full.resolves == 0
+    for key in ("duty_cycle", "on_switches", "qp_solves", "min_barrier", "intervention"):
+        assert getattr(pruned, key) == pytest.approx(getattr(full, key), rel=1e-6, abs=1e-9), key
