@@ -31,7 +31,9 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+import pyarrow as pa
 import rerun as rr
+from rerun.components import LineStrip3DBatch
 
 from .buffer import TIMELINE, Channel
 from .errors import RecordError
@@ -43,7 +45,10 @@ __all__ = ["ArmRecorder"]
 
 
 def _witness_columns(rows: list[np.ndarray]) -> Any:
-    """Segments (on geom 1, on geom 2) of each row; segments with NaN points are dropped."""
+    """Segments (on geom 1, on geom 2) of each row; segments with NaN points are dropped.
+
+    The Arrow array is built here in one go (Rerun's own conversion loops over strips in Python).
+    """
     segs = np.concatenate([np.asarray(w, dtype=np.float64).reshape(-1, 2, 3) for w in rows])
     ok = np.all(np.isfinite(segs), axis=(1, 2))
     lengths = np.fromiter((len(w) for w in rows), dtype=np.int64, count=len(rows))
@@ -51,7 +56,11 @@ def _witness_columns(rows: list[np.ndarray]) -> Any:
         row_of = np.repeat(np.arange(len(rows)), lengths)
         lengths = np.bincount(row_of[ok], minlength=len(rows))
         segs = segs[ok]
-    return rr.LineStrips3D.columns(strips=segs).partition(lengths.tolist())
+    dtype = LineStrip3DBatch._ARROW_DATATYPE
+    inner = pa.FixedSizeListArray.from_arrays(pa.array(segs.astype(np.float32).reshape(-1)), type=dtype.value_type)
+    strips = pa.ListArray.from_arrays(pa.array(np.arange(0, 2 * len(segs) + 1, 2, dtype=np.int32)), inner,
+                                      type=dtype)
+    return rr.LineStrips3D.columns(strips=strips).partition(lengths.tolist())
 
 
 def _goal_columns(t: np.ndarray, a: dict[str, np.ndarray]) -> tuple[np.ndarray, Any] | None:

@@ -96,3 +96,16 @@ def test_record_package_is_the_only_rerun_importer() -> None:
             "print('rerun' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_satellite_cli_rrd_replays(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    from satellite.cli import main as sat_main
+
+    rrd = tmp_path / "sat.rrd"
+    assert sat_main(["run", "--hours", "40", "--json", "--quiet", "--rrd", str(rrd)]) == 0
+    run = json.loads(capsys.readouterr().out)
+    rep = _json(capsys, ["replay", str(rrd), "--json"])
+    assert rep["triggers"] == run["triggers"] and rep["kinds"] == run["kinds"]
+    assert rep["total_dv"] == run["total_dv"]
+    for k in ("min_inter_event_h", "mean_inter_event_h"):
+        assert _close(rep[k], run[k]), k
