@@ -206,7 +206,10 @@ class RunResult:
         control_period: Control period T [s].
         timestep: Physics timestep dt [s].
         tracking_error_q99: 99th percentile of ``|q_dot - u|`` at the control ticks [rad/s].
-        qp_time_median_us: Median QP solve time [us] (None: no QP).
+        qp_time_median_us: Median QP solve time [us] (None: no QP), including the
+            single-row problems solved in closed form.
+        qp_closed_form: QP solves done in closed form (one row, no bounds).
+        proxqp_time_median_us: Median time of the solves that went to ProxQP [us].
         wall_s: Wall time of the loop [s].
         timings: Wall time per phase [s] when timing was requested, else empty.
 
@@ -245,6 +248,8 @@ class RunResult:
     timestep: float
     tracking_error_q99: float
     qp_time_median_us: float | None
+    qp_closed_form: int
+    proxqp_time_median_us: float | None
     wall_s: float
     timings: Mapping[str, float] = dataclasses.field(default_factory=dict)
 
@@ -608,6 +613,8 @@ class ArmSimulation:
         jidx, jsign = self._jidx, self._jsign
         name_cache: dict[tuple[bytes, bytes], tuple[str, ...]] = {}
         qp_times: list[float] = []
+        proxqp_times: list[float] = []
+        closed_form = 0
         track_err = np.empty(n_ctrl)
         prev_on = False
         n_on = n_off = 0
@@ -727,6 +734,10 @@ class ArmSimulation:
                 metrics.add_step(step, T)
                 if step.qp is not None:
                     qp_times.append(qp_time)
+                    if step.qp.status == "closed_form":
+                        closed_form += 1
+                    else:
+                        proxqp_times.append(qp_time)
                 if step.fallback:
                     fallbacks += 1
                 if step.relaxed:
@@ -813,6 +824,9 @@ class ArmSimulation:
             d_bar=p.d_bar, d_bar_source=p.d_bar_source, alpha=p.alpha, c=p.c, b=p.b,
             control_period=T, timestep=dt, tracking_error_q99=q99,
             qp_time_median_us=float(np.median(qp_times)) * 1e6 if qp_times else None,
+            qp_closed_form=closed_form,
+            proxqp_time_median_us=(float(np.median(proxqp_times)) * 1e6 if proxqp_times
+                                   else None),
             wall_s=wall, timings=timings,
         )
         self.metrics = metrics
