@@ -62,6 +62,7 @@ from isf_robot.core import (
 )
 
 from .barriers import CollisionBarriers, JointLimitBarriers
+from .config import CirclePath, LinearBouncePath
 from .lowlevel import VelocityTracker
 from .nominal import NominalController, ReachingController
 from .scene import Scene
@@ -76,6 +77,7 @@ __all__ = [
     "episode_setup",
     "run_episode",
     "check_control_period",
+    "path_track",
 ]
 
 STRATEGIES: tuple[str, ...] = ("nominal", "cbf", "isf")
@@ -210,7 +212,8 @@ class RunResult:
             single-row problems solved in closed form.
         qp_closed_form: QP solves done in closed form (one row, no bounds).
         proxqp_time_median_us: Median time of the solves that went to ProxQP [us].
-        wall_s: Wall time of the loop [s].
+        wall_s: Wall time of :meth:`ArmSimulation.run` [s] (setup of the episode and the loop;
+            not the construction, calibration or scene loading).
         timings: Wall time per phase [s] when timing was requested, else empty.
 
     """
@@ -286,6 +289,46 @@ def _path_period(mv: Any) -> float:
         return abs(float(path.period))
     seg = np.asarray(path.end, dtype=float) - np.asarray(path.start, dtype=float)
     return 2.0 * float(np.linalg.norm(seg)) / float(path.speed)
+
+
+def path_track(path: Any, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and velocities of an obstacle path at many times at once.
+
+    Vectorised forms of :class:`~isf_robot.arm.CirclePath` and
+    :class:`~isf_robot.arm.LinearBouncePath` (the circle's in-plane axes are read from the
+    path itself at the angles 0 and pi/2); any other path type is evaluated point by point
+    through its ``position(t)`` and ``velocity(t)``. The tests check both against the
+    scalar methods.
+
+    Args:
+        path: The path.
+        t: Times [s], shape (N,).
+
+    Returns:
+        ``(positions, velocities)``, each shape (N, 3), in [m] and [m/s].
+
+    """
+    t = np.asarray(t, dtype=float)
+    if isinstance(path, CirclePath):
+        c = np.asarray(path.center, dtype=float)
+        e1 = (path.position(-path.phase * path.period) - c) / path.radius
+        e2 = (path.position((0.25 - path.phase) * path.period) - c) / path.radius
+        th = 2.0 * math.pi * (path.phase + t / path.period)
+        cos, sin = np.cos(th)[:, None], np.sin(th)[:, None]
+        w = 2.0 * math.pi / path.period
+        return (c + path.radius * (cos * e1 + sin * e2),
+                path.radius * w * (-sin * e1 + cos * e2))
+    if isinstance(path, LinearBouncePath):
+        a = np.asarray(path.start, dtype=float)
+        seg = np.asarray(path.end, dtype=float) - a
+        length = float(np.linalg.norm(seg))
+        e = seg / length
+        arc = np.mod(path.speed * t + 2.0 * length * path.phase, 2.0 * length)
+        pos = a + np.minimum(arc, 2.0 * length - arc)[:, None] * e
+        vel = np.where(arc < length, path.speed, -path.speed)[:, None] * e
+        return pos, vel
+    return (np.array([path.position(x) for x in t]).reshape(-1, 3),
+            np.array([path.velocity(x) for x in t]).reshape(-1, 3))
 
 
 @dataclass(frozen=True)
@@ -574,19 +617,20 @@ class ArmSimulation:
         tm = _Timer(timing)
         perf = time.perf_counter
 
+        wall0 = perf()
         data = mujoco.MjData(model)
         data.qpos[scene.qpos_adr] = self.setup.q0
         moving = len(scene.config.moving) > 0
         off = self.setup.time_offset
-        if moving:
+        if moving:  # the obstacles' track for the whole episode, computed once
             t_phys = np.arange(n_ctrl * S + 1) * dt + off
-            mocap_track = np.array([[mv.path.position(t) for mv in scene.config.moving]
-                                    for t in t_phys])
             mocap_rows = scene.moving_mocap_ids
+            mocap_track = np.zeros((t_phys.size, len(mocap_rows), 3))
             lin_all = np.zeros((n_ctrl, model.nmocap, 3))
-            for k in range(n_ctrl):
-                for j, mv in enumerate(scene.config.moving):
-                    lin_all[k, mocap_rows[j]] = mv.path.velocity(k * T + off)
+            for j, mv in enumerate(scene.config.moving):
+                pos, vel = path_track(mv.path, t_phys)
+                mocap_track[:, j] = pos
+                lin_all[:, mocap_rows[j]] = vel[: n_ctrl * S : S]
             data.mocap_pos[mocap_rows] = mocap_track[0]
         mujoco.mj_forward(model, data)
         self.nominal.reset()
@@ -631,7 +675,6 @@ class ArmSimulation:
                 "d_bar": self.params.d_bar,
             })
 
-        wall0 = perf()
         lin = None
         for k in range(n_ctrl):
             t = k * T

@@ -254,3 +254,19 @@ def test_pruned_rows_violated_at_the_solution_are_solved_again(panda) -> None:  
     assert pruned.resolves > 0 and full.resolves == 0
     for key in ("duty_cycle", "on_switches", "qp_solves", "min_barrier", "intervention"):
         assert getattr(pruned, key) == pytest.approx(getattr(full, key), rel=1e-6, abs=1e-9), key
+
+
+def test_path_track_matches_scalar_path_methods(rng) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.arm import CirclePath, LinearBouncePath
+    from isf_robot.arm.sim import path_track
+
+    t = np.sort(rng.uniform(-3.0, 20.0, 200))
+    paths = [CirclePath(center=(0.6, 0.0, 0.2), radius=0.25, period=6.0, phase=0.3),
+             CirclePath(center=(0.1, 0.2, 0.3), radius=0.1, period=-2.0, normal=(1.0, 0.0, 0.0)),
+             LinearBouncePath(start=(0.4, -0.2, 0.3), end=(0.4, -0.2, 0.8), speed=0.3,
+                              phase=0.2)]
+    for path in paths:
+        pos, vel = path_track(path, t)
+        np.testing.assert_allclose(pos, [path.position(x) for x in t], atol=1e-12)
+        # the bounce path's velocity jumps at the turning points: compare away from them
+        np.testing.assert_allclose(vel, [path.velocity(x) for x in t], atol=1e-12)
