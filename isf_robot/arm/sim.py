@@ -28,6 +28,13 @@ cannot close the gap in a few milliseconds), so ``min_barrier`` saturates at
 ``cutoff - margin`` when the arm never comes within the cut-off. Joint-limit barriers are
 reported separately (``min_joint_barrier``, at control steps).
 
+Rows handed to the filter: the collision pairs within the broad-phase cut-off and the joint
+limits, minus the rows whose robust condition has a large slack under ``u_nom``
+(``collision_row_slack``, ``joint_row_slack``; never below ``c``, so a left-out row is never
+promoted and never decides a switch). Left-out rows are checked at the QP's solution; if one is
+violated or active the QP is solved again with every row (``resolves``), so the pruning only
+saves time and never changes a command.
+
 If the filter's QP is infeasible even with every promotion relaxed, the arm brakes
 (``u = 0``); such steps are counted in ``fallbacks`` and never hidden.
 
