@@ -105,7 +105,9 @@ class _FilterBase:
         solver: QPSolver | None = None,
         on_infeasible: str = "raise",
         fallback: FallbackFn | None = None,
+        validate: bool = True,
     ) -> None:
+        self.validate = bool(validate)
         self.alpha = as_class_k(alpha)
         self.d_bar = check_nonnegative(d_bar, "d_bar (disturbance bound)")
         self.system = system
@@ -141,7 +143,10 @@ class _FilterBase:
         ev = evaluate_barriers(self.barriers, x, t)
         return lie_data(ev, self.system.f0(x, t), self.system.g(x, t))
 
-    def _check_u_nom(self, u_nom: np.ndarray, lie: LieData) -> np.ndarray:
+    def _check_inputs(self, u_nom: np.ndarray, lie: LieData) -> np.ndarray:
+        if not self.validate:
+            return u_nom
+        lie.validate()
         return as_vector(u_nom, "nominal command u_nom", lie.m)
 
     def build_qp(
@@ -208,7 +213,7 @@ class SafetyFilter(_FilterBase):
 
     def step_lie(self, t: float, lie: LieData, u_nom: np.ndarray, x: np.ndarray | None = None) -> FilterStep:
         """Filter ``u_nom`` given precomputed barrier data."""
-        u_nom = self._check_u_nom(u_nom, lie)
+        u_nom = self._check_inputs(u_nom, lie)
         xi = xi_on(lie, u_nom, self.alpha, self.d_bar)
         qp = self.build_qp(lie, u_nom)
         res = self._solve(qp)
@@ -235,7 +240,7 @@ class IntermittentSafetyFilter(_FilterBase):
         c: Off-trigger margin, > 0.
         b: Promotion rate ``dh/dt >= b`` while on, > 0.
         d_bar: Disturbance bound, >= 0.
-        system, barriers, u_min, u_max, solver, on_infeasible, fallback: as
+        system, barriers, u_min, u_max, solver, on_infeasible, fallback, validate: as
             :class:`SafetyFilter`.
         t0: Start time [s].
 
@@ -255,10 +260,11 @@ class IntermittentSafetyFilter(_FilterBase):
         solver: QPSolver | None = None,
         on_infeasible: str = "raise",
         fallback: FallbackFn | None = None,
+        validate: bool = True,
         t0: float = 0.0,
     ) -> None:
         super().__init__(alpha, d_bar, system=system, barriers=barriers, u_min=u_min, u_max=u_max,
-                         solver=solver, on_infeasible=on_infeasible, fallback=fallback)
+                         solver=solver, on_infeasible=on_infeasible, fallback=fallback, validate=validate)
         self.c = check_positive(c, "c (off-trigger margin)")
         self.b = check_positive(b, "b (promotion rate)")
         self.trigger = OnOffTrigger(self.c, t0)
@@ -281,7 +287,7 @@ class IntermittentSafetyFilter(_FilterBase):
 
     def step_lie(self, t: float, lie: LieData, u_nom: np.ndarray, x: np.ndarray | None = None) -> FilterStep:
         """As :meth:`step`, given precomputed barrier data."""
-        u_nom = self._check_u_nom(u_nom, lie)
+        u_nom = self._check_inputs(u_nom, lie)
         xi = xi_on(lie, u_nom, self.alpha, self.d_bar)
         event = self.trigger.update(t, float(np.min(xi)))
         if not self.trigger.on:

@@ -98,3 +98,15 @@ def test_barrier_parameters_validated():
         DiscObstacleBarrier([0.0, 0.0], -1.0)
     with pytest.raises(NonFiniteError):
         DiscObstacleBarrier([0.0, np.nan], 1.0)
+
+
+def test_nan_barrier_data_from_an_adapter_is_rejected():
+    from isf_robot.core import LieData
+
+    f = IntermittentSafetyFilter(Linear(1.0), c=0.5, b=0.5)
+    bad = LieData(np.array([np.nan]), np.zeros(1), np.ones((1, 2)), np.ones(1), ("b",))
+    with pytest.raises(NonFiniteError, match="h"):
+        f.step_lie(0.0, bad, np.zeros(2))
+    wrong = LieData(np.ones(2), np.zeros(2), np.ones((3, 2)), np.ones(2), ("a", "b"))
+    with pytest.raises(ShapeError):
+        f.step_lie(0.0, wrong, np.zeros(2))
