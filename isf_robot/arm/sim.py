@@ -501,6 +501,9 @@ class ArmSimulation:
             a left-out row can neither be promoted nor decide a switch.
         collision_row_slack: The same for the collision pairs within the cut-off [m/s];
             default ``max(c, 0.1)``.
+        fast_off: For ``isf`` without observers: while the filter is off and every
+            ``Xi_on`` (computed here for the row pruning, same formula) is positive, do not
+            call the filter (its step would return ``u_nom`` with no switch and no QP).
 
     Raises:
         UnknownNameError: Unknown strategy (the message lists the valid ones).
@@ -526,6 +529,7 @@ class ArmSimulation:
         solver: QPSolver | None = None,
         joint_row_slack: float | None = None,
         collision_row_slack: float | None = None,
+        fast_off: bool = True,
     ) -> None:
         if strategy not in STRATEGIES:
             raise UnknownNameError("strategy", strategy, STRATEGIES)
@@ -555,6 +559,7 @@ class ArmSimulation:
         self._jsign = (jgrad[np.arange(jgrad.shape[0]), self._jidx] if jgrad.size
                        else np.zeros(0))
         self.observers = Observers(observers)
+        self.fast_off = bool(fast_off)
         self.joint_row_slack = 0.5 if joint_row_slack is None else float(joint_row_slack)
         self.collision_row_slack = (max(self.params.c, 0.1) if collision_row_slack is None
                                     else max(self.params.c, float(collision_row_slack)))
@@ -662,6 +667,8 @@ class ArmSimulation:
         ones = np.ones(max(1, self.joints.evaluate(data).k))
         active_tol = flt.solver.active_tol if flt is not None else 0.0
         jidx, jsign = self._jidx, self._jsign
+        fast_off = self.fast_off and strategy == "isf" and not recording
+        skip = False
         name_cache: dict[tuple[bytes, bytes], tuple[str, ...]] = {}
         qp_times: list[float] = []
         proxqp_times: list[float] = []
@@ -723,6 +730,12 @@ class ArmSimulation:
                 jxi *= jsign
                 jxi += alpha * jb.h
                 jkeep = (jxi < keep_j + d_bar).nonzero()[0]
+                # Off and every Xi_on > 0: the intermittent filter's step would only pass
+                # u_nom through (no switch, no QP), so it is not called.
+                skip = (fast_off and not flt.on  # type: ignore[union-attr]
+                        and (cxi.size == 0 or float(cxi.min()) > 0.0)
+                        and (jxi.size == 0 or float(jxi.min()) - d_bar > 0.0))
+            if need_barriers and not skip:
                 if ckeep.size == 0 and jkeep.size == 0:
                     if act.size:
                         ckeep = np.array([int(np.argmin(cxi))])
@@ -740,6 +753,7 @@ class ArmSimulation:
                               np.concatenate((cd[ckeep], jb.dhdt[jkeep])),
                               np.concatenate((cg[ckeep], jb.grad[jkeep])),
                               np.concatenate((cn[ckeep], ones[:jkeep.size])), lnames)
+            if need_barriers:
                 jmin = float(jb.h.min()) if jb.k else math.inf
                 if jmin < min_joint:
                     min_joint = jmin
@@ -747,7 +761,7 @@ class ArmSimulation:
                 t4 = perf()
                 tm.add("barriers", (t4 - t3) + (t2 - t1))  # with the tick's safety accounting
             qd = data.qvel[dofs]
-            if flt is None:
+            if flt is None or skip:
                 u = u_nom
                 on = False
                 step = None

@@ -270,3 +270,13 @@ def test_path_track_matches_scalar_path_methods(rng) -> None:  # type: ignore[no
         np.testing.assert_allclose(pos, [path.position(x) for x in t], atol=1e-12)
         # the bounce path's velocity jumps at the turning points: compare away from them
         np.testing.assert_allclose(vel, [path.velocity(x) for x in t], atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["planar", "panda_pole", "panda_moving"])
+def test_fast_off_path_gives_the_same_run(panda, name: str) -> None:  # type: ignore[no-untyped-def]
+    scene = load_scene("planar") if name == "planar" else panda[name]
+    fast = run_episode(scene, "isf", 3.0, 2, d_bar=0.05)
+    full = run_episode(scene, "isf", 3.0, 2, d_bar=0.05, fast_off=False)
+    for key in ("duty_cycle", "on_switches", "off_switches", "min_off_s", "qp_solves",
+                "min_barrier", "intervention", "goals_reached"):
+        assert getattr(fast, key) == pytest.approx(getattr(full, key), rel=1e-9, abs=1e-12), key
