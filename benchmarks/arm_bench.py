@@ -102,7 +102,10 @@ def render(rows: list[dict], args: argparse.Namespace, d_bars: dict[str, float])
         "(checked at the solution, re-solved with every row if one is violated), so many QPs "
         "have one row and are solved in closed form (`closed form` of the `QP solves`); "
         "`ProxQP median` is over the others. The QP time is measured inside the core's "
-        "`QPSolver.solve` (Python overhead included).",
+        "`QPSolver.solve` (Python overhead included). For `isf`, while the filter is off and "
+        "every `Xi_on` is positive the filter is not called (its step would pass `u_nom` "
+        "through); that test runs on the rows computed for the pruning and is counted in "
+        "`barriers`.",
         "",
         "| scene | filter | steps/s | x real time | wall/episode [s] | duty | QP solves | "
         "physics | barriers | nominal | trigger+filter | QP (per step) | QP median [us] | "
