@@ -280,3 +280,23 @@ def test_fast_off_path_gives_the_same_run(panda, name: str) -> None:  # type: ig
     for key in ("duty_cycle", "on_switches", "off_switches", "min_off_s", "qp_solves",
                 "min_barrier", "intervention", "goals_reached"):
         assert getattr(fast, key) == pytest.approx(getattr(full, key), rel=1e-9, abs=1e-12), key
+
+
+def test_non_finite_nominal_command_is_an_error(planar) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.arm import NominalController
+    from isf_robot.arm.nominal import GoalSequence
+    from isf_robot.core import NonFiniteError
+
+    class Broken(NominalController):
+        n = 3
+        goals = GoalSequence(1, [0.0], 0.01)
+
+        def reset(self) -> None:
+            self.goals.reset()
+
+        def __call__(self, t, data):  # type: ignore[no-untyped-def]
+            return np.full(3, np.nan) if t > 0.1 else np.zeros(3)
+
+    for strategy in ("cbf", "isf"):
+        with pytest.raises(NonFiniteError, match="not finite"):
+            run_episode(planar, strategy, 0.5, 0, nominal=Broken(), d_bar=0.1)
