@@ -660,7 +660,6 @@ class ArmSimulation:
         strategy = self.strategy
         need_barriers = flt is not None or recording  # the filter's rows (cb is always needed)
         dofs = scene.dof_adr
-        reaching = isinstance(nominal, ReachingController)
         min_joint = math.inf
         fallbacks = relaxations = resolves = 0
         alpha, d_bar = self.params.alpha, self.params.d_bar
@@ -862,7 +861,7 @@ class ArmSimulation:
                 if event is not None:
                     observers.on_event(event)
                 observers.on_step(self._record(data, t, T, u, u_nom, on, step, event, cb, jb,
-                                               dmin, reaching))
+                                               dmin))
 
         # the state after the last step
         if moving:
@@ -908,7 +907,7 @@ class ArmSimulation:
 
     def _record(self, data: mujoco.MjData, t: float, T: float, u: np.ndarray,
                 u_nom: np.ndarray, on: bool, step: Any, event: SwitchEvent | None, cb: Any,
-                jb: Any, dmin: float, reaching: bool) -> ArmStepRecord:
+                jb: Any, dmin: float) -> ArmStepRecord:
         scene = self.scene
         h = np.concatenate((cb.h, jb.h))
         order = np.argsort(cb.h)[:3].tolist()
