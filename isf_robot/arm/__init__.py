@@ -68,6 +68,7 @@ __all__ = [
 
 # nominal control, low-level tracking, calibration, simulation (appended by the sim layer)
 from .calibration import Calibration, calibrate_d_bar, clear_calibration_cache  # noqa: E402
+from .compare import Comparison, SceneSpec, compare_strategies, format_table  # noqa: E402
 from .lowlevel import VelocityTracker  # noqa: E402
 from .nominal import (  # noqa: E402
     GoalSequence,
@@ -107,4 +108,9 @@ __all__ += [
     "check_control_period",
     "episode_setup",
     "run_episode",
+    # comparisons
+    "SceneSpec",
+    "Comparison",
+    "compare_strategies",
+    "format_table",
 ]
