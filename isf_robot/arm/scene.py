@@ -229,7 +229,8 @@ def _compile(xml_path: Path) -> mujoco.MjModel:
     try:
         return mujoco.MjModel.from_xml_path(str(xml_path))
     except ValueError as exc:
-        raise ConfigError(f"{xml_path}: malformed MJCF: {exc}") from exc
+        detail = " ".join(str(exc).split())  # MuJoCo's parser message spans lines
+        raise ConfigError(f"{xml_path}: malformed MJCF: {detail}") from exc
 
 
 def load_scene_from_files(xml_path: str | Path, toml_path: str | Path) -> Scene:
