@@ -17,6 +17,7 @@ _EXPORTS = {
     # gravity and shape
     "GravityField": "gravity", "load_default_field": "gravity", "polyhedron_harmonics": "gravity",
     "TriangleMesh": "mesh", "read_obj": "mesh",
+    "MeshSurface": "surface", "EllipsoidSurface": "surface", "SurfaceCheck": "surface", "load_surface": "surface",
     # orbit model and controller
     "OrbitModel": "model", "BandBarrier": "model", "InitialOrbit": "model",
     "osculating_elements": "elements", "OrbitalElements": "elements",

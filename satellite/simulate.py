@@ -41,6 +41,7 @@ from isf_robot.core import (
 )
 from satellite.controller import ControlParams, FastTriggers, ResolvedControl, make_controller, resolve_control
 from satellite.model import BAND_INNER, BAND_OUTER, InitialOrbit, OrbitModel
+from satellite.surface import SurfaceCheck, SurfaceModel
 
 __all__ = [
     "TRIGGERS",
@@ -130,6 +131,8 @@ class RunResult:
         settings: Resolved settings (JSON-ready).
         events: The impulses.
         nfev: Right-hand-side evaluations.
+        surface: Report of the optional surface check (:meth:`satellite.surface.SurfaceCheck.report`),
+            ``None`` when the check was off; merged into :meth:`summary` when present.
 
     """
 
@@ -151,15 +154,19 @@ class RunResult:
     settings: dict[str, Any]
     events: tuple[JumpEvent, ...] = field(repr=False)
     nfev: int = 0
+    surface: dict[str, Any] | None = None
 
     def summary(self) -> dict[str, Any]:
-        """JSON-ready summary (everything but the event list)."""
+        """JSON-ready summary (everything but the event list; the surface keys when checked)."""
         keys = (
             "trigger", "hours", "simulated_h", "triggers", "kinds", "min_h", "r_min_over_R",
             "r_max_over_R", "total_dv", "min_inter_event_h", "mean_inter_event_h", "miet_bound_h",
             "left_band_h", "wall_s", "seed", "nfev", "settings",
         )
-        return {k: getattr(self, k) for k in keys}
+        out = {k: getattr(self, k) for k in keys}
+        if self.surface is not None:
+            out.update(self.surface)
+        return out
 
 
 def miet_estimate(
@@ -254,6 +261,17 @@ def _event(fn: Callable[[float, NDArray[np.float64]], float], terminal: bool, di
     return ev
 
 
+def _surface_samples(check: SurfaceCheck, sol: Any, t0: float) -> None:
+    """Feed one arc to the surface check: grid multiples of its step, events and both ends."""
+    t1 = float(sol.t[-1])
+    step = check.step_s
+    grid = np.arange(math.ceil(t0 / step), math.floor(t1 / step) + 1) * step
+    extra = [t0, t1] + [float(x) for ev in sol.t_events for x in ev]
+    times = np.unique(np.concatenate([grid, np.asarray(extra)]))
+    times = times[(times >= t0) & (times <= t1)]
+    check.add(times, sol.sol(times)[:3].T)
+
+
 def simulate(
     trigger: str,
     hours: float,
@@ -266,6 +284,8 @@ def simulate(
     observers: Iterable[Observer] = (),
     sample_interval_s: float = 600.0,
     miet_samples: int = 2000,
+    surface: SurfaceModel | None = None,
+    surface_step_s: float = 10.0,
 ) -> RunResult:
     """Simulate ``hours`` of orbit with the given trigger.
 
@@ -282,6 +302,12 @@ def simulate(
             ``sample_interval_s``, ``on_event(JumpEvent)``, ``on_finish(summary)``.
         sample_interval_s: Spacing of the samples sent to observers [s], > 0.
         miet_samples: Samples for the MIET bound.
+        surface: Shape model for the optional surface check (off when ``None``, as in the paper,
+            which ignores impact). When given, each arc keeps the integrator's dense output
+            (same steps, so the same trajectory), which is sampled every ``surface_step_s`` and
+            at every located event, turned into the body frame and checked against the shape
+            (:class:`satellite.surface.SurfaceCheck`); the report lands in ``RunResult.surface``.
+        surface_step_s: Sampling interval of the surface check [s], > 0.
 
     Returns:
         The :class:`RunResult`.
@@ -312,6 +338,7 @@ def simulate(
     obs = Observers(observers)
     track = _Tracker(model, trig, obs, sample_interval_s)
     miet_s, _, _ = miet_estimate(model, resolved, samples=miet_samples)
+    check = SurfaceCheck(surface, model.body_phase, model.omega, surface_step_s) if surface is not None else None
 
     y = initial.state(model)
     t = 0.0
@@ -354,11 +381,13 @@ def simulate(
     def arc(t0: float, t1: float, y0: NDArray[np.float64], events: list[Any], phase: str, xt: Any) -> Any:
         sol = solve_ivp(
             model.truth_rhs, (t0, t1), y0, method="DOP853", rtol=integ.rtol, atol=integ.atol,
-            max_step=integ.max_step_s, events=events,
+            max_step=integ.max_step_s, events=events, dense_output=check is not None,
         )
         if sol.status == -1:
             raise SimulationError(f"integration failed at t = {sol.t[-1] / 3600:.4g} h: {sol.message}")
         track.arc(sol, phase, xt)
+        if check is not None:
+            _surface_samples(check, sol, t0)
         return sol
 
     def jump(t_j: float, y_j: NDArray[np.float64], kind: str) -> NDArray[np.float64]:
@@ -428,6 +457,7 @@ def simulate(
         settings=settings,
         events=jumps,
         nfev=track.nfev,
+        surface=check.report() if check is not None else None,
     )
     obs.on_finish(result.summary())
     return result
