@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from dataclasses import dataclass
@@ -59,6 +60,8 @@ def make_scene(seed: int, n_obstacles: int = 4) -> DemoScene:
     """Place ``n_obstacles`` discs across the straight path from (0, 0) to (10, 0)."""
     if n_obstacles < 1:
         raise ConfigError(f"n_obstacles must be >= 1, got {n_obstacles}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
     rng = np.random.default_rng(seed)
     xs = np.linspace(2.0, 8.0, n_obstacles) + rng.uniform(-0.3, 0.3, n_obstacles)
     ys = rng.uniform(-0.35, 0.35, n_obstacles)
@@ -90,8 +93,8 @@ def run_episode(
         from .core.exceptions import UnknownNameError
 
         raise UnknownNameError("strategy", strategy, STRATEGIES)
-    if duration <= 0 or dt <= 0:
-        raise ConfigError(f"duration and dt must be > 0, got {duration}, {dt}")
+    if not (math.isfinite(duration) and duration > 0 and math.isfinite(dt) and dt > 0):
+        raise ConfigError(f"duration and dt must be finite and > 0, got {duration}, {dt}")
     scene = make_scene(seed, n_obstacles)
     system = SingleIntegrator(2)
     barriers = [
@@ -211,8 +214,10 @@ def handle(args: argparse.Namespace) -> int:
     """Run the core demo."""
     if args.episodes < 1:
         raise ConfigError(f"--episodes must be >= 1, got {args.episodes}")
-    if args.duration <= 0:
-        raise ConfigError(f"--duration must be > 0, got {args.duration}")
+    if not (math.isfinite(args.duration) and args.duration > 0):
+        raise ConfigError(f"--duration must be a finite number > 0, got {args.duration}")
+    if args.seed < 0:
+        raise ConfigError(f"--seed must be >= 0, got {args.seed}")
     seeds = list(range(args.seed, args.seed + args.episodes))
     if not args.json:
         print(f"core demo: planar single integrator past 4 discs, {len(seeds)} seeds, "

@@ -114,9 +114,12 @@ def episode_setup(scene: Scene, seed: int, *, q_noise: float = 0.05, goal_noise:
     is positive at t = 0.
 
     Raises:
-        ConfigError: No safe initial state was found in ``max_tries`` draws.
+        ConfigError: ``seed`` is not a non-negative integer, or no safe initial state was
+            found in ``max_tries`` draws.
 
     """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
     rng = np.random.default_rng(seed)
     n = scene.n_joints
     margin = scene.config.barrier.joint_margin
