@@ -209,6 +209,7 @@ class QPSolver:
         max_iter: int = 300,
         closed_form: bool = True,
         backend: str = "proxsuite",
+        polish: bool = True,
     ) -> None:
         self.eps_abs = check_positive(eps_abs, "eps_abs")
         self.feas_tol = check_positive(feas_tol, "feas_tol")
@@ -220,6 +221,7 @@ class QPSolver:
         if backend not in ("proxsuite", "qpsolvers"):
             raise ConfigError(f"backend must be 'proxsuite' or 'qpsolvers', got {backend!r}")
         self.backend = backend
+        self.polish = bool(polish)
         self._cache: dict[tuple[int, int, bool], _Workspace] = {}
         self.solves = 0
 
@@ -282,6 +284,8 @@ class QPSolver:
             # u is the least-violation command: evidence for the caller, never to be applied
             # as if it were safe (the filters turn this into an exception or a recorded fallback)
             return QPResult(u, "infeasible", np.ones(k, bool), dt, iters, max_violation=qp.max_violation(u))
+        if self.polish:
+            u = self._polish(qp, u)
         res = qp.A @ u - qp.lb if k else np.zeros(0)
         viol = float(np.max(-res, initial=0.0))
         if box:
@@ -294,6 +298,53 @@ class QPSolver:
                 qp=qp,
             )
         return QPResult(u, "optimal", res <= self.active_tol, dt, iters, viol)
+
+    def _polish(self, qp: FilterQP, u: np.ndarray) -> np.ndarray:
+        """Active-set refinement of an approximate optimum ``u`` (see ``polish``)."""
+        A, b = qp.A, qp.lb
+        if qp.has_bounds:
+            rows_A, rows_b = [A], [b]
+            if qp.u_min is not None:
+                rows_A.append(np.eye(qp.m))
+                rows_b.append(qp.u_min)
+            if qp.u_max is not None:
+                rows_A.append(-np.eye(qp.m))
+                rows_b.append(-qp.u_max)
+            A, b = np.vstack(rows_A), np.concatenate(rows_b)
+        scale = max(1.0, float(np.abs(b).max()))
+        slack = A @ u - b
+        u_nom = qp.u_nom
+        for tau in (1e-7 * scale, 1e-4 * scale):
+            idx = np.flatnonzero(slack <= tau)
+            # primal active-set steps: drop the row with the most negative multiplier
+            for _ in range(idx.size + 1):
+                if idx.size == 0:
+                    cand = u_nom
+                    break
+                Aa = A[idx]
+                rhs = b[idx] - Aa @ u_nom
+                if idx.size == 1:
+                    nrm = float(Aa[0] @ Aa[0])
+                    if nrm == 0.0:
+                        cand = None
+                        break
+                    lam = rhs / nrm
+                else:
+                    try:
+                        lam = np.linalg.solve(Aa @ Aa.T, rhs)
+                    except np.linalg.LinAlgError:
+                        cand = None  # dependent active rows: keep the solver's answer
+                        break
+                worst = int(np.argmin(lam))
+                if lam[worst] >= -1e-9 * scale:
+                    cand = u_nom + Aa.T @ lam
+                    break
+                idx = np.delete(idx, worst)
+            else:
+                cand = None
+            if cand is not None and float((A @ cand - b).min()) >= -1e-10 * scale:
+                return cand.copy() if cand is u_nom else cand
+        return u
 
     def _solve_proxsuite(self, qp: FilterQP, m: int, k: int, box: bool) -> tuple[np.ndarray, int, str]:
         from proxsuite import proxqp
@@ -324,8 +375,18 @@ class QPSolver:
         # Not solved (infeasible, iteration limit, ...): drop the workspace, since its warm
         # start is now meaningless, and decide feasibility with a phase-1 problem that is
         # always feasible. Never hand back a guess.
+        unconverged = np.array(ws.results.x, dtype=float)
         del self._cache[(m, k, box)]
         violation, u_least = self.least_violation(qp)
+        # A badly scaled but feasible problem can stall ProxQP and leave the penalised phase-1
+        # answer slightly infeasible: an exact active-set step from either point settles it.
+        scale = max(1.0, float(np.max(np.abs(qp.lb), initial=0.0)))
+        for guess in (unconverged, u_least):
+            if not np.all(np.isfinite(guess)):
+                continue
+            exact = self._polish(qp, guess)
+            if exact is not guess and qp.max_violation(exact) <= self.feas_tol * scale:
+                return exact, iters, "solved"
         if violation > self.feas_tol:
             return u_least, iters, "infeasible"
         raise SolverError(

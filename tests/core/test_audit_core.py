@@ -56,16 +56,16 @@ def test_relaxed_problem_still_infeasible_raises_with_evidence():
     assert info.value.t == 0.25
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "library defect: ProxQP stops on its KKT tolerances (eps_abs 1e-9) 1.4e-5 away from the "
-    "optimum on this nearly degenerate single row; QPSolver reports 'optimal'. Found by "
-    "hypothesis in test_qp_equals_closed_form_projection. Remove the xfail once QPSolver "
-    "polishes its answer (e.g. an active-set refinement checked against KKT)."))
+# Found by hypothesis in test_qp_equals_closed_form_projection: ProxQP alone stopped 1.4e-5 away
+# from the optimum on this nearly degenerate row while reporting success; QPSolver's active-set
+# polish (checked against the KKT conditions) makes the answer exact.
 def test_proxqp_matches_projection_on_a_nearly_degenerate_row():
     u_nom = np.array([0.0, 0.0, 0.00390625])
     a = np.array([0.5, 0.0, 0.001953125])
     res = QPSolver(closed_form=False).solve(FilterQP(u_nom, a[None, :], np.array([0.0])))
     np.testing.assert_allclose(res.u, project_halfspace(u_nom, a, 0.0), atol=1e-8, rtol=0)
+    raw = QPSolver(closed_form=False, polish=False).solve(FilterQP(u_nom, a[None, :], np.array([0.0])))
+    assert raw.status == "optimal"  # the unpolished answer is what the polish exists for
 
 
 @pytest.mark.parametrize("seed", [-1, 1.5, True])

@@ -136,3 +136,19 @@ def test_reused_warm_started_workspace_matches_fresh_solves():
             assert np.all(lam >= -1e-6)
         else:
             np.testing.assert_allclose(a.u, u_nom, atol=1e-8)
+
+
+def test_badly_scaled_feasible_rows_are_solved_exactly_not_called_infeasible():
+    # |a| ~ 1e-3 makes the optimum ~1e4 away: ProxQP stalls, the penalised phase-1 answer is
+    # slightly infeasible; the active-set step must recover the exact projection.
+    rng = np.random.default_rng(5)
+    solver = QPSolver(closed_form=False)
+    for _ in range(300):
+        scale = 10 ** rng.uniform(-4, 1)
+        u_nom = rng.normal(size=3) * scale
+        a = rng.normal(size=3) * 10 ** rng.uniform(-3, 1)
+        lb = float(rng.normal() * scale)
+        exact = project_halfspace(u_nom, a, lb)
+        res = solver.solve(FilterQP(u_nom, a[None, :], np.array([lb])))
+        assert res.status == "optimal"
+        np.testing.assert_allclose(res.u, exact, rtol=1e-8, atol=1e-8 * max(1.0, np.abs(exact).max()))
