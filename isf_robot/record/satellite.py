@@ -105,6 +105,11 @@ class SatelliteRecorder(RerunRecorder):
                                 lambda positions: rr.Points3D.columns(positions=positions))
         self._impulses = buf.ragged(IMPULSES, _impulse_columns)
 
+    @staticmethod
+    def step_plots() -> tuple[tuple[str, Any], ...]:
+        """Only ``/plots/mode`` (the barrier has its own series, ``/plots/barrier/h``)."""
+        return RerunRecorder.step_plots()[:1]
+
     # -- static content --------------------------------------------------------------------
     def start_content(self, info: Mapping[str, Any]) -> None:
         """Body, band spheres and plot styles."""
