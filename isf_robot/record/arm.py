@@ -20,8 +20,9 @@ the smaller of the tick's collision barriers (``h[:n_collision]``) and ``dist_mi
 step without a step record; when that final check is the run's minimum, it is logged as one
 extra row ``/replay/terminal``.
 
-Cost: one buffered row per step (a few array writes), forward kinematics for the poses, and
-the witness segments; every time series is derived from the buffered rows at each flush.
+Cost: the recorder keeps each (frozen) step record and, every ``capacity`` steps, turns the
+block into columns (forward kinematics for the poses included) and sends each entity once,
+so the per-step work is a list append plus a few microseconds at flush time.
 """
 
 from __future__ import annotations
@@ -70,6 +71,22 @@ def _goal_columns(t: np.ndarray, a: dict[str, np.ndarray]) -> tuple[np.ndarray, 
     return t[ok], rr.Points3D.columns(positions=a["goal"][ok])
 
 
+class _RecordBatch:
+    """Step records held until a block is full (a custom channel of the column buffer)."""
+
+    def __init__(self, send: Any) -> None:
+        self.items: list[Any] = []
+        self._send = send
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def flush(self) -> None:
+        if self.items:
+            items, self.items = self.items, []
+            self._send(items)
+
+
 class ArmRecorder(RerunRecorder):
     """Observer of the arm loop: scene, barriers, triggers, mode, commands, witness segments.
 
@@ -108,27 +125,19 @@ class ArmRecorder(RerunRecorder):
         self._margin = float(self.margins.max()) if self.margins.size else 0.0
         self._running_min = math.inf
         self._n_collision = int(self.margins.size)
-        buf = self.buffer
-        self._poses = buf.add("/world/bodies", self.drawing.pose_channel(stream, buf.capacity))
-        self._witness = buf.ragged("/world/witness", _witness_columns)
         self._pair_paths: dict[int, str] = {}
         self._names: tuple[str, ...] = ()
         self._qpos_adr = MujocoDrawing.index(scene.qpos_adr)
+        self._batch = self.buffer.add("/replay/arm_steps", _RecordBatch(self._send_batch))
+        self._derived = self._derived_entities()
 
     def make_step_channel(self) -> Channel | None:
-        """Built at the first step, when the number of barriers is known (see :meth:`_open_steps`)."""
+        """None: the arm keeps whole step records in a :class:`_RecordBatch` instead."""
         return None
 
-    def _open_steps(self, k: int) -> Channel:
-        """One channel for everything per step; its flush derives every time-series entity."""
-        n = int(self.scene.n_joints)
-        f8, b1 = np.float64, np.bool_
-        fields = {
-            "t": ((), f8), "dt": ((), f8), "on": ((), b1), "intervention_rate": ((), f8), "qp_solved": ((), b1),
-            "dist_min": ((), f8), "h": ((k,), f8), "u_nom": ((n,), f8), "u": ((n,), f8), "h_filter": ((), f8),
-            "xi": ((), f8), "ee": ((3,), f8), "goal": ((3,), f8),
-        }
-        derived = (
+    def _derived_entities(self) -> tuple[tuple[str, Any], ...]:
+        """Every time-series entity, built from a block of step columns (see :meth:`_send_batch`)."""
+        return (
             (STEPS, self._replay_columns),
             *self.step_plots(),
             ("/plots/command/nominal", lambda t, a: (t, rr.Scalars.columns(scalars=a["u_nom"]))),
@@ -139,7 +148,36 @@ class ArmRecorder(RerunRecorder):
             ("/world/goal", _goal_columns),
             ("/plots/barrier/pairs", self._pair_columns),
         )
-        return self.buffer.channel("/replay/arm_steps", fields, None, derived=derived)
+
+    def _send_batch(self, recs: list[Any]) -> None:
+        """Turn a block of step records into columns and send every entity (one call each)."""
+        n = len(recs)
+        f8 = np.float64
+
+        def col(name: str, dtype: Any = f8) -> np.ndarray:
+            return np.fromiter((getattr(r, name) for r in recs), dtype=dtype, count=n)
+
+        t = col("t")
+        u = np.array([r.u for r in recs], dtype=f8)
+        u_nom = np.array([r.u_nom for r in recs], dtype=f8)
+        diff = u - u_nom
+        a = {
+            "t": t, "dt": col("dt"), "on": col("on", np.bool_), "qp_solved": col("qp_solved", np.bool_),
+            # row by row, as the run's metrics accumulator does (d @ d), so the sums match bit for bit
+            "intervention_rate": np.fromiter((float(d @ d) for d in diff), dtype=f8, count=n),
+            "dist_min": col("dist_min"), "h_filter": col("h_min"), "xi": col("xi_min"),
+            "h": np.array([r.h for r in recs], dtype=f8), "u_nom": u_nom, "u": u,
+            "ee": np.array([r.ee_pos for r in recs], dtype=f8), "goal": np.array([r.goal_pos for r in recs], dtype=f8),
+        }
+        stream = self.stream
+        for path, fn in self._derived:
+            out = fn(t, a)
+            if out is not None and len(out[0]):
+                stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=out[0])], columns=out[1])
+        stream.send_columns("/world/witness", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
+                            columns=_witness_columns([r.witness for r in recs]))
+        self.drawing.send_poses(stream, t, self._qpos_adr, [r.q for r in recs],
+                                [r.mocap_pos for r in recs], [r.mocap_quat for r in recs])
 
     def _min_barrier(self, a: dict[str, np.ndarray]) -> np.ndarray:
         """Per-step true-geometry minimum of ``dist - margin`` (tick values and physics substeps)."""
@@ -218,17 +256,14 @@ class ArmRecorder(RerunRecorder):
 
     # -- per step ------------------------------------------------------------------------
     def on_step(self, record: Any) -> None:
-        """Buffer the step: one row of the step channel, the witness segments and the poses."""
-        t = record.t
-        if self._steps is None:
+        """Keep the step record (frozen, arrays owned by it); every ``capacity`` records are sent."""
+        items = self._batch.items
+        if not self._names:
             self._names = tuple(record.names)
-            self._steps = self._open_steps(int(record.h.shape[0]))
-        d = record.u - record.u_nom
-        self._steps.push(t, t, record.dt, record.on, float(d @ d), record.qp_solved, record.dist_min, record.h,
-                         record.u_nom, record.u, record.h_min, record.xi_min, record.ee_pos, record.goal_pos)
-        self._witness.push(t, record.witness)
-        self.drawing.push_state(t, self._qpos_adr, record.q, record.mocap_pos, record.mocap_quat)
+        items.append(record)
         self.steps += 1
+        if len(items) >= self.buffer.capacity:
+            self._batch.flush()
 
     def replay_row(self, record: Any) -> tuple[float, float, bool, float, bool, float]:
         """``(t, dt, on, |u - u_nom|^2, qp_solved, true-geometry min barrier)`` of one record.

@@ -1,4 +1,4 @@
-"""Drawing a MuJoCo model in Rerun: geometry once (static), body poses per step (buffered).
+"""Drawing a MuJoCo model in Rerun: geometry once (static), body poses per block of steps.
 
 Layout: ``<root>/<body>`` carries the body's world pose (static for bodies welded to the
 world, per step for the others); ``<root>/<body>/<geom>`` carries the geom's shape in its
@@ -77,42 +77,6 @@ def _shape(model: mujoco.MjModel, g: int, color: list[int]) -> Any | None:
     return None
 
 
-class _PoseChannel:
-    """Buffered world poses of several bodies (one ``send_columns`` per body per flush)."""
-
-    def __init__(self, stream: rr.RecordingStream, paths: Sequence[str], capacity: int) -> None:
-        self.stream = stream
-        self.paths = list(paths)
-        nb = len(self.paths)
-        self.t = np.zeros(capacity)
-        self.pos = np.zeros((capacity, nb, 3))
-        self.quat = np.zeros((capacity, nb, 4))
-        self.n = 0
-
-    def __len__(self) -> int:
-        return self.n
-
-    def push(self, t: float, pos: np.ndarray, quat_wxyz: np.ndarray) -> None:
-        n = self.n
-        self.t[n] = t
-        self.pos[n] = pos
-        self.quat[n] = quat_wxyz
-        self.n = n + 1
-        if self.n == self.t.shape[0]:
-            self.flush()
-
-    def flush(self) -> None:
-        n = self.n
-        if n == 0:
-            return
-        idx = [rr.TimeColumn(TIMELINE, duration=self.t[:n])]
-        quat = _xyzw(self.quat[:n])
-        for i, path in enumerate(self.paths):
-            self.stream.send_columns(path, indexes=idx, columns=rr.Transform3D.columns(
-                translation=self.pos[:n, i], quaternion=quat[:, i]))
-        self.n = 0
-
-
 class MujocoDrawing:
     """Static geometry and per-step body poses of a MuJoCo model.
 
@@ -134,7 +98,6 @@ class MujocoDrawing:
         self.moving = np.flatnonzero(np.asarray(model.body_weldid) != 0)
         self.geoms_drawn = 0
         self.geoms_skipped: list[str] = []
-        self._poses: _PoseChannel | None = None
         self._mocap = model.nmocap > 0
         self._mocap_pos = self.data.mocap_pos  # views into MjData (valid while self.data lives)
         self._mocap_quat = self.data.mocap_quat
@@ -170,10 +133,48 @@ class MujocoDrawing:
                                       quaternion=rr.Quaternion(xyzw=_xyzw(self.data.xquat[b])))
                 stream.log(self.body_paths[b], pose, static=True)
 
-    def pose_channel(self, stream: rr.RecordingStream, capacity: int) -> _PoseChannel:
-        """The buffered channel of the moving bodies' world poses."""
-        self._poses = _PoseChannel(stream, [self.body_paths[b] for b in self.moving], capacity)
-        return self._poses
+    def send_poses(self, stream: rr.RecordingStream, t: np.ndarray, qpos_adr: slice | np.ndarray,
+                   q: Sequence[np.ndarray], mocap_pos: Sequence[np.ndarray] | None = None,
+                   mocap_quat: Sequence[np.ndarray] | None = None) -> None:
+        """Forward kinematics of a block of states and one ``send_columns`` per moving body.
+
+        Args:
+            stream: Where to send.
+            t: Times [s], shape (N,).
+            qpos_adr: Addresses (or a slice) of ``q`` in ``qpos``.
+            q: Joint positions per row.
+            mocap_pos: Mocap positions per row, each shape (nmocap, 3), or ``None``.
+            mocap_quat: Mocap orientations (w, x, y, z) per row, or ``None``.
+
+        """
+        nb = int(self.moving.size)
+        n = len(t)
+        if nb == 0 or n == 0:
+            return
+        d, m = self.data, self.model
+        pos = np.empty((n, nb, 3))
+        quat = np.empty((n, nb, 4))
+        xpos, xquat = self._xpos, self._xquat
+        views = xpos is not None and xquat is not None
+        mocap = self._mocap and mocap_pos is not None and mocap_quat is not None
+        kin = mujoco.mj_kinematics
+        for i in range(n):
+            d.qpos[qpos_adr] = q[i]
+            if mocap:
+                self._mocap_pos[:] = mocap_pos[i]  # type: ignore[index]
+                self._mocap_quat[:] = mocap_quat[i]  # type: ignore[index]
+            kin(m, d)
+            if views:
+                pos[i] = xpos
+                quat[i] = xquat
+            else:
+                pos[i] = d.xpos[self.moving]
+                quat[i] = d.xquat[self.moving]
+        idx = [rr.TimeColumn(TIMELINE, duration=t)]
+        quat = _xyzw(quat)
+        for j, b in enumerate(self.moving.tolist()):
+            stream.send_columns(self.body_paths[b], indexes=idx,
+                                columns=rr.Transform3D.columns(translation=pos[:, j], quaternion=quat[:, j]))
 
     @staticmethod
     def index(adr: np.ndarray) -> slice | np.ndarray:
@@ -182,19 +183,3 @@ class MujocoDrawing:
         if adr.size and np.array_equal(adr, np.arange(adr[0], adr[0] + adr.size)):
             return slice(int(adr[0]), int(adr[0]) + int(adr.size))
         return adr
-
-    def push_state(self, t: float, qpos_adr: slice | np.ndarray, q: np.ndarray,
-                   mocap_pos: np.ndarray | None = None, mocap_quat: np.ndarray | None = None) -> None:
-        """Forward kinematics at ``(q, mocap)`` and buffer the moving bodies' poses at ``t``."""
-        d = self.data
-        d.qpos[qpos_adr] = q
-        if self._mocap:
-            self._mocap_pos[:] = mocap_pos
-            self._mocap_quat[:] = mocap_quat
-        mujoco.mj_kinematics(self.model, d)
-        if self._poses is None or not self.moving.size:
-            return
-        if self._xpos is not None and self._xquat is not None:
-            self._poses.push(t, self._xpos, self._xquat)
-        else:
-            self._poses.push(t, d.xpos[self.moving], d.xquat[self.moving])
