@@ -178,6 +178,28 @@ def _read_store(path: Path, reader: RrdReader, entry: Any) -> RunLog:
                   impulses, np.asarray(terminal, dtype=float))
 
 
+def _check_file(p: Path) -> None:
+    """Raise :class:`RecordingReadError` unless ``p`` is a readable file starting like an RRD."""
+    if not p.exists():
+        raise RecordingReadError(p, "no such file")
+    if p.is_dir():
+        raise RecordingReadError(p, "is a directory (pass the .rrd files in it)")
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(4)
+    except OSError as exc:
+        raise RecordingReadError(p, f"cannot open it: {exc.strerror or exc}") from exc
+    if len(head) < 4:
+        raise RecordingReadError(p, "the file is empty or too short to be a Rerun recording")
+    if not head.startswith(b"RRF"):
+        raise RecordingReadError(p, f"not a Rerun .rrd file (starts with {head!r}, expected b'RRF2')")
+
+
+def _damaged(p: Path, exc: Exception) -> RecordingReadError:
+    msg = " ".join(str(exc).split())
+    return RecordingReadError(p, f"truncated or corrupt Rerun file ({msg})")
+
+
 def read_rrd(path: str | Path) -> list[RunLog]:
     """Read every isf_robot recording in a ``.rrd`` file.
 
@@ -193,19 +215,7 @@ def read_rrd(path: str | Path) -> list[RunLog]:
 
     """
     p = Path(path)
-    if not p.exists():
-        raise RecordingReadError(p, "no such file")
-    if p.is_dir():
-        raise RecordingReadError(p, "is a directory (pass the .rrd files in it)")
-    try:
-        with open(p, "rb") as fh:
-            head = fh.read(4)
-    except OSError as exc:
-        raise RecordingReadError(p, f"cannot open it: {exc.strerror or exc}") from exc
-    if len(head) < 4:
-        raise RecordingReadError(p, "the file is empty or too short to be a Rerun recording")
-    if not head.startswith(b"RRF"):
-        raise RecordingReadError(p, f"not a Rerun .rrd file (starts with {head!r}, expected b'RRF2')")
+    _check_file(p)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # "no footer/manifest": we check completeness ourselves
@@ -217,8 +227,7 @@ def read_rrd(path: str | Path) -> list[RunLog]:
     except RecordingReadError:
         raise
     except Exception as exc:  # rerun raises RuntimeError/ValueError for damaged files
-        msg = " ".join(str(exc).split())
-        raise RecordingReadError(p, f"truncated or corrupt Rerun file ({msg})") from exc
+        raise _damaged(p, exc) from exc
 
 
 def read_columns(path: str | Path, entity: str, names: Sequence[str] | None = None,
@@ -242,13 +251,20 @@ def read_columns(path: str | Path, entity: str, names: Sequence[str] | None = No
 
     """
     p = Path(path)
-    read_rrd(p)  # validates the file (clear errors)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        reader = RrdReader(p)
-        entry = reader.recordings()[recording]
-        batches = [c.to_record_batch() for c in reader.stream(store=entry)
-                   if c.entity_path == entity and not c.is_static]
+    _check_file(p)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            reader = RrdReader(p)
+            entries = reader.recordings()
+            if not 0 <= recording < len(entries):
+                raise RecordingReadError(p, f"no recording #{recording} (the file holds {len(entries)})")
+            batches = [c.to_record_batch() for c in reader.stream(store=entries[recording])
+                       if c.entity_path == entity and not c.is_static]
+    except RecordingReadError:
+        raise
+    except Exception as exc:
+        raise _damaged(p, exc) from exc
     if not batches:
         raise RecordingReadError(p, f"no time-indexed entity {entity!r} in the recording")
     available = [f.name for f in batches[0].schema

@@ -1,0 +1,84 @@
+"""MuJoCo geometry drawn in Rerun: every geom type, static and moving bodies (tiny inline MJCF)."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import rerun as rr
+from rerun.chunk import RrdReader
+
+from isf_robot.record import open_stream
+from isf_robot.record.mjgeometry import MujocoDrawing
+
+MJCF = """
+<mujoco>
+  <asset>
+    <mesh name="tet" vertex="0 0 0  0.1 0 0  0 0.1 0  0 0 0.1"/>
+  </asset>
+  <worldbody>
+    <geom name="floor" type="plane" size="1 1 0.1"/>
+    <geom name="post" type="cylinder" size="0.05 0.2" pos="0.5 0 0.2"/>
+    <body name="arm" pos="0 0 0.3">
+      <joint name="hinge" type="hinge" axis="0 0 1"/>
+      <geom name="link" type="capsule" size="0.03 0.15" pos="0.15 0 0" euler="0 90 0"/>
+      <geom name="tip" type="sphere" size="0.04" pos="0.3 0 0"/>
+      <geom name="egg" type="ellipsoid" size="0.02 0.03 0.04" pos="0.1 0.1 0"/>
+      <geom name="tet" type="mesh" mesh="tet" pos="0 0.2 0"/>
+    </body>
+    <body name="crate" mocap="true" pos="0.6 0.4 0.1">
+      <geom name="crate" type="box" size="0.1 0.05 0.05" contype="0" conaffinity="0"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def _static_components(path) -> dict[str, set[str]]:  # type: ignore[no-untyped-def]
+    out: dict[str, set[str]] = {}
+    for chunk in RrdReader(path).stream():
+        if chunk.is_static:
+            names = {f.name.split(":")[0] for f in chunk.to_record_batch().schema if ":" in f.name}
+            out.setdefault(chunk.entity_path, set()).update(names)
+    return out
+
+
+def test_every_geom_type_is_drawn(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    model = mujoco.MjModel.from_xml_string(MJCF)
+    draw = MujocoDrawing(model)
+    path = tmp_path / "geoms.rrd"
+    rec = open_stream("isf_robot", rrd_path=path)
+    draw.log_static(rec)
+    assert draw.geoms_drawn == model.ngeom and not draw.geoms_skipped
+    # moving bodies: the hinged arm and the mocap crate; the world is static
+    assert sorted(draw.body_paths[b].rsplit("/", 1)[1] for b in draw.moving) == ["arm", "crate"]
+    t = np.array([0.0, 0.1])
+    q = [np.array([0.0]), np.array([np.pi / 2])]
+    mpos = [np.array([[0.6, 0.4, 0.1]]), np.array([[0.7, 0.4, 0.1]])]
+    mquat = [np.array([[1.0, 0, 0, 0]])] * 2
+    draw.send_poses(rec, t, MujocoDrawing.index(np.array([0])), q, mpos, mquat)
+    rec.flush()
+    rec.disconnect()
+    comps = _static_components(path)
+    want = {
+        "/world/bodies/world/floor": "Boxes3D", "/world/bodies/world/post": "Cylinders3D",
+        "/world/bodies/arm/link": "Capsules3D", "/world/bodies/arm/tip": "Ellipsoids3D",
+        "/world/bodies/arm/egg": "Ellipsoids3D", "/world/bodies/arm/tet": "Mesh3D",
+        "/world/bodies/crate/crate": "Boxes3D",
+    }
+    for entity, archetype in want.items():
+        assert archetype in comps.get(entity, set()), (entity, comps.get(entity))
+        assert "Transform3D" in comps[entity]
+    assert "Transform3D" in comps["/world/bodies/world"]
+    from isf_robot.record import read_columns
+
+    arm = read_columns(path, "/world/bodies/arm")
+    quat = arm["Transform3D:quaternion"]  # x, y, z, w
+    np.testing.assert_allclose(quat[1], [0, 0, np.sin(np.pi / 4), np.cos(np.pi / 4)], atol=1e-6)
+    crate = read_columns(path, "/world/bodies/crate")
+    np.testing.assert_allclose(crate["Transform3D:translation"][1], [0.7, 0.4, 0.1], atol=1e-6)
+
+
+def test_contiguous_index_is_a_slice() -> None:
+    assert MujocoDrawing.index(np.array([2, 3, 4])) == slice(2, 5)
+    assert isinstance(MujocoDrawing.index(np.array([0, 2])), np.ndarray)
+    assert rr is not None
