@@ -94,9 +94,9 @@ class ArmRecorder(RerunRecorder):
         stream: The recording stream.
         scene: The :class:`isf_robot.arm.Scene` being simulated (geometry, joint addresses,
             margins).
-        closest: How many closest pairs get their own barrier series (at most what the
-            record lists).
-        capacity: Rows buffered per channel.
+        closest: How many collision pairs (those with the smallest h at each step) get their
+            own barrier series.
+        capacity: Step records kept before a block is converted and sent.
         close_on_finish: Close the stream in ``on_finish``.
 
     """

@@ -21,6 +21,7 @@ previous sample, ``on`` whether a maneuver is in progress, ``min_barrier`` the s
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -31,7 +32,7 @@ import rerun as rr
 from .recorder import RerunRecorder
 from .schema import IMPULSES
 
-__all__ = ["SatelliteRecorder", "default_mesh_path", "ITOKAWA_HALF_AXES_M"]
+__all__ = ["SatelliteRecorder", "default_mesh_path", "read_shape", "ITOKAWA_HALF_AXES_M"]
 
 ITOKAWA_HALF_AXES_M = (267.5, 147.0, 104.5)
 """Half axes of the stand-in ellipsoid [m]: Itokawa's published 535 x 294 x 209 m."""
@@ -43,6 +44,45 @@ def default_mesh_path() -> Path:
     """``<repo>/../shared/data/itokawa/itokawa_low.obj`` (outside the repository, never committed)."""
     repo = Path(__file__).resolve().parents[2]
     return repo.parent / "shared" / "data" / "itokawa" / "itokawa_low.obj"
+
+
+_V = re.compile(r"^v[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)[ \t]*$", re.M)
+_F = re.compile(r"^f[ \t]+(\d+)(?:/\S*)?[ \t]+(\d+)(?:/\S*)?[ \t]+(\d+)(?:/\S*)?[ \t]*$", re.M)
+
+
+def read_shape(path: Path, km: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """The body's triangles for display, centred on the centre of mass of the enclosed volume.
+
+    A fast path for plain triangle OBJ files (``v x y z`` and ``f i j k`` records, 1-based
+    indices), a few times faster than the checked reader; anything else (polygons, negative
+    indices, an open mesh) goes through :func:`satellite.mesh.read_obj`.
+
+    Args:
+        path: OBJ file.
+        km: Coordinates in kilometres (the Gaskell model) rather than metres.
+
+    Returns:
+        ``(vertices [m] relative to the centre of mass, shape (V, 3); faces, shape (F, 3) uint32)``.
+
+    """
+    data = path.read_text(encoding="utf-8", errors="replace")
+    v, f = _V.findall(data), _F.findall(data)
+    n_v = sum(1 for line in data.splitlines() if line.startswith(("v ", "v\t")))
+    n_f = sum(1 for line in data.splitlines() if line.startswith(("f ", "f\t")))
+    if v and f and len(v) == n_v and len(f) == n_f:
+        verts = np.asarray(v, dtype=np.float64) * (1000.0 if km else 1.0)
+        faces = np.asarray(f, dtype=np.int64) - 1
+        if faces.min() >= 0 and faces.max() < len(verts):
+            a, b, c = verts[faces[:, 0]], verts[faces[:, 1]], verts[faces[:, 2]]
+            vol = np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0  # signed tetrahedra (origin, a, b, c)
+            if vol.sum() > 0:
+                com = (vol[:, None] * (a + b + c)).sum(axis=0) / (4.0 * vol.sum())
+                return verts - com, faces.astype(np.uint32)
+    from satellite.mesh import read_obj
+
+    mesh = read_obj(path, units="km" if km else "m")
+    return (np.asarray(mesh.vertices, dtype=np.float64) - np.asarray(mesh.centre_of_mass),
+            np.asarray(mesh.faces, dtype=np.uint32))
 
 
 def _impulse_columns(rows: list[tuple[Any, ...]]) -> Any:
@@ -139,11 +179,7 @@ class SatelliteRecorder(RerunRecorder):
         verts = faces = None
         try:
             if self.mesh_path.is_file():
-                from satellite.mesh import read_obj
-
-                mesh = read_obj(self.mesh_path, units="km")
-                verts = np.asarray(mesh.vertices, dtype=np.float64) - np.asarray(mesh.centre_of_mass)
-                faces = np.asarray(mesh.faces, dtype=np.uint32)
+                verts, faces = read_shape(self.mesh_path)
         except Exception:  # unreadable shape: the ellipsoid stands in (recorded in body_shape)
             verts = faces = None
         if verts is not None and faces is not None:
