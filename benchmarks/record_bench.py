@@ -253,9 +253,10 @@ def report(results: list[dict[str, Any]], long_results: list[dict[str, Any]], co
             f"{r['off']['rss_end_mb']:.0f} / {r['rrd']['rss_end_mb']:.0f} | {growth:+.1f} |")
     lines += [
         "",
-        "Per-step values are buffered in preallocated arrays of 2048 rows per channel and sent with "
-        "`send_columns` when full, and the file sink writes as it goes, so the recorder's buffers do "
-        "not grow with the run. What does grow, slowly, is the chunk index Rerun's `FileSink` keeps "
+        "Per-step values are buffered in blocks of 2048 steps (preallocated arrays; the arm recorder "
+        "keeps the block's step records) and sent with `send_columns` when a block is full, and the "
+        "file sink writes as it goes, so the recorder's buffers do not grow with the run. "
+        "What does grow, slowly, is the chunk index Rerun's `FileSink` keeps "
         "for the `.rrd` footer (one entry per chunk, about 25 chunks per 2048 steps): about 7 MB per "
         "225 000 arm steps (7.5 minutes at 500 Hz) when step records are replayed into the recorder "
         "alone; the rest of the growth in the table is the simulation's own (see the column without).",
