@@ -202,9 +202,10 @@ class ArmSimulation:
             a left-out row can neither be promoted nor decide a switch.
         collision_row_slack: The same for the collision pairs within the cut-off [m/s];
             default ``max(c, 0.1)``.
-        fast_off: For ``isf`` without observers: while the filter is off and every
+        fast_off: For ``isf``: while the filter is off and every
             ``Xi_on`` (computed here for the row pruning, same formula) is positive, do not
-            call the filter (its step would return ``u_nom`` with no switch and no QP).
+            call the filter (its step would return ``u_nom`` with no switch and no QP). Step
+            records then carry the rows' own ``min Xi_on``.
 
     Raises:
         UnknownNameError: Unknown strategy (the message lists the valid ones).
@@ -368,7 +369,7 @@ class ArmSimulation:
         ones = np.ones(max(1, self.joints.evaluate(data).k))
         active_tol = flt.solver.active_tol if flt is not None else 0.0
         jidx, jsign = self._jidx, self._jsign
-        fast_off = self.fast_off and strategy == "isf" and not recording
+        fast_off = self.fast_off and strategy == "isf"
         skip = False
         name_cache: dict[tuple[bytes, bytes], tuple[str, ...]] = {}
         qp_times: list[float] = []
@@ -560,8 +561,13 @@ class ArmSimulation:
             if recording:
                 if event is not None:
                     observers.on_event(event)
+                if skip:  # the filter was not called: its Xi_on values are the rows' own
+                    xi_rec = min(float(cxi.min()) if cxi.size else math.inf,
+                                 float(jxi.min()) - d_bar if jxi.size else math.inf)
+                else:
+                    xi_rec = step.xi_min if step is not None else math.inf
                 observers.on_step(self._record(data, t, T, u, u_nom, on, step, event, cb, jb,
-                                               dmin))
+                                               dmin, xi_rec))
 
         # the state after the last step
         if moving:
@@ -607,7 +613,7 @@ class ArmSimulation:
 
     def _record(self, data: mujoco.MjData, t: float, T: float, u: np.ndarray,
                 u_nom: np.ndarray, on: bool, step: Any, event: SwitchEvent | None, cb: Any,
-                jb: Any, dmin: float) -> ArmStepRecord:
+                jb: Any, dmin: float, xi_min: float) -> ArmStepRecord:
         scene = self.scene
         h = np.concatenate((cb.h, jb.h))
         order = np.argsort(cb.h)[:3].tolist()
@@ -619,7 +625,7 @@ class ArmSimulation:
         return ArmStepRecord(
             t=t, dt=T, q=data.qpos[scene.qpos_adr].copy(), qd=data.qvel[scene.dof_adr].copy(),
             u=np.array(u, dtype=float), u_nom=np.array(u_nom, dtype=float), on=bool(on),
-            h_min=float(h.min()), xi_min=step.xi_min if step is not None else math.inf,
+            h_min=float(h.min()), xi_min=xi_min,
             dist_min=float(dmin), qp_solved=step is not None and step.qp is not None, h=h,
             names=self.names, closest=tuple(cb.names[i] for i in order),
             witness=cb.witness[act].copy(), witness_names=tuple(cb.names[i] for i in act.tolist()),

@@ -47,3 +47,26 @@ def test_negative_seed_cli_exit_2_one_line(argv: list[str], capsys) -> None:  # 
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert "seed" in err and "non-negative" in err and "\n" not in err and "Traceback" not in err
+
+
+class _XiLog(Observer):
+    def __init__(self) -> None:
+        self.rows: list[tuple[float, bool, float]] = []
+
+    def on_step(self, record: Any) -> None:
+        self.rows.append((record.t, record.on, record.xi_min))
+
+
+def test_recorded_run_with_fast_off_logs_the_same_steps_as_a_full_filter_run(planar) -> None:  # type: ignore[no-untyped-def]
+    # With an observer attached, the isf fast path (filter not called while off and every
+    # Xi_on > 0) must log the same modes and min Xi_on as calling the filter every step.
+    logs = []
+    results = []
+    for fast in (True, False):
+        log = _XiLog()
+        results.append(run_episode(planar, "isf", duration=2.0, seed=1, observers=[log], fast_off=fast))
+        logs.append(np.array(log.rows))
+    assert results[0].on_switches == results[1].on_switches >= 1
+    assert results[0].qp_solves == results[1].qp_solves
+    np.testing.assert_array_equal(logs[0][:, :2], logs[1][:, :2])
+    np.testing.assert_allclose(logs[0][:, 2], logs[1][:, 2], rtol=1e-12, atol=1e-12)
