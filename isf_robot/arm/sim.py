@@ -134,8 +134,21 @@ class _SafetyMonitor:
             return math.inf
         return float((h[rows] + margin[rows]).min())
 
-    def substep(self, data: mujoco.MjData, exact: bool) -> float:
-        """Check the pairs near at the last tick; return their smallest distance (exact mode)."""
+    def substep(self, data: mujoco.MjData, bound: float = -math.inf) -> float:
+        """Check the pairs near at the last tick; return their smallest distance.
+
+        Args:
+            data: The MuJoCo data after ``mj_step1``.
+            bound: Distances at or above ``bound`` [m] need not be exact (pass the control
+                step's running minimum distance to get that minimum exactly, ``-inf`` when
+                only the run's minimum barrier and the collision count matter). Each pair's
+                ``distmax`` is the larger of that and what could change the running minimum
+                barrier or count a collision, so ``mj_geomDistance`` can stop early.
+
+        Returns:
+            The smallest distance found [m]: exact when below ``bound``, otherwise a value
+            at or above ``bound`` (or ``inf`` when no pair is near).
+        """
         self.steps += 1
         rows = self.rows
         if not rows:
@@ -145,7 +158,7 @@ class _SafetyMonitor:
         step_h = math.inf
         step_d = math.inf
         for i in rows:
-            cap = 1e6 if exact else thresh + marg[i] + 1e-6
+            cap = max(thresh + marg[i], bound) + 1e-6
             d = mujoco.mj_geomDistance(m, data, g1[i], g2[i], cap, None)
             if d - marg[i] < step_h:
                 step_h = d - marg[i]
@@ -534,7 +547,7 @@ class ArmSimulation:
                 mujoco.mj_step1(model, data)
                 if timing:
                     t7 = perf()
-                d2 = monitor.substep(data, recording)
+                d2 = monitor.substep(data, dmin if recording else -math.inf)
                 if timing:
                     t8 = perf()
                 if d2 < dmin:

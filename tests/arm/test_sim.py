@@ -127,12 +127,14 @@ def test_safety_monitor_matches_min_distance_helper(planar, rng) -> None:  # typ
         mon = _SafetyMonitor(coll)
         b = coll.evaluate(data)
         d_tick = mon.tick(b.h, b.active.nonzero()[0], margin)
-        d_sub = mon.substep(data, exact=True)
+        d_sub = mon.substep(data, bound=1e6)  # every distance exact
+        d_run = mon.substep(data, bound=d_tick)  # exact below the running minimum (as in runs)
         if true < coll.cutoff:
             assert d_tick == pytest.approx(true, abs=1e-9)
             assert d_sub == pytest.approx(true, abs=1e-9)
+            assert d_run == pytest.approx(true, abs=1e-9)
             assert mon.min_h == pytest.approx(true - margin[0], abs=1e-9)
-            assert mon.collisions == (2 if true - margin[0] < 0 else 0)
+            assert mon.collisions == (3 if true - margin[0] < 0 else 0)
 
 
 @pytest.mark.parametrize("strategy", ["cbf", "isf"])
