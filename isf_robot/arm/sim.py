@@ -148,6 +148,7 @@ class _SafetyMonitor:
         Returns:
             The smallest distance found [m]: exact when below ``bound``, otherwise a value
             at or above ``bound`` (or ``inf`` when no pair is near).
+
         """
         self.steps += 1
         rows = self.rows
@@ -372,7 +373,8 @@ class ArmSimulation:
         coll, joints, nominal, tracker = self.coll, self.joints, self.nominal, self.tracker
         cnames, jnames = self.coll.names, self.joints.names
         strategy = self.strategy
-        need_barriers = flt is not None or recording  # the filter's rows (cb is always needed)
+        need_barriers = flt is not None or recording  # joint barriers (cb is always needed)
+        need_rows = flt is not None
         dofs = scene.dof_adr
         min_joint = math.inf
         fallbacks = relaxations = resolves = 0
@@ -428,34 +430,35 @@ class ArmSimulation:
                 tm.add("nominal", t3 - t2)
             if need_barriers:
                 jb = joints.evaluate(data)
-                # Rows for the filter: collision pairs within the cut-off and joint limits
-                # whose robust condition has a slack below the keep threshold under u_nom
-                # (>= c, so a left-out row is never promoted nor decides a switch). The
-                # left-out rows are checked at the solution below; if one is violated or
-                # active, the QP is solved again with every row, so the pruning never
-                # changes the answer.
-                ch, cg, cd = cb.h[act], cb.grad[act], cb.dhdt[act]
-                cn = np.sqrt(np.einsum("ij,ij->i", cg, cg))
-                cxi = cg @ u_nom
-                cxi += cd
-                cxi += alpha * ch
-                cxi -= cn * d_bar
-                ckeep = (cxi < keep_c).nonzero()[0]
-                jxi = u_nom[jidx]
-                jxi *= jsign
-                jxi += alpha * jb.h
-                jkeep = (jxi < keep_j + d_bar).nonzero()[0]
-                if not math.isfinite(float(cxi.sum()) + float(jxi.sum())):
-                    # the filter is built with validate=False: this check stands in for it
-                    raise NonFiniteError(
-                        f"barrier data or nominal command not finite at t={t:.6g} "
-                        f"(scene {scene.name}, strategy {strategy}); u_nom = {u_nom}")
-                # Off and every Xi_on > 0: the intermittent filter's step would only pass
-                # u_nom through (no switch, no QP), so it is not called.
-                skip = (fast_off and not flt.on  # type: ignore[union-attr]
-                        and (cxi.size == 0 or float(cxi.min()) > 0.0)
-                        and (jxi.size == 0 or float(jxi.min()) - d_bar > 0.0))
-            if need_barriers and not skip:
+                if need_rows:  # the filter's rows (a nominal run only logs h)
+                    # Rows for the filter: collision pairs within the cut-off and joint limits
+                    # whose robust condition has a slack below the keep threshold under u_nom
+                    # (>= c, so a left-out row is never promoted nor decides a switch). The
+                    # left-out rows are checked at the solution below; if one is violated or
+                    # active, the QP is solved again with every row, so the pruning never
+                    # changes the answer.
+                    ch, cg, cd = cb.h[act], cb.grad[act], cb.dhdt[act]
+                    cn = np.sqrt(np.einsum("ij,ij->i", cg, cg))
+                    cxi = cg @ u_nom
+                    cxi += cd
+                    cxi += alpha * ch
+                    cxi -= cn * d_bar
+                    ckeep = (cxi < keep_c).nonzero()[0]
+                    jxi = u_nom[jidx]
+                    jxi *= jsign
+                    jxi += alpha * jb.h
+                    jkeep = (jxi < keep_j + d_bar).nonzero()[0]
+                    if not math.isfinite(float(cxi.sum()) + float(jxi.sum())):
+                        # the filter is built with validate=False: this check stands in for it
+                        raise NonFiniteError(
+                            f"barrier data or nominal command not finite at t={t:.6g} "
+                            f"(scene {scene.name}, strategy {strategy}); u_nom = {u_nom}")
+                    # Off and every Xi_on > 0: the intermittent filter's step would only pass
+                    # u_nom through (no switch, no QP), so it is not called.
+                    skip = (fast_off and not flt.on  # type: ignore[union-attr]
+                            and (cxi.size == 0 or float(cxi.min()) > 0.0)
+                            and (jxi.size == 0 or float(jxi.min()) - d_bar > 0.0))
+            if need_rows and not skip:
                 if ckeep.size == 0 and jkeep.size == 0:
                     if act.size:
                         ckeep = np.array([int(np.argmin(cxi))])
