@@ -159,10 +159,10 @@ def fit_tau(data: TauData, h_max: float, R: float, degree: int = 2) -> TauFit:
     r = data.radii_over_R * R
     s = (h_max - (r - 2.0 * R) ** 2) / h_max
     coef = np.polynomial.polynomial.polyfit(s, data.medians_h * 3600.0, degree)
-    return TauFit(coef, h_max)
+    return TauFit(np.asarray(coef, dtype=float), h_max)
 
 
-_FIELD_CACHE: dict[str, Any] = {}
+_FIELD_CACHE: dict[Any, Any] = {}
 
 
 def _worker_model(spin: bool, phase: float, scale: float = 1.0) -> OrbitModel:

@@ -314,6 +314,7 @@ class QPSolver:
         scale = max(1.0, float(np.abs(b).max()))
         slack = A @ u - b
         u_nom = qp.u_nom
+        cand: np.ndarray | None
         for tau in (1e-7 * scale, 1e-4 * scale):
             idx = np.flatnonzero(slack <= tau)
             # primal active-set steps: drop the row with the most negative multiplier
