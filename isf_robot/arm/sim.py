@@ -639,12 +639,12 @@ class ArmSimulation:
         goal = (nominal.goal_positions[gi].copy() if isinstance(nominal, ReachingController)
                 else np.full(3, np.nan))
         return ArmStepRecord(
-            t=t, dt=T, q=data.qpos[scene.qpos_adr].copy(), qd=data.qvel[scene.dof_adr].copy(),
+            t=t, dt=T, q=data.qpos[scene.qpos_adr], qd=data.qvel[scene.dof_adr],  # fancy indexing copies
             u=np.array(u, dtype=float), u_nom=np.array(u_nom, dtype=float), on=bool(on),
             h_min=float(h.min()), xi_min=xi_min,
             dist_min=float(dmin), qp_solved=step is not None and step.qp is not None, h=h,
             names=self.names, closest=tuple(cb.names[i] for i in order),
-            witness=cb.witness[act].copy(), witness_names=tuple(cb.names[i] for i in act.tolist()),
+            witness=cb.witness[act], witness_names=tuple(cb.names[i] for i in act.tolist()),
             mocap_pos=data.mocap_pos.copy(), mocap_quat=data.mocap_quat.copy(),
             ee_pos=data.site_xpos[scene.ee_site_id].copy(), goal_index=gi, goal_pos=goal,
             event=event,
