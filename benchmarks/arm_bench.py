@@ -32,6 +32,7 @@ from pathlib import Path  # noqa: E402
 
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
+from _common import cpu_model  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
 
 from isf_robot.arm import calibrate_d_bar, load_scene, run_episode  # noqa: E402
 
@@ -42,14 +43,6 @@ TARGET_STEPS = 10_000  # isf control steps per second of wall time, panda_pole, 
 TARGET_QP_US = 30.0
 
 
-def _cpu() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown CPU"
 
 
 def bench(scene_name: str, strategy: str, duration: float, repeats: int, period: float,
@@ -86,7 +79,7 @@ def render(rows: list[dict], args: argparse.Namespace, d_bars: dict[str, float])
         START,
         "## Arm (`benchmarks/arm_bench.py`)",
         "",
-        f"Machine: {platform.platform()}; CPU {_cpu()}; {os.cpu_count()} cores; Python "
+        f"Machine: {platform.platform()}; CPU {cpu_model()}; {os.cpu_count()} cores; Python "
         f"{platform.python_version()}; MuJoCo {mujoco.__version__}. Date (UTC): {now}. "
         f"One process pinned to one core, BLAS threads 1. Load average at the end (1/5/15 min): "
         f"{load} (a shared machine: other jobs may run).",

@@ -37,6 +37,8 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
+from _common import cpu_model  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
+
 START = "<!-- record-bench:start -->"
 END = "<!-- record-bench:end -->"
 PAGE_MB = os.sysconf("SC_PAGE_SIZE") / 2**20
@@ -186,14 +188,6 @@ def bench_case(case: str, repeats: int, tmp: Path, null: bool = False) -> dict[s
     return out
 
 
-def cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 CASE_LABELS = {

@@ -23,6 +23,8 @@ import statistics  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
+from _common import cpu_model  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
+
 from satellite.model import InitialOrbit, OrbitModel  # noqa: E402
 from satellite.simulate import simulate  # noqa: E402
 from satellite.tau import collect_tau, fit_tau  # noqa: E402
@@ -31,14 +33,6 @@ START = "<!-- satellite-bench:start -->"
 END = "<!-- satellite-bench:end -->"
 
 
-def cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def bench(repeats: int, tau_repeats: int, workers: int) -> str:
