@@ -5,7 +5,7 @@ from __future__ import annotations
 import platform
 from pathlib import Path
 
-__all__ = ["cpu_model"]
+__all__ = ["cpu_model", "write_section"]
 
 
 def cpu_model() -> str:
@@ -17,3 +17,23 @@ def cpu_model() -> str:
     except OSError:
         pass
     return platform.processor() or "unknown CPU"
+
+
+def write_section(path: Path, start: str, end: str, body: str) -> None:
+    """Replace the text between the ``start`` and ``end`` markers of ``path`` with ``body``.
+
+    The markers are kept; a file without them gets the section appended, a missing file is
+    created with a ``# Benchmarks`` title. Other sections are left as they are.
+    """
+    block = f"{start}\n{body}\n{end}"
+    if path.exists():
+        text = path.read_text(encoding="utf-8")
+        if start in text and end in text:
+            head, rest = text.split(start, 1)
+            _, tail = rest.split(end, 1)
+            text = head + block + tail
+        else:
+            text = text.rstrip("\n") + "\n\n" + block + "\n"
+    else:
+        text = "# Benchmarks\n\n" + block + "\n"
+    path.write_text(text, encoding="utf-8")

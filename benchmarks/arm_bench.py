@@ -32,7 +32,7 @@ from pathlib import Path  # noqa: E402
 
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
-from _common import cpu_model  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
+from _common import cpu_model, write_section  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
 
 from isf_robot.arm import calibrate_d_bar, load_scene, run_episode  # noqa: E402
 
@@ -76,7 +76,6 @@ def render(rows: list[dict], args: argparse.Namespace, d_bars: dict[str, float])
     now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M")
     load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
     out = [
-        START,
         "## Arm (`benchmarks/arm_bench.py`)",
         "",
         f"Machine: {platform.platform()}; CPU {cpu_model()}; {os.cpu_count()} cores; Python "
@@ -137,20 +136,10 @@ def render(rows: list[dict], args: argparse.Namespace, d_bars: dict[str, float])
             checks.append(f"- {scene}: isf episode wall {i['wall_s']:.3f} s vs cbf "
                           f"{c['wall_s']:.3f} s: **{'isf faster' if ok else 'isf NOT faster'}**.")
     out += checks
-    out += ["", "Reproduce: `python benchmarks/arm_bench.py` (add `--no-write` to only print).",
-            END]
+    out += ["", "Reproduce: `python benchmarks/arm_bench.py` (add `--no-write` to only print)."]
     return "\n".join(out)
 
 
-def write(section: str) -> None:
-    path = ROOT / "BENCHMARKS.md"
-    text = path.read_text() if path.exists() else "# Benchmarks\n"
-    if START in text and END in text:
-        a, b = text.index(START), text.index(END) + len(END)
-        text = text[:a] + section + text[b:]
-    else:
-        text = text.rstrip("\n") + "\n\n" + section + "\n"
-    path.write_text(text)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -177,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
     section = render(rows, args, d_bars)
     print(section)
     if not args.no_write:
-        write(section)
+        write_section(ROOT / "BENCHMARKS.md", START, END, section)
     return 0
 
 

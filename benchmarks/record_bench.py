@@ -37,7 +37,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
-from _common import cpu_model  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
+from _common import cpu_model, write_section  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
 
 START = "<!-- record-bench:start -->"
 END = "<!-- record-bench:end -->"
@@ -270,19 +270,6 @@ def _rerun_version() -> str:
         return "?"
 
 
-def write_section(path: Path, body: str) -> None:
-    block = f"{START}\n{body}\n{END}"
-    if path.exists():
-        text = path.read_text()
-        if START in text and END in text:
-            head, rest = text.split(START, 1)
-            _, tail = rest.split(END, 1)
-            text = head + block + tail
-        else:
-            text = text.rstrip("\n") + "\n\n" + block + "\n"
-    else:
-        text = "# Benchmarks\n\n" + block + "\n"
-    path.write_text(text)
 
 
 def main() -> None:
@@ -309,7 +296,7 @@ def main() -> None:
     if args.no_write:
         print(body)
     else:
-        write_section(Path(args.out), body)
+        write_section(Path(args.out), START, END, body)
         print(body)
 
 

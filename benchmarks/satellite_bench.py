@@ -23,7 +23,7 @@ import statistics  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from _common import cpu_model  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
+from _common import cpu_model, write_section  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
 
 from satellite.model import InitialOrbit, OrbitModel  # noqa: E402
 from satellite.simulate import simulate  # noqa: E402
@@ -80,19 +80,6 @@ def bench(repeats: int, tau_repeats: int, workers: int) -> str:
     return "\n".join(lines)
 
 
-def write_section(path: Path, body: str) -> None:
-    block = f"{START}\n{body}\n{END}"
-    if path.exists():
-        text = path.read_text(encoding="utf-8")
-        if START in text and END in text:
-            pre, rest = text.split(START, 1)
-            _, post = rest.split(END, 1)
-            text = pre + block + post
-        else:
-            text = text.rstrip("\n") + "\n\n" + block + "\n"
-    else:
-        text = "# Benchmarks\n\n" + block + "\n"
-    path.write_text(text, encoding="utf-8")
 
 
 def main() -> None:
@@ -103,7 +90,7 @@ def main() -> None:
     p.add_argument("--out", default=str(Path(__file__).resolve().parent.parent / "BENCHMARKS.md"))
     a = p.parse_args()
     body = bench(a.repeats, a.tau_repeats, a.workers)
-    write_section(Path(a.out), body)
+    write_section(Path(a.out), START, END, body)
     print(body)
 
 
