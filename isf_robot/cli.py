@@ -46,13 +46,6 @@ def build_parser() -> argparse.ArgumentParser:
             continue
         module = importlib.import_module(name)
         module.register(sub)
-    if "demo" not in sub.choices and "core-demo" in sub.choices:
-        # Until the arm layer provides its own demo, the core demo is the main demo.
-        demo = sub.add_parser("demo", help="run the core demo (alias of core-demo)",
-                              parents=[], conflict_handler="resolve")
-        core = importlib.import_module("isf_robot.demo_core")
-        core.add_arguments(demo)
-        demo.set_defaults(handler=core.handle)
     return parser
 
 
