@@ -1,0 +1,58 @@
+"""Golden outputs: the full ``--json`` of fixed command lines, pinned across refactors.
+
+Compared field by field: integers, strings, booleans and ``None`` exactly; floats to a relative
+tolerance of ``RTOL`` (the QP backend's answers agree to about 1e-10, far below anything a run
+reports). Machine-dependent fields (wall time, timings, solver microseconds) are not compared.
+Regenerate with ``python tests/golden/generate.py`` only for an intended behaviour change.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from cases import CASES, run_case, stable  # noqa: E402
+
+RTOL = 1e-9
+
+
+def _diff(path: str, want: Any, got: Any, out: list[str]) -> None:
+    if isinstance(want, dict) and isinstance(got, dict):
+        for k in sorted(set(want) | set(got)):
+            if k not in got:
+                out.append(f"{path}.{k}: missing")
+            elif k not in want:
+                out.append(f"{path}.{k}: unexpected (value {got[k]!r})")
+            else:
+                _diff(f"{path}.{k}", want[k], got[k], out)
+    elif isinstance(want, list) and isinstance(got, list) and len(want) == len(got):
+        for i, (a, b) in enumerate(zip(want, got)):
+            _diff(f"{path}[{i}]", a, b, out)
+    elif isinstance(want, float) and isinstance(got, (int, float)) and not isinstance(got, bool):
+        if not (math.isclose(want, got, rel_tol=RTOL, abs_tol=1e-12) or (want != want and got != got)):
+            out.append(f"{path}: {want!r} -> {got!r}")
+    elif want != got or type(want) is not type(got):
+        out.append(f"{path}: {want!r} -> {got!r}")
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_golden_output(name: str) -> None:
+    want = stable(json.loads((HERE / "data" / f"{name}.json").read_text()))
+    got = stable(run_case(CASES[name]))
+    diffs: list[str] = []
+    _diff(name, want, got, diffs)
+    assert not diffs, "golden output changed:\n" + "\n".join(diffs)
+
+
+def test_diff_catches_changes() -> None:
+    out: list[str] = []
+    _diff("x", {"a": 1.0, "b": 2, "c": "s"}, {"a": 1.0 + 1e-6, "b": 2, "c": "t"}, out)
+    assert out == ["x.a: 1.0 -> 1.000001", "x.c: 's' -> 't'"]
