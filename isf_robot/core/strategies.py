@@ -1,0 +1,131 @@
+"""Strategies: the one place where ``"nominal"``, ``"cbf"`` and ``"isf"`` are defined.
+
+A strategy turns a nominal command into the command to apply, given the barrier data of the
+step (:class:`~isf_robot.core.system.LieData`). Every strategy has the interface of the core
+filters: ``reset(t0)``, ``step_lie(t, lie, u_nom) -> FilterStep`` and the attribute
+``uses_rows`` (whether it needs barrier rows at all; the nominal strategy does not, so an
+adapter can skip building them).
+
+The registry maps a name to a :class:`StrategyInfo` (summary line and factory). Adapters,
+command lines and recorders ask the registry (:func:`strategy_names`, :func:`make_strategy`,
+:func:`strategy_info`) and never compare strategy strings themselves; a new strategy is one
+:func:`register_strategy` call.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .exceptions import UnknownNameError
+from .filters import FilterStep, IntermittentSafetyFilter, SafetyFilter
+from .system import LieData
+
+__all__ = [
+    "StrategyInfo",
+    "NominalStrategy",
+    "register_strategy",
+    "strategy_names",
+    "strategy_info",
+    "make_strategy",
+]
+
+
+class NominalStrategy:
+    """No filter: the nominal command passes through; never "on", never a QP."""
+
+    name = "nominal"
+    uses_rows = False
+    intermittent = False
+
+    def reset(self, t0: float = 0.0) -> None:
+        """Nothing to forget."""
+
+    @property
+    def on(self) -> bool:
+        """Always off."""
+        return False
+
+    def step_lie(self, t: float, lie: LieData | None, u_nom: np.ndarray,
+                 x: np.ndarray | None = None) -> FilterStep:
+        """Return ``u_nom`` unchanged (``lie`` may be ``None``)."""
+        empty = np.zeros(0)
+        h = lie.h if lie is not None else empty
+        return FilterStep(t, u_nom, u_nom, False, h, np.full(h.shape, np.inf), None, None, (), False,
+                          lie.names if lie is not None else ())
+
+
+@dataclass(frozen=True)
+class StrategyInfo:
+    """A registered strategy.
+
+    Attributes:
+        name: Its name on the command line and in results.
+        summary: One line for ``--help``.
+        factory: ``factory(alpha=, c=, b=, d_bar=, **filter_kwargs) -> strategy``.
+        intermittent: Whether it is an on/off (event-triggered) filter with the margin ``c``.
+        filters: Whether it ever changes the nominal command.
+
+    """
+
+    name: str
+    summary: str
+    factory: Callable[..., Any]
+    intermittent: bool = False
+    filters: bool = True
+
+
+_REGISTRY: dict[str, StrategyInfo] = {}
+
+
+def register_strategy(info: StrategyInfo) -> None:
+    """Add (or replace) a strategy in the registry."""
+    _REGISTRY[info.name] = info
+
+
+def strategy_names() -> tuple[str, ...]:
+    """Registered strategy names, in registration order."""
+    return tuple(_REGISTRY)
+
+
+def strategy_info(name: str) -> StrategyInfo:
+    """The registered strategy ``name``.
+
+    Raises:
+        UnknownNameError: ``name`` is not registered (the message lists the valid names).
+
+    """
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise UnknownNameError("strategy", name, tuple(_REGISTRY)) from None
+
+
+def make_strategy(name: str, *, alpha: Any, c: float, b: float, d_bar: float, **filter_kwargs: Any) -> Any:
+    """Build the strategy ``name`` with the filter parameters (unused ones are ignored).
+
+    Args:
+        name: A registered strategy name.
+        alpha: Class-K function or linear gain.
+        c: Off-trigger margin (intermittent strategies).
+        b: Promotion rate (intermittent strategies).
+        d_bar: Disturbance bound.
+        **filter_kwargs: Passed to the filter (solver, bounds, infeasibility policy, ...).
+
+    """
+    return strategy_info(name).factory(alpha=alpha, c=c, b=b, d_bar=d_bar, **filter_kwargs)
+
+
+register_strategy(StrategyInfo(
+    "nominal", "no filter: the nominal command as it is (shows the danger)",
+    lambda **_: NominalStrategy(), intermittent=False, filters=False))
+register_strategy(StrategyInfo(
+    "cbf", "the standard robust safety filter, solved every control step",
+    lambda *, alpha, c, b, d_bar, **kw: SafetyFilter(alpha, d_bar, **kw)))
+register_strategy(StrategyInfo(
+    "isf", "the intermittent safety filter: on at Xi_on <= 0, promotes, off at Xi_on >= c",
+    lambda *, alpha, c, b, d_bar, **kw: IntermittentSafetyFilter(alpha, c, b, d_bar, **kw),
+    intermittent=True))
