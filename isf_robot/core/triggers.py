@@ -12,12 +12,11 @@ an on-time with ``Xi_on >= c``. On at ``Xi_on <= 0``, off at ``Xi_on >= c``: hys
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from .class_k import ClassK
 from .exceptions import ConfigError
+from .switches import SwitchCounter, SwitchEvent
 from .system import LieData
 from .validation import check_finite_scalar, check_positive
 
@@ -54,27 +53,6 @@ def xi_tau(dtau_dh: float, lf_h: float) -> float:
     return 0.5 * (1.0 + dtau_dh * lf_h)
 
 
-@dataclass(frozen=True)
-class SwitchEvent:
-    """A filter switch.
-
-    Attributes:
-        t: Time of the switch [s].
-        kind: ``"on"`` or ``"off"``.
-        xi_min: Smallest ``Xi_on`` over the barriers at the switch.
-        index: 1-based count of switches of this kind so far.
-        duration_s: Length of the period that just ended [s] (the off period before an
-            "on", the on period before an "off"), or ``None`` for the first on after start.
-
-    """
-
-    t: float
-    kind: str
-    xi_min: float
-    index: int
-    duration_s: float | None = None
-
-
 class OnOffTrigger:
     """Hysteresis between the on trigger (``Xi_on <= 0``) and the off trigger (``Xi_on >= c``).
 
@@ -94,11 +72,23 @@ class OnOffTrigger:
 
     def reset(self, t0: float = 0.0, start_on: bool = False) -> None:
         """Forget history; start at ``t0`` in the given mode."""
-        self.on = bool(start_on)
         self._t_last = check_finite_scalar(t0, "t0")
-        self._t_switch: float | None = None
-        self.n_on = 0
-        self.n_off = 0
+        self._switches = SwitchCounter(start_on)
+
+    @property
+    def on(self) -> bool:
+        """Current mode."""
+        return self._switches.on
+
+    @property
+    def n_on(self) -> int:
+        """On-switches so far."""
+        return self._switches.n_on
+
+    @property
+    def n_off(self) -> int:
+        """Off-switches so far."""
+        return self._switches.n_off
 
     def update(self, t: float, xi_min: float) -> SwitchEvent | None:
         """Advance to time ``t`` given the current ``min_i Xi_on,i``.
@@ -112,16 +102,9 @@ class OnOffTrigger:
         if xi_min != xi_min:  # NaN
             raise ConfigError(f"trigger value is NaN at t={t}")
         self._t_last = t
-        if not self.on and xi_min <= 0.0:
-            self.on = True
-            self.n_on += 1
-            dur = None if self._t_switch is None else t - self._t_switch
-            self._t_switch = t
-            return SwitchEvent(t, "on", float(xi_min), self.n_on, dur)
-        if self.on and xi_min >= self.c:
-            self.on = False
-            self.n_off += 1
-            dur = None if self._t_switch is None else t - self._t_switch
-            self._t_switch = t
-            return SwitchEvent(t, "off", float(xi_min), self.n_off, dur)
+        on = self._switches.on
+        if not on and xi_min <= 0.0:
+            return self._switches.update(t, True, xi_min)
+        if on and xi_min >= self.c:
+            return self._switches.update(t, False, xi_min)
         return None
