@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from isf_robot.core import SwitchEvent
+from isf_robot.core import ClassK, DutyCycleMetrics, FilterStats, SwitchEvent, as_class_k
 
 __all__ = ["ArmStepRecord", "FilterParams", "RunResult"]
 
@@ -86,10 +86,11 @@ class ArmStepRecord:
 
 @dataclass(frozen=True)
 class FilterParams:
-    """Resolved filter parameters of a run.
+    """Resolved filter parameters of a run (see :func:`isf_robot.arm.resolve_params`).
 
     Attributes:
-        alpha: Linear class-K gain ``alpha(h) = alpha h`` [1/s].
+        alpha: Class-K function: a linear gain ``alpha(h) = alpha h`` [1/s] (a float), or any
+            :class:`~isf_robot.core.ClassK`.
         c: Off-trigger margin of the intermittent filter.
         b: Promotion rate of the intermittent filter [m/s or rad/s].
         d_bar: Tracking-error bound [rad/s].
@@ -97,102 +98,95 @@ class FilterParams:
 
     """
 
-    alpha: float
+    alpha: float | ClassK
     c: float
     b: float
     d_bar: float
     d_bar_source: str
 
+    @property
+    def class_k(self) -> ClassK:
+        """``alpha`` as a class-K function."""
+        return as_class_k(self.alpha)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain dict; a non-linear class-K function is given by its description."""
+        a = self.alpha
+        return {"d_bar": self.d_bar, "d_bar_source": self.d_bar_source,
+                "alpha": a if isinstance(a, (int, float)) else str(a), "c": self.c, "b": self.b}
+
 
 @dataclass(frozen=True)
 class RunResult:
-    """Summary of one episode. Metric fields come from :class:`isf_robot.core.MetricsAccumulator`.
+    """Summary of one episode: the core's metrics and solver figures plus the arm's own.
 
     Attributes:
         scene: Scene name.
-        filter: Strategy (``nominal``, ``cbf``, ``isf``).
-        seed: Episode seed.
-        duration_s: Simulated time [s].
-        control_steps: Number of control steps.
+        filter: Strategy name.
+        seed: Episode seed (-1: the scene exactly as configured).
         physics_steps: Number of physics steps.
-        duty_cycle: Fraction of time the filter is on.
-        on_switches: Off-to-on switches.
-        off_switches: On-to-off switches.
-        mean_on_s: Mean complete on period [s] (None: none).
-        min_on_s: Shortest complete on period [s].
-        mean_off_s: Mean complete off period [s].
-        min_off_s: Shortest complete off period [s] (the measured inter-event time).
-        max_off_s: Longest complete off period [s].
-        intervention: ``sum |u - u_nom|^2 T`` [rad^2/s].
-        qp_solves: Control steps with a QP solve.
+        metrics: Duty cycle, switches, on/off periods, intervention, QP solves
+            (:class:`~isf_robot.core.DutyCycleMetrics`).
+        stats: Fallbacks, relaxations, re-solves, closed forms, QP times
+            (:class:`~isf_robot.core.FilterStats`).
+        params: The filter parameters used.
         min_barrier: Smallest ``dist - margin`` [m], true geometry, all physics steps.
         collisions: Physics steps with some collision barrier below 0.
         min_joint_barrier: Smallest joint-limit barrier [rad] over the control steps.
         goals_reached: Goal arrivals of the nominal task.
         goals_missed: Goals given up after the nominal task's timeout.
-        fallbacks: Steps where the filter was infeasible and the arm braked.
-        relaxations: Steps where promotions were relaxed (intermittent filter).
-        resolves: Steps where a joint-limit row left out of the QP (slack above the keep
-            threshold under ``u_nom``) was violated at the solution, so the QP was solved
-            again with every row (the pruning never changes the command).
-        d_bar: Tracking-error bound used [rad/s].
-        d_bar_source: Where it came from.
-        alpha: Class-K gain [1/s].
-        c: Off-trigger margin.
-        b: Promotion rate.
         control_period: Control period T [s].
         timestep: Physics timestep dt [s].
         tracking_error_q99: 99th percentile of ``|q_dot - u|`` at the control ticks [rad/s].
-        qp_time_median_us: Median QP solve time [us] (None: no QP), including the
-            single-row problems solved in closed form.
-        qp_closed_form: QP solves done in closed form (one row, no bounds).
-        proxqp_time_median_us: Median time of the solves that went to ProxQP [us].
         wall_s: Wall time of :meth:`ArmSimulation.run` [s] (setup of the episode and the loop;
             not the construction, calibration or scene loading).
         timings: Wall time per phase [s] when timing was requested, else empty.
+
+    The fields of ``metrics``, ``stats`` and ``params`` read as attributes of the result too
+    (``result.duty_cycle``), and :meth:`as_dict` flattens them into one JSON object.
 
     """
 
     scene: str
     filter: str
     seed: int
-    duration_s: float
-    control_steps: int
     physics_steps: int
-    duty_cycle: float
-    on_switches: int
-    off_switches: int
-    mean_on_s: float | None
-    min_on_s: float | None
-    mean_off_s: float | None
-    min_off_s: float | None
-    max_off_s: float | None
-    intervention: float
-    qp_solves: int
+    metrics: DutyCycleMetrics
+    stats: FilterStats
+    params: FilterParams
     min_barrier: float
     collisions: int
     min_joint_barrier: float
     goals_reached: int
     goals_missed: int
-    fallbacks: int
-    relaxations: int
-    resolves: int
-    d_bar: float
-    d_bar_source: str
-    alpha: float
-    c: float
-    b: float
     control_period: float
     timestep: float
     tracking_error_q99: float
-    qp_time_median_us: float | None
-    qp_closed_form: int
-    proxqp_time_median_us: float | None
     wall_s: float
     timings: Mapping[str, float] = dataclasses.field(default_factory=dict)
 
+    def __getattr__(self, name: str) -> Any:
+        for part in ("metrics", "stats", "params"):
+            obj = object.__getattribute__(self, part)
+            if name in obj.__dataclass_fields__:
+                return getattr(obj, name)
+        raise AttributeError(f"RunResult has no attribute {name!r}")
+
     def as_dict(self) -> dict[str, Any]:
-        """Plain JSON-ready dict."""
-        d = dataclasses.asdict(self)
-        d["timings"] = dict(self.timings)
-        return d
+        """One flat JSON-ready dict (the ``--json`` output of ``isf-robot run``)."""
+        out: dict[str, Any] = {"scene": self.scene, "filter": self.filter, "seed": self.seed}
+        m = self.metrics.as_dict()
+        out["duration_s"], out["control_steps"] = m.pop("duration_s"), m.pop("control_steps")
+        out["physics_steps"] = self.physics_steps
+        out.update(m)
+        out.update(min_barrier=self.min_barrier, collisions=self.collisions,
+                   min_joint_barrier=self.min_joint_barrier, goals_reached=self.goals_reached,
+                   goals_missed=self.goals_missed)
+        st = self.stats.as_dict()
+        out.update(fallbacks=st.pop("fallbacks"), relaxations=st.pop("relaxations"), resolves=st.pop("resolves"))
+        out.update(self.params.as_dict())
+        out.update(control_period=self.control_period, timestep=self.timestep,
+                   tracking_error_q99=self.tracking_error_q99)
+        out.update(st)
+        out.update(wall_s=self.wall_s, timings=dict(self.timings))
+        return out

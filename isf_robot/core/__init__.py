@@ -20,9 +20,10 @@ from .exceptions import (
 from .filters import FilterStep, IntermittentSafetyFilter, SafetyFilter
 from .hooks import Observer, Observers
 from .impulsive import EventTriggeredImpulsiveController, JumpEvent, ManeuverScheduler
-from .metrics import DutyCycleMetrics, MetricsAccumulator, compute_metrics
+from .metrics import DutyCycleMetrics, FilterStats, MetricsAccumulator, compute_metrics
 from .miet import MietConstants, ZenoGuard, estimate_miet_constants, miet_bound, min_interval
-from .qp import FilterQP, QPResult, QPSolver, build_filter_qp, project_halfspace
+from .qp import FilterQP, QPResult, build_filter_qp, project_halfspace
+from .qp_solver import QPSolver
 from .system import ControlAffineSystem, FunctionSystem, LieData, SingleIntegrator, lie_data
 from .triggers import OnOffTrigger, SwitchEvent, xi_on, xi_tau
 
@@ -34,7 +35,7 @@ __all__ = [
     "FilterStep", "IntermittentSafetyFilter", "SafetyFilter",
     "Observer", "Observers",
     "EventTriggeredImpulsiveController", "JumpEvent", "ManeuverScheduler",
-    "DutyCycleMetrics", "MetricsAccumulator", "compute_metrics",
+    "DutyCycleMetrics", "FilterStats", "MetricsAccumulator", "compute_metrics",
     "MietConstants", "ZenoGuard", "estimate_miet_constants", "miet_bound", "min_interval",
     "FilterQP", "QPResult", "QPSolver", "build_filter_qp", "project_halfspace",
     "ControlAffineSystem", "FunctionSystem", "LieData", "SingleIntegrator", "lie_data",

@@ -2,7 +2,8 @@
 
 Both share one interface: ``step(t, x, u_nom)`` (barriers evaluated from the configured
 system and barrier objects) or ``step_lie(t, lie, u_nom, x=None)`` for adapters that compute
-barrier data in batch (the MuJoCo arm). Both return a :class:`FilterStep`.
+barrier data in batch (the MuJoCo arm). Both return a :class:`FilterStep` carrying the switch
+event of the step (the standard filter's "on" is "a constraint is active").
 
 Infeasibility policy (``on_infeasible``):
 
@@ -21,22 +22,31 @@ neglected. If that QP is infeasible, the promotions are relaxed to the robust co
 safety condition itself is never relaxed) and the relaxed rows are reported in
 ``FilterStep.relaxed``; only if the robust problem is infeasible too does the infeasibility
 policy apply.
+
+Row screening (``screen``): rows whose ``Xi_on,i`` (the slack of their robust condition under
+``u_nom``) is at least ``screen`` are left out of the QP (never fewer than one row), and
+checked at its solution; if one is violated or active there the QP is solved again with every
+row (``FilterStep.resolved``). So screening saves time on the many far-away rows of a robot
+and never changes a command. The threshold is raised to ``c`` for the intermittent filter, so
+a screened row is never promoted; the trigger always sees every row's ``Xi_on``.
 """
 
 from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .barrier import Barrier, evaluate_barriers
 from .class_k import ClassK, as_class_k
-from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, ShapeError
-from .qp import FilterQP, QPResult, QPSolver, build_filter_qp
+from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError
+from .qp import FilterQP, QPResult, build_filter_qp
+from .qp_solver import QPSolver
+from .switches import SwitchCounter, SwitchEvent
 from .system import ControlAffineSystem, LieData, lie_data
-from .triggers import OnOffTrigger, SwitchEvent, xi_on
+from .triggers import OnOffTrigger, xi_on
 from .validation import as_vector, check_finite_scalar, check_nonnegative, check_positive
 
 __all__ = ["FilterStep", "SafetyFilter", "IntermittentSafetyFilter"]
@@ -61,6 +71,7 @@ class FilterStep:
         relaxed: Names of barriers whose promotion was relaxed in this step.
         fallback: Whether the command came from the infeasibility fallback.
         names: Barrier labels.
+        resolved: Whether a screened row was needed, so the QP was solved again with every row.
 
     """
 
@@ -75,6 +86,7 @@ class FilterStep:
     relaxed: tuple[str, ...] = ()
     fallback: bool = False
     names: tuple[str, ...] = field(default_factory=tuple)
+    resolved: bool = False
 
     @property
     def h_min(self) -> float:
@@ -93,6 +105,9 @@ class FilterStep:
 
 
 class _FilterBase:
+    uses_rows = True
+    intermittent = False
+
     def __init__(
         self,
         alpha: ClassK | float | Callable[[float], float],
@@ -106,6 +121,7 @@ class _FilterBase:
         on_infeasible: str = "raise",
         fallback: FallbackFn | None = None,
         validate: bool = True,
+        screen: float | np.ndarray | None = None,
     ) -> None:
         self.validate = bool(validate)
         self.alpha = as_class_k(alpha)
@@ -132,7 +148,18 @@ class _FilterBase:
         if fallback is not None and not callable(fallback):
             raise ConfigError("fallback must be callable fallback(t, x, lie, qp_result) -> u")
         self.fallback = fallback
+        self.screen = self._check_screen(screen)
         self.qp_solves = 0
+        self._switches = SwitchCounter()
+
+    def _check_screen(self, screen: float | np.ndarray | None) -> float | np.ndarray | None:
+        if screen is None:
+            return None
+        arr = np.asarray(screen, dtype=float)
+        if np.any(~(arr > self.solver.active_tol)):
+            raise ConfigError(f"screen thresholds must be > the solver's active_tol "
+                              f"({self.solver.active_tol:g}) (or inf), got {screen}")
+        return float(arr) if arr.ndim == 0 else arr
 
     # -- inputs --------------------------------------------------------------------------
     def lie(self, t: float, x: np.ndarray) -> LieData:
@@ -143,11 +170,27 @@ class _FilterBase:
         ev = evaluate_barriers(self.barriers, x, t)
         return lie_data(ev, self.system.f0(x, t), self.system.g(x, t))
 
-    def _check_inputs(self, u_nom: np.ndarray, lie: LieData) -> np.ndarray:
-        if not self.validate:
-            return u_nom
-        lie.validate()
-        return as_vector(u_nom, "nominal command u_nom", lie.m)
+    def step(self, t: float, x: np.ndarray, u_nom: np.ndarray) -> FilterStep:
+        """Filter ``u_nom`` at state ``x`` and time ``t`` [s]."""
+        t = check_finite_scalar(t, "t")
+        x = as_vector(x, "state x", self.system.n if self.system else None)
+        return self.step_lie(t, self.lie(t, x), u_nom, x=x)
+
+    def step_lie(self, t: float, lie: LieData, u_nom: np.ndarray, x: np.ndarray | None = None, *,
+                 screen: float | np.ndarray | None = None) -> FilterStep:
+        """Filter ``u_nom`` given precomputed barrier data (see the subclasses)."""
+        raise NotImplementedError
+
+    def _xi(self, t: float, lie: LieData, u_nom: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Checked inputs and ``Xi_on`` per row (a non-finite input raises NonFiniteError)."""
+        if self.validate:
+            lie.validate()
+            u_nom = as_vector(u_nom, "nominal command u_nom", lie.m)
+        xi = xi_on(lie, u_nom, self.alpha, self.d_bar)
+        if not np.isfinite(xi.sum()):
+            raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
+                                 f"Xi_on = {xi}, u_nom = {u_nom}")
+        return u_nom, xi
 
     def build_qp(
         self, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None = None, b: float = 0.0
@@ -163,13 +206,60 @@ class _FilterBase:
         return build_filter_qp(u_nom, lie.lf, lie.lg, lie.grad_norm, rhs, self.d_bar,
                                u_min=self.u_min, u_max=self.u_max, kinds=kinds, names=lie.names)
 
+    # -- solving -------------------------------------------------------------------------
     def _solve(self, qp: FilterQP) -> QPResult:
         self.qp_solves += 1
         return self.solver.solve(qp)
 
-    def _infeasible(
-        self, t: float, x: np.ndarray | None, lie: LieData, qp: FilterQP, res: QPResult
-    ) -> tuple[np.ndarray, QPResult]:
+    def _solve_rows(
+        self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, xi: np.ndarray,
+        promote: np.ndarray | None, floor: float, screen: float | np.ndarray | None = None,
+    ) -> tuple[QPResult, tuple[str, ...], bool, bool]:
+        """Solve with screening; return ``(result, relaxed names, fallback, resolved)``."""
+        screen = self.screen if screen is None else screen
+        if screen is not None and lie.k > 1:
+            keep = xi < np.maximum(screen, floor) if floor > 0 else xi < screen
+            if not keep.all():
+                rows = np.flatnonzero(keep)
+                if rows.size == 0:
+                    rows = np.array([int(np.argmin(xi))])
+                sub = lie.select(rows)
+                res, relaxed, fb = self._solve_block(t, x, sub, u_nom,
+                                                     None if promote is None else promote[rows])
+                if not fb and not self._screened_rows_hold(lie, res.u, keep):
+                    first = res.solve_time_s
+                    res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote)
+                    return replace(res, solve_time_s=res.solve_time_s + first), relaxed, fb, True
+                return res, relaxed, fb, False
+        res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote)
+        return res, relaxed, fb, False
+
+    def _screened_rows_hold(self, lie: LieData, u: np.ndarray, keep: np.ndarray) -> bool:
+        """Whether every screened-out row's robust condition has slack >= active_tol at ``u``."""
+        out = ~keep
+        slack = lie.lf[out] + lie.lg[out] @ u - lie.grad_norm[out] * self.d_bar + self.alpha.vector(lie.h[out])
+        return bool(slack.min() >= self.solver.active_tol)
+
+    def _solve_block(
+        self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None,
+    ) -> tuple[QPResult, tuple[str, ...], bool]:
+        """One QP (promoting where asked, relaxed to robust if infeasible); the policy if still infeasible."""
+        b = getattr(self, "b", 0.0)
+        qp = self.build_qp(lie, u_nom, promote, b)
+        res = self._solve(qp)
+        relaxed: tuple[str, ...] = ()
+        if not res.ok and promote is not None and np.any(promote):
+            relaxed_idx = tuple(int(i) for i in np.flatnonzero(promote))
+            relaxed = tuple(lie.names[i] if i < len(lie.names) else str(i) for i in relaxed_idx)
+            qp = self.build_qp(lie, u_nom)
+            first = res.solve_time_s
+            res = self._solve(qp)
+            res = replace(res, solve_time_s=res.solve_time_s + first, relaxed=relaxed_idx)
+        if res.ok:
+            return res, relaxed, False
+        return self._infeasible(t, x, lie, qp, res), relaxed, True
+
+    def _infeasible(self, t: float, x: np.ndarray | None, lie: LieData, qp: FilterQP, res: QPResult) -> QPResult:
         if self.on_infeasible == "raise":
             raise InfeasibleFilterError(
                 f"safety filter infeasible at t={t:.6g}: no command satisfies the robust barrier "
@@ -180,17 +270,18 @@ class _FilterBase:
         u = res.u if self.fallback is None else as_vector(self.fallback(t, x, lie, res), "fallback command", lie.m)
         warnings.warn(
             f"safety filter infeasible at t={t:.6g}; applied the fallback command "
-            f"(violation {qp.max_violation(u):.3g})", IsfWarning, stacklevel=3,
+            f"(violation {qp.max_violation(u):.3g})", IsfWarning, stacklevel=4,
         )
-        return u, QPResult(u, "fallback", res.active, res.solve_time_s, res.iterations,
-                           qp.max_violation(u), res.relaxed)
+        return QPResult(u, "fallback", res.active, res.solve_time_s, res.iterations, qp.max_violation(u), res.relaxed)
 
 
 class SafetyFilter(_FilterBase):
     """The standard safety filter, solved at every step (paper, eq. filter).
 
     ``u = argmin |u - u_nom|^2  s.t.  Lf h_i(x, u) - |dh_i/dx| d_bar >= -alpha(h_i)`` for all i.
-    The step counts as "on" when any constraint is active at the solution.
+    The step counts as "on" when any constraint is active at the solution (or the fallback
+    was applied); mode changes are reported as :class:`SwitchEvent` like the intermittent
+    filter's.
 
     Args:
         alpha: Class-K function (or linear gain).
@@ -199,30 +290,36 @@ class SafetyFilter(_FilterBase):
         barriers: Barriers (for :meth:`step`).
         u_min: Optional lower input bounds, shape (m,).
         u_max: Optional upper input bounds, shape (m,).
-        solver: QP solver (default :class:`QPSolver` with eps_abs 1e-9).
+        solver: QP solver (default :class:`QPSolver`).
         on_infeasible: ``"raise"`` or ``"fallback"`` (see module docstring).
         fallback: Optional fallback command function.
+        validate: Check shapes of every input (finiteness is always checked).
+        screen: Row-screening threshold on ``Xi_on`` (scalar or per row), or ``None``.
 
     """
 
-    def step(self, t: float, x: np.ndarray, u_nom: np.ndarray) -> FilterStep:
-        """Filter ``u_nom`` at state ``x`` and time ``t`` [s]."""
-        t = check_finite_scalar(t, "t")
-        x = as_vector(x, "state x", self.system.n if self.system else None)
-        return self.step_lie(t, self.lie(t, x), u_nom, x=x)
+    def reset(self, t0: float = 0.0) -> None:
+        """Forget the mode history."""
+        self._switches.reset(False)
+        self.qp_solves = 0
 
-    def step_lie(self, t: float, lie: LieData, u_nom: np.ndarray, x: np.ndarray | None = None) -> FilterStep:
-        """Filter ``u_nom`` given precomputed barrier data."""
-        u_nom = self._check_inputs(u_nom, lie)
-        xi = xi_on(lie, u_nom, self.alpha, self.d_bar)
-        qp = self.build_qp(lie, u_nom)
-        res = self._solve(qp)
-        fb = False
-        if not res.ok:
-            _, res = self._infeasible(t, x, lie, qp, res)
-            fb = True
+    @property
+    def on(self) -> bool:
+        """Whether a constraint was active at the last step."""
+        return self._switches.on
+
+    def step_lie(self, t: float, lie: LieData, u_nom: np.ndarray, x: np.ndarray | None = None, *,
+                 screen: float | np.ndarray | None = None) -> FilterStep:
+        """Filter ``u_nom`` given precomputed barrier data.
+
+        ``screen`` overrides the constructor's row-screening threshold for this step (scalar or
+        one per row of ``lie``).
+        """
+        u_nom, xi = self._xi(t, lie, u_nom)
+        res, _, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, None, 0.0, screen)
         on = bool(np.any(res.active)) or fb
-        return FilterStep(t, res.u, u_nom, on, lie.h, xi, None, res, (), fb, lie.names)
+        event = self._switches.update(t, on, float(xi.min()) if xi.size else float("inf"))
+        return FilterStep(t, res.u, u_nom, on, lie.h, xi, event, res, (), fb, lie.names, resolved)
 
 
 class IntermittentSafetyFilter(_FilterBase):
@@ -233,18 +330,20 @@ class IntermittentSafetyFilter(_FilterBase):
     ``Xi_on <= 0`` (eq. trigger:filter_on). On: the safety-promoting filter
     ``Lf h(x, u) - |dh/dx| d_bar >= b`` (eq. filter_inc) pushes h up until ``Xi_on >= c``, when
     the filter turns off. (The paper's eq. trigger:filter_off has a sign slip; see
-    :mod:`isf_robot.core.triggers`.) Several barriers: see the module docstring.
+    :mod:`isf_robot.core.triggers`.) Several barriers and screening: see the module docstring.
 
     Args:
         alpha: Class-K function (or linear gain).
         c: Off-trigger margin, > 0.
         b: Promotion rate ``dh/dt >= b`` while on, > 0.
         d_bar: Disturbance bound, >= 0.
-        system, barriers, u_min, u_max, solver, on_infeasible, fallback, validate: as
+        system, barriers, u_min, u_max, solver, on_infeasible, fallback, validate, screen: as
             :class:`SafetyFilter`.
         t0: Start time [s].
 
     """
+
+    intermittent = True
 
     def __init__(
         self,
@@ -261,10 +360,12 @@ class IntermittentSafetyFilter(_FilterBase):
         on_infeasible: str = "raise",
         fallback: FallbackFn | None = None,
         validate: bool = True,
+        screen: float | np.ndarray | None = None,
         t0: float = 0.0,
     ) -> None:
         super().__init__(alpha, d_bar, system=system, barriers=barriers, u_min=u_min, u_max=u_max,
-                         solver=solver, on_infeasible=on_infeasible, fallback=fallback, validate=validate)
+                         solver=solver, on_infeasible=on_infeasible, fallback=fallback, validate=validate,
+                         screen=screen)
         self.c = check_positive(c, "c (off-trigger margin)")
         self.b = check_positive(b, "b (promotion rate)")
         self.trigger = OnOffTrigger(self.c, t0)
@@ -279,32 +380,16 @@ class IntermittentSafetyFilter(_FilterBase):
         self.trigger.reset(t0)
         self.qp_solves = 0
 
-    def step(self, t: float, x: np.ndarray, u_nom: np.ndarray) -> FilterStep:
-        """Advance the trigger to ``t`` and return the command for state ``x``."""
-        t = check_finite_scalar(t, "t")
-        x = as_vector(x, "state x", self.system.n if self.system else None)
-        return self.step_lie(t, self.lie(t, x), u_nom, x=x)
+    def step_lie(self, t: float, lie: LieData, u_nom: np.ndarray, x: np.ndarray | None = None, *,
+                 screen: float | np.ndarray | None = None) -> FilterStep:
+        """As :meth:`step`, given precomputed barrier data.
 
-    def step_lie(self, t: float, lie: LieData, u_nom: np.ndarray, x: np.ndarray | None = None) -> FilterStep:
-        """As :meth:`step`, given precomputed barrier data."""
-        u_nom = self._check_inputs(u_nom, lie)
-        xi = xi_on(lie, u_nom, self.alpha, self.d_bar)
-        event = self.trigger.update(t, float(np.min(xi)))
+        ``screen`` overrides the constructor's row-screening threshold for this step (scalar or
+        one per row of ``lie``).
+        """
+        u_nom, xi = self._xi(t, lie, u_nom)
+        event = self.trigger.update(t, float(xi.min()))
         if not self.trigger.on:
             return FilterStep(t, u_nom, u_nom, False, lie.h, xi, event, None, (), False, lie.names)
-        promote = xi < self.c
-        qp = self.build_qp(lie, u_nom, promote, self.b)
-        res = self._solve(qp)
-        relaxed: tuple[str, ...] = ()
-        if not res.ok and np.any(promote):
-            relaxed_idx = tuple(int(i) for i in np.flatnonzero(promote))
-            relaxed = tuple(lie.names[i] if i < len(lie.names) else str(i) for i in relaxed_idx)
-            qp = self.build_qp(lie, u_nom)
-            res = self._solve(qp)
-            res = QPResult(res.u, res.status, res.active, res.solve_time_s, res.iterations,
-                           res.max_violation, relaxed_idx)
-        fb = False
-        if not res.ok:
-            _, res = self._infeasible(t, x, lie, qp, res)
-            fb = True
-        return FilterStep(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names)
+        res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, xi < self.c, self.c, screen)
+        return FilterStep(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names, resolved)

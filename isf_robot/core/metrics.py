@@ -21,7 +21,7 @@ import numpy as np
 
 from .exceptions import ShapeError
 
-__all__ = ["DutyCycleMetrics", "compute_metrics", "MetricsAccumulator"]
+__all__ = ["DutyCycleMetrics", "FilterStats", "compute_metrics", "MetricsAccumulator"]
 
 
 @dataclass(frozen=True)
@@ -40,6 +40,35 @@ class DutyCycleMetrics:
     max_off_s: float | None
     intervention: float
     qp_solves: int
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain dict (JSON-ready)."""
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class FilterStats:
+    """What the filter's solver did over a run (live runs only; a replayed log has no QPs).
+
+    Attributes:
+        fallbacks: Steps whose command came from the infeasibility fallback.
+        relaxations: Steps where promotions were relaxed to the robust condition.
+        resolves: Steps where a screened-out row was needed, so the QP was solved again with
+            every row (screening never changes a command).
+        qp_closed_form: QP solves done in closed form (one row, no bounds).
+        qp_time_median_us: Median wall time of a step's QP work [us] (every solve of the step,
+            polish and checks included), ``None`` without QPs.
+        solver_time_median_us: The same over the steps that went to the QP backend (not the
+            closed form) [us].
+
+    """
+
+    fallbacks: int = 0
+    relaxations: int = 0
+    resolves: int = 0
+    qp_closed_form: int = 0
+    qp_time_median_us: float | None = None
+    solver_time_median_us: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """Plain dict (JSON-ready)."""
@@ -125,6 +154,9 @@ class MetricsAccumulator:
         self._on: list[bool] = []
         self._rate: list[float] = []
         self._solved: list[bool] = []
+        self._qp_times: list[float] = []
+        self._solver_times: list[float] = []
+        self._fallbacks = self._relaxations = self._resolves = self._closed_form = 0
 
     def add(self, t: float, dt: float, on: bool, u: np.ndarray, u_nom: np.ndarray, solved: bool) -> None:
         """Record one step."""
@@ -136,8 +168,29 @@ class MetricsAccumulator:
         self._solved.append(bool(solved))
 
     def add_step(self, step: Any, dt: float) -> None:
-        """Record a :class:`~isf_robot.core.filters.FilterStep`."""
-        self.add(step.t, dt, step.on, step.u, step.u_nom, step.qp is not None)
+        """Record a :class:`~isf_robot.core.filters.FilterStep` (and its solver figures)."""
+        qp = step.qp
+        self.add(step.t, dt, step.on, step.u, step.u_nom, qp is not None)
+        if qp is not None:
+            self._qp_times.append(qp.solve_time_s)
+            if qp.status == "closed_form":
+                self._closed_form += 1
+            else:
+                self._solver_times.append(qp.solve_time_s)
+        if step.fallback:
+            self._fallbacks += 1
+        if step.relaxed:
+            self._relaxations += 1
+        if getattr(step, "resolved", False):
+            self._resolves += 1
+
+    def stats(self) -> FilterStats:
+        """The solver figures of the steps recorded with :meth:`add_step`."""
+        def med(v: list[float]) -> float | None:
+            return float(np.median(v)) * 1e6 if v else None
+
+        return FilterStats(self._fallbacks, self._relaxations, self._resolves, self._closed_form,
+                           med(self._qp_times), med(self._solver_times))
 
     def __len__(self) -> int:
         return len(self._t)

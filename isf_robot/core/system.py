@@ -118,6 +118,12 @@ class LieData:
         """Input dimension."""
         return int(self.lg.shape[1])
 
+    def select(self, rows: np.ndarray) -> LieData:
+        """The barriers at ``rows`` (an index array), in that order."""
+        names = self.names
+        return LieData(self.h[rows], self.lf[rows], self.lg[rows], self.grad_norm[rows],
+                       tuple(names[i] for i in rows.tolist()) if names else ())
+
     def validate(self) -> LieData:
         """Check shapes and finiteness; return self."""
         k = self.h.shape[0] if self.h.ndim == 1 else -1

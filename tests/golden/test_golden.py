@@ -4,6 +4,13 @@ Compared field by field: integers, strings, booleans and ``None`` exactly; float
 tolerance of ``RTOL`` (the QP backend's answers agree to about 1e-10, far below anything a run
 reports). Machine-dependent fields (wall time, timings, solver microseconds) are not compared.
 Regenerate with ``python tests/golden/generate.py`` only for an intended behaviour change.
+
+Changes so far, each deliberate:
+* Arm rebuild (issue "Arm step rebuilt"): nominal runs report ``min_joint_barrier`` as the minimum
+  over every control step, like the filtered runs (before: the final state only, because the
+  nominal loop skipped the joint barriers); the backend timer ``proxqp_time_median_us`` became
+  ``solver_time_median_us`` (daqp is the default backend). Every other field of every case,
+  including all cbf and isf runs after the switch from ProxQP to daqp, is unchanged to 1e-9.
 """
 
 from __future__ import annotations

@@ -1,0 +1,99 @@
+"""Safety on the true geometry, checked at every physics step of an arm run.
+
+Judged on the real MuJoCo geometry (signed distances from ``mj_geomDistance``), not on the
+filter's model: ``min_h`` is the smallest ``dist - margin`` over all collision pairs and all
+physics steps, ``collisions`` counts the physics steps at which some pair has
+``dist - margin < 0``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from .barriers import CollisionBarriers
+
+__all__ = ["SafetyMonitor"]
+
+
+class SafetyMonitor:
+    """True-geometry clearance of the collision pairs, checked at every physics step.
+
+    At a control tick the collision barriers have just been evaluated: their ``h`` is the
+    exact ``dist - margin`` of every pair within the cut-off (``mj_geomDistance``), and every
+    other pair is at least ``cutoff - margin`` away. At the other physics steps of the control
+    step, ``mj_geomDistance`` is called for the pairs that were within the cut-off at the tick,
+    with ``distmax`` just above what could change the running minimum or count a collision (a
+    pair beyond the cut-off, e.g. 0.25 m, cannot close that gap within one control period).
+    So ``min_h`` is exact whenever it is below ``cutoff - margin`` and saturates there when
+    the arm never comes within the cut-off.
+    """
+
+    def __init__(self, coll: CollisionBarriers) -> None:
+        p = coll.pairs
+        self.model = coll.model
+        self.g1l, self.g2l = p.geom1.tolist(), p.geom2.tolist()
+        self.marginl = p.margin.tolist()
+        self.min_h = math.inf
+        self.collisions = 0
+        self.steps = 0
+        self.rows: list[int] = []
+
+    def tick(self, h: np.ndarray, rows: np.ndarray, margin: np.ndarray) -> float:
+        """Account the tick's barrier values; return the smallest true distance [m] (inf: none).
+
+        Args:
+            h: Collision barrier values at the tick, shape (k,).
+            rows: Indices of the pairs within the cut-off.
+            margin: Margin per pair [m], shape (k,).
+
+        """
+        self.steps += 1
+        self.rows = rows.tolist()
+        hmin = float(h.min())
+        if hmin < 0.0:
+            self.collisions += 1
+        if hmin < self.min_h:
+            self.min_h = hmin
+        if not self.rows:
+            return math.inf
+        return float((h[rows] + margin[rows]).min())
+
+    def substep(self, data: mujoco.MjData, bound: float = -math.inf) -> float:
+        """Check the pairs near at the last tick; return their smallest distance.
+
+        Args:
+            data: The MuJoCo data after ``mj_step1``.
+            bound: Distances at or above ``bound`` [m] need not be exact (pass the control
+                step's running minimum distance to get that minimum exactly, ``-inf`` when
+                only the run's minimum barrier and the collision count matter). Each pair's
+                ``distmax`` is the larger of that and what could change the running minimum
+                barrier or count a collision, so ``mj_geomDistance`` can stop early.
+
+        Returns:
+            The smallest distance found [m]: exact when below ``bound``, otherwise a value
+            at or above ``bound`` (or ``inf`` when no pair is near).
+
+        """
+        self.steps += 1
+        rows = self.rows
+        if not rows:
+            return math.inf
+        m, g1, g2, marg = self.model, self.g1l, self.g2l, self.marginl
+        thresh = max(self.min_h, 0.0)
+        step_h = math.inf
+        step_d = math.inf
+        for i in rows:
+            cap = max(thresh + marg[i], bound) + 1e-6
+            d = mujoco.mj_geomDistance(m, data, g1[i], g2[i], cap, None)
+            if d - marg[i] < step_h:
+                step_h = d - marg[i]
+            if d < step_d:
+                step_d = d
+        if step_h < 0.0:
+            self.collisions += 1
+        if step_h < self.min_h:
+            self.min_h = step_h
+        return step_d
