@@ -198,7 +198,7 @@ class _FilterBase:
         """Build the filter QP: robust rows, or promoting rows where ``promote`` is True."""
         rhs = -self.alpha.vector(lie.h)
         kinds: tuple[str, ...]
-        if promote is not None and np.any(promote):
+        if promote is not None and promote.any():
             rhs = np.where(promote, b, rhs)
             kinds = tuple("promote" if p else "robust" for p in promote)
         else:
@@ -220,37 +220,47 @@ class _FilterBase:
         if screen is not None and lie.k > 1:
             keep = xi < np.maximum(screen, floor) if floor > 0 else xi < screen
             if not keep.all():
-                rows = np.flatnonzero(keep)
+                rows = keep.nonzero()[0]
                 if rows.size == 0:
-                    rows = np.array([int(np.argmin(xi))])
-                sub = lie.select(rows)
-                res, relaxed, fb = self._solve_block(t, x, sub, u_nom,
-                                                     None if promote is None else promote[rows])
-                if not fb and not self._screened_rows_hold(lie, res.u, keep):
+                    rows = np.array([int(xi.argmin())])
+                    keep[rows[0]] = True
+                sub = LieData(lie.h[rows], lie.lf[rows], lie.lg[rows], lie.grad_norm[rows])
+                res, relaxed, fb = self._solve_block(t, x, sub, u_nom, None if promote is None else promote[rows],
+                                                     lie.names, rows)
+                if not fb and not self._screened_rows_hold(lie, xi, res.u - u_nom, keep):
                     first = res.solve_time_s
-                    res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote)
+                    res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote, lie.names, None)
                     return replace(res, solve_time_s=res.solve_time_s + first), relaxed, fb, True
                 return res, relaxed, fb, False
-        res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote)
+        res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote, lie.names, None)
         return res, relaxed, fb, False
 
-    def _screened_rows_hold(self, lie: LieData, u: np.ndarray, keep: np.ndarray) -> bool:
-        """Whether every screened-out row's robust condition has slack >= active_tol at ``u``."""
-        out = ~keep
-        slack = lie.lf[out] + lie.lg[out] @ u - lie.grad_norm[out] * self.d_bar + self.alpha.vector(lie.h[out])
+    def _screened_rows_hold(self, lie: LieData, xi: np.ndarray, du: np.ndarray, keep: np.ndarray) -> bool:
+        """Whether every screened-out row's robust condition has slack >= active_tol at ``u_nom + du``.
+
+        The slack of row i at u is ``Xi_on,i + Lg h_i (u - u_nom)`` (the robust condition's
+        left side minus its right side), so one product covers every row.
+        """
+        slack = xi + lie.lg @ du
+        slack[keep] = np.inf
         return bool(slack.min() >= self.solver.active_tol)
 
     def _solve_block(
         self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None,
+        names: tuple[str, ...], rows: np.ndarray | None,
     ) -> tuple[QPResult, tuple[str, ...], bool]:
-        """One QP (promoting where asked, relaxed to robust if infeasible); the policy if still infeasible."""
+        """One QP (promoting where asked, relaxed to robust if infeasible); the policy if still infeasible.
+
+        ``rows`` maps the rows of ``lie`` to ``names`` (``None``: the same rows).
+        """
         b = getattr(self, "b", 0.0)
         qp = self.build_qp(lie, u_nom, promote, b)
         res = self._solve(qp)
         relaxed: tuple[str, ...] = ()
-        if not res.ok and promote is not None and np.any(promote):
-            relaxed_idx = tuple(int(i) for i in np.flatnonzero(promote))
-            relaxed = tuple(lie.names[i] if i < len(lie.names) else str(i) for i in relaxed_idx)
+        if not res.ok and promote is not None and promote.any():
+            local = np.flatnonzero(promote)
+            relaxed_idx = tuple(int(i) for i in (local if rows is None else rows[local]))
+            relaxed = tuple(names[i] if i < len(names) else str(i) for i in relaxed_idx)
             qp = self.build_qp(lie, u_nom)
             first = res.solve_time_s
             res = self._solve(qp)

@@ -93,6 +93,7 @@ class QPSolver:
         self.polish = bool(polish)
         self._cache: dict[tuple[int, int, bool], _Workspace] = {}
         self._eye: dict[int, np.ndarray] = {}
+        self._upper: dict[int, np.ndarray] = {}
         self.solves = 0
 
     # -- the solve step ----------------------------------------------------------------------
@@ -141,12 +142,16 @@ class QPSolver:
                             max_violation=qp.max_violation(u))
         if self.polish and self.backend != "daqp":
             u = self._polish(qp, u)
-        res = qp.A @ u - qp.lb if k else np.zeros(0)
-        viol = float(np.max(-res, initial=0.0))
+        if k:
+            res = qp.A @ u - qp.lb
+            viol = max(0.0, -float(res.min()))
+        else:
+            res = np.zeros(0)
+            viol = 0.0
         if box:
             viol = max(viol, qp.max_violation(u))
-        scale = max(1.0, float(np.max(np.abs(qp.lb), initial=0.0)))
-        if not np.all(np.isfinite(u)) or viol > self.feas_tol * scale:
+        scale = max(1.0, float(abs(qp.lb).max())) if k else 1.0
+        if not np.isfinite(u.sum()) or viol > self.feas_tol * scale:
             raise SolverError(
                 f"{self.backend} returned a command violating the constraints by {viol:.3g} "
                 f"({iters} iterations)", qp=qp)
@@ -164,17 +169,18 @@ class QPSolver:
 
         m, k = qp.m, qp.k
         lower = qp.lb
-        upper = np.full(k, _INF)
         if qp.has_bounds:
             lo = qp.u_min if qp.u_min is not None else np.full(m, -_INF)
             hi = qp.u_max if qp.u_max is not None else np.full(m, _INF)
             lower = np.concatenate((lo, lower))
-            upper = np.concatenate((hi, upper))
+            upper = np.concatenate((hi, np.full(k, _INF)))
+        else:
+            upper = self._upper.get(k)
+            if upper is None:
+                upper = self._upper[k] = np.full(k, _INF)
         x, _, flag, info = daqp.solve(self._identity(m), -qp.u_nom, qp.A, upper, lower,
                                       primal_tol=self.eps_abs, iter_limit=self.max_iter)
-        iters = int(info.get("iterations", 0)) if isinstance(info, dict) else 0
-        u = np.asarray(x, dtype=float)
-        return u, iters, "solved" if flag == 1 else "unsolved"
+        return np.asarray(x, dtype=float), int(info["iterations"]), "solved" if flag == 1 else "unsolved"
 
     def _workspace(self, m: int, k: int, box: bool) -> _Workspace:
         key = (m, k, box)
