@@ -63,8 +63,8 @@ class QPSolver:
         max_iter: Iteration limit of a filter solve; a problem still unsolved at the limit goes
             to the phase-1 check, which decides infeasibility.
         closed_form: Use :func:`~isf_robot.core.qp.project_halfspace` for a single row without
-            bounds (its answer is checked like any other; a non-finite or violating one goes
-            to the backend instead).
+            bounds (its answer is checked like any other; a violating one, or a row so small
+            that ``|Lg h|^2`` underflows, goes to the backend instead).
         backend: One of :data:`BACKENDS` (see the module docstring).
         polish: Active-set polish of the iterative backends' answers (ProxQP).
 
@@ -117,7 +117,7 @@ class QPSolver:
         box = qp.has_bounds
         if k == 0 and not box:
             return QPResult(qp.u_nom.copy(), "unconstrained", np.zeros(0, bool), time.perf_counter() - t0)
-        if k == 1 and not box and self.closed_form:
+        if k == 1 and not box and self.closed_form and float(qp.A[0] @ qp.A[0]) > 1e-200:
             a = qp.A[0]
             lb = float(qp.lb[0])
             if not np.any(a) and lb > 0.0:
@@ -127,7 +127,7 @@ class QPSolver:
             slack = float(a @ u) - lb
             if np.all(np.isfinite(u)) and slack >= -self.feas_tol * max(1.0, abs(lb)):
                 return QPResult(u, "closed_form", np.array([slack <= self.active_tol]), time.perf_counter() - t0)
-            # a tiny but nonzero row overflows the projection: let the backend decide
+            # an answer that fails the check goes to the backend
         self.solves += 1
         if self.backend == "daqp":
             u, iters, status = self._solve_daqp(qp)
