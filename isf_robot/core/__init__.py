@@ -1,43 +1,37 @@
-"""The engine-free core: barriers, class-K functions, filter QPs, triggers, impulsive control.
+"""The engine-free core: barriers, class-K functions, filter QPs, triggers, strategies, impulsive control.
 
-Imports numpy and qpsolvers/proxsuite only (never mujoco or rerun).
+Imports numpy and daqp / qpsolvers / proxsuite only (never mujoco, rerun or scipy); a subprocess test
+checks it. Public names are listed in ``_EXPORTS`` (name -> submodule) and load on first use: the
+project's one export style (see :mod:`isf_robot._exports`).
 """
 
-from .barrier import Barrier, BarrierEval, DiscObstacleBarrier, FunctionBarrier, HalfSpaceBarrier, evaluate_barriers
-from .class_k import ClassK, CustomClassK, Linear, Power, as_class_k
-from .exceptions import (
-    ConfigError,
-    InfeasibleFilterError,
-    IsfError,
-    IsfWarning,
-    NonFiniteError,
-    PostJumpConditionError,
-    ShapeError,
-    SolverError,
-    UnknownNameError,
-    ZenoError,
-)
-from .filters import FilterStep, IntermittentSafetyFilter, SafetyFilter
-from .hooks import Observer, Observers
-from .impulsive import EventTriggeredImpulsiveController, JumpEvent, ManeuverScheduler
-from .metrics import DutyCycleMetrics, FilterStats, MetricsAccumulator, compute_metrics
-from .miet import MietConstants, ZenoGuard, estimate_miet_constants, miet_bound, min_interval
-from .qp import FilterQP, QPResult, build_filter_qp, project_halfspace
-from .qp_solver import QPSolver
-from .system import ControlAffineSystem, FunctionSystem, LieData, SingleIntegrator, lie_data
-from .triggers import OnOffTrigger, SwitchEvent, xi_on, xi_tau
+from __future__ import annotations
 
-__all__ = [
-    "Barrier", "BarrierEval", "DiscObstacleBarrier", "FunctionBarrier", "HalfSpaceBarrier", "evaluate_barriers",
-    "ClassK", "CustomClassK", "Linear", "Power", "as_class_k",
-    "ConfigError", "InfeasibleFilterError", "IsfError", "IsfWarning", "NonFiniteError",
-    "PostJumpConditionError", "ShapeError", "SolverError", "UnknownNameError", "ZenoError",
-    "FilterStep", "IntermittentSafetyFilter", "SafetyFilter",
-    "Observer", "Observers",
-    "EventTriggeredImpulsiveController", "JumpEvent", "ManeuverScheduler",
-    "DutyCycleMetrics", "FilterStats", "MetricsAccumulator", "compute_metrics",
-    "MietConstants", "ZenoGuard", "estimate_miet_constants", "miet_bound", "min_interval",
-    "FilterQP", "QPResult", "QPSolver", "build_filter_qp", "project_halfspace",
-    "ControlAffineSystem", "FunctionSystem", "LieData", "SingleIntegrator", "lie_data",
-    "OnOffTrigger", "SwitchEvent", "xi_on", "xi_tau",
-]
+from isf_robot._exports import lazy_exports
+
+_EXPORTS: dict[str, str] = {
+    "Barrier": "barrier", "BarrierEval": "barrier", "DiscObstacleBarrier": "barrier", "HalfSpaceBarrier": "barrier",
+    "FunctionBarrier": "barrier", "evaluate_barriers": "barrier",
+    "ClassK": "class_k", "Linear": "class_k", "Power": "class_k", "CustomClassK": "class_k", "as_class_k": "class_k",
+    "IsfError": "exceptions", "ConfigError": "exceptions", "ShapeError": "exceptions", "NonFiniteError": "exceptions",
+    "UnknownNameError": "exceptions", "InfeasibleFilterError": "exceptions", "SolverError": "exceptions",
+    "PostJumpConditionError": "exceptions", "ZenoError": "exceptions", "IsfWarning": "exceptions",
+    "FilterStep": "filters", "SafetyFilter": "filters", "IntermittentSafetyFilter": "filters",
+    "Observer": "hooks", "Observers": "hooks",
+    "JumpEvent": "impulsive", "EventTriggeredImpulsiveController": "impulsive", "ManeuverScheduler": "impulsive",
+    "DutyCycleMetrics": "metrics", "FilterStats": "metrics", "compute_metrics": "metrics",
+    "MetricsAccumulator": "metrics",
+    "miet_bound": "miet", "MietConstants": "miet", "estimate_miet_constants": "miet", "ZenoGuard": "miet",
+    "min_interval": "miet",
+    "FilterQP": "qp", "QPResult": "qp", "build_filter_qp": "qp", "project_halfspace": "qp",
+    "QPSolver": "qp_solver", "BACKENDS": "qp_solver",
+    "to_jsonable": "report", "format_table": "report", "format_value": "report", "mean_std_cell": "report",
+    "StrategyInfo": "strategies", "NominalStrategy": "strategies", "register_strategy": "strategies",
+    "strategy_names": "strategies", "strategy_info": "strategies", "make_strategy": "strategies",
+    "SwitchEvent": "switches", "SwitchCounter": "switches",
+    "ControlAffineSystem": "system", "SingleIntegrator": "system", "FunctionSystem": "system", "LieData": "system",
+    "lie_data": "system",
+    "OnOffTrigger": "triggers", "xi_on": "triggers", "xi_tau": "triggers",
+}
+
+__all__, __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
