@@ -42,7 +42,7 @@ import numpy as np
 from .barrier import Barrier, evaluate_barriers
 from .class_k import ClassK, as_class_k
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError
-from .qp import FilterQP, QPResult, build_filter_qp
+from .qp import FilterQP, QPResult
 from .qp_solver import QPSolver
 from .switches import SwitchCounter, SwitchEvent
 from .system import ControlAffineSystem, LieData, lie_data
@@ -197,14 +197,12 @@ class _FilterBase:
     ) -> FilterQP:
         """Build the filter QP: robust rows, or promoting rows where ``promote`` is True."""
         rhs = -self.alpha.vector(lie.h)
-        kinds: tuple[str, ...]
+        kinds: tuple[str, ...] = ()  # empty: every row robust
         if promote is not None and promote.any():
             rhs = np.where(promote, b, rhs)
             kinds = tuple("promote" if p else "robust" for p in promote)
-        else:
-            kinds = ("robust",) * lie.k
-        return build_filter_qp(u_nom, lie.lf, lie.lg, lie.grad_norm, rhs, self.d_bar,
-                               u_min=self.u_min, u_max=self.u_max, kinds=kinds, names=lie.names)
+        return FilterQP(u_nom, lie.lg, rhs - lie.lf + lie.grad_norm * self.d_bar, self.u_min, self.u_max,
+                        kinds, lie.names)
 
     # -- solving -------------------------------------------------------------------------
     def _solve(self, qp: FilterQP) -> QPResult:
@@ -327,7 +325,7 @@ class SafetyFilter(_FilterBase):
         """
         u_nom, xi = self._xi(t, lie, u_nom)
         res, _, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, None, 0.0, screen)
-        on = bool(np.any(res.active)) or fb
+        on = bool(res.active.any()) or fb
         event = self._switches.update(t, on, float(xi.min()) if xi.size else float("inf"))
         return FilterStep(t, res.u, u_nom, on, lie.h, xi, event, res, (), fb, lie.names, resolved)
 

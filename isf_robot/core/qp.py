@@ -41,7 +41,7 @@ class FilterQP:
         lb: Row lower bounds, shape (k,).
         u_min: Lower input bounds, shape (m,), or ``None``.
         u_max: Upper input bounds, shape (m,), or ``None``.
-        kinds: Per row ``"robust"`` or ``"promote"``.
+        kinds: Per row ``"robust"`` or ``"promote"``; empty when every row is robust.
         names: Per row barrier label.
 
     """
