@@ -1,13 +1,13 @@
-"""Episode setup: control timing, seeded variations and obstacle tracks.
+"""Episode setup: control timing and seeded variations.
 
-Re-exported by :mod:`isf_robot.arm.sim`.
+:func:`path_track` (obstacle tracks) lives in :mod:`isf_robot.arm.paths` and is re-exported here
+for the simulation loop.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import mujoco
 import numpy as np
@@ -15,11 +15,10 @@ import numpy as np
 from isf_robot.core import ConfigError
 
 from .barriers import CollisionBarriers
-from .config import CirclePath, LinearBouncePath
+from .paths import path_cycle, path_track
 from .scene import Scene
 
 __all__ = ["check_control_period", "path_track", "EpisodeSetup", "episode_setup"]
-
 
 
 def check_control_period(period: float, timestep: float) -> int:
@@ -37,54 +36,6 @@ def check_control_period(period: float, timestep: float) -> int:
         raise ConfigError(f"control period {period} s is not a whole multiple of the physics "
                           f"timestep {timestep} s (ratio {ratio:.6g})")
     return steps
-
-
-def _path_period(mv: Any) -> float:
-    path = mv.path
-    if hasattr(path, "period"):
-        return abs(float(path.period))
-    seg = np.asarray(path.end, dtype=float) - np.asarray(path.start, dtype=float)
-    return 2.0 * float(np.linalg.norm(seg)) / float(path.speed)
-
-
-def path_track(path: Any, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Positions and velocities of an obstacle path at many times at once.
-
-    Vectorised forms of :class:`~isf_robot.arm.CirclePath` and
-    :class:`~isf_robot.arm.LinearBouncePath` (the circle's in-plane axes are read from the
-    path itself at the angles 0 and pi/2); any other path type is evaluated point by point
-    through its ``position(t)`` and ``velocity(t)``. The tests check both against the
-    scalar methods.
-
-    Args:
-        path: The path.
-        t: Times [s], shape (N,).
-
-    Returns:
-        ``(positions, velocities)``, each shape (N, 3), in [m] and [m/s].
-
-    """
-    t = np.asarray(t, dtype=float)
-    if isinstance(path, CirclePath):
-        c = np.asarray(path.center, dtype=float)
-        e1 = (path.position(-path.phase * path.period) - c) / path.radius
-        e2 = (path.position((0.25 - path.phase) * path.period) - c) / path.radius
-        th = 2.0 * math.pi * (path.phase + t / path.period)
-        cos, sin = np.cos(th)[:, None], np.sin(th)[:, None]
-        w = 2.0 * math.pi / path.period
-        return (c + path.radius * (cos * e1 + sin * e2),
-                path.radius * w * (-sin * e1 + cos * e2))
-    if isinstance(path, LinearBouncePath):
-        a = np.asarray(path.start, dtype=float)
-        seg = np.asarray(path.end, dtype=float) - a
-        length = float(np.linalg.norm(seg))
-        e = seg / length
-        arc = np.mod(path.speed * t + 2.0 * length * path.phase, 2.0 * length)
-        pos = a + np.minimum(arc, 2.0 * length - arc)[:, None] * e
-        vel = np.where(arc < length, path.speed, -path.speed)[:, None] * e
-        return pos, vel
-    return (np.array([path.position(x) for x in t]).reshape(-1, 3),
-            np.array([path.velocity(x) for x in t]).reshape(-1, 3))
 
 
 @dataclass(frozen=True)
@@ -126,7 +77,7 @@ def episode_setup(scene: Scene, seed: int, *, q_noise: float = 0.05, goal_noise:
     lo = scene.joint_range[:, 0] + margin
     hi = scene.joint_range[:, 1] - margin
     coll = CollisionBarriers.from_scene(scene)
-    period = max([_path_period(mv) for mv in scene.config.moving] or [0.0])
+    period = max([path_cycle(mv.path) for mv in scene.config.moving] or [0.0])
     for _ in range(max_tries):
         q0 = np.clip(scene.home + rng.normal(0.0, q_noise, n), lo + 1e-3, hi - 1e-3)
         goals = scene.goal_positions.copy()

@@ -17,7 +17,9 @@ import numpy as np
 from isf_robot.core.exceptions import ConfigError, UnknownNameError
 from isf_robot.paths import models_dir
 
-from .config import SceneConfig, load_config
+from .config_schema import SceneConfig
+from .config_toml import load_config
+from .paths import path_track
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -106,11 +108,14 @@ class Scene:
     def set_moving_obstacles(self, data: mujoco.MjData, t: float) -> None:
         """Write the moving obstacles' positions at time ``t`` [s] into ``data.mocap_pos``.
 
+        Positions come from :func:`isf_robot.arm.paths.path_track` (the same numbers as a
+        precomputed track at that time).
+
         Kinematics (``mj_kinematics``/``mj_forward``/``mj_step``) must run afterwards for
         ``geom_xpos`` to follow.
         """
         for mocap, mv in zip(self.moving_mocap_ids, self.config.moving):
-            data.mocap_pos[mocap] = mv.path.position(t)
+            data.mocap_pos[mocap] = path_track(mv.path, t)[0][0]
 
     def mocap_velocities(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Linear and angular velocities of every mocap body at time ``t`` [s].
@@ -123,7 +128,7 @@ class Scene:
         """
         lin = np.zeros((self.model.nmocap, 3))
         for mocap, mv in zip(self.moving_mocap_ids, self.config.moving):
-            lin[mocap] = mv.path.velocity(t)
+            lin[mocap] = path_track(mv.path, t)[1][0]
         return lin, np.zeros((self.model.nmocap, 3))
 
     def make_data(self, t: float = 0.0) -> mujoco.MjData:

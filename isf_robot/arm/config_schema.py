@@ -1,0 +1,204 @@
+"""Scene configuration: the frozen dataclasses a scene's TOML file is parsed into.
+
+The schema is documented in ``models/README.md``; :mod:`isf_robot.arm.config_toml` reads the
+file into these classes (checking types, shapes and signs) and the obstacle paths of
+``[[moving]]`` live in :mod:`isf_robot.arm.paths`. Names of joints, geoms, sites and bodies are
+resolved against the MuJoCo model later, in :mod:`isf_robot.arm.scene`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .paths import MovingObstacle
+
+__all__ = [
+    "RobotConfig",
+    "ObstacleConfig",
+    "Goal",
+    "TaskConfig",
+    "BarrierConfig",
+    "GainsConfig",
+    "FilterConfig",
+    "ControlConfig",
+    "SceneConfig",
+]
+
+
+@dataclass(frozen=True)
+class RobotConfig:
+    """The arm: which joints the filter acts on, its end effector and its collision geoms.
+
+    Attributes:
+        joints: Names of the arm's hinge/slide joints, in control order (length n).
+        ee_site: Name of the end-effector site.
+        geoms: Names of the robot's collision geoms.
+        home: Initial joint positions [rad], shape (n,), or ``None`` for the model's qpos0.
+        self_collision: Also build barriers for non-adjacent robot-robot geom pairs.
+
+    """
+
+    joints: tuple[str, ...]
+    ee_site: str
+    geoms: tuple[str, ...]
+    home: tuple[float, ...] | None = None
+    self_collision: bool = False
+
+
+@dataclass(frozen=True)
+class ObstacleConfig:
+    """Obstacles: geoms on the world body, on static bodies or on mocap bodies.
+
+    Attributes:
+        geoms: Names of the obstacle geoms.
+
+    """
+
+    geoms: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Goal:
+    """One end-effector goal of the reaching task.
+
+    Attributes:
+        position: Goal position in the world frame [m], shape (3,) (resolved from ``site``
+            when the config names a site instead of a position).
+        dwell: Time to hold the goal once reached [s].
+        site: Name of the site the goal was read from, or ``None``.
+
+    """
+
+    position: tuple[float, float, float]
+    dwell: float = 0.0
+    site: str | None = None
+
+
+@dataclass(frozen=True)
+class TaskConfig:
+    """The nominal task: reach the goals in order.
+
+    Attributes:
+        goals: The goals, in order.
+        loop: Start again at the first goal after the last one.
+        tolerance: Distance [m] below which a goal counts as reached.
+        duration: Default episode length [s].
+
+    """
+
+    goals: tuple[Goal, ...]
+    loop: bool = True
+    tolerance: float = 0.02
+    duration: float = 10.0
+
+
+@dataclass(frozen=True)
+class BarrierConfig:
+    """Barrier parameters.
+
+    Attributes:
+        margin: Safety margin on the robot-obstacle distance [m]: ``h = dist - margin``.
+        self_margin: Margin on robot-robot distances [m] (only with ``self_collision``).
+        joint_margin: Margin on the joint limits [rad]: ``h = q - q_min - joint_margin``.
+        cutoff: Broad-phase cut-off [m]: pairs whose bounding spheres are farther apart than
+            this are reported inactive (h from the bounding-sphere distance, zero gradient).
+
+    """
+
+    margin: float = 0.02
+    self_margin: float = 0.01
+    joint_margin: float = 0.05
+    cutoff: float = 0.3
+
+
+@dataclass(frozen=True)
+class GainsConfig:
+    """Gains of the nominal and low-level controllers.
+
+    Attributes:
+        task_kp: Task-space proportional gain of the reaching controller [1/s].
+        dls_damping: Damping of the damped-least-squares inverse [m].
+        max_ee_speed: Cap on the commanded end-effector speed [m/s].
+        max_joint_speed: Cap on the commanded joint speeds [rad/s].
+        joint_kp: Joint-space proportional gain of the joint PD nominal [1/s].
+        tracking_kp: Low-level tracking gain per joint (or one for all); its unit depends on the
+            low-level controller that reads it.
+        tracking_kd: Low-level damping gain per joint (or one for all).
+        extra: Any further numeric entries of the ``[gains]`` table, by key (read-only).
+
+    """
+
+    task_kp: float = 4.0
+    dls_damping: float = 0.05
+    max_ee_speed: float = 0.5
+    max_joint_speed: float = 2.0
+    joint_kp: float = 2.0
+    tracking_kp: tuple[float, ...] = (100.0,)
+    tracking_kd: tuple[float, ...] = (20.0,)
+    extra: Mapping[str, float | tuple[float, ...]] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class FilterConfig:
+    """Default safety-filter parameters for the scene (see :mod:`isf_robot.core`).
+
+    Attributes:
+        alpha: Slope of the linear class-K function ``alpha(h) = alpha * h`` [1/s].
+        c: Off-trigger threshold: the filter turns off once every ``Xi_on >= c``.
+        b: Promotion level of the safety-promoting filter, ``b > 0``.
+        d_bar: Bound on the disturbance ``|d|`` of ``q_dot = u + d`` [rad/s].
+
+    """
+
+    alpha: float = 5.0
+    c: float = 0.05
+    b: float = 0.02
+    d_bar: float = 0.0
+
+
+@dataclass(frozen=True)
+class ControlConfig:
+    """Control timing.
+
+    Attributes:
+        period: Control period [s]; an integer multiple of the model's physics timestep.
+
+    """
+
+    period: float = 0.002
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """Everything a scene's TOML file says.
+
+    Attributes:
+        name: Scene name.
+        description: One-line description.
+        model: MJCF file name, relative to the TOML file's folder.
+        robot: The arm.
+        obstacles: The obstacle geoms.
+        task: The reaching task.
+        barrier: Barrier margins and broad-phase cut-off.
+        gains: Controller gains.
+        filter: Default safety-filter parameters.
+        control: Control timing.
+        moving: Mocap obstacles with known paths.
+        source: The TOML file this was read from, or ``None``.
+
+    """
+
+    name: str
+    description: str
+    model: str
+    robot: RobotConfig
+    obstacles: ObstacleConfig
+    task: TaskConfig
+    barrier: BarrierConfig = BarrierConfig()
+    gains: GainsConfig = GainsConfig()
+    filter: FilterConfig = FilterConfig()
+    control: ControlConfig = ControlConfig()
+    moving: tuple[MovingObstacle, ...] = ()
+    source: Path | None = None
