@@ -1,116 +1,38 @@
 """The MuJoCo layer: scenes and models, collision barriers, nominal control, simulation.
 
-Scenes and barriers (:mod:`.scene`, :mod:`.config`, :mod:`.barriers`) are listed first;
-other modules append their names below.
+Public names are listed in ``_EXPORTS`` (name -> the submodule that defines it) and load on first
+use: the project's one export style (see :mod:`isf_robot._exports`). So ``import isf_robot.arm``
+alone imports no submodule, and ``from isf_robot.arm import Scene`` imports only what it needs.
 """
 
-from .barriers import (
-    BarrierBatch,
-    Clearance,
-    CollisionBarriers,
-    CollisionPairs,
-    JointLimitBarriers,
-    collision_pairs,
-    min_distance,
-    stack_batches,
-)
-from .config import (
-    BarrierConfig,
-    CirclePath,
-    ControlConfig,
-    FilterConfig,
-    GainsConfig,
-    Goal,
-    LinearBouncePath,
-    MovingObstacle,
-    ObstacleConfig,
-    ObstaclePath,
-    RobotConfig,
-    SceneConfig,
-    TaskConfig,
-    load_config,
-    parse_config,
-)
-from .scene import Scene, SceneInfo, list_scenes, load_scene, load_scene_from_files
+from __future__ import annotations
 
-__all__ = [
-    # scenes and config
-    "Scene",
-    "SceneInfo",
-    "list_scenes",
-    "load_scene",
-    "load_scene_from_files",
-    "SceneConfig",
-    "RobotConfig",
-    "ObstacleConfig",
-    "Goal",
-    "TaskConfig",
-    "BarrierConfig",
-    "GainsConfig",
-    "FilterConfig",
-    "ControlConfig",
-    "CirclePath",
-    "LinearBouncePath",
-    "ObstaclePath",
-    "MovingObstacle",
-    "load_config",
-    "parse_config",
+from isf_robot._exports import lazy_exports
+
+_EXPORTS: dict[str, str] = {
+    # scenes and their config (the TOML schema, its reader, obstacle paths)
+    "Scene": "scene", "SceneInfo": "scene", "list_scenes": "scene", "load_scene": "scene",
+    "load_scene_from_files": "scene",
+    "SceneConfig": "config_schema", "RobotConfig": "config_schema", "ObstacleConfig": "config_schema",
+    "Goal": "config_schema", "TaskConfig": "config_schema", "BarrierConfig": "config_schema",
+    "GainsConfig": "config_schema", "FilterConfig": "config_schema", "ControlConfig": "config_schema",
+    "load_config": "config_toml", "parse_config": "config_toml",
+    "CirclePath": "paths", "LinearBouncePath": "paths", "ObstaclePath": "paths", "MovingObstacle": "paths",
     # barriers
-    "BarrierBatch",
-    "stack_batches",
-    "CollisionPairs",
-    "collision_pairs",
-    "CollisionBarriers",
-    "JointLimitBarriers",
-    "Clearance",
-    "min_distance",
-]
-
-# nominal control, low-level tracking, calibration, simulation (appended by the sim layer)
-from .calibration import Calibration, calibrate_d_bar, clear_calibration_cache  # noqa: E402
-from .compare import Comparison, SceneSpec, compare_strategies, format_table  # noqa: E402
-from .lowlevel import VelocityTracker  # noqa: E402
-from .nominal import (  # noqa: E402
-    GoalSequence,
-    JointPDController,
-    NominalController,
-    ReachingController,
-)
-from .sim import (  # noqa: E402
-    STRATEGIES,
-    ArmSimulation,
-    ArmStepRecord,
-    EpisodeSetup,
-    FilterParams,
-    RunResult,
-    check_control_period,
-    episode_setup,
-    run_episode,
-)
-
-__all__ += [
-    # nominal control and tracking
-    "NominalController",
-    "GoalSequence",
-    "ReachingController",
-    "JointPDController",
-    "VelocityTracker",
-    "Calibration",
-    "calibrate_d_bar",
-    "clear_calibration_cache",
-    # simulation
-    "STRATEGIES",
-    "ArmSimulation",
-    "ArmStepRecord",
-    "EpisodeSetup",
-    "FilterParams",
-    "RunResult",
-    "check_control_period",
-    "episode_setup",
-    "run_episode",
+    "BarrierBatch": "batch", "stack_batches": "batch",
+    "CollisionPairs": "pairs", "collision_pairs": "pairs",
+    "CollisionBarriers": "collision", "JointLimitBarriers": "joint_limits",
+    "Clearance": "clearance", "min_distance": "clearance",
+    # nominal control, low-level tracking, calibration
+    "NominalController": "nominal", "GoalSequence": "nominal", "ReachingController": "nominal",
+    "JointPDController": "nominal", "VelocityTracker": "lowlevel",
+    "Calibration": "calibration", "calibrate_d_bar": "calibration", "clear_calibration_cache": "calibration",
+    # simulation: episodes, the loop, its records
+    "EpisodeSetup": "episode", "check_control_period": "episode", "episode_setup": "episode",
+    "STRATEGIES": "sim", "ArmSimulation": "sim", "run_episode": "sim",
+    "ArmStepRecord": "records", "FilterParams": "records", "RunResult": "records",
     # comparisons
-    "SceneSpec",
-    "Comparison",
-    "compare_strategies",
-    "format_table",
-]
+    "SceneSpec": "compare", "Comparison": "compare", "compare_strategies": "compare", "format_table": "compare",
+}
+
+__all__, __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())
