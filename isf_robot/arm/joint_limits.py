@@ -75,4 +75,6 @@ class JointLimitBarriers:
         are constant, shared, read-only arrays.
         """
         h = self._sign * data.qpos[self._qadr] + self._offset
-        return BarrierBatch(h=h, names=self.names, **self._const)
+        c = self._const
+        return BarrierBatch._of(h, c["grad"], c["dhdt"], self.names, c["active"], c["witness"],
+                                c["pair_geoms"])
