@@ -109,16 +109,14 @@ class BroadPhase:
         self.live = np.flatnonzero(~never)
         self._live = self.live.tolist()
         self._all_live = self.live.size == geom1.size
-        # diff = D @ geom_xpos[lo:hi] gives c1 - c2 of every live pair in one product; the
-        # column range covers only the geoms the live pairs involve.
+        # diff = D @ geom_xpos[cols] gives c1 - c2 of every live pair in one product; cols are
+        # the geoms the live pairs involve (far obstacles' geoms are not even read).
         g1, g2 = geom1[self.live], geom2[self.live]
-        used = np.concatenate([g1, g2])
-        self._lo = int(used.min()) if used.size else 0
-        self._hi = int(used.max()) + 1 if used.size else 0
+        self._cols, pos = np.unique(np.concatenate([g1, g2]), return_inverse=True)
         rows = np.arange(self.live.size)
-        self._dmat = np.zeros((self.live.size, self._hi - self._lo))
-        self._dmat[rows, g1 - self._lo] += 1.0
-        self._dmat[rows, g2 - self._lo] -= 1.0
+        self._dmat = np.zeros((self.live.size, self._cols.size))
+        self._dmat[rows, pos[: rows.size]] += 1.0
+        self._dmat[rows, pos[rows.size:]] -= 1.0
         self._thresh2 = thresh[self.live] ** 2
         # Per-call buffers (overwritten on every call).
         self._sq = np.empty((self.live.size, 3))
@@ -130,7 +128,7 @@ class BroadPhase:
         """Indices of the candidate pairs at the state in ``data`` (needs ``geom_xpos``), ascending."""
         if not self._live:
             return []
-        diff = self._dmat @ data.geom_xpos[self._lo:self._hi]
+        diff = self._dmat @ data.geom_xpos.take(self._cols, 0)
         s = np.multiply(diff, diff, out=self._sq).dot(self._ones, out=self._s)
         hit = np.less(s, self._thresh2, out=self._hit).nonzero()[0]
         return hit.tolist() if self._all_live else self.live[hit].tolist()
