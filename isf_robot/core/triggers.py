@@ -20,7 +20,7 @@ from .switches import SwitchCounter, SwitchEvent
 from .system import LieData
 from .validation import check_finite_scalar, check_positive
 
-__all__ = ["SwitchEvent", "OnOffTrigger", "xi_on", "xi_tau"]
+__all__ = ["SwitchEvent", "OnOffTrigger", "xi_on", "xi_on_scalar", "xi_tau"]
 
 
 def xi_on(lie: LieData, u_nom: np.ndarray, alpha: ClassK, d_bar: float) -> np.ndarray:
@@ -40,6 +40,30 @@ def xi_on(lie: LieData, u_nom: np.ndarray, alpha: ClassK, d_bar: float) -> np.nd
 
     """
     return lie.lf + lie.lg @ u_nom - lie.grad_norm * d_bar + alpha.vector(lie.h)
+
+
+def xi_on_scalar(lf: float, lg_u: float, grad_norm: float, h: float, alpha: ClassK, d_bar: float) -> float:
+    """One barrier's ``Xi_on = Lf h(x, u_nom) - |dh/dx| d_bar + alpha(h)`` in plain floats.
+
+    The same formula, term for term and in the same order of operations, as :func:`xi_on` for
+    row ``i`` of its Lie data (``lf = lie.lf[i]``, ``lg_u = (lie.lg @ u_nom)[i]``, ...), without
+    array work: about 0.3 us instead of ~20 us, for callers that evaluate it inside an
+    integrator's event function. With ``lg_u = 0`` it is the greedy impulsive trigger ``Xi``
+    (eq. greedy_cond).
+
+    Args:
+        lf: Drift term ``dh/dx f0(x) + dh/dt`` [units of h per s].
+        lg_u: Input term ``dh/dx g(x) u_nom`` [units of h per s] (0 for an impulsive flow).
+        grad_norm: ``|dh/dx|``.
+        h: Barrier value.
+        alpha: Class-K function, called on the float ``h``.
+        d_bar: Disturbance bound.
+
+    Returns:
+        The trigger value [units of h per s].
+
+    """
+    return lf + lg_u - grad_norm * d_bar + alpha(h)
 
 
 def xi_tau(dtau_dh: float, lf_h: float) -> float:
