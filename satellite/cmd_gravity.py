@@ -10,7 +10,8 @@ from pathlib import Path
 from typing import Any
 
 from satellite.errors import GravityModelError
-from satellite.gravity import G_CODATA2018, ITOKAWA_MASS_KG, MAX_DEGREE, GravityField
+from satellite.gravity import GravityField
+from satellite.harmonics import G_CODATA2018, ITOKAWA_MASS_KG, MAX_DEGREE
 from satellite.mesh import UNIT_SCALES
 
 __all__ = ["KNOWN_SHAPES", "register", "run", "provenance_for"]

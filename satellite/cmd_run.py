@@ -10,11 +10,12 @@ import time
 from collections.abc import Mapping
 from typing import Any, TextIO
 
-from isf_robot.core import ConfigError, Observer, UnknownNameError
+from isf_robot.core import ConfigError, Observer
 from isf_robot.record.options import add_recording_args, make_observer
 from satellite.controller import ControlParams
 from satellite.model import InitialOrbit, OrbitModel
-from satellite.simulate import TRIGGERS, RunResult, SatelliteSample, simulate
+from satellite.simulate import RunResult, SatelliteSample, simulate
+from satellite.triggers import TRIGGERS, Trigger
 
 __all__ = ["register", "run", "ProgressObserver", "format_text"]
 
@@ -68,8 +69,8 @@ def register(subparsers: Any) -> None:
             "Band [1.6R, 2.4R], h = (0.4R)^2 - (r - 2R)^2."
         ),
     )
-    p.add_argument("--trigger", default="greedy", metavar="{" + ",".join(TRIGGERS) + "}",
-                   help="none | greedy (default) | maneuver (needs --tau)")
+    p.add_argument("--trigger", default=Trigger.GREEDY.value, metavar="{" + ",".join(TRIGGERS) + "}",
+                   help="; ".join(f"{t}: {t.description}" for t in Trigger) + f" (default {Trigger.GREEDY})")
     p.add_argument("--hours", type=float, default=2400.0, help="simulated time in hours (default 2400)")
     p.add_argument("--seed", type=int, default=0, help="seed of the initial orbit's node, latitude and body phase")
     p.add_argument("--tau", metavar="FILE", help="tau_p fit written by `isf-satellite tau` (maneuver trigger)")
@@ -117,7 +118,7 @@ def format_text(res: RunResult) -> str:
         f"inter-event        min {f(res.min_inter_event_h, '.4g')} h, mean {f(res.mean_inter_event_h, '.4g')} h",
         f"miet_bound         {res.miet_bound_h:.3g} h",
     ]
-    if res.trigger == "none":
+    if res.trigger is Trigger.NONE:
         lines.append(f"left_band          {f(res.left_band_h, '.4g')} h")
     if res.surface is not None:
         s = res.surface
@@ -133,8 +134,7 @@ def format_text(res: RunResult) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``isf-satellite run``; return the exit status."""
-    if args.trigger not in TRIGGERS:
-        raise UnknownNameError("trigger", args.trigger, TRIGGERS)
+    trigger = Trigger.parse(args.trigger)
     if not math.isfinite(args.hours) or args.hours < 0:
         raise ConfigError(f"--hours must be a finite number >= 0, got {args.hours:g}")
     surface = None
@@ -143,13 +143,13 @@ def run(args: argparse.Namespace) -> int:
     if args.surface_check:
         if not (math.isfinite(args.surface_step) and args.surface_step > 0):
             raise ConfigError(f"--surface-step must be a positive number of seconds, got {args.surface_step:g}")
-        from satellite.surface import load_surface
+        from satellite.mesh_surface import load_surface
 
         surface = load_surface(args.shape, units=args.shape_units)
     tau = None
-    if args.trigger == "maneuver":
+    if trigger.needs_tau:
         if not args.tau:
-            raise ConfigError("--trigger maneuver needs --tau FILE (make one with `isf-satellite tau --out FILE`)")
+            raise ConfigError(f"--trigger {trigger} needs --tau FILE (make one with `isf-satellite tau --out FILE`)")
         from satellite.tau import load_tau
 
         tau = load_tau(args.tau)
@@ -162,11 +162,12 @@ def run(args: argparse.Namespace) -> int:
     initial = InitialOrbit(radius_over_R=args.radius, inclination_deg=args.inclination, seed=args.seed)
     control = ControlParams(alpha_gain=args.alpha_gain, d_bar=args.d_bar, c=args.c)
     observers: list[Observer] = [] if args.quiet else [ProgressObserver(sys.stderr)]
-    recorder = make_observer(args, "satellite", name=f"{args.trigger}-seed{args.seed}")
+    recorder = make_observer(args, "satellite", name=f"{trigger}-seed{args.seed}")
     if recorder is not None:
         observers.append(recorder)
-    res = simulate(args.trigger, args.hours, initial=initial, model=model, control=control, tau=tau,
-                   observers=observers, surface=surface, surface_step_s=args.surface_step)
+    res = simulate(trigger, args.hours, initial=initial, model=model, control=control, tau=tau,
+                   observers=observers, surface=surface, surface_step_s=args.surface_step,
+                   body_mesh=recorder is not None)
     if args.json:
         out = res.summary()
         if args.events:

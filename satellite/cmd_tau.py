@@ -11,6 +11,7 @@ from typing import Any
 
 from isf_robot.core import ConfigError
 from satellite.controller import ControlParams
+from satellite.files import write_text_atomic
 from satellite.model import OrbitModel
 from satellite.tau import collect_tau, fit_tau, tau_document
 
@@ -67,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     fit = fit_tau(data, model.h_max, model.R, args.degree)
     settings = {"alpha_gain": args.alpha_gain, "d_bar": args.d_bar, "degree": args.degree,
                 "disturbance_scale": args.disturbance_scale}
-    out.write_text(json.dumps(tau_document(data, fit, settings), indent=1) + "\n", encoding="utf-8")
+    write_text_atomic(out, json.dumps(tau_document(data, fit, settings), indent=1) + "\n")
     if not args.quiet:
         sys.stdout.write(f"wrote {out}: {args.samples} samples x {len(data.radii_over_R)} radii, "
                          f"{data.wall_s:.1f} s on {data.workers} workers\n")

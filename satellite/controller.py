@@ -1,4 +1,4 @@
-"""Safeguarding impulsive controller (paper, Section III-B; DESIGN.md section 4) and triggers.
+"""Safeguarding impulsive controller (paper, Section III-B; DESIGN.md section 4) and its margin.
 
 At the current radius ``r`` the controller aims at the apsis ``r_t = 2R + 0.5 (r - 2R)``:
 
@@ -20,25 +20,25 @@ Trigger (eq. greedy_cond): ``Xi(x) = LF h - |dh/dx| d_bar + alpha(h)`` with
 ``LF h = -2 (r - 2R) r_dot`` and ``|dh/dx| = 2 |r - 2R|``. After an impulse, ``h`` is unchanged
 and ``r_dot = (mu / H) e sin nu`` depends on ``r`` only, so ``Xi(G(x, K(x)))`` is a function of
 ``r`` alone (:meth:`SafeguardingController.post_jump_xi`); the margin ``c`` is chosen from it.
+The trigger values used during a run are :class:`satellite.triggers.BandTriggers`.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from isf_robot.core import ClassK, ConfigError, EventTriggeredImpulsiveController, Linear, ZenoGuard
+from isf_robot.core.triggers import xi_on_scalar
 from satellite.model import BAND_INNER, BAND_OUTER, BandBarrier, OrbitModel
 
 __all__ = [
     "SafeguardingController",
     "ControlParams",
     "ResolvedControl",
-    "FastTriggers",
     "resolve_control",
     "make_controller",
     "jump_map",
@@ -83,10 +83,14 @@ class SafeguardingController:
         return self.mu / hh * e * math.sin(nu), hh / r
 
     def post_jump_xi(self, r: float, alpha: ClassK, d_bar: float = 0.0) -> float:
-        """``Xi(G(x, K(x)))`` at radius ``r`` [m^2/s] (independent of the pre-jump velocity)."""
+        """``Xi(G(x, K(x)))`` at radius ``r`` [m^2/s] (independent of the pre-jump velocity).
+
+        The core's formula (:func:`~isf_robot.core.triggers.xi_on_scalar`) with the band's Lie
+        data after the jump: ``LF h = -2 (r - 2R) v_r+``, ``|dh/dx| = 2 |r - 2R|``.
+        """
         v_r, _ = self.post_jump_speeds(r)
         dr = r - self.r_centre
-        return -2.0 * dr * v_r - 2.0 * abs(dr) * d_bar + alpha(self.half_width**2 - dr * dr)
+        return xi_on_scalar(-2.0 * dr * v_r, 0.0, 2.0 * abs(dr), self.half_width**2 - dr * dr, alpha, d_bar)
 
     def velocity_after(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Velocity ``v+`` [m/s] after the jump at state ``x``, shape (3,)."""
@@ -200,56 +204,6 @@ def resolve_control(model: OrbitModel, params: ControlParams | None = None, samp
             f"{radii[i] / model.R:.4f} R; the post-jump check would fail"
         )
     return ResolvedControl(gain, params.d_bar, c, low, float(radii[i] / model.R))
-
-
-class FastTriggers:
-    """Plain-float trigger values for the integrator's event functions.
-
-    Same values as :meth:`EventTriggeredImpulsiveController.xi` for the band barrier and the
-    Kepler flow (a test checks it), without per-call array work.
-
-    Args:
-        model: Supplies R.
-        alpha: Class-K function.
-        d_bar: Disturbance bound.
-
-    """
-
-    def __init__(self, model: OrbitModel, alpha: ClassK, d_bar: float) -> None:
-        self.r_centre = model.r_centre
-        self.h_max = model.h_max
-        self.alpha = alpha
-        self.d_bar = d_bar
-
-    def parts(self, y: NDArray[np.float64]) -> tuple[float, float, float]:
-        """Return ``(r, h, LF h)`` at state ``y``."""
-        px, py, pz, vx, vy, vz = y.tolist()
-        r = math.sqrt(px * px + py * py + pz * pz)
-        dr = r - self.r_centre
-        return r, self.h_max - dr * dr, -2.0 * dr * (px * vx + py * vy + pz * vz) / r
-
-    def xi(self, t: float, y: NDArray[np.float64]) -> float:
-        """Greedy trigger ``Xi`` [m^2/s]."""
-        r, h, lfh = self.parts(y)
-        return lfh - 2.0 * abs(r - self.r_centre) * self.d_bar + self.alpha(h)
-
-    def h(self, t: float, y: NDArray[np.float64]) -> float:
-        """Barrier value [m^2]."""
-        return self.parts(y)[1]
-
-    def r_dot(self, t: float, y: NDArray[np.float64]) -> float:
-        """Radial speed ``r . v`` (scaled; only its sign matters) for apsis detection."""
-        px, py, pz, vx, vy, vz = y.tolist()
-        return px * vx + py * vy + pz * vz
-
-    def xi_tau_fn(self, dtau_dh: Callable[[float], float]) -> Callable[[float, NDArray[np.float64]], float]:
-        """Event function ``Xi_tau = (1 + tau_p'(h) LF h) / 2`` for a fitted ``tau_p``."""
-
-        def xi_tau(t: float, y: NDArray[np.float64]) -> float:
-            _, h, lfh = self.parts(y)
-            return 0.5 * (1.0 + dtau_dh(h) * lfh)
-
-        return xi_tau
 
 
 def make_controller(

@@ -1,30 +1,19 @@
-"""Spherical-harmonic gravity of a constant-density body, from its shape by exact integration.
+"""Spherical-harmonic gravity field of a body, evaluated in the body frame.
 
-Convention (fully normalised, 4-pi geodesy normalisation, no Condon-Shortley phase): in the
-body frame, with ``r = |r|``, latitude ``phi`` and longitude ``lambda``, the potential is
+Convention (fully normalised, 4-pi geodesy normalisation, no Condon-Shortley phase; see
+:mod:`satellite.harmonics`, which also computes the coefficients of a constant-density body from
+its shape): in the body frame, with ``r = |r|``, latitude ``phi`` and longitude ``lambda``,
 
     U(r) = GM / r * sum_{n=0}^{N} (R / r)^n sum_{m=0}^{n}
-               Pbar_nm(sin phi) (Cbar_nm cos(m lambda) + Sbar_nm sin(m lambda)),
+               Pbar_nm(sin phi) (Cbar_nm cos(m lambda) + Sbar_nm sin(m lambda)).
 
-    Pbar_nm = sqrt((2 - delta_m0) (2n + 1) (n - m)! / (n + m)!) P_nm,
-
-``P_nm(t) = (1 - t^2)^(m/2) d^m P_n / dt^m`` (no ``(-1)^m``). ``U`` is positive (``U = GM / r``
-for a point mass) and the acceleration is its gradient, ``a = grad U``. The series converges
-outside the body's Brillouin sphere (radius 311.7 m for Itokawa) and is only an approximation
-closer in; it is not the gravity inside the body.
-
-For a constant-density body of volume ``V`` whose origin is its centre of mass,
-
-    Cbar_nm + i Sbar_nm = 1 / ((2n + 1) V R^n) * integral over the body of
-                          Nbar_nm r^n P_nm(sin phi) exp(i m lambda) dV,
-
-and ``r^n P_nm(sin phi) cos(m lambda)``, ``r^n P_nm(sin phi) sin(m lambda)`` are homogeneous
-harmonic polynomials of degree ``n`` in ``x, y, z`` (solid harmonics, built by
-:func:`solid_harmonics`), so the coefficients are exact linear combinations of the body's
-monomial moments (:meth:`satellite.mesh.TriangleMesh.monomial_moments`).
+``U`` is positive (``U = GM / r`` for a point mass) and the acceleration is its gradient,
+``a = grad U``. The series converges outside the body's Brillouin sphere (radius 311.7 m for
+Itokawa) and is only an approximation closer in; it is not the gravity inside the body.
 
 Conventions of :meth:`GravityField.from_mesh`: origin at the centre of mass, the mesh's own
-axes, ``R`` = volume-equivalent radius, ``GM = G * mass``.
+axes, ``R`` = volume-equivalent radius, ``GM = G * mass``. Tables on disk:
+:mod:`satellite.gravity_io`.
 
 Itokawa (Gaskell 64-level mesh ``itokawa_low.obj``, 3.51e10 kg, degree 8), as committed in
 ``satellite/data/itokawa_degree8.json``: volume 1.778560e7 m^3, R = 161.930 m,
@@ -35,191 +24,27 @@ C22 = 0.14287). Generating it takes about 0.7 s.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
-from importlib import resources
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from satellite.errors import GravityModelError
+from satellite.gravity_io import read_default_table, read_table, table_arrays, table_dict, write_table
+from satellite.harmonics import (
+    G_CODATA2018,
+    ITOKAWA_MASS_KG,
+    check_degree,
+    normalisation,
+    polyhedron_harmonics,
+    solid_harmonics,
+)
 from satellite.mesh import TriangleMesh, read_obj
 
-__all__ = [
-    "G_CODATA2018",
-    "ITOKAWA_MASS_KG",
-    "MAX_DEGREE",
-    "DEFAULT_TABLE",
-    "GravityField",
-    "PolyhedronHarmonics",
-    "normalisation",
-    "solid_harmonics",
-    "polyhedron_harmonics",
-    "load_default_field",
-]
-
-G_CODATA2018 = 6.67430e-11
-"""Newtonian constant of gravitation [m^3 kg^-1 s^-2] (CODATA 2018)."""
-
-ITOKAWA_MASS_KG = 3.51e10
-"""Mass of 25143 Itokawa [kg] (Fujiwara et al. 2006, Science 312:1330)."""
-
-MAX_DEGREE = 20
-"""Highest degree accepted. The monomial forms used here lose accuracy as the degree grows
-(alternating sums with large coefficients); at degree 20 the coefficients of a test body still
-agree with an independent quadrature to about 1e-13."""
-
-DEFAULT_TABLE = "itokawa_degree8.json"
-"""File name of the committed Itokawa table in ``satellite/data/``."""
-
-
-def _check_degree(degree: int) -> int:
-    if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)):
-        raise GravityModelError(f"degree must be an integer, got {degree!r}")
-    if not 0 <= int(degree) <= MAX_DEGREE:
-        raise GravityModelError(f"degree must be in [0, {MAX_DEGREE}], got {degree}")
-    return int(degree)
-
-
-def normalisation(n: int, m: int) -> float:
-    """Full (4-pi) normalisation factor ``Nbar_nm = Pbar_nm / P_nm``.
-
-    Args:
-        n: Degree, >= 0.
-        m: Order, ``0 <= m <= n``.
-
-    Returns:
-        ``sqrt((2 - delta_m0) (2n + 1) (n - m)! / (n + m)!)``.
-
-    """
-    ratio = math.factorial(n - m) / math.factorial(n + m)
-    return math.sqrt((1.0 if m == 0 else 2.0) * (2 * n + 1) * ratio)
-
-
-def solid_harmonics(degree: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Unnormalised solid harmonics as dense monomial coefficient arrays.
-
-    ``V_nm(x, y, z) = r^n P_nm(sin phi) cos(m lambda)`` and
-    ``W_nm(x, y, z) = r^n P_nm(sin phi) sin(m lambda)``
-    (no Condon-Shortley phase), from ``V_mm + i W_mm = (2m - 1)!! (x + i y)^m`` and
-    ``(n - m) V_nm = (2n - 1) z V_{n-1,m} - (n + m - 1) r^2 V_{n-2,m}`` (same for ``W``).
-
-    Args:
-        degree: Highest degree ``N``, ``0 <= N <= MAX_DEGREE``.
-
-    Returns:
-        ``(V, W)``, each of shape (N+1, N+1, N+1, N+1, N+1): ``V[n, m, i, j, k]`` is the coefficient
-        of ``x^i y^j z^k`` in ``V_nm`` (zero for ``m > n``).
-
-    """
-    nmax = _check_degree(degree)
-    d = nmax + 1
-    v = np.zeros((d, d, d, d, d))
-    w = np.zeros((d, d, d, d, d))
-
-    def times(p: NDArray[np.float64], axis: int, power: int = 1) -> NDArray[np.float64]:
-        out = np.zeros_like(p)
-        src = [slice(None)] * 3
-        dst = [slice(None)] * 3
-        src[axis] = slice(0, d - power)
-        dst[axis] = slice(power, d)
-        out[tuple(dst)] = p[tuple(src)]
-        return out
-
-    def times_r2(p: NDArray[np.float64]) -> NDArray[np.float64]:
-        return times(p, 0, 2) + times(p, 1, 2) + times(p, 2, 2)
-
-    v[0, 0, 0, 0, 0] = 1.0
-    for m in range(1, d):
-        f = 2 * m - 1
-        v[m, m] = f * (times(v[m - 1, m - 1], 0) - times(w[m - 1, m - 1], 1))
-        w[m, m] = f * (times(w[m - 1, m - 1], 0) + times(v[m - 1, m - 1], 1))
-    for m in range(d):
-        for n in range(m + 1, d):
-            for arr in (v, w):
-                nxt = (2 * n - 1) * times(arr[n - 1, m], 2)
-                if n - 2 >= m:
-                    nxt -= (n + m - 1) * times_r2(arr[n - 2, m])
-                arr[n, m] = nxt / (n - m)
-    return v, w
-
-
-class PolyhedronHarmonics(NamedTuple):
-    """Normalised coefficients of a constant-density polyhedron (see :func:`polyhedron_harmonics`).
-
-    Attributes:
-        C: ``Cbar_nm``, shape (N+1, N+1), zero above the diagonal.
-        S: ``Sbar_nm``, shape (N+1, N+1), zero above the diagonal and in column 0.
-        r_ref_m: Reference radius [m] = volume-equivalent radius.
-        volume_m3: Volume of the mesh [m^3].
-        centre_of_mass_m: Centre of mass in the mesh's frame [m], shape (3,); the coefficients
-            are about this point.
-
-    """
-
-    C: NDArray[np.float64]
-    S: NDArray[np.float64]
-    r_ref_m: float
-    volume_m3: float
-    centre_of_mass_m: NDArray[np.float64]
-
-
-def polyhedron_harmonics(mesh: TriangleMesh, degree: int) -> PolyhedronHarmonics:
-    """Fully normalised harmonic coefficients of a constant-density closed mesh, exactly.
-
-    The origin is the centre of mass, the axes are the mesh's, and the reference radius is the
-    volume-equivalent radius ``R``. Moments are taken of ``(x - x_cm) / R`` for conditioning, so
-    ``Cbar_nm = Nbar_nm / ((2n + 1) V) * sum_ijk V_nm[i, j, k] M[i, j, k]``.
-
-    Args:
-        mesh: Checked, closed, outward-oriented mesh [m].
-        degree: Highest degree ``N``, ``0 <= N <= MAX_DEGREE``.
-
-    Returns:
-        The coefficients and the reference quantities.
-
-    """
-    nmax = _check_degree(degree)
-    com = mesh.centre_of_mass
-    r_ref = mesh.volume_equivalent_radius
-    moments = mesh.monomial_moments(nmax, origin=com, scale=r_ref)
-    volume = float(moments[0, 0, 0])
-    v, w = solid_harmonics(nmax)
-    c = np.zeros((nmax + 1, nmax + 1))
-    s = np.zeros((nmax + 1, nmax + 1))
-    for n in range(nmax + 1):
-        for m in range(n + 1):
-            factor = normalisation(n, m) / ((2 * n + 1) * volume)
-            c[n, m] = factor * float(np.sum(v[n, m] * moments))
-            if m > 0:
-                s[n, m] = factor * float(np.sum(w[n, m] * moments))
-    c[0, 0] = 1.0  # exact by construction; avoid a last-digit rounding
-    return PolyhedronHarmonics(c, s, float(r_ref), float(mesh.volume), com)
-
-
-def _square(rows: Any, degree: int, name: str) -> NDArray[np.float64]:
-    """Turn triangular or square row lists into a (N+1, N+1) array."""
-    out = np.zeros((degree + 1, degree + 1))
-    try:
-        if len(rows) != degree + 1:
-            raise GravityModelError(
-                f"{name} has {len(rows)} rows, expected degree + 1 = {degree + 1}"
-            )
-        for n, row in enumerate(rows):
-            vals = np.asarray(row, dtype=np.float64).reshape(-1)
-            if vals.size < n + 1 or vals.size > degree + 1:
-                raise GravityModelError(
-                    f"{name}[{n}] has {vals.size} entries, expected {n + 1}..{degree + 1}"
-                )
-            out[n, : vals.size] = vals
-    except (TypeError, ValueError) as exc:
-        if isinstance(exc, GravityModelError):
-            raise
-        raise GravityModelError(f"{name} must be a list of numeric rows: {exc}") from None
-    return out
+__all__ = ["GravityField", "load_default_field"]
 
 
 class GravityField:
@@ -253,7 +78,7 @@ class GravityField:
             raise GravityModelError(
                 f"C and S must be square (N+1, N+1) arrays, got {c.shape} and {s.shape}"
             )
-        degree = _check_degree(c.shape[0] - 1)
+        degree = check_degree(c.shape[0] - 1)
         if not (np.isfinite(c).all() and np.isfinite(s).all()):
             raise GravityModelError("C and S must be finite")
         if np.any(np.triu(c, 1)) or np.any(np.triu(s, 1)) or np.any(s[:, 0]):
@@ -322,7 +147,7 @@ class GravityField:
         """
         if not (math.isfinite(mass_kg) and mass_kg > 0.0):
             raise GravityModelError(f"mass must be a positive number of kg, got {mass_kg}")
-        degree = _check_degree(degree)
+        degree = check_degree(degree)
         if not isinstance(mesh, TriangleMesh):
             mesh = read_obj(mesh, units=units)
         harm = polyhedron_harmonics(mesh, degree)
@@ -330,58 +155,21 @@ class GravityField:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> GravityField:
-        """Build from a mapping with ``degree``, ``r_ref_m``, ``gm``, ``C`` and ``S`` (``C[n][m]``).
-
-        Rows may be triangular (``n + 1`` entries) or full (``degree + 1`` entries).
-        """
-        missing = [k for k in ("degree", "r_ref_m", "gm", "C", "S") if k not in data]
-        if missing:
-            raise GravityModelError(
-                f"gravity table lacks key(s) {missing}; needs degree, r_ref_m, gm, C, S"
-            )
-        degree = _check_degree(data["degree"])
-        try:
-            r_ref, gm = float(data["r_ref_m"]), float(data["gm"])
-        except (TypeError, ValueError):
-            raise GravityModelError("r_ref_m and gm must be numbers") from None
-        return cls(_square(data["C"], degree, "C"), _square(data["S"], degree, "S"), r_ref, gm)
+        """Build from a table mapping (see :func:`satellite.gravity_io.table_arrays`)."""
+        return cls(*table_arrays(data))
 
     @classmethod
     def from_json(cls, path: str | Path) -> GravityField:
         """Read a table written by :meth:`to_json` (or the ``isf-satellite gravity`` command)."""
-        try:
-            data = json.loads(Path(path).read_text(encoding="utf-8"))
-        except json.JSONDecodeError as exc:
-            raise GravityModelError(f"{path}: not valid JSON ({exc})") from None
-        if not isinstance(data, dict):
-            raise GravityModelError(f"{path}: expected a JSON object")
-        return cls.from_dict(data)
+        return cls.from_dict(read_table(path))
 
     def to_dict(self, provenance: Mapping[str, Any] | None = None) -> dict[str, Any]:
-        """Return the JSON-ready table: ``degree``, ``r_ref_m``, ``gm``, rows of ``C`` and ``S``."""
-        out: dict[str, Any] = {}
-        if provenance is not None:
-            out["provenance"] = dict(provenance)
-        out["degree"] = self._degree
-        out["r_ref_m"] = self._r_ref
-        out["gm"] = self._gm
-        out["normalisation"] = "full (4-pi geodesy), no Condon-Shortley phase"
-        out["C"] = [self._c[n, : n + 1].tolist() for n in range(self._degree + 1)]
-        out["S"] = [self._s[n, : n + 1].tolist() for n in range(self._degree + 1)]
-        return out
+        """Return the JSON-ready table (see :func:`satellite.gravity_io.table_dict`)."""
+        return table_dict(self._c, self._s, self._r_ref, self._gm, provenance)
 
     def to_json(self, path: str | Path, provenance: Mapping[str, Any] | None = None) -> None:
         """Write the table as JSON (see :meth:`to_dict`); floats are written round-trip exact."""
-        data = self.to_dict(provenance)
-        parts = []
-        for key, value in data.items():
-            if key in ("C", "S"):
-                rows = ",\n".join("  " + json.dumps(row) for row in value)
-                text = "[\n" + rows + "\n ]"
-            else:
-                text = json.dumps(value, indent=1).replace("\n", "\n ")
-            parts.append(f" {json.dumps(key)}: {text}")
-        Path(path).write_text("{\n" + ",\n".join(parts) + "\n}\n", encoding="utf-8")
+        write_table(path, self.to_dict(provenance))
 
     # ------------------------------------------------------------------ read-only data
     @property
@@ -545,6 +333,4 @@ def load_default_field() -> GravityField:
     Generated by :meth:`GravityField.from_mesh` from Gaskell's 64-level shape model
     (HAY-A-AMICA-5-ITOKAWASHAPE-V1.0) with mass 3.51e10 kg; see the file's ``provenance`` key.
     """
-    resource = resources.files("satellite") / "data" / DEFAULT_TABLE
-    with resources.as_file(resource) as path:
-        return GravityField.from_json(path)
+    return GravityField.from_dict(read_default_table())

@@ -21,16 +21,18 @@ from typing import Any
 import numpy as np
 
 from satellite.controller import ControlParams
+from satellite.files import write_text_atomic
 from satellite.model import InitialOrbit, OrbitModel
 from satellite.simulate import IntegratorSettings, simulate
 from satellite.tau import load_tau
+from satellite.triggers import Trigger
 
 __all__ = ["compare", "main"]
 
 
 def _one(args: tuple[Any, ...]) -> dict[str, Any]:
     trigger, seed, hours, tau_path, spin, scale, alpha_gain, inclination, rtol = args
-    tau = load_tau(tau_path) if trigger == "maneuver" else None
+    tau = load_tau(tau_path) if trigger.needs_tau else None
     res = simulate(
         trigger, hours, initial=InitialOrbit(seed=seed, inclination_deg=inclination),
         model=OrbitModel(spin=spin, disturbance_scale=scale), control=ControlParams(alpha_gain=alpha_gain),
@@ -64,7 +66,8 @@ def compare(
     """
     jobs = []
     for s in seeds:
-        for trig, rtol in (("greedy", 1e-10), ("maneuver", 1e-10)) + ((("greedy", 1e-11),) if rtol_check else ()):
+        runs = ((Trigger.GREEDY, 1e-10), (Trigger.MANEUVER, 1e-10)) + (((Trigger.GREEDY, 1e-11),) if rtol_check else ())
+        for trig, rtol in runs:
             jobs.append(
                 (trig, int(s), float(hours), tau_path, spin, disturbance_scale, alpha_gain, inclination_deg, rtol)
             )
@@ -73,8 +76,8 @@ def compare(
     rows = []
     for s in seeds:
         mine = [r for r in results if r["seed"] == s]
-        g = next(r for r in mine if r["trigger"] == "greedy" and r["rtol"] == 1e-10)
-        m = next(r for r in mine if r["trigger"] == "maneuver")
+        g = next(r for r in mine if r["trigger"] is Trigger.GREEDY and r["rtol"] == 1e-10)
+        m = next(r for r in mine if r["trigger"] is Trigger.MANEUVER)
         row = {
             "seed": s,
             "greedy": g["triggers"],
@@ -90,7 +93,7 @@ def compare(
             "greedy_wall_s": g["wall_s"],
             "maneuver_wall_s": m["wall_s"],
         }
-        tight = [r for r in mine if r["trigger"] == "greedy" and r["rtol"] == 1e-11]
+        tight = [r for r in mine if r["trigger"] is Trigger.GREEDY and r["rtol"] == 1e-11]
         if tight:
             row["greedy_rtol1e-11"] = tight[0]["triggers"]
         rows.append(row)
@@ -138,8 +141,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         list(range(a.seeds)), a.hours, a.tau, spin=not a.no_spin, disturbance_scale=a.disturbance_scale,
         alpha_gain=a.alpha_gain, inclination_deg=a.inclination, rtol_check=a.rtol_check, workers=a.workers,
     )
-    with open(a.out, "w", encoding="utf-8") as fh:
-        json.dump(res, fh, indent=1)
+    write_text_atomic(a.out, json.dumps(res, indent=1) + "\n")
     sys.stdout.write(json.dumps(res["reduction"]) + "\n")
     return 0
 

@@ -31,9 +31,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from satellite.controller import ControlParams, FastTriggers, make_controller, resolve_control
+from satellite.controller import ControlParams, make_controller, resolve_control
 from satellite.errors import SatelliteError
 from satellite.model import BAND_INNER, BAND_OUTER, OrbitModel
+from satellite.triggers import BandTriggers
 
 __all__ = [
     "TAU_FORMAT",
@@ -209,7 +210,7 @@ def time_to_trigger(
     r = radius_over_R * model.R
     x = np.concatenate([r * u, math.sqrt(model.mu / r) * w])
     y = ctrl.apply_jump(0.0, x, "greedy").x_after
-    trig = FastTriggers(model, ctrl.alpha, resolved.d_bar)
+    trig = BandTriggers(model, ctrl.alpha, resolved.d_bar)
 
     def ev(t: float, yy: NDArray[np.float64]) -> float:
         return trig.xi(t, yy)

@@ -7,10 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from isf_robot.core import ConfigError, Linear, ManeuverScheduler
+from isf_robot.core import ConfigError
 from satellite.controller import (
     ControlParams,
-    FastTriggers,
     SafeguardingController,
     make_controller,
     resolve_control,
@@ -100,18 +99,3 @@ def test_margin_check_refuses_impossible_c(model: OrbitModel) -> None:
         resolve_control(model, ControlParams(c=2 * res.min_post_jump_xi))
     with pytest.raises(ConfigError, match="no positive margin"):
         resolve_control(model, ControlParams(d_bar=1.0))
-
-
-def test_fast_triggers_match_core(model: OrbitModel) -> None:
-    res = resolve_control(model)
-    ctrl = make_controller(model, res)
-    fast = FastTriggers(model, Linear(res.alpha_gain), res.d_bar)
-    sched = ManeuverScheduler(ctrl, lambda h: 3600.0 + h, lambda h: 0.3 + 1e-4 * h)
-    fx = fast.xi_tau_fn(sched.dtau_p_dh)
-    for x in random_states(model, 30, seed=5):
-        assert fast.xi(0.0, x) == pytest.approx(ctrl.xi(0.0, x), rel=1e-10, abs=1e-12)
-        assert fx(0.0, x) == pytest.approx(sched.xi_tau(0.0, x), rel=1e-10, abs=1e-12)
-    ctrl_d = make_controller(model, resolve_control(model, ControlParams(d_bar=1e-4)))
-    fast_d = FastTriggers(model, ctrl_d.alpha, 1e-4)
-    for x in random_states(model, 10, seed=6):
-        assert fast_d.xi(0.0, x) == pytest.approx(ctrl_d.xi(0.0, x), rel=1e-10, abs=1e-12)

@@ -10,19 +10,14 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-import satellite.surface as surface_mod
+import satellite.mesh_surface as mesh_surface_mod
 from satellite.cli import main
 from satellite.mesh import TriangleMesh
+from satellite.mesh_surface import MeshSurface, load_surface
 from satellite.model import OrbitModel
+from satellite.shapes import EllipsoidSurface, winding_numbers
 from satellite.simulate import simulate
-from satellite.surface import (
-    EllipsoidSurface,
-    MeshSurface,
-    SurfaceCheck,
-    load_surface,
-    to_body_frame,
-    winding_numbers,
-)
+from satellite.surface import SurfaceCheck, to_body_frame
 
 SURFACE_KEYS = {"surface_model", "surface_hits", "first_surface_hit_h", "min_clearance_m", "surface_passes"}
 
@@ -119,7 +114,7 @@ def test_nonconvex_body_with_several_crossings(origin: tuple[float, ...] | None)
 
 
 def test_ellipsoid_fallback_matches_analytic(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(surface_mod, "default_shape_path", lambda: Path("/nonexistent/itokawa.obj"))
+    monkeypatch.setattr(mesh_surface_mod, "default_shape_path", lambda: Path("/nonexistent/itokawa.obj"))
     ell = load_surface(None)
     assert isinstance(ell, EllipsoidSurface) and "ellipsoid 535 x 294 x 209 m" in ell.name
     a = np.array([267.5, 147.0, 104.5])

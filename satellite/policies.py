@@ -1,0 +1,184 @@
+"""Trigger policies (paper, eqs. trigger:greedy and trigger:int_time): what each trigger does in a run.
+
+One policy per :class:`satellite.triggers.Trigger`: which events each arc of the integration
+watches and which impulse a fired event applies. The integration of one arc is
+:class:`satellite.arcs.ArcIntegrator`; the loop that calls :meth:`TriggerPolicy.step` until the
+end time is :func:`satellite.simulate.simulate`.
+
+* ``none``: no control; one arc that stops when the satellite first leaves the band (``h = 0``
+  falling), whose time is reported (the series gravity model is not meant for deep inside).
+* ``greedy``: event ``Xi = 0`` (falling), then ``x+ = G(x, K(x))``.
+* ``maneuver``: first impulse by ``Xi``; then integrate to the gate ``t_first + tau_p(h(x+))``
+  with the ``Xi`` event only (a ``safe`` second impulse if it fires first), then enable
+  ``Xi_tau = (1 + tau_p'(h) LF h) / 2`` (a ``tau`` second impulse at the gate itself when
+  ``Xi_tau <= 0`` there).
+
+Every arc also watches the apsis event (``r . v = 0``, non-terminal), so the reported radius
+range is that of the trajectory, not of the step points.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from isf_robot.core import ConfigError, EventTriggeredImpulsiveController, JumpEvent, ManeuverScheduler
+from satellite.arcs import ArcIntegrator, event
+from satellite.triggers import BandTriggers, Trigger
+
+__all__ = ["TriggerPolicy", "NoControl", "Greedy", "Maneuver", "make_policy"]
+
+Step = tuple[float, NDArray[np.float64], bool]
+"""``(t, y, finished)`` after one policy step."""
+
+
+class TriggerPolicy:
+    """What one trigger does between impulses; :meth:`step` advances the run by one arc.
+
+    Args:
+        trig: The band trigger values.
+        ctrl: The core impulsive controller (post-jump checks, jump history).
+        arc: Integrates one arc (:class:`satellite.arcs.ArcIntegrator`).
+        on_jump: Called with every applied impulse (the observers' ``on_event``).
+        tau: Fitted ``tau_p`` (used by ``maneuver`` only).
+
+    Attributes:
+        trigger: The trigger this policy implements.
+        first_phase: Phase label of the run's first sample.
+        left_band_s: First time outside the band [s] (``none`` only; ``None`` otherwise).
+
+    """
+
+    trigger: Trigger
+    first_phase: str
+
+    def __init__(
+        self,
+        trig: BandTriggers,
+        ctrl: EventTriggeredImpulsiveController,
+        arc: ArcIntegrator,
+        on_jump: Callable[[JumpEvent], None],
+        tau: Any = None,
+    ) -> None:
+        self.trig = trig
+        self.ctrl = ctrl
+        self.arc = arc
+        self.on_jump = on_jump
+        self.left_band_s: float | None = None
+        self.xi_ev = event(trig.xi, True, -1.0)
+        self.apsis_ev = event(trig.r_dot, False, 0.0)
+
+    def step(self, t: float, y: NDArray[np.float64], t_end: float) -> Step:
+        """Integrate from ``(t, y)`` to the next impulse (applied) or to ``t_end`` [s]."""
+        raise NotImplementedError
+
+    def _jump(self, t: float, y: NDArray[np.float64], kind: str) -> NDArray[np.float64]:
+        ev = self.ctrl.apply_jump(t, y, kind)
+        self.on_jump(ev)
+        return ev.x_after
+
+
+class NoControl(TriggerPolicy):
+    """``none``: one arc, stopped when ``h`` falls through 0."""
+
+    trigger = Trigger.NONE
+    first_phase = "none"
+
+    def step(self, t: float, y: NDArray[np.float64], t_end: float) -> Step:
+        """One arc to ``t_end`` or to the band exit; the run then ends."""
+        sol = self.arc(t, t_end, y, [event(self.trig.h, True, -1.0), self.apsis_ev], "none", None)
+        if sol.status == 1:
+            self.left_band_s = float(sol.t_events[0][0])
+        return float(sol.t[-1]), y, True
+
+
+class Greedy(TriggerPolicy):
+    """``greedy``: an impulse at every falling zero of ``Xi``."""
+
+    trigger = Trigger.GREEDY
+    first_phase = "greedy"
+
+    def step(self, t: float, y: NDArray[np.float64], t_end: float) -> Step:
+        """One arc to the next ``Xi = 0`` (impulse applied) or to ``t_end``."""
+        sol = self.arc(t, t_end, y, [self.xi_ev, self.apsis_ev], "greedy", None)
+        t, y = float(sol.t[-1]), sol.y[:, -1]
+        if sol.status == 1:
+            t, y = float(sol.t_events[0][0]), sol.y_events[0][0]
+            y = self._jump(t, y, "greedy")
+        return t, y, False
+
+
+class Maneuver(TriggerPolicy):
+    """``maneuver``: first impulse by ``Xi``, second by ``Xi`` (``safe``) or, after the gate, ``Xi_tau``."""
+
+    trigger = Trigger.MANEUVER
+    first_phase = "first"
+
+    def __init__(
+        self,
+        trig: BandTriggers,
+        ctrl: EventTriggeredImpulsiveController,
+        arc: ArcIntegrator,
+        on_jump: Callable[[JumpEvent], None],
+        tau: Any = None,
+    ) -> None:
+        super().__init__(trig, ctrl, arc, on_jump, tau)
+        if tau is None:
+            raise ConfigError("the maneuver trigger needs a fitted tau_p (make one with `isf-satellite tau`)")
+        self.sched = ManeuverScheduler(self.ctrl, tau.tau_p, tau.dtau_dh)
+        self.xi_tau = self.trig.xi_tau_fn(tau.dtau_dh)
+        self.xi_tau_ev = event(self.xi_tau, True, -1.0)
+
+    def _jump(self, t: float, y: NDArray[np.float64], kind: str) -> NDArray[np.float64]:
+        ev = self.sched.apply_jump(t, y, kind)
+        self.on_jump(ev)
+        return ev.x_after
+
+    def step(self, t: float, y: NDArray[np.float64], t_end: float) -> Step:
+        """One arc of the current phase; at most one impulse."""
+        sched = self.sched
+        if sched.phase == "first":
+            sol = self.arc(t, t_end, y, [self.xi_ev, self.apsis_ev], "first", None)
+            t, y = float(sol.t[-1]), sol.y[:, -1]
+            if sol.status == 1:
+                t, y = float(sol.t_events[0][0]), sol.y_events[0][0]
+                y = self._jump(t, y, "greedy")
+            return t, y, False
+        gate = float(sched.gate_time)  # type: ignore[arg-type]
+        if t < gate:
+            sol = self.arc(t, min(gate, t_end), y, [self.xi_ev, self.apsis_ev], "second", None)
+            t, y = float(sol.t[-1]), sol.y[:, -1]
+            if sol.status == 1:
+                t, y = float(sol.t_events[0][0]), sol.y_events[0][0]
+                return t, self._jump(t, y, "safe"), False
+            if t >= t_end:
+                return t, y, True
+            t = gate
+        if self.xi_tau(t, y) <= 0.0:
+            return t, self._jump(t, y, "tau"), False
+        sol = self.arc(t, t_end, y, [self.xi_ev, self.xi_tau_ev, self.apsis_ev], "second-gated", self.xi_tau)
+        t, y = float(sol.t[-1]), sol.y[:, -1]
+        if sol.status == 1:
+            fired = [i for i in (0, 1) if len(sol.t_events[i])]
+            i = min(fired, key=lambda k: float(sol.t_events[k][0]))
+            t, y = float(sol.t_events[i][0]), sol.y_events[i][0]
+            y = self._jump(t, y, "safe" if i == 0 else "tau")
+        return t, y, False
+
+
+_POLICIES: dict[Trigger, type[TriggerPolicy]] = {p.trigger: p for p in (NoControl, Greedy, Maneuver)}
+
+
+def make_policy(
+    trigger: Trigger,
+    trig: BandTriggers,
+    ctrl: EventTriggeredImpulsiveController,
+    arc: ArcIntegrator,
+    on_jump: Callable[[JumpEvent], None],
+    tau: Any = None,
+) -> TriggerPolicy:
+    """The policy of ``trigger`` (arguments as for :class:`TriggerPolicy`)."""
+    return _POLICIES[trigger](trig, ctrl, arc, on_jump, tau)
