@@ -3,9 +3,10 @@
 Logged, besides the base recorder's replay columns and events:
 
 * ``/world/body``: the asteroid, spinning about body +z by the sample's ``body_angle``; the
-  shape model (``itokawa_low.obj`` from the shared data folder, centred on its centre of
-  mass) when it can be read, else an ellipsoid of the published dimensions
-  535 x 294 x 209 m.
+  triangles the run sends in its start info (``body_mesh``: ``vertices`` (N, 3) [m] about the
+  centre of mass, ``faces`` (M, 3), ``name``) when it sends them, else an ellipsoid of the
+  published dimensions 535 x 294 x 209 m. The recorder reads no shape file itself: the run
+  tells its observers what to draw.
 * ``/world/band/inner``, ``/world/band/outer``: the band's two spheres (1.6R and 2.4R).
 * ``/world/satellite``: the current position; ``/world/trajectory/<k>``: the path, one
   static line strip per buffered block of samples (memory stays bounded).
@@ -21,18 +22,17 @@ previous sample, ``on`` whether a maneuver is in progress, ``min_barrier`` the s
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import rerun as rr
 
+from .errors import RecordError
 from .recorder import RerunRecorder
 from .schema import IMPULSES
 
-__all__ = ["SatelliteRecorder", "default_mesh_path", "read_shape", "ITOKAWA_HALF_AXES_M"]
+__all__ = ["SatelliteRecorder", "body_triangles", "ITOKAWA_HALF_AXES_M"]
 
 ITOKAWA_HALF_AXES_M = (267.5, 147.0, 104.5)
 """Half axes of the stand-in ellipsoid [m]: Itokawa's published 535 x 294 x 209 m."""
@@ -40,49 +40,32 @@ ITOKAWA_HALF_AXES_M = (267.5, 147.0, 104.5)
 _BAND = (1.6, 2.4)
 
 
-def default_mesh_path() -> Path:
-    """``<repo>/../shared/data/itokawa/itokawa_low.obj`` (outside the repository, never committed)."""
-    repo = Path(__file__).resolve().parents[2]
-    return repo.parent / "shared" / "data" / "itokawa" / "itokawa_low.obj"
-
-
-_V = re.compile(r"^v[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)[ \t]*$", re.M)
-_F = re.compile(r"^f[ \t]+(\d+)(?:/\S*)?[ \t]+(\d+)(?:/\S*)?[ \t]+(\d+)(?:/\S*)?[ \t]*$", re.M)
-
-
-def read_shape(path: Path, km: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """The body's triangles for display, centred on the centre of mass of the enclosed volume.
-
-    A fast path for plain triangle OBJ files (``v x y z`` and ``f i j k`` records, 1-based
-    indices), a few times faster than the checked reader; anything else (polygons, negative
-    indices, an open mesh) goes through :func:`satellite.mesh.read_obj`.
+def body_triangles(mesh: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Check the ``body_mesh`` entry of a run's start info and return its triangles.
 
     Args:
-        path: OBJ file.
-        km: Coordinates in kilometres (the Gaskell model) rather than metres.
+        mesh: Mapping with ``vertices`` (N, 3) [m] and ``faces`` (M, 3) (0-based vertex indices).
 
     Returns:
-        ``(vertices [m] relative to the centre of mass, shape (V, 3); faces, shape (F, 3) uint32)``.
+        ``(vertices float64 (N, 3), faces uint32 (M, 3))``.
+
+    Raises:
+        RecordError: Not such a mapping (missing keys, wrong shapes, non-finite vertices, indices
+            out of range).
 
     """
-    data = path.read_text(encoding="utf-8", errors="replace")
-    v, f = _V.findall(data), _F.findall(data)
-    n_v = sum(1 for line in data.splitlines() if line.startswith(("v ", "v\t")))
-    n_f = sum(1 for line in data.splitlines() if line.startswith(("f ", "f\t")))
-    if v and f and len(v) == n_v and len(f) == n_f:
-        verts = np.asarray(v, dtype=np.float64) * (1000.0 if km else 1.0)
-        faces = np.asarray(f, dtype=np.int64) - 1
-        if faces.min() >= 0 and faces.max() < len(verts):
-            a, b, c = verts[faces[:, 0]], verts[faces[:, 1]], verts[faces[:, 2]]
-            vol = np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0  # signed tetrahedra (origin, a, b, c)
-            if vol.sum() > 0:
-                com = (vol[:, None] * (a + b + c)).sum(axis=0) / (4.0 * vol.sum())
-                return verts - com, faces.astype(np.uint32)
-    from satellite.mesh import read_obj
-
-    mesh = read_obj(path, units="km" if km else "m")
-    return (np.asarray(mesh.vertices, dtype=np.float64) - np.asarray(mesh.centre_of_mass),
-            np.asarray(mesh.faces, dtype=np.uint32))
+    try:
+        verts = np.asarray(mesh["vertices"], dtype=np.float64)
+        faces = np.asarray(mesh["faces"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise RecordError(f"body_mesh must map 'vertices' (N, 3) and 'faces' (M, 3) to arrays ({exc})") from None
+    if verts.ndim != 2 or verts.shape[1] != 3 or not len(verts) or not np.isfinite(verts).all():
+        raise RecordError(f"body_mesh vertices must be finite, shape (N, 3); got shape {verts.shape}")
+    if faces.ndim != 2 or faces.shape[1] != 3 or not len(faces) or faces.dtype.kind not in "iu":
+        raise RecordError(f"body_mesh faces must be integers, shape (M, 3); got {faces.dtype} {faces.shape}")
+    if faces.min() < 0 or faces.max() >= len(verts):
+        raise RecordError(f"body_mesh faces index vertices 0..{len(verts) - 1}; got {faces.min()}..{faces.max()}")
+    return verts, faces.astype(np.uint32)
 
 
 def _impulse_columns(rows: list[tuple[Any, ...]]) -> Any:
@@ -103,8 +86,6 @@ class SatelliteRecorder(RerunRecorder):
     Args:
         stream: The recording stream.
         radius_m: Itokawa's reference radius R [m]; default from the run info (``R_m``).
-        mesh_path: Shape model (OBJ, km); default :func:`default_mesh_path`. When it is missing
-            or unreadable the ellipsoid is drawn instead (see :attr:`body_shape`).
         arrow_scale: Arrow length per unit of delta-v [m per m/s]; default ``0.3 R / (0.1 m/s)``.
         capacity: Samples buffered per channel.
         close_on_finish: Close the stream in ``on_finish``.
@@ -112,21 +93,20 @@ class SatelliteRecorder(RerunRecorder):
     """
 
     kind = "satellite"
-    CONTEXT_KEYS = ("radius_m", "mesh_path", "arrow_scale", "capacity")
+    CONTEXT_KEYS = ("radius_m", "arrow_scale", "capacity")
+    INFO_OBJECTS = ("body_mesh",)
 
     def __init__(
         self,
         stream: rr.RecordingStream,
         *,
         radius_m: float | None = None,
-        mesh_path: str | Path | None = None,
         arrow_scale: float | None = None,
         capacity: int = 2048,
         close_on_finish: bool = True,
     ) -> None:
         super().__init__(stream, capacity=capacity, close_on_finish=close_on_finish)
         self.radius_m = radius_m
-        self.mesh_path = Path(mesh_path) if mesh_path is not None else default_mesh_path()
         self.arrow_scale = arrow_scale
         self.body_shape = "none"
         self._t_prev: float | None = None
@@ -156,15 +136,13 @@ class SatelliteRecorder(RerunRecorder):
         if self.radius_m is None:
             self.radius_m = float(info.get("R_m", 0.0)) or None
         if self.radius_m is None:
-            from .errors import RecordError
-
             raise RecordError("SatelliteRecorder needs the reference radius: radius_m= or R_m in the run info")
         R = float(self.radius_m)
         if self.arrow_scale is None:
             self.arrow_scale = 0.3 * R / 0.1
         rec = self.stream
         rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-        self._log_body()
+        self._log_body(info)
         for name, k, color in (("inner", _BAND[0], (230, 120, 40, 60)), ("outer", _BAND[1], (40, 120, 230, 40))):
             rec.log(f"/world/band/{name}", rr.Ellipsoids3D(half_sizes=[[k * R] * 3], colors=[color],
                                                           fill_mode="majorwireframe",
@@ -175,17 +153,14 @@ class SatelliteRecorder(RerunRecorder):
         rec.log("/plots/xi/xi", rr.SeriesLines(names="Xi"), static=True)
         rec.log("/plots/xi/xi_tau", rr.SeriesLines(names="Xi_tau"), static=True)
 
-    def _log_body(self) -> None:
-        verts = faces = None
-        try:
-            if self.mesh_path.is_file():
-                verts, faces = read_shape(self.mesh_path)
-        except Exception:  # unreadable shape: the ellipsoid stands in (recorded in body_shape)
-            verts = faces = None
-        if verts is not None and faces is not None:
+    def _log_body(self, info: Mapping[str, Any]) -> None:
+        """The body from the start info's ``body_mesh`` (see :func:`body_triangles`), else the ellipsoid."""
+        mesh = info.get("body_mesh")
+        if mesh is not None:
+            verts, faces = body_triangles(mesh)
             self.stream.log("/world/body/shape", rr.Mesh3D(vertex_positions=verts, triangle_indices=faces,
                                                            albedo_factor=[150, 140, 120]), static=True)
-            self.body_shape = f"mesh:{self.mesh_path.name}"
+            self.body_shape = f"mesh:{mesh.get('name', 'body')}"
         else:
             self.stream.log("/world/body/shape", rr.Ellipsoids3D(half_sizes=[ITOKAWA_HALF_AXES_M],
                                                                  colors=[[150, 140, 120]], fill_mode="solid"),

@@ -82,33 +82,3 @@ def test_contiguous_index_is_a_slice() -> None:
     assert MujocoDrawing.index(np.array([2, 3, 4])) == slice(2, 5)
     assert isinstance(MujocoDrawing.index(np.array([0, 2])), np.ndarray)
     assert rr is not None
-
-
-CUBE_V = [(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1), (-1, -1, 1), (1, -1, 1), (1, 1, 1), (-1, 1, 1)]
-CUBE_QUADS = [(1, 4, 3, 2), (5, 6, 7, 8), (1, 2, 6, 5), (2, 3, 7, 6), (3, 4, 8, 7), (4, 1, 5, 8)]
-
-
-def _cube_obj(path, shift, quads: bool) -> None:  # type: ignore[no-untyped-def]
-    lines = [f"v {x + shift[0]} {y + shift[1]} {z + shift[2]}" for x, y, z in CUBE_V]
-    for q in CUBE_QUADS:
-        if quads:
-            lines.append("f " + " ".join(str(i) for i in q))
-        else:
-            lines += [f"f {q[0]} {q[1]} {q[2]}", f"f {q[0]} {q[2]} {q[3]}"]
-    path.write_text("\n".join(lines) + "\n")
-
-
-def test_read_shape_fast_path_and_fallback(tmp_path) -> None:  # type: ignore[no-untyped-def]
-    from isf_robot.record.satellite import read_shape
-    from satellite.mesh import read_obj
-
-    tri, quad = tmp_path / "tri.obj", tmp_path / "quad.obj"
-    _cube_obj(tri, (0.3, -0.2, 0.1), quads=False)
-    _cube_obj(quad, (0.3, -0.2, 0.1), quads=True)  # polygons: the checked reader handles them
-    for path in (tri, quad):
-        verts, faces = read_shape(path)
-        mesh = read_obj(path)
-        assert faces.shape == (12, 3)
-        np.testing.assert_allclose(verts.mean(axis=0), 0.0, atol=1e-9)  # centred on the centre of mass
-        np.testing.assert_allclose(np.ptp(verts, axis=0), np.ptp(mesh.vertices, axis=0))
-        assert np.ptp(verts[:, 0]) == 2000.0  # km -> m

@@ -117,17 +117,3 @@ def test_satellite_round_trip(sat_run) -> None:  # type: ignore[no-untyped-def]
     arrows = read_columns(sat_run.path, "/world/impulses")
     assert len(arrows["sim_time"]) == res.triggers
     assert "h" in str(arrows["Arrows3D:labels"][0])
-
-
-def test_satellite_body_shape(sat_run, tmp_path) -> None:  # type: ignore[no-untyped-def]
-    from isf_robot.record import SatelliteRecorder, open_stream
-    from isf_robot.record.satellite import default_mesh_path
-
-    expected = "mesh:itokawa_low.obj" if default_mesh_path().is_file() else "ellipsoid"
-    assert sat_run.recorder.body_shape == expected
-    # without the shape file: the ellipsoid of the published dimensions
-    rec = SatelliteRecorder(open_stream("isf_robot_satellite", rrd_path=tmp_path / "e.rrd"),
-                            mesh_path=tmp_path / "missing.obj", radius_m=162.0)
-    rec.on_start({})
-    rec.on_finish({})
-    assert rec.body_shape == "ellipsoid"
