@@ -88,7 +88,7 @@ def worker(case: str, record: str, out: str) -> dict[str, Any]:
         scene = load_scene(scene_name)
         obs: list[Any] = []
         if record == "rrd":
-            obs = [open_recorder("arm", Path(out), name=case, scene=scene)]
+            obs = [open_recorder("arm", Path(out), name=case)]
         elif record == "null":
             obs = [Observer()]
         res = ArmSimulation(scene, strategy, seed=0, observers=obs).run(duration)
@@ -141,7 +141,7 @@ def recorder_cost_us(scene_name: str = "panda_pole", seconds: float = 10.0) -> d
     with tempfile.TemporaryDirectory() as tmpdir:
         best = float("inf")
         for _ in range(3):
-            rec = open_recorder("arm", Path(tmpdir) / "r.rrd", scene=scene)
+            rec = open_recorder("arm", Path(tmpdir) / "r.rrd")
             rec.on_start(keep.info)
             t0 = time.perf_counter()
             for r in keep.records:

@@ -11,10 +11,7 @@ the barrier condition at the sample keeps ``h >= 0`` along the whole step.
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
-import sys
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -23,19 +20,18 @@ import numpy as np
 
 from .core import (
     DiscObstacleBarrier,
-    IntermittentSafetyFilter,
     Linear,
     MetricsAccumulator,
-    SafetyFilter,
     SingleIntegrator,
     evaluate_barriers,
     lie_data,
 )
 from .core.exceptions import ConfigError
+from .core.report import format_table as report_table
+from .core.report import format_value, mean_std_cell
+from .core.strategies import make_strategy, strategy_info, strategy_names
 
-__all__ = ["DemoScene", "make_scene", "run_episode", "compare", "format_table", "register"]
-
-STRATEGIES = ("nominal", "cbf", "isf")
+__all__ = ["DemoScene", "make_scene", "run_episode", "compare", "format_table"]
 
 
 @dataclass(frozen=True)
@@ -89,10 +85,7 @@ def run_episode(
     record: bool = False,
 ) -> dict[str, Any]:
     """Run one episode and return its figures (and the trajectory when ``record``)."""
-    if strategy not in STRATEGIES:
-        from .core.exceptions import UnknownNameError
-
-        raise UnknownNameError("strategy", strategy, STRATEGIES)
+    info = strategy_info(strategy)  # UnknownNameError listing the valid names
     if not (math.isfinite(duration) and duration > 0 and math.isfinite(dt) and dt > 0):
         raise ConfigError(f"duration and dt must be finite and > 0, got {duration}, {dt}")
     scene = make_scene(seed, n_obstacles)
@@ -101,13 +94,8 @@ def run_episode(
         DiscObstacleBarrier(cc, r, name=f"disc{i}") for i, (cc, r) in enumerate(zip(scene.centers, scene.radii))
     ]
     alpha = Linear(alpha_gain)
-    filt: SafetyFilter | IntermittentSafetyFilter | None
-    if strategy == "cbf":
-        filt = SafetyFilter(alpha, 0.0, system=system, barriers=barriers)
-    elif strategy == "isf":
-        filt = IntermittentSafetyFilter(alpha, c=c, b=b, system=system, barriers=barriers)
-    else:
-        filt = None
+    filt = (make_strategy(strategy, alpha=alpha, c=c, b=b, d_bar=0.0, system=system, barriers=barriers)
+            if info.filters else None)
     steps = int(round(duration / dt))
     x = scene.start.copy()
     acc = MetricsAccumulator()
@@ -162,17 +150,16 @@ def run_episode(
 
 def compare(seeds: list[int], **kwargs: Any) -> dict[str, list[dict[str, Any]]]:
     """Run every strategy on every seed."""
-    return {s: [run_episode(s, seed, **kwargs) for seed in seeds] for s in STRATEGIES}
+    return {s: [run_episode(s, seed, **kwargs) for seed in seeds] for s in strategy_names()}
 
 
-def _fmt(values: list[Any], fmt: str) -> str:
+def _cell(values: list[Any], fmt: str) -> str:
     vals = [v for v in values if v is not None]
     if not vals:
         return "-"
-    mean = float(np.mean(vals))
     if len(vals) == 1:
-        return format(mean, fmt)
-    return f"{format(mean, fmt)} ± {format(float(np.std(vals)), fmt)}"
+        return format_value(float(vals[0]), fmt)
+    return mean_std_cell(float(np.mean(vals)), float(np.std(vals)), fmt)
 
 
 def format_table(results: dict[str, list[dict[str, Any]]]) -> str:
@@ -193,49 +180,5 @@ def format_table(results: dict[str, list[dict[str, Any]]]) -> str:
     for strat, eps in results.items():
         for e in eps:
             e.setdefault("wall_ms", 1e3 * e["wall_s"])
-        rows.append([strat] + [_fmt([e[key] for e in eps], f) for _, key, f in cols])
-    header = ["strategy"] + [c[0] for c in cols]
-    widths = [max(len(r[i]) for r in rows + [header]) for i in range(len(header))]
-    line = "  ".join(h.ljust(w) for h, w in zip(header, widths))
-    out = [line, "-" * len(line)]
-    out += ["  ".join(v.ljust(w) for v, w in zip(r, widths)) for r in rows]
-    return "\n".join(out)
-
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    """Arguments of ``core-demo``."""
-    p.add_argument("--episodes", type=int, default=5, help="number of seeds (default 5)")
-    p.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
-    p.add_argument("--duration", type=float, default=20.0, help="episode length [s] (default 20)")
-    p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
-
-
-def handle(args: argparse.Namespace) -> int:
-    """Run the core demo."""
-    if args.episodes < 1:
-        raise ConfigError(f"--episodes must be >= 1, got {args.episodes}")
-    if not (math.isfinite(args.duration) and args.duration > 0):
-        raise ConfigError(f"--duration must be a finite number > 0, got {args.duration}")
-    if args.seed < 0:
-        raise ConfigError(f"--seed must be >= 0, got {args.seed}")
-    seeds = list(range(args.seed, args.seed + args.episodes))
-    if not args.json:
-        print(f"core demo: planar single integrator past 4 discs, {len(seeds)} seeds, "
-              f"{args.duration:g} s each, dt = 0.01 s", file=sys.stderr)
-    results = compare(seeds, duration=args.duration)
-    if args.json:
-        print(json.dumps({"episodes": len(seeds), "results": results}))
-    else:
-        print(format_table(results))
-    return 0
-
-
-def register(sub: Any) -> None:
-    """Register ``core-demo``."""
-    p = sub.add_parser(
-        "core-demo",
-        help="planar single integrator past discs: no filter vs standard vs intermittent filter",
-        description="Run the engine-free core demo on the same seeds three ways and print a comparison table.",
-    )
-    add_arguments(p)
-    p.set_defaults(handler=handle)
+        rows.append([strat] + [_cell([e[key] for e in eps], f) for _, key, f in cols])
+    return report_table(["strategy"] + [c[0] for c in cols], rows, align_first_only=True)

@@ -5,8 +5,9 @@ Each subcommand lives in its own module ``satellite.cmd_<name>`` exposing
 ``argparse.Namespace`` and returning an exit code). To add a subcommand, write the module and
 list it in :data:`SUBCOMMAND_MODULES`; modules that do not exist (yet) are skipped.
 
-User errors (missing files, bad meshes, invalid parameters) print one line to stderr and exit
-with status 2, without a traceback.
+Errors go through the one error path of both command lines,
+:func:`isf_robot.cli.errors.run_handler`: user errors (missing files, bad meshes, invalid
+parameters) print one line to stderr and exit with status 2, Ctrl-C exits 130, no traceback.
 """
 
 from __future__ import annotations
@@ -17,9 +18,9 @@ import importlib.util
 import sys
 from collections.abc import Sequence
 
-from isf_robot.core.exceptions import IsfError
+from isf_robot.cli.errors import EXIT_USAGE, run_handler
 
-__all__ = ["SUBCOMMAND_MODULES", "build_parser", "main"]
+__all__ = ["SUBCOMMAND_MODULES", "EXIT_USAGE", "build_parser", "main"]
 
 SUBCOMMAND_MODULES: tuple[str, ...] = (
     "satellite.cmd_gravity",
@@ -27,10 +28,6 @@ SUBCOMMAND_MODULES: tuple[str, ...] = (
     "satellite.cmd_tau",
 )
 """Modules providing subcommands, in ``--help`` order; missing ones are skipped."""
-
-EXIT_USAGE = 2
-"""Exit status for user errors (as argparse uses for bad arguments)."""
-
 
 def build_parser() -> argparse.ArgumentParser:
     """Build the ``isf-satellite`` parser with every available subcommand registered."""
@@ -61,12 +58,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     parser = build_parser()
     args = parser.parse_args(argv)
-    try:
-        return int(args.func(args) or 0)
-    except (IsfError, OSError, ValueError) as exc:
-        message = " ".join(str(exc).split()) or type(exc).__name__
-        print(f"isf-satellite {args.command}: error: {message}", file=sys.stderr)
-        return EXIT_USAGE
+    return run_handler("isf-satellite", args.func, args)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -29,7 +29,7 @@ _EXPORTS: dict[str, str] = {
     "Calibration": "calibration", "calibrate_d_bar": "calibration", "clear_calibration_cache": "calibration",
     # simulation: episodes, the loop, its records
     "EpisodeSetup": "episode", "check_control_period": "episode", "episode_setup": "episode",
-    "STRATEGIES": "sim", "ArmSimulation": "sim", "run_episode": "sim",
+    "ArmSimulation": "sim", "run_episode": "sim", "resolve_params": "params",
     "ArmStepRecord": "records", "FilterParams": "records", "RunResult": "records",
     # comparisons
     "SceneSpec": "compare", "Comparison": "compare", "compare_strategies": "compare", "format_table": "compare",

@@ -1,10 +1,11 @@
 """Comparing the strategies over seeded episodes, optionally in parallel processes.
 
 Every strategy runs on the same seeds (same initial configuration, goal jitter and obstacle
-phase per seed) and the same ``d_bar`` (the calibration is deterministic; each process computes
-it once per scene and caches it). Workers receive
-only plain values (scene name or file paths, parameters) and rebuild the scene, so the pool
-works with the ``spawn`` start method.
+phase per seed) and the same filter parameters, resolved once in the calling process
+(:func:`~isf_robot.arm.params.resolve_params`: arguments, then the scene's ``[filter]``, then the
+tracking calibration for ``d_bar``). Workers receive only plain values (scene name or file
+paths, the resolved :class:`~isf_robot.arm.records.FilterParams`) and rebuild the scene, so the
+pool works with the ``spawn`` start method and no worker calibrates.
 """
 
 from __future__ import annotations
@@ -18,10 +19,15 @@ from typing import Any
 
 import numpy as np
 
-from isf_robot.core import ConfigError, UnknownNameError
+from isf_robot.core import ConfigError
+from isf_robot.core.report import format_table as _table
+from isf_robot.core.report import mean_std_cell, to_jsonable
+from isf_robot.core.strategies import strategy_info, strategy_names
 
+from .params import resolve_params
+from .records import FilterParams
 from .scene import Scene, load_scene, load_scene_from_files
-from .sim import STRATEGIES, run_episode
+from .sim import ArmSimulation
 
 __all__ = [
     "SceneSpec",
@@ -33,7 +39,11 @@ __all__ = [
     "summarize",
     "format_table",
     "json_safe",
+    "FILTER_KEYS",
 ]
+
+# Keyword arguments that are filter parameters (resolved once by :func:`resolve_params`).
+FILTER_KEYS = ("alpha", "c", "b", "d_bar")
 
 # Per-run keys averaged in a comparison (mean and standard deviation over episodes).
 SUMMARY_KEYS: tuple[str, ...] = (
@@ -84,8 +94,8 @@ class EpisodeTask:
         strategy: ``nominal``, ``cbf`` or ``isf``.
         seed: Episode seed.
         duration: Simulated time [s] (``None``: the scene's).
-        params: Keyword arguments for :class:`~isf_robot.arm.ArmSimulation` (alpha, c, b,
-            d_bar, control_period).
+        params: Keyword arguments for :class:`~isf_robot.arm.ArmSimulation` (``params=`` the
+            resolved :class:`FilterParams`, ``control_period``, ``observers``, ...).
 
     """
 
@@ -99,21 +109,15 @@ class EpisodeTask:
 def run_task(task: EpisodeTask) -> dict[str, Any]:
     """Run one episode and return its JSON-ready result (used by the worker processes)."""
     scene = task.spec.load()
-    res = run_episode(scene, task.strategy, task.duration, task.seed, **dict(task.params))
+    kwargs = dict(task.params)
+    if not isinstance(kwargs.get("params"), FilterParams):
+        kwargs["params"] = resolve_params(scene, *(kwargs.pop(k, None) for k in FILTER_KEYS))
+    res = ArmSimulation(scene, task.strategy, seed=task.seed, **kwargs).run(task.duration)
     return json_safe(res.as_dict())
 
 
-def json_safe(obj: Any) -> Any:
-    """Replace non-finite floats by ``None`` (JSON has no infinity or NaN), recursively."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, Mapping):
-        return {str(k): json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [json_safe(v) for v in obj]
-    if isinstance(obj, np.generic):
-        return json_safe(obj.item())
-    return obj
+json_safe = to_jsonable
+"""JSON-ready values with non-finite floats as ``None`` (:func:`isf_robot.core.report.to_jsonable`)."""
 
 
 def _stats(values: Sequence[Any]) -> tuple[float | None, float | None, int]:
@@ -174,7 +178,7 @@ def compare_strategies(
     spec: SceneSpec,
     episodes: int,
     *,
-    strategies: Sequence[str] = STRATEGIES,
+    strategies: Sequence[str] | None = None,
     duration: float | None = None,
     seed0: int = 0,
     jobs: int = 1,
@@ -189,11 +193,14 @@ def compare_strategies(
     Args:
         spec: The scene.
         episodes: Episodes per strategy, >= 1.
-        strategies: Strategies to compare (each in :data:`STRATEGIES`, no repeats).
+        strategies: Registered strategy names to compare, no repeats (default: all,
+            :func:`isf_robot.core.strategies.strategy_names`).
         duration: Simulated time per episode [s] (``None``: the scene's).
         seed0: First seed.
         jobs: Worker processes (1: run here, sequentially).
-        params: Extra :class:`~isf_robot.arm.ArmSimulation` keyword arguments.
+        params: Filter parameters (``alpha``, ``c``, ``b``, ``d_bar``: resolved here once, with
+            the calibration if ``d_bar`` is unknown) and extra
+            :class:`~isf_robot.arm.ArmSimulation` keyword arguments.
         progress: Called after each episode as ``progress(done, total, task, result)``.
 
     Returns:
@@ -204,22 +211,20 @@ def compare_strategies(
         raise ConfigError(f"--episodes must be >= 1, got {episodes}")
     if int(jobs) < 1:
         raise ConfigError(f"--jobs must be >= 1, got {jobs}")
-    strategies = list(strategies)
+    strategies = list(strategy_names() if strategies is None else strategies)
     if not strategies:
         raise ConfigError("no strategies to compare")
     for s in strategies:
-        if s not in STRATEGIES:
-            raise UnknownNameError("strategy", s, STRATEGIES)
+        strategy_info(s)  # UnknownNameError listing the valid names
     if len(set(strategies)) != len(strategies):
         raise ConfigError(f"strategies repeat: {strategies}")
     if duration is not None and not (math.isfinite(duration) and duration > 0):
         raise ConfigError(f"duration must be a positive number of seconds, got {duration}")
     scene = spec.load()
     params = dict(params or {})
-    # validates the parameters and the control period before any worker starts (and fills
-    # this process's calibration cache; workers calibrate once each, deterministically)
-    from .sim import ArmSimulation
-
+    if not isinstance(params.get("params"), FilterParams):
+        params["params"] = resolve_params(scene, *(params.pop(k, None) for k in FILTER_KEYS))
+    # validates the control period and the rest before any worker starts
     ArmSimulation(scene, strategies[0], seed=seed0, **params)
     seeds = tuple(range(int(seed0), int(seed0) + int(episodes)))
     tasks = [EpisodeTask(spec, s, seed, duration, params) for seed in seeds for s in strategies]
@@ -262,30 +267,15 @@ _COLUMNS: tuple[tuple[str, str, str], ...] = (
 )
 
 
-def _cell(mean: float | None, std: float | None, fmt: str) -> str:
-    if mean is None:
-        return "-"
-    return f"{mean:{fmt}} ± {(std or 0.0):{fmt}}"
-
-
 def format_table(comp: Comparison) -> str:
     """Plain-text table, one row per strategy: mean ± standard deviation over episodes.
 
     ``-`` marks a mean over no episode (e.g. no complete off period in any run).
     """
-    headers = ["strategy"] + [h for _, h, _ in _COLUMNS]
     rows = []
     for strategy, res in comp.results.items():
         std = res.get("std", {})
-        rows.append([strategy] + [_cell(res.get(k), std.get(k), f) for k, _, f in _COLUMNS])
-    widths = [max(len(r[i]) for r in [headers] + rows) for i in range(len(headers))]
-
-    def line(cells: Sequence[str]) -> str:
-        first = cells[0].ljust(widths[0])
-        return "  ".join([first] + [c.rjust(w) for c, w in zip(cells[1:], widths[1:])])
-
-    out = [f"scene {comp.scene}: {comp.episodes} episode(s) per strategy, seeds "
-           f"{comp.seeds[0]}..{comp.seeds[-1]} (mean ± std)",
-           line(headers), line(["-" * w for w in widths])]
-    out += [line(r) for r in rows]
-    return "\n".join(out)
+        rows.append([strategy] + [mean_std_cell(res.get(k), std.get(k), f) for k, _, f in _COLUMNS])
+    title = (f"scene {comp.scene}: {comp.episodes} episode(s) per strategy, seeds "
+             f"{comp.seeds[0]}..{comp.seeds[-1]} (mean ± std)")
+    return _table(["strategy"] + [h for _, h, _ in _COLUMNS], rows, title=title)

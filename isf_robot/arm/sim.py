@@ -53,12 +53,6 @@ from .scene import Scene
 
 __all__ = ["ArmSimulation", "run_episode"]
 
-# TEMPORARY re-exports for modules not yet moved to the registry / records (removed at integration)
-from isf_robot.core.strategies import strategy_names as _names  # noqa: E402
-
-STRATEGIES = _names()
-_COMPAT = (ArmStepRecord, EpisodeSetup, FilterParams, RunResult, check_control_period, episode_setup)
-
 PHASES = ("sense", "barriers", "nominal", "strategy", "act")
 
 

@@ -323,7 +323,7 @@ class QPSolver:
                 rhs = b[idx] - Aa @ u_nom
                 if idx.size == 1:
                     nrm = float(Aa[0] @ Aa[0])
-                    if nrm == 0.0:
+                    if nrm <= 1e-200:  # lam would overflow: keep the solver's answer
                         cand = None
                         break
                     lam = rhs / nrm

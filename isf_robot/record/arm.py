@@ -92,8 +92,6 @@ class ArmRecorder(RerunRecorder):
 
     Args:
         stream: The recording stream.
-        scene: The :class:`isf_robot.arm.Scene` being simulated (geometry, joint addresses,
-            margins).
         closest: How many collision pairs (those with the smallest h at each step) get their
             own barrier series.
         capacity: Step records kept before a block is converted and sent.
@@ -102,34 +100,43 @@ class ArmRecorder(RerunRecorder):
     """
 
     kind = "arm"
-    CONTEXT_KEYS = ("scene", "closest", "capacity")
+    CONTEXT_KEYS = ("closest", "capacity")
+    INFO_OBJECTS = ("model",)
 
     def __init__(
         self,
         stream: rr.RecordingStream,
         *,
-        scene: Any,
         closest: int = 3,
         capacity: int = 2048,
         close_on_finish: bool = True,
     ) -> None:
-        if scene is None or not hasattr(scene, "model"):
-            raise RecordError("ArmRecorder needs scene= (an isf_robot.arm.Scene)")
         super().__init__(stream, capacity=capacity, close_on_finish=close_on_finish)
-        self.scene = scene
         self.closest = int(closest)
-        self.drawing = MujocoDrawing(scene.model)
-        self.margins = self._margins(scene)
-        uniform = self.margins.size == 0 or bool(np.all(self.margins == self.margins[0]))
-        self.exact_min_barrier = uniform
-        self._margin = float(self.margins.max()) if self.margins.size else 0.0
+        self.drawing: MujocoDrawing | None = None
+        self.margins = np.zeros(0)
+        self.exact_min_barrier = True
+        self._margin = 0.0
         self._running_min = math.inf
-        self._n_collision = int(self.margins.size)
+        self._n_collision = 0
         self._pair_paths: dict[int, str] = {}
         self._names: tuple[str, ...] = ()
-        self._qpos_adr = MujocoDrawing.index(scene.qpos_adr)
+        self._qpos_adr: Any = None
         self._batch = self.buffer.add("/replay/arm_steps", _RecordBatch(self._send_batch))
         self._derived = self._derived_entities()
+
+    def _setup(self, info: Mapping[str, Any]) -> None:
+        """Geometry and margins from the run's start info (``model``, ``qpos_adr``, ``pair_margins``)."""
+        model = info.get("model")
+        if model is None or info.get("qpos_adr") is None:
+            raise RecordError("ArmRecorder needs the arm loop's start info (model, qpos_adr, pair_margins); "
+                              "got keys: " + ", ".join(sorted(info)))
+        self.drawing = MujocoDrawing(model)
+        self.margins = np.asarray(info.get("pair_margins", ()), dtype=float).reshape(-1)
+        self.exact_min_barrier = self.margins.size == 0 or bool(np.all(self.margins == self.margins[0]))
+        self._margin = float(self.margins.max()) if self.margins.size else 0.0
+        self._n_collision = int(info.get("n_collision", self.margins.size))
+        self._qpos_adr = MujocoDrawing.index(info["qpos_adr"])
 
     def make_step_channel(self) -> Channel | None:
         """None: the arm keeps whole step records in a :class:`_RecordBatch` instead."""
@@ -176,6 +183,7 @@ class ArmRecorder(RerunRecorder):
                 stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=out[0])], columns=out[1])
         stream.send_columns("/world/witness", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
                             columns=_witness_columns([r.witness for r in recs]))
+        assert self.drawing is not None
         self.drawing.send_poses(stream, t, self._qpos_adr, [r.q for r in recs],
                                 [r.mocap_pos for r in recs], [r.mocap_quat for r in recs])
 
@@ -216,33 +224,23 @@ class ArmRecorder(RerunRecorder):
                                      columns=rr.Scalars.columns(scalars=h[rows, j]))
         return None
 
-    @staticmethod
-    def _margins(scene: Any) -> np.ndarray:
-        try:
-            from isf_robot.arm.barriers import CollisionBarriers
-
-            return np.asarray(CollisionBarriers.from_scene(scene).pairs.margin, dtype=float)
-        except Exception:  # scene without collision pairs: no margin to subtract
-            return np.zeros(0)
-
     # -- static --------------------------------------------------------------------------
     def start_content(self, info: Mapping[str, Any]) -> None:
         """Geometry, goals, plot styles."""
-        if info.get("n_collision") is not None:
-            self._n_collision = int(info["n_collision"])
+        self._setup(info)
+        assert self.drawing is not None
         rec = self.stream
         rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         self.drawing.log_static(rec)
         goals = info.get("goals")
-        goals = np.asarray(goals if goals is not None else getattr(self.scene, "goal_positions", np.zeros((0, 3))),
-                           dtype=float).reshape(-1, 3)
+        goals = np.asarray(goals if goals is not None else np.zeros((0, 3)), dtype=float).reshape(-1, 3)
         if goals.size:
             rec.log("/world/goals", rr.Points3D(goals, radii=0.015, colors=[[60, 200, 90]],
                                                 labels=[f"goal {i}" for i in range(len(goals))]), static=True)
         rec.log("/world/goal", rr.Points3D.from_fields(radii=[0.025], colors=[[40, 240, 80]]), static=True)
         rec.log("/world/ee", rr.Points3D.from_fields(radii=[0.012], colors=[[240, 240, 240]]), static=True)
         rec.log("/world/witness", rr.LineStrips3D.from_fields(radii=[0.003], colors=[[255, 40, 200]]), static=True)
-        joints = [str(j) for j in info.get("joint_names", getattr(self.scene, "joint_names", ()))]
+        joints = [str(j) for j in info.get("joint_names", ())]
         rec.log("/plots/command/nominal", rr.SeriesLines(names=[f"{j} nominal" for j in joints],
                                                          widths=[1.0] * len(joints)), static=True)
         rec.log("/plots/command/filtered", rr.SeriesLines(names=[f"{j} filtered" for j in joints],

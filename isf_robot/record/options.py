@@ -3,14 +3,14 @@
 Command modules owned by the arm and satellite layers call two functions and nothing else::
 
     add_recording_args(parser)                      # or per_run=True for `compare`
-    observer = make_observer(args, "arm", scene=scene, strategy=s, seed=seed)   # None if not asked
+    observer = make_observer(args, "arm", name="panda_pole-isf-seed0")   # None if not asked
 
 Recording layout:
 
 * ``isf-robot run --rrd PATH`` and ``isf-satellite run --rrd PATH``: one file, one recording.
 * ``isf-robot compare --rrd DIR``: one recording per strategy and episode, each in its own
-  file ``DIR/<strategy>-seed<seed>.rrd``, so that ``isf-robot replay DIR`` (or
-  ``DIR/*.rrd``) puts them side by side. With ``--spawn`` every recording also streams to
+  file ``DIR/<scene>-<strategy>-seed<seed>.rrd`` (names that cannot collide across scenes),
+  so that ``isf-robot replay DIR`` (or ``DIR/*.rrd``) puts them side by side. With ``--spawn`` every recording also streams to
   the one viewer, as distinct recordings. The observer is a picklable
   :class:`PerRunRecorder`, so it can travel to worker processes inside the run parameters.
 """
@@ -81,9 +81,9 @@ def make_observer(args: argparse.Namespace, kind: str, *, name: str | None = Non
         args: Parsed arguments (from a parser prepared by :func:`add_recording_args`).
         kind: ``"arm"``, ``"satellite"`` or ``"generic"``.
         name: Recording name shown by the viewer (single-run commands).
-        **context: Passed to the recorder: for ``"arm"`` ``scene=`` (an
-            :class:`isf_robot.arm.Scene`) and optionally ``closest=``; for ``"satellite"``
-            optionally ``mesh_path=``, ``radius_m=``; anything else is ignored.
+        **context: Passed to the recorder: for ``"arm"`` optionally ``closest=``; for
+            ``"satellite"`` optionally ``mesh_path=``, ``radius_m=``; anything else is ignored.
+            The geometry comes from the run's start info.
 
     Returns:
         An :class:`~isf_robot.core.hooks.Observer` to pass to the simulation loop, or ``None``.
@@ -146,23 +146,16 @@ def _pick(context: dict[str, Any], keys: tuple[str, ...]) -> dict[str, Any]:
 
 
 def run_name(info: Mapping[str, Any]) -> str:
-    """Name of a run from its ``on_start`` info: ``<strategy or trigger>-seed<seed>``."""
-    head = info.get("strategy") or info.get("trigger") or "run"
+    """Name of a run from its ``on_start`` info: ``[<scene>-]<strategy or trigger>-seed<seed>``."""
+    head = str(info.get("strategy") or info.get("trigger") or "run")
+    if info.get("scene"):
+        head = f"{info['scene']}-{head}"
     seed = info.get("seed")
     return f"{head}-seed{seed}" if seed is not None else str(head)
 
 
-def _scene_from_info(info: Mapping[str, Any]) -> Any:
-    from isf_robot.arm.scene import load_scene, load_scene_from_files
-
-    model, config = info.get("model_path"), info.get("config_path")
-    if model and config:
-        return load_scene_from_files(model, config)
-    return load_scene(str(info["scene"]))
-
-
 class PerRunRecorder(Observer):
-    """One recording per run: each ``on_start`` opens ``<directory>/<strategy>-seed<seed>.rrd``.
+    """One recording per run: each ``on_start`` opens ``<directory>/<run_name(info)>.rrd``.
 
     Holds only paths and flags until a run starts, so it can be pickled into worker processes
     (``compare --jobs K``) and reused for consecutive runs. For arm runs the scene is loaded
@@ -191,8 +184,7 @@ class PerRunRecorder(Observer):
         """Open this run's recording and start it."""
         name = run_name(info)
         path = None if self.directory is None else recording_path(self.directory, name)
-        context: dict[str, Any] = {"scene": _scene_from_info(info)} if self.kind == "arm" else {}
-        self._current = open_recorder(self.kind, path, spawn=self.spawn, name=name, **context)
+        self._current = open_recorder(self.kind, path, spawn=self.spawn, name=name)
         if path is not None:
             self.paths.append(path)
         self._current.on_start(info)

@@ -17,7 +17,6 @@ cost per step is a few array writes; the stream is closed (file footer written) 
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -25,6 +24,7 @@ import numpy as np
 import rerun as rr
 
 from isf_robot.core.hooks import Observer
+from isf_robot.core.report import to_jsonable
 
 from . import schema
 from .buffer import Channel, ColumnBuffer
@@ -32,25 +32,6 @@ from .stream import close_stream
 
 __all__ = ["RerunRecorder", "to_jsonable", "finite_scalars"]
 
-
-def to_jsonable(obj: Any) -> Any:
-    """Convert numpy values, paths, dataclasses and the like into JSON-ready values."""
-    if isinstance(obj, Mapping):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [to_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return to_jsonable(obj.tolist())
-    if isinstance(obj, (np.floating, float)):
-        f = float(obj)
-        return f if math.isfinite(f) else str(f)
-    if isinstance(obj, (np.integer, np.bool_)):
-        return obj.item()
-    if obj is None or isinstance(obj, (str, int, bool)):
-        return obj
-    if hasattr(obj, "as_dict"):
-        return to_jsonable(obj.as_dict())
-    return str(obj)
 
 
 def finite_scalars(t: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, Any] | None:
@@ -91,6 +72,8 @@ class RerunRecorder(Observer):
     """
 
     kind = "generic"
+    INFO_OBJECTS: tuple[str, ...] = ()
+    """Start-info keys holding live objects (e.g. the MuJoCo model): used, not stored in ``/run/info``."""
 
     def __init__(
         self,
@@ -138,7 +121,9 @@ class RerunRecorder(Observer):
     # -- observer hooks ------------------------------------------------------------------
     def on_start(self, info: Mapping[str, Any]) -> None:
         """Log the run's metadata (static) and the subclass's static content."""
-        self.stream.log(schema.INFO, rr.AnyValues(kind=self.kind, info_json=json.dumps(to_jsonable(info))),
+        self.stream.log(schema.INFO, rr.AnyValues(
+            kind=self.kind, info_json=json.dumps(to_jsonable(
+                {k: v for k, v in info.items() if k not in self.INFO_OBJECTS}))),
                         static=True)
         self.stream.log(f"{schema.PLOTS}/mode", rr.SeriesLines(names="filter on"), static=True)
         self.stream.log(f"{schema.PLOTS}/barrier/min", rr.SeriesLines(names="min h", colors=[220, 40, 40]),

@@ -14,7 +14,6 @@ columns, raises :class:`~isf_robot.record.errors.RecordingReadError` naming the 
 from __future__ import annotations
 
 import json
-import math
 import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -26,6 +25,8 @@ import pyarrow as pa
 from rerun.chunk import RrdReader
 
 from isf_robot.core.metrics import compute_metrics
+from isf_robot.core.report import format_table as report_table
+from isf_robot.core.report import format_value
 
 from . import schema
 from .errors import RecordingReadError
@@ -369,20 +370,6 @@ def replay_metrics(log: RunLog) -> dict[str, Any]:
     return out
 
 
-def _fmt(v: Any) -> str:
-    if v is None:
-        return "-"
-    if isinstance(v, bool):
-        return str(v)
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if not math.isfinite(v):
-            return str(v)
-        return f"{v:.4g}" if abs(v) >= 1e-3 or v == 0 else f"{v:.3e}"
-    return str(v)
-
-
 def format_table(rows: Sequence[tuple[str, Mapping[str, Any]]], keys: Sequence[str] | None = None) -> str:
     """Side-by-side table: one column per recording, one row per metric.
 
@@ -396,10 +383,5 @@ def format_table(rows: Sequence[tuple[str, Mapping[str, Any]]], keys: Sequence[s
         if any("triggers" in m for _, m in rows):
             keys = ["triggers", "total_dv", "min_inter_event_h", "mean_inter_event_h", "min_barrier",
                     "duration_s"]
-    header = ["metric"] + [label for label, _ in rows]
-    body = [[k] + [_fmt(m.get(k)) for _, m in rows] for k in keys]
-    widths = [max(len(r[i]) for r in [header] + body) for i in range(len(header))]
-    lines = ["  ".join(c.ljust(w) for c, w in zip(header, widths)).rstrip()]
-    lines.append("-" * len(lines[0]))
-    lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in body]
-    return "\n".join(lines)
+    body = [[k] + [format_value(m.get(k)) for _, m in rows] for k in keys]
+    return report_table(["metric"] + [label for label, _ in rows], body, align_first_only=True)

@@ -176,3 +176,13 @@ def test_demo_entry_point_prints_table() -> None:
                        capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     assert "panda_pole" in p.stdout and "isf" in p.stdout and "duty cycle" in p.stdout
+
+
+@pytest.mark.parametrize("argv", [
+    ["run", "--scene", "planar", "--duration", "0.1", "--seed", "-3"],
+    ["compare", "--scene", "planar", "--episodes", "1", "--duration", "0.1", "--seed", "-1"],
+])
+def test_negative_seed_cli_exit_2_one_line(argv: list[str], capsys) -> None:  # type: ignore[no-untyped-def]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert "seed" in err and "non-negative" in err and "\n" not in err and "Traceback" not in err

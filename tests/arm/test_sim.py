@@ -329,7 +329,7 @@ def test_pruned_rows_violated_at_the_solution_are_solved_again(panda) -> None:  
 
 def test_path_track_matches_scalar_path_methods(rng) -> None:  # type: ignore[no-untyped-def]
     from isf_robot.arm import CirclePath, LinearBouncePath
-    from isf_robot.arm.sim import path_track
+    from isf_robot.arm.paths import path_track
 
     t = np.sort(rng.uniform(-3.0, 20.0, 200))
     paths = [CirclePath(center=(0.6, 0.0, 0.2), radius=0.25, period=6.0, phase=0.3),

@@ -44,16 +44,16 @@ class RecordedRun:
 @pytest.fixture(scope="session")
 def arm_run(tmp_path_factory: pytest.TempPathFactory) -> RecordedRun:
     """The intermittent filter on planar_moving for 6 s (several on/off switches), recorded."""
-    from isf_robot.arm import load_scene
+    from isf_robot.arm import load_scene, resolve_params
     from isf_robot.arm.sim import ArmSimulation
     from isf_robot.record import ArmRecorder, arm_blueprint, open_stream
 
     scene = load_scene("planar_moving")
     path = tmp_path_factory.mktemp("arm") / "isf.rrd"
-    rec = ArmRecorder(open_stream("isf_robot_arm", rrd_path=path, blueprint=arm_blueprint()), scene=scene,
+    rec = ArmRecorder(open_stream("isf_robot_arm", rrd_path=path, blueprint=arm_blueprint()),
                       capacity=500)  # several flushes per run
     col = Collector()
-    res = ArmSimulation(scene, "isf", seed=0, observers=[col, rec]).run(6.0)
+    res = ArmSimulation(scene, "isf", seed=0, params=resolve_params(scene), observers=[col, rec]).run(6.0)
     return RecordedRun(path, res, col, rec)
 
 

@@ -45,7 +45,8 @@ def test_compare_one_recording_per_strategy_and_seed(tmp_path, capsys) -> None: 
     comp = _json(capsys, ["compare", "--scene", "planar_moving", "--episodes", "2", "--duration", "1.5",
                           "--filters", "cbf", "isf", "--quiet", "--json", "--rrd", str(out)])
     files = sorted(p.name for p in out.glob("*.rrd"))
-    assert files == ["cbf-seed0.rrd", "cbf-seed1.rrd", "isf-seed0.rrd", "isf-seed1.rrd"]
+    assert files == ["planar_moving-cbf-seed0.rrd", "planar_moving-cbf-seed1.rrd", "planar_moving-isf-seed0.rrd",
+                     "planar_moving-isf-seed1.rrd"]
     rep = _json(capsys, ["replay", str(out), "--json"])
     recs = rep["recordings"]
     assert len(recs) == 4 and len({r["recording_id"] for r in recs}) == 4
@@ -56,7 +57,7 @@ def test_compare_one_recording_per_strategy_and_seed(tmp_path, capsys) -> None: 
             assert r["metrics"][k] == run[k], (strat, seed, k)
         for k in KEYS_FLOAT:
             assert _close(r["metrics"][k], run[k]), (strat, seed, k)
-    assert main(["replay", str(out / "cbf-seed0.rrd"), str(out / "isf-seed0.rrd")]) == 0
+    assert main(["replay", str(out / "planar_moving-cbf-seed0.rrd"), str(out / "planar_moving-isf-seed0.rrd")]) == 0
     table = capsys.readouterr().out
     assert "duty_cycle" in table and "planar_moving/cbf/seed0" in table and "planar_moving/isf/seed0" in table
 

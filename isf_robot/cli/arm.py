@@ -1,28 +1,32 @@
 """``isf-robot`` subcommands of the arm layer: ``scenes``, ``run``, ``compare``, ``demo``.
 
 Registered by :mod:`isf_robot.cli` through :func:`register`. Handlers import MuJoCo lazily;
-errors derived from :class:`~isf_robot.core.IsfError` are turned into one line on stderr and
-exit code 2 by the CLI. With ``--json`` stdout holds exactly one JSON object; progress goes to
-stderr.
+errors reach :func:`isf_robot.cli.errors.run_handler` (one line on stderr, exit status 2).
+The filter parameters are resolved once per command (:func:`isf_robot.arm.resolve_params`:
+flags, then the scene's ``[filter]``, then the tracking calibration for an unknown ``d_bar``).
+With ``--json`` stdout holds exactly one JSON object; progress goes to stderr.
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
 import json
 import os
 import sys
-from collections.abc import Callable
 from typing import Any
 
-from isf_robot.core.exceptions import IsfError
+from isf_robot.core.exceptions import ConfigError
+from isf_robot.core.report import format_value, to_jsonable
+from isf_robot.core.strategies import strategy_info, strategy_names
 from isf_robot.record.options import add_recording_args, make_observer
 
 __all__ = ["register", "DEMO_SCENE"]
 
 DEMO_SCENE = "panda_pole"
-_STRATEGIES = ("nominal", "cbf", "isf")
+
+
+def _strategy_help() -> str:
+    return "; ".join(f"{n}: {strategy_info(n).summary}" for n in strategy_names())
 
 
 def _add_scene_args(p: argparse.ArgumentParser, files: bool = True) -> None:
@@ -45,17 +49,24 @@ def _add_filter_args(p: argparse.ArgumentParser) -> None:
                    help="tracking-error bound [rad/s] (default: the scene's, else calibrated)")
 
 
-def _params(args: argparse.Namespace) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for key in ("alpha", "c", "b", "d_bar", "control_period"):
-        v = getattr(args, key, None)
-        if v is not None:
-            out[key] = v
+def _params(args: argparse.Namespace, scene: Any) -> dict[str, Any]:
+    """ArmSimulation keyword arguments from the flags, the filter parameters resolved once."""
+    from isf_robot.arm.params import resolve_params
+
+    out: dict[str, Any] = {"params": resolve_params(
+        scene, args.alpha, args.c, args.b, args.d_bar)}
+    if getattr(args, "control_period", None) is not None:
+        out["control_period"] = args.control_period
     return out
 
 
+def _check_seed(args: argparse.Namespace) -> None:
+    if args.seed < 0:
+        raise ConfigError(f"--seed must be a non-negative integer, got {args.seed}")
+
+
 def _spec(args: argparse.Namespace) -> Any:
-    from .compare import SceneSpec
+    from isf_robot.arm.compare import SceneSpec
 
     return SceneSpec(name=args.scene, model=getattr(args, "model", None),
                      config=getattr(args, "config", None))
@@ -72,8 +83,8 @@ def register(subparsers: Any) -> None:
         description="Simulate one episode: nominal task, safety filter, MuJoCo physics. Safety "
                     "is checked on the true geometry at every physics step.")
     _add_scene_args(p)
-    p.add_argument("--filter", choices=_STRATEGIES, default="isf",
-                   help="strategy: no filter, standard filter every step, intermittent filter")
+    p.add_argument("--filter", choices=strategy_names(), default="isf",
+                   help=f"strategy (default isf) -- {_strategy_help()}")
     p.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
     _add_filter_args(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -85,8 +96,8 @@ def register(subparsers: Any) -> None:
         description="Run the strategies on the same seeds and print mean ± std per strategy.")
     _add_scene_args(p)
     p.add_argument("--episodes", type=int, default=5, help="episodes per strategy (default 5)")
-    p.add_argument("--filters", nargs="+", choices=_STRATEGIES, default=list(_STRATEGIES),
-                   metavar="FILTER", help="strategies (default: nominal cbf isf)")
+    p.add_argument("--filters", nargs="+", choices=strategy_names(), default=list(strategy_names()),
+                   metavar="FILTER", help=f"strategies (default: {' '.join(strategy_names())})")
     p.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
     p.add_argument("--jobs", type=int, default=1, metavar="K",
                    help="worker processes (default 1)")
@@ -114,27 +125,8 @@ def register(subparsers: Any) -> None:
 # ----------------------------------------------------------------------------- handlers
 
 
-def _one_line_errors(fn: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
-    """Report an :class:`IsfError` as one line on stderr (exit code 2), whatever its message.
-
-    Messages from MuJoCo's XML parser span several lines; they are joined here.
-    """
-
-    @functools.wraps(fn)
-    def wrapper(args: argparse.Namespace) -> int:
-        try:
-            return fn(args)
-        except IsfError as exc:
-            print(f"isf-robot {args.command}: error: {' '.join(str(exc).split())}",
-                  file=sys.stderr)
-            return 2
-
-    return wrapper
-
-
-@_one_line_errors
 def _cmd_scenes(args: argparse.Namespace) -> int:
-    from .scene import list_scenes
+    from isf_robot.arm.scene import list_scenes
 
     scenes = list_scenes()
     width = max((len(s.name) for s in scenes), default=0)
@@ -143,24 +135,19 @@ def _cmd_scenes(args: argparse.Namespace) -> int:
     return 0
 
 
-def _fmt(v: Any, fmt: str = ".4g") -> str:
-    if v is None:
-        return "-"
-    if isinstance(v, float):
-        return f"{v:{fmt}}"
-    return str(v)
-
-
-@_one_line_errors
 def _cmd_run(args: argparse.Namespace) -> int:
-    from .compare import json_safe
-    from .sim import run_episode
+    from isf_robot.arm.sim import ArmSimulation
 
+    _check_seed(args)
     scene = _spec(args).load()
-    obs = make_observer(args, "arm", scene=scene, name=f"{args.filter}-seed{args.seed}")
-    res = run_episode(scene, args.filter, args.duration, args.seed, **_params(args),
-                      observers=[obs] if obs else ())
-    d = json_safe(res.as_dict())
+    kwargs = _params(args, scene)
+    sim = ArmSimulation(scene, args.filter, seed=args.seed, **kwargs)  # validates before any output
+    obs = make_observer(args, "arm", name=f"{scene.name}-{args.filter}-seed{args.seed}")
+    if obs is not None:
+        from isf_robot.core.hooks import Observers
+
+        sim.observers = Observers([obs])
+    d = to_jsonable(sim.run(args.duration).as_dict())
     if args.json:
         print(json.dumps(d))
         return 0
@@ -177,7 +164,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     ]
     w = max(len(k) for k, _ in rows)
     for k, v in rows:
-        print(f"  {k.ljust(w)}  {_fmt(v)}")
+        print(f"  {k.ljust(w)}  {format_value(v)}")
     return 0
 
 
@@ -187,21 +174,23 @@ def _progress(quiet: bool) -> Any:
 
     def report(done: int, total: int, task: Any, r: Any) -> None:
         print(f"[{done}/{total}] {task.strategy} seed {task.seed}: duty "
-              f"{r['duty_cycle']:.3f}, min h {_fmt(r['min_barrier'])} m, "
+              f"{r['duty_cycle']:.3f}, min h {format_value(r['min_barrier'])} m, "
               f"{r['collisions']} collision steps, {r['wall_s']:.2f} s", file=sys.stderr,
               flush=True)
 
     return report
 
 
-@_one_line_errors
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from .compare import compare_strategies, format_table
+    from isf_robot.arm.compare import compare_strategies, format_table
 
+    _check_seed(args)
+    spec = _spec(args)
+    params = _params(args, spec.load())
     obs = make_observer(args, "arm")
-    comp = compare_strategies(_spec(args), args.episodes, strategies=args.filters,
+    comp = compare_strategies(spec, args.episodes, strategies=args.filters,
                               duration=args.duration, seed0=args.seed, jobs=args.jobs,
-                              params={**_params(args), **({"observers": [obs]} if obs else {})},
+                              params={**params, **({"observers": [obs]} if obs else {})},
                               progress=_progress(args.quiet))
     if args.json:
         print(json.dumps(comp.as_dict()))
@@ -210,9 +199,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
-@_one_line_errors
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from .compare import SceneSpec, compare_strategies, format_table
+    from isf_robot.arm.compare import SceneSpec, compare_strategies, format_table
 
     jobs = args.jobs if args.jobs is not None else max(1, min(2, os.cpu_count() or 1))
     comp = compare_strategies(SceneSpec(name=args.scene), args.episodes, duration=args.duration,

@@ -28,8 +28,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def handle(args: argparse.Namespace) -> int:
     """Read the recordings, recompute and print their metrics."""
-    from .recorder import to_jsonable
-    from .replay import format_table, read_many, replay_metrics
+    from isf_robot.core.report import to_jsonable
+    from isf_robot.record.replay import format_table, read_many, replay_metrics
 
     logs = read_many(args.files)
     results = [(log, replay_metrics(log)) for log in logs]

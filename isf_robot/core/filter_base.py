@@ -1,0 +1,258 @@
+"""What both safety filters share: the step result and the QP machinery (rows, screening, re-solve).
+
+The filters' semantics (when they are on, which rows they solve) are in
+:mod:`isf_robot.core.filters`; this module holds the parts they have in common: evaluating the
+Lie data, building and solving the QP with row screening and the re-solve check, and the
+infeasibility policy.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .barrier import Barrier, evaluate_barriers
+from .class_k import ClassK, as_class_k
+from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError
+from .qp import FilterQP, QPResult
+from .qp_solver import QPSolver
+from .switches import SwitchCounter, SwitchEvent
+from .system import ControlAffineSystem, LieData, lie_data
+from .triggers import xi_on
+from .validation import as_vector, check_finite_scalar, check_nonnegative
+
+__all__ = ["FilterStep", "FallbackFn"]
+
+FallbackFn = Callable[[float, "np.ndarray | None", LieData, QPResult], np.ndarray]
+
+
+@dataclass(frozen=True)
+class FilterStep:
+    """One control step of a filter.
+
+    Attributes:
+        t: Time [s].
+        u: The command to apply, shape (m,).
+        u_nom: The nominal command, shape (m,).
+        on: Whether the filter acted in this step (intermittent: its mode; standard: a
+            constraint was active).
+        h: Barrier values, shape (k,).
+        xi: ``Xi_on`` per barrier under the nominal command, shape (k,).
+        event: The on/off switch at this step, if any.
+        qp: The QP result when a QP was solved, else ``None``.
+        relaxed: Names of barriers whose promotion was relaxed in this step.
+        fallback: Whether the command came from the infeasibility fallback.
+        names: Barrier labels.
+        resolved: Whether a screened row was needed, so the QP was solved again with every row.
+
+    """
+
+    t: float
+    u: np.ndarray
+    u_nom: np.ndarray
+    on: bool
+    h: np.ndarray
+    xi: np.ndarray
+    event: SwitchEvent | None = None
+    qp: QPResult | None = None
+    relaxed: tuple[str, ...] = ()
+    fallback: bool = False
+    names: tuple[str, ...] = field(default_factory=tuple)
+    resolved: bool = False
+
+    @property
+    def h_min(self) -> float:
+        """Smallest barrier value."""
+        return float(np.min(self.h)) if self.h.size else float("inf")
+
+    @property
+    def xi_min(self) -> float:
+        """Smallest ``Xi_on``."""
+        return float(np.min(self.xi)) if self.xi.size else float("inf")
+
+    @property
+    def solved_qp(self) -> bool:
+        """Whether a QP (or its closed form) was solved in this step."""
+        return self.qp is not None
+
+
+class _FilterBase:
+    uses_rows = True
+    intermittent = False
+
+    def __init__(
+        self,
+        alpha: ClassK | float | Callable[[float], float],
+        d_bar: float = 0.0,
+        *,
+        system: ControlAffineSystem | None = None,
+        barriers: Sequence[Barrier] | None = None,
+        u_min: Sequence[float] | np.ndarray | None = None,
+        u_max: Sequence[float] | np.ndarray | None = None,
+        solver: QPSolver | None = None,
+        on_infeasible: str = "raise",
+        fallback: FallbackFn | None = None,
+        validate: bool = True,
+        screen: float | np.ndarray | None = None,
+    ) -> None:
+        self.validate = bool(validate)
+        self.alpha = as_class_k(alpha)
+        self.d_bar = check_nonnegative(d_bar, "d_bar (disturbance bound)")
+        self.system = system
+        self.barriers = list(barriers) if barriers is not None else None
+        if self.barriers is not None and len(self.barriers) == 0:
+            raise ConfigError("barriers must hold at least one barrier (or be None for step_lie)")
+        self.u_min = None if u_min is None else as_vector(u_min, "u_min")
+        self.u_max = None if u_max is None else as_vector(u_max, "u_max")
+        if self.u_min is not None and self.u_max is not None:
+            if self.u_min.shape != self.u_max.shape:
+                raise ShapeError(f"u_min {self.u_min.shape} and u_max {self.u_max.shape} differ in shape")
+            if np.any(self.u_min > self.u_max):
+                raise ConfigError(f"u_min must be <= u_max elementwise, got {self.u_min} and {self.u_max}")
+        if system is not None:
+            for name, b in (("u_min", self.u_min), ("u_max", self.u_max)):
+                if b is not None and b.shape != (system.m,):
+                    raise ShapeError(f"{name} must have shape ({system.m},), got {b.shape}")
+        self.solver = solver if solver is not None else QPSolver()
+        if on_infeasible not in ("raise", "fallback"):
+            raise ConfigError(f"on_infeasible must be 'raise' or 'fallback', got {on_infeasible!r}")
+        self.on_infeasible = on_infeasible
+        if fallback is not None and not callable(fallback):
+            raise ConfigError("fallback must be callable fallback(t, x, lie, qp_result) -> u")
+        self.fallback = fallback
+        self.screen = self._check_screen(screen)
+        self.qp_solves = 0
+        self._switches = SwitchCounter()
+
+    def _check_screen(self, screen: float | np.ndarray | None) -> float | np.ndarray | None:
+        if screen is None:
+            return None
+        arr = np.asarray(screen, dtype=float)
+        if np.any(~(arr > self.solver.active_tol)):
+            raise ConfigError(f"screen thresholds must be > the solver's active_tol "
+                              f"({self.solver.active_tol:g}) (or inf), got {screen}")
+        return float(arr) if arr.ndim == 0 else arr
+
+    # -- inputs --------------------------------------------------------------------------
+    def lie(self, t: float, x: np.ndarray) -> LieData:
+        """Evaluate the configured barriers and system at ``(t, x)``."""
+        if self.system is None or self.barriers is None:
+            raise ConfigError("step(t, x, u_nom) needs system= and barriers=; otherwise call step_lie()")
+        x = as_vector(x, "state x", self.system.n)
+        ev = evaluate_barriers(self.barriers, x, t)
+        return lie_data(ev, self.system.f0(x, t), self.system.g(x, t))
+
+    def step(self, t: float, x: np.ndarray, u_nom: np.ndarray) -> FilterStep:
+        """Filter ``u_nom`` at state ``x`` and time ``t`` [s]."""
+        t = check_finite_scalar(t, "t")
+        x = as_vector(x, "state x", self.system.n if self.system else None)
+        return self.step_lie(t, self.lie(t, x), u_nom, x=x)
+
+    def step_lie(self, t: float, lie: LieData, u_nom: np.ndarray, x: np.ndarray | None = None, *,
+                 screen: float | np.ndarray | None = None) -> FilterStep:
+        """Filter ``u_nom`` given precomputed barrier data (see the subclasses)."""
+        raise NotImplementedError
+
+    def _xi(self, t: float, lie: LieData, u_nom: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Checked inputs and ``Xi_on`` per row (a non-finite input raises NonFiniteError)."""
+        if self.validate:
+            lie.validate()
+            u_nom = as_vector(u_nom, "nominal command u_nom", lie.m)
+        xi = xi_on(lie, u_nom, self.alpha, self.d_bar)
+        if not np.isfinite(xi.sum()):
+            raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
+                                 f"Xi_on = {xi}, u_nom = {u_nom}")
+        return u_nom, xi
+
+    def build_qp(
+        self, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None = None, b: float = 0.0
+    ) -> FilterQP:
+        """Build the filter QP: robust rows, or promoting rows where ``promote`` is True."""
+        rhs = -self.alpha.vector(lie.h)
+        kinds: tuple[str, ...] = ()  # empty: every row robust
+        if promote is not None and promote.any():
+            rhs = np.where(promote, b, rhs)
+            kinds = tuple("promote" if p else "robust" for p in promote)
+        return FilterQP(u_nom, lie.lg, rhs - lie.lf + lie.grad_norm * self.d_bar, self.u_min, self.u_max,
+                        kinds, lie.names)
+
+    # -- solving -------------------------------------------------------------------------
+    def _solve(self, qp: FilterQP) -> QPResult:
+        self.qp_solves += 1
+        return self.solver.solve(qp)
+
+    def _solve_rows(
+        self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, xi: np.ndarray,
+        promote: np.ndarray | None, floor: float, screen: float | np.ndarray | None = None,
+    ) -> tuple[QPResult, tuple[str, ...], bool, bool]:
+        """Solve with screening; return ``(result, relaxed names, fallback, resolved)``."""
+        screen = self.screen if screen is None else screen
+        if screen is not None and lie.k > 1:
+            keep = xi < np.maximum(screen, floor) if floor > 0 else xi < screen
+            if not keep.all():
+                rows = keep.nonzero()[0]
+                if rows.size == 0:
+                    rows = np.array([int(xi.argmin())])
+                    keep[rows[0]] = True
+                sub = LieData(lie.h[rows], lie.lf[rows], lie.lg[rows], lie.grad_norm[rows])
+                res, relaxed, fb = self._solve_block(t, x, sub, u_nom, None if promote is None else promote[rows],
+                                                     lie.names, rows)
+                if not fb and not self._screened_rows_hold(lie, xi, res.u - u_nom, keep):
+                    first = res.solve_time_s
+                    res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote, lie.names, None)
+                    return replace(res, solve_time_s=res.solve_time_s + first), relaxed, fb, True
+                return res, relaxed, fb, False
+        res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote, lie.names, None)
+        return res, relaxed, fb, False
+
+    def _screened_rows_hold(self, lie: LieData, xi: np.ndarray, du: np.ndarray, keep: np.ndarray) -> bool:
+        """Whether every screened-out row's robust condition has slack >= active_tol at ``u_nom + du``.
+
+        The slack of row i at u is ``Xi_on,i + Lg h_i (u - u_nom)`` (the robust condition's
+        left side minus its right side), so one product covers every row.
+        """
+        slack = xi + lie.lg @ du
+        slack[keep] = np.inf
+        return bool(slack.min() >= self.solver.active_tol)
+
+    def _solve_block(
+        self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None,
+        names: tuple[str, ...], rows: np.ndarray | None,
+    ) -> tuple[QPResult, tuple[str, ...], bool]:
+        """One QP (promoting where asked, relaxed to robust if infeasible); the policy if still infeasible.
+
+        ``rows`` maps the rows of ``lie`` to ``names`` (``None``: the same rows).
+        """
+        b = getattr(self, "b", 0.0)
+        qp = self.build_qp(lie, u_nom, promote, b)
+        res = self._solve(qp)
+        relaxed: tuple[str, ...] = ()
+        if not res.ok and promote is not None and promote.any():
+            local = np.flatnonzero(promote)
+            relaxed_idx = tuple(int(i) for i in (local if rows is None else rows[local]))
+            relaxed = tuple(names[i] if i < len(names) else str(i) for i in relaxed_idx)
+            qp = self.build_qp(lie, u_nom)
+            first = res.solve_time_s
+            res = self._solve(qp)
+            res = replace(res, solve_time_s=res.solve_time_s + first, relaxed=relaxed_idx)
+        if res.ok:
+            return res, relaxed, False
+        return self._infeasible(t, x, lie, qp, res), relaxed, True
+
+    def _infeasible(self, t: float, x: np.ndarray | None, lie: LieData, qp: FilterQP, res: QPResult) -> QPResult:
+        if self.on_infeasible == "raise":
+            raise InfeasibleFilterError(
+                f"safety filter infeasible at t={t:.6g}: no command satisfies the robust barrier "
+                f"condition{' and the input bounds' if qp.has_bounds else ''} "
+                f"(least violation {res.max_violation:.3g}; min h = {float(np.min(lie.h)):.4g})",
+                qp=qp, state=x, barrier_values=lie.h.copy(), t=t,
+            )
+        u = res.u if self.fallback is None else as_vector(self.fallback(t, x, lie, res), "fallback command", lie.m)
+        warnings.warn(
+            f"safety filter infeasible at t={t:.6g}; applied the fallback command "
+            f"(violation {qp.max_violation(u):.3g})", IsfWarning, stacklevel=4,
+        )
+        return QPResult(u, "fallback", res.active, res.solve_time_s, res.iterations, qp.max_violation(u), res.relaxed)
