@@ -1,0 +1,86 @@
+"""Layers point one way: ``cli -> {arm, satellite, record} -> core`` (DESIGN.md, section 1).
+
+Every import statement of every module is read (``ast``, relative imports resolved), so a
+function-local import counts as much as a top-level one.
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# package prefix of a module -> the project packages it must not import
+FORBIDDEN = {
+    "isf_robot.core": ("isf_robot.arm", "isf_robot.record", "isf_robot.cli", "satellite", "mujoco", "rerun",
+                       "scipy"),
+    "isf_robot.arm": ("isf_robot.record", "isf_robot.cli", "satellite", "rerun"),
+    "isf_robot.record": ("isf_robot.arm", "isf_robot.cli", "satellite"),
+    "satellite": ("isf_robot.arm", "isf_robot.record", "isf_robot.cli", "mujoco", "rerun"),
+}
+TOP_LAYER = ("satellite.cli", "satellite.cmd_")  # the satellite's command-line modules are the top layer
+
+
+def _module_name(path: Path) -> str:
+    rel = path.relative_to(ROOT).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _imports(path: Path) -> set[str]:
+    name = _module_name(path)
+    package = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
+    out: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - (node.level - 1)]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            out.add(mod)
+            out.update(f"{mod}.{a.name}" for a in node.names)
+    return out
+
+
+def _modules() -> list[Path]:
+    return sorted(p for pkg in ("isf_robot", "satellite") for p in (ROOT / pkg).rglob("*.py"))
+
+
+@pytest.mark.parametrize("path", _modules(), ids=lambda p: str(p.relative_to(ROOT)))
+def test_imports_point_down(path: Path) -> None:
+    name = _module_name(path)
+    if name.startswith(TOP_LAYER):
+        return
+    for prefix, banned in FORBIDDEN.items():
+        if name == prefix or name.startswith(prefix + "."):
+            bad = sorted(i for i in _imports(path) for b in banned if i == b or i.startswith(b + "."))
+            assert not bad, f"{name} imports {bad} (layers: cli -> {{arm, satellite, record}} -> core)"
+
+
+def test_no_module_over_400_lines() -> None:
+    long = {str(p.relative_to(ROOT)): n for p in _modules()
+            if (n := len(p.read_text(encoding="utf-8").splitlines())) > 400}
+    assert not long, f"modules over 400 lines: {long}"
+
+
+def test_importing_the_core_loads_no_engine() -> None:
+    code = (
+        "import sys, importlib, pkgutil, isf_robot.core as c\n"
+        "for m in pkgutil.iter_modules(c.__path__): importlib.import_module('isf_robot.core.' + m.name)\n"
+        "[getattr(c, n) for n in c.__all__]\n"
+        "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('mujoco', 'rerun', 'satellite', 'scipy'))\n"
+        "print(','.join(bad))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "", f"the core loaded: {out.stdout.strip()}"
