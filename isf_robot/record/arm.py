@@ -2,15 +2,22 @@
 
 Logged, besides the base recorder's replay columns, mode and events:
 
-* ``/world/bodies/...``: the MuJoCo scene's geometry once (capsules, spheres, ellipsoids,
-  boxes, cylinders, planes, meshes) and the moving bodies' poses per step (arm links and
-  moving obstacles), by forward kinematics of the record's ``q`` and mocap poses.
-* ``/world/goals`` (static, every goal), ``/world/goal`` (the goal pursued), ``/world/ee``.
-* ``/world/witness``: witness segments of the pairs within the cut-off.
+* ``/world/bodies/...``: the MuJoCo scene's geometry once, solid (capsules, spheres,
+  ellipsoids, boxes, cylinders, planes, meshes as meshes): the visible groups plus every robot
+  and obstacle geom of the start info whatever its group, and the moving bodies' poses per step
+  (arm links and moving obstacles), by forward kinematics of the record's ``q`` and mocap poses.
+  The robot's geoms turn orange while the filter is on (their colour is sent at each switch).
+* ``/world/goals`` (static, every goal), ``/world/goal`` (the goal pursued), ``/world/ee``,
+  ``/world/ee_trail`` (the end effector's path over the last ``trail_s`` seconds).
+* ``/world/witness``: witness segments of the closest pairs (up to ``closest``) within the cut-off.
 * ``/plots/barrier/min`` (true geometry, every physics step), ``/plots/barrier/filter_min``
   (the barriers the filter sees), ``/plots/barrier/pairs/<pair>`` (each pair while it is
-  among the closest three), ``/plots/xi/min`` (``min Xi_on``).
-* ``/plots/command/nominal`` and ``/plots/command/filtered``: one series per joint [rad/s].
+  among the closest; a ``Clear`` at the first step it is not, so no line joins the gaps),
+  ``/plots/barrier/zero``; ``/plots/xi/min`` (``min Xi_on``) with ``/plots/xi/zero`` and
+  ``/plots/xi/c`` (the on and off thresholds).
+* ``/plots/command/correction_norm``: ``|u - u_nom|`` [rad/s];
+  ``/plots/joints/correction``: ``u - u_nom`` per joint; ``/plots/joints/command/nominal`` and
+  ``/plots/joints/command/filtered``: ``u_nom`` and ``u`` per joint [rad/s].
 
 Replay row: ``t``, ``dt``, ``on``, ``|u - u_nom|^2``, ``qp_solved`` from the record, and
 ``min_barrier`` the true-geometry minimum of ``dist - margin`` over the step's physics steps:
@@ -32,10 +39,10 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-import pyarrow as pa
 import rerun as rr
-from rerun.components import LineStrip3DBatch
 
+from .arm_columns import closest_witness, goal_columns, norm_columns, strip_array, witness_columns
+from .blueprints import arm_blueprint, camera_for
 from .buffer import TIMELINE, Channel
 from .errors import RecordError
 from .mjgeometry import MujocoDrawing
@@ -43,32 +50,6 @@ from .recorder import RerunRecorder, finite_scalars
 from .schema import STEPS, TERMINAL
 
 __all__ = ["ArmRecorder"]
-
-
-def _witness_columns(rows: list[np.ndarray]) -> Any:
-    """Segments (on geom 1, on geom 2) of each row; segments with NaN points are dropped.
-
-    The Arrow array is built here in one go (Rerun's own conversion loops over strips in Python).
-    """
-    segs = np.concatenate([np.asarray(w, dtype=np.float64).reshape(-1, 2, 3) for w in rows])
-    ok = np.all(np.isfinite(segs), axis=(1, 2))
-    lengths = np.fromiter((len(w) for w in rows), dtype=np.int64, count=len(rows))
-    if not ok.all():
-        row_of = np.repeat(np.arange(len(rows)), lengths)
-        lengths = np.bincount(row_of[ok], minlength=len(rows))
-        segs = segs[ok]
-    dtype = LineStrip3DBatch._ARROW_DATATYPE
-    inner = pa.FixedSizeListArray.from_arrays(pa.array(segs.astype(np.float32).reshape(-1)), type=dtype.value_type)
-    strips = pa.ListArray.from_arrays(pa.array(np.arange(0, 2 * len(segs) + 1, 2, dtype=np.int32)), inner,
-                                      type=dtype)
-    return rr.LineStrips3D.columns(strips=strips).partition(lengths.tolist())
-
-
-def _goal_columns(t: np.ndarray, a: dict[str, np.ndarray]) -> tuple[np.ndarray, Any] | None:
-    ok = np.all(np.isfinite(a["goal"]), axis=1)
-    if not ok.any():
-        return None
-    return t[ok], rr.Points3D.columns(positions=a["goal"][ok])
 
 
 class _RecordBatch:
@@ -93,15 +74,18 @@ class ArmRecorder(RerunRecorder):
     Args:
         stream: The recording stream.
         closest: How many collision pairs (those with the smallest h at each step) get their
-            own barrier series.
+            own barrier series and witness segments.
         capacity: Step records kept before a block is converted and sent.
         close_on_finish: Close the stream in ``on_finish``.
+        trail_s: Length of the end effector's trail [s] (0: none).
 
     """
 
     kind = "arm"
-    CONTEXT_KEYS = ("closest", "capacity")
+    CONTEXT_KEYS = ("closest", "capacity", "trail_s")
     INFO_OBJECTS = ("model",)
+    TRAIL_POINTS = 25
+    """Most points per trail strip (the trail is subsampled to this)."""
 
     def __init__(
         self,
@@ -110,16 +94,23 @@ class ArmRecorder(RerunRecorder):
         closest: int = 3,
         capacity: int = 2048,
         close_on_finish: bool = True,
+        trail_s: float = 2.0,
     ) -> None:
         super().__init__(stream, capacity=capacity, close_on_finish=close_on_finish)
         self.closest = int(closest)
+        self.trail_s = float(trail_s)
+        if not (self.trail_s >= 0 and math.isfinite(self.trail_s)):
+            raise RecordError(f"trail_s must be a finite number >= 0, got {trail_s!r}")
         self.drawing: MujocoDrawing | None = None
         self.margins = np.zeros(0)
         self.exact_min_barrier = True
+        self.c = math.nan
         self._margin = 0.0
         self._running_min = math.inf
         self._n_collision = 0
         self._pair_paths: dict[int, str] = {}
+        self._pair_member: dict[int, bool] = {}
+        self._trail_tail = np.zeros((0, 3))
         self._names: tuple[str, ...] = ()
         self._qpos_adr: Any = None
         self._batch = self.buffer.add("/replay/arm_steps", _RecordBatch(self._send_batch))
@@ -131,12 +122,20 @@ class ArmRecorder(RerunRecorder):
         if model is None or info.get("qpos_adr") is None:
             raise RecordError("ArmRecorder needs the arm loop's start info (model, qpos_adr, pair_margins); "
                               "got keys: " + ", ".join(sorted(info)))
-        self.drawing = MujocoDrawing(model)
+        robot = np.asarray(info.get("robot_geom_ids", ()), dtype=int).reshape(-1)
+        obstacles = np.asarray(info.get("obstacle_geom_ids", ()), dtype=int).reshape(-1)
+        try:
+            self.drawing = MujocoDrawing(model, include=np.concatenate((robot, obstacles)).tolist(),
+                                         tinted=robot.tolist())
+        except ValueError as exc:
+            raise RecordError(f"start info: {exc}") from None
         self.margins = np.asarray(info.get("pair_margins", ()), dtype=float).reshape(-1)
         self.exact_min_barrier = self.margins.size == 0 or bool(np.all(self.margins == self.margins[0]))
         self._margin = float(self.margins.max()) if self.margins.size else 0.0
         self._n_collision = int(info.get("n_collision", self.margins.size))
         self._qpos_adr = MujocoDrawing.index(info["qpos_adr"])
+        c = info.get("c")
+        self.c = float(c) if isinstance(c, (int, float)) else math.nan
 
     def make_step_channel(self) -> Channel | None:
         """None: the arm keeps whole step records in a :class:`_RecordBatch` instead."""
@@ -147,13 +146,17 @@ class ArmRecorder(RerunRecorder):
         return (
             (STEPS, self._replay_columns),
             *self.step_plots(),
-            ("/plots/command/nominal", lambda t, a: (t, rr.Scalars.columns(scalars=a["u_nom"]))),
-            ("/plots/command/filtered", lambda t, a: (t, rr.Scalars.columns(scalars=a["u"]))),
+            ("/plots/command/correction_norm", norm_columns),
+            ("/plots/joints/correction", lambda t, a: (t, rr.Scalars.columns(scalars=a["u"] - a["u_nom"]))),
+            ("/plots/joints/command/nominal", lambda t, a: (t, rr.Scalars.columns(scalars=a["u_nom"]))),
+            ("/plots/joints/command/filtered", lambda t, a: (t, rr.Scalars.columns(scalars=a["u"]))),
             ("/plots/barrier/filter_min", lambda t, a: finite_scalars(t, a["h_filter"])),
             ("/plots/xi/min", lambda t, a: finite_scalars(t, a["xi"])),
             ("/world/ee", lambda t, a: (t, rr.Points3D.columns(positions=a["ee"]))),
-            ("/world/goal", _goal_columns),
+            ("/world/goal", goal_columns),
             ("/plots/barrier/pairs", self._pair_columns),
+            ("/plots/thresholds", self._threshold_columns),
+            ("/world/ee_trail", self._trail_columns),
         )
 
     def _send_batch(self, recs: list[Any]) -> None:
@@ -181,11 +184,13 @@ class ArmRecorder(RerunRecorder):
             out = fn(t, a)
             if out is not None and len(out[0]):
                 stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=out[0])], columns=out[1])
+        m = min(self.closest, 3)
         stream.send_columns("/world/witness", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
-                            columns=_witness_columns([r.witness for r in recs]))
+                            columns=witness_columns([closest_witness(r, m) for r in recs]))
         assert self.drawing is not None
         self.drawing.send_poses(stream, t, self._qpos_adr, [r.q for r in recs],
                                 [r.mocap_pos for r in recs], [r.mocap_quat for r in recs])
+        self.drawing.send_tint(stream, t, a["on"])
 
     def _min_barrier(self, a: dict[str, np.ndarray]) -> np.ndarray:
         """Per-step true-geometry minimum of ``dist - margin`` (tick values and physics substeps)."""
@@ -205,28 +210,75 @@ class ArmRecorder(RerunRecorder):
                                        qp_solved=a["qp_solved"], min_barrier=mb)
 
     def _pair_columns(self, t: np.ndarray, a: dict[str, np.ndarray]) -> None:
-        """Send each pair's barrier at the steps where it is among the closest (``None``: sent here)."""
+        """Each pair's barrier at the steps where it is among the closest, a Clear where it stops being.
+
+        (``None``: sent here.) The Clear at the first step after each run of membership breaks
+        the viewer's line, so no straight segment joins values across the gap.
+        """
         nc = self._n_collision
         m = min(self.closest, nc)
         if m <= 0:
             return None
         h = a["h"][:, :nc]
         idx = np.argsort(h, axis=1)[:, :m]
-        for j in np.unique(idx).tolist():
-            rows = np.flatnonzero(np.any(idx == j, axis=1))
-            path = self._pair_paths.get(j)
-            if path is None:
-                name = self._names[j] if j < len(self._names) else f"pair{j}"
-                path = f"/plots/barrier/pairs/{rr.escape_entity_path_part(name)}"
-                self.stream.log(path, rr.SeriesLines(names=name), static=True)
-                self._pair_paths[j] = path
-            self.stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=t[rows])],
-                                     columns=rr.Scalars.columns(scalars=h[rows, j]))
+        seen = set(np.unique(idx).tolist()) | {j for j, was in self._pair_member.items() if was}
+        for j in sorted(seen):
+            member = np.any(idx == j, axis=1)
+            prev = np.concatenate(([self._pair_member.get(j, False)], member[:-1]))
+            gaps = np.flatnonzero(prev & ~member)
+            self._pair_member[j] = bool(member[-1])
+            path = self._pair_path(j)
+            rows = np.flatnonzero(member)
+            if rows.size:
+                self.stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=t[rows])],
+                                         columns=rr.Scalars.columns(scalars=h[rows, j]))
+            if gaps.size:
+                self.stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=t[gaps])],
+                                         columns=rr.Clear.columns(is_recursive=[False] * int(gaps.size)))
         return None
+
+    def _pair_path(self, j: int) -> str:
+        path = self._pair_paths.get(j)
+        if path is None:
+            name = self._names[j] if j < len(self._names) else f"pair{j}"
+            path = f"/plots/barrier/pairs/{rr.escape_entity_path_part(name)}"
+            self.stream.log(path, rr.SeriesLines(names=name), static=True)
+            self._pair_paths[j] = path
+        return path
+
+    def _threshold_columns(self, t: np.ndarray, a: dict[str, np.ndarray]) -> None:
+        """Constant lines at h = 0, Xi_on = 0 and Xi_on = c, at the block's first and last step."""
+        ends = np.array([t[0], t[-1]])
+        idx = [rr.TimeColumn(TIMELINE, duration=ends)]
+        lines = [("/plots/barrier/zero", 0.0), ("/plots/xi/zero", 0.0)]
+        if math.isfinite(self.c):
+            lines.append(("/plots/xi/c", self.c))
+        for path, value in lines:
+            self.stream.send_columns(path, indexes=idx, columns=rr.Scalars.columns(scalars=[value, value]))
+        return None
+
+    def _trail_columns(self, t: np.ndarray, a: dict[str, np.ndarray]) -> tuple[np.ndarray, Any] | None:
+        """The end effector's path over the last ``trail_s`` seconds at each step (subsampled)."""
+        dt = a["dt"]
+        if self.trail_s <= 0 or not len(t) or not dt[0] > 0:
+            return None
+        k = max(2, int(round(self.trail_s / float(dt[0]))) + 1)
+        stride = max(1, -(-k // self.TRAIL_POINTS))
+        pts = np.concatenate((self._trail_tail, a["ee"]))
+        off = len(self._trail_tail)
+        chunks, lengths = [], np.empty(len(t), dtype=np.int64)
+        for i in range(len(t)):
+            j = off + i
+            seg = pts[max(0, j - k + 1):j + 1][::-1][::stride][::-1]
+            chunks.append(seg)
+            lengths[i] = len(seg)
+        self._trail_tail = pts[-(k - 1):].copy()
+        strips = strip_array(np.concatenate(chunks), lengths)
+        return t, rr.LineStrips3D.columns(strips=strips).partition([1] * len(t))
 
     # -- static --------------------------------------------------------------------------
     def start_content(self, info: Mapping[str, Any]) -> None:
-        """Geometry, goals, plot styles."""
+        """Geometry, goals, plot styles, and the default layout framed on the arm's workspace."""
         self._setup(info)
         assert self.drawing is not None
         rec = self.stream
@@ -239,18 +291,34 @@ class ArmRecorder(RerunRecorder):
                                                 labels=[f"goal {i}" for i in range(len(goals))]), static=True)
         rec.log("/world/goal", rr.Points3D.from_fields(radii=[0.025], colors=[[40, 240, 80]]), static=True)
         rec.log("/world/ee", rr.Points3D.from_fields(radii=[0.012], colors=[[240, 240, 240]]), static=True)
-        rec.log("/world/witness", rr.LineStrips3D.from_fields(radii=[0.003], colors=[[255, 40, 200]]), static=True)
+        rec.log("/world/ee_trail", rr.LineStrips3D.from_fields(radii=[0.004], colors=[[90, 170, 255]]),
+                static=True)
+        rec.log("/world/witness", rr.LineStrips3D.from_fields(radii=[0.004], colors=[[255, 40, 200]]), static=True)
         joints = [str(j) for j in info.get("joint_names", ())]
-        rec.log("/plots/command/nominal", rr.SeriesLines(names=[f"{j} nominal" for j in joints],
-                                                         widths=[1.0] * len(joints)), static=True)
-        rec.log("/plots/command/filtered", rr.SeriesLines(names=[f"{j} filtered" for j in joints],
-                                                          widths=[2.0] * len(joints)), static=True)
+        rec.log("/plots/joints/correction", rr.SeriesLines(names=[f"{j}" for j in joints]), static=True)
+        rec.log("/plots/joints/command/nominal", rr.SeriesLines(names=[f"{j} nominal" for j in joints],
+                                                                widths=[1.0] * len(joints)), static=True)
+        rec.log("/plots/joints/command/filtered", rr.SeriesLines(names=[f"{j} filtered" for j in joints],
+                                                                 widths=[2.0] * len(joints)), static=True)
+        rec.log("/plots/command/correction_norm", rr.SeriesLines(names="|u - u_nom|", colors=[[240, 150, 40]]),
+                static=True)
         rec.log("/plots/barrier/filter_min", rr.SeriesLines(names="min h (filter)", colors=[[240, 150, 40]]),
                 static=True)
-        rec.log("/plots/xi/min", rr.SeriesLines(names="min Xi_on"), static=True)
+        grey = [[150, 150, 150]]
+        rec.log("/plots/barrier/zero", rr.SeriesLines(names="h = 0", colors=grey, widths=[1.0]), static=True)
+        rec.log("/plots/xi/min", rr.SeriesLines(names="min Xi_on", colors=[[80, 160, 255]]), static=True)
+        rec.log("/plots/xi/zero", rr.SeriesLines(names="0 (on below)", colors=grey, widths=[1.0]), static=True)
+        rec.log("/plots/xi/c", rr.SeriesLines(names=f"c = {self.c:g} (off above)", colors=[[60, 200, 90]],
+                                              widths=[1.0]), static=True)
         rec.log("/run/arm", rr.AnyValues(exact_min_barrier=self.exact_min_barrier,
                                          geoms_drawn=self.drawing.geoms_drawn,
+                                         geom_ids_drawn=np.asarray(self.drawing.drawn_ids, dtype=np.int64),
                                          geoms_skipped=",".join(self.drawing.geoms_skipped)), static=True)
+        centre, radius = self.drawing.workspace()
+        eye, target = camera_for(centre, radius)
+        duration = info.get("duration")
+        rec.send_blueprint(arm_blueprint(eye, target, float(duration) if isinstance(duration, (int, float))
+                                         else None), make_active=True, make_default=True)
 
     # -- per step ------------------------------------------------------------------------
     def on_step(self, record: Any) -> None:

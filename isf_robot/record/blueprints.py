@@ -2,47 +2,106 @@
 
 Each builder returns a :class:`rerun.blueprint.Blueprint`; :func:`blueprint_for` picks one by
 recording kind. Recorders send it as the recording's default blueprint, so the viewer opens
-on this layout (the user's own layout changes are kept by the viewer).
+on this layout (the user's own layout changes are kept by the viewer). Once a run starts, the
+arm recorder sends the arm layout again with the camera framed on the arm's workspace
+(:func:`arm_blueprint` with ``eye``), and the satellite recorder sends its layout with the
+time axes spanning the whole run (:func:`satellite_blueprint` with ``duration_s``).
+
+:func:`compare_blueprint` lays the recordings of one ``compare`` side by side: one column per
+strategy (barrier, mode, command correction), for recordings opened together in one viewer.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
+import numpy as np
 import rerun.blueprint as rrb
 
 from .errors import RecordError
 from .schema import EVENT_LOG, PLOTS, WORLD
 
-__all__ = ["arm_blueprint", "satellite_blueprint", "generic_blueprint", "blueprint_for"]
+__all__ = ["arm_blueprint", "satellite_blueprint", "generic_blueprint", "blueprint_for", "compare_blueprint",
+           "camera_for"]
+
+TIMELINE = "sim_time"
 
 
 def _time_panel() -> rrb.TimePanel:
-    return rrb.TimePanel(timeline="sim_time", state="expanded")
+    return rrb.TimePanel(timeline=TIMELINE, state="expanded")
 
 
-def arm_blueprint() -> rrb.Blueprint:
-    """Arm layout: scene in 3-D (left); h, Xi_on, mode and commands stacked (right); events below."""
+def _whole_run(duration_s: float | None) -> dict[str, object]:
+    """TimeSeriesView arguments: all data visible, the x axis spanning ``[0, duration_s]``."""
+    out: dict[str, object] = {"time_ranges": [rrb.VisibleTimeRange(
+        TIMELINE, start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite())]}
+    if duration_s is not None and np.isfinite(duration_s) and duration_s > 0:
+        out["axis_x"] = rrb.TimeAxis(view_range=rrb.components.TimeRange(
+            start=rrb.TimeRangeBoundary.absolute(seconds=0.0),
+            end=rrb.TimeRangeBoundary.absolute(seconds=float(duration_s))))
+    return out
+
+
+def camera_for(centre: Sequence[float], radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Eye position and look target framing a sphere (z up): from the front right, above.
+
+    The eye is ``2.2 radius`` from the target, which sits a third of the radius above the centre.
+    """
+    c = np.asarray(centre, dtype=float).reshape(3)
+    target = c + np.array([0.0, 0.0, radius / 3.0])
+    direction = np.array([1.0, -0.8, 0.6])
+    eye = target + 2.2 * radius * direction / np.linalg.norm(direction)
+    return eye, target
+
+
+def arm_blueprint(eye: Sequence[float] | None = None, target: Sequence[float] | None = None,
+                  duration_s: float | None = None) -> rrb.Blueprint:
+    """Arm layout: scene in 3-D (left); h, Xi_on, mode and command correction stacked (right).
+
+    Args:
+        eye: Camera position [m] (default: the viewer's own framing of everything).
+        target: Point the camera looks at [m].
+        duration_s: The run's length: the plots' time axes span it.
+
+    """
+    eye_controls = None
+    if eye is not None and target is not None:
+        eye_controls = rrb.EyeControls3D(position=list(map(float, eye)), look_target=list(map(float, target)),
+                                         eye_up=[0.0, 0.0, 1.0])
+    span = _whole_run(duration_s)
     right = rrb.Vertical(
-        rrb.TimeSeriesView(origin=f"{PLOTS}/barrier", name="barrier h [m]"),
-        rrb.TimeSeriesView(origin=f"{PLOTS}/xi", name="Xi_on"),
-        rrb.TimeSeriesView(origin=f"{PLOTS}/mode", name="filter mode (1 = on)"),
-        rrb.TimeSeriesView(origin=f"{PLOTS}/command", name="joint command: nominal vs filtered [rad/s]"),
-        row_shares=[3, 2, 1, 3],
+        rrb.TimeSeriesView(origin=f"{PLOTS}/barrier", name="barrier h [m] (closest pairs, min)", **span),
+        rrb.TimeSeriesView(origin=f"{PLOTS}/xi", name="min Xi_on with 0 and c", **span),
+        rrb.TimeSeriesView(origin=f"{PLOTS}/mode", name="filter mode (1 = on)", **span),
+        rrb.Tabs(
+            rrb.TimeSeriesView(origin=f"{PLOTS}/command", name="|u - u_nom| [rad/s]", **span),
+            rrb.TimeSeriesView(origin=f"{PLOTS}/joints/correction", name="u - u_nom per joint [rad/s]", **span),
+            rrb.TimeSeriesView(origin=f"{PLOTS}/joints/command", name="u and u_nom per joint [rad/s]", **span),
+        ),
+        row_shares=[3, 2, 1, 2],
     )
     left = rrb.Vertical(
-        rrb.Spatial3DView(origin=WORLD, name="scene"),
+        rrb.Spatial3DView(origin=WORLD, name="scene (robot orange while the filter is on)",
+                          eye_controls=eye_controls),
         rrb.TextLogView(origin=EVENT_LOG, name="switch events"),
         row_shares=[4, 1],
     )
     return rrb.Blueprint(rrb.Horizontal(left, right, column_shares=[3, 2]), _time_panel(), collapse_panels=False)
 
 
-def satellite_blueprint() -> rrb.Blueprint:
-    """Satellite layout: body, band and trajectory in 3-D (left); r/R, h, Xi, Xi_tau (right)."""
+def satellite_blueprint(duration_s: float | None = None) -> rrb.Blueprint:
+    """Satellite layout: body, band and trajectory in 3-D (left); r/R, h, Xi, impulses (right).
+
+    Args:
+        duration_s: The run's length [s]: every plot's time axis spans ``[0, duration_s]``.
+
+    """
+    span = _whole_run(duration_s)
     right = rrb.Vertical(
-        rrb.TimeSeriesView(origin=f"{PLOTS}/radius", name="r / R"),
-        rrb.TimeSeriesView(origin=f"{PLOTS}/barrier", name="barrier h"),
-        rrb.TimeSeriesView(origin=f"{PLOTS}/xi", name="Xi and Xi_tau"),
-        rrb.TimeSeriesView(origin=f"{PLOTS}/mode", name="maneuver phase / impulses"),
+        rrb.TimeSeriesView(origin=f"{PLOTS}/radius", name="r / R with the band 1.6 .. 2.4", **span),
+        rrb.TimeSeriesView(origin=f"{PLOTS}/barrier", name="barrier h", **span),
+        rrb.TimeSeriesView(origin=f"{PLOTS}/xi", name="Xi and Xi_tau", **span),
+        rrb.TimeSeriesView(origin=f"{PLOTS}/impulses", name="impulses |dv| [m/s] and maneuver phase", **span),
         row_shares=[2, 2, 2, 1],
     )
     left = rrb.Vertical(
@@ -66,6 +125,26 @@ def generic_blueprint() -> rrb.Blueprint:
         ),
         _time_panel(),
     )
+
+
+def compare_blueprint(strategies: Sequence[str], *, root: str = "/compare") -> rrb.Blueprint:
+    """Strategies of one seed side by side: a column per strategy (barrier, mode, correction).
+
+    The views read ``<root>/<strategy>/plots/...``: :func:`isf_robot.record.compare.merge_runs`
+    copies each per-run recording's plots there, in one recording.
+    """
+    if not strategies:
+        raise RecordError("compare_blueprint needs at least one strategy")
+    cols = []
+    for s in strategies:
+        base = f"{root}/{s}{PLOTS}"
+        cols.append(rrb.Vertical(
+            rrb.TimeSeriesView(origin=f"{base}/barrier", name=f"{s}: barrier h [m]"),
+            rrb.TimeSeriesView(origin=f"{base}/mode", name=f"{s}: filter mode"),
+            rrb.TimeSeriesView(origin=f"{base}/command", name=f"{s}: |u - u_nom| [rad/s]"),
+            row_shares=[3, 1, 2], name=s,
+        ))
+    return rrb.Blueprint(rrb.Horizontal(*cols), _time_panel(), collapse_panels=False)
 
 
 def blueprint_for(kind: str) -> rrb.Blueprint:

@@ -5,7 +5,15 @@ world, per step for the others); ``<root>/<body>/<geom>`` carries the geom's sha
 own frame with a static transform relative to the body. Shapes follow MuJoCo's size
 conventions: sphere (radius), capsule and cylinder (radius, half-length along z), ellipsoid
 and box (half sizes), plane (half extents in x and y; 0 means infinite, drawn 2 m wide),
-mesh (the compiled vertices, already in the geom frame). Height fields and SDFs are skipped.
+mesh (the compiled vertices, already in the geom frame). Every shape is solid. Height fields
+and SDFs are skipped.
+
+Which geoms: those of the visible groups (0-2, as MuJoCo's viewer), plus every geom listed in
+``include`` whatever its group (the arm layer's robot and obstacle collision geoms, often in
+group 3), plus every other geom on the kinematic trees those belong to (e.g. an arm's base).
+Geoms listed in ``tinted`` get their colour per step (:meth:`MujocoDrawing.send_tint`: their
+own colour, or a tint while a flag such as the filter mode is set); their static shape then
+carries no colour (Rerun lets static data shadow temporal data of the same component).
 
 This module imports mujoco, as it draws MuJoCo geometry (the layering rule allows it here).
 """
@@ -21,12 +29,16 @@ import rerun as rr
 
 from .buffer import TIMELINE
 
-__all__ = ["MujocoDrawing", "VISIBLE_GROUPS"]
+__all__ = ["MujocoDrawing", "VISIBLE_GROUPS", "TINT"]
 
 VISIBLE_GROUPS = (0, 1, 2)
 """Geom groups drawn (MuJoCo's viewer shows groups 0-2 by default)."""
 
 _PLANE_HALF = 1.0  # [m] half extent drawn for an infinite plane
+
+TINT = (255, 140, 0)
+"""Colour blended into tinted geoms while the flag is set (orange: the filter is on)."""
+_TINT_WEIGHT = 0.65
 
 
 def _xyzw(q_wxyz: np.ndarray) -> np.ndarray:
@@ -45,26 +57,30 @@ def _name(model: mujoco.MjModel, obj: mujoco.mjtObj, i: int, prefix: str) -> str
     return rr.escape_entity_path_part(mujoco.mj_id2name(model, obj, i) or f"{prefix}{i}")
 
 
-def _shape(model: mujoco.MjModel, g: int, color: list[int]) -> Any | None:
-    """The Rerun archetype of geom ``g`` in its own frame, or None for unsupported types."""
+def _shape(model: mujoco.MjModel, g: int, color: list[int] | None) -> Any | None:
+    """The Rerun archetype of geom ``g`` in its own frame (solid), or None for unsupported types.
+
+    ``color=None``: no colour component (it is sent per step, see :meth:`MujocoDrawing.send_tint`).
+    """
     t = int(model.geom_type[g])
     size = np.asarray(model.geom_size[g], dtype=np.float64)
     G = mujoco.mjtGeom
+    colors = None if color is None else [color]
     if t == G.mjGEOM_SPHERE:
-        return rr.Ellipsoids3D(half_sizes=[[size[0]] * 3], colors=[color], fill_mode="solid")
+        return rr.Ellipsoids3D(half_sizes=[[size[0]] * 3], colors=colors, fill_mode="solid")
     if t == G.mjGEOM_ELLIPSOID:
-        return rr.Ellipsoids3D(half_sizes=[size[:3]], colors=[color], fill_mode="solid")
+        return rr.Ellipsoids3D(half_sizes=[size[:3]], colors=colors, fill_mode="solid")
     if t == G.mjGEOM_CAPSULE:
         return rr.Capsules3D(lengths=[2.0 * size[1]], radii=[size[0]], translations=[[0.0, 0.0, -size[1]]],
-                             colors=[color])
+                             colors=colors, fill_mode="solid")
     if t == G.mjGEOM_CYLINDER:
-        return rr.Cylinders3D(lengths=[2.0 * size[1]], radii=[size[0]], colors=[color], fill_mode="solid")
+        return rr.Cylinders3D(lengths=[2.0 * size[1]], radii=[size[0]], colors=colors, fill_mode="solid")
     if t == G.mjGEOM_BOX:
-        return rr.Boxes3D(half_sizes=[size[:3]], colors=[color], fill_mode="solid")
+        return rr.Boxes3D(half_sizes=[size[:3]], colors=colors, fill_mode="solid")
     if t == G.mjGEOM_PLANE:
         hx = size[0] if size[0] > 0 else _PLANE_HALF
         hy = size[1] if size[1] > 0 else _PLANE_HALF
-        return rr.Boxes3D(half_sizes=[[hx, hy, 0.0]], colors=[color], fill_mode="solid")
+        return rr.Boxes3D(half_sizes=[[hx, hy, 0.0]], colors=colors, fill_mode="solid")
     if t == G.mjGEOM_MESH:
         mid = int(model.geom_dataid[g])
         if mid < 0:
@@ -77,6 +93,18 @@ def _shape(model: mujoco.MjModel, g: int, color: list[int]) -> Any | None:
     return None
 
 
+def _color_columns(shape: Any, colors: np.ndarray) -> Any:
+    """Per-row colour columns of a shape archetype (one colour per row)."""
+    if isinstance(shape, rr.Mesh3D):
+        return rr.Mesh3D.columns(albedo_factor=colors)
+    return type(shape).columns(colors=colors)
+
+
+def _tinted(color: list[int]) -> list[int]:
+    w = _TINT_WEIGHT
+    return [int(round((1 - w) * c + w * k)) for c, k in zip(color[:3], TINT)] + [color[3]]
+
+
 class MujocoDrawing:
     """Static geometry and per-step body poses of a MuJoCo model.
 
@@ -84,14 +112,28 @@ class MujocoDrawing:
         model: The compiled model.
         root: Entity path under which bodies are logged.
         groups: Geom groups to draw.
+        include: Geom ids drawn whatever their group (with every geom of their kinematic trees).
+        tinted: Geom ids whose colour follows a per-step flag (:meth:`send_tint`).
 
     """
 
     def __init__(self, model: mujoco.MjModel, root: str = "/world/bodies",
-                 groups: Sequence[int] = VISIBLE_GROUPS) -> None:
+                 groups: Sequence[int] = VISIBLE_GROUPS, include: Sequence[int] = (),
+                 tinted: Sequence[int] = ()) -> None:
         self.model = model
         self.root = root.rstrip("/")
         self.groups = tuple(int(g) for g in groups)
+        self.include = sorted({int(g) for g in include} | {int(g) for g in tinted})
+        bad = [g for g in self.include if not 0 <= g < model.ngeom]
+        if bad:
+            raise ValueError(f"geom ids {bad} out of range 0..{model.ngeom - 1}")
+        self.tinted = sorted({int(g) for g in tinted})
+        roots = {int(model.body_rootid[int(model.geom_bodyid[g])]) for g in self.include}
+        roots.discard(0)  # geoms welded to the world do not pull in the whole world body
+        self._trees = roots
+        self._tint_shapes: list[tuple[str, Any, list[int]]] = []  # (path, shape, colour)
+        self._last_flag: bool | None = None
+        self.drawn_ids: list[int] = []
         self.data = mujoco.MjData(model)
         names = [_name(model, mujoco.mjtObj.mjOBJ_BODY, b, "body") for b in range(model.nbody)]
         self.body_paths = [f"{self.root}/{n}" for n in names]
@@ -108,16 +150,27 @@ class MujocoDrawing:
             if hi - lo == self.moving.size:  # contiguous: views, no copy per step
                 self._xpos, self._xquat = self.data.xpos[lo:hi], self.data.xquat[lo:hi]
 
+    def drawn(self, g: int) -> bool:
+        """Whether geom ``g`` is drawn (visible group, listed, or on a listed geom's tree)."""
+        m = self.model
+        if g in self.include:
+            return True
+        if _rgba(m, g)[3] == 0:
+            return False
+        return int(m.geom_group[g]) in self.groups or int(m.body_rootid[int(m.geom_bodyid[g])]) in self._trees
+
     def log_static(self, stream: rr.RecordingStream) -> None:
         """Log every drawable geom (static) and the poses of bodies welded to the world."""
         m = self.model
         mujoco.mj_kinematics(m, self.data)
+        tinted = set(self.tinted)
         for g in range(m.ngeom):
+            if not self.drawn(g):
+                continue
             gname = _name(m, mujoco.mjtObj.mjOBJ_GEOM, g, "geom")
             color = _rgba(m, g)
-            if int(m.geom_group[g]) not in self.groups or color[3] == 0:
-                continue
-            shape = _shape(m, g, color)
+            color[3] = max(color[3], 1)
+            shape = _shape(m, g, None if g in tinted else color)
             if shape is None:
                 self.geoms_skipped.append(gname)
                 continue
@@ -125,6 +178,9 @@ class MujocoDrawing:
             local = rr.Transform3D(translation=m.geom_pos[g], quaternion=rr.Quaternion(xyzw=_xyzw(m.geom_quat[g])))
             stream.log(path, local, static=True)
             stream.log(path, shape, static=True)
+            if g in tinted:
+                self._tint_shapes.append((path, shape, color))
+            self.drawn_ids.append(g)
             self.geoms_drawn += 1
         moving = set(self.moving.tolist())
         for b in range(m.nbody):
@@ -175,6 +231,47 @@ class MujocoDrawing:
         for j, b in enumerate(self.moving.tolist()):
             stream.send_columns(self.body_paths[b], indexes=idx,
                                 columns=rr.Transform3D.columns(translation=pos[:, j], quaternion=quat[:, j]))
+
+    def send_tint(self, stream: rr.RecordingStream, t: np.ndarray, flag: np.ndarray) -> None:
+        """Colour of the tinted geoms: their own while ``flag`` is false, tinted while true.
+
+        Only the rows where the flag changes (and the very first row) are sent.
+        """
+        flag = np.asarray(flag, dtype=bool)
+        if not self._tint_shapes or not flag.size:
+            return
+        prev = np.concatenate(([not flag[0]] if self._last_flag is None else [self._last_flag], flag[:-1]))
+        rows = np.flatnonzero(flag != prev)
+        self._last_flag = bool(flag[-1])
+        if not rows.size:
+            return
+        idx = [rr.TimeColumn(TIMELINE, duration=np.asarray(t)[rows])]
+        for path, shape, color in self._tint_shapes:
+            cols = np.where(flag[rows, None], np.asarray(_tinted(color)), np.asarray(color)).astype(np.uint8)
+            stream.send_columns(path, indexes=idx, columns=_color_columns(shape, cols))
+
+    def workspace(self) -> tuple[np.ndarray, float]:
+        """Centre and radius [m] of a sphere holding the included geoms at any configuration.
+
+        Centre: the root body of the tinted geoms' trees (the robot's base), else the included
+        geoms' mean position; radius: the largest distance from there to an included geom at
+        the model's reference pose plus that geom's bounding radius.
+        """
+        m = self.model
+        d = mujoco.MjData(m)  # the reference pose (self.data holds the last drawn state)
+        mujoco.mj_kinematics(m, d)
+        ids = [g for g in self.include] or list(range(m.ngeom))
+        roots = sorted({int(m.body_rootid[int(m.geom_bodyid[g])]) for g in self.tinted} - {0})
+        if roots:
+            centre = np.mean([d.xpos[b] for b in roots], axis=0)
+        else:
+            centre = np.mean([d.geom_xpos[g] for g in ids], axis=0)
+        radius = 0.0
+        for g in ids:
+            if int(m.geom_type[g]) == mujoco.mjtGeom.mjGEOM_PLANE:
+                continue
+            radius = max(radius, float(np.linalg.norm(d.geom_xpos[g] - centre)) + float(m.geom_rbound[g]))
+        return centre, max(radius, 0.1)
 
     @staticmethod
     def index(adr: np.ndarray) -> slice | np.ndarray:

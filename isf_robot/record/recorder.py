@@ -148,7 +148,7 @@ class RerunRecorder(Observer):
         xi = float("nan") if xi is None else float(xi)
         dur_f = float("nan") if dur is None else float(dur)
         self._events.push(t, (t, kind, index, xi, dur_f))
-        self._log.push(t, (self.describe_event(event), "INFO" if kind != "off" else "DEBUG"))
+        self._log.push(t, (self.describe_event(event), "INFO"))  # every kind at one level: all shown alike
         self.event_content(t, event)
         self.events += 1
 

@@ -29,6 +29,7 @@ from isf_robot.core.report import format_table as report_table
 from isf_robot.core.report import format_value
 
 from . import schema
+from .columns import _check_file, _damaged, read_columns
 from .errors import RecordingReadError
 
 __all__ = [
@@ -179,28 +180,6 @@ def _read_store(path: Path, reader: RrdReader, entry: Any) -> RunLog:
                   impulses, np.asarray(terminal, dtype=float))
 
 
-def _check_file(p: Path) -> None:
-    """Raise :class:`RecordingReadError` unless ``p`` is a readable file starting like an RRD."""
-    if not p.exists():
-        raise RecordingReadError(p, "no such file")
-    if p.is_dir():
-        raise RecordingReadError(p, "is a directory (pass the .rrd files in it)")
-    try:
-        with open(p, "rb") as fh:
-            head = fh.read(4)
-    except OSError as exc:
-        raise RecordingReadError(p, f"cannot open it: {exc.strerror or exc}") from exc
-    if len(head) < 4:
-        raise RecordingReadError(p, "the file is empty or too short to be a Rerun recording")
-    if not head.startswith(b"RRF"):
-        raise RecordingReadError(p, f"not a Rerun .rrd file (starts with {head!r}, expected b'RRF2')")
-
-
-def _damaged(p: Path, exc: Exception) -> RecordingReadError:
-    msg = " ".join(str(exc).split())
-    return RecordingReadError(p, f"truncated or corrupt Rerun file ({msg})")
-
-
 def read_rrd(path: str | Path) -> list[RunLog]:
     """Read every isf_robot recording in a ``.rrd`` file.
 
@@ -229,76 +208,6 @@ def read_rrd(path: str | Path) -> list[RunLog]:
         raise
     except Exception as exc:  # rerun raises RuntimeError/ValueError for damaged files
         raise _damaged(p, exc) from exc
-
-
-def read_columns(path: str | Path, entity: str, names: Sequence[str] | None = None,
-                 recording: int = 0) -> dict[str, np.ndarray]:
-    """Read the time-indexed columns of one entity back, in time order.
-
-    Single-instance columns come back as shape (N,), multi-instance ones (e.g. a ``Scalars``
-    entity with one series per joint, or 3-D points) as shape (N, k) or (N, k, d) when every
-    row has the same count, else as an object array of per-row arrays. ``sim_time`` [s] is
-    added (from the timeline, nanosecond resolution).
-
-    Args:
-        path: The ``.rrd`` file.
-        entity: Entity path, e.g. ``"/plots/mode"``.
-        names: Column names to return (default: every component column), e.g.
-            ``"Scalars:scalars"`` or an ``AnyValues`` field name.
-        recording: Index of the recording in the file.
-
-    Raises:
-        RecordingReadError: Unreadable file, or no such entity / column.
-
-    """
-    p = Path(path)
-    _check_file(p)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            reader = RrdReader(p)
-            entries = reader.recordings()
-            if not 0 <= recording < len(entries):
-                raise RecordingReadError(p, f"no recording #{recording} (the file holds {len(entries)})")
-            batches = [c.to_record_batch() for c in reader.stream(store=entries[recording])
-                       if c.entity_path == entity and not c.is_static]
-    except RecordingReadError:
-        raise
-    except Exception as exc:
-        raise _damaged(p, exc) from exc
-    if not batches:
-        raise RecordingReadError(p, f"no time-indexed entity {entity!r} in the recording")
-    available = [f.name for f in batches[0].schema
-                 if (f.metadata or {}).get(b"rerun:kind") == b"data"]
-    wanted = list(names) if names is not None else available
-    out: dict[str, list[Any]] = {n: [] for n in wanted}
-    times: list[np.ndarray] = []
-    for b in batches:
-        times.append(b.column("sim_time").cast(pa.int64()).to_numpy(zero_copy_only=False))
-        for n in wanted:
-            if n not in b.schema.names:
-                raise RecordingReadError(p, f"entity {entity!r} has no column {n!r} (has: {', '.join(available)})")
-            out[n].extend(_row_values(b.column(n)))
-    t_ns = np.concatenate(times)
-    order = np.argsort(t_ns, kind="stable")
-    result: dict[str, np.ndarray] = {"sim_time": t_ns[order] * 1e-9}
-    for n, rows in out.items():
-        rows = [rows[i] for i in order]
-        lens = {len(r) for r in rows}
-        if lens == {1}:
-            result[n] = np.asarray([r[0] for r in rows])
-        elif len(lens) == 1:
-            result[n] = np.asarray(rows)
-        else:
-            arr = np.empty(len(rows), dtype=object)
-            arr[:] = [np.asarray(r) for r in rows]
-            result[n] = arr
-    return result
-
-
-def _row_values(col: pa.ChunkedArray | pa.Array) -> list[Any]:
-    arr = col.combine_chunks() if isinstance(col, pa.ChunkedArray) else col
-    return [v if v is not None else [] for v in arr.to_pylist()]
 
 
 def read_many(paths: Iterable[str | Path]) -> list[RunLog]:

@@ -38,8 +38,12 @@ def test_arm_barrier_values_read_back(arm_run) -> None:  # type: ignore[no-untyp
     np.testing.assert_array_equal(xi["Scalars:scalars"], [r.xi_min for r in recs])
     mode = read_columns(arm_run.path, "/plots/mode")
     np.testing.assert_array_equal(mode["Scalars:scalars"], [1.0 if r.on else 0.0 for r in recs])
-    u = read_columns(arm_run.path, "/plots/command/filtered")["Scalars:scalars"]
+    u = read_columns(arm_run.path, "/plots/joints/command/filtered")["Scalars:scalars"]
     np.testing.assert_array_equal(u, np.array([r.u for r in recs]))
+    corr = read_columns(arm_run.path, "/plots/joints/correction")["Scalars:scalars"]
+    np.testing.assert_array_equal(corr, np.array([r.u - r.u_nom for r in recs]))
+    norm = read_columns(arm_run.path, "/plots/command/correction_norm")["Scalars:scalars"]
+    np.testing.assert_allclose(norm, [np.linalg.norm(r.u - r.u_nom) for r in recs], rtol=1e-12, atol=1e-15)
     # per-pair series: each logged value is that pair's h at a step where it was among the closest
     names = recs[0].names
     for name in recs[0].closest:
@@ -75,8 +79,10 @@ def test_arm_geometry_and_poses(arm_run) -> None:  # type: ignore[no-untyped-def
     np.testing.assert_allclose(ee, [r.ee_pos for r in recs], atol=1e-6)  # float32 points
     wit = read_columns(arm_run.path, "/world/witness")["LineStrips3D:strips"]
     assert len(wit) == len(recs)
+    # only the pairs among the three closest get a segment
     k = next(i for i, r in enumerate(recs) if len(r.witness))
-    np.testing.assert_allclose(np.asarray(wit[k], dtype=float).reshape(-1, 2, 3), recs[k].witness, atol=1e-6)
+    want = [w for w, n in zip(recs[k].witness, recs[k].witness_names) if n in recs[k].closest[:3]]
+    np.testing.assert_allclose(np.asarray(wit[k], dtype=float).reshape(-1, 2, 3), want, atol=1e-6)
 
 
 def test_arm_replay_metrics_equal_run(arm_run) -> None:  # type: ignore[no-untyped-def]
