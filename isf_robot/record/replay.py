@@ -261,21 +261,39 @@ def impulse_metrics(log: RunLog) -> dict[str, Any]:
     }
 
 
+RUN_FIGURES: tuple[str, ...] = ("min_h", "r_min_over_R", "r_max_over_R", "simulated_h", "left_band_h",
+                                 "band_exits", "miet_bound_h")
+"""Exact figures of an impulsive run taken from its logged summary (the samples miss extremes)."""
+
+
 def replay_metrics(log: RunLog) -> dict[str, Any]:
     """Recompute a run's metrics from its logged columns, without simulating.
 
     Returns:
-        The fields of :class:`~isf_robot.core.metrics.DutyCycleMetrics` plus ``min_barrier``
-        (minimum of the logged true-geometry minima), and for impulsive runs
-        :func:`impulse_metrics`.
+        Arm (and other sampled-data) runs: the fields of
+        :class:`~isf_robot.core.metrics.DutyCycleMetrics` plus ``min_barrier`` (minimum of the
+        logged true-geometry minima). Impulsive (satellite) runs: only the figures that apply to
+        them, :func:`impulse_metrics` (from the logged impulses), ``min_barrier`` and
+        :data:`RUN_FIGURES` as the run computed them on its whole trajectory (from the logged
+        summary; ``min_barrier_source`` says ``"run"``, or ``"samples"`` when a summary lacks
+        ``min_h`` and the minimum over the logged samples is given instead), and ``duration_s``.
 
     """
     s = log.steps
+    if log.kind == "satellite":
+        summary = log.summary or {}
+        out: dict[str, Any] = dict(impulse_metrics(log))
+        exact = summary.get("min_h")
+        out["min_barrier"] = float(exact) if exact is not None else _min_or_none(s["min_barrier"])
+        out["min_barrier_source"] = "run" if exact is not None else "samples"
+        out.update({k: summary[k] for k in RUN_FIGURES if k in summary})
+        sim_h = summary.get("simulated_h")
+        out["duration_s"] = 3600.0 * float(sim_h) if sim_h is not None else (float(s["t"][-1]) if s["t"].size
+                                                                              else 0.0)
+        return out
     m = compute_metrics(s["t"], s["dt"], s["on"], s["intervention_rate"], s["qp_solved"])
     out = m.as_dict()
     out["min_barrier"] = _min_or_none(np.concatenate([s["min_barrier"], log.terminal]))
-    if log.kind == "satellite":
-        out.update(impulse_metrics(log))
     return out
 
 

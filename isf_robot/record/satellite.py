@@ -11,9 +11,18 @@ Logged, besides the base recorder's replay columns and events:
 * ``/world/satellite``: the current position; ``/world/trajectory/<k>``: the path, one
   static line strip per buffered block of samples (memory stays bounded).
 * ``/world/impulses``: each impulse as an arrow at the satellite, labelled with its time.
-* ``/plots/radius`` (``r/R``), ``/plots/barrier/h``, ``/plots/xi/xi``, ``/plots/xi/xi_tau``,
-  ``/plots/mode`` (1 while the second impulse of a maneuver is pending).
+* ``/plots/radius`` (``r/R``) with ``/plots/radius/band_inner`` and ``/plots/radius/band_outer``
+  (the band's edges, from the start info's ``band_over_R``), ``/plots/barrier/h``,
+  ``/plots/xi/xi``, ``/plots/xi/xi_tau``.
+* ``/plots/impulses/dv``: one marker per impulse at its ``|dv|`` [m/s] (every trigger, greedy
+  included), and ``/plots/impulses/maneuver`` (1 while the second impulse of a maneuver is
+  pending).
 * ``/replay/impulses``: every impulse's time, kind, index, ``dv`` (3), ``h``/``Xi`` after.
+
+The default layout is sent again at the start with every plot's time axis spanning the
+requested run (``hours``). Replay takes the run's exact figures (``min_h``, ``r_min_over_R``,
+...) from the logged summary: the samples are spaced ``sample_interval_s`` apart and miss the
+extremes between them.
 
 The replay "step" of a satellite run is an output sample: ``dt`` is the spacing to the
 previous sample, ``on`` whether a maneuver is in progress, ``min_barrier`` the sample's ``h``.
@@ -28,9 +37,10 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
+from .blueprints import satellite_blueprint
 from .errors import RecordError
 from .recorder import RerunRecorder
-from .schema import IMPULSES
+from .schema import IMPULSES, PLOTS
 
 __all__ = ["SatelliteRecorder", "body_triangles", "ITOKAWA_HALF_AXES_M"]
 
@@ -124,11 +134,14 @@ class SatelliteRecorder(RerunRecorder):
         self._sat = buf.channel("/world/satellite", {"positions": ((3,), np.float64)},
                                 lambda positions: rr.Points3D.columns(positions=positions))
         self._impulses = buf.ragged(IMPULSES, _impulse_columns)
+        self._dv = buf.scalars(f"{PLOTS}/impulses/dv")
+        self._band = _BAND
+        self._t_last = 0.0
 
     @staticmethod
     def step_plots() -> tuple[tuple[str, Any], ...]:
-        """Only ``/plots/mode`` (the barrier has its own series, ``/plots/barrier/h``)."""
-        return RerunRecorder.step_plots()[:1]
+        """Only the maneuver phase, ``/plots/impulses/maneuver`` (the barrier has ``/plots/barrier/h``)."""
+        return ((f"{PLOTS}/impulses/maneuver", RerunRecorder.step_plots()[0][1]),)
 
     # -- static content --------------------------------------------------------------------
     def start_content(self, info: Mapping[str, Any]) -> None:
@@ -149,6 +162,19 @@ class SatelliteRecorder(RerunRecorder):
                                                           labels=[f"{k}R"]), static=True)
         rec.log("/world/satellite", rr.Points3D.from_fields(radii=[0.03 * R], colors=[[250, 250, 60]]), static=True)
         rec.log("/plots/radius", rr.SeriesLines(names="r / R"), static=True)
+        band = info.get("band_over_R") or _BAND
+        self._band = (float(band[0]), float(band[1]))
+        for name, k in zip(("band_inner", "band_outer"), self._band):
+            rec.log(f"/plots/radius/{name}", rr.SeriesLines(names=f"{k:g} R", colors=[[150, 150, 150]],
+                                                            widths=[1.0]), static=True)
+        self._band_lines(0.0)
+        rec.log("/plots/impulses/dv", rr.SeriesPoints(names="|dv| [m/s]", colors=[[255, 60, 60]],
+                                                      markers=["diamond"], marker_sizes=[4.0]), static=True)
+        rec.log("/plots/impulses/maneuver", rr.SeriesLines(names="maneuver pending (1)"), static=True)
+        hours = info.get("hours")
+        if isinstance(hours, (int, float)) and hours > 0:
+            rec.send_blueprint(satellite_blueprint(duration_s=3600.0 * float(hours)), make_active=True,
+                               make_default=True)
         rec.log("/plots/barrier/h", rr.SeriesLines(names="h"), static=True)
         rec.log("/plots/xi/xi", rr.SeriesLines(names="Xi"), static=True)
         rec.log("/plots/xi/xi_tau", rr.SeriesLines(names="Xi_tau"), static=True)
@@ -180,6 +206,7 @@ class SatelliteRecorder(RerunRecorder):
     def step_content(self, t: float, record: Any) -> None:
         """Radius, barrier, triggers, body spin, position and trajectory."""
         R = float(self.radius_m or 1.0)
+        self._t_last = t
         self._radius.push(t, float(record.r) / R)
         self._h.push(t, float(record.h))
         self._xi.push(t, float(record.xi))
@@ -199,6 +226,7 @@ class SatelliteRecorder(RerunRecorder):
         pts = self._pos[:n]
         if self._last_pos is not None:
             pts = np.vstack([self._last_pos, pts])
+        self._band_lines(self._t_last)
         self.stream.log(f"/world/trajectory/{self._parts:05d}",
                         rr.LineStrips3D([pts], colors=[[250, 250, 60]],
                                         radii=[0.004 * float(self.radius_m or 1.0)]), static=True)
@@ -218,6 +246,7 @@ class SatelliteRecorder(RerunRecorder):
                 labels=[f"{getattr(event, 'kind', '')} t = {t / 3600.0:.3f} h, |dv| = {mag:.3g} m/s"],
             ))
             self.stream.reset_time()
+        self._dv.push(t, float(np.linalg.norm(v[:3])) if v.size >= 3 else float("nan"))
         self._impulses.push(t, (t, str(getattr(event, "kind", "")), int(getattr(event, "index", 0)),
                                 tuple(v[:3]) if v.size >= 3 else (float("nan"),) * 3,
                                 float(getattr(event, "h_after", float("nan"))),
@@ -230,6 +259,14 @@ class SatelliteRecorder(RerunRecorder):
         return (f"t = {float(event.t) / 3600.0:.4f} h: {getattr(event, 'kind', '')} impulse "
                 f"#{getattr(event, 'index', '?')}, |dv| = {float(np.linalg.norm(v)):.4g} m/s")
 
+    def _band_lines(self, t: float) -> None:
+        """A point of each band edge's constant line at ``t`` (sent at the start and with each block)."""
+        self.stream.set_time("sim_time", duration=t)
+        for name, k in zip(("band_inner", "band_outer"), self._band):
+            self.stream.log(f"/plots/radius/{name}", rr.Scalars(k))
+        self.stream.reset_time()
+
     def finish_content(self, summary: Mapping[str, Any]) -> None:
-        """Flush the last trajectory block."""
+        """Flush the last trajectory block (and close the band lines at the last sample)."""
         self._flush_trajectory()
+        self._band_lines(self._t_last)

@@ -97,7 +97,7 @@ def test_pair_series_are_cleared_on_gaps(arm_run) -> None:  # type: ignore[no-un
     names = recs[0].names
     t = np.array([r.t for r in recs])
     tested = 0
-    for j, name in enumerate(names[:arm_run.recorder._n_collision]):
+    for name in names[:arm_run.recorder._n_collision]:
         member = np.array([name in r.closest[:3] for r in recs])
         if not member.any():
             continue

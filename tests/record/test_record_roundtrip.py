@@ -123,3 +123,17 @@ def test_satellite_round_trip(sat_run) -> None:  # type: ignore[no-untyped-def]
     arrows = read_columns(sat_run.path, "/world/impulses")
     assert len(arrows["sim_time"]) == res.triggers
     assert "h" in str(arrows["Arrows3D:labels"][0])
+
+
+def test_satellite_replay_gives_the_run_figures_only(sat_run) -> None:  # type: ignore[no-untyped-def]
+    (log,) = read_rrd(sat_run.path)
+    res = sat_run.result
+    m = replay_metrics(log)
+    # exact, from the run (the 10-minute samples miss the extremes between them)
+    assert m["min_barrier"] == res.min_h and m["min_barrier_source"] == "run"
+    assert m["r_min_over_R"] == res.r_min_over_R and m["r_max_over_R"] == res.r_max_over_R
+    assert m["min_barrier"] <= float(np.min(log.steps["min_barrier"]))
+    assert math.isclose(m["duration_s"], 3600.0 * res.simulated_h, rel_tol=1e-12)
+    # nothing of a sampled-data filter: no duty cycle, switches or QP solves
+    for key in ("duty_cycle", "on_switches", "qp_solves", "intervention", "mean_off_s"):
+        assert key not in m, key
