@@ -1,15 +1,18 @@
 """The integration loop's pieces: one inter-event arc of the truth flow, and what it records.
 
-The truth flow (spherical harmonics, spinning body) is integrated by ``scipy.integrate.solve_ivp``
-(DOP853) once per inter-event arc, with terminal events for the triggers, so every impulse is
-applied at a located event and no integration step straddles an impulse. Which events an arc
-watches is the trigger policy's business (:mod:`satellite.policies`); here:
+The truth flow (spinning body) is integrated by :func:`satellite.events.integrate` (DOP853
+steps, as ``solve_ivp``) once per inter-event arc, with terminal events for the triggers, so
+every impulse is applied at a located event and no integration step straddles an impulse; events
+with a rate bound are scanned inside every step, so a crossing between step points is not
+missed. Which events an arc watches is the trigger policy's business (:mod:`satellite.policies`);
+here:
 
-* :class:`ArcIntegrator`: integrate one arc, fail loudly on an integrator failure, pass the
-  arc to the :class:`Tracker` and (when on) to the surface check;
+* :class:`ArcIntegrator`: integrate one arc, fail loudly on an integrator failure, watch every
+  arc for band exits (``h`` falling through 0, non-terminal: the run goes on and reports them),
+  pass the arc to the :class:`Tracker` and (when on) to the surface check;
 * :class:`Tracker`: the radius extremes over the step points and every located event (apses
-  included, so they are the trajectory's extremes), the right-hand-side count, and the
-  samples sent to observers (:class:`SatelliteSample`, at most one per sample interval).
+  included, so they are the trajectory's extremes), the band exits, the right-hand-side count,
+  and the samples sent to observers (:class:`SatelliteSample`, at most one per sample interval).
 """
 
 from __future__ import annotations
@@ -21,9 +24,9 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.integrate import solve_ivp
 
 from isf_robot.core import IsfError, Observers
+from satellite.events import Event, IntegrationFailed, event, integrate
 from satellite.model import OrbitModel
 from satellite.surface import SurfaceCheck
 from satellite.triggers import BandTriggers, EventFn
@@ -34,6 +37,7 @@ __all__ = [
     "SimulationError",
     "Tracker",
     "ArcIntegrator",
+    "Event",
     "event",
     "surface_samples",
 ]
@@ -45,18 +49,23 @@ class SimulationError(IsfError):
 
 @dataclass(frozen=True)
 class IntegratorSettings:
-    """``solve_ivp`` settings (SI units).
+    """Integrator settings (SI units).
 
     Attributes:
         rtol: Relative tolerance.
         atol: Absolute tolerance.
         max_step_s: Largest step [s] (default 1200 s, about 1/20 of the 6.65 h period at 2R).
+        event_scan: Scan every step for crossings between step points (rate bounds; see
+            :mod:`satellite.events`). ``False`` sees events at step points only, as ``solve_ivp``.
+        scan_min_dt_s: Shortest interval the scan splits [s].
 
     """
 
     rtol: float = 1e-10
     atol: float = 1e-12
     max_step_s: float = 1200.0
+    event_scan: bool = True
+    scan_min_dt_s: float = 1e-2
 
 
 @dataclass(frozen=True)
@@ -90,17 +99,6 @@ class SatelliteSample:
     body_angle: float
 
 
-def event(fn: EventFn, terminal: bool, direction: float) -> EventFn:
-    """A ``solve_ivp`` event function calling ``fn(t, y)`` with the given ``terminal``/``direction``."""
-
-    def ev(t: float, y: NDArray[np.float64]) -> float:
-        return fn(t, y)
-
-    ev.terminal = terminal  # type: ignore[attr-defined]
-    ev.direction = direction  # type: ignore[attr-defined]
-    return ev
-
-
 class Tracker:
     """Running extremes, samples for observers, and bookkeeping of one run.
 
@@ -114,6 +112,8 @@ class Tracker:
         r_min: Smallest radius so far [m].
         r_max: Largest radius so far [m].
         nfev: Right-hand-side evaluations so far.
+        scan_points: Interior points evaluated by the event scan so far.
+        band_exits: Times [s] at which ``h`` fell through 0.
 
     """
 
@@ -126,6 +126,8 @@ class Tracker:
         self.r_max = -math.inf
         self.t_next = 0.0
         self.nfev = 0
+        self.scan_points = 0
+        self.band_exits: list[float] = []
 
     def radius(self, y: NDArray[np.float64]) -> None:
         """Account for one state ``y``, shape (6,)."""
@@ -136,6 +138,7 @@ class Tracker:
     def arc(self, sol: Any, phase: str, xi_tau: EventFn | None) -> None:
         """Account for one ``solve_ivp`` solution: extremes, evaluations, samples."""
         self.nfev += int(sol.nfev)
+        self.scan_points += int(getattr(sol, "scan_points", 0))
         ys = sol.y
         r = np.sqrt(ys[0] ** 2 + ys[1] ** 2 + ys[2] ** 2)
         self.r_min = min(self.r_min, float(r.min()))
@@ -175,7 +178,7 @@ def surface_samples(check: SurfaceCheck, sol: Any, t0: float) -> None:
 
     Args:
         check: The run's surface check.
-        sol: ``solve_ivp`` solution with dense output.
+        sol: Arc solution with dense output (:class:`satellite.events.ArcSolution`).
         t0: Start of the arc [s].
 
     """
@@ -193,23 +196,27 @@ class ArcIntegrator:
 
     Args:
         model: Supplies the truth right-hand side.
-        settings: ``solve_ivp`` settings.
+        settings: Integrator settings.
         track: Records every arc.
         check: Surface check, or ``None`` (off). When on, each arc keeps the integrator's dense
             output (same steps, so the same trajectory) for the check's samples.
+        exit_watch: The band-exit event (``h`` falling, non-terminal) added to every arc, or
+            ``None``.
 
     """
 
     def __init__(
-        self, model: OrbitModel, settings: IntegratorSettings, track: Tracker, check: SurfaceCheck | None
+        self, model: OrbitModel, settings: IntegratorSettings, track: Tracker, check: SurfaceCheck | None,
+        exit_watch: Event | None = None,
     ) -> None:
         self.rhs: Callable[[float, NDArray[np.float64]], NDArray[np.float64]] = model.truth_rhs
         self.settings = settings
         self.track = track
         self.check = check
+        self.exit_watch = exit_watch
 
     def __call__(
-        self, t0: float, t1: float, y0: NDArray[np.float64], events: list[EventFn], phase: str,
+        self, t0: float, t1: float, y0: NDArray[np.float64], events: list[Event], phase: str,
         xi_tau: EventFn | None,
     ) -> Any:
         """Integrate from ``(t0, y0)`` to ``t1`` [s] or the first terminal event.
@@ -218,24 +225,31 @@ class ArcIntegrator:
             t0: Start time [s].
             t1: End time [s].
             y0: Start state, shape (6,).
-            events: Event functions (see :func:`event`).
+            events: Events (see :func:`satellite.events.event`); their rate bounds are dropped
+                when the settings turn the scan off.
             phase: Phase label of the arc's samples.
             xi_tau: ``Xi_tau`` for the samples, or ``None`` (``nan`` in the samples).
 
         Returns:
-            The ``solve_ivp`` solution (``status`` 1 when a terminal event stopped it).
+            The :class:`satellite.events.ArcSolution` (``status`` 1 when a terminal event
+            stopped it), with the caller's events only.
 
         Raises:
             SimulationError: The integrator failed.
 
         """
         s = self.settings
-        sol = solve_ivp(
-            self.rhs, (t0, t1), y0, method="DOP853", rtol=s.rtol, atol=s.atol,
-            max_step=s.max_step_s, events=events, dense_output=self.check is not None,
-        )
-        if sol.status == -1:
-            raise SimulationError(f"integration failed at t = {sol.t[-1] / 3600:.4g} h: {sol.message}")
+        watched = list(events) + ([self.exit_watch] if self.exit_watch is not None else [])
+        if not s.event_scan:
+            watched = [event(e.fn, e.terminal, e.direction) for e in watched]
+        try:
+            sol = integrate(self.rhs, t0, t1, y0, watched, rtol=s.rtol, atol=s.atol, max_step=s.max_step_s,
+                            dense=self.check is not None, min_dt=s.scan_min_dt_s)
+        except IntegrationFailed as exc:
+            raise SimulationError(f"integration failed at t = {exc.t / 3600:.4g} h: {exc}") from None
+        if self.exit_watch is not None:
+            self.track.band_exits.extend(float(t) for t in sol.t_events.pop())
+            sol.y_events.pop()
         self.track.arc(sol, phase, xi_tau)
         if self.check is not None:
             surface_samples(self.check, sol, t0)

@@ -118,8 +118,8 @@ def format_text(res: RunResult) -> str:
         f"inter-event        min {f(res.min_inter_event_h, '.4g')} h, mean {f(res.mean_inter_event_h, '.4g')} h",
         f"miet_bound         {res.miet_bound_h:.3g} h",
     ]
-    if res.trigger is Trigger.NONE:
-        lines.append(f"left_band          {f(res.left_band_h, '.4g')} h")
+    if res.trigger is Trigger.NONE or res.band_exits:
+        lines.append(f"left_band          {f(res.left_band_h, '.4g')} h ({res.band_exits} exit(s))")
     if res.surface is not None:
         s = res.surface
         lines += [
@@ -135,8 +135,8 @@ def format_text(res: RunResult) -> str:
 def run(args: argparse.Namespace) -> int:
     """Execute ``isf-satellite run``; return the exit status."""
     trigger = Trigger.parse(args.trigger)
-    if not math.isfinite(args.hours) or args.hours < 0:
-        raise ConfigError(f"--hours must be a finite number >= 0, got {args.hours:g}")
+    if not math.isfinite(args.hours) or args.hours <= 0:
+        raise ConfigError(f"--hours must be a finite number > 0, got {args.hours:g}")
     surface = None
     if args.shape and not args.surface_check:
         raise ConfigError("--shape needs --surface-check")
@@ -161,6 +161,9 @@ def run(args: argparse.Namespace) -> int:
     model = OrbitModel(field, spin=not args.no_spin, disturbance_scale=args.disturbance_scale)
     initial = InitialOrbit(radius_over_R=args.radius, inclination_deg=args.inclination, seed=args.seed)
     control = ControlParams(alpha_gain=args.alpha_gain, d_bar=args.d_bar, c=args.c)
+    from satellite.controller import resolve_control
+
+    resolve_control(model, control)  # every parameter checked before a recording is opened
     observers: list[Observer] = [] if args.quiet else [ProgressObserver(sys.stderr)]
     recorder = make_observer(args, "satellite", name=f"{trigger}-seed{args.seed}")
     if recorder is not None:

@@ -163,6 +163,16 @@ class OrbitModel:
         a = self.field.acceleration_batch(pts) + self.mu * pts / (rad**3)[:, None]
         return self.disturbance_scale * float(np.max(np.linalg.norm(a, axis=1)))
 
+    def accel_bound(self, samples: int = 4000, seed: int = 0, factor: float = 2.0) -> float:
+        """Bound ``A`` on the truth acceleration [m/s^2] in the band, for the event scan's rate bounds.
+
+        ``mu / (1.6 R)^2`` (the Kepler part at the inner edge) plus ``factor`` times the sampled
+        largest non-Kepler part (:meth:`disturbance_bound`): a sampled bound with a safety
+        factor, not a proof (the non-Kepler part is smooth in the band, and its sampled maximum
+        moves by well under a factor 2 between 400 and 40000 samples).
+        """
+        return self.mu / (BAND_INNER * self.R) ** 2 + factor * self.disturbance_bound(samples, seed)
+
     def with_phase(self, body_phase: float) -> OrbitModel:
         """Same model with another body phase at ``t = 0`` [rad]."""
         return OrbitModel(

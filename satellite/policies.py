@@ -26,7 +26,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from isf_robot.core import ConfigError, EventTriggeredImpulsiveController, JumpEvent, ManeuverScheduler
-from satellite.arcs import ArcIntegrator, event
+from satellite.arcs import ArcIntegrator
+from satellite.events import event
 from satellite.triggers import BandTriggers, Trigger
 
 __all__ = ["TriggerPolicy", "NoControl", "Greedy", "Maneuver", "make_policy"]
@@ -68,8 +69,9 @@ class TriggerPolicy:
         self.arc = arc
         self.on_jump = on_jump
         self.left_band_s: float | None = None
-        self.xi_ev = event(trig.xi, True, -1.0)
-        self.apsis_ev = event(trig.r_dot, False, 0.0)
+        self.rates = trig.rates()
+        self.xi_ev = event(trig.xi, True, -1.0, self.rates["xi"], trig.xi_batch)
+        self.apsis_ev = event(trig.r_dot, False, 0.0, self.rates["apsis"], trig.r_dot_batch)
 
     def step(self, t: float, y: NDArray[np.float64], t_end: float) -> Step:
         """Integrate from ``(t, y)`` to the next impulse (applied) or to ``t_end`` [s]."""
@@ -89,7 +91,8 @@ class NoControl(TriggerPolicy):
 
     def step(self, t: float, y: NDArray[np.float64], t_end: float) -> Step:
         """One arc to ``t_end`` or to the band exit; the run then ends."""
-        sol = self.arc(t, t_end, y, [event(self.trig.h, True, -1.0), self.apsis_ev], "none", None)
+        exit_ev = event(self.trig.h, True, -1.0, self.rates["h"], self.trig.h_batch)
+        sol = self.arc(t, t_end, y, [exit_ev, self.apsis_ev], "none", None)
         if sol.status == 1:
             self.left_band_s = float(sol.t_events[0][0])
         return float(sol.t[-1]), y, True
@@ -130,7 +133,7 @@ class Maneuver(TriggerPolicy):
             raise ConfigError("the maneuver trigger needs a fitted tau_p (make one with `isf-satellite tau`)")
         self.sched = ManeuverScheduler(self.ctrl, tau.tau_p, tau.dtau_dh)
         self.xi_tau = self.trig.xi_tau_fn(tau.dtau_dh)
-        self.xi_tau_ev = event(self.xi_tau, True, -1.0)
+        self.xi_tau_ev = event(self.xi_tau, True, -1.0, _xi_tau_rate(trig, tau))
 
     def _jump(self, t: float, y: NDArray[np.float64], kind: str) -> NDArray[np.float64]:
         ev = self.sched.apply_jump(t, y, kind)
@@ -167,6 +170,22 @@ class Maneuver(TriggerPolicy):
             t, y = float(sol.t_events[i][0]), sol.y_events[i][0]
             y = self._jump(t, y, "safe" if i == 0 else "tau")
         return t, y, False
+
+
+def _xi_tau_rate(trig: BandTriggers, tau: Any) -> Any:
+    """Rate bound of ``Xi_tau`` for a polynomial fit ``tau_p(h) = sum_k a_k s^k``, ``s = h / h_max``.
+
+    On ``s`` in [0, 1] (``tau_p'`` is held constant outside), ``|tau_p'| <= sum_k k |a_k| / h_max``
+    and ``|tau_p''| <= sum_k k (k - 1) |a_k| / h_max^2``. ``None`` (step points only) without
+    acceleration bound or for a fit that is not such a polynomial.
+    """
+    coef = getattr(tau, "coef", None)
+    if trig.accel_bound is None or coef is None:
+        return None
+    hm = float(tau.h_max)
+    d1 = sum(k * abs(a) for k, a in enumerate(coef)) / hm
+    d2 = sum(k * (k - 1) * abs(a) for k, a in enumerate(coef)) / hm**2
+    return trig.xi_tau_rate(d1, d2)
 
 
 _POLICIES: dict[Trigger, type[TriggerPolicy]] = {p.trigger: p for p in (NoControl, Greedy, Maneuver)}

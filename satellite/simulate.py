@@ -23,6 +23,7 @@ import numpy as np
 from isf_robot.core import ConfigError, JumpEvent, Linear, Observer, Observers, estimate_miet_constants
 from satellite.arcs import ArcIntegrator, IntegratorSettings, SatelliteSample, SimulationError, Tracker
 from satellite.controller import ControlParams, ResolvedControl, make_controller, resolve_control
+from satellite.events import event
 from satellite.mesh_surface import body_mesh_info
 from satellite.model import BAND_INNER, BAND_OUTER, InitialOrbit, OrbitModel
 from satellite.policies import make_policy
@@ -60,7 +61,10 @@ class RunResult:
         min_inter_event_h: Shortest interval between impulses [h] (``None`` for < 2 impulses).
         mean_inter_event_h: Mean interval between impulses [h] (``None`` for < 2 impulses).
         miet_bound_h: Sampled MIET bound ``c / (L_Xi (B + d_bar))`` [h].
-        left_band_h: First time outside the band [h] (``None`` if it stayed in).
+        left_band_h: First time outside the band [h] (``None`` if it stayed in): the first
+            falling zero of ``h``, watched on every arc (scanned between step points unless
+            ``IntegratorSettings.event_scan`` is off).
+        band_exits: Number of times ``h`` fell through 0 (``none`` stops at the first).
         wall_s: Wall time of the run [s].
         seed: Seed of the initial orbit.
         settings: Resolved settings (JSON-ready).
@@ -90,13 +94,14 @@ class RunResult:
     events: tuple[JumpEvent, ...] = field(repr=False)
     nfev: int = 0
     surface: dict[str, Any] | None = None
+    band_exits: int = 0
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary (everything but the event list; the surface keys when checked)."""
         keys = (
             "trigger", "hours", "simulated_h", "triggers", "kinds", "min_h", "r_min_over_R",
             "r_max_over_R", "total_dv", "min_inter_event_h", "mean_inter_event_h", "miet_bound_h",
-            "left_band_h", "wall_s", "seed", "nfev", "settings",
+            "left_band_h", "band_exits", "wall_s", "seed", "nfev", "settings",
         )
         out = {k: getattr(self, k) for k in keys}
         if self.surface is not None:
@@ -240,12 +245,14 @@ def simulate(
     resolved = resolve_control(model, control)
     integ = integrator or IntegratorSettings()
     ctrl = make_controller(model, resolved)
-    trig = BandTriggers(model, ctrl.alpha, resolved.d_bar)
+    bound = model.accel_bound() if integ.event_scan else None
+    trig = BandTriggers(model, ctrl.alpha, resolved.d_bar, accel_bound=bound)
     obs = Observers(observers)
     track = Tracker(model, trig, obs, sample_interval_s)
     miet_s, _, _ = miet_estimate(model, resolved, samples=miet_samples)
     check = SurfaceCheck(surface, model.body_phase, model.omega, surface_step_s) if surface is not None else None
-    policy = make_policy(trigger, trig, ctrl, ArcIntegrator(model, integ, track, check), obs.on_event, tau)
+    exit_watch = event(trig.h, False, -1.0, trig.rates()["h"], trig.h_batch)
+    policy = make_policy(trigger, trig, ctrl, ArcIntegrator(model, integ, track, check, exit_watch), obs.on_event, tau)
 
     y = initial.state(model)
     t = 0.0
@@ -254,6 +261,7 @@ def simulate(
     if h0 < 0.0:
         raise ConfigError(f"initial state is outside the band (h = {h0:.4g})")
     settings = _settings(resolved, model, initial, integ)
+    settings["accel_bound"] = bound
     if tau is not None:
         settings["tau"] = tau.describe()
     if obs:
@@ -275,7 +283,8 @@ def simulate(
     for j in jumps:
         kinds[j.kind] = kinds.get(j.kind, 0) + 1
     h_lo = min(model.h_of_r(track.r_min), model.h_of_r(track.r_max))
-    left_band = policy.left_band_s
+    exits = sorted(track.band_exits)
+    left_band = policy.left_band_s if policy.left_band_s is not None else (exits[0] if exits else None)
     result = RunResult(
         trigger=trigger,
         hours=float(hours),
@@ -296,6 +305,7 @@ def simulate(
         events=jumps,
         nfev=track.nfev,
         surface=check.report() if check is not None else None,
+        band_exits=len(exits),
     )
     obs.on_finish(result.summary())
     return result
@@ -322,6 +332,8 @@ def _settings(
         "rtol": integ.rtol,
         "atol": integ.atol,
         "max_step_s": integ.max_step_s,
+        "event_scan": integ.event_scan,
+        "scan_min_dt_s": integ.scan_min_dt_s,
     }
 
 

@@ -11,6 +11,9 @@ Changes so far, each deliberate:
   nominal loop skipped the joint barriers); the backend timer ``proxqp_time_median_us`` became
   ``solver_time_median_us`` (daqp is the default backend). Every other field of every case,
   including all cbf and isf runs after the switch from ProxQP to daqp, is unchanged to 1e-9.
+* Satellite event scan (issue 14, item 1): new keys only, ``band_exits`` (0) and
+  ``settings.accel_bound``/``event_scan``/``scan_min_dt_s``; every earlier number unchanged (the
+  scan finds no crossing between step points in this case, so steps and events are identical).
 """
 
 from __future__ import annotations
