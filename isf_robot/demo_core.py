@@ -31,7 +31,10 @@ from .core.report import format_table as report_table
 from .core.report import format_value, mean_std_cell
 from .core.strategies import make_strategy, strategy_info, strategy_names
 
-__all__ = ["DemoScene", "make_scene", "run_episode", "compare", "format_table"]
+__all__ = ["DemoScene", "make_scene", "run_episode", "compare", "format_table", "MAX_STEPS"]
+
+MAX_STEPS = 10_000_000
+"""Longest core-demo episode in steps (the trajectory is stored per step)."""
 
 
 @dataclass(frozen=True)
@@ -97,6 +100,8 @@ def run_episode(
     filt = (make_strategy(strategy, alpha=alpha, c=c, b=b, d_bar=0.0, system=system, barriers=barriers)
             if info.filters else None)
     steps = int(round(duration / dt))
+    if steps > MAX_STEPS:
+        raise ConfigError(f"duration {duration:g} s is {steps:.3g} steps of {dt:g} s; at most {MAX_STEPS:.0e}")
     x = scene.start.copy()
     acc = MetricsAccumulator()
     h_min = np.inf

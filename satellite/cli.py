@@ -18,7 +18,7 @@ import importlib.util
 import sys
 from collections.abc import Sequence
 
-from isf_robot.cli.errors import EXIT_USAGE, run_handler
+from isf_robot.cli.errors import EXIT_USAGE, OneLineParser, run_handler
 
 __all__ = ["SUBCOMMAND_MODULES", "EXIT_USAGE", "build_parser", "main"]
 
@@ -31,7 +31,7 @@ SUBCOMMAND_MODULES: tuple[str, ...] = (
 
 def build_parser() -> argparse.ArgumentParser:
     """Build the ``isf-satellite`` parser with every available subcommand registered."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="isf-satellite",
         description=(
             "Event-triggered safety of a satellite orbiting asteroid 25143 Itokawa: gravity "

@@ -11,15 +11,14 @@ pool works with the ``spawn`` start method and no worker calibrates.
 from __future__ import annotations
 
 import math
-import multiprocessing
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from isf_robot.core import ConfigError
+from isf_robot.core.parallel import MAX_JOBS, Interrupted, run_tasks
 from isf_robot.core.report import format_table as _table
 from isf_robot.core.report import mean_std_cell, to_jsonable
 from isf_robot.core.strategies import strategy_info, strategy_names
@@ -41,6 +40,9 @@ __all__ = [
     "json_safe",
     "FILTER_KEYS",
 ]
+
+MAX_EPISODES = 1_000_000
+"""Most episodes (strategies x seeds) in one comparison."""
 
 # Keyword arguments that are filter parameters (resolved once by :func:`resolve_params`).
 FILTER_KEYS = ("alpha", "c", "b", "d_bar")
@@ -164,11 +166,16 @@ class Comparison:
     episodes: int
     seeds: tuple[int, ...]
     results: Mapping[str, Mapping[str, Any]]
+    partial: bool = False
 
     def as_dict(self) -> dict[str, Any]:
-        """``{"scene", "episodes", "seeds", "results": {strategy: {key: mean, ..., "episodes": [...]}}}``."""
-        return json_safe({"scene": self.scene, "episodes": self.episodes,
-                          "seeds": list(self.seeds), "results": self.results})
+        """``{"scene", "episodes", "seeds", "partial", "results": {strategy: {key: mean, ..., "episodes": [...]}}}``.
+
+        ``partial`` is true when the comparison was interrupted: the means are over the episodes
+        that finished (``count`` per key, ``episodes`` lists them).
+        """
+        return json_safe({"scene": self.scene, "episodes": self.episodes, "seeds": list(self.seeds),
+                          "partial": self.partial, "results": self.results})
 
 
 ProgressFn = Callable[[int, int, EpisodeTask, Mapping[str, Any]], None]
@@ -206,11 +213,19 @@ def compare_strategies(
     Returns:
         The :class:`Comparison`.
 
+    Raises:
+        Interrupted: Ctrl-C or SIGTERM: workers are stopped, ``exc.partial`` is the
+            :class:`Comparison` of the episodes that finished (``partial=True``).
+
     """
     if int(episodes) < 1:
         raise ConfigError(f"--episodes must be >= 1, got {episodes}")
-    if int(jobs) < 1:
-        raise ConfigError(f"--jobs must be >= 1, got {jobs}")
+    if not 1 <= int(jobs) <= MAX_JOBS:
+        raise ConfigError(f"--jobs must be between 1 and {MAX_JOBS}, got {jobs}")
+    n_tasks = int(episodes) * len(list(strategies or strategy_names()))
+    if n_tasks > MAX_EPISODES:
+        raise ConfigError(f"{n_tasks} episodes asked for; at most {MAX_EPISODES} per comparison "
+                          "(split a larger study into comparisons over seed ranges with --seed)")
     strategies = list(strategy_names() if strategies is None else strategies)
     if not strategies:
         raise ConfigError("no strategies to compare")
@@ -225,29 +240,26 @@ def compare_strategies(
     if not isinstance(params.get("params"), FilterParams):
         params["params"] = resolve_params(scene, *(params.pop(k, None) for k in FILTER_KEYS))
     # validates the control period and the rest before any worker starts
-    ArmSimulation(scene, strategies[0], seed=seed0, **params)
+    ArmSimulation(scene, strategies[0], seed=seed0, **params).control_steps(duration)
     seeds = tuple(range(int(seed0), int(seed0) + int(episodes)))
     tasks = [EpisodeTask(spec, s, seed, duration, params) for seed in seeds for s in strategies]
     results: dict[tuple[str, int], dict[str, Any]] = {}
-    total = len(tasks)
-    if jobs == 1:
-        for i, t in enumerate(tasks):
-            r = run_task(t)
-            results[(t.strategy, t.seed)] = r
-            if progress is not None:
-                progress(i + 1, total, t, r)
-    else:
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=int(jobs), mp_context=ctx) as pool:
-            futures = {pool.submit(run_task, t): t for t in tasks}
-            for i, fut in enumerate(as_completed(futures)):
-                t = futures[fut]
-                r = fut.result()
-                results[(t.strategy, t.seed)] = r
-                if progress is not None:
-                    progress(i + 1, total, t, r)
-    summary = {s: summarize([results[(s, seed)] for seed in seeds]) for s in strategies}
-    return Comparison(scene=scene.name, episodes=int(episodes), seeds=seeds, results=summary)
+
+    def summary(partial: bool) -> Comparison:
+        res = {s: summarize([results[(s, seed)] for seed in seeds if (s, seed) in results]) for s in strategies}
+        return Comparison(scene=scene.name, episodes=int(episodes), seeds=seeds, results=res, partial=partial)
+
+    def keep(done: int, total: int, task: EpisodeTask, r: dict[str, Any]) -> None:
+        results[(task.strategy, task.seed)] = r
+        if progress is not None:
+            progress(done, total, task, r)
+
+    try:
+        run_tasks(run_task, tasks, jobs=int(jobs), on_result=keep)
+    except Interrupted as exc:
+        exc.partial = summary(partial=True)
+        raise
+    return summary(partial=False)
 
 
 # ----------------------------------------------------------------------------- table
@@ -276,6 +288,7 @@ def format_table(comp: Comparison) -> str:
     for strategy, res in comp.results.items():
         std = res.get("std", {})
         rows.append([strategy] + [mean_std_cell(res.get(k), std.get(k), f) for k, _, f in _COLUMNS])
-    title = (f"scene {comp.scene}: {comp.episodes} episode(s) per strategy, seeds "
+    title = (("PARTIAL (interrupted; means over the finished episodes) " if comp.partial else "")
+             + f"scene {comp.scene}: {comp.episodes} episode(s) per strategy, seeds "
              f"{comp.seeds[0]}..{comp.seeds[-1]} (mean ± std)")
     return _table(["strategy"] + [h for _, h, _ in _COLUMNS], rows, title=title)

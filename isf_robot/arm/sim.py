@@ -50,10 +50,13 @@ from .nominal import NominalController, ReachingController
 from .params import resolve_params
 from .records import ArmStepRecord, FilterParams, RunResult
 from .scene import Scene
+from .timing import PhaseTimers
 
 __all__ = ["ArmSimulation", "run_episode"]
 
 PHASES = ("sense", "barriers", "nominal", "strategy", "act")
+MAX_CONTROL_STEPS = 10_000_000
+"""Longest run in control steps (the obstacle paths and tracking errors are stored per step)."""
 
 
 def _brake(t: float, x: Any, lie: LieData, res: Any) -> np.ndarray:
@@ -159,6 +162,24 @@ class ArmSimulation:
             "robot_geom_ids": np.asarray(s.robot_geom_ids), "obstacle_geom_ids": np.asarray(s.obstacle_geom_ids),
         }
 
+    def control_steps(self, duration: float | None = None) -> int:
+        """Control steps of a run of ``duration`` seconds (default ``[task] duration``), checked.
+
+        Raises:
+            ConfigError: ``duration`` is not a positive number, or the run would be longer than
+                :data:`MAX_CONTROL_STEPS`.
+
+        """
+        dur = float(self.scene.config.task.duration if duration is None else duration)
+        if not (math.isfinite(dur) and dur > 0):
+            raise ConfigError(f"duration must be a positive number of seconds, got {duration!r}")
+        T = self.control_period
+        n_ctrl = max(1, int(round(dur / T)))
+        if n_ctrl > MAX_CONTROL_STEPS:
+            raise ConfigError(f"duration {dur:g} s is {n_ctrl:.3g} control steps of {T:g} s; at most "
+                              f"{MAX_CONTROL_STEPS:.0e} per run (split a longer study into runs)")
+        return n_ctrl
+
     # -- the loop ------------------------------------------------------------------------
     def run(self, duration: float | None = None) -> RunResult:
         """Simulate ``duration`` seconds (default ``[task] duration``) and summarise.
@@ -167,54 +188,36 @@ class ArmSimulation:
             ConfigError: ``duration`` is not a positive number.
 
         """
-        dur = float(self.scene.config.task.duration if duration is None else duration)
-        if not (math.isfinite(dur) and dur > 0):
-            raise ConfigError(f"duration must be a positive number of seconds, got {duration!r}")
+        n_ctrl = self.control_steps(duration)
         wall0 = time.perf_counter()
         T = self.control_period
-        n_ctrl = max(1, int(round(dur / T)))
         ep = _Episode(self, n_ctrl)
         phases: dict[str, Callable[..., Any]] = {name: getattr(ep, name) for name in PHASES}
-        timers = _PhaseTimers(phases) if self.timing else None
+        timers = PhaseTimers(phases) if self.timing else None
         sense, barriers, nominal, strategy, act = (phases[name] for name in PHASES)
         observers, recording = self.observers, bool(self.observers)
         if recording:
             observers.on_start(self.start_info(n_ctrl * T))
-        for k in range(n_ctrl):
-            t = k * T
-            sense(k)
-            cb, jb, lie = barriers()
-            u_nom = nominal(t)
-            step = strategy(t, lie, u_nom)
-            act(k, step.u)
+        try:
+            for k in range(n_ctrl):
+                t = k * T
+                sense(k)
+                cb, jb, lie = barriers()
+                u_nom = nominal(t)
+                step = strategy(t, lie, u_nom)
+                act(k, step.u)
+                if recording:
+                    if step.event is not None:
+                        observers.on_event(step.event)
+                    observers.on_step(ep.record(t, step, cb, jb))
+        except BaseException as exc:  # an error or Ctrl-C: observers keep what they have, marked partial
             if recording:
-                if step.event is not None:
-                    observers.on_event(step.event)
-                observers.on_step(ep.record(t, step, cb, jb))
+                observers.on_abort(exc)
+            raise
         result = ep.finish(time.perf_counter() - wall0, timers.totals if timers else {})
         if recording:
             observers.on_finish(result.as_dict())
         return result
-
-
-class _PhaseTimers:
-    """Replaces each phase callable by one that adds its wall time to ``totals``."""
-
-    def __init__(self, phases: dict[str, Callable[..., Any]]) -> None:
-        self.totals: dict[str, float] = dict.fromkeys(phases, 0.0)
-        for name, fn in phases.items():
-            phases[name] = self._timed(name, fn)
-
-    def _timed(self, name: str, fn: Callable[..., Any]) -> Callable[..., Any]:
-        perf, totals = time.perf_counter, self.totals
-
-        def timed(*args: Any) -> Any:
-            t0 = perf()
-            out = fn(*args)
-            totals[name] += perf() - t0
-            return out
-
-        return timed
 
 
 class _Episode:

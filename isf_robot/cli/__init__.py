@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 from isf_robot import __version__
 
-from .errors import EXIT_USAGE, run_handler
+from .errors import EXIT_USAGE, OneLineParser, run_handler
 
 __all__ = ["main", "build_parser", "COMMAND_MODULES"]
 
@@ -29,7 +29,7 @@ COMMAND_MODULES = (
 
 def build_parser() -> argparse.ArgumentParser:
     """Build the top-level parser with every subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="isf-robot",
         description=(
             "Event-triggered intermittent safety filters (Ong & Ames): run MuJoCo arm scenes with "

@@ -142,6 +142,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     scene = _spec(args).load()
     kwargs = _params(args, scene)
     sim = ArmSimulation(scene, args.filter, seed=args.seed, **kwargs)  # validates before any output
+    sim.control_steps(args.duration)
     obs = make_observer(args, "arm", name=f"{scene.name}-{args.filter}-seed{args.seed}")
     if obs is not None:
         from isf_robot.core.hooks import Observers
@@ -181,8 +182,33 @@ def _progress(quiet: bool) -> Any:
     return report
 
 
+def _print_comparison(comp: Any, as_json: bool) -> None:
+    from isf_robot.arm.compare import format_table
+
+    print(json.dumps(comp.as_dict()) if as_json else format_table(comp), flush=True)
+
+
+def _keep_partial(fn: Any) -> Any:
+    """On Ctrl-C / SIGTERM, print the episodes that finished (marked partial), then re-raise."""
+    import functools
+
+    from isf_robot.core.parallel import Interrupted
+
+    @functools.wraps(fn)
+    def wrapper(args: argparse.Namespace) -> int:
+        try:
+            return int(fn(args))
+        except Interrupted as exc:
+            if exc.partial is not None:
+                _print_comparison(exc.partial, args.json)
+            raise
+
+    return wrapper
+
+
+@_keep_partial
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from isf_robot.arm.compare import compare_strategies, format_table
+    from isf_robot.arm.compare import compare_strategies
 
     _check_seed(args)
     spec = _spec(args)
@@ -192,13 +218,11 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                               duration=args.duration, seed0=args.seed, jobs=args.jobs,
                               params={**params, **({"observers": [obs]} if obs else {})},
                               progress=_progress(args.quiet))
-    if args.json:
-        print(json.dumps(comp.as_dict()))
-    else:
-        print(format_table(comp))
+    _print_comparison(comp, args.json)
     return 0
 
 
+@_keep_partial
 def _cmd_demo(args: argparse.Namespace) -> int:
     from isf_robot.arm.compare import SceneSpec, compare_strategies, format_table
 

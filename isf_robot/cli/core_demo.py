@@ -30,6 +30,10 @@ def handle(args: argparse.Namespace) -> int:
         raise ConfigError(f"--duration must be a finite number > 0, got {args.duration}")
     if args.seed < 0:
         raise ConfigError(f"--seed must be >= 0, got {args.seed}")
+    from isf_robot.demo_core import MAX_STEPS
+
+    if args.duration / 0.01 > MAX_STEPS:
+        raise ConfigError(f"--duration {args.duration:g} s is more than {MAX_STEPS:.0e} steps of 0.01 s")
     seeds = list(range(args.seed, args.seed + args.episodes))
     if not args.json:
         print(f"core demo: planar single integrator past 4 discs, {len(seeds)} seeds, "

@@ -7,6 +7,10 @@ Every subcommand handler runs through :func:`run_handler`:
   ``<prog> <command>: error: <message>`` (multi-line messages, e.g. MuJoCo's XML parser's, are
   joined), and exits with status 2, the status argparse uses for bad arguments;
 * Ctrl-C (:class:`KeyboardInterrupt`) prints ``<prog> <command>: interrupted`` and exits 130;
+  SIGTERM is turned into :class:`~isf_robot.core.parallel.Terminated` while a handler runs, so
+  the same clean-up happens (workers stopped, partial results printed) and the exit status is
+  143. Handlers print what finished before re-raising
+  (:class:`~isf_robot.core.parallel.Interrupted` carries it);
 * a closed stdout (``... | head``) is not an error of ours: exit 0 quietly.
 
 Anything else is a bug and keeps its traceback.
@@ -16,17 +20,22 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 from collections.abc import Callable
+from typing import Any, NoReturn
 
 from isf_robot.core.exceptions import IsfError
+from isf_robot.core.parallel import Interrupted, Terminated
 
-__all__ = ["EXIT_USAGE", "EXIT_INTERRUPTED", "run_handler", "one_line"]
+__all__ = ["EXIT_USAGE", "EXIT_INTERRUPTED", "EXIT_TERMINATED", "run_handler", "one_line", "OneLineParser"]
 
 EXIT_USAGE = 2
 """Exit status of a user error."""
 EXIT_INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT), as shells report it."""
+EXIT_TERMINATED = 143
+"""Exit status after SIGTERM (128 + SIGTERM)."""
 
 Handler = Callable[[argparse.Namespace], "int | None"]
 
@@ -36,18 +45,48 @@ def one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line (``prog: error: ...; see prog --help``)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {' '.join(message.split())} (see {self.prog} --help)\n")
+
+
+def _quiet_stdout() -> None:
+    """Point stdout at the null device, so the interpreter's final flush cannot fail again."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+
+
+def _quiet_stdout_if_broken() -> None:
+    try:
+        sys.stdout.flush()
+    except OSError:
+        _quiet_stdout()
+
+
+def _raise_terminated(signum: int, frame: Any) -> None:
+    raise Terminated()
+
+
 def run_handler(prog: str, handler: Handler, args: argparse.Namespace) -> int:
     """Run ``handler(args)`` and turn the errors above into messages and exit statuses."""
     where = f"{prog} {getattr(args, 'command', None) or ''}".rstrip()
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
     try:
-        return int(handler(args) or 0)
-    except KeyboardInterrupt:
-        print(f"{where}: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        code = int(handler(args) or 0)
+        sys.stdout.flush()  # a full or closed stdout fails here, inside the error path
+        return code
+    except KeyboardInterrupt as exc:
+        terminated = isinstance(exc, Terminated) or (isinstance(exc, Interrupted) and exc.terminated)
+        print(f"{where}: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
+        return EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
     except BrokenPipeError:
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
+        _quiet_stdout()
         return 0
     except (IsfError, OSError) as exc:
         print(f"{where}: error: {one_line(exc)}", file=sys.stderr)
+        _quiet_stdout_if_broken()
         return EXIT_USAGE
+    finally:
+        signal.signal(signal.SIGTERM, previous)

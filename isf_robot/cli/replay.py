@@ -29,9 +29,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def handle(args: argparse.Namespace) -> int:
     """Read the recordings, recompute and print their metrics."""
     from isf_robot.core.report import to_jsonable
+    from isf_robot.record.errors import RecordingReadError
     from isf_robot.record.replay import format_table, read_many, replay_metrics
 
-    logs = read_many(args.files)
+    bad: list[RecordingReadError] = []
+    logs = read_many(args.files, errors=bad)
+    if not logs and bad:
+        raise bad[0] if len(bad) == 1 else RecordingReadError(
+            Path(args.files[0]), f"none of the {len(bad)} recordings could be read")
+    for exc in bad:  # one line per unreadable file; the others are replayed
+        print(f"isf-robot replay: error: {' '.join(str(exc).split())}", file=sys.stderr)
     results = [(log, replay_metrics(log)) for log in logs]
     if args.json:
         if len(results) == 1:
@@ -43,13 +50,13 @@ def handle(args: argparse.Namespace) -> int:
                 for log, m in results
             ]}
         print(json.dumps(to_jsonable(out)))
-        return 0
+        return 2 if bad else 0
     labels = _unique_labels([log.label for log, _ in results], [log.path.stem for log, _ in results])
     print(format_table(list(zip(labels, [m for _, m in results]))))
     if len(results) > 1:
         for lab, (log, _) in zip(labels, results):
             print(f"  {lab}: {log.path}", file=sys.stderr)
-    return 0
+    return 2 if bad else 0
 
 
 def _unique_labels(labels: list[str], stems: list[str]) -> list[str]:

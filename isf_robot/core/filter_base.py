@@ -16,7 +16,7 @@ import numpy as np
 
 from .barrier import Barrier, evaluate_barriers
 from .class_k import ClassK, as_class_k
-from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError
+from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
 from .qp import FilterQP, QPResult
 from .qp_solver import QPSolver
 from .switches import SwitchCounter, SwitchEvent
@@ -156,6 +156,11 @@ class _FilterBase:
         """Filter ``u_nom`` given precomputed barrier data (see the subclasses)."""
         raise NotImplementedError
 
+    def _within_bounds(self, u: np.ndarray) -> bool:
+        """``u`` satisfies the input bounds the filter was given (true without bounds)."""
+        return not ((self.u_min is not None and bool(np.any(u < self.u_min)))
+                    or (self.u_max is not None and bool(np.any(u > self.u_max))))
+
     def _xi(self, t: float, lie: LieData, u_nom: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Checked inputs and ``Xi_on`` per row (a non-finite input raises NonFiniteError)."""
         if self.validate:
@@ -181,8 +186,18 @@ class _FilterBase:
 
     # -- solving -------------------------------------------------------------------------
     def _solve(self, qp: FilterQP) -> QPResult:
+        """Solve; under the fallback policy a failing solver counts as an infeasible problem."""
         self.qp_solves += 1
-        return self.solver.solve(qp)
+        try:
+            return self.solver.solve(qp)
+        except SolverError:
+            if self.on_infeasible != "fallback":
+                raise
+            try:
+                viol, u = self.solver.least_violation(qp)
+            except SolverError:
+                u, viol = qp.u_nom.copy(), qp.max_violation(qp.u_nom)
+            return QPResult(u, "solver_failed", np.ones(qp.k, bool), 0.0, 0, viol)
 
     def _solve_rows(
         self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, xi: np.ndarray,

@@ -98,7 +98,8 @@ class SafetyFilter(_FilterBase):
 class IntermittentSafetyFilter(_FilterBase):
     """The event-triggered intermittent safety filter (paper, Theorem 1).
 
-    Off: the nominal command passes through; the on trigger monitors
+    Off: the nominal command passes through (projected onto ``u_min``/``u_max`` with the robust
+    conditions kept, when it breaks them; the mode stays off); the on trigger monitors
     ``Xi_on(x) = Lf h(x, u_nom) - |dh/dx| d_bar + alpha(h(x))`` and turns the filter on at
     ``Xi_on <= 0`` (eq. trigger:filter_on). On: the safety-promoting filter
     ``Lf h(x, u) - |dh/dx| d_bar >= b`` (eq. filter_inc) pushes h up until ``Xi_on >= c``, when
@@ -163,6 +164,11 @@ class IntermittentSafetyFilter(_FilterBase):
         u_nom, xi = self._xi(t, lie, u_nom)
         event = self.trigger.update(t, float(xi.min()))
         if not self.trigger.on:
-            return FilterStep(t, u_nom, u_nom, False, lie.h, xi, event, None, (), False, lie.names)
+            if self._within_bounds(u_nom):
+                return FilterStep(t, u_nom, u_nom, False, lie.h, xi, event, None, (), False, lie.names)
+            # off, but u_nom breaks the input bounds: the command closest to u_nom within them that
+            # keeps every robust condition (the standard filter's problem); the mode stays off
+            res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, None, 0.0, screen)
+            return FilterStep(t, res.u, u_nom, False, lie.h, xi, event, res, relaxed, fb, lie.names, resolved)
         res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, xi < self.c, self.c, screen)
         return FilterStep(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names, resolved)

@@ -2,7 +2,9 @@
 
 Simulation loops (the arm's, the satellite's, the core demo's) call ``on_start`` once,
 ``on_step`` per control step with their step record, ``on_event`` per switch or jump event,
-and ``on_finish`` with the summary. :class:`Observer` is a no-op base to subclass.
+and ``on_finish`` with the summary. A run that stops early (an error, Ctrl-C) calls
+``on_abort`` instead of ``on_finish``, so an observer writing a file can leave it marked as
+partial. :class:`Observer` is a no-op base to subclass.
 """
 
 from __future__ import annotations
@@ -27,6 +29,9 @@ class Observer:
 
     def on_finish(self, summary: Mapping[str, Any]) -> None:
         """Called once at the end with the run summary."""
+
+    def on_abort(self, reason: BaseException) -> None:
+        """Called instead of :meth:`on_finish` when the run stops early (error or interrupt)."""
 
 
 class Observers(Observer):
@@ -53,3 +58,11 @@ class Observers(Observer):
     def on_finish(self, summary: Mapping[str, Any]) -> None:
         for o in self.items:
             o.on_finish(summary)
+
+    def on_abort(self, reason: BaseException) -> None:
+        """Tell every observer, even when one of them fails (the run's own error is re-raised)."""
+        for o in self.items:
+            try:
+                o.on_abort(reason)
+            except Exception:  # noqa: BLE001, S112 - the run's error matters more than the observer's
+                continue

@@ -150,12 +150,32 @@ class QPSolver:
             viol = 0.0
         if box:
             viol = max(viol, qp.max_violation(u))
-        scale = max(1.0, float(abs(qp.lb).max())) if k else 1.0
-        if not np.isfinite(u.sum()) or viol > self.feas_tol * scale:
+        if not np.isfinite(u.sum()) or self._distance_violation(qp, u, res) > self.feas_tol:
             raise SolverError(
                 f"{self.backend} returned a command violating the constraints by {viol:.3g} "
                 f"({iters} iterations)", qp=qp)
         return QPResult(u, "optimal", res <= self.active_tol, time.perf_counter() - t0, iters, viol)
+
+    @staticmethod
+    def _distance_violation(qp: FilterQP, u: np.ndarray, res: np.ndarray) -> float:
+        """How far ``u`` lies outside the feasible set, relative to the size of the problem.
+
+        Each row's violation is measured as the distance to its half-space (``-res_i / |a_i|``;
+        a zero row keeps its absolute violation), the bounds' as they are, and the largest is
+        divided by ``max(1, |u|, |u_nom|)``: a solver's rounding is relative to the iterates, so
+        rows of 1e9 or 1e-9 are judged alike.
+        """
+        worst = 0.0
+        if res.size:
+            nrm = np.sqrt(np.einsum("ij,ij->i", qp.A, qp.A))
+            d = np.where(nrm > 0.0, -res / np.where(nrm > 0.0, nrm, 1.0), -res)
+            worst = max(0.0, float(d.max()))
+        if qp.u_min is not None:
+            worst = max(worst, float(np.max(qp.u_min - u, initial=0.0)))
+        if qp.u_max is not None:
+            worst = max(worst, float(np.max(u - qp.u_max, initial=0.0)))
+        size = max(1.0, float(np.abs(u).max(initial=0.0)), float(np.abs(qp.u_nom).max(initial=0.0)))
+        return worst / size
 
     # -- backends: each returns (u, iterations, "solved" | "unsolved") -------------------------
     def _identity(self, m: int) -> np.ndarray:
@@ -245,12 +265,11 @@ class QPSolver:
     def _settle(self, qp: FilterQP, unconverged: np.ndarray, iters: int) -> tuple[np.ndarray, str]:
         """Decide an unsolved problem: an exact feasible optimum, or certified infeasibility."""
         violation, u_least = self.least_violation(qp)
-        scale = max(1.0, float(np.max(np.abs(qp.lb), initial=0.0)))
         for guess in (unconverged, u_least):
             if not np.all(np.isfinite(guess)):
                 continue
             exact = self._polish(qp, guess)
-            if exact is not guess and qp.max_violation(exact) <= self.feas_tol * scale:
+            if exact is not guess and self._distance_violation(qp, exact, qp.A @ exact - qp.lb) <= self.feas_tol:
                 return exact, "solved"
         if violation > self.feas_tol:
             return u_least, "infeasible"
@@ -330,9 +349,8 @@ class QPSolver:
                 else:
                     try:
                         lam = np.linalg.solve(Aa @ Aa.T, rhs)
-                    except np.linalg.LinAlgError:
-                        cand = None  # dependent active rows: keep the solver's answer
-                        break
+                    except np.linalg.LinAlgError:  # dependent active rows: the least-norm multipliers
+                        lam = np.linalg.lstsq(Aa @ Aa.T, rhs, rcond=None)[0]
                 worst = int(np.argmin(lam))
                 if lam[worst] >= -1e-9 * scale:
                     cand = u_nom + Aa.T @ lam

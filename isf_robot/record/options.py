@@ -10,8 +10,8 @@ Recording layout:
 * ``isf-robot run --rrd PATH`` and ``isf-satellite run --rrd PATH``: one file, one recording.
 * ``isf-robot compare --rrd DIR``: one recording per strategy and episode, each in its own
   file ``DIR/<scene>-<strategy>-seed<seed>.rrd`` (names that cannot collide across scenes),
-  so that ``isf-robot replay DIR`` (or ``DIR/*.rrd``) puts them side by side. With ``--spawn`` every recording also streams to
-  the one viewer, as distinct recordings. The observer is a picklable
+  so that ``isf-robot replay DIR`` (or ``DIR/*.rrd``) puts them side by side. With
+  ``--spawn`` every recording also streams to the one viewer, as distinct recordings. The observer is a picklable
   :class:`PerRunRecorder`, so it can travel to worker processes inside the run parameters.
 """
 
@@ -203,4 +203,10 @@ class PerRunRecorder(Observer):
         """Finish and close the current run's recording."""
         if self._current is not None:
             self._current.on_finish(summary)
+            self._current = None
+
+    def on_abort(self, reason: BaseException) -> None:
+        """The run stopped early: its recording stays ``<name>.rrd.partial``."""
+        if self._current is not None:
+            self._current.on_abort(reason)
             self._current = None

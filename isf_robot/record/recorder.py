@@ -162,13 +162,23 @@ class RerunRecorder(Observer):
         if self.close_on_finish:
             self.close()
 
-    def close(self) -> None:
-        """Flush whatever is buffered and close the stream (idempotent)."""
+    def close(self, *, complete: bool = True) -> None:
+        """Flush whatever is buffered and close the stream (idempotent).
+
+        ``complete=False`` (the run failed or was interrupted): the file keeps its
+        ``.partial`` name and an existing recording under the target name is left as it was.
+        """
         if self.closed:
             return
-        self.buffer.flush()
-        close_stream(self.stream)
         self.closed = True
+        try:
+            self.buffer.flush()
+        finally:
+            close_stream(self.stream, complete=complete)
+
+    def on_abort(self, reason: BaseException) -> None:
+        """The run stopped early: close without completing (the data stays in ``<name>.partial``)."""
+        self.close(complete=False)
 
     # -- what subclasses give --------------------------------------------------------------
     def replay_row(self, record: Any) -> tuple[float, float, bool, float, bool, float]:

@@ -210,8 +210,12 @@ def read_rrd(path: str | Path) -> list[RunLog]:
         raise _damaged(p, exc) from exc
 
 
-def read_many(paths: Iterable[str | Path]) -> list[RunLog]:
-    """Read several files (directories are expanded to their ``*.rrd`` files, sorted)."""
+def read_many(paths: Iterable[str | Path], *, errors: list[RecordingReadError] | None = None) -> list[RunLog]:
+    """Read several files (directories are expanded to their ``*.rrd`` files, sorted).
+
+    With ``errors`` (a list), a file that cannot be read is appended there and the others are
+    still read; without it the first bad file raises.
+    """
     out: list[RunLog] = []
     for p in paths:
         q = Path(p)
@@ -219,10 +223,15 @@ def read_many(paths: Iterable[str | Path]) -> list[RunLog]:
             files = sorted(q.glob("*.rrd"))
             if not files:
                 raise RecordingReadError(q, "the directory holds no .rrd file")
-            for f in files:
-                out.extend(read_rrd(f))
         else:
-            out.extend(read_rrd(q))
+            files = [q]
+        for f in files:
+            try:
+                out.extend(read_rrd(f))
+            except RecordingReadError as exc:
+                if errors is None:
+                    raise
+                errors.append(exc)
     return out
 
 

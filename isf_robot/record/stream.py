@@ -4,6 +4,11 @@
 streams to a freshly spawned viewer, or both. :func:`find_viewer` checks beforehand that a
 viewer can start, so ``--spawn`` fails with one clear message instead of hanging or crashing
 in a headless session.
+
+A recording file is written as ``<name>.partial`` and renamed to ``<name>`` by
+:func:`close_stream` once the run has finished (:mod:`isf_robot.core.files`): a bad parameter,
+a crash or Ctrl-C leaves an existing recording as it was, and what was recorded before the
+interruption under ``<name>.partial``.
 """
 
 from __future__ import annotations
@@ -17,9 +22,15 @@ from typing import Any
 
 import rerun as rr
 
+from isf_robot.core.exceptions import ConfigError
+from isf_robot.core.files import check_output_path, commit_partial, partial_path
+
 from .errors import RecordError, ViewerUnavailableError
 
-__all__ = ["find_viewer", "open_stream", "close_stream"]
+__all__ = ["find_viewer", "open_stream", "close_stream", "stream_path"]
+
+# id(stream) -> the .rrd path its .partial file is renamed to when the stream is closed
+_TARGETS: dict[int, Path] = {}
 
 
 def find_viewer() -> Path:
@@ -61,7 +72,8 @@ def open_stream(
 
     Args:
         application_id: Rerun application id, e.g. ``"isf_robot_arm"`` (letters, digits, ``_`` and ``-`` only).
-        rrd_path: Write the recording to this ``.rrd`` file (parent folders are created).
+        rrd_path: Write the recording to this ``.rrd`` file (parent folders are created); it is
+            written as ``<rrd_path>.partial`` until :func:`close_stream` completes it.
         spawn: Also stream to a newly spawned viewer (checked by :func:`find_viewer`).
         recording_id: Recording id (default: a fresh UUID).
         recording_name: Human-readable name shown by the viewer.
@@ -81,14 +93,19 @@ def open_stream(
     rec = rr.RecordingStream(application_id, recording_id=recording_id or str(uuid.uuid4()))
     sinks: list[Any] = []
     if rrd_path is not None:
-        path = Path(rrd_path)
+        try:
+            path = check_output_path(rrd_path, "recording file")
+        except ConfigError as exc:
+            raise RecordError(str(exc)) from None
+        tmp = partial_path(path)
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            with open(path, "wb"):
+            with open(tmp, "wb"):
                 pass
         except OSError as exc:
             raise RecordError(f"cannot write the recording file {str(path)!r}: {exc.strerror or exc}") from exc
-        sinks.append(rr.FileSink(str(path)))
+        sinks.append(rr.FileSink(str(tmp)))
+        _TARGETS[id(rec)] = path
     if exe is not None:
         try:
             rr.spawn(connect=False, executable_path=str(exe), recording=rec)
@@ -101,7 +118,29 @@ def open_stream(
     return rec
 
 
-def close_stream(rec: rr.RecordingStream) -> None:
-    """Flush everything and close the sinks (writes the ``.rrd`` footer)."""
+def stream_path(rec: rr.RecordingStream) -> Path | None:
+    """The ``.rrd`` file a stream will complete when closed (``None``: no file or already closed)."""
+    return _TARGETS.get(id(rec))
+
+
+def close_stream(rec: rr.RecordingStream, *, complete: bool = True) -> Path | None:
+    """Flush everything and close the sinks (writes the ``.rrd`` footer).
+
+    Args:
+        rec: The stream.
+        complete: The run finished: rename ``<name>.partial`` to ``<name>``. ``False`` (a failed
+            or interrupted run) leaves the data under ``<name>.partial`` and ``<name>`` untouched.
+
+    Returns:
+        The completed recording file (``None`` without a file or when not ``complete``).
+
+    """
     rec.flush()
     rec.disconnect()
+    path = _TARGETS.pop(id(rec), None)
+    if path is None or not complete:
+        return None
+    try:
+        return commit_partial(path)
+    except OSError as exc:
+        raise RecordError(f"cannot complete the recording file {str(path)!r}: {exc.strerror or exc}") from exc

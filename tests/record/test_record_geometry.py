@@ -7,7 +7,7 @@ import numpy as np
 import rerun as rr
 from rerun.chunk import RrdReader
 
-from isf_robot.record import open_stream
+from isf_robot.record import close_stream, open_stream
 from isf_robot.record.mjgeometry import MujocoDrawing
 
 MJCF = """
@@ -56,8 +56,7 @@ def test_every_geom_type_is_drawn(tmp_path) -> None:  # type: ignore[no-untyped-
     mpos = [np.array([[0.6, 0.4, 0.1]]), np.array([[0.7, 0.4, 0.1]])]
     mquat = [np.array([[1.0, 0, 0, 0]])] * 2
     draw.send_poses(rec, t, MujocoDrawing.index(np.array([0])), q, mpos, mquat)
-    rec.flush()
-    rec.disconnect()
+    close_stream(rec)
     comps = _static_components(path)
     want = {
         "/world/bodies/world/floor": "Boxes3D", "/world/bodies/world/post": "Cylinders3D",

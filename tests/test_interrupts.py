@@ -1,0 +1,100 @@
+"""Signals sent to real subprocesses: Ctrl-C and SIGTERM stop the whole command quickly, keep what
+finished (marked partial), leave no worker behind and no traceback; an interrupted recording
+leaves the previous file byte-identical and its data under ``<name>.partial``."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+
+ROBOT = [sys.executable, "-m", "isf_robot.cli"]
+SATELLITE = [sys.executable, "-c", "import sys; from satellite.cli import main; sys.exit(main())"]
+
+
+def _start(argv: list[str]) -> subprocess.Popen[str]:
+    # a new session: the test can signal the whole process group, as a terminal's Ctrl-C does
+    return subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+
+
+def _wait_for_line(proc: subprocess.Popen[str], needle: str, timeout: float = 120.0) -> list[str]:
+    """Read stderr lines until one contains ``needle`` (the command is mid-run then)."""
+    assert proc.stderr is not None
+    lines: list[str] = []
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        line = proc.stderr.readline()
+        if not line:
+            break
+        lines.append(line)
+        if needle in line:
+            return lines
+    proc.kill()
+    raise AssertionError(f"never saw {needle!r}; stderr: {''.join(lines)}")
+
+
+def _left_behind(pgid: int, timeout: float = 5.0) -> list[str]:
+    """Live processes of the command's group (zombies awaiting their reaper do not count)."""
+    t0 = time.monotonic()
+    while True:
+        out = subprocess.run(["ps", "-o", "pid=,stat=,args=", "-g", str(pgid)], capture_output=True, text=True).stdout
+        live = [line for line in out.splitlines() if line.split()[1:2] and not line.split()[1].startswith("Z")]
+        if not live or time.monotonic() - t0 > timeout:
+            return live
+        time.sleep(0.2)
+
+
+@pytest.mark.parametrize(("sig", "group", "code"), [
+    (signal.SIGINT, False, 130), (signal.SIGINT, True, 130), (signal.SIGTERM, False, 143)])
+def test_compare_with_workers_stops_and_keeps_what_finished(sig: int, group: bool, code: int) -> None:
+    proc = _start(ROBOT + ["compare", "--scene", "planar", "--episodes", "4", "--duration", "10",
+                           "--filters", "nominal", "cbf", "--jobs", "2", "--d-bar", "0.1", "--json"])
+    _wait_for_line(proc, "[1/8]")  # one episode finished, two workers are busy
+    t0 = time.monotonic()
+    if group:
+        os.killpg(proc.pid, sig)
+    else:
+        proc.send_signal(sig)
+    out, err = proc.communicate(timeout=30)
+    assert time.monotonic() - t0 < 5.0
+    assert proc.returncode == code, err
+    assert "Traceback" not in err and ("interrupted" in err or "terminated" in err)
+    doc = json.loads(out)
+    assert doc["partial"] is True
+    finished = sum(len(r["episodes"]) for r in doc["results"].values())
+    assert 1 <= finished < 8
+    assert _left_behind(proc.pid) == [], "worker or resource-tracker processes left behind"
+
+
+def test_interrupted_recording_keeps_the_previous_file(tmp_path: Path) -> None:
+    rrd = tmp_path / "run.rrd"
+    rrd.write_bytes(b"previous recording")
+    proc = _start(ROBOT + ["run", "--scene", "planar", "--d-bar", "0.1", "--duration", "600", "--rrd", str(rrd)])
+    time.sleep(1.0)
+    while not (tmp_path / "run.rrd.partial").exists() and proc.poll() is None:
+        time.sleep(0.2)
+    time.sleep(2.0)  # mid-run
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130 and "Traceback" not in err and err.strip().endswith("interrupted")
+    assert rrd.read_bytes() == b"previous recording"
+    assert (tmp_path / "run.rrd.partial").stat().st_size > 0
+
+
+def test_satellite_run_interrupt_is_one_line() -> None:
+    proc = _start(SATELLITE + ["run", "--trigger", "greedy", "--hours", "100000"])
+    _wait_for_line(proc, "h")  # progress lines mean the integration runs
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130
+    assert "Traceback" not in err and err.strip().splitlines()[-1] == "isf-satellite run: interrupted"
