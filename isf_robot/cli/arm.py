@@ -219,6 +219,11 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                               params={**params, **({"observers": [obs]} if obs else {})},
                               progress=_progress(args.quiet))
     _print_comparison(comp, args.json)
+    if args.rrd is not None:
+        from isf_robot.record.side_by_side import write_side_by_side
+
+        for path in write_side_by_side(args.rrd, order=args.filters):
+            print(f"side by side: {path}", file=sys.stderr)
     return 0
 
 
