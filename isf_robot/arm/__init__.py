@@ -26,6 +26,8 @@ _EXPORTS: dict[str, str] = {
     # nominal control, low-level tracking, calibration
     "NominalController": "nominal", "GoalSequence": "nominal", "ReachingController": "nominal",
     "JointPDController": "nominal", "VelocityTracker": "lowlevel",
+    "make_actuation": "actuation", "ServoTracker": "actuation", "TorqueTracker": "actuation",
+    "ActuatorInfo": "actuation", "actuator_info": "actuation",
     "Calibration": "calibration", "calibrate_d_bar": "calibration", "clear_calibration_cache": "calibration",
     # simulation: episodes, the loop, its records
     "EpisodeSetup": "episode", "check_control_period": "episode", "episode_setup": "episode",

@@ -1,7 +1,8 @@
 """Calibration of the tracking-error bound ``d_bar`` of the reduced-order model.
 
 The filter plans with ``q_dot = u + d``; ``d = q_dot - u`` is what the low-level controller
-(:class:`~isf_robot.arm.lowlevel.VelocityTracker`) fails to track. Its bound is measured, not
+(:func:`~isf_robot.arm.actuation.make_actuation`: computed torque for motors, integrated targets
+for position servos, ``ctrl = u`` for velocity servos) fails to track. Its bound is measured, not
 guessed (DESIGN.md, section 3):
 
 1. Copy the model and switch off contacts with the obstacles (``contype = conaffinity = 0``
@@ -14,6 +15,9 @@ guessed (DESIGN.md, section 3):
 3. At every physics step record ``|q_dot - u|`` (Euclidean norm over the arm joints [rad/s],
    the norm the robust term ``|dh/dq| d_bar`` bounds by Cauchy-Schwarz).
 4. ``d_bar = factor * quantile(samples, q)``.
+5. Also record, per arm joint, the fraction of physics steps at which its actuator was at its
+   torque or force limit (``saturation``): a tracker that saturates measures the actuator's
+   limits, not its tracking, and :mod:`isf_robot.arm.diagnostics` warns about it.
 
 A high quantile rather than the maximum: right after a step change of the command the error
 equals the step for an instant and then decays within a few tens of milliseconds, so the
@@ -33,7 +37,7 @@ import numpy as np
 
 from isf_robot.core.exceptions import ConfigError
 
-from .lowlevel import VelocityTracker
+from .actuation import make_actuation
 from .nominal import ReachingController
 from .scene import Scene
 
@@ -53,6 +57,9 @@ class Calibration:
         factor: Safety factor applied.
         duration_s: Simulated time [s].
         samples: Number of physics steps measured.
+        saturation: Per arm joint, the fraction of physics steps its actuator was at its
+            torque/force limit.
+        joint_names: The arm joints, in the order of ``saturation``.
 
     """
 
@@ -64,6 +71,8 @@ class Calibration:
     factor: float
     duration_s: float
     samples: int
+    saturation: tuple[float, ...] = ()
+    joint_names: tuple[str, ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
         """Plain dict (JSON-ready)."""
@@ -138,7 +147,7 @@ def calibrate_d_bar(
     free = dataclasses.replace(scene, model=model)
     data = free.make_data(0.0)
     nominal = ReachingController(free)
-    tracker = VelocityTracker(free)
+    tracker = make_actuation(free)
     tracker.reset(data)
     rng = np.random.default_rng(seed)
     dt = float(model.opt.timestep)
@@ -148,6 +157,7 @@ def calibrate_d_bar(
     vmax = nominal.max_joint_speed
     offset = np.zeros(free.n_joints)
     errors = np.empty(n_steps)
+    sat = np.zeros(free.n_joints)
     moving = len(scene.config.moving) > 0
     dofs = scene.dof_adr
     for i in range(n_steps):
@@ -168,10 +178,12 @@ def calibrate_d_bar(
         errors[i] = float(np.sqrt(e @ e))
         tracker.apply(data)
         mujoco.mj_step2(model, data)
+        sat += tracker.saturated(data)
     qv = float(np.quantile(errors, quantile))
     cal = Calibration(d_bar=factor * qv, quantile=quantile, quantile_value=qv,
                       max_error=float(errors.max()), median_error=float(np.median(errors)),
-                      factor=factor, duration_s=n_steps * dt, samples=n_steps)
+                      factor=factor, duration_s=n_steps * dt, samples=n_steps,
+                      saturation=tuple(float(x) for x in sat / n_steps), joint_names=scene.joint_names)
     if use_cache:
         _CACHE[key] = cal
     return cal

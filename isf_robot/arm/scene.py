@@ -64,7 +64,8 @@ class Scene:
         dof_adr: Addresses of the arm joints in ``qvel`` (dof indices), shape (n,).
         actuator_ids: Id of the actuator driving each arm joint (-1: none), shape (n,).
         joint_range: Joint limits [rad or m], shape (n, 2); ``(-inf, inf)`` when unlimited.
-        torque_limit: Actuator torque limit [Nm] from ``ctrlrange`` (inf: none), shape (n,).
+        torque_limit: Largest actuator torque [Nm] per joint (``forcerange``, and ``ctrlrange``
+            of a motor; inf: none), shape (n,).
         home: Initial arm joint positions, shape (n,).
         robot_geom_ids: Robot collision geom ids, shape (r,).
         obstacle_geom_ids: Obstacle geom ids, shape (o,).
@@ -141,6 +142,20 @@ class Scene:
         return data
 
 
+def _torque_limit(model: mujoco.MjModel, a: int) -> float:
+    """Largest joint torque actuator ``a`` can give [N m]: ``forcerange`` x gear, and for a motor
+    (no bias) also ``ctrlrange`` x gain x gear; ``inf`` when unlimited."""
+    gear = abs(float(model.actuator_gear[a, 0]))
+    lim = np.inf
+    if model.actuator_forcelimited[a]:
+        lim = float(np.max(np.abs(model.actuator_forcerange[a]))) * gear
+    if (model.actuator_ctrllimited[a]
+            and int(model.actuator_biastype[a]) == int(mujoco.mjtBias.mjBIAS_NONE)):
+        gain = abs(float(model.actuator_gainprm[a, 0]))
+        lim = min(lim, float(np.max(np.abs(model.actuator_ctrlrange[a]))) * gain * gear)
+    return float(lim)
+
+
 def _resolve(model: mujoco.MjModel, cfg: SceneConfig, xml_path: Path) -> Scene:
     origin = str(cfg.source) if cfg.source is not None else "<config>"
     jt = mujoco.mjtJoint
@@ -163,8 +178,7 @@ def _resolve(model: mujoco.MjModel, cfg: SceneConfig, xml_path: Path) -> Scene:
             hit = np.nonzero(joint_ids_a == model.actuator_trnid[a, 0])[0]
             if hit.size:
                 act[hit[0]] = a
-                if model.actuator_ctrllimited[a]:
-                    tau[hit[0]] = float(np.max(np.abs(model.actuator_ctrlrange[a])))
+                tau[hit[0]] = _torque_limit(model, a)
 
     geom = mujoco.mjtObj.mjOBJ_GEOM
     robot = np.array([_lookup(model, geom, "geom", g, model.ngeom) for g in cfg.robot.geoms],

@@ -44,7 +44,7 @@ from isf_robot.core.strategies import make_strategy, strategy_info
 
 from .barriers import CollisionBarriers, JointLimitBarriers
 from .episode import EpisodeSetup, check_control_period, episode_setup, path_track
-from .lowlevel import VelocityTracker
+from .actuation import Actuation, make_actuation
 from .monitor import SafetyMonitor
 from .nominal import NominalController, ReachingController
 from .params import resolve_params
@@ -74,7 +74,7 @@ class ArmSimulation:
             :func:`episode_setup`). ``None``: the scene exactly as configured.
         nominal: The nominal controller; default a :class:`ReachingController` through the
             (seeded) goals.
-        tracker: The low-level controller; default :class:`VelocityTracker` with the scene's gains.
+        tracker: The low-level controller; default :func:`~isf_robot.arm.actuation.make_actuation`.
         params: Resolved filter parameters (:func:`isf_robot.arm.resolve_params`); or give
             ``alpha``, ``c``, ``b``, ``d_bar`` (config values fill the rest; ``d_bar`` must be
             known: no calibration is run here).
@@ -101,7 +101,7 @@ class ArmSimulation:
         *,
         seed: int | None = 0,
         nominal: NominalController | None = None,
-        tracker: VelocityTracker | None = None,
+        tracker: Actuation | None = None,
         params: FilterParams | None = None,
         alpha: float | None = None,
         c: float | None = None,
@@ -126,7 +126,7 @@ class ArmSimulation:
         self.nominal = nominal if nominal is not None else ReachingController(scene, goals=self.setup.goals)
         if self.nominal.n != scene.n_joints:
             raise ConfigError(f"nominal controller has {self.nominal.n} joints, the scene {scene.n_joints}")
-        self.tracker = tracker if tracker is not None else VelocityTracker(scene)
+        self.tracker = tracker if tracker is not None else make_actuation(scene)
         self.params = p = params if params is not None else resolve_params(scene, alpha, c, b, d_bar, calibrate=False)
         self.coll = CollisionBarriers.from_scene(scene)
         self.joints = JointLimitBarriers.from_scene(scene)
