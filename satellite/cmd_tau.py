@@ -55,8 +55,12 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--max-hours must be positive, got {args.max_hours:g}")
     if not (math.isfinite(args.disturbance_scale) and args.disturbance_scale >= 0):
         raise ConfigError(f"--disturbance-scale must be >= 0, got {args.disturbance_scale:g}")
-    if args.degree < 1:
-        raise ConfigError(f"--degree must be >= 1, got {args.degree}")
+    from satellite.tau import DEFAULT_RADII, distinct_h_levels
+
+    levels = distinct_h_levels(DEFAULT_RADII)
+    if not 1 <= args.degree < levels:
+        raise ConfigError(f"--degree must be between 1 and {levels - 1} (the radius grid gives {levels} "
+                          f"distinct barrier levels), got {args.degree}")
     out = Path(args.out)
     if not out.parent.is_dir():
         raise ConfigError(f"output directory does not exist: {out.parent}")

@@ -145,6 +145,11 @@ class TauFit:
         return {"basis": "polynomial in s = h / h_max, tau_p in seconds", "coef_s": self.coef, "h_max": self.h_max}
 
 
+def distinct_h_levels(radii_over_R: Any) -> int:
+    """Distinct values of ``h`` over the radii (``r`` and ``4R - r`` give the same ``h``)."""
+    return int(np.unique(np.round(np.abs(np.asarray(radii_over_R, dtype=float) - 2.0), 9)).size)
+
+
 def fit_tau(data: TauData, h_max: float, R: float, degree: int = 2) -> TauFit:
     """Least-squares polynomial fit of the per-radius medians against ``s = h / h_max``.
 
@@ -159,6 +164,10 @@ def fit_tau(data: TauData, h_max: float, R: float, degree: int = 2) -> TauFit:
         raise SatelliteError(f"fit degree must be >= 1, got {degree}")
     r = data.radii_over_R * R
     s = (h_max - (r - 2.0 * R) ** 2) / h_max
+    distinct = distinct_h_levels(data.radii_over_R)
+    if degree >= distinct:
+        raise SatelliteError(f"fit degree {degree} needs at least {degree + 1} distinct barrier levels; the "
+                             f"radii give {distinct} (r and 4R - r share h), so the degree must be <= {distinct - 1}")
     coef = np.polynomial.polynomial.polyfit(s, data.medians_h * 3600.0, degree)
     return TauFit(np.asarray(coef, dtype=float), h_max)
 

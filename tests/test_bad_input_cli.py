@@ -89,6 +89,8 @@ SATELLITE = [
     ["gravity", "--degree", "99", "--out", "OUT"],
     ["tau", "--samples", "0", "--out", "OUT"],
     ["tau", "--degree", "-1", "--out", "OUT"],
+    ["tau", "--degree", "50", "--samples", "2", "--out", "OUT"],
+    ["tau", "--samples", "2", "--out", "DIR"],
 ]
 
 

@@ -6,8 +6,8 @@ import os
 
 import pytest
 
-import satellite.files as files
-from satellite.files import write_text_atomic
+import isf_robot.core.files as files
+from isf_robot.core.files import check_output_path, commit_partial, partial_path, write_text_atomic
 
 
 def test_write_replaces_the_file(tmp_path) -> None:  # type: ignore[no-untyped-def]
@@ -36,3 +36,22 @@ def test_failed_rename_keeps_the_old_file(tmp_path, monkeypatch) -> None:  # typ
 def test_missing_directory_is_an_oserror(tmp_path) -> None:  # type: ignore[no-untyped-def]
     with pytest.raises(OSError):
         write_text_atomic(tmp_path / "no" / "a.json", "x")
+
+
+def test_directory_and_device_targets_are_refused_before_writing(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.core import ConfigError
+
+    with pytest.raises(ConfigError, match="is a directory"):
+        write_text_atomic(tmp_path, "x")
+    with pytest.raises(ConfigError, match="not a regular file"):
+        check_output_path("/dev/null")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_partial_file_is_renamed_into_place_only_on_commit(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    target = tmp_path / "run.rrd"
+    target.write_bytes(b"old")
+    partial_path(target).write_bytes(b"new")
+    assert target.read_bytes() == b"old" and partial_path(target).name == "run.rrd.partial"
+    commit_partial(target)
+    assert target.read_bytes() == b"new" and not partial_path(target).exists()
