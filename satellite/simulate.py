@@ -272,10 +272,15 @@ def simulate(
     if obs:
         track.emit(0.0, y, policy.first_phase, None)
 
-    while t < t_end:
-        t, y, finished = policy.step(t, y, t_end)
-        if finished:
-            break
+    try:
+        while t < t_end:
+            t, y, finished = policy.step(t, y, t_end)
+            if finished:
+                break
+    except BaseException as exc:  # an error or Ctrl-C: observers keep what they have, marked partial
+        if obs:
+            obs.on_abort(exc)
+        raise
 
     jumps = tuple(ctrl.jumps)
     iet = ctrl.inter_event_times / 3600.0

@@ -16,7 +16,7 @@ import sys
 from typing import Any
 
 from isf_robot.core.exceptions import ConfigError
-from isf_robot.core.report import format_value, to_jsonable
+from isf_robot.core.report import format_value, to_jsonable, with_schema
 from isf_robot.core.strategies import strategy_info, strategy_names
 from isf_robot.record.options import add_recording_args, make_observer
 
@@ -150,7 +150,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         sim.observers = Observers([obs])
     d = to_jsonable(sim.run(args.duration).as_dict())
     if args.json:
-        print(json.dumps(d))
+        print(json.dumps(with_schema("isf-robot-run", d)))
         return 0
     print(f"scene {d['scene']}, filter {d['filter']}, seed {d['seed']}: "
           f"{d['duration_s']:.3f} s simulated, {d['control_steps']} control steps in "
@@ -185,7 +185,7 @@ def _progress(quiet: bool) -> Any:
 def _print_comparison(comp: Any, as_json: bool) -> None:
     from isf_robot.arm.compare import format_table
 
-    print(json.dumps(comp.as_dict()) if as_json else format_table(comp), flush=True)
+    print(json.dumps(with_schema("isf-robot-compare", comp.as_dict())) if as_json else format_table(comp), flush=True)
 
 
 def _keep_partial(fn: Any) -> Any:
@@ -235,7 +235,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     comp = compare_strategies(SceneSpec(name=args.scene), args.episodes, duration=args.duration,
                               jobs=jobs, progress=_progress(False))
     if args.json:
-        print(json.dumps(comp.as_dict()))
+        print(json.dumps(with_schema("isf-robot-compare", comp.as_dict())))
         return 0
     print(format_table(comp))
     isf, cbf = comp.results.get("isf", {}), comp.results.get("cbf", {})

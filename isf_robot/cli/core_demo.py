@@ -9,7 +9,7 @@ import sys
 from typing import Any
 
 from isf_robot.core.exceptions import ConfigError
-from isf_robot.core.report import to_jsonable
+from isf_robot.core.report import with_schema
 
 __all__ = ["register", "add_arguments", "handle"]
 
@@ -42,7 +42,7 @@ def handle(args: argparse.Namespace) -> int:
 
     results = compare(seeds, duration=args.duration)
     if args.json:
-        print(json.dumps(to_jsonable({"episodes": len(seeds), "results": results})))
+        print(json.dumps(with_schema("isf-robot-core-demo", {"episodes": len(seeds), "results": results})))
     else:
         print(format_table(results))
     return 0

@@ -3,9 +3,11 @@
 Each recording's duty-cycle metrics are recomputed with
 :func:`isf_robot.core.metrics.compute_metrics` from its logged per-step columns. One file
 prints a list of metrics; several (or a file holding several recordings, or a directory of
-``.rrd`` files) print a side-by-side table. ``--json`` prints the metrics as JSON: for a single
-recording the same object as the run's own ``--json`` metrics, otherwise
-``{"recordings": [{"file", "recording_id", "label", "kind", "metrics"}, ...]}``.
+``.rrd`` files) print a side-by-side table, and below it the versions and settings each was
+recorded with. ``--json`` prints one shape whatever the number of inputs:
+``{"schema": "isf-robot-replay/1", "recordings": [{"file", "recording_id", "label", "kind",
+"versions", "info", "metrics"}, ...]}`` (``metrics`` holds the same keys as the run's own
+``--json`` for those figures).
 """
 
 from __future__ import annotations
@@ -16,7 +18,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-__all__ = ["register", "handle", "add_arguments"]
+from isf_robot.core.report import format_value, with_schema
+
+__all__ = ["register", "handle", "add_arguments", "describe_recording"]
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -28,7 +32,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def handle(args: argparse.Namespace) -> int:
     """Read the recordings, recompute and print their metrics."""
-    from isf_robot.core.report import to_jsonable
     from isf_robot.record.errors import RecordingReadError
     from isf_robot.record.replay import format_table, read_many, replay_metrics
 
@@ -41,22 +44,35 @@ def handle(args: argparse.Namespace) -> int:
         print(f"isf-robot replay: error: {' '.join(str(exc).split())}", file=sys.stderr)
     results = [(log, replay_metrics(log)) for log in logs]
     if args.json:
-        if len(results) == 1:
-            out: Any = results[0][1]
-        else:
-            out = {"recordings": [
-                {"file": str(log.path), "recording_id": log.recording_id, "label": log.label,
-                 "kind": log.kind, "info": log.info, "metrics": m}
-                for log, m in results
-            ]}
-        print(json.dumps(to_jsonable(out)))
+        out = {"recordings": [
+            {"file": str(log.path), "recording_id": log.recording_id, "label": log.label,
+             "kind": log.kind, "versions": log.info.get("versions", {}), "info": log.info, "metrics": m}
+            for log, m in results
+        ]}
+        print(json.dumps(with_schema("isf-robot-replay", out)))
         return 2 if bad else 0
     labels = _unique_labels([log.label for log, _ in results], [log.path.stem for log, _ in results])
     print(format_table(list(zip(labels, [m for _, m in results]))))
+    print("\nrecorded with:")
+    for lab, (log, _) in zip(labels, results):
+        print(f"  {lab}: {describe_recording(log.info)}")
     if len(results) > 1:
         for lab, (log, _) in zip(labels, results):
             print(f"  {lab}: {log.path}", file=sys.stderr)
     return 2 if bad else 0
+
+
+RUN_KEYS = ("scene", "strategy", "trigger", "seed", "alpha", "c", "b", "d_bar", "d_bar_source", "dt",
+            "control_period", "duration", "hours", "alpha_gain", "spin", "R_m")
+"""Settings shown by the text output (the JSON has every start-info entry)."""
+
+
+def describe_recording(info: dict[str, Any]) -> str:
+    """One line: the versions a recording was made with and its main settings."""
+    versions = info.get("versions") or {}
+    vers = ", ".join(f"{k} {v}" for k, v in versions.items()) or "versions not recorded"
+    sets = ", ".join(f"{k}={format_value(info[k])}" for k in RUN_KEYS if info.get(k) is not None)
+    return f"{vers}; {sets}"
 
 
 def _unique_labels(labels: list[str], stems: list[str]) -> list[str]:

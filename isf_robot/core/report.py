@@ -8,6 +8,10 @@ rules:
   no infinity or NaN; a reader sees "no value" rather than a string it must parse).
 * :func:`format_table`: a header row, a rule and aligned columns (first column left-aligned,
   the others right-aligned); :func:`format_value` and :func:`mean_std_cell` format cells.
+* :func:`with_schema`: every JSON document a command prints starts with
+  ``"schema": "<name>/<version>"`` (:data:`SCHEMAS` holds the current version of each), so a
+  reader can tell what it holds and whether its layout changed. A version is raised when a key
+  is removed or changes meaning; new keys leave it as it is.
 """
 
 from __future__ import annotations
@@ -19,7 +23,33 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["to_jsonable", "format_table", "format_value", "mean_std_cell"]
+__all__ = ["to_jsonable", "format_table", "format_value", "mean_std_cell", "with_schema", "schema_id", "SCHEMAS"]
+
+SCHEMAS: dict[str, int] = {
+    "isf-robot-run": 1,        # isf-robot run --json: one episode's metrics and parameters
+    "isf-robot-compare": 1,    # isf-robot compare/demo --json: per strategy mean, std, episodes
+    "isf-robot-replay": 1,     # isf-robot replay --json: {"recordings": [...]} for any number of inputs
+    "isf-robot-core-demo": 1,  # isf-robot core-demo --json
+    "isf-satellite-run": 1,    # isf-satellite run --json: one orbit run's summary
+}
+"""Current version of each JSON document the commands print."""
+
+
+def schema_id(name: str) -> str:
+    """``"<name>/<version>"`` of a registered document kind (:data:`SCHEMAS`).
+
+    Raises:
+        KeyError: An unregistered name (a programming error: register it in :data:`SCHEMAS`).
+
+    """
+    return f"{name}/{SCHEMAS[name]}"
+
+
+def with_schema(name: str, doc: Mapping[str, Any]) -> dict[str, Any]:
+    """``doc`` as JSON-ready values with ``"schema": "<name>/<version>"`` as its first key."""
+    out: dict[str, Any] = {"schema": schema_id(name)}
+    out.update(to_jsonable({k: v for k, v in doc.items() if k != "schema"}))
+    return out
 
 
 def to_jsonable(obj: Any) -> Any:

@@ -137,6 +137,12 @@ class ArmRecorder(RerunRecorder):
         c = info.get("c")
         self.c = float(c) if isinstance(c, (int, float)) else math.nan
 
+    def versions(self) -> dict[str, str]:
+        """isf_robot, rerun and MuJoCo versions."""
+        import mujoco
+
+        return {**super().versions(), "mujoco": str(mujoco.__version__)}
+
     def make_step_channel(self) -> Channel | None:
         """None: the arm keeps whole step records in a :class:`_RecordBatch` instead."""
         return None

@@ -49,12 +49,15 @@ def add_recording_args(parser: argparse.ArgumentParser, *, per_run: bool = False
     if per_run:
         group.add_argument(
             "--rrd", metavar="DIR", type=Path, default=None,
-            help="save one Rerun recording per strategy and episode as DIR/<strategy>-seed<seed>.rrd "
-                 "(replay them with 'isf-robot replay DIR')",
+            help="save one Rerun recording per episode as DIR/<scene>-<strategy>-seed<seed>.rrd (DIR is "
+                 "created if missing; each file appears when its episode finishes, an interrupted one stays "
+                 "*.rrd.partial; replay them with 'isf-robot replay DIR')",
         )
     else:
         group.add_argument("--rrd", metavar="PATH", type=Path, default=None,
-                           help="save the run as a Rerun recording (.rrd) for the viewer and 'isf-robot replay'")
+                           help="save the run as a Rerun recording (.rrd) for the viewer and 'isf-robot replay'; "
+                                "written as PATH.partial and renamed when the run finishes, so an existing PATH "
+                                "survives a failed or interrupted run (missing folders are created)")
     group.add_argument("--spawn", action="store_true",
                        help="stream the run to a newly spawned Rerun viewer (needs a display)")
     parser.set_defaults(rrd_per_run=per_run)

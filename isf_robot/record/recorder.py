@@ -119,12 +119,27 @@ class RerunRecorder(Observer):
         )
 
     # -- observer hooks ------------------------------------------------------------------
+    def versions(self) -> dict[str, str]:
+        """Versions stored with the recording: isf_robot and rerun (subclasses add their engine)."""
+        from isf_robot import __version__
+
+        return {"isf_robot": __version__, "rerun": str(rr.__version__)}
+
     def on_start(self, info: Mapping[str, Any]) -> None:
-        """Log the run's metadata (static) and the subclass's static content."""
-        self.stream.log(schema.INFO, rr.AnyValues(
-            kind=self.kind, info_json=json.dumps(to_jsonable(
-                {k: v for k, v in info.items() if k not in self.INFO_OBJECTS}))),
-                        static=True)
+        """Log the run's metadata (static) and the subclass's static content.
+
+        ``/run/info`` holds every start-info entry but the live objects (:attr:`INFO_OBJECTS`)
+        plus ``versions`` (:meth:`versions`); the versions and the scalar settings are also
+        recording properties, which the viewer shows beside the recording.
+        """
+        meta = to_jsonable({k: v for k, v in info.items() if k not in self.INFO_OBJECTS})
+        meta.setdefault("versions", self.versions())
+        self.stream.log(schema.INFO, rr.AnyValues(kind=self.kind, info_json=json.dumps(meta)), static=True)
+        self.stream.send_property("versions", rr.AnyValues(**meta["versions"]))
+        # as text: Rerun fixes a field's type at its first use in a process (runs differ: 5 vs 5.0)
+        settings = {k: str(v) for k, v in meta.items() if isinstance(v, (str, int, float, bool)) and k != "kind"}
+        if settings:
+            self.stream.send_property("run", rr.AnyValues(**settings))
         self.stream.log(f"{schema.PLOTS}/mode", rr.SeriesLines(names="filter on"), static=True)
         self.stream.log(f"{schema.PLOTS}/barrier/min", rr.SeriesLines(names="min h", colors=[220, 40, 40]),
                         static=True)

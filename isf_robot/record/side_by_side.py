@@ -72,7 +72,7 @@ def write_side_by_side(directory: str | Path, order: Sequence[str] = ()) -> list
                              blueprint=compare_blueprint(strategies))
         ok = False
         try:
-            stream.log("/run/info", rr.AnyValues(scene=scene, seed=seed, strategies=",".join(strategies),
+            stream.log("/run/info", rr.AnyValues(scene=scene, seed_label=seed, strategies=",".join(strategies),
                                                  files=",".join(str(f.name) for f, _ in runs)), static=True)
             for (f, _), strategy in zip(runs, strategies):
                 for entity, label in SERIES:

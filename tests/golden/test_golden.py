@@ -14,6 +14,13 @@ Changes so far, each deliberate:
 * Satellite event scan (issue 14, item 1): new keys only, ``band_exits`` (0) and
   ``settings.accel_bound``/``event_scan``/``scan_min_dt_s``; every earlier number unchanged (the
   scan finds no crossing between step points in this case, so steps and events are identical).
+* Surface contact in the dynamics (issue 14, item 2): ``isf-satellite run`` counts contacts by
+  default (``--contact count``, the trajectory unchanged): new keys only, ``contact_mode``,
+  ``contact_model``, ``surface_contacts``, ``first_contact_h``, ``contact_stopped``,
+  ``envelope_passes``, ``min_pass_clearance_m`` (this orbit passes 11 m deep through the shape).
+* Versioned outputs (issue 12, item 3): one new key in every case, ``"schema"``
+  (``"isf-robot-run/1"``, ``"isf-satellite-run/1"``), added to the data files by hand (every
+  other value untouched, not regenerated).
 """
 
 from __future__ import annotations

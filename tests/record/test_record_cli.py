@@ -32,8 +32,25 @@ def test_replay_json_reproduces_run_json(tmp_path, capsys) -> None:  # type: ign
     rrd = tmp_path / "run.rrd"
     run = _json(capsys, ["run", "--scene", "planar_moving", "--filter", "isf", "--duration", "6", "--json",
                          "--rrd", str(rrd)])
-    assert run["on_switches"] > 0
-    rep = _json(capsys, ["replay", str(rrd), "--json"])
+    assert run["on_switches"] > 0 and run["schema"] == "isf-robot-run/1"
+    doc = _json(capsys, ["replay", str(rrd), "--json"])
+    assert doc["schema"] == "isf-robot-replay/1" and len(doc["recordings"]) == 1  # one shape for any number
+    (item,) = doc["recordings"]
+    rep = item["metrics"]
+    # the recording says what made it: versions, scene, strategy and every parameter of the run
+    import mujoco
+
+    import isf_robot
+
+    assert item["versions"] == {"isf_robot": isf_robot.__version__, "rerun": item["versions"]["rerun"],
+                                "mujoco": mujoco.__version__}
+    for k in ("scene", "strategy", "seed", "alpha", "c", "b", "d_bar", "d_bar_source", "control_period", "dt"):
+        assert item["info"][k] == run.get(k, item["info"][k]), k
+    assert item["info"]["strategy"] == run["filter"] and item["info"]["d_bar"] == run["d_bar"]
+    assert main(["replay", str(rrd)]) == 0
+    text = capsys.readouterr().out
+    assert f"isf_robot {isf_robot.__version__}" in text and f"mujoco {mujoco.__version__}" in text
+    assert "scene=planar_moving" in text and "strategy=isf" in text and "d_bar=" in text
     for k in KEYS_EXACT:
         assert rep[k] == run[k], k
     for k in KEYS_FLOAT:
@@ -105,8 +122,10 @@ def test_satellite_cli_rrd_replays(tmp_path, capsys) -> None:  # type: ignore[no
     rrd = tmp_path / "sat.rrd"
     assert sat_main(["run", "--hours", "40", "--json", "--quiet", "--rrd", str(rrd)]) == 0
     run = json.loads(capsys.readouterr().out)
-    rep = _json(capsys, ["replay", str(rrd), "--json"])
+    assert run["schema"] == "isf-satellite-run/1"
+    rep = _json(capsys, ["replay", str(rrd), "--json"])["recordings"][0]["metrics"]
     assert rep["triggers"] == run["triggers"] and rep["kinds"] == run["kinds"]
+    assert rep["min_barrier"] == run["min_h"]  # exact, from the run
     assert rep["total_dv"] == run["total_dv"]
     for k in ("min_inter_event_h", "mean_inter_event_h"):
         assert _close(rep[k], run[k]), k
