@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from isf_robot.core import IsfError, Observers
+from satellite.contact import ContactWatch
 from satellite.events import Event, IntegrationFailed, event, integrate
 from satellite.model import OrbitModel
 from satellite.surface import SurfaceCheck
@@ -114,6 +115,9 @@ class Tracker:
         nfev: Right-hand-side evaluations so far.
         scan_points: Interior points evaluated by the event scan so far.
         band_exits: Times [s] at which ``h`` fell through 0.
+        contacts: Times [s] of surface contacts (first entry of each pass into the shape).
+        envelope_passes: Passes inside the contact envelope (necessary for contact).
+        min_pass_clearance: Smallest radial clearance [m] sampled during those passes.
 
     """
 
@@ -128,6 +132,9 @@ class Tracker:
         self.nfev = 0
         self.scan_points = 0
         self.band_exits: list[float] = []
+        self.contacts: list[float] = []
+        self.envelope_passes = 0
+        self.min_pass_clearance = math.inf
 
     def radius(self, y: NDArray[np.float64]) -> None:
         """Account for one state ``y``, shape (6,)."""
@@ -202,18 +209,29 @@ class ArcIntegrator:
             output (same steps, so the same trajectory) for the check's samples.
         exit_watch: The band-exit event (``h`` falling, non-terminal) added to every arc, or
             ``None``.
+        contact: The surface contact watch, or ``None`` (surface ignored).
+        contact_stop: End the run at the first contact (else count contacts and go on).
+
+    Attributes:
+        stopped: Time [s] of the contact that ended the run, else ``None``.
 
     """
 
     def __init__(
         self, model: OrbitModel, settings: IntegratorSettings, track: Tracker, check: SurfaceCheck | None,
-        exit_watch: Event | None = None,
+        exit_watch: Event | None = None, contact: ContactWatch | None = None, contact_stop: bool = False,
     ) -> None:
         self.rhs: Callable[[float, NDArray[np.float64]], NDArray[np.float64]] = model.truth_rhs
         self.settings = settings
         self.track = track
         self.check = check
         self.exit_watch = exit_watch
+        self.contact = contact
+        self.contact_stop = contact_stop
+        self.stopped: float | None = None
+        self._contact_ev = event(contact.g, False, 0.0, contact.rate, contact.batch) if contact is not None else None
+        self._in_contact = False
+        self._in_env = False
 
     def __call__(
         self, t0: float, t1: float, y0: NDArray[np.float64], events: list[Event], phase: str,
@@ -239,18 +257,58 @@ class ArcIntegrator:
 
         """
         s = self.settings
-        watched = list(events) + ([self.exit_watch] if self.exit_watch is not None else [])
+        extra = [w for w in (self.exit_watch, self._contact_ev) if w is not None]
+        watched = list(events) + extra
         if not s.event_scan:
             watched = [event(e.fn, e.terminal, e.direction) for e in watched]
         try:
             sol = integrate(self.rhs, t0, t1, y0, watched, rtol=s.rtol, atol=s.atol, max_step=s.max_step_s,
-                            dense=self.check is not None, min_dt=s.scan_min_dt_s)
+                            dense=self.check is not None or self.contact is not None, min_dt=s.scan_min_dt_s)
         except IntegrationFailed as exc:
             raise SimulationError(f"integration failed at t = {exc.t / 3600:.4g} h: {exc}") from None
+        if self._contact_ev is not None:
+            sol.y_events.pop()
+            self._contacts(sol, t0, y0, sol.t_events.pop())
         if self.exit_watch is not None:
-            self.track.band_exits.extend(float(t) for t in sol.t_events.pop())
+            self.track.band_exits.extend(float(t) for t in sol.t_events.pop() if t <= sol.t[-1])
             sol.y_events.pop()
         self.track.arc(sol, phase, xi_tau)
         if self.check is not None:
             surface_samples(self.check, sol, t0)
         return sol
+
+    def _contacts(self, sol: Any, t0: float, y0: NDArray[np.float64], crossings: NDArray[np.float64]) -> None:
+        """Check the arc's passes inside the envelope; count contacts; truncate the arc at a stop.
+
+        A pass or a contact that goes on across an impulse (the position is continuous) counts once.
+        """
+        c = self.contact
+        assert c is not None
+        t1 = float(sol.t[-1])
+        for a, b in c.passes(t0, t1, c.g(t0, y0), crossings):
+            continued = a == t0
+            tc, clear = c.first_contact(sol.sol, a, b)
+            self.track.min_pass_clearance = min(self.track.min_pass_clearance, clear)
+            self.track.envelope_passes += 0 if continued and self._in_env else 1
+            if tc is not None and not (tc == t0 and self._in_contact):
+                self.track.contacts.append(tc)
+                if self.contact_stop:
+                    self.stopped = tc
+                    _truncate(sol, tc)
+                    return
+        y1 = sol.y[:, -1]
+        self._in_env = c.g(t1, y1) < 0.0
+        self._in_contact = bool(c.surface.inside(c.body_point(t1, y1)))
+
+
+def _truncate(sol: Any, tc: float) -> None:
+    """Cut an arc solution at ``tc`` [s] (a contact that ends the run): no later points or events."""
+    keep = sol.t < tc
+    y_end = np.asarray(sol.sol(tc), dtype=float)
+    sol.t = np.append(sol.t[keep], tc)
+    sol.y = np.column_stack([sol.y[:, keep], y_end])
+    for i, te in enumerate(sol.t_events):
+        m = te <= tc
+        sol.t_events[i] = te[m]
+        sol.y_events[i] = sol.y_events[i][m]
+    sol.status = 2

@@ -11,8 +11,9 @@ from collections.abc import Mapping
 from typing import Any, TextIO
 
 from isf_robot.core import ConfigError, Observer
-from isf_robot.core.report import with_schema
 from isf_robot.record.options import add_recording_args, make_observer
+from satellite.arcs import IntegratorSettings
+from satellite.contact import CONTACT_MODES
 from satellite.controller import ControlParams
 from satellite.model import InitialOrbit, OrbitModel
 from satellite.simulate import RunResult, SatelliteSample, simulate
@@ -93,8 +94,13 @@ def register(subparsers: Any) -> None:
     p.add_argument("--surface-check", action="store_true",
                    help="also check the trajectory against the body's shape (off by default: like the paper, "
                         "the dynamics ignore impact); adds surface_* keys and min_clearance_m")
+    p.add_argument("--contact", choices=CONTACT_MODES, default="count",
+                   help="surface contact in the dynamics: count (default: contacts counted, the orbit goes on "
+                        "through the body as in the paper), stop (the run ends at the first contact), off")
+    p.add_argument("--no-event-scan", action="store_true",
+                   help="see events at integrator step points only (solve_ivp's rule; can miss crossings)")
     p.add_argument("--shape", metavar="PATH.obj",
-                   help="shape file for --surface-check (default ../shared/data/itokawa/itokawa_low.obj "
+                   help="shape file for --contact and --surface-check (default ../shared/data/itokawa/itokawa_low.obj "
                         "next to the repository if present, else the 535 x 294 x 209 m ellipsoid)")
     p.add_argument("--shape-units", choices=("km", "m"), default="km", help="length unit of --shape (default km)")
     p.add_argument("--surface-step", type=float, default=10.0, metavar="S",
@@ -129,6 +135,14 @@ def format_text(res: RunResult) -> str:
             f"(first {f(s['first_surface_hit_h'], '.4g')} h; every {s['surface_step_s']:g} s + events)",
             f"min clearance      {f(s['min_clearance_m'], '.4g')} m (radial) at {f(s['min_clearance_h'], '.4g')} h",
         ]
+    if res.contact is not None:
+        c = res.contact
+        lines += [
+            f"contact            {c['surface_contacts']} contact(s) ({c['contact_mode']}; first "
+            f"{f(c['first_contact_h'], '.4g')} h; {c['envelope_passes']} pass(es) near the surface, "
+            f"min clearance {f(c['min_pass_clearance_m'], '.3g')} m){' - run stopped' if c['contact_stopped'] else ''}",
+            f"contact model      {c['contact_model']}",
+        ]
     lines.append(f"wall               {res.wall_s:.2f} s")
     return "\n".join(lines)
 
@@ -138,15 +152,16 @@ def run(args: argparse.Namespace) -> int:
     trigger = Trigger.parse(args.trigger)
     if not math.isfinite(args.hours) or args.hours <= 0:
         raise ConfigError(f"--hours must be a finite number > 0, got {args.hours:g}")
-    surface = None
-    if args.shape and not args.surface_check:
-        raise ConfigError("--shape needs --surface-check")
-    if args.surface_check:
-        if not (math.isfinite(args.surface_step) and args.surface_step > 0):
-            raise ConfigError(f"--surface-step must be a positive number of seconds, got {args.surface_step:g}")
+    surface = shape = None
+    if args.shape and not args.surface_check and args.contact == "off":
+        raise ConfigError("--shape needs --surface-check or --contact count|stop")
+    if args.surface_check and not (math.isfinite(args.surface_step) and args.surface_step > 0):
+        raise ConfigError(f"--surface-step must be a positive number of seconds, got {args.surface_step:g}")
+    if args.surface_check or args.contact != "off":
         from satellite.mesh_surface import load_surface
 
-        surface = load_surface(args.shape, units=args.shape_units)
+        shape = load_surface(args.shape, units=args.shape_units)
+        surface = shape if args.surface_check else None
     tau = None
     if trigger.needs_tau:
         if not args.tau:
@@ -171,7 +186,8 @@ def run(args: argparse.Namespace) -> int:
         observers.append(recorder)
     res = simulate(trigger, args.hours, initial=initial, model=model, control=control, tau=tau,
                    observers=observers, surface=surface, surface_step_s=args.surface_step,
-                   body_mesh=recorder is not None)
+                   body_mesh=recorder is not None, contact=args.contact, contact_surface=shape,
+                   integrator=IntegratorSettings(event_scan=not args.no_event_scan))
     if args.json:
         out = res.summary()
         if args.events:
@@ -179,7 +195,7 @@ def run(args: argparse.Namespace) -> int:
                 {"t_h": e.t / 3600.0, "kind": e.kind, "dv": e.v.tolist(), "h_before": e.h_before,
                  "xi_after": e.xi_after} for e in res.events
             ]
-        sys.stdout.write(json.dumps(with_schema("isf-satellite-run", out)) + "\n")
+        sys.stdout.write(json.dumps(out) + "\n")
     else:
         sys.stdout.write(format_text(res) + "\n")
     return 0

@@ -22,9 +22,10 @@ import numpy as np
 
 from isf_robot.core import ConfigError, JumpEvent, Linear, Observer, Observers, estimate_miet_constants
 from satellite.arcs import ArcIntegrator, IntegratorSettings, SatelliteSample, SimulationError, Tracker
+from satellite.contact import CONTACT_MODES, make_contact
 from satellite.controller import ControlParams, ResolvedControl, make_controller, resolve_control
 from satellite.events import event
-from satellite.mesh_surface import body_mesh_info
+from satellite.mesh_surface import body_mesh_info, load_surface
 from satellite.model import BAND_INNER, BAND_OUTER, InitialOrbit, OrbitModel
 from satellite.policies import make_policy
 from satellite.shapes import SurfaceModel
@@ -65,6 +66,8 @@ class RunResult:
             falling zero of ``h``, watched on every arc (scanned between step points unless
             ``IntegratorSettings.event_scan`` is off).
         band_exits: Number of times ``h`` fell through 0 (``none`` stops at the first).
+        contact: Surface contact report (see :func:`_contact_report`), ``None`` when off;
+            merged into :meth:`summary` when present.
         wall_s: Wall time of the run [s].
         seed: Seed of the initial orbit.
         settings: Resolved settings (JSON-ready).
@@ -95,6 +98,7 @@ class RunResult:
     nfev: int = 0
     surface: dict[str, Any] | None = None
     band_exits: int = 0
+    contact: dict[str, Any] | None = None
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary (everything but the event list; the surface keys when checked)."""
@@ -106,6 +110,8 @@ class RunResult:
         out = {k: getattr(self, k) for k in keys}
         if self.surface is not None:
             out.update(self.surface)
+        if self.contact is not None:
+            out.update(self.contact)
         return out
 
 
@@ -193,6 +199,8 @@ def simulate(
     surface: SurfaceModel | None = None,
     surface_step_s: float = 10.0,
     body_mesh: bool | None = None,
+    contact: str = "off",
+    contact_surface: SurfaceModel | None = None,
 ) -> RunResult:
     """Simulate ``hours`` of orbit with the given trigger.
 
@@ -220,6 +228,11 @@ def simulate(
         body_mesh: Put the body's triangles in the start info (the surface check's mesh, else
             the default shape file, read once per run); default (``None``) only when observers
             are attached. Never changes the trajectory.
+        contact: Surface contact in the dynamics (:mod:`satellite.contact`): ``"off"`` (the
+            paper), ``"count"`` (contacts counted, the trajectory unchanged) or ``"stop"`` (the run
+            ends at the first contact); reported in ``RunResult.contact``.
+        contact_surface: The shape for ``contact`` (default: ``surface``, else
+            :func:`satellite.mesh_surface.load_surface`).
 
     Returns:
         The :class:`RunResult`.
@@ -237,6 +250,8 @@ def simulate(
         raise ConfigError(f"hours must be a finite number >= 0, got {hours!r}")
     if not (math.isfinite(sample_interval_s) and sample_interval_s > 0):
         raise ConfigError(f"sample_interval_s must be positive, got {sample_interval_s}")
+    if contact not in CONTACT_MODES:
+        raise ConfigError(f"contact must be one of {', '.join(CONTACT_MODES)}; got {contact!r}")
     if trigger.needs_tau and tau is None:
         raise ConfigError(f"the {trigger} trigger needs a fitted tau_p (make one with `isf-satellite tau`)")
     initial = initial or InitialOrbit()
@@ -252,7 +267,11 @@ def simulate(
     miet_s, _, _ = miet_estimate(model, resolved, samples=miet_samples)
     check = SurfaceCheck(surface, model.body_phase, model.omega, surface_step_s) if surface is not None else None
     exit_watch = event(trig.h, False, -1.0, trig.rates()["h"], trig.h_batch)
-    policy = make_policy(trigger, trig, ctrl, ArcIntegrator(model, integ, track, check, exit_watch), obs.on_event, tau)
+    watch = None
+    if contact != "off":
+        watch = make_contact(model, contact_surface or surface or load_surface())
+    arcs = ArcIntegrator(model, integ, track, check, exit_watch, watch, contact == "stop")
+    policy = make_policy(trigger, trig, ctrl, arcs, obs.on_event, tau)
 
     y = initial.state(model)
     t = 0.0
@@ -275,7 +294,7 @@ def simulate(
     try:
         while t < t_end:
             t, y, finished = policy.step(t, y, t_end)
-            if finished:
+            if finished or arcs.stopped is not None:
                 break
     except BaseException as exc:  # an error or Ctrl-C: observers keep what they have, marked partial
         if obs:
@@ -311,9 +330,29 @@ def simulate(
         nfev=track.nfev,
         surface=check.report() if check is not None else None,
         band_exits=len(exits),
+        contact=_contact_report(contact, watch, track, arcs.stopped),
     )
     obs.on_finish(result.summary())
     return result
+
+
+def _contact_report(mode: str, watch: Any, track: Tracker, stopped: float | None) -> dict[str, Any] | None:
+    """The contact report of a run (``None`` when off).
+
+    Keys: ``contact_mode``, ``contact_model``, ``surface_contacts`` (passes into the shape),
+    ``first_contact_h``, ``contact_stopped`` (the run ended at a contact), ``envelope_passes``
+    and ``min_pass_clearance_m`` (smallest radial clearance sampled inside the envelope; < 0 is a
+    depth).
+    """
+    if watch is None:
+        return None
+    clear = track.min_pass_clearance
+    return {
+        "contact_mode": mode, "contact_model": watch.surface.name, "surface_contacts": len(track.contacts),
+        "first_contact_h": track.contacts[0] / 3600.0 if track.contacts else None,
+        "contact_stopped": stopped is not None, "envelope_passes": track.envelope_passes,
+        "min_pass_clearance_m": clear if math.isfinite(clear) else None,
+    }
 
 
 def _settings(

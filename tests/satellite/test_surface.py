@@ -193,7 +193,7 @@ def test_cli_surface_check_with_shape_file(
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [
-        (["run", "--shape", "x.obj"], "--shape needs --surface-check"),
+        (["run", "--contact", "off", "--shape", "x.obj"], "--shape needs --surface-check or --contact"),
         (["run", "--surface-check", "--shape", "/nonexistent/shape.obj"], "not found"),
         (["run", "--surface-check", "--surface-step", "0"], "--surface-step"),
     ],
