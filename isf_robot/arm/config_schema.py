@@ -31,32 +31,58 @@ __all__ = [
 class RobotConfig:
     """The arm: which joints the filter acts on, its end effector and its collision geoms.
 
+    Robot geoms are the union of ``geoms`` and the colliding geoms of ``bodies`` and of the
+    ``subtree``, the latter two narrowed to ``geom_group`` when given (see
+    :mod:`isf_robot.arm.selection`).
+
     Attributes:
-        joints: Names of the arm's hinge/slide joints, in control order (length n).
-        ee_site: Name of the end-effector site.
-        geoms: Names of the robot's collision geoms.
-        home: Initial joint positions [rad], shape (n,), or ``None`` for the model's qpos0.
+        joints: Names of the arm's hinge/slide joints, in control order (length n); empty: the
+            joints the actuators drive, in actuator order.
+        ee_site: Name of the end-effector site (or give ``ee_body``).
+        geoms: Names (or ``body[index]`` labels) of robot collision geoms.
+        home: Initial joint positions [rad], shape (n,); or the name of a keyframe; ``None``
+            for the model's qpos0.
         self_collision: Also build barriers for non-adjacent robot-robot geom pairs.
+        bodies: Bodies whose colliding geoms are robot geoms.
+        subtree: A body whose subtree's colliding geoms are robot geoms.
+        geom_group: Keep only this geom group among the geoms of ``bodies``/``subtree``.
+        ee_body: Body carrying the end-effector point (instead of ``ee_site``).
+        ee_offset: The end-effector point in ``ee_body``'s frame [m].
 
     """
 
-    joints: tuple[str, ...]
-    ee_site: str
-    geoms: tuple[str, ...]
-    home: tuple[float, ...] | None = None
+    joints: tuple[str, ...] = ()
+    ee_site: str | None = None
+    geoms: tuple[str, ...] = ()
+    home: tuple[float, ...] | str | None = None
     self_collision: bool = False
+    bodies: tuple[str, ...] = ()
+    subtree: str | None = None
+    geom_group: int | None = None
+    ee_body: str | None = None
+    ee_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
 class ObstacleConfig:
     """Obstacles: geoms on the world body, on static bodies or on mocap bodies.
 
+    Selected like the robot's geoms (names or ``body[index]`` labels, bodies, a subtree,
+    narrowed by ``geom_group``); ``geom_group`` alone selects every colliding geom of that
+    group that is not a robot geom.
+
     Attributes:
-        geoms: Names of the obstacle geoms.
+        geoms: Names (or labels) of the obstacle geoms.
+        bodies: Bodies whose colliding geoms are obstacles.
+        subtree: A body whose subtree's colliding geoms are obstacles.
+        geom_group: Group filter (see above).
 
     """
 
-    geoms: tuple[str, ...]
+    geoms: tuple[str, ...] = ()
+    bodies: tuple[str, ...] = ()
+    subtree: str | None = None
+    geom_group: int | None = None
 
 
 @dataclass(frozen=True)

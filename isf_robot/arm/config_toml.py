@@ -162,6 +162,24 @@ def _path(r: _Reader) -> ObstaclePath:
     raise r._err("type", f"unknown path type {kind!r}; valid types: 'circle', 'linear_bounce'")
 
 
+def _group(r: _Reader) -> int | None:
+    v = r.raw("geom_group", None)
+    if v is None:
+        return None
+    if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= 5:
+        raise r._err("geom_group", f"expected an integer 0..5 (MuJoCo geom group), got {v!r}")
+    return int(v)
+
+
+def _home(r: _Reader, n: int | None) -> tuple[float, ...] | str | None:
+    v = r.raw("home", None)
+    if isinstance(v, str):
+        if not v:
+            raise r._err("home", "expected a keyframe name or a list of numbers, got ''")
+        return v
+    return r.numbers("home", None, length=n)  # type: ignore[no-any-return]
+
+
 def parse_config(data: Mapping[str, Any], origin: str = "<config>",
                  source: Path | None = None, default_name: str | None = None) -> SceneConfig:
     """Build a :class:`SceneConfig` from a parsed TOML mapping.
@@ -188,18 +206,32 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
     s.finish()
 
     r = top.sub("robot", required=True)
-    joints = r.strings("joints")
+    joints = r.strings("joints", ())
     robot = RobotConfig(
         joints=joints,
-        ee_site=r.string("ee_site"),
-        geoms=r.strings("geoms"),
-        home=r.numbers("home", None, length=len(joints)),
+        ee_site=r.string("ee_site", None),
+        ee_body=r.string("ee_body", None),
+        ee_offset=r.numbers("ee_offset", (0.0, 0.0, 0.0), length=3),
+        geoms=r.strings("geoms", ()),
+        bodies=r.strings("bodies", ()),
+        subtree=r.string("subtree", None),
+        geom_group=_group(r),
+        home=_home(r, len(joints) or None),
         self_collision=r.boolean("self_collision", False),
     )
+    if (robot.ee_site is None) == (robot.ee_body is None):
+        raise ConfigError(f"{origin}: [robot] give exactly one of 'ee_site' or 'ee_body'")
+    if r.has("ee_offset") and robot.ee_body is None:
+        raise ConfigError(f"{origin}: [robot] ee_offset needs ee_body (a site has its own position)")
+    if not (robot.geoms or robot.bodies or robot.subtree):
+        raise ConfigError(f"{origin}: [robot] give the robot's geoms: 'geoms', 'bodies' and/or 'subtree'")
     r.finish()
 
     o = top.sub("obstacles", required=True)
-    obstacles = ObstacleConfig(geoms=o.strings("geoms"))
+    obstacles = ObstacleConfig(geoms=o.strings("geoms", ()), bodies=o.strings("bodies", ()),
+                               subtree=o.string("subtree", None), geom_group=_group(o))
+    if not (obstacles.geoms or obstacles.bodies or obstacles.subtree or obstacles.geom_group is not None):
+        raise ConfigError(f"{origin}: [obstacles] give 'geoms', 'bodies', 'subtree' and/or 'geom_group'")
     o.finish()
 
     t = top.sub("task", required=True)
@@ -242,7 +274,7 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
     )
     for key in ("tracking_kp", "tracking_kd"):
         n = len(getattr(gains, key))
-        if n not in (1, len(joints)):
+        if joints and n not in (1, len(joints)):
             raise ConfigError(f"{origin}: [gains] {key}: expected 1 or {len(joints)} numbers, got {n}")
     g.finish()
 

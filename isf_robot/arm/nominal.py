@@ -257,25 +257,24 @@ class ReachingController(NominalController):
         self._dofs = slice(int(dofs[0]), int(dofs[0]) + dofs.size) if contiguous else dofs
         self._a = np.zeros((3, 3))
         self._y = np.zeros(3)
-        self._site = scene.ee_site_id
         self._rate = _RateLimit(self.n, _max_acc(scene, max_joint_acc))
 
     def ee_position(self, data: mujoco.MjData) -> np.ndarray:
         """End-effector position [m], shape (3,) (a view into ``data``)."""
-        return data.site_xpos[self._site]
+        return self.scene.ee_position(data)
 
     def __call__(self, t: float, data: mujoco.MjData) -> np.ndarray:
         """DLS command toward the current goal; shape (n,) [rad/s]."""
         index = self.goals.index
-        err = self.goal_positions[index] - data.site_xpos[self._site]
+        err = self.goal_positions[index] - self.scene.ee_position(data)
         dist = math.sqrt(float(err @ err))
         self.goals.update(t, dist)
         if self.goals.index != index:
-            err = self.goal_positions[self.goals.index] - data.site_xpos[self._site]
+            err = self.goal_positions[self.goals.index] - self.scene.ee_position(data)
             dist = math.sqrt(float(err @ err))
         speed = self.kp * dist
         v = err * (self.kp if speed <= self.max_ee_speed else self.max_ee_speed / dist)
-        mujoco.mj_jacSite(self.scene.model, data, self._jac, None, self._site)
+        self.scene.ee_jacobian(data, self._jac)
         jac = self._jac[:, self._dofs]
         a = self._a
         np.matmul(jac, jac.T, out=a)

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from .selection import geom_label
+
 __all__ = ["CollisionPairs", "collision_pairs"]
 
 
@@ -91,7 +93,7 @@ def collision_pairs(
 
     """
     def name(g: int) -> str:
-        return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom{g}"
+        return geom_label(model, g)
 
     cands = [(int(r), int(o), False) for r in robot_geoms for o in obstacle_geoms]
     if self_collision:

@@ -8,7 +8,7 @@ A scene called ``name`` is the pair ``models/<name>.xml`` (or the file the confi
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import mujoco
@@ -20,6 +20,7 @@ from isf_robot.paths import models_dir
 from .config_schema import SceneConfig
 from .config_toml import load_config
 from .paths import path_track
+from .selection import actuated_joints, body_id, geom_label, keyframe_home, select_geoms
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -69,11 +70,14 @@ class Scene:
         home: Initial arm joint positions, shape (n,).
         robot_geom_ids: Robot collision geom ids, shape (r,).
         obstacle_geom_ids: Obstacle geom ids, shape (o,).
-        ee_site_id: End-effector site id.
+        ee_site_id: End-effector site id, or -1 when the config gives ``ee_body``.
         moving_body_ids: Body id of each ``[[moving]]`` obstacle, shape (p,).
         moving_mocap_ids: Mocap index (row of ``data.mocap_pos``) of each, shape (p,).
         goal_positions: Goal positions in the world frame [m], shape (g, 3).
         goal_dwell: Dwell time per goal [s], shape (g,).
+        arm_joint_names: Arm joint names in control order (the config's, or the actuated joints).
+        ee_body_id: Body carrying the end-effector point (the site's body for ``ee_site``).
+        ee_offset: The end-effector point in that body's frame [m], shape (3,).
 
     """
 
@@ -95,6 +99,9 @@ class Scene:
     moving_mocap_ids: np.ndarray
     goal_positions: np.ndarray
     goal_dwell: np.ndarray
+    arm_joint_names: tuple[str, ...] = ()
+    ee_body_id: int = -1
+    ee_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     @property
     def n_joints(self) -> int:
@@ -104,7 +111,21 @@ class Scene:
     @property
     def joint_names(self) -> tuple[str, ...]:
         """Arm joint names in control order."""
-        return self.config.robot.joints
+        return self.arm_joint_names or self.config.robot.joints
+
+    def ee_position(self, data: mujoco.MjData) -> np.ndarray:
+        """End-effector position [m], shape (3,), from the kinematics in ``data``."""
+        if self.ee_site_id >= 0:
+            return data.site_xpos[self.ee_site_id]
+        b = self.ee_body_id
+        return data.xpos[b] + data.xmat[b].reshape(3, 3) @ self.ee_offset
+
+    def ee_jacobian(self, data: mujoco.MjData, jacp: np.ndarray) -> None:
+        """Write the end effector's translational Jacobian, shape (3, nv), into ``jacp``."""
+        if self.ee_site_id >= 0:
+            mujoco.mj_jacSite(self.model, data, jacp, None, self.ee_site_id)
+        else:
+            mujoco.mj_jac(self.model, data, jacp, None, self.ee_position(data), self.ee_body_id)
 
     def set_moving_obstacles(self, data: mujoco.MjData, t: float) -> None:
         """Write the moving obstacles' positions at time ``t`` [s] into ``data.mocap_pos``.
@@ -160,7 +181,11 @@ def _resolve(model: mujoco.MjModel, cfg: SceneConfig, xml_path: Path) -> Scene:
     origin = str(cfg.source) if cfg.source is not None else "<config>"
     jt = mujoco.mjtJoint
     joint_ids = []
-    for name in cfg.robot.joints:
+    joint_names = cfg.robot.joints or tuple(actuated_joints(model))
+    if not joint_names:
+        raise ConfigError(f"{origin}: [robot] joints not given and no actuator drives a hinge or slide "
+                          "joint; list the arm joints")
+    for name in joint_names:
         j = _lookup(model, mujoco.mjtObj.mjOBJ_JOINT, "joint", name, model.njnt)
         if int(model.jnt_type[j]) not in (int(jt.mjJNT_HINGE), int(jt.mjJNT_SLIDE)):
             raise ConfigError(f"{origin}: [robot] joint {name!r} must be a hinge or slide joint")
@@ -180,22 +205,27 @@ def _resolve(model: mujoco.MjModel, cfg: SceneConfig, xml_path: Path) -> Scene:
                 act[hit[0]] = a
                 tau[hit[0]] = _torque_limit(model, a)
 
-    geom = mujoco.mjtObj.mjOBJ_GEOM
-    robot = np.array([_lookup(model, geom, "geom", g, model.ngeom) for g in cfg.robot.geoms],
-                     dtype=np.int32)
-    obst = np.array([_lookup(model, geom, "geom", g, model.ngeom) for g in cfg.obstacles.geoms],
-                    dtype=np.int32)
-    both = set(cfg.robot.geoms) & set(cfg.obstacles.geoms)
+    rc, oc = cfg.robot, cfg.obstacles
+    robot = select_geoms(model, geoms=rc.geoms, bodies=rc.bodies, subtree=rc.subtree,
+                         geom_group=rc.geom_group, origin=origin, where="robot")
+    obst = select_geoms(model, geoms=oc.geoms, bodies=oc.bodies, subtree=oc.subtree,
+                        geom_group=oc.geom_group, exclude=robot, all_if_group=True,
+                        origin=origin, where="obstacles")
+    both = sorted(geom_label(model, g) for g in set(robot.tolist()) & set(obst.tolist()))
     if both:
-        raise ConfigError(f"{origin}: geoms {sorted(both)} are listed as robot and as obstacle")
-    for g, gname in zip(obst, cfg.obstacles.geoms):
+        raise ConfigError(f"{origin}: geoms {both} are listed as robot and as obstacle")
+    for g in obst:
         weld = model.body_weldid[model.geom_bodyid[g]]
         if weld != 0 and model.body_mocapid[weld] < 0:
             raise ConfigError(
-                f"{origin}: obstacle geom {gname!r} must be on the world body, a static body or "
-                "a mocap body (its body has degrees of freedom)"
+                f"{origin}: obstacle geom {geom_label(model, g)!r} must be on the world body, a static "
+                "body or a mocap body (its body has degrees of freedom)"
             )
-    site = _lookup(model, mujoco.mjtObj.mjOBJ_SITE, "site", cfg.robot.ee_site, model.nsite)
+    if rc.ee_site is not None:
+        site = _lookup(model, mujoco.mjtObj.mjOBJ_SITE, "site", rc.ee_site, model.nsite)
+        ee_body, ee_offset = int(model.site_bodyid[site]), model.site_pos[site].copy()
+    else:
+        site, ee_body, ee_offset = -1, body_id(model, str(rc.ee_body)), np.array(rc.ee_offset, dtype=float)
 
     mov_b, mov_m = [], []
     for mv in cfg.moving:
@@ -208,13 +238,24 @@ def _resolve(model: mujoco.MjModel, cfg: SceneConfig, xml_path: Path) -> Scene:
         mov_b.append(b)
         mov_m.append(int(model.body_mocapid[b]))
 
-    home = (np.array(cfg.robot.home) if cfg.robot.home is not None
-            else model.qpos0[qpos_adr].copy())
+    if isinstance(rc.home, str):
+        home = keyframe_home(model, rc.home, qpos_adr)
+    elif rc.home is not None:
+        home = np.array(rc.home, dtype=float)
+        if home.shape != (len(joint_names),):
+            raise ConfigError(f"{origin}: [robot] home has {home.size} numbers for {len(joint_names)} "
+                              f"joints {list(joint_names)}")
+    else:
+        home = model.qpos0[qpos_adr].copy()
+    for key in ("tracking_kp", "tracking_kd"):
+        k = len(getattr(cfg.gains, key))
+        if k not in (1, len(joint_names)):
+            raise ConfigError(f"{origin}: [gains] {key}: expected 1 or {len(joint_names)} numbers, got {k}")
     low, high = rng[:, 0], rng[:, 1]
     bad = np.nonzero((home < low) | (home > high))[0]
     if bad.size:
         raise ConfigError(f"{origin}: [robot] home is outside the joint range for joints "
-                          f"{[cfg.robot.joints[i] for i in bad]}")
+                          f"{[joint_names[i] for i in bad]}")
 
     dt = float(model.opt.timestep)
     ratio = cfg.control.period / dt
@@ -239,6 +280,7 @@ def _resolve(model: mujoco.MjModel, cfg: SceneConfig, xml_path: Path) -> Scene:
         ee_site_id=site, moving_body_ids=np.array(mov_b, dtype=np.int32),
         moving_mocap_ids=np.array(mov_m, dtype=np.int32), goal_positions=goals,
         goal_dwell=np.array([g.dwell for g in cfg.task.goals]),
+        arm_joint_names=tuple(joint_names), ee_body_id=ee_body, ee_offset=ee_offset,
     )
 
 

@@ -42,9 +42,9 @@ import numpy as np
 from isf_robot.core import ConfigError, LieData, MetricsAccumulator, Observer, Observers, QPSolver, as_class_k
 from isf_robot.core.strategies import make_strategy, strategy_info
 
+from .actuation import Actuation, make_actuation
 from .barriers import CollisionBarriers, JointLimitBarriers
 from .episode import EpisodeSetup, check_control_period, episode_setup, path_track
-from .actuation import Actuation, make_actuation
 from .monitor import SafetyMonitor
 from .nominal import NominalController, ReachingController
 from .params import resolve_params
@@ -347,7 +347,7 @@ class _Episode:
             closest=tuple(cb.names[i] for i in order), witness=cb.witness[act],
             witness_names=tuple(cb.names[i] for i in act.tolist()),
             mocap_pos=data.mocap_pos.copy(), mocap_quat=data.mocap_quat.copy(),
-            ee_pos=data.site_xpos[scene.ee_site_id].copy(), goal_index=gi, goal_pos=goal,
+            ee_pos=np.array(scene.ee_position(data)), goal_index=gi, goal_pos=goal,
             event=step.event, fallback=bool(step.fallback), relaxed=tuple(step.relaxed),
         )
 

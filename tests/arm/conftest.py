@@ -77,7 +77,7 @@ def nominal_rollout() -> Callable[[Scene, float], float]:
             mujoco.mj_kinematics(m, data)
             mujoco.mj_comPos(m, data)
             worst = min(worst, cb.min_distance(data).distance)
-            err = scene.goal_positions[goal] - data.site_xpos[scene.ee_site_id]
+            err = scene.goal_positions[goal] - scene.ee_position(data)
             if np.linalg.norm(err) < task.tolerance:
                 held += dt
                 if held >= scene.goal_dwell[goal]:
@@ -86,7 +86,7 @@ def nominal_rollout() -> Callable[[Scene, float], float]:
             speed = np.linalg.norm(v)
             if speed > g.max_ee_speed:
                 v *= g.max_ee_speed / speed
-            mujoco.mj_jacSite(m, data, jac, None, scene.ee_site_id)
+            scene.ee_jacobian(data, jac)
             J = jac[:, scene.dof_adr]
             u = J.T @ np.linalg.solve(J @ J.T + g.dls_damping**2 * np.eye(3), v)
             top = np.max(np.abs(u)) / g.max_joint_speed

@@ -93,15 +93,22 @@ def test_every_scene_loads_and_resolves(name: str) -> None:
     n = sc.n_joints
     assert sc.name == name
     assert sc.qpos_adr.shape == sc.dof_adr.shape == (n,)
-    assert np.all(sc.actuator_ids >= 0), "every arm joint has a torque actuator"
+    assert np.all(sc.actuator_ids >= 0), "every arm joint has an actuator"
     assert np.all(np.isfinite(sc.torque_limit))
     for a, j in zip(sc.actuator_ids, sc.joint_ids):
         assert m.actuator_trnid[a, 0] == j
     assert sc.goal_positions.shape == (len(sc.config.task.goals), 3)
     assert np.all(np.isfinite(sc.goal_positions))
-    assert m.site(sc.ee_site_id).name == sc.config.robot.ee_site
-    assert [m.geom(g).name for g in sc.robot_geom_ids] == list(sc.config.robot.geoms)
-    assert [m.geom(g).name for g in sc.obstacle_geom_ids] == list(sc.config.obstacles.geoms)
+    rc = sc.config.robot
+    if rc.ee_site is not None:
+        assert m.site(sc.ee_site_id).name == rc.ee_site and sc.ee_body_id == m.site_bodyid[sc.ee_site_id]
+    else:
+        assert sc.ee_site_id == -1 and m.body(sc.ee_body_id).name == rc.ee_body
+    if rc.geoms and not (rc.bodies or rc.subtree):
+        assert [m.geom(g).name for g in sc.robot_geom_ids] == list(rc.geoms)
+    oc = sc.config.obstacles
+    if oc.geoms and not (oc.bodies or oc.subtree or oc.geom_group is not None):
+        assert [m.geom(g).name for g in sc.obstacle_geom_ids] == list(oc.geoms)
     assert len(sc.moving_mocap_ids) == len(sc.config.moving)
 
 
@@ -329,10 +336,10 @@ def test_every_goal_has_a_collision_free_pose(name: str) -> None:
                 d.qpos[sc.qpos_adr] = q
                 mujoco.mj_kinematics(m, d)
                 mujoco.mj_comPos(m, d)
-                err = goal - d.site_xpos[sc.ee_site_id]
+                err = goal - sc.ee_position(d)
                 if np.linalg.norm(err) < 1e-4:
                     break
-                mujoco.mj_jacSite(m, d, jac, None, sc.ee_site_id)
+                sc.ee_jacobian(d, jac)
                 J = jac[:, sc.dof_adr]
                 q = np.clip(q + J.T @ np.linalg.solve(J @ J.T + 1e-4 * np.eye(3), err), lo, hi)
             if np.linalg.norm(err) < 1e-3 and cb.min_distance(d).distance > sc.config.barrier.margin:
