@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from isf_robot.core import ConfigError, FilterQP, QPSolver, SolverError
+from isf_robot.core import ConfigError, FilterQP, QPSolver, SolverError, project_halfspace
 from isf_robot.core.qp_solver import BACKENDS
 
 
@@ -84,3 +84,15 @@ def test_solve_time_covers_the_whole_solve() -> None:
 def test_unknown_backend_lists_the_valid_ones() -> None:
     with pytest.raises(ConfigError, match="daqp, proxsuite, qpsolvers"):
         QPSolver(backend="osqp")
+
+
+# Found by hypothesis in test_qp_equals_closed_form_projection: ProxQP alone stopped 1.4e-5 away
+# from the optimum on this nearly degenerate row while reporting success; QPSolver's active-set
+# polish (checked against the KKT conditions) makes the answer exact.
+def test_proxqp_matches_projection_on_a_nearly_degenerate_row():
+    u_nom = np.array([0.0, 0.0, 0.00390625])
+    a = np.array([0.5, 0.0, 0.001953125])
+    res = QPSolver(backend="proxsuite", closed_form=False).solve(FilterQP(u_nom, a[None, :], np.array([0.0])))
+    np.testing.assert_allclose(res.u, project_halfspace(u_nom, a, 0.0), atol=1e-8, rtol=0)
+    raw = QPSolver(backend="proxsuite", closed_form=False, polish=False).solve(FilterQP(u_nom, a[None, :], np.array([0.0])))
+    assert raw.status == "optimal"  # the unpolished answer is what the polish exists for
