@@ -11,6 +11,7 @@ from collections.abc import Mapping
 from typing import Any, TextIO
 
 from isf_robot.core import ConfigError, Observer
+from isf_robot.core.report import with_schema
 from isf_robot.record.options import add_recording_args, make_observer
 from satellite.arcs import IntegratorSettings
 from satellite.contact import CONTACT_MODES
@@ -195,7 +196,7 @@ def run(args: argparse.Namespace) -> int:
                 {"t_h": e.t / 3600.0, "kind": e.kind, "dv": e.v.tolist(), "h_before": e.h_before,
                  "xi_after": e.xi_after} for e in res.events
             ]
-        sys.stdout.write(json.dumps(out) + "\n")
+        sys.stdout.write(json.dumps(with_schema("isf-satellite-run", out)) + "\n")
     else:
         sys.stdout.write(format_text(res) + "\n")
     return 0

@@ -136,8 +136,10 @@ class RerunRecorder(Observer):
         meta.setdefault("versions", self.versions())
         self.stream.log(schema.INFO, rr.AnyValues(kind=self.kind, info_json=json.dumps(meta)), static=True)
         self.stream.send_property("versions", rr.AnyValues(**meta["versions"]))
-        # as text: Rerun fixes a field's type at its first use in a process (runs differ: 5 vs 5.0)
-        settings = {k: str(v) for k, v in meta.items() if isinstance(v, (str, int, float, bool)) and k != "kind"}
+        # As text, under names of their own: Rerun fixes the type of an AnyValues field name at its
+        # first use in a process (runs differ, 5 vs 5.0; and /replay/steps has a float "dt").
+        settings = {f"setting_{k}": str(v) for k, v in meta.items()
+                    if isinstance(v, (str, int, float, bool)) and k != "kind"}
         if settings:
             self.stream.send_property("run", rr.AnyValues(**settings))
         self.stream.log(f"{schema.PLOTS}/mode", rr.SeriesLines(names="filter on"), static=True)

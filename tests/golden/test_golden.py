@@ -18,6 +18,9 @@ Changes so far, each deliberate:
   default (``--contact count``, the trajectory unchanged): new keys only, ``contact_mode``,
   ``contact_model``, ``surface_contacts``, ``first_contact_h``, ``contact_stopped``,
   ``envelope_passes``, ``min_pass_clearance_m`` (this orbit passes 11 m deep through the shape).
+* Versioned outputs (issue 12, item 3): one new key in every case, ``"schema"``
+  (``"isf-robot-run/1"``, ``"isf-satellite-run/1"``), added to the data files by hand (every
+  other value untouched, not regenerated).
 """
 
 from __future__ import annotations
