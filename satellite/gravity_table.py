@@ -1,0 +1,271 @@
+"""Fast gravity for long runs: the exact polyhedron field tabulated once on a body-frame shell grid.
+
+The table holds the non-Kepler part ``a - (-GM r / |r|^3)`` of the exact constant-density
+polyhedron field (:mod:`satellite.polyhedron`) at the nodes of a spherical grid in the body
+frame: radii ``r_k = r_lo + k dr`` (``k = 0 .. n_r - 1``), latitudes at the centres of
+``n_lat`` equal cells, longitudes at the centres of ``2 n_lat`` equal cells. Between nodes each
+Cartesian component is interpolated by Catmull-Rom cubics along radius, latitude and longitude
+(64 nodes, C1, third-order accurate); across the poles the neighbours are the nodes half a turn
+of longitude away (the Cartesian components are continuous there). The Kepler part is added
+back exactly. Outside ``[r_lo + dr, r_hi - dr]`` the exact field is evaluated (slow, correct).
+The interpolant is continuous except exactly at the poles, where its value depends on the
+longitude of approach by at most about twice the interpolation error.
+
+The grid is generated once (the polyhedron costs a few ms per node) and cached as ``.npz`` in
+:func:`cache_dir`, named by a hash of the mesh, ``GM`` and the grid; the measured accuracy of the
+default grid is in REPRODUCTION.md.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import tempfile
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from satellite.errors import GravityModelError
+from satellite.polyhedron import PolyhedronField
+
+__all__ = ["GravityTable", "TableGrid", "cache_dir", "build_table", "catmull_rom"]
+
+TABLE_FORMAT = "isf-satellite-gravity-table/1"
+
+
+def cache_dir() -> Path:
+    """``$ISF_SATELLITE_CACHE``, else ``~/.cache/isf_robot/satellite``."""
+    env = os.environ.get("ISF_SATELLITE_CACHE")
+    return Path(env) if env else Path.home() / ".cache" / "isf_robot" / "satellite"
+
+
+def catmull_rom(t: Any) -> tuple[Any, Any, Any, Any]:
+    """Weights of the nodes ``i-1, i, i+1, i+2`` at fraction ``t`` in ``[0, 1]`` of cell ``[i, i+1]``."""
+    t2, t3 = t * t, t * t * t
+    return (0.5 * (-t + 2 * t2 - t3), 0.5 * (2 - 5 * t2 + 3 * t3), 0.5 * (t + 4 * t2 - 3 * t3), 0.5 * (t3 - t2))
+
+
+class TableGrid:
+    """The grid of a table (see the module docstring).
+
+    Args:
+        r_lo: Smallest node radius [m].
+        r_hi: Largest node radius [m].
+        n_r: Radial nodes, >= 4.
+        n_lat: Latitude cells (longitude cells ``2 n_lat``), >= 4.
+
+    """
+
+    def __init__(self, r_lo: float, r_hi: float, n_r: int, n_lat: int) -> None:
+        if not (0 < r_lo < r_hi and n_r >= 4 and n_lat >= 4):
+            raise GravityModelError(f"bad table grid: r in [{r_lo}, {r_hi}] m, {n_r} radii, {n_lat} latitudes")
+        self.r_lo, self.r_hi = float(r_lo), float(r_hi)
+        self.n_r, self.n_lat, self.n_lon = int(n_r), int(n_lat), 2 * int(n_lat)
+        self.dr = (self.r_hi - self.r_lo) / (self.n_r - 1)
+        self.dang = math.pi / self.n_lat
+
+    def describe(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return {"r_lo_m": self.r_lo, "r_hi_m": self.r_hi, "n_r": self.n_r, "n_lat": self.n_lat, "n_lon": self.n_lon}
+
+    def nodes(self) -> NDArray[np.float64]:
+        """Node positions [m], shape (n_r, n_lat, n_lon, 3)."""
+        r = self.r_lo + self.dr * np.arange(self.n_r)
+        lat = -0.5 * math.pi + self.dang * (np.arange(self.n_lat) + 0.5)
+        lon = -math.pi + self.dang * (np.arange(self.n_lon) + 0.5)
+        la, lo = np.meshgrid(lat, lon, indexing="ij")
+        u = np.stack([np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)], axis=-1)
+        return r[:, None, None, None] * u[None]
+
+
+def _pad(values: NDArray[np.float64], n_lat: int) -> NDArray[np.float64]:
+    """Ghost nodes: two latitude rows past each pole (half a turn away), two longitudes wrapped on each side."""
+    half = values.shape[2] // 2
+    flip = np.roll(values, half, axis=2)
+    lat = np.concatenate([flip[:, 1::-1], values, flip[:, : n_lat - 3: -1]], axis=1)
+    return np.concatenate([lat[:, :, -2:], lat, lat[:, :, :2]], axis=2)
+
+
+class GravityTable:
+    """Body-frame gravity from a table of the exact field's non-Kepler part (see module docstring).
+
+    Args:
+        grid: The table's grid.
+        values: Non-Kepler acceleration [m/s^2] at the nodes, shape (n_r, n_lat, n_lon, 3).
+        r_ref_m: Reference radius R [m] (as the degree-8 table's, for the band).
+        gm: ``GM`` [m^3/s^2].
+        exact: The exact field (anything with ``acceleration((N, 3))``), used outside the table's
+            radii (``None``: an error there).
+        provenance: Where the table came from (stored with it).
+
+    """
+
+    degree = None
+    model_name = "polyhedron-table"
+
+    def __init__(self, grid: TableGrid, values: NDArray[np.float64], r_ref_m: float, gm: float,
+                 exact: Any = None, provenance: dict[str, Any] | None = None) -> None:
+        if values.shape != (grid.n_r, grid.n_lat, grid.n_lon, 3) or not np.isfinite(values).all():
+            raise GravityModelError(f"table values must be finite, shape {(grid.n_r, grid.n_lat, grid.n_lon, 3)}")
+        self.grid, self.values = grid, values
+        self.r_ref_m, self.gm = float(r_ref_m), float(gm)
+        self.exact = exact
+        self.provenance = dict(provenance or {})
+        self._ext = np.ascontiguousarray(_pad(values, grid.n_lat))
+        self._r_in, self._r_out = grid.r_lo + grid.dr, grid.r_hi - grid.dr
+
+    # -- evaluation ---------------------------------------------------------------------------
+    def acceleration(self, r_body: ArrayLike) -> NDArray[np.float64]:
+        """Acceleration [m/s^2] at one body-frame point [m] (shape (3,)); (k, 3) goes to the batch path."""
+        p = np.asarray(r_body, dtype=np.float64)
+        if p.ndim == 2:
+            return self.acceleration_batch(p)
+        x, y, z = p.tolist()
+        r2 = x * x + y * y + z * z
+        r = math.sqrt(r2)
+        if not self._r_in <= r <= self._r_out:
+            return self._exact(p.reshape(1, 3))[0]
+        g = self.grid
+        u = (r - g.r_lo) / g.dr
+        k = min(int(u), g.n_r - 3)
+        v = (math.asin(z / r) + 0.5 * math.pi) / g.dang - 0.5
+        i = int(math.floor(v))
+        w = (math.atan2(y, x) + math.pi) / g.dang - 0.5
+        j = int(math.floor(w))
+        block = self._ext[k - 1: k + 3, i + 1: i + 5, j + 1: j + 5]  # two ghost nodes before each axis
+        wr, wl, wn = catmull_rom(u - k), catmull_rom(v - i), catmull_rom(w - j)
+        nk = np.einsum("a,b,c,abcd->d", np.array(wr), np.array(wl), np.array(wn), block)
+        kep = -self.gm / (r2 * r)
+        return nk + kep * p  # type: ignore[no-any-return]
+
+    def acceleration_batch(self, r_body: ArrayLike) -> NDArray[np.float64]:
+        """Acceleration [m/s^2] at body-frame points [m], shape (N, 3) -> (N, 3)."""
+        p = np.asarray(r_body, dtype=np.float64).reshape(-1, 3)
+        g = self.grid
+        r = np.linalg.norm(p, axis=1)
+        out = np.empty_like(p)
+        ok = (r >= self._r_in) & (r <= self._r_out)
+        if (~ok).any():
+            out[~ok] = self._exact(p[~ok])
+        q, rq = p[ok], r[ok]
+        u = (rq - g.r_lo) / g.dr
+        k = np.minimum(u.astype(np.intp), g.n_r - 3)
+        v = (np.arcsin(q[:, 2] / rq) + 0.5 * math.pi) / g.dang - 0.5
+        i = np.floor(v).astype(np.intp)
+        w = (np.arctan2(q[:, 1], q[:, 0]) + math.pi) / g.dang - 0.5
+        j = np.floor(w).astype(np.intp)
+        wr, wl, wn = (np.stack(catmull_rom(t), axis=1) for t in (u - k, v - i, w - j))
+        acc = np.zeros((len(q), 3))
+        for a in range(4):
+            for b in range(4):
+                wab = wr[:, a] * wl[:, b]
+                for c in range(4):
+                    acc += (wab * wn[:, c])[:, None] * self._ext[k - 1 + a, i + 1 + b, j + 1 + c]
+        out[ok] = acc - self.gm * q / (rq**3)[:, None]
+        return out
+
+    def _exact(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
+        if self.exact is None:
+            raise GravityModelError(
+                f"point(s) outside the table's radii [{self._r_in:.4g}, {self._r_out:.4g}] m and no exact field")
+        return self.exact.acceleration(p)
+
+    # -- files -------------------------------------------------------------------------------
+    def save(self, path: str | Path) -> None:
+        """Write the table as ``.npz`` (atomically: a temporary file renamed into place)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        meta = {"format": TABLE_FORMAT, "grid": self.grid.describe(), "r_ref_m": self.r_ref_m, "gm": self.gm,
+                "provenance": self.provenance}
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                np.savez(fh, values=self.values, meta=np.array(json.dumps(meta)))
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+
+    @classmethod
+    def load(cls, path: str | Path, exact: Any = None) -> GravityTable:
+        """Read a table written by :meth:`save`."""
+        try:
+            with np.load(path) as data:
+                values = np.asarray(data["values"], dtype=np.float64)
+                meta = json.loads(str(data["meta"]))
+        except (OSError, KeyError, ValueError) as exc:
+            raise GravityModelError(f"{path}: not a gravity table ({exc})") from None
+        if meta.get("format") != TABLE_FORMAT:
+            raise GravityModelError(f"{path}: format {meta.get('format')!r}, expected {TABLE_FORMAT!r}")
+        gr = meta["grid"]
+        grid = TableGrid(gr["r_lo_m"], gr["r_hi_m"], gr["n_r"], gr["n_lat"])
+        return cls(grid, values, meta["r_ref_m"], meta["gm"], exact, meta.get("provenance"))
+
+
+_WORKER: PolyhedronField | None = None
+
+
+def _init(field: PolyhedronField) -> None:
+    global _WORKER
+    _WORKER = field
+
+
+def _chunk(points: NDArray[np.float64]) -> NDArray[np.float64]:
+    assert _WORKER is not None
+    return _WORKER.acceleration(points)
+
+
+def build_table(field: PolyhedronField, grid: TableGrid, r_ref_m: float, *, workers: int = 1,
+                progress: Callable[[int, int], None] | None = None,
+                provenance: dict[str, Any] | None = None) -> GravityTable:
+    """Evaluate the exact field at every node of ``grid`` (in ``workers`` processes) and tabulate it.
+
+    Args:
+        field: The exact field.
+        grid: The grid.
+        r_ref_m: Reference radius R [m] of the table.
+        workers: Processes (1: in this process).
+        progress: Called with ``(nodes done, nodes)`` after each chunk.
+        provenance: Stored with the table.
+
+    """
+    nodes = grid.nodes().reshape(-1, 3)
+    chunks = [nodes[s: s + 512] for s in range(0, len(nodes), 512)]
+    out: list[NDArray[np.float64]] = []
+    done = 0
+    if workers <= 1:
+        for c in chunks:
+            out.append(field.acceleration(c))
+            done += len(c)
+            if progress:
+                progress(done, len(nodes))
+    else:
+        with ProcessPoolExecutor(workers, initializer=_init, initargs=(field,)) as pool:
+            try:
+                for c, a in zip(chunks, pool.map(_chunk, chunks)):
+                    out.append(a)
+                    done += len(c)
+                    if progress:
+                        progress(done, len(nodes))
+            except BaseException:
+                pool.shutdown(wait=False, cancel_futures=True)
+                raise
+    acc = np.concatenate(out)
+    r = np.linalg.norm(nodes, axis=1)
+    values = (acc + field.gm * nodes / (r**3)[:, None]).reshape(grid.n_r, grid.n_lat, grid.n_lon, 3)
+    return GravityTable(grid, values, r_ref_m, field.gm, field, provenance)
+
+
+def table_key(field: PolyhedronField, grid: TableGrid) -> str:
+    """Hash naming a cached table: the mesh, ``GM`` and the grid."""
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(field.vertices).tobytes())
+    h.update(np.ascontiguousarray(field.faces).tobytes())
+    h.update(json.dumps({"gm": field.gm, **grid.describe(), "format": TABLE_FORMAT}).encode())
+    return h.hexdigest()[:16]
