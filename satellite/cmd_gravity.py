@@ -49,8 +49,16 @@ def register(subparsers: Any) -> None:
         "--shape", required=True, metavar="PATH.obj", help="closed triangle mesh (OBJ)"
     )
     parser.add_argument(
-        "--degree", required=True, type=int, metavar="N", help=f"degree and order, 0..{MAX_DEGREE}"
+        "--degree", type=int, metavar="N", help=f"degree and order, 0..{MAX_DEGREE} (spherical harmonics)"
     )
+    parser.add_argument(
+        "--table", action="store_true",
+        help="instead: tabulate the exact polyhedron field on a shell grid over [1.5R, 2.5R] (.npz; the "
+             "`--gravity table` model; a few ms of CPU per node)",
+    )
+    parser.add_argument("--n-lat", type=int, default=45, help="--table: latitude cells (default 45, 4 deg)")
+    parser.add_argument("--n-r", type=int, default=17, help="--table: radial nodes (default 17)")
+    parser.add_argument("--workers", type=int, default=1, help="--table: worker processes (default 1)")
     parser.add_argument(
         "--mass",
         type=float,
@@ -64,7 +72,7 @@ def register(subparsers: Any) -> None:
         default="km",
         help="length unit of the OBJ coordinates (default km, as in the Gaskell model)",
     )
-    parser.add_argument("--out", required=True, metavar="FILE.json", help="output JSON file")
+    parser.add_argument("--out", required=True, metavar="FILE", help="output file (.json; .npz with --table)")
     parser.set_defaults(func=run)
 
 
@@ -122,10 +130,14 @@ def run(args: argparse.Namespace) -> int:
     shape = Path(args.shape)
     if not shape.is_file():
         raise FileNotFoundError(f"shape file not found: {shape}")
-    if not 0 <= args.degree <= MAX_DEGREE:
-        raise GravityModelError(f"--degree must be in 0..{MAX_DEGREE}, got {args.degree}")
     if not args.mass > 0.0 or args.mass == float("inf"):
         raise GravityModelError(f"--mass must be a positive number of kg, got {args.mass:g}")
+    if args.table:
+        return _table(args, shape)
+    if args.degree is None:
+        raise GravityModelError("--degree N is required (or --table)")
+    if not 0 <= args.degree <= MAX_DEGREE:
+        raise GravityModelError(f"--degree must be in 0..{MAX_DEGREE}, got {args.degree}")
     field = GravityField.from_mesh(shape, args.degree, mass_kg=args.mass, units=args.units)
     out = Path(args.out)
     field.to_json(out, provenance=provenance_for(shape, args.degree, args.mass, args.units, out))
@@ -134,4 +146,27 @@ def run(args: argparse.Namespace) -> int:
         f"gm {field.gm:.6g} m^3/s^2",
         file=sys.stdout,
     )
+    return 0
+
+
+def _table(args: argparse.Namespace, shape: Path) -> int:
+    """``isf-satellite gravity --table``: the exact field tabulated (see :mod:`satellite.gravity_table`)."""
+    from satellite.gravity_table import TableGrid, build_table
+    from satellite.mesh import read_obj
+    from satellite.polyhedron import PolyhedronField
+
+    if args.n_lat < 4 or args.n_r < 4 or args.workers < 1:
+        raise GravityModelError("--n-lat and --n-r must be >= 4 and --workers >= 1")
+    mesh = read_obj(shape, units=args.units)
+    field = PolyhedronField.from_mesh(mesh, G_CODATA2018 * args.mass)
+    r_ref = float(mesh.volume_equivalent_radius)
+    grid = TableGrid(1.5 * r_ref, 2.5 * r_ref, args.n_r, args.n_lat)
+    prov = provenance_for(shape, 0, args.mass, args.units, Path(args.out))
+    prov["generator"] = (f"isf-satellite gravity --table --shape {shape.as_posix()} --mass {args.mass:g} "
+                         f"--units {args.units} --n-lat {args.n_lat} --n-r {args.n_r} --out {args.out}")
+    prov["model"] = "exact constant-density polyhedron (Werner and Scheeres 1997), non-Kepler part tabulated"
+    table = build_table(field, grid, r_ref, workers=args.workers, provenance=prov)
+    table.save(args.out)
+    print(f"wrote {args.out}: {grid.n_r} x {grid.n_lat} x {grid.n_lon} nodes, r in [{grid.r_lo:.6g}, "
+          f"{grid.r_hi:.6g}] m", file=sys.stdout)
     return 0

@@ -118,3 +118,27 @@ def test_console_entry_runs_without_traceback(tmp_path):
     )  # fmt: skip
     assert proc.returncode == 2
     assert proc.stderr.strip().startswith("isf-satellite gravity: error: shape file not found")
+
+
+def test_gravity_table_command(tmp_path, helpers, capsys):
+    from satellite.gravity_table import GravityTable
+    from satellite.mesh import read_obj
+    from satellite.polyhedron import PolyhedronField
+
+    v, f = helpers.icosphere(1)
+    obj = helpers.write_obj(tmp_path / "ball.obj", v * np.array([1.5, 1.0, 0.8]) * 100.0, f)  # metres
+    out = tmp_path / "t.npz"
+    argv = ["gravity", "--table", "--shape", str(obj), "--units", "m", "--mass", "1e10", "--n-lat", "8",
+            "--n-r", "5", "--out", str(out)]
+    assert main(argv) == 0
+    assert "5 x 8 x 16 nodes" in capsys.readouterr().out
+    table = GravityTable.load(out)
+    mesh = read_obj(obj, units="m")
+    exact = PolyhedronField.from_mesh(mesh, G_CODATA2018 * 1e10)
+    nodes = table.grid.nodes()
+    got = table.values[1, 3, 5] - G_CODATA2018 * 1e10 * nodes[1, 3, 5] / np.linalg.norm(nodes[1, 3, 5]) ** 3
+    np.testing.assert_allclose(got, exact.acceleration(nodes[1, 3, 5][None])[0], rtol=1e-12)
+    assert table.provenance["generator"].startswith("isf-satellite gravity --table")
+    assert table.r_ref_m == pytest.approx(mesh.volume_equivalent_radius)
+    assert main(["gravity", "--shape", str(obj), "--out", str(tmp_path / "x.json")]) == 2
+    assert "--degree N is required" in capsys.readouterr().err
