@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from isf_robot.core import ConfigError
+from isf_robot.paths import shared_data_dir
 from satellite.errors import MeshError
 from satellite.mesh import TriangleMesh, read_obj
 from satellite.shapes import EllipsoidSurface, SurfaceModel, winding_numbers
@@ -31,8 +32,12 @@ __all__ = ["MeshSurface", "default_shape_path", "load_surface", "body_mesh_info"
 
 
 def default_shape_path() -> Path:
-    """Return ``<repo>/../shared/data/itokawa/itokawa_low.obj`` (which may not exist)."""
-    return Path(__file__).resolve().parents[1].parent / "shared" / "data" / "itokawa" / "itokawa_low.obj"
+    """Return ``<shared data>/itokawa/itokawa_low.obj`` (which may not exist).
+
+    The shared data folder is ``$ISF_ROBOT_DATA`` or ``../shared/data`` beside the checkout (see
+    :func:`isf_robot.paths.shared_data_dir`).
+    """
+    return shared_data_dir() / "itokawa" / "itokawa_low.obj"
 
 
 _SMALL_FACE_RAD = math.radians(17.0)
