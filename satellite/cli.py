@@ -18,7 +18,7 @@ import importlib.util
 import sys
 from collections.abc import Sequence
 
-from isf_robot.cli.errors import EXIT_USAGE, OneLineParser, run_handler
+from isf_robot.cli.errors import EXIT_USAGE, OneLineParser, parse_command, run_handler
 
 __all__ = ["SUBCOMMAND_MODULES", "EXIT_USAGE", "build_parser", "main"]
 
@@ -56,8 +56,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         The exit status: 0 on success, 2 on a user error (one-line message on stderr).
 
     """
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    _, args = parse_command("isf-satellite", build_parser, argv)
     return run_handler("isf-satellite", args.func, args)
 
 

@@ -111,3 +111,28 @@ def test_interrupted_satellite_recording_keeps_the_previous_file(tmp_path: Path)
     assert proc.returncode == 130 and "Traceback" not in err
     assert rrd.read_bytes() == b"previous recording"
     assert (tmp_path / "sat.rrd.partial").stat().st_size > 0
+
+
+# Ctrl-C while a command line is still importing its command modules (before any handler runs):
+# the process signals itself from inside the import, the way a user's early Ctrl-C lands.
+_EARLY = """
+import importlib, os, signal, sys
+real = importlib.import_module
+def interrupted_import(name, *a, **k):
+    if name == {module!r}:
+        os.kill(os.getpid(), signal.SIGINT)
+    return real(name, *a, **k)
+importlib.import_module = interrupted_import
+from {cli} import main
+sys.exit(main(["--help"]))
+"""
+
+
+@pytest.mark.parametrize(("cli", "module", "prog"), [
+    ("isf_robot.cli", "isf_robot.cli.replay", "isf-robot"),
+    ("satellite.cli", "satellite.cmd_run", "isf-satellite")])
+def test_ctrl_c_while_importing_commands_is_one_line(cli: str, module: str, prog: str) -> None:
+    code = _EARLY.format(cli=cli, module=module)
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 130, proc.stderr
+    assert "Traceback" not in proc.stderr and proc.stderr.strip() == f"{prog}: interrupted"

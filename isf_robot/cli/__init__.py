@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 from isf_robot import __version__
 
-from .errors import EXIT_USAGE, OneLineParser, run_handler
+from .errors import EXIT_USAGE, OneLineParser, parse_command, run_handler
 
 __all__ = ["main", "build_parser", "COMMAND_MODULES"]
 
@@ -46,8 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the process exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    parser, args = parse_command("isf-robot", build_parser, argv)
     handler = getattr(args, "handler", None)
     if handler is None:
         parser.print_help()

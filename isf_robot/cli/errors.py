@@ -22,13 +22,14 @@ import argparse
 import os
 import signal
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, NoReturn
 
 from isf_robot.core.exceptions import IsfError
 from isf_robot.core.parallel import Interrupted, Terminated
 
-__all__ = ["EXIT_USAGE", "EXIT_INTERRUPTED", "EXIT_TERMINATED", "run_handler", "one_line", "OneLineParser"]
+__all__ = ["EXIT_USAGE", "EXIT_INTERRUPTED", "EXIT_TERMINATED", "run_handler", "parse_command", "one_line",
+           "OneLineParser"]
 
 EXIT_USAGE = 2
 """Exit status of a user error."""
@@ -67,6 +68,22 @@ def _quiet_stdout_if_broken() -> None:
 
 def _raise_terminated(signum: int, frame: Any) -> None:
     raise Terminated()
+
+
+def parse_command(
+    prog: str, build: Callable[[], argparse.ArgumentParser], argv: Sequence[str] | None
+) -> tuple[argparse.ArgumentParser, argparse.Namespace]:
+    """Build the parser (importing the command modules) and parse ``argv``.
+
+    Ctrl-C in this phase, before :func:`run_handler` has started, prints ``<prog>: interrupted``
+    and exits 130 like everywhere else, instead of the interpreter's traceback.
+    """
+    try:
+        parser = build()
+        return parser, parser.parse_args(argv)
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        raise SystemExit(EXIT_INTERRUPTED) from None
 
 
 def run_handler(prog: str, handler: Handler, args: argparse.Namespace) -> int:
