@@ -66,6 +66,12 @@ def _quiet_stdout_if_broken() -> None:
         _quiet_stdout()
 
 
+def _deferred_record_errors() -> list[BaseException]:
+    """Recording failures kept while the handler ran (only if the Rerun layer was loaded at all)."""
+    errors = sys.modules.get("isf_robot.record.errors")
+    return list(errors.take_deferred_errors()) if errors is not None else []
+
+
 def _raise_terminated(signum: int, frame: Any) -> None:
     raise Terminated()
 
@@ -93,7 +99,10 @@ def run_handler(prog: str, handler: Handler, args: argparse.Namespace) -> int:
     try:
         code = int(handler(args) or 0)
         sys.stdout.flush()  # a full or closed stdout fails here, inside the error path
-        return code
+        failed = _deferred_record_errors()
+        for exc in failed:  # recordings that could not be written, reported after the run's results
+            print(f"{where}: error: {one_line(exc)}", file=sys.stderr)
+        return EXIT_USAGE if failed and code == 0 else code
     except KeyboardInterrupt as exc:
         terminated = isinstance(exc, Terminated) or (isinstance(exc, Interrupted) and exc.terminated)
         print(f"{where}: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)

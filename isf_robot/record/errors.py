@@ -11,7 +11,7 @@ from pathlib import Path
 
 from isf_robot.core.exceptions import ConfigError
 
-__all__ = ["RecordError", "RecordingReadError", "ViewerUnavailableError"]
+__all__ = ["RecordError", "RecordingReadError", "ViewerUnavailableError", "defer_error", "take_deferred_errors"]
 
 
 class RecordError(ConfigError):
@@ -35,3 +35,24 @@ class RecordingReadError(RecordError):
         self.path = Path(path)
         self.reason = reason
         super().__init__(f"cannot replay {str(self.path)!r}: {reason}")
+
+
+_DEFERRED: list[RecordError] = []
+
+
+def defer_error(exc: RecordError) -> None:
+    """Keep a recording failure found when a run finished (e.g. the disk filled up).
+
+    A recorder's ``on_finish`` must not lose the run's results for a failed file, so it keeps the
+    error here instead of raising it; the command line reports it after printing the results
+    (:func:`isf_robot.cli.errors.run_handler`, exit status 2). Library users find it on the
+    recorder's ``error`` attribute and here.
+    """
+    _DEFERRED.append(exc)
+
+
+def take_deferred_errors() -> list[RecordError]:
+    """Return and forget the recording failures kept by :func:`defer_error`."""
+    out = list(_DEFERRED)
+    _DEFERRED.clear()
+    return out

@@ -205,8 +205,11 @@ class PerRunRecorder(Observer):
     def on_finish(self, summary: Mapping[str, Any]) -> None:
         """Finish and close the current run's recording."""
         if self._current is not None:
-            self._current.on_finish(summary)
-            self._current = None
+            current, self._current = self._current, None
+            current.on_finish(summary)
+            error = getattr(current, "error", None)
+            if error is not None:  # one file of many failed (e.g. disk full): stop the batch with it
+                raise error
 
     def on_abort(self, reason: BaseException) -> None:
         """The run stopped early: its recording stays ``<name>.rrd.partial``."""

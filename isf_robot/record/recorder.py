@@ -28,6 +28,7 @@ from isf_robot.core.report import to_jsonable
 
 from . import schema
 from .buffer import Channel, ColumnBuffer
+from .errors import RecordError, defer_error
 from .stream import close_stream
 
 __all__ = ["RerunRecorder", "to_jsonable", "finite_scalars"]
@@ -89,6 +90,7 @@ class RerunRecorder(Observer):
         self.buffer = ColumnBuffer(stream, capacity)
         self.close_on_finish = close_on_finish
         self.closed = False
+        self.error: RecordError | None = None  # a file that could not be written (see on_finish)
         self.steps = 0
         self.events = 0
         self._steps = self.make_step_channel()
@@ -177,7 +179,11 @@ class RerunRecorder(Observer):
         self.finish_content(summary)
         self.buffer.flush()
         if self.close_on_finish:
-            self.close()
+            try:
+                self.close()
+            except RecordError as exc:  # the run's results are not lost for it: reported after them
+                self.error = exc
+                defer_error(exc)
 
     def close(self, *, complete: bool = True) -> None:
         """Flush whatever is buffered and close the stream (idempotent).

@@ -134,10 +134,22 @@ def close_stream(rec: rr.RecordingStream, *, complete: bool = True) -> Path | No
     Returns:
         The completed recording file (``None`` without a file or when not ``complete``).
 
+    Raises:
+        RecordError: The file writer failed (e.g. the disk is full; Rerun reports it only at the
+            flush): nothing is renamed, so ``<name>.partial`` keeps what was written.
+
     """
-    rec.flush()
-    rec.disconnect()
     path = _TARGETS.pop(id(rec), None)
+    try:
+        rec.flush()
+        rec.disconnect()
+    except RuntimeError as exc:  # the file writer died: disk full, file removed, ...
+        why = " ".join(str(exc).split())
+        if path is None:
+            raise RecordError(f"the recording stream failed: {why}") from exc
+        raise RecordError(
+            f"the recording could not be written ({why}; disk full?): what was written stays in "
+            f"{str(partial_path(path))!r} and {str(path)!r} was not touched") from exc
     if path is None or not complete:
         return None
     try:
