@@ -116,7 +116,7 @@ def actuator_info(model: mujoco.MjModel, actuator: int, joint_name: str = "") ->
     if bias == int(mujoco.mjtBias.mjBIAS_NONE):
         kind, kp, kv = "torque", 0.0, 0.0
     elif bias == int(mujoco.mjtBias.mjBIAS_AFFINE) and b0 == 0.0 and _close(b1, -g) and b2 <= 0:
-        kind, kp, kv = "position", g, -b2
+        kind, kp, kv = "position", g, -b2 + 0.0  # + 0.0: no "-0" for a servo without kv
     elif bias == int(mujoco.mjtBias.mjBIAS_AFFINE) and b0 == 0.0 and b1 == 0.0 and _close(b2, -g):
         kind, kp, kv = "velocity", 0.0, g
     else:
@@ -151,15 +151,20 @@ class ServoTracker:
     Position servo of joint i (gear g, gain kp, servo damping kv, joint damping b)::
 
         q_ref  <- q + clip(q_ref + u dt - q, +-max_ref_error)     every physics step
-        target =  clip(q_ref + lead u, joint range)                lead = (g^2 kv + b) / (g^2 kp)
-        ctrl   =  clip(g target, ctrlrange)
+        tau_ff =  M_ii a_ff + c_i(q, q_dot)                        (feedforward torque [N m])
+        target =  clip(q_ref + lead u + tau_ff / (g^2 kp), joint range)
+        ctrl   =  clip(g target, ctrlrange)                        lead = (g^2 kv + b) / (g^2 kp)
 
     The lead is a velocity feedforward through the target: at ``q = q_ref`` and
     ``q_dot = u`` the servo's torque ``g kp (ctrl - g q) - g^2 kv q_dot`` then equals the joint
     damping ``b u``, so a constant command is followed without the lag ``lead u`` a plain
-    integrated target would have. The joint then behaves as a PD loop on the velocity error
-    (stiffness ``g^2 kp``, damping ``g^2 kv + b``); gravity leaves a static offset of
-    ``q_ref - q`` but no velocity error. The clip keeps a blocked arm from winding the target up.
+    integrated target would have. ``tau_ff`` feeds the torque the motion needs through the
+    target as well: the acceleration ``a_ff = (u_k - u_{k-1}) / T`` after a change of the
+    command (held for one control period T, as in
+    :class:`~isf_robot.arm.lowlevel.VelocityTracker`) times the joint's diagonal mass-matrix
+    entry, and the bias forces ``c = qfrc_bias`` (gravity, Coriolis). The joint then behaves as a
+    PD loop on the remaining velocity error (stiffness ``g^2 kp``, damping ``g^2 kv + b``).
+    The clip keeps a blocked arm from winding the target up.
 
     Velocity servo: ``ctrl = clip(g u, ctrlrange)``.
 
@@ -167,7 +172,7 @@ class ServoTracker:
         scene: The scene.
         infos: The arm actuators (:func:`arm_actuators`), position or velocity servos only.
         max_ref_error: Clip on ``q_ref - q`` [rad].
-        feedforward: Use the lead term (``False``: a plain integrated target).
+        feedforward: Use the lead and ``tau_ff`` (``False``: a plain integrated target).
 
     """
 
@@ -194,6 +199,10 @@ class ServoTracker:
         with np.errstate(divide="ignore", invalid="ignore"):
             lead = np.where(self._pos, (gear ** 2 * kv + damping) / (gear ** 2 * kp), 0.0)
         self.lead = lead if self.feedforward else np.zeros(self.n)
+        with np.errstate(divide="ignore"):
+            self._inv_k = np.where(self._pos & self.feedforward, 1.0 / (gear ** 2 * kp), 0.0)
+        self._mdiag = (model.M_rowadr + model.M_rownnz - 1)[self._dof]
+        self.a_ff = np.zeros(self.n)
         rng = scene.joint_range
         self._qlo, self._qhi = rng[:, 0], rng[:, 1]
         limited = model.actuator_ctrllimited[self._act].astype(bool)
@@ -212,9 +221,18 @@ class ServoTracker:
         """Set the target to the current joint positions and the command to the current velocity."""
         self.q_ref[:] = data.qpos[self._qadr]
         self.u[:] = data.qvel[self._dof]
+        self.a_ff[:] = 0.0
 
     def set_command(self, u: np.ndarray, period: float | None = None) -> None:
-        """Hold the commanded joint velocity ``u`` [rad/s], shape (n,), until the next call."""
+        """Hold the commanded joint velocity ``u`` [rad/s], shape (n,), until the next call.
+
+        With ``period`` (the time to the next call [s]) the acceleration ``(u - u_previous) /
+        period`` is fed forward until then.
+        """
+        if self.feedforward and period is not None and period > 0:
+            self.a_ff[:] = (np.asarray(u) - self.u) / period
+        else:
+            self.a_ff[:] = 0.0
         self.u[:] = u
 
     def apply(self, data: mujoco.MjData) -> None:
@@ -222,7 +240,8 @@ class ServoTracker:
         q = data.qpos[self._qadr]
         err = np.clip(self.q_ref + self.u * self._dt - q, -self.max_ref_error, self.max_ref_error)
         self.q_ref[:] = q + err
-        target = np.clip(self.q_ref + self.lead * self.u, self._qlo, self._qhi)
+        tau = data.M[self._mdiag] * self.a_ff + data.qfrc_bias[self._dof]
+        target = np.clip(self.q_ref + self.lead * self.u + tau * self._inv_k, self._qlo, self._qhi)
         ctrl = np.where(self._pos, target, self.u) * self._gear
         data.ctrl[self._act] = np.clip(ctrl, self._clo, self._chi)
 
