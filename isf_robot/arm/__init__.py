@@ -12,7 +12,7 @@ from isf_robot._exports import lazy_exports
 _EXPORTS: dict[str, str] = {
     # scenes and their config (the TOML schema, its reader, obstacle paths)
     "Scene": "scene", "SceneInfo": "scene", "list_scenes": "scene", "load_scene": "scene",
-    "load_scene_from_files": "scene",
+    "load_scene_from_files": "scene", "build_scene": "build",
     "SceneConfig": "config_schema", "RobotConfig": "config_schema", "ObstacleConfig": "config_schema",
     "Goal": "config_schema", "TaskConfig": "config_schema", "BarrierConfig": "config_schema",
     "GainsConfig": "config_schema", "FilterConfig": "config_schema", "ControlConfig": "config_schema",
@@ -28,6 +28,8 @@ _EXPORTS: dict[str, str] = {
     "JointPDController": "nominal", "VelocityTracker": "lowlevel",
     "make_actuation": "actuation", "ServoTracker": "actuation", "TorqueTracker": "actuation",
     "ActuatorInfo": "actuation", "actuator_info": "actuation",
+    "Finding": "diagnostics", "check_scene": "diagnostics", "check_calibration": "diagnostics",
+    "run_findings": "diagnostics", "starter_toml": "starter",
     "Calibration": "calibration", "calibrate_d_bar": "calibration", "clear_calibration_cache": "calibration",
     # simulation: episodes, the loop, its records
     "EpisodeSetup": "episode", "check_control_period": "episode", "episode_setup": "episode",

@@ -137,6 +137,7 @@ def calibrate_d_bar(
         raise ConfigError("switch_period must be > 0 [s] and excitation >= 0")
     params = (duration, quantile, factor, excitation, switch_period, seed)
     key = _key(scene, params)
+    use_cache = use_cache and scene.xml_path is not None  # a scene built in memory has no file to key on
     if use_cache and key in _CACHE:
         return _CACHE[key]
 

@@ -59,7 +59,7 @@ class Scene:
         name: Scene name.
         model: The compiled MuJoCo model.
         config: The parsed config.
-        xml_path: The MJCF file.
+        xml_path: The MJCF file (``None`` for a scene built from an ``MjModel``).
         joint_ids: Arm joint ids, shape (n,).
         qpos_adr: Addresses of the arm joints in ``qpos``, shape (n,).
         dof_adr: Addresses of the arm joints in ``qvel`` (dof indices), shape (n,).
@@ -84,7 +84,7 @@ class Scene:
     name: str
     model: mujoco.MjModel
     config: SceneConfig
-    xml_path: Path
+    xml_path: Path | None
     joint_ids: np.ndarray
     qpos_adr: np.ndarray
     dof_adr: np.ndarray
@@ -177,7 +177,7 @@ def _torque_limit(model: mujoco.MjModel, a: int) -> float:
     return float(lim)
 
 
-def _resolve(model: mujoco.MjModel, cfg: SceneConfig, xml_path: Path) -> Scene:
+def _resolve(model: mujoco.MjModel, cfg: SceneConfig, xml_path: Path | None) -> Scene:
     origin = str(cfg.source) if cfg.source is not None else "<config>"
     jt = mujoco.mjtJoint
     joint_ids = []

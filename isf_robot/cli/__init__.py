@@ -24,6 +24,7 @@ COMMAND_MODULES = (
     "isf_robot.cli.arm",
     "isf_robot.cli.replay",
     "isf_robot.cli.core_demo",
+    "isf_robot.cli.setup",
 )
 
 

@@ -51,10 +51,13 @@ def _add_filter_args(p: argparse.ArgumentParser) -> None:
 
 def _params(args: argparse.Namespace, scene: Any) -> dict[str, Any]:
     """ArmSimulation keyword arguments from the flags, the filter parameters resolved once."""
+    from isf_robot.arm.diagnostics import run_findings
     from isf_robot.arm.params import resolve_params
 
     out: dict[str, Any] = {"params": resolve_params(
         scene, args.alpha, args.c, args.b, args.d_bar)}
+    for f in run_findings(scene, out["params"]):  # what `isf-robot check` reports, before the run
+        print(f"warning [{f.code}]: {f.message}", file=sys.stderr)
     if getattr(args, "control_period", None) is not None:
         out["control_period"] = args.control_period
     return out
