@@ -25,6 +25,7 @@ COMMAND_MODULES = (
     "isf_robot.cli.replay",
     "isf_robot.cli.core_demo",
     "isf_robot.cli.setup",
+    "isf_robot.cli.render",
 )
 
 

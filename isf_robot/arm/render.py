@@ -1,0 +1,275 @@
+"""Offscreen pictures of an arm run: a GIF or MP4 video, or one PNG frame, with the filter mode shown.
+
+:class:`VideoRecorder` is an observer of :class:`~isf_robot.arm.ArmSimulation`: at the video's
+frame times it poses a copy of the run's model at the step record's ``q`` and mocap poses,
+renders it with MuJoCo's offscreen :class:`mujoco.Renderer` (the robot and obstacle geoms drawn
+whatever their group; the robot orange while the filter is on) and draws a banner with the time
+and the mode. The camera looks at the robot's workspace (its base and the reach of its geoms).
+
+Writers: ``.gif`` with Pillow (a dependency of rerun-sdk), ``.mp4`` with imageio and its
+ffmpeg (the ``video`` extra), ``.png`` one frame (Pillow). Files are written as
+``<name>.partial`` and renamed when complete.
+
+Offscreen OpenGL: MuJoCo picks its backend from ``MUJOCO_GL`` when it is first imported.
+:func:`select_gl` (called by the command line before MuJoCo is imported) keeps a value the
+user set, else tries EGL, then OSMesa, each in a short subprocess, and raises
+:class:`RenderUnavailableError` (one line naming both failures) when neither works.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import os
+import subprocess
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from isf_robot.core import ConfigError, Observer
+from isf_robot.core.files import check_output_path, commit_partial, partial_path
+
+__all__ = ["VideoRecorder", "select_gl", "RenderUnavailableError", "FORMATS", "ON_RGBA"]
+
+FORMATS = (".gif", ".mp4", ".png")
+ON_RGBA = (1.0, 0.55, 0.0, 1.0)
+"""Colour of the robot while the filter is on."""
+GL_BACKENDS = ("egl", "osmesa")
+_PROBE = ("import mujoco; m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom size=\"1\"/></worldbody>"
+          "</mujoco>'); r = mujoco.Renderer(m, 8, 8); r.update_scene(mujoco.MjData(m)); r.render()")
+
+
+class RenderUnavailableError(ConfigError):
+    """No offscreen OpenGL backend works on this machine."""
+
+
+def _probe(backend: str) -> str | None:
+    """``None`` when MuJoCo renders offscreen with ``backend``, else the reason (last line of the error)."""
+    env = dict(os.environ, MUJOCO_GL=backend, PYOPENGL_PLATFORM=backend)
+    try:
+        out = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, timeout=120)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return str(exc)
+    if out.returncode == 0:
+        return None
+    lines = [ln.strip() for ln in out.stderr.splitlines() if ln.strip()]
+    return lines[-1] if lines else f"exit status {out.returncode}"
+
+
+def select_gl(backends: Sequence[str] = GL_BACKENDS) -> str:
+    """Choose the offscreen OpenGL backend and set ``MUJOCO_GL`` (and ``PYOPENGL_PLATFORM``).
+
+    A ``MUJOCO_GL`` set by the user is kept as it is (and checked). Must run before MuJoCo is
+    imported to take effect; when it already is, the backend it chose stays.
+
+    Raises:
+        RenderUnavailableError: No backend works (the message says why for each).
+
+    """
+    chosen = os.environ.get("MUJOCO_GL", "").strip().lower()
+    candidates = [chosen] if chosen else list(backends)
+    reasons = []
+    for b in candidates:
+        why = _probe(b)
+        if why is None:
+            os.environ["MUJOCO_GL"] = b
+            os.environ.setdefault("PYOPENGL_PLATFORM", b)
+            return b
+        reasons.append(f"{b}: {why}")
+    hint = ("unset MUJOCO_GL to try EGL and OSMesa" if chosen else
+            "install EGL (Debian: libegl1) or OSMesa (libosmesa6), or run where a GPU driver is present")
+    raise RenderUnavailableError(f"offscreen rendering is not available ({'; '.join(reasons)}); {hint}")
+
+
+def _workspace(model: Any, robot: np.ndarray, others: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre (the robot's base) and radius [m] of the robot and obstacle geoms at the reference pose."""
+    import mujoco
+
+    d = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, d)
+    roots = sorted({int(model.body_rootid[int(model.geom_bodyid[g])]) for g in robot} - {0})
+    ids = np.concatenate((robot, others)).astype(int)
+    centre = np.mean([d.xpos[b] for b in roots], axis=0) if roots else d.geom_xpos[ids].mean(axis=0)
+    radius = max([float(np.linalg.norm(d.geom_xpos[g] - centre)) + float(model.geom_rbound[g]) for g in ids
+                  if int(model.geom_type[g]) != mujoco.mjtGeom.mjGEOM_PLANE] or [0.5])
+    return centre, radius
+
+
+class VideoRecorder(Observer):
+    """Render an arm run offscreen into a video (``.gif``/``.mp4``) or one frame (``.png``).
+
+    Args:
+        path: Output file; its suffix picks the format (:data:`FORMATS`).
+        fps: Frames per second of video (simulated time runs at ``speed`` x real time).
+        width: Frame width [px].
+        height: Frame height [px].
+        speed: Simulated seconds per second of video.
+        at: ``.png`` only: the time [s] of the frame (default: the first step with the filter
+            on, else the last step).
+
+    Raises:
+        ConfigError: Unknown format, bad sizes, or an unwritable path (before any rendering).
+
+    """
+
+    def __init__(self, path: str | Path, *, fps: float = 20.0, width: int = 480, height: int = 360,
+                 speed: float = 1.0, at: float | None = None) -> None:
+        self.path = check_output_path(path, "video file")
+        self.format = self.path.suffix.lower()
+        if self.format not in FORMATS:
+            raise ConfigError(f"video file {str(path)!r}: unknown format {self.format or '(none)'}; "
+                              f"valid: {', '.join(FORMATS)}")
+        if not (16 <= int(width) <= 4096 and 16 <= int(height) <= 4096):
+            raise ConfigError(f"frame size must be 16..4096 px, got {width} x {height}")
+        if not (math.isfinite(fps) and 0 < fps <= 120 and math.isfinite(speed) and speed > 0):
+            raise ConfigError(f"fps must be in (0, 120] and speed > 0, got fps={fps}, speed={speed}")
+        if self.format == ".mp4":
+            try:
+                import imageio.v2  # noqa: F401
+            except ImportError:
+                raise ConfigError("writing .mp4 needs the 'video' extra (pip install 'isf-robot[video]'); "
+                                  ".gif and .png need nothing more") from None
+        self.fps, self.width, self.height, self.speed, self.at = float(fps), int(width), int(height), float(speed), at
+        self.frames: list[np.ndarray] = []
+        self.frame_times: list[float] = []
+        self.render_s = 0.0
+        self._next = 0.0
+        self._title = ""
+        self._writer: Any = None
+        self._best: tuple[float, np.ndarray] | None = None
+
+    # -- observer hooks ------------------------------------------------------------------
+    def on_start(self, info: Mapping[str, Any]) -> None:
+        """Copy the model, colour it, place the camera, open the renderer."""
+        import mujoco
+
+        model = info.get("model")
+        if model is None or info.get("qpos_adr") is None:
+            raise ConfigError("VideoRecorder needs the arm loop's start info (model, qpos_adr)")
+        self.model = m = copy.deepcopy(model)
+        self.data = mujoco.MjData(m)
+        self.qpos_adr = np.asarray(info["qpos_adr"], dtype=int)
+        robot = np.asarray(info.get("robot_geom_ids", ()), dtype=int)
+        others = np.asarray(info.get("obstacle_geom_ids", ()), dtype=int)
+        self.robot = robot
+        self.robot_rgba = m.geom_rgba[robot].copy()
+        self.option = mujoco.MjvOption()
+        for g in np.concatenate((robot, others)):
+            self.option.geomgroup[int(m.geom_group[g])] = 1
+        m.vis.headlight.ambient[:] = np.maximum(m.vis.headlight.ambient, 0.35)
+        m.vis.global_.offwidth = max(int(m.vis.global_.offwidth), self.width)
+        m.vis.global_.offheight = max(int(m.vis.global_.offheight), self.height)
+        try:
+            self.renderer = mujoco.Renderer(m, self.height, self.width)
+        except Exception as exc:  # no GL context: say which variable picks it
+            raise RenderUnavailableError(
+                f"MuJoCo cannot render offscreen with MUJOCO_GL={os.environ.get('MUJOCO_GL', '(unset)')}: "
+                f"{' '.join(str(exc).split())}; set MUJOCO_GL=egl (or osmesa) before starting") from None
+        centre, radius = _workspace(m, robot, others)
+        cam = mujoco.MjvCamera()
+        cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+        cam.lookat[:] = centre + np.array([0.0, 0.0, radius / 3.0])
+        cam.distance = 2.4 * radius
+        cam.azimuth, cam.elevation = 140.0, -22.0
+        self.camera = cam
+        scene_flags = self.renderer.scene.flags
+        scene_flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0  # several times faster on a CPU renderer
+        scene_flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
+        self._title = f"{info.get('scene', '')}  {info.get('strategy', '')}  seed {info.get('seed', '')}"
+        if self.format == ".mp4":
+            import imageio.v2 as imageio
+
+            self._writer = imageio.get_writer(self._mp4_tmp(), format="FFMPEG", fps=self.fps,
+                                              codec="libx264", quality=7, macro_block_size=8)
+
+    def on_step(self, record: Any) -> None:
+        """Render a frame when the record reaches the next frame time."""
+        t = float(record.t)
+        if self.format == ".png":
+            self._consider_still(t, record)
+            return
+        if t + 1e-9 < self._next:
+            return
+        self._next += self.speed / self.fps
+        self._add(self.render(record))
+
+    def on_finish(self, summary: Mapping[str, Any]) -> None:
+        """Write the file (``.partial``, then renamed)."""
+        tmp = partial_path(self.path)
+        if self.format == ".mp4":
+            self._writer.close()
+            os.replace(self._mp4_tmp(), tmp)  # ffmpeg wants the .mp4 suffix while it writes
+        elif self.format == ".gif":
+            from PIL import Image
+
+            if not self.frames:
+                raise ConfigError("the run was too short for one video frame")
+            imgs = [Image.fromarray(f).quantize(colors=128, method=Image.Quantize.MEDIANCUT) for f in self.frames]
+            imgs[0].save(tmp, format="GIF", save_all=True, append_images=imgs[1:],
+                         duration=int(round(1000 / self.fps)), loop=0, optimize=True)
+        else:
+            from PIL import Image
+
+            assert self._best is not None
+            Image.fromarray(self.render(self._best[1])).save(tmp, format="PNG", optimize=True)
+        commit_partial(self.path)
+        self.renderer.close()
+
+    def on_abort(self, reason: BaseException) -> None:
+        """The run stopped: close the writer, leave ``<name>.partial``."""
+        if self._writer is not None:
+            self._writer.close()
+
+    # -- frames --------------------------------------------------------------------------
+    def _mp4_tmp(self) -> Path:
+        return self.path.with_name(self.path.name + ".partial.mp4")
+
+    def _add(self, frame: np.ndarray) -> None:
+        if self._writer is not None:
+            self._writer.append_data(frame)
+        else:
+            self.frames.append(frame)
+
+    def _consider_still(self, t: float, record: Any) -> None:
+        """Keep the record of the still: the one at ``at``, else the first with the filter on."""
+        if self.at is not None:
+            if self._best is None or abs(t - self.at) < abs(self._best[0] - self.at):
+                self._best = (t, record)
+        elif self._best is None or (record.on and not self._best[1].on):
+            self._best = (t, record)
+
+    def render(self, record: Any) -> np.ndarray:
+        """The frame of one step record: pose, colours, camera, banner; (height, width, 3) uint8."""
+        import time
+
+        import mujoco
+
+        t0 = time.perf_counter()
+        m, d = self.model, self.data
+        d.qpos[self.qpos_adr] = record.q
+        if m.nmocap:
+            d.mocap_pos[:] = record.mocap_pos
+            d.mocap_quat[:] = record.mocap_quat
+        mujoco.mj_kinematics(m, d)
+        m.geom_rgba[self.robot] = ON_RGBA if record.on else self.robot_rgba
+        self.renderer.update_scene(d, camera=self.camera, scene_option=self.option)
+        frame = np.array(self.renderer.render(), copy=True)
+        self._banner(frame, float(record.t), bool(record.on))
+        self.render_s += time.perf_counter() - t0
+        self.frame_times.append(float(record.t))
+        return frame
+
+    def _banner(self, frame: np.ndarray, t: float, on: bool) -> None:
+        """A strip at the top: orange 'filter ON' or grey 'filter off', the time and the run."""
+        from PIL import Image, ImageDraw
+
+        h = max(14, self.height // 16)
+        frame[:h] = (230, 120, 0) if on else (60, 60, 60)
+        img = Image.fromarray(frame[:h])
+        draw = ImageDraw.Draw(img)
+        draw.text((6, max(0, (h - 11) // 2)), f"filter {'ON ' if on else 'off'}   t = {t:6.2f} s   {self._title}",
+                  fill=(255, 255, 255))
+        frame[:h] = np.asarray(img)
