@@ -22,6 +22,8 @@ FORBIDDEN = {
     "isf_robot.arm": ("isf_robot.record", "isf_robot.cli", "satellite", "rerun"),
     "isf_robot.record": ("isf_robot.arm", "isf_robot.cli", "satellite"),
     "satellite": ("isf_robot.arm", "isf_robot.record", "isf_robot.cli", "mujoco", "rerun"),
+    # static figures: the core's series in, matplotlib out; fed by the command line
+    "isf_robot.plots": ("isf_robot.arm", "isf_robot.record", "isf_robot.cli", "satellite", "mujoco", "rerun"),
 }
 TOP_LAYER = ("satellite.cli", "satellite.cmd_")  # the satellite's command-line modules are the top layer
 

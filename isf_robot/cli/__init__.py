@@ -26,6 +26,7 @@ COMMAND_MODULES = (
     "isf_robot.cli.core_demo",
     "isf_robot.cli.setup",
     "isf_robot.cli.render",
+    "isf_robot.cli.plot",
 )
 
 

@@ -4,7 +4,8 @@ Every file the project writes (JSON results, tau fits, gravity tables, recording
 under a temporary name beside its target and renamed into place only when complete, so a bad
 parameter, a crash or Ctrl-C leaves the previous file as it was:
 
-* :func:`write_text_atomic`: a whole text at once (temporary name hidden, removed on failure).
+* :func:`write_text_atomic` / :func:`write_bytes_atomic`: a whole text or byte string at once
+  (temporary name hidden, removed on failure).
 * :func:`partial_path` / :func:`check_output_path` / :func:`commit_partial`: for files written
   over a run (a recording): the run writes ``<name>.partial`` and renames it at the end; an
   interrupted run leaves ``<name>.partial`` (a name that says so) and the old ``<name>``.
@@ -18,7 +19,8 @@ from pathlib import Path
 
 from .exceptions import ConfigError
 
-__all__ = ["write_text_atomic", "partial_path", "check_output_path", "commit_partial", "PARTIAL_SUFFIX"]
+__all__ = ["write_text_atomic", "write_bytes_atomic", "partial_path", "check_output_path", "commit_partial",
+           "PARTIAL_SUFFIX"]
 
 PARTIAL_SUFFIX = ".partial"
 
@@ -66,11 +68,22 @@ def write_text_atomic(path: str | Path, text: str) -> None:
         OSError: The directory is not writable or the disk is full (the temporary file is removed).
 
     """
+    write_bytes_atomic(path, text.encode("utf-8"))
+
+
+def write_bytes_atomic(path: str | Path, data: bytes) -> None:
+    """Write ``data`` to a temporary file next to ``path``, then rename it into place.
+
+    Raises:
+        ConfigError: ``path`` is a directory or special file.
+        OSError: The directory is not writable or the disk is full (the temporary file is removed).
+
+    """
     path = check_output_path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)

@@ -1,0 +1,120 @@
+"""``isf-robot plot``: static figures (PNG, SVG or PDF) from recordings or a tau file.
+
+What is drawn follows from the inputs:
+
+* one arm recording (``run --rrd``): ``min h`` over time with the on-intervals shaded, ``min
+  Xi_on`` with the thresholds 0 and ``c``, and ``|u - u_nom|``;
+* several arm recordings or a ``compare --rrd`` directory: ``min h`` over time per strategy
+  (the lowest seed of each) above bars of duty cycle, on switches, intervention and ``min h``
+  per strategy (mean, whiskers over the episodes);
+* a satellite recording (``isf-satellite run --rrd``): ``r/R`` in the band and ``Xi`` with a
+  star at each trigger over the first ``--hours`` (150, as in the paper);
+* a tau file (``isf-satellite tau --out``): the samples, medians and the fitted ``tau_p``.
+
+matplotlib is the optional ``plots`` extra; without it the command says which extra to install.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+from isf_robot.core import ConfigError
+
+__all__ = ["register", "handle"]
+
+
+def register(sub: Any) -> None:
+    """Register ``plot`` on the ``isf-robot`` subparsers."""
+    p = sub.add_parser(
+        "plot", help="static figures (PNG/SVG/PDF) of recordings or a tau file (needs the 'plots' extra)",
+        description="Draw a run (one arm recording), a comparison (several arm recordings or a "
+                    "`compare --rrd` directory), a satellite run (its recording) or a tau file "
+                    "(`isf-satellite tau --out`) with matplotlib.")
+    p.add_argument("inputs", nargs="+", type=Path, metavar="INPUT",
+                   help=".rrd recordings, directories of them, or one tau .json file")
+    p.add_argument("-o", "--output", type=Path, required=True, metavar="PATH",
+                   help="figure file: .png, .svg or .pdf")
+    p.add_argument("--hours", type=float, default=150.0,
+                   help="satellite run: hours drawn from the start (default 150, as in the paper)")
+    p.add_argument("--title", default=None, help="comparison: figure title (default: the scene)")
+    p.set_defaults(handler=handle)
+
+
+def handle(args: argparse.Namespace) -> int:
+    """Check the output and matplotlib, read the inputs, draw, write atomically."""
+    from isf_robot.plots import check_figure_path, require_matplotlib, save_figure
+
+    check_figure_path(args.output)
+    require_matplotlib()
+    if not (math.isfinite(args.hours) and args.hours > 0):
+        raise ConfigError(f"--hours must be a positive number, got {args.hours:g}")
+    if any(p.suffix.lower() == ".json" for p in args.inputs):
+        if len(args.inputs) != 1:
+            raise ConfigError("a tau file is drawn alone: give one .json file, or .rrd recordings")
+        fig, what = _tau(args.inputs[0])
+    else:
+        fig, what = _recordings(args)
+    save_figure(fig, args.output)
+    print(f"wrote {args.output}: {what}", file=sys.stderr)
+    return 0
+
+
+def _recordings(args: argparse.Namespace) -> tuple[Any, str]:
+    from isf_robot.core.strategies import strategy_names
+    from isf_robot.plots import OrbitSeries, RunSeries, StrategyBars, compare_figure, run_figure, satellite_figure
+    from isf_robot.record.figure_data import arm_series, satellite_series, strategy_bars
+    from isf_robot.record.replay import read_many
+
+    logs = read_many(args.inputs)
+    kinds = sorted({log.kind for log in logs})
+    if len(kinds) > 1:
+        raise ConfigError(f"the inputs mix {' and '.join(kinds)} recordings; plot one kind at a time")
+    kind = kinds[0]
+    if kind == "satellite":
+        if len(logs) > 1:
+            raise ConfigError(f"one satellite recording at a time, got {len(logs)}")
+        orbit = OrbitSeries(**satellite_series(logs[0]))
+        return satellite_figure(orbit, args.hours), f"satellite run ({orbit.impulse_t_h.size} impulses in all)"
+    if kind != "arm":
+        raise ConfigError(f"cannot plot a {kind!r} recording; valid: arm or satellite recordings, or a tau file")
+    if len(logs) == 1:
+        run = RunSeries(**arm_series(logs[0]))
+        return run_figure(run), f"run {run.label}"
+    firsts: dict[str, Any] = {}
+    for log in sorted(logs, key=lambda lg: int(lg.info.get("seed") or 0)):
+        firsts.setdefault(str(log.info.get("strategy", "?")), log)
+    bars = [StrategyBars(**b) for b in strategy_bars(logs, strategy_names())]
+    runs = [RunSeries(**arm_series(firsts[b.strategy])) for b in bars]
+    scenes = sorted({str(log.info.get("scene", "?")) for log in logs})
+    title = args.title if args.title is not None else f"scene {', '.join(scenes)}"
+    return compare_figure(runs, bars, title), f"comparison of {len(bars)} strategies over {len(logs)} recordings"
+
+
+def _tau(path: Path) -> tuple[Any, str]:
+    import json
+
+    import numpy as np
+
+    from isf_robot.plots import TauSamples, tau_figure
+    from satellite.model import BAND_CENTRE, BAND_INNER, BAND_OUTER
+    from satellite.tau import load_tau
+
+    fit = load_tau(path)  # checks the format and the fit, one-line errors
+    doc = json.loads(path.read_text(encoding="utf-8"))
+    try:
+        radii = np.asarray(doc["radii_over_R"], dtype=float)
+        times = np.asarray(doc["times_h"], dtype=float)
+        max_hours = float(doc["max_hours"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ConfigError(f"{path}: tau file lacks its samples (radii_over_R, times_h, max_hours): {exc}") from None
+    r = np.linspace(BAND_INNER, BAND_OUTER, 161)
+    s = 1.0 - ((r - BAND_CENTRE) / (BAND_OUTER - BAND_CENTRE)) ** 2  # h / h_max of the band barrier
+    tau_h = np.array([fit.tau_p(float(si) * fit.h_max) for si in s]) / 3600.0
+    n = times.shape[1] if times.ndim == 2 else 0
+    label = f"time to trigger, {n} samples per radius, fit of degree {len(fit.coef) - 1} in h"
+    tau = TauSamples(radii, times, max_hours, r, tau_h, label=label)
+    return tau_figure(tau), f"tau data of {radii.size} radii"
