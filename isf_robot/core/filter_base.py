@@ -47,6 +47,12 @@ class FilterStep:
         fallback: Whether the command came from the infeasibility fallback.
         names: Barrier labels.
         resolved: Whether a screened row was needed, so the QP was solved again with every row.
+        margin: The off margin in force at this step (intermittent filter: ``c``, or the margin
+            designed for ``min_off``; ``None`` for other strategies).
+        off_bound_s: At an off switch, the shortest off period the margin guarantees at the
+            measured fall rate of ``Xi_on`` (:class:`~isf_robot.core.intermittent.FallRateBound`).
+        rollout: Whether the predictive off trigger ran a rollout in this step.
+        held: Whether the prediction kept the filter on although every ``Xi_on >= margin``.
 
     """
 
@@ -62,6 +68,10 @@ class FilterStep:
     fallback: bool = False
     names: tuple[str, ...] = field(default_factory=tuple)
     resolved: bool = False
+    margin: float | None = None
+    off_bound_s: float | None = None
+    rollout: bool = False
+    held: bool = False
 
     @property
     def h_min(self) -> float:
@@ -173,13 +183,19 @@ class _FilterBase:
         return u_nom, xi
 
     def build_qp(
-        self, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None = None, b: float = 0.0
+        self, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None = None, b: float = 0.0,
+        ramp: float = 1.0,
     ) -> FilterQP:
-        """Build the filter QP: robust rows, or promoting rows where ``promote`` is True."""
+        """Build the filter QP: robust rows, or promoting rows where ``promote`` is True.
+
+        ``ramp`` in [0, 1) lowers the promotion level to ``max(-alpha(h), ramp b + (1 - ramp)
+        (-alpha(h)))`` (the smooth hand-over after an on switch; never below the robust condition).
+        """
         rhs = -self.alpha.vector(lie.h)
         kinds: tuple[str, ...] = ()  # empty: every row robust
         if promote is not None and promote.any():
-            rhs = np.where(promote, b, rhs)
+            level = b if ramp >= 1.0 else np.maximum(rhs, ramp * b + (1.0 - ramp) * rhs)
+            rhs = np.where(promote, level, rhs)
             kinds = tuple("promote" if p else "robust" for p in promote)
         return FilterQP(u_nom, lie.lg, rhs - lie.lf + lie.grad_norm * self.d_bar, self.u_min, self.u_max,
                         kinds, lie.names)
@@ -207,12 +223,19 @@ class _FilterBase:
         screen = self.screen if screen is None else screen
         if screen is not None and lie.k > 1:
             keep = xi < np.maximum(screen, floor) if floor > 0 else xi < screen
+            if promote is not None:
+                keep |= promote  # a promoted row is never screened out
             if not keep.all():
                 rows = keep.nonzero()[0]
-                if rows.size == 0:
-                    rows = np.array([int(xi.argmin())])
-                    keep[rows[0]] = True
-                sub = LieData(lie.h[rows], lie.lf[rows], lie.lg[rows], lie.grad_norm[rows])
+                if rows.size == 0:  # the row of least slack alone (views: no copies)
+                    i = int(xi.argmin())
+                    rows = np.array([i])
+                    keep[i] = True
+                    one = slice(i, i + 1)
+                    sub = LieData(lie.h[one], lie.lf[one], lie.lg[one], lie.grad_norm[one])
+                else:
+                    sub = LieData(lie.h.take(rows), lie.lf.take(rows), lie.lg.take(rows, 0),
+                                  lie.grad_norm.take(rows))
                 res, relaxed, fb = self._solve_block(t, x, sub, u_nom, None if promote is None else promote[rows],
                                                      lie.names, rows)
                 if not fb and not self._screened_rows_hold(lie, xi, res.u - u_nom, keep):
@@ -242,7 +265,7 @@ class _FilterBase:
         ``rows`` maps the rows of ``lie`` to ``names`` (``None``: the same rows).
         """
         b = getattr(self, "b", 0.0)
-        qp = self.build_qp(lie, u_nom, promote, b)
+        qp = self.build_qp(lie, u_nom, promote, b, getattr(self, "_ramp", 1.0))
         res = self._solve(qp)
         relaxed: tuple[str, ...] = ()
         if not res.ok and promote is not None and promote.any():

@@ -33,17 +33,20 @@ a screened row is never promoted; the trigger always sees every row's ``Xi_on``.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from .barrier import Barrier
 from .class_k import ClassK
+from .exceptions import ConfigError
 from .filter_base import FallbackFn, FilterStep, _FilterBase
+from .intermittent import FallRateBound, OffPredictor, RolloutFn, blend_weight
 from .qp_solver import QPSolver
 from .system import ControlAffineSystem, LieData
 from .triggers import OnOffTrigger
-from .validation import check_positive
+from .validation import check_nonnegative, check_positive
 
 __all__ = ["FilterStep", "SafetyFilter", "IntermittentSafetyFilter"]
 
@@ -105,15 +108,27 @@ class IntermittentSafetyFilter(_FilterBase):
     ``Lf h(x, u) - |dh/dx| d_bar >= b`` (eq. filter_inc) pushes h up until ``Xi_on >= c``, when
     the filter turns off. (The paper's eq. trigger:filter_off has a sign slip; see
     :mod:`isf_robot.core.triggers`.) Several barriers and screening: see the module docstring.
+    Designed off periods, the predictive off trigger and the smooth hand-over (all optional):
+    see :mod:`isf_robot.core.intermittent`.
 
     Args:
         alpha: Class-K function (or linear gain).
-        c: Off-trigger margin, > 0.
+        c: Off-trigger margin, > 0 (with ``min_off``: the smallest margin used).
         b: Promotion rate ``dh/dt >= b`` while on, > 0.
         d_bar: Disturbance bound, >= 0.
         system, barriers, u_min, u_max, solver, on_infeasible, fallback, validate, screen: as
             :class:`SafetyFilter`.
         t0: Start time [s].
+        min_off: Asked-for shortest off period [s]: the off margin becomes
+            ``clip(min_off R, c, c_max)`` with ``R`` the measured fall rate of ``Xi_on``
+            (``None``: the fixed margin ``c``).
+        c_max: Largest off margin ``min_off`` may ask for (``inf``: none).
+        fall_rate_prior: Fall rate of ``Xi_on`` assumed before the first measurement.
+        fall_rate_forget: Time constant [s] of the measured fall rate's memory.
+        rollout: Predictive off trigger: the rollout callback
+            (:data:`~isf_robot.core.intermittent.RolloutFn`); ``None``: off at ``Xi_on >= c``.
+        predict_every: Control steps between rollouts while the off condition holds, >= 1.
+        blend: Hand-over time [s] after each switch (0: the command steps at switches).
 
     """
 
@@ -136,13 +151,28 @@ class IntermittentSafetyFilter(_FilterBase):
         validate: bool = True,
         screen: float | np.ndarray | None = None,
         t0: float = 0.0,
+        min_off: float | None = None,
+        c_max: float = math.inf,
+        fall_rate_prior: float = 0.0,
+        fall_rate_forget: float = 2.0,
+        rollout: RolloutFn | None = None,
+        predict_every: int = 5,
+        blend: float = 0.0,
     ) -> None:
         super().__init__(alpha, d_bar, system=system, barriers=barriers, u_min=u_min, u_max=u_max,
                          solver=solver, on_infeasible=on_infeasible, fallback=fallback, validate=validate,
                          screen=screen)
         self.c = check_positive(c, "c (off-trigger margin)")
         self.b = check_positive(b, "b (promotion rate)")
+        self.min_off = None if min_off is None else check_positive(min_off, "min_off (shortest off period) [s]")
+        if not c_max >= self.c:
+            raise ConfigError(f"c_max must be >= c = {self.c}, got {c_max}")
+        self.c_max = float(c_max)
+        self.fall_rate = FallRateBound(fall_rate_prior, fall_rate_forget)
+        self.predictor = None if rollout is None else OffPredictor(rollout, predict_every)
+        self.blend = check_nonnegative(blend, "blend (hand-over time) [s]")
         self.trigger = OnOffTrigger(self.c, t0)
+        self.reset(t0)
 
     @property
     def on(self) -> bool:
@@ -153,6 +183,20 @@ class IntermittentSafetyFilter(_FilterBase):
         """Return to the off mode at ``t0``."""
         self.trigger.reset(t0)
         self.qp_solves = 0
+        self.fall_rate.reset()
+        if self.predictor is not None:
+            self.predictor.reset()
+        self._t_on: float | None = None
+        self._t_off: float | None = None
+        self._u_prev: np.ndarray | None = None
+        self._u_handover: np.ndarray | None = None
+        self._ramp = 1.0
+
+    def margin(self) -> float:
+        """The off margin now: ``c``, or the one designed for ``min_off``."""
+        if self.min_off is None:
+            return self.c
+        return self.fall_rate.margin(self.min_off, self.c, self.c_max)
 
     def step_lie(self, t: float, lie: LieData, u_nom: np.ndarray, x: np.ndarray | None = None, *,
                  screen: float | np.ndarray | None = None) -> FilterStep:
@@ -162,13 +206,54 @@ class IntermittentSafetyFilter(_FilterBase):
         one per row of ``lie``).
         """
         u_nom, xi = self._xi(t, lie, u_nom)
-        event = self.trigger.update(t, float(xi.min()))
+        xi_min = float(xi.min()) if xi.size else math.inf
+        was_on = self.trigger.on
+        self.fall_rate.observe(t, xi_min, not was_on)
+        c = self.margin()
+        pred, ran = None, False
+        if self.predictor is not None:
+            if was_on and xi_min >= c:
+                pred, ran = self.predictor.check(t, self.alpha, self.d_bar)
+            else:
+                self.predictor.idle()
+        held = pred is not None and not pred.ok
+        event = self.trigger.update(t, xi_min, c, not held)
+        bound = None
+        if event is not None:
+            if event.kind == "on":
+                self._t_on = t
+            else:
+                self._t_off, self._u_handover = t, self._u_prev
+                bound = self.fall_rate.bound_s(c)
+                if self.predictor is not None:
+                    self.predictor.idle()
+        extra = dict(margin=c, off_bound_s=bound, rollout=ran, held=held)
         if not self.trigger.on:
-            if self._within_bounds(u_nom):
-                return FilterStep(t, u_nom, u_nom, False, lie.h, xi, event, None, (), False, lie.names)
-            # off, but u_nom breaks the input bounds: the command closest to u_nom within them that
-            # keeps every robust condition (the standard filter's problem); the mode stays off
-            res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, None, 0.0, screen)
-            return FilterStep(t, res.u, u_nom, False, lie.h, xi, event, res, relaxed, fb, lie.names, resolved)
-        res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, xi < self.c, self.c, screen)
-        return FilterStep(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names, resolved)
+            w = blend_weight(t, self._t_off, self.blend) if self._u_handover is not None else 0.0
+            target = u_nom if w == 0.0 else u_nom + w * (self._u_handover - u_nom)
+            if w == 0.0 and self._within_bounds(u_nom):
+                return self._done(FilterStep(t, u_nom, u_nom, False, lie.h, xi, event, None, (), False,
+                                             lie.names, **extra))
+            slack = xi if w == 0.0 else xi + lie.lg @ (target - u_nom)  # robust slack at the target
+            if w > 0.0 and float(slack.min()) >= 0.0 and self._within_bounds(target):
+                return self._done(FilterStep(t, target, u_nom, False, lie.h, xi, event, None, (), False,
+                                             lie.names, **extra))
+            # off, but the target breaks the input bounds or (blending) a robust condition: the
+            # command closest to it within them that keeps every robust condition; the mode stays off
+            res, relaxed, fb, resolved = self._solve_rows(t, x, lie, target, slack, None, 0.0, screen)
+            return self._done(FilterStep(t, res.u, u_nom, False, lie.h, xi, event, res, relaxed, fb,
+                                         lie.names, resolved, **extra))
+        promote = xi < c
+        if held and pred is not None and pred.failing:  # steer away from the predicted failures
+            promote |= np.fromiter((n in pred.failing for n in lie.names), bool, lie.k)
+        self._ramp = 1.0 - blend_weight(t, self._t_on, self.blend)
+        try:
+            res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, promote, c, screen)
+        finally:
+            self._ramp = 1.0
+        return self._done(FilterStep(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names,
+                                     resolved, **extra))
+
+    def _done(self, step: FilterStep) -> FilterStep:
+        self._u_prev = step.u
+        return step

@@ -114,8 +114,16 @@ class OnOffTrigger:
         """Off-switches so far."""
         return self._switches.n_off
 
-    def update(self, t: float, xi_min: float) -> SwitchEvent | None:
+    def update(self, t: float, xi_min: float, margin: float | None = None,
+               allow_off: bool = True) -> SwitchEvent | None:
         """Advance to time ``t`` given the current ``min_i Xi_on,i``.
+
+        Args:
+            t: Time [s], non-decreasing.
+            xi_min: ``min_i Xi_on,i`` at ``t``.
+            margin: Off margin for this step (default ``c``; a designed margin, >= ``c``).
+            allow_off: ``False`` keeps the filter on although ``xi_min >= margin`` (a predictive
+                off trigger delays switching off; the on trigger is never delayed).
 
         Returns:
             The switch event if the mode changed at ``t``, else ``None``.
@@ -129,6 +137,6 @@ class OnOffTrigger:
         on = self._switches.on
         if not on and xi_min <= 0.0:
             return self._switches.update(t, True, xi_min)
-        if on and xi_min >= self.c:
+        if on and allow_off and xi_min >= (self.c if margin is None else max(margin, self.c)):
             return self._switches.update(t, False, xi_min)
         return None
