@@ -138,7 +138,7 @@ def _speed(scene: Scene) -> list[Finding]:
         return []
     damping = scene.model.dof_damping[scene.dof_adr]
     per = "; ".join(f"{scene.joint_names[i]}: {v[i]:.3g} rad/s (limit {scene.torque_limit[i]:g} N m, "
-                    f"gravity {grav[i]:.3g} N m, damping {damping[i]:g} N m s/rad)" for i in bad)
+                    f"gravity {round(float(grav[i]), 2):g} N m, damping {damping[i]:g} N m s/rad)" for i in bad)
     suggest = 0.8 * float(np.min(v))
     return [Finding(
         "joint-speed",
