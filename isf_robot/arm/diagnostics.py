@@ -183,20 +183,30 @@ def _pairs(scene: Scene) -> list[Finding]:
     model, bc = scene.model, scene.config.barrier
     pairs = collision_pairs(model, scene.robot_geom_ids, scene.obstacle_geom_ids, margin=bc.margin,
                             self_collision=scene.config.robot.self_collision, self_margin=bc.self_margin)
-    box, gjk = [], []
+    box_obstacle, box_robot, gjk = [], [], []
+    obstacles = set(scene.obstacle_geom_ids.tolist())
     for name, a, b in zip(pairs.names, pairs.geom1, pairs.geom2):
         types = {int(model.geom_type[a]), int(model.geom_type[b])}
         if types == _CAPSULE_BOX:
-            box.append(name)
+            the_box = a if int(model.geom_type[a]) == int(_G.mjGEOM_BOX) else b
+            (box_obstacle if int(the_box) in obstacles else box_robot).append(name)
         elif types & _GJK:
             gjk.append(name)
     out = []
-    if box:
+    why = ("MuJoCo's capsule-box collider does not return a signed distance once the geoms "
+           "overlap, so the barrier gradient is wrong there")
+    if box_obstacle:
         out.append(Finding(
             "capsule-box",
-            f"pairs {box}: MuJoCo's capsule-box collider does not return a signed distance once the "
-            "geoms overlap, so the barrier gradient is wrong there; model the box as an 8-vertex "
-            "convex mesh (routed through GJK/EPA, exact with a tight ccd_tolerance)"))
+            f"pairs {box_obstacle}: {why}; model the obstacle box as an 8-vertex convex mesh "
+            "(routed through GJK/EPA, exact with a tight ccd_tolerance)"))
+    if box_robot:
+        out.append(Finding(
+            "capsule-box",
+            f"pairs {box_robot} (the box is the arm's, e.g. a vendor's fingertip pads): {why}; "
+            "leave those geoms out of [robot] (select by bodies or geoms instead of the whole "
+            "subtree), or give the obstacle another shape than a capsule (a convex mesh or a "
+            "cylinder; the arm's file needs no edit)"))
     tol = float(model.opt.ccd_tolerance)
     if gjk and tol > CCD_TOLERANCE:
         out.append(Finding(

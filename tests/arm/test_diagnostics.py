@@ -154,3 +154,48 @@ def test_check_and_run_warn(tmp_path, capsys) -> None:  # type: ignore[no-untype
     assert rc == 0 and "warning [joint-speed]" in err and "warning [d-bar]" in err
     assert main(["check", "--scene", "ur5e_pole", "--no-calibration"]) == 0
     assert "no findings" in capsys.readouterr().out
+
+
+FINGERS = '''
+  <body name="left_finger" pos="0 0 0.0584">
+    <inertial mass="0.015" pos="0 0 0" diaginertia="2.4e-06 2.4e-06 2.4e-06"/>
+    <joint name="finger_joint1" type="slide" axis="0 1 0" range="0 0.04" damping="100"/>
+    <geom class="collision" type="box" size="0.0085 0.004 0.0085" pos="0 0.0055 0.0445"/>
+  </body>
+  <body name="right_finger" pos="0 0 0.0584" quat="0 0 0 1">
+    <inertial mass="0.015" pos="0 0 0" diaginertia="2.4e-06 2.4e-06 2.4e-06"/>
+    <joint name="finger_joint2" type="slide" axis="0 1 0" range="0 0.04" damping="100"/>
+    <geom class="collision" type="box" size="0.0085 0.004 0.0085" pos="0 0.0055 0.0445"/>
+  </body>
+</body>'''
+GRIPPER_ACTUATION = '''<tendon><fixed name="split"><joint joint="finger_joint1" coef="0.5"/>
+  <joint joint="finger_joint2" coef="0.5"/></fixed></tendon>
+<equality><joint joint1="finger_joint1" joint2="finger_joint2"/></equality>
+<actuator>
+  <general name="actuator8" tendon="split" forcerange="-100 100" ctrlrange="0 255"
+           gainprm="0.01568627451 0 0" biasprm="0 -100 -10"/>
+</actuator>
+<keyframe>'''
+
+
+@pytest.mark.filterwarnings("ignore:capsule-box")  # CollisionBarriers says so too
+def test_a_gripper_in_the_arm_file_is_left_alone(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    # Menagerie's Panda: finger slide joints driven by one tendon actuator, fingertip pads as boxes
+    xml, toml = variant(tmp_path, "panda_servo")
+    arm = tmp_path / ARMS["panda_servo"]
+    text = arm.read_text()
+    hand_end = 'size="0.02"/>\n                      </body>'
+    assert text.count(hand_end) == 1 and text.count("<keyframe>") == 1
+    text = text.replace(hand_end, 'size="0.02"/>' + FINGERS).replace("<keyframe>", GRIPPER_ACTUATION)
+    text = text.replace('-0.7853"\n', '-0.7853 0.04 0.04"\n', 1).replace('-0.7853"/>', '-0.7853 255"/>')
+    arm.write_text(text)
+    sc = load_scene_from_files(xml, toml)
+    assert sc.joint_names == tuple(f"joint{i}" for i in range(1, 8))  # the fingers are not arm joints
+    found = check_scene(sc)
+    assert codes(found) == ["capsule-box"]
+    assert "left_finger[0]|pole" in found[0].message and "the box is the arm's" in found[0].message
+    assert "leave those geoms out of [robot]" in found[0].message
+    from isf_robot.arm import run_episode
+
+    res = run_episode(sc, "isf", duration=2.5, d_bar=0.1)  # the first goal is past the pole
+    assert res.goals_reached >= 1 and res.duty_cycle > 0 and res.min_barrier > 0
