@@ -172,7 +172,7 @@ class VideoRecorder(Observer):
         cam = mujoco.MjvCamera()
         cam.type = mujoco.mjtCamera.mjCAMERA_FREE
         cam.lookat[:] = centre + np.array([0.0, 0.0, radius / 3.0])
-        cam.distance = 2.4 * radius
+        cam.distance = 1.9 * radius
         cam.azimuth, cam.elevation = 140.0, -22.0
         self.camera = cam
         scene_flags = self.renderer.scene.flags

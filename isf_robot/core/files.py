@@ -74,6 +74,9 @@ def write_text_atomic(path: str | Path, text: str) -> None:
 def write_bytes_atomic(path: str | Path, data: bytes) -> None:
     """Write ``data`` to a temporary file next to ``path``, then rename it into place.
 
+    The file gets the permissions any new file would (``0o666`` less the umask), or those of the
+    file it replaces; not the owner-only ``0o600`` of the temporary file.
+
     Raises:
         ConfigError: ``path`` is a directory or special file.
         OSError: The directory is not writable or the disk is full (the temporary file is removed).
@@ -82,6 +85,7 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
     path = check_output_path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        os.fchmod(fd, _mode_for(path))
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
@@ -90,3 +94,13 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def _mode_for(path: Path) -> int:
+    """Permission bits for a file written at ``path``: the existing file's, else ``0o666`` less the umask."""
+    try:
+        return path.stat().st_mode & 0o7777
+    except OSError:
+        mask = os.umask(0)
+        os.umask(mask)
+        return 0o666 & ~mask

@@ -55,3 +55,18 @@ def test_partial_file_is_renamed_into_place_only_on_commit(tmp_path) -> None:  #
     assert target.read_bytes() == b"old" and partial_path(target).name == "run.rrd.partial"
     commit_partial(target)
     assert target.read_bytes() == b"new" and not partial_path(target).exists()
+
+
+def test_written_files_get_ordinary_permissions(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.core.files import write_bytes_atomic
+
+    old = os.umask(0o022)
+    try:
+        p = tmp_path / "a.png"
+        write_bytes_atomic(p, b"\x89PNG")
+        assert p.stat().st_mode & 0o777 == 0o644  # not the temporary file's owner-only 0o600
+        os.chmod(p, 0o640)
+        write_text_atomic(p, "again")
+        assert p.stat().st_mode & 0o777 == 0o640 and p.read_bytes() == b"again"  # a replaced file keeps its mode
+    finally:
+        os.umask(old)
