@@ -96,6 +96,7 @@ def run_handler(prog: str, handler: Handler, args: argparse.Namespace) -> int:
     """Run ``handler(args)`` and turn the errors above into messages and exit statuses."""
     where = f"{prog} {getattr(args, 'command', None) or ''}".rstrip()
     previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    _deferred_record_errors()  # none belongs to this command yet (an earlier in-process one kept them)
     try:
         code = int(handler(args) or 0)
         sys.stdout.flush()  # a full or closed stdout fails here, inside the error path
@@ -112,7 +113,11 @@ def run_handler(prog: str, handler: Handler, args: argparse.Namespace) -> int:
         return 0
     except (IsfError, OSError) as exc:
         print(f"{where}: error: {one_line(exc)}", file=sys.stderr)
+        for other in _deferred_record_errors():  # a failed recording that is not this error itself
+            if other is not exc:
+                print(f"{where}: error: {one_line(other)}", file=sys.stderr)
         _quiet_stdout_if_broken()
         return EXIT_USAGE
     finally:
+        _deferred_record_errors()  # an interrupted command's failed recordings are not reported later
         signal.signal(signal.SIGTERM, previous)

@@ -52,3 +52,13 @@ def test_compare_stops_with_the_failed_recording(
     assert code == 2
     assert "error: the recording could not be written" in err.strip().splitlines()[-1]
     assert not list((tmp_path / "out").glob("*.rrd"))  # nothing renamed into place
+
+
+def test_a_reported_failure_is_not_reported_again_by_the_next_command(
+        tmp_path: Path, full_disk: None, capsys: pytest.CaptureFixture[str]) -> None:
+    main(["compare", "--scene", "planar_moving", "--episodes", "1", "--duration", "0.2",
+          "--filters", "cbf", "--rrd", str(tmp_path / "out")])
+    capsys.readouterr()
+    assert take_deferred_errors() == []
+    assert main(["scenes"]) == 0
+    assert "error" not in capsys.readouterr().err
