@@ -57,10 +57,13 @@ def print_findings(findings: Any, file: Any = None) -> None:
 
 def _cmd_init(args: argparse.Namespace) -> int:
     from isf_robot.arm.starter import starter_toml
+    from isf_robot.core.exceptions import ConfigError
     from isf_robot.core.files import check_output_path, write_text_atomic
 
     if args.output:
-        check_output_path(args.output, "--output")
+        out = check_output_path(args.output, "--output")
+        if not out.parent.is_dir():
+            raise ConfigError(f"--output {str(out)!r}: folder {str(out.parent)!r} does not exist")
     text = starter_toml(args.model)
     if args.output:
         write_text_atomic(args.output, text)

@@ -141,6 +141,12 @@ def test_init_writes_a_loadable_starter(tmp_path, capsys) -> None:  # type: igno
     assert main(["init", "--model", str(tmp_path / "mine.xml"), "--output", str(out)]) == 0
     sc = load_scene_from_files(tmp_path / "mine.xml", out)
     assert len(sc.robot_geom_ids) == 9 and len(sc.obstacle_geom_ids) == 2
+    # bad input: one line naming the problem, exit 2, nothing written
+    capsys.readouterr()
+    assert main(["init", "--model", str(tmp_path / "mine.xml"), "--output", str(tmp_path / "no" / "x.toml")]) == 2
+    assert "folder" in capsys.readouterr().err and not (tmp_path / "no").exists()
+    assert main(["init", "--model", str(tmp_path / "missing.xml")]) == 2
+    assert "MJCF file not found" in capsys.readouterr().err
 
 
 def test_check_and_run_warn(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
