@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -137,6 +138,21 @@ class NominalController(ABC):
         """Start the task again (first goal, nothing reached, command at rest)."""
         self.goals.reset()
         self._rate.reset()
+
+    def snapshot(self) -> Any:
+        """The controller's state (goal bookkeeping, rate limit) for :meth:`restore`.
+
+        A rollout (:class:`~isf_robot.arm.rollout.NominalRollout`) calls the controller at
+        predicted states and puts it back as it was.
+        """
+        return dict(vars(self.goals)), self._rate.prev.copy(), self._rate.t_prev
+
+    def restore(self, state: Any) -> None:
+        """Return to a state taken by :meth:`snapshot`."""
+        goals, prev, t_prev = state
+        vars(self.goals).update(goals)
+        self._rate.prev[:] = prev
+        self._rate.t_prev = t_prev
 
     @abstractmethod
     def __call__(self, t: float, data: mujoco.MjData) -> np.ndarray:

@@ -10,13 +10,16 @@ and :func:`isf_robot.arm.run_episode` call this function, and a script may too.
 from __future__ import annotations
 
 import math
+from typing import Any
+
+import numpy as np
 
 from isf_robot.core import ClassK, ConfigError, Linear
 
 from .records import FilterParams
 from .scene import Scene
 
-__all__ = ["resolve_params"]
+__all__ = ["resolve_params", "filter_options"]
 
 
 def _positive(label: str, v: float) -> float:
@@ -34,6 +37,11 @@ def resolve_params(
     d_bar: float | None = None,
     *,
     calibrate: bool = True,
+    min_off: float | None = None,
+    c_max: float | None = None,
+    blend: float | None = None,
+    horizon: float | None = None,
+    predict_every: int | None = None,
 ) -> FilterParams:
     """The filter parameters of a run on ``scene``: arguments first, then ``[filter]`` of the config.
 
@@ -45,6 +53,11 @@ def resolve_params(
         d_bar: Tracking-error bound [rad/s]; default ``[filter] d_bar`` when positive, else
             calibrated (when ``calibrate``).
         calibrate: Allow the calibration run.
+        min_off: Asked-for shortest off period [s] (``None``: the fixed margin ``c``).
+        c_max: Largest margin ``min_off`` may design (``None``: no cap beyond the scene's).
+        blend: Hand-over time after each switch [s] (``None``/0: none).
+        horizon: Horizon of the predictive off trigger [s] (``None``/0: none).
+        predict_every: Control steps between its rollouts (``None``: 5).
 
     Raises:
         ConfigError: A parameter is not a positive number (``d_bar``: not >= 0), or ``d_bar``
@@ -59,16 +72,62 @@ def resolve_params(
         a = _positive("alpha", fc.alpha if alpha is None else alpha)
     cc = _positive("c", fc.c if c is None else c)
     bb = _positive("b", fc.b if b is None else b)
+    opts = _options(cc, min_off, c_max, blend, horizon, predict_every)
     if d_bar is not None:
         if not (math.isfinite(d_bar) and d_bar >= 0):
             raise ConfigError(f"d_bar must be >= 0 [rad/s], got {d_bar}")
-        return FilterParams(a, cc, bb, float(d_bar), "argument")
+        return FilterParams(a, cc, bb, float(d_bar), "argument", **opts)
     if fc.d_bar > 0:
-        return FilterParams(a, cc, bb, float(fc.d_bar), "config")
+        return FilterParams(a, cc, bb, float(fc.d_bar), "config", **opts)
     if not calibrate:
         raise ConfigError(
             f"scene {scene.name!r} has no d_bar ([filter] d_bar = 0): pass d_bar=, or "
             "params=resolve_params(scene) (runs the tracking calibration, about 4 s)")
     from .calibration import calibrate_d_bar
 
-    return FilterParams(a, cc, bb, calibrate_d_bar(scene).d_bar, "calibration")
+    return FilterParams(a, cc, bb, calibrate_d_bar(scene).d_bar, "calibration", **opts)
+
+
+def _options(c: float, min_off: float | None, c_max: float | None, blend: float | None,
+             horizon: float | None, every: int | None) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    if min_off is not None:
+        out["min_off"] = _positive("min_off [s]", min_off)
+    if c_max is not None:
+        if not (float(c_max) >= c):  # inf allowed
+            raise ConfigError(f"filter parameter c_max must be >= c = {c}, got {c_max}")
+        out["c_max"] = float(c_max)
+    for label, v in (("blend", blend), ("horizon", horizon)):
+        if v is not None:
+            if not (math.isfinite(v) and v >= 0):
+                raise ConfigError(f"filter parameter {label} must be >= 0 [s] (0: off), got {v}")
+            out[label] = float(v)
+    if every is not None:
+        if isinstance(every, bool) or int(every) != every or every < 1:
+            raise ConfigError(f"filter parameter predict_every must be a whole number of control steps >= 1, "
+                              f"got {every}")
+        out["predict_every"] = int(every)
+    return out
+
+
+def filter_options(sim: Any) -> dict[str, Any]:
+    """Keyword arguments of the strategy of ``sim`` besides ``alpha, c, b, d_bar``.
+
+    ``sim`` is an :class:`~isf_robot.arm.ArmSimulation` being built. The options are those of its
+    :class:`FilterParams` and, with a horizon, the rollout of the nominal on the reduced model
+    (:class:`~isf_robot.arm.rollout.NominalRollout`); empty for a strategy that is not intermittent.
+    With ``min_off`` the designed margin is capped at ``alpha(cutoff - margin)`` too: a larger one
+    could not be met by a pair at the broad-phase cut-off.
+    """
+    p: FilterParams = sim.params
+    if not sim.info.intermittent:
+        return {}
+    out = p.intermittent_options()
+    if p.min_off is not None:  # no margin above what a pair at the broad-phase cut-off can reach
+        cutoff_h = float(np.min(sim.coll.cutoff - sim.coll.pairs.margin))
+        out["c_max"] = max(p.c, min(p.c_max, p.class_k(cutoff_h)))
+    if p.horizon > 0:
+        from .rollout import NominalRollout
+
+        out["rollout"] = NominalRollout(sim, p.horizon)
+    return out

@@ -9,6 +9,7 @@ parameters. Re-exported by :mod:`isf_robot.arm.sim`.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -95,6 +96,12 @@ class FilterParams:
         b: Promotion rate of the intermittent filter [m/s or rad/s].
         d_bar: Tracking-error bound [rad/s].
         d_bar_source: ``"argument"``, ``"config"`` or ``"calibration"``.
+        min_off: Asked-for shortest off period [s] of the intermittent filter (``None``: the
+            fixed margin ``c``; :mod:`isf_robot.core.intermittent`).
+        c_max: Largest off margin ``min_off`` may design.
+        blend: Hand-over time after each switch [s] (0: none).
+        horizon: Horizon of the predictive off trigger [s] (0: off at ``Xi_on >= c`` at once).
+        predict_every: Control steps between rollouts of the predictive off trigger.
 
     """
 
@@ -103,6 +110,16 @@ class FilterParams:
     b: float
     d_bar: float
     d_bar_source: str
+    min_off: float | None = None
+    c_max: float = math.inf
+    blend: float = 0.0
+    horizon: float = 0.0
+    predict_every: int = 5
+
+    def intermittent_options(self) -> dict[str, Any]:
+        """Keyword arguments of the intermittent filter besides ``alpha, c, b, d_bar`` (no rollout)."""
+        return {"min_off": self.min_off, "c_max": self.c_max, "blend": self.blend,
+                "predict_every": self.predict_every}
 
     @property
     def class_k(self) -> ClassK:
@@ -112,8 +129,16 @@ class FilterParams:
     def as_dict(self) -> dict[str, Any]:
         """Plain dict; a non-linear class-K function is given by its description."""
         a = self.alpha
-        return {"d_bar": self.d_bar, "d_bar_source": self.d_bar_source,
-                "alpha": a if isinstance(a, (int, float)) else str(a), "c": self.c, "b": self.b}
+        out = {"d_bar": self.d_bar, "d_bar_source": self.d_bar_source,
+               "alpha": a if isinstance(a, (int, float)) else str(a), "c": self.c, "b": self.b}
+        # the intermittent options appear only when set (the output of a run without them is unchanged)
+        if self.min_off is not None:
+            out.update(min_off=self.min_off, c_max=self.c_max)
+        if self.blend > 0:
+            out["blend"] = self.blend
+        if self.horizon > 0:
+            out.update(horizon=self.horizon, predict_every=self.predict_every)
+        return out
 
 
 @dataclass(frozen=True)
@@ -137,7 +162,10 @@ class RunResult:
         goals_missed: Goals given up after the nominal task's timeout.
         control_period: Control period T [s].
         timestep: Physics timestep dt [s].
-        tracking_error_q99: 99th percentile of ``|q_dot - u|`` at the control ticks [rad/s].
+        tracking_error_q99: 99th percentile of ``|q_dot - u|`` at the control ticks [rad/s];
+            ``d_bar_covered`` in :meth:`as_dict` says whether the ``d_bar`` in use covers it (if
+            not, the robust term does not cover the tracking error this strategy produces, and
+            safety rests on the clearance the filter builds).
         wall_s: Wall time of :meth:`ArmSimulation.run` [s] (setup of the episode and the loop;
             not the construction, calibration or scene loading).
         timings: Wall time per phase [s] when timing was requested, else empty.
@@ -186,7 +214,8 @@ class RunResult:
         out.update(fallbacks=st.pop("fallbacks"), relaxations=st.pop("relaxations"), resolves=st.pop("resolves"))
         out.update(self.params.as_dict())
         out.update(control_period=self.control_period, timestep=self.timestep,
-                   tracking_error_q99=self.tracking_error_q99)
+                   tracking_error_q99=self.tracking_error_q99,
+                   d_bar_covered=bool(self.tracking_error_q99 <= self.params.d_bar))
         out.update(st)
         out.update(wall_s=self.wall_s, timings=dict(self.timings))
         return out

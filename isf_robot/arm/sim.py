@@ -47,7 +47,7 @@ from .barriers import CollisionBarriers, JointLimitBarriers
 from .episode import EpisodeSetup, check_control_period, episode_setup, path_track
 from .monitor import SafetyMonitor
 from .nominal import NominalController, ReachingController
-from .params import resolve_params
+from .params import filter_options, resolve_params
 from .records import ArmStepRecord, FilterParams, RunResult
 from .scene import Scene
 from .timing import PhaseTimers
@@ -143,7 +143,7 @@ class ArmSimulation:
             raise ConfigError(
                 f"alpha(cutoff - margin) = {as_class_k(p.alpha)(cutoff_h):.3g} < c = {p.c}: pairs beyond the "
                 "broad-phase cut-off would keep the intermittent filter on; raise the cut-off")
-        self.strategy = make_strategy(strategy, alpha=p.alpha, c=p.c, b=p.b, d_bar=p.d_bar,
+        self.strategy = make_strategy(strategy, alpha=p.alpha, c=p.c, b=p.b, d_bar=p.d_bar, **filter_options(self),
                                       solver=solver if solver is not None else QPSolver(),
                                       on_infeasible="fallback", fallback=_brake, validate=False)
 
@@ -302,7 +302,7 @@ class _Episode:
             if screen is None:
                 screen = self._screen_cache[nc] = np.concatenate(
                     (np.full(nc, self.sim.keep_collision), self._screen_j))
-            step = self.sim.strategy.step_lie(t, lie, u_nom, screen=screen)
+            step = self.sim.strategy.step_lie(t, lie, u_nom, self.data, screen=screen)  # x: for a rollout
         self.metrics.add_step(step, self.sim.control_period)
         return step
 

@@ -213,7 +213,7 @@ class IntermittentSafetyFilter(_FilterBase):
         pred, ran = None, False
         if self.predictor is not None:
             if was_on and xi_min >= c:
-                pred, ran = self.predictor.check(t, self.alpha, self.d_bar)
+                pred, ran = self.predictor.check(t, x, self.alpha, self.d_bar)
             else:
                 self.predictor.idle()
         held = pred is not None and not pred.ok

@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -46,9 +47,10 @@ from .validation import check_nonnegative
 
 __all__ = ["FallRateBound", "OffPredictor", "Prediction", "RolloutFn", "blend_weight"]
 
-RolloutFn = Callable[[float], Sequence[tuple[float, LieData, np.ndarray]]]
-"""``rollout(t) -> [(s, lie, u_nom), ...]``: predicted barrier data and nominal command at times
-``t + s`` (``0 < s <= horizon``) of the nominal controller rolled forward on the reduced model."""
+RolloutFn = Callable[[float, Any], Sequence[tuple[float, LieData, np.ndarray]]]
+"""``rollout(t, x) -> [(s, lie, u_nom), ...]``: predicted barrier data and nominal command at times
+``t + s`` (``0 < s <= horizon``) of the nominal controller rolled forward on the reduced model from
+the state ``x`` the adapter passed to ``step_lie`` (``None`` if it passed none)."""
 
 
 class FallRateBound:
@@ -155,7 +157,7 @@ class OffPredictor:
 
     def __init__(self, rollout: RolloutFn, every: int = 5) -> None:
         if not callable(rollout):
-            raise ConfigError("rollout must be callable rollout(t) -> [(s, lie, u_nom), ...]")
+            raise ConfigError("rollout must be callable rollout(t, x) -> [(s, lie, u_nom), ...]")
         if int(every) != every or int(every) < 1:
             raise ConfigError(f"predict_every must be a whole number of control steps >= 1, got {every}")
         self.rollout = rollout
@@ -173,12 +175,12 @@ class OffPredictor:
         self.last = None
         self._since = 0
 
-    def check(self, t: float, alpha: ClassK, d_bar: float) -> tuple[Prediction, bool]:
-        """The prediction for switching off at ``t`` and whether a rollout ran for it."""
+    def check(self, t: float, x: Any, alpha: ClassK, d_bar: float) -> tuple[Prediction, bool]:
+        """The prediction for switching off at ``t`` from state ``x`` and whether a rollout ran for it."""
         if self.last is not None and self._since < self.every:
             self._since += 1
             return self.last, False
-        self.last = predict(self.rollout(t), alpha, d_bar)
+        self.last = predict(self.rollout(t, x), alpha, d_bar)
         self._since = 1
         self.rollouts += 1
         return self.last, True

@@ -14,6 +14,7 @@ Conventions (the same code computes a live run's figures and a replayed log's):
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -60,6 +61,12 @@ class FilterStats:
             polish and checks included), ``None`` without QPs.
         solver_time_median_us: The same over the steps that went to the QP backend (not the
             closed form) [us].
+        switch_jump_max: Largest step in the command at a mode switch, ``|u_k - u_{k-1}|`` over
+            the steps with a switch event (``None`` without switches) [command units].
+        jump_max: Largest ``|u_k - u_{k-1}|`` over every step (the nominal's own changes included).
+        off_bound_min_s: Smallest designed off-period bound reported at an off switch
+            (:attr:`~isf_robot.core.filters.FilterStep.off_bound_s`; ``None``: none reported,
+            ``inf``: no fall of ``Xi_on`` measured yet) [s]; compare with ``min_off_s``.
 
     """
 
@@ -69,6 +76,9 @@ class FilterStats:
     qp_closed_form: int = 0
     qp_time_median_us: float | None = None
     solver_time_median_us: float | None = None
+    switch_jump_max: float | None = None
+    jump_max: float | None = None
+    off_bound_min_s: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """Plain dict (JSON-ready)."""
@@ -157,6 +167,10 @@ class MetricsAccumulator:
         self._qp_times: list[float] = []
         self._solver_times: list[float] = []
         self._fallbacks = self._relaxations = self._resolves = self._closed_form = 0
+        self._u_prev: np.ndarray | None = None
+        self._jump_max: float | None = None
+        self._switch_jump: float | None = None
+        self._off_bound: float | None = None
 
     def add(self, t: float, dt: float, on: bool, u: np.ndarray, u_nom: np.ndarray, solved: bool) -> None:
         """Record one step."""
@@ -183,6 +197,17 @@ class MetricsAccumulator:
             self._relaxations += 1
         if getattr(step, "resolved", False):
             self._resolves += 1
+        u = np.asarray(step.u, dtype=float)
+        if self._u_prev is not None:
+            d = u - self._u_prev
+            jump = math.sqrt(float(d @ d))
+            self._jump_max = jump if self._jump_max is None else max(self._jump_max, jump)
+            if step.event is not None:
+                self._switch_jump = jump if self._switch_jump is None else max(self._switch_jump, jump)
+        self._u_prev = u.copy()
+        bound = getattr(step, "off_bound_s", None)
+        if bound is not None:
+            self._off_bound = bound if self._off_bound is None else min(self._off_bound, bound)
 
     def stats(self) -> FilterStats:
         """The solver figures of the steps recorded with :meth:`add_step`."""
@@ -190,7 +215,8 @@ class MetricsAccumulator:
             return float(np.median(v)) * 1e6 if v else None
 
         return FilterStats(self._fallbacks, self._relaxations, self._resolves, self._closed_form,
-                           med(self._qp_times), med(self._solver_times))
+                           med(self._qp_times), med(self._solver_times), self._switch_jump, self._jump_max,
+                           self._off_bound)
 
     def __len__(self) -> int:
         return len(self._t)

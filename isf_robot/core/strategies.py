@@ -31,7 +31,14 @@ __all__ = [
     "strategy_names",
     "strategy_info",
     "make_strategy",
+    "INTERMITTENT_OPTIONS",
 ]
+
+INTERMITTENT_OPTIONS = ("min_off", "c_max", "fall_rate_prior", "fall_rate_forget", "rollout", "predict_every",
+                        "blend")
+"""Keyword arguments only an intermittent strategy takes (designed off periods, the predictive off
+trigger, the hand-over; :class:`~isf_robot.core.filters.IntermittentSafetyFilter`). :func:`make_strategy`
+drops them for the other strategies, so one set of options serves a comparison."""
 
 
 class NominalStrategy:
@@ -113,10 +120,14 @@ def make_strategy(name: str, *, alpha: Any, c: float, b: float, d_bar: float, **
         c: Off-trigger margin (intermittent strategies).
         b: Promotion rate (intermittent strategies).
         d_bar: Disturbance bound.
-        **filter_kwargs: Passed to the filter (solver, bounds, infeasibility policy, ...).
+        **filter_kwargs: Passed to the filter (solver, bounds, infeasibility policy, ...);
+            :data:`INTERMITTENT_OPTIONS` only to intermittent strategies.
 
     """
-    return strategy_info(name).factory(alpha=alpha, c=c, b=b, d_bar=d_bar, **filter_kwargs)
+    info = strategy_info(name)
+    if not info.intermittent:
+        filter_kwargs = {k: v for k, v in filter_kwargs.items() if k not in INTERMITTENT_OPTIONS}
+    return info.factory(alpha=alpha, c=c, b=b, d_bar=d_bar, **filter_kwargs)
 
 
 register_strategy(StrategyInfo(

@@ -93,7 +93,7 @@ class ScriptedRollout:
         self.outcomes = list(outcomes)
         self.calls = []
 
-    def __call__(self, t):
+    def __call__(self, t, x=None):
         self.calls.append(t)
         xi_pred = self.outcomes.pop(0)
         return [(0.1, _one_row(xi_pred, "a"), np.zeros(1)), (0.2, _one_row(1.0, "b"), np.zeros(1))]
@@ -122,7 +122,10 @@ def test_prediction_never_delays_switching_on_and_restarts_when_the_condition_br
 
 
 def test_held_steps_promote_the_rows_predicted_to_fail():
-    def roll(t):
+    seen = []
+
+    def roll(t, x=None):
+        seen.append(x)
         return [(0.1, LieData(np.array([-0.1]), np.zeros(1), np.array([[0.0, 1.0]]), np.ones(1), ("far",)),
                  np.zeros(2))]
 
@@ -130,8 +133,9 @@ def test_held_steps_promote_the_rows_predicted_to_fail():
     lie = LieData(np.array([0.0, 2.0]), np.zeros(2), np.eye(2), np.ones(2), ("near", "far"))
     f.step_lie(0.0, lie, np.zeros(2))  # on (near: Xi = 0)
     lie2 = LieData(np.array([1.0, 2.0]), np.zeros(2), np.eye(2), np.ones(2), ("near", "far"))
-    step = f.step_lie(DT, lie2, np.zeros(2))
+    step = f.step_lie(DT, lie2, np.zeros(2), x=np.array([7.0]))
     assert step.on and step.held
+    assert len(seen) == 1 and seen[0] is not None and seen[0][0] == 7.0  # the state reaches the rollout
     assert step.qp is not None
     assert step.u[1] == pytest.approx(0.5, abs=1e-6)  # "far" promoted: dh/dt >= b
     assert step.u[0] == pytest.approx(0.0, abs=1e-6)  # "near" robust only (Xi >= c)
@@ -161,7 +165,7 @@ def test_bad_options_are_refused():
     with pytest.raises(ConfigError, match="blend"):
         IntermittentSafetyFilter(1.0, 0.1, 0.1, blend=-1.0)
     with pytest.raises(ConfigError, match="predict_every"):
-        OffPredictor(lambda t: [], every=0)
+        OffPredictor(lambda t, x: [], every=0)
 
 
 def test_off_switch_hands_over_without_a_step():

@@ -21,6 +21,9 @@ Changes so far, each deliberate:
 * Versioned outputs (issue 12, item 3): one new key in every case, ``"schema"``
   (``"isf-robot-run/1"``, ``"isf-satellite-run/1"``), added to the data files by hand (every
   other value untouched, not regenerated).
+* Intermittent filter metrics (issue 13): new keys only in every arm case, ``switch_jump_max``,
+  ``jump_max``, ``off_bound_min_s`` and ``d_bar_covered`` (added by a script that checked every
+  other value unchanged); the new filter options are off by default and appear only when set.
 """
 
 from __future__ import annotations

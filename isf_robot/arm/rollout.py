@@ -1,0 +1,103 @@
+"""The nominal controller rolled forward on the reduced model, for the predictive off trigger.
+
+The intermittent filter's predictive off trigger (:class:`~isf_robot.core.intermittent.OffPredictor`)
+asks, before switching off, what the nominal controller would do alone: :class:`NominalRollout`
+integrates the reduced model ``q_dot = u_nom(t, q)`` (DESIGN.md, section 3) by explicit Euler from
+the episode's current joint positions, moves the moving obstacles along their paths, and returns
+the barrier rows (the collision pairs within the cut-off and the joint limits, as the simulation
+builds them) with the nominal command at each predicted point. The core computes ``Xi_on`` at
+those points with the filter's own ``alpha`` and ``d_bar``.
+
+Cost per rollout, bounded: ``points`` (default at most 10) evaluations of the nominal controller,
+of the kinematics and of the barriers on a scratch ``MjData``; the filter runs at most one rollout
+every ``predict_every`` control steps, and only while it is on with every ``Xi_on`` above the margin.
+The nominal controller's own state (goal bookkeeping, rate limit) is saved before and restored
+after, so a rollout changes nothing in the episode.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from isf_robot.core import ConfigError, LieData
+
+__all__ = ["NominalRollout", "MAX_POINTS"]
+
+MAX_POINTS = 10
+"""Default largest number of predicted points per rollout (the integration step grows with the horizon)."""
+
+
+class NominalRollout:
+    """``rollout(t, data) -> [(s, lie, u_nom), ...]`` for an :class:`~isf_robot.arm.ArmSimulation`.
+
+    Args:
+        sim: The simulation being built (its scene, nominal controller, barriers, episode setup
+            and control period are used).
+        horizon: Prediction horizon [s], > 0.
+        points: Largest number of predicted points; the Euler step is
+            ``max(control period, horizon / points)``.
+
+    """
+
+    def __init__(self, sim: Any, horizon: float, points: int = MAX_POINTS) -> None:
+        if not (math.isfinite(horizon) and horizon > 0):
+            raise ConfigError(f"rollout horizon must be > 0 [s], got {horizon}")
+        if int(points) != points or points < 1:
+            raise ConfigError(f"rollout points must be a whole number >= 1, got {points}")
+        nominal = sim.nominal
+        if not (callable(getattr(nominal, "snapshot", None)) and callable(getattr(nominal, "restore", None))):
+            raise ConfigError("the predictive off trigger (horizon > 0) needs a nominal controller with "
+                              "snapshot() and restore() (isf_robot.arm.NominalController has them)")
+        self.scene, self.nominal = sim.scene, nominal
+        self.coll, self.joints = sim.coll, sim.joints
+        self.offset = float(sim.setup.time_offset)
+        self.dt = max(float(sim.control_period), float(horizon) / int(points))
+        self.n = max(1, int(math.ceil(float(horizon) / self.dt - 1e-9)))
+        self.horizon = float(horizon)
+        self.moving = len(self.scene.config.moving) > 0
+        self._data = mujoco.MjData(self.scene.model)
+        self._qadr = np.asarray(self.scene.qpos_adr)
+        self.calls = 0
+
+    def _rows(self, data: mujoco.MjData, lin: np.ndarray | None) -> LieData:
+        cb = self.coll.evaluate(data, lin)
+        act = cb.active.nonzero()[0]
+        jb = self.joints.evaluate(data)
+        g = np.concatenate((cb.grad[act], jb.grad))
+        names = tuple(cb.names[i] for i in act.tolist()) + tuple(jb.names)
+        return LieData(np.concatenate((cb.h[act], jb.h)), np.concatenate((cb.dhdt[act], jb.dhdt)), g,
+                       np.sqrt(np.einsum("ij,ij->i", g, g)), names)
+
+    def __call__(self, t: float, x: Any) -> list[tuple[float, LieData, np.ndarray]]:
+        """Predicted points ``t + s``, ``s = dt, 2 dt, ..., n dt``, from the state in ``x`` (the episode's MjData)."""
+        if not isinstance(x, mujoco.MjData):
+            raise ConfigError("NominalRollout needs the episode's MjData as the state x of step_lie")
+        m, d, scene = self.scene.model, self._data, self.scene
+        d.qpos[:] = x.qpos
+        d.mocap_pos[:] = x.mocap_pos
+        d.mocap_quat[:] = x.mocap_quat
+        q = x.qpos[self._qadr].copy()
+        saved = self.nominal.snapshot()
+        out: list[tuple[float, LieData, np.ndarray]] = []
+        self.calls += 1
+        try:
+            u = np.array(self.nominal(t, x), dtype=float)  # the command now (the controller's next call)
+            for j in range(1, self.n + 1):
+                s = j * self.dt
+                q = q + self.dt * u
+                d.qpos[self._qadr] = q
+                lin = None
+                if self.moving:
+                    scene.set_moving_obstacles(d, t + s + self.offset)
+                    lin = scene.mocap_velocities(t + s + self.offset)[0]
+                mujoco.mj_kinematics(m, d)
+                mujoco.mj_comPos(m, d)
+                u = np.array(self.nominal(t + s, d), dtype=float)
+                out.append((s, self._rows(d, lin), u))
+        finally:
+            self.nominal.restore(saved)
+        return out
