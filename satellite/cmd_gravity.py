@@ -59,6 +59,9 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--n-lat", type=int, default=45, help="--table: latitude cells (default 45, 4 deg)")
     parser.add_argument("--n-r", type=int, default=17, help="--table: radial nodes (default 17)")
     parser.add_argument("--workers", type=int, default=1, help="--table: worker processes (default 1)")
+    parser.add_argument("--near-cut", type=float, default=1.4, metavar="R_OVER_R",
+                        help="--table: faces reaching above this radius (units of R) are tiled and summed exactly "
+                             "near the surface (default 1.4; 0: the table alone)")
     parser.add_argument(
         "--mass",
         type=float,
@@ -157,15 +160,22 @@ def _table(args: argparse.Namespace, shape: Path) -> int:
 
     if args.n_lat < 4 or args.n_r < 4 or args.workers < 1:
         raise GravityModelError("--n-lat and --n-r must be >= 4 and --workers >= 1")
+    if not 0.0 <= args.near_cut < 1.5:
+        raise GravityModelError(f"--near-cut must be in [0, 1.5) (units of R; 0: no tiles), got {args.near_cut:g}")
     mesh = read_obj(shape, units=args.units)
     field = PolyhedronField.from_mesh(mesh, G_CODATA2018 * args.mass)
     r_ref = float(mesh.volume_equivalent_radius)
     grid = TableGrid(1.5 * r_ref, 2.5 * r_ref, args.n_r, args.n_lat)
     prov = provenance_for(shape, 0, args.mass, args.units, Path(args.out))
     prov["generator"] = (f"isf-satellite gravity --table --shape {shape.as_posix()} --mass {args.mass:g} "
-                         f"--units {args.units} --n-lat {args.n_lat} --n-r {args.n_r} --out {args.out}")
+                         f"--units {args.units} --n-lat {args.n_lat} --n-r {args.n_r} --near-cut {args.near_cut:g} "
+                         f"--out {args.out}")
     prov["model"] = "exact constant-density polyhedron (Werner and Scheeres 1997), non-Kepler part tabulated"
-    table = build_table(field, grid, r_ref, workers=args.workers, provenance=prov)
+    if args.near_cut > 0:
+        prov["near_surface"] = (f"faces reaching above {args.near_cut:g} R tiled and summed exactly within 30-40 m "
+                                "(satellite.gravity_near)")
+    table = build_table(field, grid, r_ref, workers=args.workers, provenance=prov,
+                        near_cut=args.near_cut * r_ref if args.near_cut > 0 else None)
     table.save(args.out)
     print(f"wrote {args.out}: {grid.n_r} x {grid.n_lat} x {grid.n_lon} nodes, r in [{grid.r_lo:.6g}, "
           f"{grid.r_hi:.6g}] m", file=sys.stdout)

@@ -19,10 +19,10 @@ default grid is in REPRODUCTION.md.
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import math
 import os
-import tempfile
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from isf_robot.core.files import write_bytes_atomic
 from satellite.errors import GravityModelError
 from satellite.polyhedron import PolyhedronField
 
@@ -110,7 +111,7 @@ class GravityTable:
     model_name = "polyhedron-table"
 
     def __init__(self, grid: TableGrid, values: NDArray[np.float64], r_ref_m: float, gm: float,
-                 exact: Any = None, provenance: dict[str, Any] | None = None) -> None:
+                 exact: Any = None, provenance: dict[str, Any] | None = None, near: Any = None) -> None:
         if values.shape != (grid.n_r, grid.n_lat, grid.n_lon, 3) or not np.isfinite(values).all():
             raise GravityModelError(f"table values must be finite, shape {(grid.n_r, grid.n_lat, grid.n_lon, 3)}")
         self.grid, self.values = grid, values
@@ -119,6 +120,11 @@ class GravityTable:
         self.provenance = dict(provenance or {})
         self._ext = np.ascontiguousarray(_pad(values, grid.n_lat))
         self._r_in, self._r_out = grid.r_lo + grid.dr, grid.r_hi - grid.dr
+        self.near = near
+        if near is not None:
+            from satellite.gravity_near import cell_flags
+
+            self._near_cells = cell_flags(near, grid)
 
     # -- evaluation ---------------------------------------------------------------------------
     def acceleration(self, r_body: ArrayLike) -> NDArray[np.float64]:
@@ -140,7 +146,12 @@ class GravityTable:
         j = int(math.floor(w))
         block = self._ext[k - 1: k + 3, i + 1: i + 5, j + 1: j + 5]  # two ghost nodes before each axis
         wr, wl, wn = catmull_rom(u - k), catmull_rom(v - i), catmull_rom(w - j)
-        nk = np.einsum("a,b,c,abcd->d", np.array(wr), np.array(wl), np.array(wn), block)
+        wr, wl, wn = np.array(wr), np.array(wl), np.array(wn)
+        nk = np.einsum("a,b,c,abcd->d", wr, wl, wn, block)
+        if self.near is not None and self._near_cells[k, i + 1, j + 1]:
+            fix = self.near.correction(p, k, i, j, wr, wl, wn)
+            if fix is not None:
+                nk = nk + fix
         kep = -self.gm / (r2 * r)
         return nk + kep * p  # type: ignore[no-any-return]
 
@@ -167,6 +178,11 @@ class GravityTable:
                 wab = wr[:, a] * wl[:, b]
                 for c in range(4):
                     acc += (wab * wn[:, c])[:, None] * self._ext[k - 1 + a, i + 1 + b, j + 1 + c]
+        if self.near is not None:
+            for n in np.flatnonzero(self._near_cells[k, i + 1, j + 1]).tolist():
+                fix = self.near.correction(q[n], int(k[n]), int(i[n]), int(j[n]), wr[n], wl[n], wn[n])
+                if fix is not None:
+                    acc[n] += fix
         out[ok] = acc - self.gm * q / (rq**3)[:, None]
         return out
 
@@ -178,19 +194,15 @@ class GravityTable:
 
     # -- files -------------------------------------------------------------------------------
     def save(self, path: str | Path) -> None:
-        """Write the table as ``.npz`` (atomically: a temporary file renamed into place)."""
+        """Write the table as ``.npz`` (atomically: a temporary file renamed into place, usual permissions)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         meta = {"format": TABLE_FORMAT, "grid": self.grid.describe(), "r_ref_m": self.r_ref_m, "gm": self.gm,
                 "provenance": self.provenance}
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                np.savez(fh, values=self.values, meta=np.array(json.dumps(meta)))
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        arrays = self.near.to_arrays() if self.near is not None else {}
+        buf = io.BytesIO()
+        np.savez(buf, values=self.values, meta=np.array(json.dumps(meta)), **arrays)
+        write_bytes_atomic(path, buf.getvalue())
 
     @classmethod
     def load(cls, path: str | Path, exact: Any = None) -> GravityTable:
@@ -199,13 +211,22 @@ class GravityTable:
             with np.load(path) as data:
                 values = np.asarray(data["values"], dtype=np.float64)
                 meta = json.loads(str(data["meta"]))
+                near_arrays = {key: data[key] for key in data.files if key.startswith("near_")}
         except (OSError, KeyError, ValueError) as exc:
             raise GravityModelError(f"{path}: not a gravity table ({exc})") from None
         if meta.get("format") != TABLE_FORMAT:
             raise GravityModelError(f"{path}: format {meta.get('format')!r}, expected {TABLE_FORMAT!r}")
         gr = meta["grid"]
         grid = TableGrid(gr["r_lo_m"], gr["r_hi_m"], gr["n_r"], gr["n_lat"])
-        return cls(grid, values, meta["r_ref_m"], meta["gm"], exact, meta.get("provenance"))
+        near = None
+        if near_arrays:
+            from satellite.gravity_near import NearTiles
+
+            try:
+                near = NearTiles.from_arrays(near_arrays, grid)
+            except (KeyError, ValueError, IndexError) as exc:
+                raise GravityModelError(f"{path}: bad near-surface tiles ({exc})") from None
+        return cls(grid, values, meta["r_ref_m"], meta["gm"], exact, meta.get("provenance"), near)
 
 
 _WORKER: PolyhedronField | None = None
@@ -223,7 +244,7 @@ def _chunk(points: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def build_table(field: PolyhedronField, grid: TableGrid, r_ref_m: float, *, workers: int = 1,
                 progress: Callable[[int, int], None] | None = None,
-                provenance: dict[str, Any] | None = None) -> GravityTable:
+                provenance: dict[str, Any] | None = None, near_cut: float | None = None) -> GravityTable:
     """Evaluate the exact field at every node of ``grid`` (in ``workers`` processes) and tabulate it.
 
     Args:
@@ -233,6 +254,8 @@ def build_table(field: PolyhedronField, grid: TableGrid, r_ref_m: float, *, work
         workers: Processes (1: in this process).
         progress: Called with ``(nodes done, nodes)`` after each chunk.
         provenance: Stored with the table.
+        near_cut: With a radius [m], the faces reaching above it are also tiled and summed exactly
+            near the surface (:mod:`satellite.gravity_near`); ``None``: the table alone.
 
     """
     nodes = grid.nodes().reshape(-1, 3)
@@ -259,7 +282,12 @@ def build_table(field: PolyhedronField, grid: TableGrid, r_ref_m: float, *, work
     acc = np.concatenate(out)
     r = np.linalg.norm(nodes, axis=1)
     values = (acc + field.gm * nodes / (r**3)[:, None]).reshape(grid.n_r, grid.n_lat, grid.n_lon, 3)
-    return GravityTable(grid, values, r_ref_m, field.gm, field, provenance)
+    near = None
+    if near_cut is not None:
+        from satellite.gravity_near import build_near_tiles
+
+        near = build_near_tiles(field, grid, r_cut=near_cut)
+    return GravityTable(grid, values, r_ref_m, field.gm, field, provenance, near)
 
 
 def table_key(field: PolyhedronField, grid: TableGrid) -> str:
