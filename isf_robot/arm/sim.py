@@ -23,7 +23,7 @@ If a filter's QP is infeasible even with every promotion relaxed, the arm brakes
 such steps are counted in ``fallbacks`` and never hidden.
 
 Observers (:class:`isf_robot.core.Observer`) receive ``on_start(info)`` (see
-:meth:`ArmSimulation.start_info`), ``on_step`` with an :class:`ArmStepRecord` per control step,
+:meth:`ArmSimulation.start_info`, plus ``data``: the live MjData), ``on_step`` with an :class:`ArmStepRecord`,
 ``on_event`` per :class:`~isf_robot.core.SwitchEvent` and ``on_finish(summary)``. Records are
 built only when an observer is attached. Timing per phase (``timing=True``) wraps the phases
 with timers; the loop itself has none.
@@ -197,7 +197,7 @@ class ArmSimulation:
         sense, barriers, nominal, strategy, act = (phases[name] for name in PHASES)
         observers, recording = self.observers, bool(self.observers)
         if recording:
-            observers.on_start(self.start_info(n_ctrl * T))
+            observers.on_start({**self.start_info(n_ctrl * T), "data": ep.data})  # live data: a viewer can perturb it
         try:
             for k in range(n_ctrl):
                 t = k * T

@@ -83,7 +83,7 @@ class ArmRecorder(RerunRecorder):
 
     kind = "arm"
     CONTEXT_KEYS = ("closest", "capacity", "trail_s")
-    INFO_OBJECTS = ("model",)
+    INFO_OBJECTS = ("model", "data")
     TRAIL_POINTS = 25
     """Most points per trail strip (the trail is subsampled to this)."""
 
