@@ -28,9 +28,10 @@ points belong to (a one-sided derivative), while central differences give the av
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import mujoco
 import numpy as np
@@ -45,7 +46,7 @@ from .pairs import CollisionPairs, collision_pairs
 if TYPE_CHECKING:
     from .scene import Scene
 
-__all__ = ["CollisionBarriers"]
+__all__ = ["CollisionBarriers", "NearPairs"]
 
 _EPS_DIST = 1e-9  # [m] below this |dist| the witness points give no direction
 
@@ -59,6 +60,31 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise cross product of (k, 3) arrays (cheaper than ``np.cross`` for small k)."""
     i, j = [1, 2, 0], [2, 0, 1]
     return a[:, i] * b[:, j] - a[:, j] * b[:, i]
+
+
+class NearPairs(NamedTuple):
+    """The collision pairs within the cut-off at one state (:meth:`CollisionBarriers.near`).
+
+    Attributes:
+        rows: Their pair indices, ascending, shape (j,) int64.
+        row_list: The same as a list.
+        h: ``dist - margin``, shape (j,).
+        grad: ``dh/dq``, shape (j, n).
+        dhdt: ``dh/dt``, shape (j,).
+        witness: Witness points (on geom 1, on geom 2) [m], shape (j, 2, 3), when asked for.
+        h_min: Smallest ``h`` (``inf`` when no pair is near).
+        dist_min: Smallest distance [m] (``inf`` when no pair is near).
+
+    """
+
+    rows: np.ndarray
+    row_list: list[int]
+    h: np.ndarray
+    grad: np.ndarray
+    dhdt: np.ndarray
+    witness: np.ndarray | None
+    h_min: float
+    dist_min: float
 
 
 class CollisionBarriers:
@@ -110,11 +136,18 @@ class CollisionBarriers:
         self._b2 = model.body_weldid[model.geom_bodyid[pairs.geom2]].tolist()
         self._self = pairs.is_self.tolist()
         self._margin = pairs.margin
+        self._marginl = pairs.margin.tolist()
         self._pair_geoms = np.stack([pairs.geom1, pairs.geom2], axis=1)
         self._pair_geoms.flags.writeable = False
         # Every output starts as the row of a pair beyond the cut-off (copied per call).
         self._h_far = self.cutoff - pairs.margin
         self._witness_far = np.full((k, 2, 3), np.nan)
+        self._h_far_min = float(self._h_far.min())
+        empty = (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, n)), np.zeros(0),
+                 np.zeros((0, 2, 3)))
+        for arr in empty:
+            arr.flags.writeable = False
+        self._none = NearPairs(empty[0], [], empty[1], empty[2], empty[3], empty[4], math.inf, math.inf)
         self._grad_shape = (k, n)
         # Scratch buffers for the pairs within the cut-off, packed in rows 0, 1, ... (at most
         # one per live pair); overwritten on every call, never part of a returned result.
@@ -135,6 +168,7 @@ class CollisionBarriers:
         self._mocap = mocap.astype(np.int64)
         self._is_moving = (self._mocap >= 0).tolist()
         self._any_moving = any(self._is_moving)
+        self._any_self = any(self._self)
         self._obstacle_body = b2
         self._clearance = _ClearanceSearch(model, pairs)
 
@@ -173,79 +207,110 @@ class CollisionBarriers:
             zero gradient and ``dh/dt``, inactive, NaN witness points).
 
         """
-        m, p, cutoff = self.model, self.pairs, self.cutoff
+        return self.batch(self.near(data, mocap_lin, mocap_ang, witness=True))
+
+    def batch(self, near: NearPairs) -> BarrierBatch:
+        """The full batch (one row per pair) of a :meth:`near` result taken with ``witness=True``."""
+        p = self.pairs
         h = self._h_far.copy()
         active = np.zeros(p.k, dtype=bool)
         dhdt = np.zeros(p.k)
         grad = np.zeros(self._grad_shape)
         witness = self._witness_far.copy()
+        idx = near.rows
+        if idx.size:
+            h[idx] = near.h
+            grad[idx] = near.grad
+            dhdt[idx] = near.dhdt
+            active[idx] = True
+            if near.witness is None:
+                raise ConfigError("CollisionBarriers.batch needs near(..., witness=True)")
+            witness[idx] = near.witness
+        return BarrierBatch._of(h, grad, dhdt, p.names, active, witness, self._pair_geoms)
+
+    @property
+    def h_far_min(self) -> float:
+        """Smallest barrier value a pair beyond the cut-off can have: ``min(cutoff - margin)``."""
+        return self._h_far_min
+
+    def near(self, data: mujoco.MjData, mocap_lin: np.ndarray | None = None,
+             mocap_ang: np.ndarray | None = None, *, witness: bool = False) -> NearPairs:
+        """The pairs within the cut-off at the state in ``data``: the rows a filter needs.
+
+        The same numbers as the active rows of :meth:`evaluate` (which is built on this), without
+        the rows of far pairs (their barrier is ``cutoff - margin``, gradient and ``dh/dt`` zero).
+        Needs the kinematics of the current state, like :meth:`evaluate`.
+
+        Args:
+            data, mocap_lin, mocap_ang: As :meth:`evaluate`.
+            witness: Also return the witness points (a copy).
+
+        Returns:
+            Fresh arrays (the empty result's arrays are shared and read-only).
+
+        """
+        m, cutoff = self.model, self.cutoff
         cand = self.broadphase.candidates(data)
         if not cand:
-            return BarrierBatch._of(h, grad, dhdt, p.names, active, witness, self._pair_geoms)
-
-        g1, g2, b1, b2 = self._g1, self._g2, self._b1, self._b2
-        ft, p1r, p2r, j1r, j2r = (self._ft_rows, self._p1_rows, self._p2_rows, self._j1_rows,
-                                  self._j2_rows)
-        is_self, is_moving = self._self, self._is_moving
-        geom_distance, jac = mujoco.mj_geomDistance, mujoco.mj_jac
-        rows: list[int] = []  # the active pairs; pair rows[j] uses scratch row j
-        dists: list[float] = []
-        selfs: list[int] = []  # scratch rows of robot-robot pairs
-        touching: list[int] = []  # scratch rows whose witness points coincide
-        j = 0
-        for i in cand:
-            di = geom_distance(m, data, g1[i], g2[i], cutoff, ft[j])
-            if di >= cutoff:
-                continue
-            jac(m, data, j1r[j], None, p1r[j], b1[i])
-            if is_self[i]:
-                jac(m, data, j2r[j], None, p2r[j], b2[i])
-                selfs.append(j)
-            if -_EPS_DIST < di < _EPS_DIST:
-                touching.append(j)
-            rows.append(i)
-            dists.append(di)
-            j += 1
-        if not rows:
-            return BarrierBatch._of(h, grad, dhdt, p.names, active, witness, self._pair_geoms)
-
-        idx = np.array(rows)
-        dist = np.array(dists)
-        h[idx] = dist - self._margin[idx]
-        # n = (p1 - p2) / dist on the active rows 0..j-1 (scratch), as (p1 - p2) * (1 / dist).
-        inv = 1.0 / dist
+            return self._none
+        gd, g1, g2, ft = mujoco.mj_geomDistance, self._g1, self._g2, self._ft_rows
+        ds = [gd(m, data, g1[i], g2[i], cutoff, ft[r]) for r, i in enumerate(cand)]
+        # Scratch row r holds candidate r's witness points; fr those of the near ones, packed.
+        sel = [r for r, d in enumerate(ds) if d < cutoff]
+        j = len(sel)
+        if not j:
+            return self._none
+        if j < len(cand):
+            rows = [cand[r] for r in sel]
+            ds = [ds[r] for r in sel]
+            fr = self._fromto.take(sel, 0)
+        else:
+            rows = cand
+            fr = self._fromto[:j]
+        marg, b1, p1r, j1r, jac = self._marginl, self._b1, self._p1_rows, self._j1_rows, mujoco.mj_jac
+        hs = [d - marg[i] for d, i in zip(ds, rows)]
+        for k, r in enumerate(sel):
+            jac(m, data, j1r[k], None, p1r[r], b1[cand[r]])
+        # n = (p1 - p2) / dist, as (p1 - p2) * (1 / dist); where the witness points coincide, the
+        # direction between the geom centres.
+        n = fr[:, :3] - fr[:, 3:]
+        touching = [r for r, d in enumerate(ds) if -_EPS_DIST < d < _EPS_DIST]
+        n *= np.array([0.0 if -_EPS_DIST < d < _EPS_DIST else 1.0 / d for d in ds])[:, None]
+        idx = np.array(rows, dtype=np.int64)
         if touching:
-            inv[touching] = 0.0
-        n = self._p1[:j] - self._p2[:j]
-        n *= inv[:, None]
-        if touching:  # witness points coincide: use the direction between the geom centres
             ti = idx[touching]
             c = data.geom_xpos[self.pairs.geom1[ti]] - data.geom_xpos[self.pairs.geom2[ti]]
             n[touching] = c / np.maximum(np.linalg.norm(c, axis=1, keepdims=True), 1e-12)
         n_row = n[:, None, :]
         g = np.matmul(n_row, self._jac1[:j])[:, 0]
-        if selfs:
-            g[selfs] -= np.matmul(n_row[selfs], self._jac2[selfs])[:, 0]
-        grad[idx] = g if self._all_dofs else g[:, self.dof_adr]
-        active[idx] = True
-        witness[idx] = self._fromto[:j].reshape(j, 2, 3)
-
-        moving = [t for t, i in enumerate(rows) if is_moving[i]] if self._any_moving else None
-        if moving and mocap_lin is not None:  # active pairs with a mocap obstacle
-            shape = (m.nmocap, 3)
-            if mocap_lin.shape != shape or (mocap_ang is not None and mocap_ang.shape != shape):
-                raise ShapeError(f"mocap velocities must have shape {shape} (rows like "
-                                 f"data.mocap_pos); got {mocap_lin.shape} and "
-                                 f"{None if mocap_ang is None else mocap_ang.shape}")
-            mp = idx[moving]
-            mi = self._mocap[mp]
-            v = mocap_lin[mi]
-            if mocap_ang is not None and np.any(mocap_ang):
-                r = self._p2[moving] - data.xpos[self._obstacle_body[mp]]
-                v = v + _cross(mocap_ang[mi], r)
-            dhdt[mp] = -np.einsum("ij,ij->i", n[moving], v)
-
-        return BarrierBatch._of(h, grad, dhdt, p.names, active, witness, self._pair_geoms)
+        if self._any_self:
+            selfs = [r for r, i in enumerate(rows) if self._self[i]]
+            if selfs:
+                b2, p2r, j2r = self._b2, self._p2_rows, self._j2_rows
+                for k in selfs:
+                    jac(m, data, j2r[k], None, p2r[sel[k]], b2[rows[k]])
+                g[selfs] -= np.matmul(n_row[selfs], self._jac2[selfs])[:, 0]
+        if not self._all_dofs:
+            g = g[:, self.dof_adr]
+        dhdt = np.zeros(j)
+        if self._any_moving and mocap_lin is not None:
+            is_moving = self._is_moving
+            moving = [t for t, i in enumerate(rows) if is_moving[i]]
+            if moving:  # pairs with a mocap obstacle
+                shape = (m.nmocap, 3)
+                if mocap_lin.shape != shape or (mocap_ang is not None and mocap_ang.shape != shape):
+                    raise ShapeError(f"mocap velocities must have shape {shape} (rows like "
+                                     f"data.mocap_pos); got {mocap_lin.shape} and "
+                                     f"{None if mocap_ang is None else mocap_ang.shape}")
+                mp = idx[moving]
+                mi = self._mocap[mp]
+                v = mocap_lin[mi]
+                if mocap_ang is not None and np.any(mocap_ang):
+                    r = fr[moving, 3:] - data.xpos[self._obstacle_body[mp]]
+                    v = v + _cross(mocap_ang[mi], r)
+                dhdt[moving] = -np.einsum("ij,ij->i", n[moving], v)
+        wit = fr.reshape(j, 2, 3).copy() if witness else None
+        return NearPairs(idx, rows, np.array(hs), g, dhdt, wit, min(hs), min(ds))
 
     def min_distance(self, data: mujoco.MjData) -> Clearance:
         """True minimum signed distance over this object's pairs (no cut-off, no margin).

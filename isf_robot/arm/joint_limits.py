@@ -74,7 +74,19 @@ class JointLimitBarriers:
         Only ``h`` is computed; ``grad``, ``dhdt``, ``active``, ``witness`` and ``pair_geoms``
         are constant, shared, read-only arrays.
         """
-        h = self._sign * data.qpos[self._qadr] + self._offset
+        return self.batch(self.values(data))
+
+    @property
+    def grad(self) -> np.ndarray:
+        """``dh/dq`` of every row, shape (k, n): constant, shared, read-only."""
+        return self._grad
+
+    def values(self, data: mujoco.MjData) -> np.ndarray:
+        """The barrier values ``h`` at ``data.qpos``, shape (k,) (the rest of a batch is constant)."""
+        return self._sign * data.qpos[self._qadr] + self._offset
+
+    def batch(self, h: np.ndarray) -> BarrierBatch:
+        """The batch of the values ``h`` (from :meth:`values`)."""
         c = self._const
         return BarrierBatch._of(h, c["grad"], c["dhdt"], self.names, c["active"], c["witness"],
                                 c["pair_geoms"])

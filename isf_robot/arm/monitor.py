@@ -50,16 +50,21 @@ class SafetyMonitor:
             margin: Margin per pair [m], shape (k,).
 
         """
+        near = rows.tolist()
+        dist = float((h[rows] + margin[rows]).min()) if near else math.inf
+        return self.tick_min(float(h.min()), near, dist)
+
+    def tick_min(self, h_min: float, rows: list[int], dist_min: float) -> float:
+        """:meth:`tick` given its minima: the smallest barrier value over every pair, the pairs
+        within the cut-off and their smallest ``h + margin`` (``inf`` when none); returns that.
+        """
         self.steps += 1
-        self.rows = rows.tolist()
-        hmin = float(h.min())
-        if hmin < 0.0:
+        self.rows = rows
+        if h_min < 0.0:
             self.collisions += 1
-        if hmin < self.min_h:
-            self.min_h = hmin
-        if not self.rows:
-            return math.inf
-        return float((h[rows] + margin[rows]).min())
+        if h_min < self.min_h:
+            self.min_h = h_min
+        return dist_min if rows else math.inf
 
     def substep(self, data: mujoco.MjData, bound: float = -math.inf) -> float:
         """Check the pairs near at the last tick; return their smallest distance.

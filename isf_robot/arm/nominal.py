@@ -160,7 +160,7 @@ class NominalController(ABC):
 
 
 def _cap(u: np.ndarray, limit: float) -> np.ndarray:
-    peak = max(float(u.max()), -float(u.min()))
+    peak = max(map(abs, u.tolist()))  # = max(u.max(), -u.min()), without two array reductions
     if peak > limit:
         u *= limit / peak
     return u
@@ -187,7 +187,7 @@ class _RateLimit:
         if self.t_prev is not None and math.isfinite(self.a_max):
             step = max(t - self.t_prev, 0.0) * self.a_max
             du = u - self.prev
-            peak = max(float(du.max()), -float(du.min()))
+            peak = max(map(abs, du.tolist()))
             if peak > step:
                 u = self.prev + du * (step / peak)
         elif self.t_prev is None and math.isfinite(self.a_max):

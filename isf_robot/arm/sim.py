@@ -44,6 +44,7 @@ from isf_robot.core.strategies import make_strategy, strategy_info
 
 from .actuation import Actuation, make_actuation
 from .barriers import CollisionBarriers, JointLimitBarriers
+from .collision import NearPairs
 from .episode import EpisodeSetup, check_control_period, episode_setup, path_track
 from .monitor import SafetyMonitor
 from .nominal import NominalController, ReachingController
@@ -202,14 +203,14 @@ class ArmSimulation:
             for k in range(n_ctrl):
                 t = k * T
                 sense(k)
-                cb, jb, lie = barriers()
+                near, jh, lie = barriers()
                 u_nom = nominal(t)
                 step = strategy(t, lie, u_nom)
                 act(k, step.u)
                 if recording:
                     if step.event is not None:
                         observers.on_event(step.event)
-                    observers.on_step(ep.record(t, step, cb, jb))
+                    observers.on_step(ep.record(t, step, near, jh))
         except BaseException as exc:  # an error or Ctrl-C: observers keep what they have, marked partial
             if recording:
                 observers.on_abort(exc)
@@ -254,6 +255,9 @@ class _Episode:
         self.uses_rows = bool(getattr(sim.strategy, "uses_rows", True))
         nj = sim.joints.evaluate(data).k
         self._ones = np.ones(nj)
+        self._jzero = np.zeros(nj)
+        self._jgrad = sim.joints.grad
+        self._h_far_min = sim.coll.h_far_min
         self._screen_j = np.full(nj, sim.keep_joint)
         self._screen_cache: dict[int, np.ndarray] = {}
         self._names_cache: dict[bytes, tuple[str, ...]] = {}
@@ -266,27 +270,31 @@ class _Episode:
             self.lin = self.lin_all[k]
         mujoco.mj_step1(self.model, self.data)
 
-    def barriers(self) -> tuple[Any, Any, LieData | None]:
-        """Barrier values at the tick (and its safety accounting); the rows for the strategy."""
+    def barriers(self) -> tuple[NearPairs, np.ndarray, LieData | None]:
+        """Barrier values at the tick (and its safety accounting); the rows for the strategy.
+
+        Only the collision pairs within the cut-off are evaluated (every other pair's barrier is
+        ``cutoff - margin``, above the near ones' and never a row of the filter).
+        """
         sim = self.sim
-        cb = sim.coll.evaluate(self.data, self.lin)
-        act = cb.active.nonzero()[0]
-        self.dmin = self.monitor.tick(cb.h, act, sim.coll.pairs.margin)
-        jb = sim.joints.evaluate(self.data)
-        if jb.k:
-            self.min_joint = min(self.min_joint, float(jb.h.min()))
+        near = sim.coll.near(self.data, self.lin, witness=self.recording)
+        far = self._h_far_min
+        self.dmin = self.monitor.tick_min(near.h_min if near.h_min < far else far, near.row_list,
+                                          near.dist_min)
+        jh = sim.joints.values(self.data)
+        jl = jh.tolist()
+        if jl and min(jl) < self.min_joint:
+            self.min_joint = min(jl)
         if not self.uses_rows:
-            return cb, jb, None
-        key = act.tobytes()
+            return near, jh, None
+        key = tuple(near.row_list)
         names = self._names_cache.get(key)
         if names is None:
-            cn = sim.coll.names
-            names = self._names_cache[key] = tuple(cn[i] for i in act.tolist()) + sim.joints.names
-        cg = cb.grad[act]
-        lie = LieData(np.concatenate((cb.h[act], jb.h)), np.concatenate((cb.dhdt[act], jb.dhdt)),
-                      np.concatenate((cg, jb.grad)),
-                      np.concatenate((np.sqrt(np.einsum("ij,ij->i", cg, cg)), self._ones)), names)
-        return cb, jb, lie
+            names = self._names_cache[key] = tuple(sim.coll.names[i] for i in key) + sim.joints.names
+        g = np.concatenate((near.grad, self._jgrad))  # joint rows: +-e_i, so |row| = 1 exactly
+        lf = np.concatenate((near.dhdt, self._jzero)) if self.moving else np.zeros(g.shape[0])
+        lie = LieData(np.concatenate((near.h, jh)), lf, g, np.sqrt(np.einsum("ij,ij->i", g, g)), names)
+        return near, jh, lie
 
     def nominal(self, t: float) -> np.ndarray:
         """The nominal command at the tick."""
@@ -329,10 +337,11 @@ class _Episode:
             mujoco.mj_step2(model, data)
 
     # -- records and summary ---------------------------------------------------------------
-    def record(self, t: float, step: Any, cb: Any, jb: Any) -> ArmStepRecord:
+    def record(self, t: float, step: Any, near: NearPairs, jh: np.ndarray) -> ArmStepRecord:
         """What observers see of the step just taken."""
         sim, data, scene = self.sim, self.data, self.sim.scene
-        h = np.concatenate((cb.h, jb.h))
+        cb = sim.coll.batch(near)
+        h = np.concatenate((cb.h, jh))
         order = np.argsort(cb.h)[:3].tolist()
         act = np.flatnonzero(cb.active)
         nominal = sim.nominal

@@ -23,13 +23,14 @@ settles badly scaled feasible problems.
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any
 
 import numpy as np
 
 from .exceptions import ConfigError, SolverError
-from .qp import FilterQP, QPResult, project_halfspace
+from .qp import FilterQP, QPResult
 from .validation import check_positive
 
 __all__ = ["QPSolver", "BACKENDS"]
@@ -117,16 +118,18 @@ class QPSolver:
         box = qp.has_bounds
         if k == 0 and not box:
             return QPResult(qp.u_nom.copy(), "unconstrained", np.zeros(0, bool), time.perf_counter() - t0)
-        if k == 1 and not box and self.closed_form and float(qp.A[0] @ qp.A[0]) > 1e-200:
+        if k == 1 and not box and self.closed_form:
+            # project_halfspace inlined (the same operations); |a|^2 > 1e-200 also means a != 0
             a = qp.A[0]
-            lb = float(qp.lb[0])
-            if not np.any(a) and lb > 0.0:
-                return QPResult(qp.u_nom.copy(), "infeasible", np.ones(1, bool), time.perf_counter() - t0,
-                                max_violation=lb)
-            u = project_halfspace(qp.u_nom, a, lb)
-            slack = float(a @ u) - lb
-            if np.all(np.isfinite(u)) and slack >= -self.feas_tol * max(1.0, abs(lb)):
-                return QPResult(u, "closed_form", np.array([slack <= self.active_tol]), time.perf_counter() - t0)
+            aa = float(a @ a)
+            if aa > 1e-200:
+                lb = float(qp.lb[0])
+                u_nom = qp.u_nom
+                gap = lb - float(a @ u_nom)
+                u = u_nom.copy() if gap <= 0.0 else u_nom + (gap / aa) * a
+                slack = float(a @ u) - lb
+                if slack >= -self.feas_tol * max(1.0, abs(lb)) and math.isfinite(float(u @ u)):
+                    return QPResult(u, "closed_form", np.array([slack <= self.active_tol]), time.perf_counter() - t0)
             # an answer that fails the check goes to the backend
         self.solves += 1
         if self.backend == "daqp":
