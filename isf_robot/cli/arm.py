@@ -47,6 +47,26 @@ def _add_filter_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--b", type=float, default=None, help="promotion rate b")
     p.add_argument("--d-bar", type=float, default=None, metavar="D",
                    help="tracking-error bound [rad/s] (default: the scene's, else calibrated)")
+    _add_intermittent_args(p)
+
+
+def _add_intermittent_args(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("intermittent filter options (isf; off by default)")
+    g.add_argument("--min-off", type=float, default=None, metavar="S",
+                   help="asked-for shortest off period [s]: the off margin is designed from the measured "
+                        "fall rate of Xi_on (at least c, at most --c-max and alpha(cut-off - margin))")
+    g.add_argument("--c-max", type=float, default=None, metavar="C", help="largest designed off margin")
+    g.add_argument("--blend", type=float, default=None, metavar="S",
+                   help="hand-over time [s] after each switch (no step in the command beyond what safety needs)")
+    g.add_argument("--horizon", type=float, default=None, metavar="S",
+                   help="predictive off trigger: off only if the nominal, rolled forward this long on "
+                        "q_dot = u_nom(q), keeps every Xi_on > 0")
+    g.add_argument("--predict-every", type=int, default=None, metavar="K",
+                   help="control steps between rollouts of the predictive off trigger (default 5)")
+
+
+def _intermittent_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    return {k: getattr(args, k, None) for k in ("min_off", "c_max", "blend", "horizon", "predict_every")}
 
 
 def _params(args: argparse.Namespace, scene: Any) -> dict[str, Any]:
@@ -55,7 +75,7 @@ def _params(args: argparse.Namespace, scene: Any) -> dict[str, Any]:
     from isf_robot.arm.params import resolve_params
 
     out: dict[str, Any] = {"params": resolve_params(
-        scene, args.alpha, args.c, args.b, args.d_bar)}
+        scene, args.alpha, args.c, args.b, args.d_bar, **_intermittent_kwargs(args))}
     for f in run_findings(scene, out["params"]):  # what `isf-robot check` reports, before the run
         print(f"warning [{f.code}]: {f.message}", file=sys.stderr)
     if getattr(args, "control_period", None) is not None:
@@ -91,11 +111,6 @@ def register(subparsers: Any) -> None:
     p.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
     _add_filter_args(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--view", action="store_true",
-                   help="watch the run in MuJoCo's viewer in real time (Space pauses, Ctrl + mouse drag perturbs "
-                        "a body, closing the window stops the run; needs a display)")
-    p.add_argument("--view-speed", type=float, default=1.0, metavar="X",
-                   help="with --view: simulated seconds per wall-clock second (default 1)")
     add_recording_args(p)
     p.set_defaults(handler=_cmd_run)
 
@@ -151,16 +166,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     kwargs = _params(args, scene)
     sim = ArmSimulation(scene, args.filter, seed=args.seed, **kwargs)  # validates before any output
     sim.control_steps(args.duration)
-    observers = [make_observer(args, "arm", name=f"{scene.name}-{args.filter}-seed{args.seed}")]
-    if args.view:
-        from isf_robot.arm.viewer import LiveViewer, check_display
-
-        check_display()
-        observers.append(LiveViewer(speed=args.view_speed))
-    if any(o is not None for o in observers):
+    obs = make_observer(args, "arm", name=f"{scene.name}-{args.filter}-seed{args.seed}")
+    if obs is not None:
         from isf_robot.core.hooks import Observers
 
-        sim.observers = Observers(observers)  # (drops None)
+        sim.observers = Observers([obs])
     d = to_jsonable(sim.run(args.duration).as_dict())
     if args.json:
         print(json.dumps(with_schema("isf-robot-run", d)))
@@ -175,10 +185,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
         ("collision steps", d["collisions"]), ("goals reached", d["goals_reached"]),
         ("intervention [rad^2/s]", d["intervention"]), ("QP solves", d["qp_solves"]),
         ("fallbacks (braking)", d["fallbacks"]), ("d_bar [rad/s]", d["d_bar"]),
+        ("tracking error q99 [rad/s]", d["tracking_error_q99"]),
+        ("largest command step at a switch", d["switch_jump_max"]),
+        ("designed off bound [s]", d["off_bound_min_s"]),
     ]
     w = max(len(k) for k, _ in rows)
     for k, v in rows:
         print(f"  {k.ljust(w)}  {format_value(v)}")
+    if d["filter"] != "nominal" and not d["d_bar_covered"]:
+        print(f"warning: tracking error q99 {d['tracking_error_q99']:.3g} rad/s > d_bar {d['d_bar']:.3g}: the "
+              "robust term does not cover it (safety rests on the clearance the filter keeps)", file=sys.stderr)
     return 0
 
 
