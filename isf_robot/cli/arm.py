@@ -111,6 +111,11 @@ def register(subparsers: Any) -> None:
     p.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
     _add_filter_args(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--view", action="store_true",
+                   help="watch the run in MuJoCo's viewer in real time (Space pauses, Ctrl + mouse drag perturbs "
+                        "a body, closing the window stops the run; needs a display)")
+    p.add_argument("--view-speed", type=float, default=1.0, metavar="X",
+                   help="with --view: simulated seconds per wall-clock second (default 1)")
     add_recording_args(p)
     p.set_defaults(handler=_cmd_run)
 
@@ -166,11 +171,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
     kwargs = _params(args, scene)
     sim = ArmSimulation(scene, args.filter, seed=args.seed, **kwargs)  # validates before any output
     sim.control_steps(args.duration)
-    obs = make_observer(args, "arm", name=f"{scene.name}-{args.filter}-seed{args.seed}")
-    if obs is not None:
+    observers = [make_observer(args, "arm", name=f"{scene.name}-{args.filter}-seed{args.seed}")]
+    if args.view:
+        from isf_robot.arm.viewer import LiveViewer, check_display
+
+        check_display()
+        observers.append(LiveViewer(speed=args.view_speed))
+    if any(o is not None for o in observers):
         from isf_robot.core.hooks import Observers
 
-        sim.observers = Observers([obs])
+        sim.observers = Observers(observers)  # (drops None)
     d = to_jsonable(sim.run(args.duration).as_dict())
     if args.json:
         print(json.dumps(with_schema("isf-robot-run", d)))
