@@ -72,6 +72,13 @@ def _deferred_record_errors() -> list[BaseException]:
     return list(errors.take_deferred_errors()) if errors is not None else []
 
 
+def _serve_until_interrupted() -> None:
+    """A recording served to the web viewer (``--serve-web``) stays up after the results until Ctrl-C."""
+    stream = sys.modules.get("isf_robot.record.stream")
+    if stream is not None:
+        stream.wait_while_serving()
+
+
 def _raise_terminated(signum: int, frame: Any) -> None:
     raise Terminated()
 
@@ -103,6 +110,7 @@ def run_handler(prog: str, handler: Handler, args: argparse.Namespace) -> int:
         failed = _deferred_record_errors()
         for exc in failed:  # recordings that could not be written, reported after the run's results
             print(f"{where}: error: {one_line(exc)}", file=sys.stderr)
+        _serve_until_interrupted()
         return EXIT_USAGE if failed and code == 0 else code
     except KeyboardInterrupt as exc:
         terminated = isinstance(exc, Terminated) or (isinstance(exc, Interrupted) and exc.terminated)

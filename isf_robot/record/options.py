@@ -32,6 +32,13 @@ __all__ = [
     "APPLICATION_IDS",
 ]
 
+DEFAULT_CONNECT = "rerun+http://127.0.0.1:9876/proxy"
+"""Where ``--connect`` streams without an address: a viewer started with ``rerun`` on this machine."""
+GRPC_PORT = 9876
+"""Port of the gRPC server of ``--serve-web``."""
+WEB_PORT = 9090
+"""Port of the web viewer's page of ``--serve-web``."""
+
 APPLICATION_IDS = {"arm": "isf_robot_arm", "satellite": "isf_robot_satellite", "generic": "isf_robot"}
 """Rerun application id per recording kind."""
 
@@ -60,6 +67,13 @@ def add_recording_args(parser: argparse.ArgumentParser, *, per_run: bool = False
                                 "survives a failed or interrupted run (missing folders are created)")
     group.add_argument("--spawn", action="store_true",
                        help="stream the run to a newly spawned Rerun viewer (needs a display)")
+    group.add_argument("--connect", nargs="?", const=DEFAULT_CONNECT, default=None, metavar="URL",
+                       help=f"stream to a Rerun viewer already running (default URL {DEFAULT_CONNECT}, the "
+                            "viewer started with 'rerun' on this machine)")
+    if not per_run:
+        group.add_argument("--serve-web", action="store_true",
+                           help=f"serve Rerun's web viewer from this process (page on port {WEB_PORT}, data on "
+                                f"{GRPC_PORT}; the address is printed); after the run it keeps serving until Ctrl-C")
     parser.set_defaults(rrd_per_run=per_run)
 
 
@@ -99,7 +113,9 @@ def make_observer(args: argparse.Namespace, kind: str, *, name: str | None = Non
     """
     rrd = getattr(args, "rrd", None)
     spawn = bool(getattr(args, "spawn", False))
-    if rrd is None and not spawn:
+    connect = getattr(args, "connect", None)
+    serve_web = bool(getattr(args, "serve_web", False))
+    if rrd is None and not spawn and connect is None and not serve_web:
         return None
     if kind not in APPLICATION_IDS:
         raise RecordError(f"unknown recording kind {kind!r}; valid kinds: {', '.join(sorted(APPLICATION_IDS))}")
@@ -110,12 +126,13 @@ def make_observer(args: argparse.Namespace, kind: str, *, name: str | None = Non
     if getattr(args, "rrd_per_run", False):
         if rrd is not None:
             recording_path(Path(rrd), "check")  # a directory, not a .rrd file
-        return PerRunRecorder(None if rrd is None else Path(rrd), kind, spawn=spawn)
-    return open_recorder(kind, None if rrd is None else Path(rrd), spawn=spawn, name=name, **context)
+        return PerRunRecorder(None if rrd is None else Path(rrd), kind, spawn=spawn, connect=connect)
+    return open_recorder(kind, None if rrd is None else Path(rrd), spawn=spawn, name=name, connect=connect,
+                         serve_web=serve_web, **context)
 
 
 def open_recorder(kind: str, path: Path | None, *, spawn: bool = False, name: str | None = None,
-                  **context: Any) -> Observer:
+                  connect: str | None = None, serve_web: bool = False, **context: Any) -> Observer:
     """Open a stream (file and/or viewer) and the recorder of ``kind`` on it.
 
     Args:
@@ -123,6 +140,8 @@ def open_recorder(kind: str, path: Path | None, *, spawn: bool = False, name: st
         path: ``.rrd`` file, or ``None`` (viewer only).
         spawn: Stream to a spawned viewer too.
         name: Recording name shown by the viewer.
+        connect: Stream to the viewer at this URL too.
+        serve_web: Serve the web viewer from this process too (see :func:`~isf_robot.record.stream.open_stream`).
         **context: Recorder arguments (see :func:`make_observer`).
 
     """
@@ -130,7 +149,7 @@ def open_recorder(kind: str, path: Path | None, *, spawn: bool = False, name: st
     from .stream import open_stream
 
     stream = open_stream(APPLICATION_IDS[kind], rrd_path=path, spawn=spawn, recording_name=name,
-                         blueprint=blueprint_for(kind))
+                         blueprint=blueprint_for(kind), connect=connect, serve_web=serve_web)
     if kind == "arm":
         from .arm import ArmRecorder
 
@@ -168,13 +187,15 @@ class PerRunRecorder(Observer):
         directory: Folder receiving the files (created if missing), or ``None`` (viewer only).
         kind: Recording kind (``"arm"``, ``"satellite"``, ``"generic"``).
         spawn: Also stream each run to the viewer (one viewer, distinct recordings).
+        connect: Also stream each run to the viewer at this URL.
 
     """
 
-    def __init__(self, directory: Path | None, kind: str, *, spawn: bool = False) -> None:
+    def __init__(self, directory: Path | None, kind: str, *, spawn: bool = False, connect: str | None = None) -> None:
         self.directory = directory
         self.kind = kind
         self.spawn = spawn
+        self.connect = connect
         self.paths: list[Path] = []
         self._current: Observer | None = None
 
@@ -187,7 +208,8 @@ class PerRunRecorder(Observer):
         """Open this run's recording and start it."""
         name = run_name(info)
         path = None if self.directory is None else recording_path(self.directory, name)
-        self._current = open_recorder(self.kind, path, spawn=self.spawn, name=name)
+        self._current = open_recorder(self.kind, path, spawn=self.spawn, name=name,
+                                      connect=getattr(self, "connect", None))
         if path is not None:
             self.paths.append(path)
         self._current.on_start(info)

@@ -1,9 +1,12 @@
 """Opening explicit Rerun recording streams (no global ``rr.init`` state).
 
 :func:`open_stream` makes a :class:`rerun.RecordingStream` that writes to a ``.rrd`` file,
-streams to a freshly spawned viewer, or both. :func:`find_viewer` checks beforehand that a
-viewer can start, so ``--spawn`` fails with one clear message instead of hanging or crashing
-in a headless session.
+streams to a freshly spawned viewer (``--spawn``), to a viewer already running at an address
+(``--connect [URL]``), and/or serves Rerun's web viewer from this process (``--serve-web``:
+a gRPC server plus the web viewer's page; after the run the command keeps serving until
+Ctrl-C, :func:`wait_while_serving`, as Rerun's own examples do). :func:`find_viewer` checks
+beforehand that a viewer can start, so ``--spawn`` fails with one clear message instead of
+hanging or crashing in a headless session.
 
 A recording file is written as ``<name>.partial`` and renamed to ``<name>`` by
 :func:`close_stream` once the run has finished (:mod:`isf_robot.core.files`): a bad parameter,
@@ -16,9 +19,12 @@ from __future__ import annotations
 import os
 import shutil
 import sys
+import time
 import uuid
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+from urllib.parse import quote
 
 import rerun as rr
 
@@ -26,11 +32,15 @@ from isf_robot.core.exceptions import ConfigError
 from isf_robot.core.files import check_output_path, commit_partial, partial_path
 
 from .errors import RecordError, ViewerUnavailableError
+from .options import DEFAULT_CONNECT, GRPC_PORT, WEB_PORT
 
-__all__ = ["find_viewer", "open_stream", "close_stream", "stream_path"]
+__all__ = ["find_viewer", "open_stream", "close_stream", "stream_path", "wait_while_serving", "DEFAULT_CONNECT",
+           "GRPC_PORT", "WEB_PORT"]
 
 # id(stream) -> the .rrd path its .partial file is renamed to when the stream is closed
 _TARGETS: dict[int, Path] = {}
+# streams serving the web viewer, kept open after their run until the command ends (see wait_while_serving)
+_SERVING: list[tuple[rr.RecordingStream, str]] = []
 
 
 def find_viewer() -> Path:
@@ -67,6 +77,10 @@ def open_stream(
     recording_id: str | None = None,
     recording_name: str | None = None,
     blueprint: Any = None,
+    connect: str | None = None,
+    serve_web: bool = False,
+    grpc_port: int = GRPC_PORT,
+    web_port: int = WEB_PORT,
 ) -> rr.RecordingStream:
     """Create an explicit recording stream with its sinks.
 
@@ -78,6 +92,11 @@ def open_stream(
         recording_id: Recording id (default: a fresh UUID).
         recording_name: Human-readable name shown by the viewer.
         blueprint: Default blueprint sent with the recording.
+        connect: Also stream to the viewer listening at this URL (``rerun+http://HOST:PORT/proxy``).
+        serve_web: Also serve the recording over gRPC (port ``grpc_port``) with Rerun's web
+            viewer (port ``web_port``); its address is printed on stderr.
+        grpc_port: See ``serve_web`` (default :data:`GRPC_PORT`).
+        web_port: See ``serve_web`` (default :data:`WEB_PORT`).
 
     Returns:
         The stream. Close it with :func:`close_stream` so the file gets its footer.
@@ -87,8 +106,11 @@ def open_stream(
         ViewerUnavailableError: ``spawn`` was asked for and no viewer can start.
 
     """
-    if rrd_path is None and not spawn:
-        raise RecordError("a recording needs a destination: an .rrd path, spawn=True, or both")
+    if rrd_path is None and not spawn and not connect and not serve_web:
+        raise RecordError("a recording needs a destination: an .rrd path, spawn, connect or serve_web")
+    if connect is not None and not str(connect).startswith(("rerun://", "rerun+http://", "rerun+https://")):
+        raise RecordError(f"--connect {connect!r}: not a viewer address; valid: rerun+http://HOST:PORT/proxy "
+                          f"(default {DEFAULT_CONNECT})")
     exe = find_viewer() if spawn else None
     rec = rr.RecordingStream(application_id, recording_id=recording_id or str(uuid.uuid4()))
     sinks: list[Any] = []
@@ -112,7 +134,26 @@ def open_stream(
         except Exception as exc:  # the viewer binary failed to start
             raise ViewerUnavailableError(f"--spawn could not start the Rerun viewer ({exe}): {exc}") from exc
         sinks.append(rr.GrpcSink())
+    if connect:
+        sinks.append(rr.GrpcSink(url=str(connect)))
+    if serve_web:
+        if _SERVING:
+            raise RecordError("--serve-web serves one recording per process; use --connect for several runs")
+        try:
+            sinks.append(rr.GrpcServerSink(port=int(grpc_port)))
+        except Exception as exc:  # the port is taken
+            raise RecordError(f"--serve-web cannot serve on port {grpc_port}: {' '.join(str(exc).split())}") from None
     rec.set_sinks(*sinks, default_blueprint=blueprint)
+    if serve_web:
+        url = f"rerun+http://127.0.0.1:{int(grpc_port)}/proxy"
+        try:
+            rr.serve_web_viewer(web_port=int(web_port), open_browser=False, connect_to=url)
+        except Exception as exc:
+            raise RecordError(f"--serve-web cannot serve the web viewer on port {web_port}: "
+                              f"{' '.join(str(exc).split())}") from None
+        page = f"http://127.0.0.1:{int(web_port)}/?url={quote(url, safe='')}"
+        _SERVING.append((rec, page))
+        print(f"Rerun web viewer: {page}", file=sys.stderr, flush=True)
     if recording_name:
         rec.send_recording_name(recording_name)
     return rec
@@ -140,13 +181,24 @@ def close_stream(rec: rr.RecordingStream, *, complete: bool = True) -> Path | No
 
     """
     path = _TARGETS.pop(id(rec), None)
+    serving = any(r is rec for r, _ in _SERVING)
     try:
         rec.flush()
-        rec.disconnect()
-    except RuntimeError as exc:  # the file writer died: disk full, file removed, ...
+        if not serving:  # a served stream stays up for the web viewer until wait_while_serving ends
+            rec.disconnect()
+    except RuntimeError as exc:  # the file writer died: disk full, file removed, ... (or a viewer's link)
         why = " ".join(str(exc).split())
         if path is None:
             raise RecordError(f"the recording stream failed: {why}") from exc
+        if "grpc" in why.lower():  # the viewer of --connect went away: the file is fine, complete it
+            try:
+                rec.disconnect()
+            except RuntimeError:
+                pass
+            if complete:
+                commit_partial(path)
+            raise RecordError(f"the connection to the Rerun viewer failed ({why}); the recording file "
+                              f"{str(path if complete else partial_path(path))!r} is written") from exc
         raise RecordError(
             f"the recording could not be written ({why}; disk full?): what was written stays in "
             f"{str(partial_path(path))!r} and {str(path)!r} was not touched") from exc
@@ -156,3 +208,29 @@ def close_stream(rec: rr.RecordingStream, *, complete: bool = True) -> Path | No
         return commit_partial(path)
     except OSError as exc:
         raise RecordError(f"cannot complete the recording file {str(path)!r}: {exc.strerror or exc}") from exc
+
+
+def wait_while_serving(sleep: Callable[[float], None] = time.sleep) -> bool:
+    """Keep serving the web viewer after the run until Ctrl-C, then close the served streams.
+
+    Called by the command line when a command has finished (nothing happens when no stream
+    serves). Returns ``True`` when something was served.
+    """
+    if not _SERVING:
+        return False
+    pages = ", ".join(page for _, page in _SERVING)
+    print(f"serving the recording to the web viewer at {pages}; press Ctrl-C to stop", file=sys.stderr, flush=True)
+    try:
+        while True:
+            sleep(1.0)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        while _SERVING:
+            rec, _ = _SERVING.pop()
+            try:
+                rec.flush()
+                rec.disconnect()
+            except RuntimeError:
+                pass
+    return True
