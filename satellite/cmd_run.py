@@ -16,6 +16,7 @@ from isf_robot.record.options import add_recording_args, make_observer
 from satellite.arcs import IntegratorSettings
 from satellite.contact import CONTACT_MODES
 from satellite.controller import ControlParams
+from satellite.fields import DEFAULT_GRAVITY, GRAVITY_MODELS, load_field
 from satellite.model import InitialOrbit, OrbitModel
 from satellite.simulate import RunResult, SatelliteSample, simulate
 from satellite.triggers import TRIGGERS, Trigger
@@ -67,7 +68,7 @@ def register(subparsers: Any) -> None:
         "run",
         help="simulate the orbit with no control, the greedy trigger or two-impulse maneuvers",
         description=(
-            "Integrates the satellite about Itokawa (degree-8 spherical harmonics, spinning body) "
+            "Integrates the satellite about Itokawa (exact polyhedron gravity, tabulated; spinning body) "
             "and applies the safeguarding impulsive controller when the trigger fires. "
             "Band [1.6R, 2.4R], h = (0.4R)^2 - (r - 2R)^2."
         ),
@@ -90,7 +91,10 @@ def register(subparsers: Any) -> None:
                    help="alpha(h) = gain * h (default: mean motion at 2R, 2.63e-4 1/s)")
     p.add_argument("--d-bar", type=float, default=0.0, help="disturbance bound used in Xi (default 0)")
     p.add_argument("--c", type=float, default=None, help="post-jump margin (default: half the smallest post-jump Xi)")
-    p.add_argument("--gravity", metavar="FILE.json", help="gravity table (default: committed Itokawa degree 8)")
+    p.add_argument("--gravity", default=DEFAULT_GRAVITY, metavar="{" + ",".join(GRAVITY_MODELS) + "}|FILE.json",
+                   help="truth gravity: table (default: the exact polyhedron field, tabulated), sh8 (the paper's "
+                        "degree-8 series, invalid inside 1.925R), polyhedron (exact at every step, slow), or a "
+                        "spherical-harmonic table written by `isf-satellite gravity`")
     p.add_argument("--events", action="store_true", help="with --json, include the impulse list")
     p.add_argument("--surface-check", action="store_true",
                    help="also check the trajectory against the body's shape (off by default: like the paper, "
@@ -170,12 +174,7 @@ def run(args: argparse.Namespace) -> int:
         from satellite.tau import load_tau
 
         tau = load_tau(args.tau)
-    field = None
-    if args.gravity:
-        from satellite.gravity import GravityField
-
-        field = GravityField.from_json(args.gravity)
-    model = OrbitModel(field, spin=not args.no_spin, disturbance_scale=args.disturbance_scale)
+    model = OrbitModel(load_field(args.gravity), spin=not args.no_spin, disturbance_scale=args.disturbance_scale)
     initial = InitialOrbit(radius_over_R=args.radius, inclination_deg=args.inclination, seed=args.seed)
     control = ControlParams(alpha_gain=args.alpha_gain, d_bar=args.d_bar, c=args.c)
     from satellite.controller import resolve_control

@@ -11,6 +11,7 @@ from typing import Any
 
 from isf_robot.core import ConfigError
 from satellite.controller import ControlParams
+from satellite.fields import DEFAULT_GRAVITY, GRAVITY_MODELS, load_field
 from satellite.files import write_text_atomic
 from satellite.model import OrbitModel
 from satellite.tau import collect_tau, fit_tau, tau_document
@@ -38,6 +39,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--disturbance-scale", type=float, default=1.0, metavar="K",
                    help="experiment: scale the non-Kepler gravity by K (default 1, the full field)")
     p.add_argument("--no-spin", action="store_true", help="freeze the body")
+    p.add_argument("--gravity", default=DEFAULT_GRAVITY, metavar="{" + ",".join(GRAVITY_MODELS) + "}|FILE.json",
+                   help="truth gravity (default table: the exact polyhedron field, tabulated; see run --help)")
     p.add_argument("--alpha-gain", type=float, default=None, metavar="PER_S",
                    help="alpha gain (default: mean motion at 2R)")
     p.add_argument("--d-bar", type=float, default=0.0, help="disturbance bound used in Xi (default 0)")
@@ -64,14 +67,15 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if not out.parent.is_dir():
         raise ConfigError(f"output directory does not exist: {out.parent}")
+    field = load_field(args.gravity)  # fails here, once, on a bad name
     control = ControlParams(alpha_gain=args.alpha_gain, d_bar=args.d_bar)
     data = collect_tau(args.samples, seed=args.seed, workers=args.workers, spin=not args.no_spin,
                        control=control, max_hours=args.max_hours,
-                       disturbance_scale=args.disturbance_scale)
-    model = OrbitModel(spin=not args.no_spin)
+                       disturbance_scale=args.disturbance_scale, gravity=args.gravity)
+    model = OrbitModel(field, spin=not args.no_spin)
     fit = fit_tau(data, model.h_max, model.R, args.degree)
     settings = {"alpha_gain": args.alpha_gain, "d_bar": args.d_bar, "degree": args.degree,
-                "disturbance_scale": args.disturbance_scale}
+                "disturbance_scale": args.disturbance_scale, "gravity": args.gravity}
     write_text_atomic(out, json.dumps(tau_document(data, fit, settings), indent=1) + "\n")
     if not args.quiet:
         sys.stdout.write(f"wrote {out}: {args.samples} samples x {len(data.radii_over_R)} radii, "

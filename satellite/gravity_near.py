@@ -10,7 +10,7 @@ which reach 1.93 R). The field is a sum over faces (:class:`satellite.polyhedron
 
 with ``T`` the table of the whole field, the faces that reach above ``r_cut`` grouped into
 compact **tiles** ``k`` of a few hundred faces, ``a_k`` a tile's exact field, ``T_k`` the same
-cubic interpolation of the tile's field tabulated at the table's nodes near it, and ``s_k`` a
+B-spline interpolation of the tile's field (its coefficients kept at the nodes near the tile), and ``s_k`` a
 weight that is 1 within ``d_in`` of the tile's nearest vertex and 0 beyond ``d_out``
 (smoothstep between: the field stays continuous). Where ``s_k = 1`` the tile's part is exact and
 what is left for the cubic is smooth on the cell scale (the other faces are at least ``d_in``
@@ -62,8 +62,9 @@ class NearTiles:
     Args:
         patch: The faces above ``r_cut`` (all tiles).
         tile: Tile index of each face of ``patch``, shape (F,).
-        ext: Per tile, its field tabulated at the table's nodes near it, padded like the table
-            (NaN at nodes no stencil near the tile uses), shape (K, n_r, n_lat + 4, n_lon + 4, 3).
+        ext: Per tile, the B-spline coefficients of its field at the table's nodes near it, padded
+            like the table (NaN at nodes no stencil near the tile uses), shape
+            (K, n_r, n_lat + 4, n_lon + 4, 3).
         d_in: Exact within this distance [m] of a tile's nearest vertex.
         d_out: Table alone beyond this distance [m]; ``d_in < d_out <= d_max``.
         d_max: Largest ``d_out`` the tabulated nodes cover [m].
@@ -118,13 +119,13 @@ class NearTiles:
 
     # -- files -------------------------------------------------------------------------------
     def to_arrays(self) -> dict[str, Any]:
-        """Arrays for the table's ``.npz``: the triangles, tiles and the tiles' tabulated nodes (sparse)."""
+        """Arrays for the table's ``.npz``: the triangles, tiles and the tiles' coefficients near them (sparse)."""
         flat = self.ext[:, :, 2:-2, 2:-2].reshape(len(self.ext), -1, 3)
         keep = np.isfinite(flat[..., 0])
         t_idx, n_idx = np.nonzero(keep)
         return {"near_triangles": self.patch.triangles, "near_tile": self.tile.astype(np.int32),
                 "near_node_tile": t_idx.astype(np.int32), "near_node": n_idx.astype(np.int32),
-                "near_values": flat[keep].astype(np.float32),
+                "near_coef": flat[keep].astype(np.float32),
                 "near_d": np.array([self.d_in, self.d_out, self.d_max, self.patch.g_rho])}
 
     @classmethod
@@ -136,7 +137,7 @@ class NearTiles:
         tile = np.asarray(data["near_tile"], dtype=np.intp)
         k = int(tile.max()) + 1
         dense = np.full((k, grid.n_r * grid.n_lat * grid.n_lon, 3), np.nan, dtype=np.float32)
-        dense[np.asarray(data["near_node_tile"]), np.asarray(data["near_node"])] = data["near_values"]
+        dense[np.asarray(data["near_node_tile"]), np.asarray(data["near_node"])] = data["near_coef"]
         dense = dense.reshape(k, grid.n_r, grid.n_lat, grid.n_lon, 3)
         ext = np.stack([pad(dense[t], grid.n_lat) for t in range(k)])
         return cls(FacePatch(data["near_triangles"], g_rho), tile, ext, d_in, d_out, d_max)
@@ -146,11 +147,13 @@ def build_near_tiles(field: PolyhedronField, grid: Any, *, r_cut: float, max_fac
                      d_in: float = D_IN_M, d_out: float = D_OUT_M) -> NearTiles | None:
     """Tiles of the faces of ``field`` with a vertex above ``r_cut`` [m] (None when there are none).
 
-    Each tile's field is tabulated at every node of ``grid`` (a table's
-    :class:`~satellite.gravity_table.TableGrid`) that a stencil of a point within ``d_out`` of
-    the tile can use (nodes within ``d_out`` plus the stencil's reach of a vertex).
+    Each tile's field is computed at every node of ``grid`` (a table's
+    :class:`~satellite.gravity_table.TableGrid`), turned into B-spline coefficients, and kept at
+    the nodes that a stencil of a point within ``d_out`` of the tile can use (within ``d_out``
+    plus the stencil's reach of a vertex).
     """
     from satellite.gravity_table import _pad as pad
+    from satellite.gravity_table import prefilter
 
     rv = np.linalg.norm(field.vertices, axis=1)
     mask = rv[field.faces].max(axis=1) > r_cut
@@ -165,8 +168,8 @@ def build_near_tiles(field: PolyhedronField, grid: Any, *, r_cut: float, max_fac
     for t in range(k):
         tri = patch.triangles[tile == t]
         near = np.isfinite(cKDTree(tri.reshape(-1, 3)).query(nodes, distance_upper_bound=d_out + reach)[0])
-        sub = FacePatch(tri, patch.g_rho)
-        dense[t, near] = sub.acceleration(nodes[near])
+        values = FacePatch(tri, patch.g_rho).acceleration(nodes).reshape(grid.n_r, grid.n_lat, grid.n_lon, 3)
+        dense[t, near] = prefilter(values).reshape(-1, 3)[near]
     dense = dense.reshape(k, grid.n_r, grid.n_lat, grid.n_lon, 3)
     ext = np.stack([pad(dense[t], grid.n_lat) for t in range(k)])
     return NearTiles(patch, tile, ext, d_in, d_out, d_out)

@@ -4,9 +4,13 @@ The table holds the non-Kepler part ``a - (-GM r / |r|^3)`` of the exact constan
 polyhedron field (:mod:`satellite.polyhedron`) at the nodes of a spherical grid in the body
 frame: radii ``r_k = r_lo + k dr`` (``k = 0 .. n_r - 1``), latitudes at the centres of
 ``n_lat`` equal cells, longitudes at the centres of ``2 n_lat`` equal cells. Between nodes each
-Cartesian component is interpolated by Catmull-Rom cubics along radius, latitude and longitude
-(64 nodes, C1, third-order accurate); across the poles the neighbours are the nodes half a turn
-of longitude away (the Cartesian components are continuous there). The Kepler part is added
+Cartesian component is interpolated by a tensor-product cubic B-spline in radius, latitude and
+longitude (64 coefficients per point, C2, fourth-order accurate) that passes through the node
+values: the coefficients come from the values by the usual prefilter (:func:`prefilter`: along
+every great circle through both poles, which is periodic, along longitude, periodic, and along
+radius with extrapolated ghost nodes beyond the ends). C2 matters: a C1 interpolant (e.g.
+Catmull-Rom) made DOP853 at rtol 1e-10 take 6x more steps than the degree-8 series, its second
+derivative jumping at every cell face; with the B-spline it takes about 1.2x. The Kepler part is added
 back exactly. Outside ``[r_lo + dr, r_hi - dr]`` the exact field is evaluated (slow, correct).
 The interpolant is continuous except exactly at the poles, where its value depends on the
 longitude of approach by at most about twice the interpolation error.
@@ -35,9 +39,13 @@ from isf_robot.core.files import write_bytes_atomic
 from satellite.errors import GravityModelError
 from satellite.polyhedron import PolyhedronField
 
-__all__ = ["GravityTable", "TableGrid", "cache_dir", "build_table", "catmull_rom"]
+__all__ = ["GravityTable", "TableGrid", "cache_dir", "build_table", "bspline3", "prefilter"]
 
-TABLE_FORMAT = "isf-satellite-gravity-table/1"
+TABLE_FORMAT = "isf-satellite-gravity-table/2"
+"""/2: cubic B-spline through the node values (/1 was Catmull-Rom and is refused: rebuild it)."""
+
+_GHOSTS = 6
+"""Radial ghost nodes (cubic extrapolation) on each side for the prefilter: edge effects ~0.27^6."""
 
 
 def cache_dir() -> Path:
@@ -46,10 +54,37 @@ def cache_dir() -> Path:
     return Path(env) if env else Path.home() / ".cache" / "isf_robot" / "satellite"
 
 
-def catmull_rom(t: Any) -> tuple[Any, Any, Any, Any]:
-    """Weights of the nodes ``i-1, i, i+1, i+2`` at fraction ``t`` in ``[0, 1]`` of cell ``[i, i+1]``."""
+def bspline3(t: Any) -> tuple[Any, Any, Any, Any]:
+    """Uniform cubic B-spline weights of the coefficients ``i-1 .. i+2`` at fraction ``t`` of cell ``[i, i+1]``."""
     t2, t3 = t * t, t * t * t
-    return (0.5 * (-t + 2 * t2 - t3), 0.5 * (2 - 5 * t2 + 3 * t3), 0.5 * (t + 4 * t2 - 3 * t3), 0.5 * (t3 - t2))
+    u = 1.0 - t
+    return (u * u * u / 6.0, (3.0 * t3 - 6.0 * t2 + 4.0) / 6.0, (-3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0) / 6.0,
+            t3 / 6.0)
+
+
+def prefilter(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """B-spline coefficients whose spline passes through ``values`` (shape (n_r, n_lat, n_lon, 3)).
+
+    Latitude: each pair of meridians half a turn apart forms one periodic great circle (up one,
+    over the pole, down the other). Longitude: periodic. Radius: ``_GHOSTS`` nodes of cubic
+    extrapolation on each side, mirror beyond them.
+    """
+    from scipy.ndimage import spline_filter1d
+
+    n_r, n_lat, n_lon, _ = values.shape
+    half = n_lon // 2
+    circle = np.concatenate([values[:, :, :half], values[:, ::-1, half:]], axis=1)
+    circle = spline_filter1d(circle, 3, axis=1, mode="grid-wrap")
+    c = np.concatenate([circle[:, :n_lat], circle[:, n_lat:][:, ::-1]], axis=2)
+    c = spline_filter1d(c, 3, axis=2, mode="grid-wrap")
+    m = np.arange(1, _GHOSTS + 1, dtype=np.float64)
+    lag = np.stack([(-m - 1) * (-m - 2) * (-m - 3) / -6.0, -m * (-m - 2) * (-m - 3) / 2.0,
+                    -m * (-m - 1) * (-m - 3) / -2.0, -m * (-m - 1) * (-m - 2) / 6.0], axis=1)  # at -m from 0..3
+    lo = np.einsum("gn,n...->g...", lag, c[:4])[::-1]
+    hi = np.einsum("gn,n...->g...", lag, c[-1:-5:-1])
+    ext = np.concatenate([lo, c, hi], axis=0)
+    ext = spline_filter1d(ext, 3, axis=0, mode="mirror")
+    return np.ascontiguousarray(ext[_GHOSTS: _GHOSTS + n_r])
 
 
 class TableGrid:
@@ -118,13 +153,18 @@ class GravityTable:
         self.r_ref_m, self.gm = float(r_ref_m), float(gm)
         self.exact = exact
         self.provenance = dict(provenance or {})
-        self._ext = np.ascontiguousarray(_pad(values, grid.n_lat))
+        self._ext = np.ascontiguousarray(_pad(prefilter(values), grid.n_lat))
         self._r_in, self._r_out = grid.r_lo + grid.dr, grid.r_hi - grid.dr
         self.near = near
         if near is not None:
             from satellite.gravity_near import cell_flags
 
             self._near_cells = cell_flags(near, grid)
+
+    @property
+    def fast_radii(self) -> tuple[float, float]:
+        """Radii [m] between which the table answers (outside: the exact field, slow)."""
+        return self._r_in, self._r_out
 
     # -- evaluation ---------------------------------------------------------------------------
     def acceleration(self, r_body: ArrayLike) -> NDArray[np.float64]:
@@ -145,7 +185,7 @@ class GravityTable:
         w = (math.atan2(y, x) + math.pi) / g.dang - 0.5
         j = int(math.floor(w))
         block = self._ext[k - 1: k + 3, i + 1: i + 5, j + 1: j + 5]  # two ghost nodes before each axis
-        wr, wl, wn = catmull_rom(u - k), catmull_rom(v - i), catmull_rom(w - j)
+        wr, wl, wn = bspline3(u - k), bspline3(v - i), bspline3(w - j)
         wr, wl, wn = np.array(wr), np.array(wl), np.array(wn)
         nk = np.einsum("a,b,c,abcd->d", wr, wl, wn, block)
         if self.near is not None and self._near_cells[k, i + 1, j + 1]:
@@ -171,7 +211,7 @@ class GravityTable:
         i = np.floor(v).astype(np.intp)
         w = (np.arctan2(q[:, 1], q[:, 0]) + math.pi) / g.dang - 0.5
         j = np.floor(w).astype(np.intp)
-        wr, wl, wn = (np.stack(catmull_rom(t), axis=1) for t in (u - k, v - i, w - j))
+        wr, wl, wn = (np.stack(bspline3(t), axis=1) for t in (u - k, v - i, w - j))
         acc = np.zeros((len(q), 3))
         for a in range(4):
             for b in range(4):

@@ -11,7 +11,9 @@ Frames and units (SI throughout: m, s, m/s, m/s^2):
   retrograde with respect to its heliocentric orbit, which is a statement about the pole's
   direction, not about this sense. ``spin=False`` freezes the body (``omega = 0``).
 * **Truth flow**: ``r_dot = v``, ``v_dot = Rz(theta) a_SH(r_body)``, with ``a_SH`` the
-  degree-8 field (which includes the point-mass term). The **model flow** used by the trigger
+  body-frame field (which includes the point-mass term): any model of :mod:`satellite.fields`
+  (the command line's default is the tabulated exact polyhedron field; this class's default,
+  kept for the paper's comparison, is the degree-8 series). The **model flow** used by the trigger
   and by the controller is Kepler only, ``v_dot = -mu r / |r|^3`` (the paper's model); the
   difference is the disturbance ``d`` (paper, Section III-B).
 * **Band and barrier** (paper, Section III-B): ``1.6 R <= |r| <= 2.4 R`` with
@@ -20,8 +22,9 @@ Frames and units (SI throughout: m, s, m/s, m/s^2):
 
 The spherical-harmonic series converges only outside the Brillouin sphere (311.7 m = 1.925 R
 for Itokawa, see :mod:`satellite.gravity`); the band's inner part (down to 1.6 R) lies inside
-it, and the body's long-axis tips reach inside the band. Like the paper, the simulation ignores
-contact with the surface and uses the series throughout the band.
+it, and the body's long-axis tips reach inside the band. The paper used the series throughout
+the band; ``--gravity sh8`` still does, the default field is valid everywhere (REPRODUCTION.md).
+Surface contact is watched by :mod:`satellite.contact`.
 """
 
 from __future__ import annotations

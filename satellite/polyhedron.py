@@ -218,10 +218,23 @@ class FacePatch:
         le = np.log((ab + ln) / (ab - ln))
         return np.einsum("fi,fi->f", self.normals[sel], r0) * w - np.einsum("fei,fei,fe->f", self._en[sel], r, le)
 
-    def acceleration(self, points: ArrayLike) -> NDArray[np.float64]:
-        """Acceleration [m/s^2] of these faces at points [m], shape (N, 3) -> (N, 3)."""
+    def acceleration(self, points: ArrayLike, chunk: int = 128) -> NDArray[np.float64]:
+        """Acceleration [m/s^2] of these faces at points [m], shape (N, 3) -> (N, 3) (chunks of points)."""
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         out = np.empty_like(p)
-        for k, x in enumerate(p):
-            out[k] = self.g_rho * (self.face_terms(x) @ self.normals)
+        t, nf = self.triangles, self.normals
+        for s in range(0, len(p), chunk):
+            x = p[s: s + chunk]
+            r = t[None] - x[:, None, None, :]  # (k, F, 3, 3)
+            rn = np.sqrt(np.einsum("kfvi,kfvi->kfv", r, r))
+            r0, r1, r2 = r[:, :, 0], r[:, :, 1], r[:, :, 2]
+            l0, l1, l2 = rn[..., 0], rn[..., 1], rn[..., 2]
+            num = np.einsum("kfi,kfi->kf", r0, np.cross(r1, r2))
+            den = (l0 * l1 * l2 + l0 * np.einsum("kfi,kfi->kf", r1, r2) + l1 * np.einsum("kfi,kfi->kf", r2, r0)
+                   + l2 * np.einsum("kfi,kfi->kf", r0, r1))
+            w = 2.0 * np.arctan2(num, den)
+            ab = rn + np.roll(rn, -1, axis=2)
+            le = np.log((ab + self._len) / (ab - self._len))
+            terms = np.einsum("fi,kfi->kf", nf, r0) * w - np.einsum("fei,kfei,kfe->kf", self._en, r, le)
+            out[s: s + chunk] = self.g_rho * (terms @ nf)
         return out

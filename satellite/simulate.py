@@ -25,6 +25,7 @@ from satellite.arcs import ArcIntegrator, IntegratorSettings, SatelliteSample, S
 from satellite.contact import CONTACT_MODES, make_contact
 from satellite.controller import ControlParams, ResolvedControl, make_controller, resolve_control
 from satellite.events import event
+from satellite.fields import model_name
 from satellite.mesh_surface import body_mesh_info, load_surface
 from satellite.model import BAND_INNER, BAND_OUTER, InitialOrbit, OrbitModel
 from satellite.policies import make_policy
@@ -366,7 +367,8 @@ def _settings(
         "min_post_jump_xi": resolved.min_post_jump_xi,
         "spin": model.spin,
         "spin_period_h": model.spin_period_h,
-        "gravity_degree": model.field.degree,
+        "gravity_degree": getattr(model.field, "degree", None),
+        "gravity_model": model_name(model.field),
         "disturbance_scale": model.disturbance_scale,
         "R_m": model.R,
         "mu": model.mu,

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from satellite.controller import ControlParams
+from satellite.fields import DEFAULT_GRAVITY, load_field
 from satellite.files import write_text_atomic
 from satellite.model import InitialOrbit, OrbitModel
 from satellite.simulate import IntegratorSettings, simulate
@@ -31,11 +32,12 @@ __all__ = ["compare", "main"]
 
 
 def _one(args: tuple[Any, ...]) -> dict[str, Any]:
-    trigger, seed, hours, tau_path, spin, scale, alpha_gain, inclination, rtol = args
+    trigger, seed, hours, tau_path, spin, scale, alpha_gain, inclination, rtol, gravity = args
     tau = load_tau(tau_path) if trigger.needs_tau else None
     res = simulate(
         trigger, hours, initial=InitialOrbit(seed=seed, inclination_deg=inclination),
-        model=OrbitModel(spin=spin, disturbance_scale=scale), control=ControlParams(alpha_gain=alpha_gain),
+        model=OrbitModel(load_field(gravity), spin=spin, disturbance_scale=scale),
+        control=ControlParams(alpha_gain=alpha_gain),
         tau=tau, integrator=IntegratorSettings(rtol=rtol), miet_samples=200,
     )
     out = res.summary()
@@ -55,6 +57,7 @@ def compare(
     inclination_deg: float = 45.0,
     rtol_check: bool = False,
     workers: int | None = None,
+    gravity: str = "sh8",
 ) -> dict[str, Any]:
     """Run greedy and maneuver triggers from the same initial orbits.
 
@@ -69,7 +72,8 @@ def compare(
         runs = ((Trigger.GREEDY, 1e-10), (Trigger.MANEUVER, 1e-10)) + (((Trigger.GREEDY, 1e-11),) if rtol_check else ())
         for trig, rtol in runs:
             jobs.append(
-                (trig, int(s), float(hours), tau_path, spin, disturbance_scale, alpha_gain, inclination_deg, rtol)
+                (trig, int(s), float(hours), tau_path, spin, disturbance_scale, alpha_gain, inclination_deg, rtol,
+                 gravity)
             )
     with ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1) as pool:
         results = list(pool.map(_one, jobs))
@@ -103,6 +107,7 @@ def compare(
         "tau": tau_path,
         "spin": spin,
         "disturbance_scale": disturbance_scale,
+        "gravity": gravity,
         "alpha_gain": alpha_gain,
         "inclination_deg": inclination_deg,
         "rows": rows,
@@ -134,12 +139,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--inclination", type=float, default=45.0)
     p.add_argument("--rtol-check", action="store_true")
     p.add_argument("--workers", type=int, default=None)
+    p.add_argument("--gravity", default=DEFAULT_GRAVITY, help="truth gravity model (default: table)")
     p.add_argument("--out", required=True)
     a = p.parse_args(argv)
     load_tau(a.tau)
+    load_field(a.gravity)
     res = compare(
         list(range(a.seeds)), a.hours, a.tau, spin=not a.no_spin, disturbance_scale=a.disturbance_scale,
         alpha_gain=a.alpha_gain, inclination_deg=a.inclination, rtol_check=a.rtol_check, workers=a.workers,
+        gravity=a.gravity,
     )
     write_text_atomic(a.out, json.dumps(res, indent=1) + "\n")
     sys.stdout.write(json.dumps(res["reduction"]) + "\n")

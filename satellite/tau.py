@@ -175,11 +175,12 @@ def fit_tau(data: TauData, h_max: float, R: float, degree: int = 2) -> TauFit:
 _FIELD_CACHE: dict[Any, Any] = {}
 
 
-def _worker_model(spin: bool, phase: float, scale: float = 1.0) -> OrbitModel:
-    field = _FIELD_CACHE.get("field")
+def _worker_model(spin: bool, phase: float, scale: float = 1.0, gravity: str = "sh8") -> OrbitModel:
+    field = _FIELD_CACHE.get(("field", gravity))
     if field is None:
-        field = OrbitModel().field
-        _FIELD_CACHE["field"] = field
+        from satellite.fields import load_field
+
+        field = _FIELD_CACHE[("field", gravity)] = load_field(gravity)
     return OrbitModel(field, spin=spin, body_phase=phase, disturbance_scale=scale)
 
 
@@ -191,6 +192,7 @@ def time_to_trigger(
     control: ControlParams | None = None,
     max_hours: float = 100.0,
     disturbance_scale: float = 1.0,
+    gravity: str = "sh8",
 ) -> float:
     """Time [h] from one controller impulse at a random state of radius ``radius_over_R`` to the trigger.
 
@@ -201,6 +203,7 @@ def time_to_trigger(
         control: Trigger settings.
         max_hours: Censoring time [h].
         disturbance_scale: Factor on the non-Kepler gravity.
+        gravity: Truth gravity model name (:func:`satellite.fields.load_field`).
 
     """
     rng = np.random.default_rng(list(seed))
@@ -210,7 +213,7 @@ def time_to_trigger(
     w -= (w @ u) * u
     w /= np.linalg.norm(w)
     phase = float(rng.uniform(0.0, 2.0 * math.pi))
-    model = _worker_model(spin, phase, disturbance_scale)
+    model = _worker_model(spin, phase, disturbance_scale, gravity)
     key = ("resolved", control)
     resolved = _FIELD_CACHE.get(key)
     if resolved is None:
@@ -236,10 +239,11 @@ def time_to_trigger(
 
 
 def _task(args: tuple[Any, ...]) -> tuple[int, list[float]]:
-    radius, index, seed, sample_ids, spin, control, max_hours, scale = args
+    radius, index, seed, sample_ids, spin, control, max_hours, scale, gravity = args
     out = [
         time_to_trigger(
-            radius, (seed, index, j), spin=spin, control=control, max_hours=max_hours, disturbance_scale=scale
+            radius, (seed, index, j), spin=spin, control=control, max_hours=max_hours, disturbance_scale=scale,
+            gravity=gravity,
         )
         for j in sample_ids
     ]
@@ -257,6 +261,7 @@ def collect_tau(
     max_hours: float = 100.0,
     chunk: int = 10,
     disturbance_scale: float = 1.0,
+    gravity: str = "sh8",
 ) -> TauData:
     """Collect time-to-trigger samples over the radius grid, in parallel processes.
 
@@ -272,6 +277,8 @@ def collect_tau(
         max_hours: Censoring time [h], > 0.
         chunk: Samples per task.
         disturbance_scale: Factor on the non-Kepler gravity.
+        gravity: Truth gravity model name (:func:`satellite.fields.load_field`; the library's
+            default is the paper's degree-8 series, the command line's the tabulated exact field).
 
     """
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
@@ -288,7 +295,8 @@ def collect_tau(
     for i, rad in enumerate(radii_over_R):
         for start in range(0, samples, chunk):
             ids = list(range(start, min(samples, start + chunk)))
-            tasks.append((float(rad), i, int(seed), ids, spin, control, float(max_hours), float(disturbance_scale)))
+            tasks.append((float(rad), i, int(seed), ids, spin, control, float(max_hours), float(disturbance_scale),
+                          gravity))
     times = np.zeros((len(radii_over_R), samples))
     if workers == 1:
         results = map(_task, tasks)

@@ -84,6 +84,8 @@ SATELLITE = [
     ["run", "--trigger", "maneuver", "--tau", "OUT", "--hours", "1"],
     ["run", "--gravity", "MISSING.json", "--hours", "1"],
     ["run", "--gravity", "DIR", "--hours", "1"],
+    ["run", "--gravity", "sh9", "--hours", "1"],
+    ["tau", "--gravity", "exact", "--samples", "1", "--out", "OUT"],
     ["gravity", "--shape", "MISSING.obj", "--out", "OUT"],
     ["gravity", "--shape", "DIR", "--out", "OUT"],
     ["gravity", "--degree", "99", "--out", "OUT"],

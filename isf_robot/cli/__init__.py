@@ -22,6 +22,7 @@ __all__ = ["main", "build_parser", "COMMAND_MODULES"]
 # Modules providing subcommands, in the order they appear in --help.
 COMMAND_MODULES = (
     "isf_robot.cli.arm",
+    "isf_robot.cli.sweep",
     "isf_robot.cli.replay",
     "isf_robot.cli.core_demo",
     "isf_robot.cli.setup",

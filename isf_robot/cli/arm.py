@@ -47,6 +47,26 @@ def _add_filter_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--b", type=float, default=None, help="promotion rate b")
     p.add_argument("--d-bar", type=float, default=None, metavar="D",
                    help="tracking-error bound [rad/s] (default: the scene's, else calibrated)")
+    _add_intermittent_args(p)
+
+
+def _add_intermittent_args(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("intermittent filter options (isf; off by default)")
+    g.add_argument("--min-off", type=float, default=None, metavar="S",
+                   help="asked-for shortest off period [s]: the off margin is designed from the measured "
+                        "fall rate of Xi_on (at least c, at most --c-max and alpha(cut-off - margin))")
+    g.add_argument("--c-max", type=float, default=None, metavar="C", help="largest designed off margin")
+    g.add_argument("--blend", type=float, default=None, metavar="S",
+                   help="hand-over time [s] after each switch (no step in the command beyond what safety needs)")
+    g.add_argument("--horizon", type=float, default=None, metavar="S",
+                   help="predictive off trigger: off only if the nominal, rolled forward this long on "
+                        "q_dot = u_nom(q), keeps every Xi_on > 0")
+    g.add_argument("--predict-every", type=int, default=None, metavar="K",
+                   help="control steps between rollouts of the predictive off trigger (default 5)")
+
+
+def _intermittent_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    return {k: getattr(args, k, None) for k in ("min_off", "c_max", "blend", "horizon", "predict_every")}
 
 
 def _params(args: argparse.Namespace, scene: Any) -> dict[str, Any]:
@@ -55,7 +75,7 @@ def _params(args: argparse.Namespace, scene: Any) -> dict[str, Any]:
     from isf_robot.arm.params import resolve_params
 
     out: dict[str, Any] = {"params": resolve_params(
-        scene, args.alpha, args.c, args.b, args.d_bar)}
+        scene, args.alpha, args.c, args.b, args.d_bar, **_intermittent_kwargs(args))}
     for f in run_findings(scene, out["params"]):  # what `isf-robot check` reports, before the run
         print(f"warning [{f.code}]: {f.message}", file=sys.stderr)
     if getattr(args, "control_period", None) is not None:
@@ -175,10 +195,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
         ("collision steps", d["collisions"]), ("goals reached", d["goals_reached"]),
         ("intervention [rad^2/s]", d["intervention"]), ("QP solves", d["qp_solves"]),
         ("fallbacks (braking)", d["fallbacks"]), ("d_bar [rad/s]", d["d_bar"]),
+        ("tracking error q99 [rad/s]", d["tracking_error_q99"]),
+        ("largest command step at a switch", d["switch_jump_max"]),
+        ("designed off bound [s]", d["off_bound_min_s"]),
     ]
     w = max(len(k) for k, _ in rows)
     for k, v in rows:
         print(f"  {k.ljust(w)}  {format_value(v)}")
+    if d["filter"] != "nominal" and not d["d_bar_covered"]:
+        print(f"warning: tracking error q99 {d['tracking_error_q99']:.3g} rad/s > d_bar {d['d_bar']:.3g}: the "
+              "robust term does not cover it (safety rests on the clearance the filter keeps)", file=sys.stderr)
     return 0
 
 

@@ -18,6 +18,11 @@ Changes so far, each deliberate:
   default (``--contact count``, the trajectory unchanged): new keys only, ``contact_mode``,
   ``contact_model``, ``surface_contacts``, ``first_contact_h``, ``contact_stopped``,
   ``envelope_passes``, ``min_pass_clearance_m`` (this orbit passes 11 m deep through the shape).
+* Valid truth field (issue 14, item 1): ``isf-satellite run`` integrates the exact polyhedron
+  field (tabulated, ``--gravity table``) by default instead of the degree-8 series, which diverges
+  inside 1.925 R: every number of ``satellite-greedy`` changed (100 triggers instead of 113, no
+  contact on this orbit, ``settings.gravity_model`` new, ``gravity_degree`` null); regenerated
+  with ``python tests/golden/generate.py satellite-greedy`` (arm cases untouched).
 * Versioned outputs (issue 12, item 3): one new key in every case, ``"schema"``
   (``"isf-robot-run/1"``, ``"isf-satellite-run/1"``), added to the data files by hand (every
   other value untouched, not regenerated).

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from satellite.errors import GravityModelError
-from satellite.gravity_table import GravityTable, TableGrid, build_table, catmull_rom
+from satellite.gravity_table import GravityTable, TableGrid, bspline3, build_table
 from satellite.polyhedron import PolyhedronField
 
 GM = 2.0
@@ -33,12 +33,22 @@ def shell_points(rb: float, n: int, seed: int) -> np.ndarray:
     return u * rng.uniform(1.35 * rb, 1.85 * rb, n)[:, None]
 
 
-def test_catmull_rom_weights_reproduce_cubics() -> None:
+def test_bspline_weights_reproduce_lines_and_join_c2() -> None:
     t = np.linspace(0, 1, 7)
-    w = np.stack(catmull_rom(t))
+    w = np.stack(bspline3(t))
     np.testing.assert_allclose(w.sum(axis=0), 1.0, atol=1e-15)
     nodes = np.array([-1.0, 0.0, 1.0, 2.0])
-    np.testing.assert_allclose(nodes @ w, t, atol=1e-15)  # linear functions exactly (and C1 across nodes)
+    np.testing.assert_allclose(nodes @ w, t, atol=1e-15)  # linear functions exactly
+    # C2 across a cell face: value, slope and curvature of cell i at t=1 equal cell i+1's at t=0
+    c = np.random.default_rng(0).normal(size=5)
+    eps = 1e-4
+
+    def f(cell: int, x: float) -> float:
+        return float(np.dot(c[cell: cell + 4], bspline3(x)))
+
+    for d in (lambda g, x: g(x), lambda g, x: (g(x + eps) - g(x - eps)) / (2 * eps),
+              lambda g, x: (g(x + eps) - 2 * g(x) + g(x - eps)) / eps**2):
+        assert d(lambda x: f(0, x), 1.0) == pytest.approx(d(lambda x: f(1, x), 0.0), rel=1e-5, abs=1e-6)
 
 
 def test_table_converges_to_the_exact_field(body, tables) -> None:  # type: ignore[no-untyped-def]
@@ -48,7 +58,7 @@ def test_table_converges_to_the_exact_field(body, tables) -> None:  # type: igno
     nonkep = np.linalg.norm(exact + GM * p / (np.linalg.norm(p, axis=1) ** 3)[:, None], axis=1)
     err = {n: np.linalg.norm(t.acceleration_batch(p) - exact, axis=1) / nonkep for n, t in tables.items()}
     assert err[24].max() < 0.01
-    assert err[24].max() < err[12].max() / 4  # third order: halving the cells cuts the error ~8x
+    assert err[24].max() < err[12].max() / 4  # fourth order: halving the cells cuts the error ~16x
 
 
 def test_scalar_and_batch_paths_agree_and_poles_and_seam_are_continuous(body, tables) -> None:  # type: ignore[no-untyped-def]

@@ -1,0 +1,280 @@
+"""Parameter sweeps: strategies x filter parameters x scenes x seeds, summarised with a Pareto front.
+
+A sweep is a list of :class:`SweepPoint` (a strategy and the filter parameters it overrides), run
+on every scene and seed. Every point of a scene runs on the same seeds (same initial configuration,
+goal jitter and obstacle phase per seed) with the same ``d_bar`` (resolved once per scene: flag,
+config or the tracking calibration). Episodes run through :func:`isf_robot.core.parallel.run_tasks`
+(local processes; Ctrl-C keeps what finished) and every result is a plain JSON-ready dict, so the
+same seeds give the same numbers whatever the number of workers.
+
+Per scene and point, :func:`summarize_point` gives the means over episodes plus the worst episode's
+figures the issue's targets need (shortest off period over all episodes, violations, whether the
+``d_bar`` in use covered the tracking error in every episode); :func:`pareto_front` marks the points
+no other point beats on every objective of :data:`OBJECTIVES` at once.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from isf_robot.core import ConfigError
+from isf_robot.core.parallel import MAX_JOBS, Interrupted, run_tasks
+from isf_robot.core.report import format_table
+from isf_robot.core.strategies import strategy_info
+
+from .compare import EpisodeTask, SceneSpec, json_safe, run_task
+from .params import resolve_params
+from .records import FilterParams
+
+__all__ = ["SweepPoint", "SweepTask", "grid_points", "random_points", "run_sweep", "summarize_point",
+           "pareto_front", "format_sweep", "PARAMETERS", "OBJECTIVES", "MAX_SWEEP_EPISODES"]
+
+PARAMETERS = ("alpha", "c", "b", "min_off", "c_max", "blend", "horizon", "predict_every")
+"""Filter parameters a sweep can vary (the names of :func:`~isf_robot.arm.params.resolve_params`)."""
+
+_INTERMITTENT_ONLY = frozenset(PARAMETERS) - {"alpha"}
+
+OBJECTIVES: tuple[tuple[str, int], ...] = (
+    ("duty_cycle", -1), ("on_switches", -1), ("min_off_all_s", +1), ("intervention", -1),
+    ("goals_reached", +1), ("violations", -1),
+)
+"""``(key, sense)`` of the Pareto front: -1 smaller is better, +1 larger is better."""
+
+MAX_SWEEP_EPISODES = 1_000_000
+
+
+@dataclass(frozen=True)
+class SweepPoint:
+    """One setting of a sweep: a strategy and the filter parameters it sets (others: the scene's)."""
+
+    strategy: str
+    values: Mapping[str, float] = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        """``strategy k=v ...`` (the values in :data:`PARAMETERS` order)."""
+        parts = [f"{k}={self.values[k]:g}" for k in PARAMETERS if k in self.values]
+        return " ".join([self.strategy] + parts)
+
+
+def _check_values(name: str, values: Sequence[float]) -> None:
+    if name not in PARAMETERS:
+        raise ConfigError(f"unknown sweep parameter {name!r}; valid: {', '.join(PARAMETERS)}")
+    if not values:
+        raise ConfigError(f"sweep parameter {name} has no values")
+
+
+def grid_points(strategies: Sequence[str], grid: Mapping[str, Sequence[float]]) -> list[SweepPoint]:
+    """Every combination of the grid's values per strategy (a strategy gets only the parameters it uses)."""
+    for k, v in grid.items():
+        _check_values(k, v)
+    out: list[SweepPoint] = []
+    for s in strategies:
+        info = strategy_info(s)
+        keys = [k for k in grid if info.filters and (info.intermittent or k not in _INTERMITTENT_ONLY)]
+        for combo in itertools.product(*(grid[k] for k in keys)):
+            out.append(SweepPoint(s, dict(zip(keys, combo))))
+    return out
+
+
+def random_points(strategies: Sequence[str], ranges: Mapping[str, tuple[float, float]], n: int,
+                  seed: int = 0) -> list[SweepPoint]:
+    """``n`` points per intermittent strategy drawn uniformly from ``ranges`` (log-uniform for a range
+    spanning more than a factor 10 with both ends > 0); other strategies get one point each at the
+    ranges' midpoints of the parameters they use. ``predict_every`` is rounded to a whole number."""
+    if n < 1:
+        raise ConfigError(f"--random must be >= 1, got {n}")
+    for k, (lo, hi) in ranges.items():
+        _check_values(k, [lo, hi])
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+            raise ConfigError(f"sweep range of {k} must be LO:HI with LO <= HI, got {lo}:{hi}")
+    rng = np.random.default_rng(seed)
+
+    def draw(k: str, lo: float, hi: float) -> float:
+        v = (math.exp(rng.uniform(math.log(lo), math.log(hi))) if lo > 0 and hi > 10 * lo
+             else float(rng.uniform(lo, hi)))
+        return float(round(v)) if k == "predict_every" else v
+
+    out: list[SweepPoint] = []
+    for s in strategies:
+        info = strategy_info(s)
+        if info.intermittent:
+            out += [SweepPoint(s, {k: draw(k, *r) for k, r in ranges.items()}) for _ in range(n)]
+        else:
+            keys = [k for k in ranges if info.filters and k not in _INTERMITTENT_ONLY]
+            out.append(SweepPoint(s, {k: 0.5 * (ranges[k][0] + ranges[k][1]) for k in keys}))
+    return out
+
+
+@dataclass(frozen=True)
+class SweepTask:
+    """One episode of a sweep (picklable): the scene's index, the point's index and the episode."""
+
+    scene: int
+    point: int
+    episode: EpisodeTask
+
+
+def run_sweep_task(task: SweepTask) -> dict[str, Any]:
+    """Run one episode of a sweep (used by the worker processes)."""
+    return run_task(task.episode)
+
+
+def _params_of(scene: Any, base: FilterParams, point: SweepPoint) -> FilterParams:
+    v = dict(point.values)
+    every = v.pop("predict_every", None)
+    p = resolve_params(scene, d_bar=base.d_bar, predict_every=None if every is None else int(every), **v)
+    return replace(p, d_bar_source=base.d_bar_source)
+
+
+def summarize_point(runs: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """Means over episodes, plus the worst episode's figures (see the module docstring)."""
+    def mean(key: str) -> float | None:
+        vals = [float(r[key]) for r in runs if r.get(key) is not None and math.isfinite(float(r[key]))]
+        return float(np.mean(vals)) if vals else None
+
+    offs = [r["min_off_s"] for r in runs if r.get("min_off_s") is not None]
+    bounds = [r["off_bound_min_s"] for r in runs if r.get("off_bound_min_s") is not None]
+    out: dict[str, Any] = {k: mean(k) for k in (
+        "duty_cycle", "on_switches", "min_off_s", "intervention", "goals_reached", "goals_missed",
+        "tracking_error_q99", "switch_jump_max", "qp_solves", "wall_s")}
+    out.update(
+        episodes=len(runs),
+        min_off_all_s=min(offs) if offs else None,  # the shortest complete off period of any episode
+        off_bound_min_s=min(bounds) if bounds else None,
+        violations=int(sum(int(r["collisions"]) for r in runs)),
+        min_barrier=min(float(r["min_barrier"]) for r in runs) if runs else None,
+        d_bar=runs[0]["d_bar"] if runs else None,
+        d_bar_covered_all=all(bool(r["d_bar_covered"]) for r in runs),
+        seeds=sorted(int(r["seed"]) for r in runs),
+    )
+    return out
+
+
+def _objective(row: Mapping[str, Any], key: str, sense: int) -> float:
+    v = row.get(key)
+    if v is None:  # no complete off period: the best case for min off (never switched back on)
+        return math.inf if key == "min_off_all_s" else -math.inf * sense
+    return float(v) * sense
+
+
+def pareto_front(rows: Sequence[Mapping[str, Any]]) -> list[bool]:
+    """Whether each row is on the Pareto front of :data:`OBJECTIVES` among ``rows``."""
+    vals = [[_objective(r, k, s) for k, s in OBJECTIVES] for r in rows]
+    front = []
+    for i, a in enumerate(vals):
+        dominated = any(all(x >= y for x, y in zip(b, a)) and any(x > y for x, y in zip(b, a))
+                        for j, b in enumerate(vals) if j != i)
+        front.append(not dominated)
+    return front
+
+
+ProgressFn = Callable[[int, int, SweepTask, Mapping[str, Any]], None]
+
+
+def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: Sequence[int], *,
+              duration: float | None = None, jobs: int = 1, d_bar: float | None = None,
+              progress: ProgressFn | None = None) -> dict[str, Any]:
+    """Run every point on every scene and seed; return the JSON-ready sweep (see :func:`_summary`).
+
+    Raises:
+        ConfigError: Bad parameters (checked for every scene and point before any episode runs).
+        Interrupted: Ctrl-C / SIGTERM; ``exc.partial`` is the sweep of the finished episodes.
+
+    """
+    if not points:
+        raise ConfigError("no sweep points")
+    if not seeds:
+        raise ConfigError("no seeds")
+    if not 1 <= int(jobs) <= MAX_JOBS:
+        raise ConfigError(f"--jobs must be between 1 and {MAX_JOBS}, got {jobs}")
+    n = len(specs) * len(points) * len(seeds)
+    if n > MAX_SWEEP_EPISODES:
+        raise ConfigError(f"{n} episodes asked for; at most {MAX_SWEEP_EPISODES} per sweep")
+    from .sim import ArmSimulation
+
+    tasks: list[SweepTask] = []
+    names: list[str] = []
+    for i, spec in enumerate(specs):
+        scene = spec.load()
+        names.append(scene.name)
+        base = resolve_params(scene, d_bar=d_bar)
+        for j, pt in enumerate(points):
+            fp = _params_of(scene, base, pt)
+            ArmSimulation(scene, pt.strategy, seed=int(seeds[0]), params=fp).control_steps(duration)  # validates
+            tasks += [SweepTask(i, j, EpisodeTask(spec, pt.strategy, int(s), duration, {"params": fp})) for s in seeds]
+    results: dict[tuple[int, int], list[dict[str, Any]]] = {}
+
+    def keep(done: int, total: int, task: SweepTask, r: dict[str, Any]) -> None:
+        results.setdefault((task.scene, task.point), []).append(r)
+        if progress is not None:
+            progress(done, total, task, r)
+
+    def summary(partial: bool) -> dict[str, Any]:
+        return _summary(names, points, list(seeds), results, partial)
+
+    try:
+        run_tasks(run_sweep_task, tasks, jobs=int(jobs), on_result=keep)
+    except Interrupted as exc:
+        exc.partial = summary(True)
+        raise
+    return summary(False)
+
+
+def _summary(names: list[str], points: Sequence[SweepPoint], seeds: list[int],
+             results: Mapping[tuple[int, int], list[dict[str, Any]]], partial: bool) -> dict[str, Any]:
+    scenes = []
+    for i, name in enumerate(names):
+        rows = []
+        for j, pt in enumerate(points):
+            runs = sorted(results.get((i, j), []), key=lambda r: r["seed"])
+            if runs:
+                rows.append({"strategy": pt.strategy, "values": dict(pt.values), "label": pt.label,
+                             **summarize_point(runs), "runs": runs})
+        cbf = next((r for r in rows if r["strategy"] == "cbf"), None)
+        for r, on in zip(rows, pareto_front(rows)):
+            r["pareto"] = on
+            if cbf is not None:
+                r["vs_cbf"] = {k: (None if r[k] is None or not cbf[k] else r[k] / cbf[k])
+                               for k in ("duty_cycle", "on_switches", "intervention")}
+                r["vs_cbf"]["goals_diff"] = (None if r["goals_reached"] is None or cbf["goals_reached"] is None
+                                             else r["goals_reached"] - cbf["goals_reached"])
+        scenes.append({"scene": name, "points": rows})
+    return json_safe({"partial": partial, "seeds": seeds, "objectives": [k for k, _ in OBJECTIVES],
+                      "scenes": scenes})
+
+
+_COLUMNS = (("duty_cycle", "duty", ".3f"), ("on_switches", "switches", ".1f"),
+            ("min_off_all_s", "min off [s]", ".3f"), ("off_bound_min_s", "bound [s]", ".3f"),
+            ("intervention", "interv.", ".3f"), ("goals_reached", "goals", ".2f"),
+            ("violations", "viol.", "d"), ("switch_jump_max", "jump", ".3f"),
+            ("tracking_error_q99", "err q99", ".3f"))
+
+
+def _cell(v: Any, fmt: str) -> str:
+    return "-" if v is None else format(v, fmt)
+
+
+def format_sweep(sweep: Mapping[str, Any]) -> str:
+    """One table per scene: a row per point, ``*`` on the Pareto front, ratios to cbf when it ran."""
+    out = []
+    for sc in sweep["scenes"]:
+        rows = []
+        for r in sc["points"]:
+            ratio = r.get("vs_cbf") or {}
+            rows.append([("* " if r["pareto"] else "  ") + r["label"]]
+                        + [_cell(r.get(k), f) for k, _, f in _COLUMNS]
+                        + [_cell(ratio.get(k), ".2f") for k in ("duty_cycle", "on_switches", "intervention")]
+                        + ["yes" if r["d_bar_covered_all"] else "no"])
+        title = (("PARTIAL (interrupted) " if sweep["partial"] else "") + f"scene {sc['scene']}: "
+                 f"{len(sweep['seeds'])} seed(s) per point, means (min off: shortest over episodes; "
+                 "* Pareto front)")
+        out.append(format_table(["point"] + [h for _, h, _ in _COLUMNS]
+                                + ["duty/cbf", "sw/cbf", "int/cbf", "d_bar ok"], rows, title=title))
+    return "\n\n".join(out)

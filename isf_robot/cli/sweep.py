@@ -1,0 +1,121 @@
+"""``isf-robot sweep``: strategies x filter parameters x scenes x seeds, with a Pareto table.
+
+Parameters are given as lists (``--c 0.05,0.2,0.5``: a grid over every combination) or, with
+``--random N``, as ranges (``--c 0.05:0.5``: N random draws per intermittent strategy, seeded by
+``--sweep-seed``). Progress goes to stderr; ``--json`` prints the whole sweep (every episode's
+result) and ``--output PATH.json`` writes it atomically. Ctrl-C stops the workers and prints (and
+writes) what finished, marked partial.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+from isf_robot.core.exceptions import ConfigError
+from isf_robot.core.report import with_schema
+from isf_robot.core.strategies import strategy_names
+
+__all__ = ["register"]
+
+_FLAGS = {"alpha": "--alpha", "c": "--c", "b": "--b", "min_off": "--min-off", "c_max": "--c-max",
+          "blend": "--blend", "horizon": "--horizon", "predict_every": "--predict-every"}
+
+
+def register(subparsers: Any) -> None:
+    """Add ``sweep`` to the CLI's subparsers."""
+    p = subparsers.add_parser(
+        "sweep", help="sweep filter parameters over scenes and seeds (Pareto table)",
+        description="Run strategies over a grid (comma lists) or random draws (--random N with LO:HI ranges) "
+                    "of filter parameters, on several scenes and seeds; print one table per scene with the "
+                    "Pareto front (duty, switches, shortest off period, intervention, goals, violations).")
+    p.add_argument("--scenes", nargs="+", default=["panda_pole"], metavar="NAME",
+                   help="shipped scenes (default panda_pole)")
+    p.add_argument("--filters", nargs="+", choices=strategy_names(), default=["cbf", "isf"], metavar="FILTER",
+                   help="strategies (default: cbf isf)")
+    p.add_argument("--episodes", type=int, default=5, help="seeds per point (default 5)")
+    p.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
+    p.add_argument("--duration", type=float, default=None, metavar="S", help="simulated time per episode [s]")
+    p.add_argument("--jobs", type=int, default=1, metavar="K", help="worker processes (default 1)")
+    p.add_argument("--d-bar", type=float, default=None, metavar="D",
+                   help="tracking-error bound [rad/s] for every scene (default: each scene's, else calibrated)")
+    for name, flag in _FLAGS.items():
+        p.add_argument(flag, dest=name, default=None, metavar="V1,V2|LO:HI",
+                       help=f"values of {name} (comma list; a LO:HI range with --random)")
+    p.add_argument("--random", type=int, default=None, metavar="N",
+                   help="N random draws per intermittent strategy from the LO:HI ranges")
+    p.add_argument("--sweep-seed", type=int, default=0, help="seed of the random draws (default 0)")
+    p.add_argument("--output", metavar="PATH.json", help="also write the JSON here (atomically)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    p.set_defaults(handler=_cmd_sweep)
+
+
+def _number(flag: str, text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise ConfigError(f"{flag}: {text!r} is not a number (give V1,V2,... or LO:HI with --random)") from None
+
+
+def _points(args: argparse.Namespace) -> list[Any]:
+    from isf_robot.arm.sweep import grid_points, random_points
+
+    given = {k: getattr(args, k) for k in _FLAGS if getattr(args, k) is not None}
+    if args.random is None:
+        grid = {}
+        for k, text in given.items():
+            if ":" in text:
+                raise ConfigError(f"{_FLAGS[k]} {text}: a LO:HI range needs --random N")
+            grid[k] = [_number(_FLAGS[k], v) for v in text.split(",") if v.strip()]
+        return grid_points(args.filters, grid)
+    ranges = {}
+    for k, text in given.items():
+        lo, sep, hi = text.partition(":")
+        if not sep:
+            lo = hi = text
+        ranges[k] = (_number(_FLAGS[k], lo), _number(_FLAGS[k], hi))
+    return random_points(args.filters, ranges, args.random, args.sweep_seed)
+
+
+def _emit(args: argparse.Namespace, sweep: dict[str, Any]) -> None:
+    from isf_robot.arm.sweep import format_sweep
+    from isf_robot.core.files import write_text_atomic
+
+    doc = with_schema("isf-robot-sweep", sweep)
+    if args.output:
+        write_text_atomic(args.output, json.dumps(doc, indent=1) + "\n")
+        print(f"sweep written to {args.output}", file=sys.stderr)
+    print(json.dumps(doc) if args.json else format_sweep(sweep), flush=True)
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from isf_robot.arm.compare import SceneSpec
+    from isf_robot.arm.sweep import run_sweep
+    from isf_robot.core.files import check_output_path
+    from isf_robot.core.parallel import Interrupted
+
+    if args.episodes < 1 or args.seed < 0:
+        raise ConfigError(f"--episodes must be >= 1 and --seed >= 0, got {args.episodes} and {args.seed}")
+    if args.output:
+        check_output_path(args.output, "--output")
+    points = _points(args)
+    seeds = list(range(args.seed, args.seed + args.episodes))
+
+    def progress(done: int, total: int, task: Any, r: Any) -> None:
+        if not args.quiet:
+            print(f"[{done}/{total}] {r['scene']} {points[task.point].label} seed {r['seed']}: duty "
+                  f"{r['duty_cycle']:.3f}, switches {r['on_switches']}, {r['wall_s']:.2f} s",
+                  file=sys.stderr, flush=True)
+
+    try:
+        sweep = run_sweep([SceneSpec(name=n) for n in args.scenes], points, seeds, duration=args.duration,
+                          jobs=args.jobs, d_bar=args.d_bar, progress=progress)
+    except Interrupted as exc:
+        if exc.partial is not None:
+            _emit(args, exc.partial)
+        raise
+    _emit(args, sweep)
+    return 0

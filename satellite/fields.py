@@ -1,0 +1,138 @@
+"""The truth gravity models of a run, by name (``isf-satellite run --gravity``).
+
+* ``table`` (default): the exact constant-density polyhedron field of the Gaskell shape model,
+  tabulated once on a body-frame shell grid around the band (:mod:`satellite.gravity_table`),
+  with the faces near the band summed exactly within 30-40 m of the surface
+  (:mod:`satellite.gravity_near`); committed as ``satellite/data/itokawa_polyhedron_table.npz``
+  (derived from the shape file, provenance inside: ``GravityTable.load(...).provenance``).
+  Valid everywhere in the band; its measured error is in REPRODUCTION.md. Outside the table's
+  radii (1.5625 R .. 2.4375 R) the exact field answers (needs the shape file; slow).
+* ``sh8``: the paper's degree-8 spherical harmonics (``satellite/data/itokawa_degree8.json``);
+  the series diverges inside the Brillouin sphere (1.925 R), i.e. in the band's inner part.
+* ``polyhedron``: the exact field evaluated at every step (:mod:`satellite.polyhedron`; needs
+  the shape file; some ms per evaluation, for checks, not for long runs).
+* a path ending in ``.json``: a spherical-harmonic table written by ``isf-satellite gravity``.
+
+All share the interface :class:`satellite.model.OrbitModel` uses: ``r_ref_m``, ``gm``,
+``acceleration(p)`` (one body-frame point) and ``acceleration_batch(P)``, plus ``model_name``.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from satellite.errors import GravityModelError
+from satellite.gravity import GravityField, load_default_field
+from satellite.gravity_table import GravityTable
+from satellite.polyhedron import PolyhedronField
+
+__all__ = ["GRAVITY_MODELS", "DEFAULT_GRAVITY", "TABLE_FILE", "ExactField", "load_field", "exact_itokawa",
+           "model_name"]
+
+GRAVITY_MODELS = ("table", "sh8", "polyhedron")
+"""Gravity model names accepted by :func:`load_field` (besides ``.json`` paths)."""
+
+DEFAULT_GRAVITY = "table"
+"""The default truth model."""
+
+TABLE_FILE = "itokawa_polyhedron_table.npz"
+"""The committed table in ``satellite/data/``."""
+
+
+class ExactField:
+    """The exact polyhedron field with the interface of a gravity table (one point or many)."""
+
+    degree = None
+    model_name = "polyhedron"
+
+    def __init__(self, field: PolyhedronField, r_ref_m: float) -> None:
+        self.field = field
+        self.r_ref_m = float(r_ref_m)
+        self.gm = field.gm
+
+    def acceleration(self, r_body: ArrayLike) -> NDArray[np.float64]:
+        """Acceleration [m/s^2] at one body-frame point [m] (shape (3,)) or many (shape (N, 3))."""
+        p = np.asarray(r_body, dtype=np.float64)
+        return self.field.acceleration(p) if p.ndim == 2 else self.field.acceleration(p.reshape(1, 3))[0]
+
+    def acceleration_batch(self, r_body: ArrayLike) -> NDArray[np.float64]:
+        """Acceleration [m/s^2] at body-frame points [m], shape (N, 3)."""
+        return self.field.acceleration(r_body)
+
+
+def exact_itokawa(shape: str | Path | None = None) -> ExactField | None:
+    """The exact field of the Itokawa shape file (``GM`` and ``R`` of the degree-8 table), or ``None``."""
+    from satellite.mesh import read_obj
+    from satellite.mesh_surface import default_shape_path
+
+    path = Path(shape) if shape is not None else default_shape_path()
+    if not path.is_file():
+        return None
+    sh = load_default_field()
+    return ExactField(PolyhedronField.from_mesh(read_obj(path, units="km"), sh.gm), sh.r_ref_m)
+
+
+def model_name(field: Any) -> str:
+    """``sh<degree>`` for a spherical-harmonic field, else the field's ``model_name``."""
+    if isinstance(field, GravityField):
+        return f"sh{field.degree}"
+    return str(getattr(field, "model_name", type(field).__name__))
+
+
+def load_field(name: str = DEFAULT_GRAVITY) -> Any:
+    """The gravity model called ``name`` (see the module docstring).
+
+    Raises:
+        GravityModelError: Unknown name, missing shape file (``polyhedron``), unreadable table.
+
+    """
+    if name == "sh8":
+        return load_default_field()
+    if name == "table":
+        return _committed_table()
+    if name == "polyhedron":
+        exact = exact_itokawa()
+        if exact is None:
+            raise GravityModelError("--gravity polyhedron needs the shape file ../shared/data/itokawa/itokawa_low.obj")
+        return exact
+    if name.endswith(".json"):
+        return GravityField.from_json(name)
+    raise GravityModelError(f"unknown gravity model {name!r}; valid: {', '.join(GRAVITY_MODELS)} or FILE.json")
+
+
+class _LazyExact:
+    """The exact field, read on first use (the table only needs it outside its radii)."""
+
+    def __init__(self) -> None:
+        self._field: ExactField | None = None
+
+    def acceleration(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
+        if self._field is None:
+            self._field = exact_itokawa()
+            if self._field is None:
+                raise GravityModelError("a point left the gravity table's radii and the shape file for the exact "
+                                        "field is absent")
+        return self._field.field.acceleration(p)
+
+
+_TABLE: GravityTable | None = None
+
+
+def _committed_table() -> GravityTable:
+    """The committed table, read once per process (it is not modified by its users)."""
+    global _TABLE
+    if _TABLE is None:
+        resource = resources.files("satellite") / "data" / TABLE_FILE
+        with resources.as_file(resource) as path:
+            if not Path(path).is_file():
+                raise GravityModelError(f"the committed table {TABLE_FILE} is missing (build it: "
+                                        "`isf-satellite gravity --table`)")
+            table = GravityTable.load(path)
+        table.exact = _LazyExact()
+        _TABLE = table
+    return _TABLE

@@ -1,0 +1,80 @@
+"""isf-robot sweep: points, the Pareto front, equal numbers in one process and in workers, bad input."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from isf_robot.arm.compare import SceneSpec
+from isf_robot.arm.sweep import SweepPoint, grid_points, pareto_front, random_points, run_sweep
+from isf_robot.cli import main
+from isf_robot.core import ConfigError
+
+
+def test_grid_gives_each_strategy_only_the_parameters_it_uses():
+    pts = grid_points(["nominal", "cbf", "isf"], {"alpha": [2.0, 5.0], "c": [0.05, 0.2], "blend": [0.0, 0.02]})
+    by = {s: [p for p in pts if p.strategy == s] for s in ("nominal", "cbf", "isf")}
+    assert len(by["nominal"]) == 1 and by["nominal"][0].values == {}
+    assert [p.values for p in by["cbf"]] == [{"alpha": 2.0}, {"alpha": 5.0}]
+    assert len(by["isf"]) == 8 and len({p.label for p in by["isf"]}) == 8
+    assert by["isf"][0].label == "isf alpha=2 c=0.05 blend=0"
+    with pytest.raises(ConfigError, match="unknown sweep parameter 'gamma'; valid: alpha"):
+        grid_points(["isf"], {"gamma": [1.0]})
+
+
+def test_random_points_stay_in_their_ranges_and_repeat_with_the_seed():
+    ranges = {"c": (0.01, 0.5), "blend": (0.0, 0.05), "predict_every": (1.0, 8.0)}
+    a = random_points(["cbf", "isf"], ranges, 20, seed=3)
+    assert a == random_points(["cbf", "isf"], ranges, 20, seed=3)
+    isf = [p for p in a if p.strategy == "isf"]
+    assert len(isf) == 20 and [p for p in a if p.strategy == "cbf"] == [SweepPoint("cbf", {})]
+    for p in isf:
+        assert 0.01 <= p.values["c"] <= 0.5 and 0.0 <= p.values["blend"] <= 0.05
+        assert p.values["predict_every"] == int(p.values["predict_every"])
+
+
+def test_pareto_front_known_answer():
+    rows = [
+        dict(duty_cycle=0.5, on_switches=2, min_off_all_s=0.3, intervention=1.0, goals_reached=2, violations=0),
+        dict(duty_cycle=0.6, on_switches=3, min_off_all_s=0.2, intervention=1.5, goals_reached=2, violations=0),  # worse
+        dict(duty_cycle=0.4, on_switches=9, min_off_all_s=0.3, intervention=1.0, goals_reached=2, violations=0),
+        dict(duty_cycle=0.5, on_switches=2, min_off_all_s=None, intervention=1.0, goals_reached=2, violations=0),
+    ]
+    assert pareto_front(rows) == [False, False, True, True]  # row 3 (never back on) dominates row 0
+
+
+def test_sweep_numbers_equal_in_one_process_and_in_workers(tmp_path):
+    pts = [SweepPoint("cbf", {}), SweepPoint("isf", {"c": 0.1, "blend": 0.01})]
+    args = dict(duration=0.6, d_bar=0.05)
+    one = run_sweep([SceneSpec(name="planar")], pts, [0, 1], jobs=1, **args)
+    two = run_sweep([SceneSpec(name="planar")], pts, [0, 1], jobs=2, **args)
+
+    def strip(sweep):
+        for sc in sweep["scenes"]:
+            for r in sc["points"]:
+                r.pop("wall_s")
+                for run in r.pop("runs"):
+                    assert run["control_steps"] == 300
+    strip(one)
+    strip(two)
+    assert one == two
+    rows = one["scenes"][0]["points"]
+    assert [r["episodes"] for r in rows] == [2, 2] and rows[1]["vs_cbf"]["duty_cycle"] is not None
+    assert rows[1]["values"] == {"c": 0.1, "blend": 0.01}
+
+
+def test_sweep_cli_writes_json_and_refuses_bad_input(tmp_path, capsys):
+    out = tmp_path / "s.json"
+    code = main(["sweep", "--scenes", "planar", "--filters", "isf", "--episodes", "1", "--duration", "0.2",
+                 "--d-bar", "0.05", "--c", "0.05,0.1", "--quiet", "--output", str(out)])
+    assert code == 0
+    doc = json.loads(out.read_text())
+    assert doc["schema"] == "isf-robot-sweep/1" and len(doc["scenes"][0]["points"]) == 2
+    assert "Pareto" in capsys.readouterr().out
+    assert main(["sweep", "--scenes", "planar", "--c", "0.05:0.1"]) == 2
+    assert "needs --random" in capsys.readouterr().err
+    assert main(["sweep", "--scenes", "planar", "--c", "x"]) == 2
+    assert "is not a number" in capsys.readouterr().err
+    assert main(["sweep", "--scenes", "planar", "--c", "0.05", "--blend", "-1", "--d-bar", "0.05"]) == 2
+    assert "blend" in capsys.readouterr().err
