@@ -250,7 +250,7 @@ class ContactWatch:
 
 
 def make_contact(model: Any, surface: SurfaceModel, step_s: float = 1.0, samples: int = 4000,
-                 slow_samples: int = 400) -> ContactWatch:
+                 slow_samples: int = 100) -> ContactWatch:
     """The contact watch of a run: the shape's envelope and an acceleration bound outside it.
 
     The bound is ``2 x`` the largest sampled ``|a|`` of the truth field at points between the
