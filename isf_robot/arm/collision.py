@@ -39,7 +39,7 @@ import numpy as np
 from isf_robot.core.exceptions import ConfigError, IsfWarning, ShapeError
 
 from .batch import BarrierBatch
-from .broadphase import BroadPhase
+from .broadphase import BroadPhase, JointCoherence
 from .clearance import Clearance, _ClearanceSearch
 from .pairs import CollisionPairs, collision_pairs
 
@@ -169,6 +169,7 @@ class CollisionBarriers:
         self._is_moving = (self._mocap >= 0).tolist()
         self._any_moving = any(self._is_moving)
         self._any_self = any(self._self)
+        self._all_live = self.broadphase.live.size == k
         self._obstacle_body = b2
         self._clearance = _ClearanceSearch(model, pairs)
 
@@ -234,7 +235,8 @@ class CollisionBarriers:
         return self._h_far_min
 
     def near(self, data: mujoco.MjData, mocap_lin: np.ndarray | None = None,
-             mocap_ang: np.ndarray | None = None, *, witness: bool = False) -> NearPairs:
+             mocap_ang: np.ndarray | None = None, *, witness: bool = False,
+             coherence: JointCoherence | None = None) -> NearPairs:
         """The pairs within the cut-off at the state in ``data``: the rows a filter needs.
 
         The same numbers as the active rows of :meth:`evaluate` (which is built on this), without
@@ -244,17 +246,28 @@ class CollisionBarriers:
         Args:
             data, mocap_lin, mocap_ang: As :meth:`evaluate`.
             witness: Also return the witness points (a copy).
+            coherence: The run's distance bounds (:meth:`coherence`), for the states of one run
+                in order: pairs they prove beyond the cut-off skip the narrow phase. The rows
+                are the same as without.
 
         Returns:
             Fresh arrays (the empty result's arrays are shared and read-only).
 
         """
         m, cutoff = self.model, self.cutoff
-        cand = self.broadphase.candidates(data)
+        if coherence is None:
+            cand = self.broadphase.candidates(data)
+            distmax = cutoff
+        else:
+            live = coherence.candidates(data)
+            cand = (live if self._all_live else self.broadphase.live[live]).tolist()
+            distmax = coherence.distmax
         if not cand:
             return self._none
         gd, g1, g2, ft = mujoco.mj_geomDistance, self._g1, self._g2, self._ft_rows
-        ds = [gd(m, data, g1[i], g2[i], cutoff, ft[r]) for r, i in enumerate(cand)]
+        ds = [gd(m, data, g1[i], g2[i], distmax, ft[r]) for r, i in enumerate(cand)]
+        if coherence is not None:
+            coherence.update(live, ds)
         # Scratch row r holds candidate r's witness points; fr those of the near ones, packed.
         sel = [r for r, d in enumerate(ds) if d < cutoff]
         j = len(sel)
@@ -311,6 +324,11 @@ class CollisionBarriers:
                 dhdt[moving] = -np.einsum("ij,ij->i", n[moving], v)
         wit = fr.reshape(j, 2, 3).copy() if witness else None
         return NearPairs(idx, rows, np.array(hs), g, dhdt, wit, min(hs), min(ds))
+
+    def coherence(self) -> JointCoherence | None:
+        """Distance bounds for one run's states, or ``None`` where the joint angles do not
+        capture the geoms' motion (:class:`~isf_robot.arm.broadphase.JointCoherence`)."""
+        return JointCoherence.of(self.model, self.broadphase)
 
     def min_distance(self, data: mujoco.MjData) -> Clearance:
         """True minimum signed distance over this object's pairs (no cut-off, no margin).

@@ -258,6 +258,7 @@ class _Episode:
         self._jzero = np.zeros(nj)
         self._jgrad = sim.joints.grad
         self._h_far_min = sim.coll.h_far_min
+        self.coherence = sim.coll.coherence()  # this run's distance bounds (None: not applicable)
         self._screen_j = np.full(nj, sim.keep_joint)
         self._screen_cache: dict[int, np.ndarray] = {}
         self._names_cache: dict[bytes, tuple[str, ...]] = {}
@@ -277,10 +278,8 @@ class _Episode:
         ``cutoff - margin``, above the near ones' and never a row of the filter).
         """
         sim = self.sim
-        near = sim.coll.near(self.data, self.lin, witness=self.recording)
-        far = self._h_far_min
-        self.dmin = self.monitor.tick_min(near.h_min if near.h_min < far else far, near.row_list,
-                                          near.dist_min)
+        near = sim.coll.near(self.data, self.lin, witness=self.recording, coherence=self.coherence)
+        self.dmin = self.monitor.tick_min(min(near.h_min, self._h_far_min), near.row_list, near.dist_min)
         jh = sim.joints.values(self.data)
         jl = jh.tolist()
         if jl and min(jl) < self.min_joint:

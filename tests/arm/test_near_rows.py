@@ -104,3 +104,40 @@ def test_joint_values_and_batch_match_evaluate(rng) -> None:  # type: ignore[no-
         assert jb.grad is full.grad and not jb.grad.flags.writeable
         # every row is +-e_i: the filter's |dh/dq| of a joint row is exactly 1
         np.testing.assert_array_equal(np.abs(jb.grad).sum(axis=1), 1.0)
+
+
+@pytest.mark.parametrize("name", ["panda_pole", "panda_shelf"])
+def test_joint_coherence_skips_far_pairs_and_changes_nothing(name) -> None:  # type: ignore[no-untyped-def]
+    """Along a smooth joint path the rows with the run's distance bounds equal those without."""
+    scene = load_scene(name)
+    m, cb = scene.model, CollisionBarriers.from_scene(scene)
+    coh = cb.coherence()
+    assert coh is not None
+    sizes: list[int] = []
+    plain = coh.candidates
+    coh.candidates = lambda data: sizes.append(len(r := plain(data))) or r  # type: ignore[method-assign]
+    d = scene.make_data()
+    lo, hi = scene.joint_range[:, 0], scene.joint_range[:, 1]
+    amp = 0.45 * np.minimum(scene.home - lo, hi - scene.home)
+    narrow_plain = n_near = 0
+    for k in range(300):
+        d.qpos[scene.qpos_adr] = scene.home + amp * np.sin(0.0005 * k * np.arange(1, amp.size + 1))
+        mujoco.mj_forward(m, d)
+        a = cb.near(d, witness=True)
+        b = cb.near(d, witness=True, coherence=coh)
+        narrow_plain += len(cb.broadphase.candidates(d))
+        n_near += len(a.row_list)
+        assert a.row_list == b.row_list
+        for x, y in zip(a[2:6], b[2:6]):
+            np.testing.assert_array_equal(x, y)
+        assert (a.h_min, a.dist_min) == (b.h_min, b.dist_min)
+        true = [mujoco.mj_geomDistance(m, d, int(cb.pairs.geom1[i]), int(cb.pairs.geom2[i]), 10.0, None)
+                for i in cb.broadphase.live.tolist()]
+        assert np.all(coh.lower <= np.array(true))  # every bound is below the pair's distance
+    # most candidates beyond the cut-off skipped the narrow phase (after the first state's full pass)
+    assert sum(sizes[1:]) - n_near < 0.5 * (narrow_plain - n_near)
+
+
+def test_joint_coherence_refuses_motion_the_angles_miss() -> None:
+    scene = load_scene("panda_moving")  # mocap obstacles: their motion is no joint's
+    assert CollisionBarriers.from_scene(scene).coherence() is None
