@@ -32,7 +32,8 @@ import numpy as np
 from isf_robot.core import ConfigError, Observer
 from isf_robot.core.files import check_output_path, commit_partial, partial_path
 
-__all__ = ["VideoRecorder", "select_gl", "RenderUnavailableError", "FORMATS", "ON_RGBA"]
+__all__ = ["VideoRecorder", "select_gl", "RenderUnavailableError", "FORMATS", "ON_RGBA", "workspace",
+           "frame_workspace"]
 
 FORMATS = (".gif", ".mp4", ".png")
 ON_RGBA = (1.0, 0.55, 0.0, 1.0)
@@ -84,7 +85,7 @@ def select_gl(backends: Sequence[str] = GL_BACKENDS) -> str:
     raise RenderUnavailableError(f"offscreen rendering is not available ({'; '.join(reasons)}); {hint}")
 
 
-def _workspace(model: Any, robot: np.ndarray, others: np.ndarray) -> tuple[np.ndarray, float]:
+def workspace(model: Any, robot: np.ndarray, others: np.ndarray) -> tuple[np.ndarray, float]:
     """Centre (the robot's base) and radius [m] of the robot and obstacle geoms at the reference pose."""
     import mujoco
 
@@ -96,6 +97,14 @@ def _workspace(model: Any, robot: np.ndarray, others: np.ndarray) -> tuple[np.nd
     radius = max([float(np.linalg.norm(d.geom_xpos[g] - centre)) + float(model.geom_rbound[g]) for g in ids
                   if int(model.geom_type[g]) != mujoco.mjtGeom.mjGEOM_PLANE] or [0.5])
     return centre, radius
+
+
+def frame_workspace(cam: Any, model: Any, robot: np.ndarray, others: np.ndarray) -> None:
+    """Point a free camera (:class:`mujoco.MjvCamera`) at the workspace, from the front-left, slightly above."""
+    centre, radius = workspace(model, robot, others)
+    cam.lookat[:] = centre + np.array([0.0, 0.0, radius / 3.0])
+    cam.distance = 1.9 * radius
+    cam.azimuth, cam.elevation = 140.0, -22.0
 
 
 class VideoRecorder(Observer):
@@ -139,7 +148,7 @@ class VideoRecorder(Observer):
         self._next = 0.0
         self._title = ""
         self._writer: Any = None
-        self._best: tuple[float, np.ndarray] | None = None
+        self._best: tuple[float, Any] | None = None  # (time, step record) of the still
 
     # -- observer hooks ------------------------------------------------------------------
     def on_start(self, info: Mapping[str, Any]) -> None:
@@ -168,12 +177,9 @@ class VideoRecorder(Observer):
             raise RenderUnavailableError(
                 f"MuJoCo cannot render offscreen with MUJOCO_GL={os.environ.get('MUJOCO_GL', '(unset)')}: "
                 f"{' '.join(str(exc).split())}; set MUJOCO_GL=egl (or osmesa) before starting") from None
-        centre, radius = _workspace(m, robot, others)
         cam = mujoco.MjvCamera()
         cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-        cam.lookat[:] = centre + np.array([0.0, 0.0, radius / 3.0])
-        cam.distance = 1.9 * radius
-        cam.azimuth, cam.elevation = 140.0, -22.0
+        frame_workspace(cam, m, robot, others)
         self.camera = cam
         scene_flags = self.renderer.scene.flags
         scene_flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0  # several times faster on a CPU renderer

@@ -4,8 +4,9 @@
 :func:`mujoco.viewer.launch_passive` on the run's own model and data (the start info's
 ``model`` and ``data``), so what the viewer does to the data reaches the physics: a body
 dragged with Ctrl + right/left mouse button gets ``xfrc_applied`` forces, a disturbance the
-filter has to answer. The viewer's own panels switch geom groups, frames and contacts; the
-robot and obstacle geoms' groups are switched on at the start whatever their group. The run is
+filter has to answer. The viewer's left panel switches geom groups, frames and contacts; the
+robot and obstacle geoms' groups are switched on at the start whatever their group, and the camera
+looks at the workspace as in ``isf-robot render``. The run is
 paced to ``speed`` x real time; Space pauses and resumes it; the overlay shows the time, the
 filter mode, ``min h`` and ``min Xi_on``. The window is updated at most 60 times a second of
 wall time, and at most every other sync's duration, so a slow (software) renderer shows fewer
@@ -29,6 +30,8 @@ from typing import Any
 import numpy as np
 
 from isf_robot.core import ConfigError, IsfError, Observer
+
+from .render import frame_workspace
 
 __all__ = ["LiveViewer", "ViewerUnavailableError", "ViewerClosedError", "check_display"]
 
@@ -99,17 +102,19 @@ class LiveViewer(Observer):
             launch = mujoco.viewer.launch_passive
         before = set(threading.enumerate())
         try:
-            self.handle = launch(model, data, key_callback=self._key, show_left_ui=False, show_right_ui=True)
+            self.handle = launch(model, data, key_callback=self._key, show_left_ui=True, show_right_ui=True)
         except Exception as exc:  # GLFW without a usable display
             raise ViewerUnavailableError(f"MuJoCo's viewer could not open a window: {' '.join(str(exc).split())}; "
                                          "use --rrd or `isf-robot render` instead") from None
         self._threads = [t for t in threading.enumerate() if t not in before]  # the viewer's window thread
-        groups = {int(model.geom_group[g]) for key in ("robot_geom_ids", "obstacle_geom_ids")
-                  for g in np.asarray(info.get(key, ()), dtype=int).reshape(-1)}
+        robot, others = (np.asarray(info.get(key, ()), dtype=int).reshape(-1)
+                         for key in ("robot_geom_ids", "obstacle_geom_ids"))
+        groups = {int(model.geom_group[g]) for g in np.concatenate((robot, others))}
         with self.handle.lock():
             for g in groups:
                 if 0 <= g < len(self.handle.opt.geomgroup):
                     self.handle.opt.geomgroup[g] = 1
+            frame_workspace(self.handle.cam, model, robot, others)  # the camera of `isf-robot render`
         self._title = f"{info.get('scene', '')} {info.get('strategy', '')} seed {info.get('seed', '')}"
         self._t0_wall, self._t0_sim = self._clock(), 0.0
 

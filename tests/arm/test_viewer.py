@@ -36,6 +36,7 @@ class FakeHandle:
     def __init__(self, model: Any, data: Any, key_callback: Any, on_sync: Any = None) -> None:
         self.model, self.data, self.key = model, data, key_callback
         self.opt = type("Opt", (), {"geomgroup": np.zeros(6, dtype=np.uint8)})()
+        self.cam = type("Cam", (), {"lookat": np.zeros(3), "distance": 0.0, "azimuth": 0.0, "elevation": 0.0})()
         self.running, self.synced_t, self.texts = True, [], []
         self.on_sync = on_sync
 
@@ -75,6 +76,8 @@ def test_paced_to_real_time_and_shows_every_robot_group() -> None:
     h = handles[0]
     groups = {int(scene.model.geom_group[g]) for g in scene.robot_geom_ids}
     assert 3 in groups and all(h.opt.geomgroup[g] == 1 for g in groups)
+    base = np.asarray(scene.model.body_pos[scene.model.body_rootid[scene.model.geom_bodyid[scene.robot_geom_ids[0]]]])
+    assert np.linalg.norm(h.cam.lookat[:2] - base[:2]) < 0.05 and 1.0 < h.cam.distance < 4.0  # on the arm
     # 1 s simulated at 2x real time: the wall clock advanced by ~0.5 s (the last step starts 1 period early)
     assert clock.now - 100.0 == pytest.approx(0.5 - 0.002 / 2.0, abs=1e-9)
     # at most 60 updates a second of wall time, and the window saw the run's data advance
