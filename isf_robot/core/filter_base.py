@@ -184,17 +184,17 @@ class _FilterBase:
 
     def build_qp(
         self, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None = None, b: float = 0.0,
-        ramp: float = 1.0,
+        ramp: float | np.ndarray = 1.0,
     ) -> FilterQP:
         """Build the filter QP: robust rows, or promoting rows where ``promote`` is True.
 
-        ``ramp`` in [0, 1) lowers the promotion level to ``max(-alpha(h), ramp b + (1 - ramp)
+        ``ramp`` in [0, 1) (a number, or one per row) lowers the promotion level to ``max(-alpha(h), ramp b + (1 - ramp)
         (-alpha(h)))`` (the smooth hand-over after an on switch; never below the robust condition).
         """
         rhs = -self.alpha.vector(lie.h)
         kinds: tuple[str, ...] = ()  # empty: every row robust
         if promote is not None and promote.any():
-            level = b if ramp >= 1.0 else np.maximum(rhs, ramp * b + (1.0 - ramp) * rhs)
+            level = b if np.all(np.asarray(ramp) >= 1.0) else np.maximum(rhs, ramp * b + (1.0 - ramp) * rhs)
             rhs = np.where(promote, level, rhs)
             kinds = tuple("promote" if p else "robust" for p in promote)
         return FilterQP(u_nom, lie.lg, rhs - lie.lf + lie.grad_norm * self.d_bar, self.u_min, self.u_max,
@@ -265,7 +265,10 @@ class _FilterBase:
         ``rows`` maps the rows of ``lie`` to ``names`` (``None``: the same rows).
         """
         b = getattr(self, "b", 0.0)
-        qp = self.build_qp(lie, u_nom, promote, b, getattr(self, "_ramp", 1.0))
+        ramp = getattr(self, "_ramp", 1.0)
+        if rows is not None and np.ndim(ramp):
+            ramp = ramp[rows]
+        qp = self.build_qp(lie, u_nom, promote, b, ramp)
         res = self._solve(qp)
         relaxed: tuple[str, ...] = ()
         if not res.ok and promote is not None and promote.any():

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -190,7 +191,9 @@ class IntermittentSafetyFilter(_FilterBase):
         self._t_off: float | None = None
         self._u_prev: np.ndarray | None = None
         self._u_handover: np.ndarray | None = None
-        self._ramp = 1.0
+        self._ramp: float | np.ndarray = 1.0
+        self._promotion_w: dict[Any, float] = {}  # promotion weights of the hand-over
+        self._t_ramp: float | None = None
 
     def margin(self) -> float:
         """The off margin now: ``c``, or the one designed for ``min_off``."""
@@ -224,6 +227,8 @@ class IntermittentSafetyFilter(_FilterBase):
                 self._t_on = t
             else:
                 self._t_off, self._u_handover = t, self._u_prev
+                self._promotion_w.clear()
+                self._t_ramp = None
                 bound = self.fall_rate.bound_s(c)
                 if self.predictor is not None:
                     self.predictor.idle()
@@ -246,13 +251,38 @@ class IntermittentSafetyFilter(_FilterBase):
         promote = xi < c
         if held and pred is not None and pred.failing:  # steer away from the predicted failures
             promote |= np.fromiter((n in pred.failing for n in lie.names), bool, lie.k)
-        self._ramp = 1.0 - blend_weight(t, self._t_on, self.blend)
+        if self.blend > 0:
+            promote, self._ramp = self._row_ramp(t, lie.names, promote)
         try:
             res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, promote, c, screen)
         finally:
             self._ramp = 1.0
         return self._done(FilterStep(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names,
                                      resolved, **extra))
+
+    def _row_ramp(self, t: float, names: tuple[str, ...], promote: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per row, a promotion weight ``w`` in [0, 1] that moves at most ``dt / blend`` per step.
+
+        A row entering the promotion set starts at ``w = 0`` (the robust condition) and ramps up
+        while promoted; a row leaving it ramps down to 0 instead of dropping at once, so neither
+        changes the command by a step. Returns the rows to treat as promoted (promoted now, or
+        still ramping down) and their weights (1 elsewhere).
+        """
+        w = self._promotion_w  # key -> weight
+        keys: Sequence[Any] = names if len(names) == promote.size else range(promote.size)
+        rate = (t - self._t_ramp) / self.blend if self._t_ramp is not None else 0.0
+        self._t_ramp = t
+        now = dict(zip(keys, promote.tolist()))
+        for n in list(w):
+            if not now.get(n, False):
+                w[n] -= rate
+                if w[n] <= 0.0:
+                    del w[n]
+        for n, p in now.items():
+            if p:
+                w[n] = min(1.0, w[n] + rate) if n in w else 0.0
+        mask = np.fromiter((n in w for n in keys), bool, promote.size)
+        return mask, np.array([w.get(n, 1.0) for n in keys])
 
     def _done(self, step: FilterStep) -> FilterStep:
         self._u_prev = step.u

@@ -214,3 +214,33 @@ def test_blend_never_violates_the_robust_condition(seed: int, k: int, extra: int
                 ref = cbf.step_lie(t, lie, u_nom)
                 if not ref.fallback:
                     np.testing.assert_allclose(step.u, ref.u, atol=1e-6)
+
+
+def test_a_row_promoted_while_on_ramps_in_instead_of_stepping():
+    f = IntermittentSafetyFilter(Linear(1.0), c=0.5, b=1.0, blend=0.04)
+    lg = np.eye(2)
+
+    def lie(h_a, h_b):
+        return LieData(np.array([h_a, h_b]), np.zeros(2), lg, np.ones(2), ("a", "b"))
+
+    assert f.step_lie(0.0, lie(0.0, 2.0), np.zeros(2)).on  # "a" triggers; "b" far (Xi = 2 >= c)
+    f.step_lie(DT, lie(0.1, 2.0), np.zeros(2))
+    # "b" falls below c while on: promoted, its level ramps from -alpha(h) = -0.3 toward b = 1
+    ub = [f.step_lie((2 + i) * DT, lie(0.1, 0.3), np.zeros(2)).u[1] for i in range(6)]
+    assert ub[0] == pytest.approx(0.0, abs=1e-9)  # ramp 0: the robust condition, met by u_nom
+    assert ub[1] == pytest.approx(0.25 * 1.0 + 0.75 * -0.3, abs=1e-6)
+    assert ub[4] == pytest.approx(1.0, abs=1e-6) and ub[5] == pytest.approx(1.0, abs=1e-6)
+    assert all(b - a <= 0.33 + 1e-9 for a, b in zip(ub, ub[1:]))  # no step beyond the ramp's
+
+
+def test_a_row_leaving_the_promotion_set_ramps_down_instead_of_dropping():
+    f = IntermittentSafetyFilter(Linear(1.0), c=0.5, b=1.0, blend=0.04)
+    lie_a = LieData(np.array([0.0, 0.1]), np.zeros(2), np.eye(2), np.ones(2), ("a", "b"))
+    lie_b = LieData(np.array([0.0, 0.9]), np.zeros(2), np.eye(2), np.ones(2), ("a", "b"))  # "b": Xi 0.9 >= c
+    f.step_lie(0.0, lie_a, np.zeros(2))  # on; both rows promoted, weights 0
+    ub = [f.step_lie((1 + i) * DT, lie_a, np.zeros(2)).u[1] for i in range(4)]
+    assert ub[-1] == pytest.approx(1.0, abs=1e-6)  # fully ramped: dh_b/dt >= b
+    down = [f.step_lie((5 + i) * DT, lie_b, np.zeros(2)).u[1] for i in range(6)]
+    assert down[0] == pytest.approx(0.75 * 1.0 + 0.25 * -0.9, abs=1e-6)  # one step of 0.25 down, not 0
+    assert down[-1] == pytest.approx(0.0, abs=1e-9)  # released: u_nom meets the robust condition
+    assert all(a - b <= 0.25 * 1.9 + 1e-9 for a, b in zip([ub[-1]] + down, down))
