@@ -80,6 +80,7 @@ class NearTiles:
         self.d_in, self.d_out, self.d_max = float(d_in), float(d_out), float(d_max)
         k = len(ext)
         self.faces_of = [np.flatnonzero(self.tile == t) for t in range(k)]
+        self.patches = [FacePatch(patch.triangles[f], patch.g_rho) for f in self.faces_of]
         self.vertices = [np.unique(patch.triangles[f].reshape(-1, 3), axis=0) for f in self.faces_of]
         self.centres = np.array([v.mean(axis=0) for v in self.vertices])
         self.radii = np.array([np.linalg.norm(v - c, axis=1).max() for v, c in zip(self.vertices, self.centres)])
@@ -107,9 +108,7 @@ class NearTiles:
         ws = self.weights(x)
         if not ws:
             return None
-        sel = np.concatenate([self.faces_of[t] for t, _ in ws])
-        wf = np.concatenate([np.full(len(self.faces_of[t]), s) for t, s in ws])
-        exact = self.patch.g_rho * ((self.patch.face_terms(x, sel) * wf) @ self.patch.normals[sel])
+        exact = sum(s * self.patches[t].point_acceleration(x) for t, s in ws)
         block = sum(s * self.ext[t, k - 1: k + 3, i + 1: i + 5, j + 1: j + 5].astype(np.float64) for t, s in ws)
         tab = np.einsum("a,b,c,abcd->d", wr, wl, wn, block)
         if not np.isfinite(tab).all():

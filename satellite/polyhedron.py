@@ -194,6 +194,39 @@ class FacePatch:
         self._len = np.linalg.norm(d, axis=2)
         en = np.cross(d, self.normals[:, None, :])
         self._en = en / np.linalg.norm(en, axis=2)[:, :, None]
+        self._point: tuple[NDArray[np.float64], ...] | None = None
+
+    def _point_terms(self) -> tuple[NDArray[np.float64], ...]:
+        """Point-independent terms of :meth:`point_acceleration` (the sums expanded in ``x``)."""
+        if self._point is None:
+            t = self.triangles
+            verts, idx = np.unique(t.reshape(-1, 3), axis=0, return_inverse=True)
+            p0, p1, p2 = t[:, 0], t[:, 1], t[:, 2]
+            self._point = (
+                verts, np.einsum("vi,vi->v", verts, verts), idx.reshape(-1, 3),
+                np.einsum("fi,fi->f", p0, np.cross(p1, p2)), np.cross(p0, p1) + np.cross(p1, p2) + np.cross(p2, p0),
+                np.stack([np.einsum("fi,fi->f", p1, p2), np.einsum("fi,fi->f", p2, p0),
+                          np.einsum("fi,fi->f", p0, p1)]),
+                np.concatenate([p1 + p2, p2 + p0, p0 + p1]),
+                np.einsum("fi,fi->f", self.normals, p0),
+                np.einsum("fei,fei->fe", self._en, t), self._en.reshape(-1, 3),
+            )
+        return self._point
+
+    def point_acceleration(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Acceleration [m/s^2] of these faces at one point ``x`` [m] (the fast path for one point at a time)."""
+        verts, v2, idx, triple, cross_sum, dots, sums, n_p, en_p, en = self._point_terms()
+        x2 = float(x @ x)
+        rn = np.sqrt(np.maximum(v2 - 2.0 * (verts @ x) + x2, 0.0))[idx]  # (F, 3) |p - x| at the corners
+        f = len(idx)
+        sx = (sums @ x).reshape(3, f)
+        l0, l1, l2 = rn[:, 0], rn[:, 1], rn[:, 2]
+        den = l0 * l1 * l2 + l0 * (dots[0] - sx[0] + x2) + l1 * (dots[1] - sx[1] + x2) + l2 * (dots[2] - sx[2] + x2)
+        w = 2.0 * np.arctan2(triple - cross_sum @ x, den)
+        ab = rn + rn[:, [1, 2, 0]]
+        le = np.log((ab + self._len) / (ab - self._len))
+        s = (n_p - self.normals @ x) * w - np.einsum("fe,fe->f", en_p - (en @ x).reshape(f, 3), le)
+        return self.g_rho * (s @ self.normals)  # type: ignore[no-any-return]
 
     @classmethod
     def from_field(cls, field: PolyhedronField, mask: ArrayLike) -> FacePatch:
