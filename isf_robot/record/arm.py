@@ -324,7 +324,7 @@ class ArmRecorder(RerunRecorder):
         eye, target = camera_for(centre, radius)
         duration = info.get("duration")
         rec.send_blueprint(arm_blueprint(eye, target, float(duration) if isinstance(duration, (int, float))
-                                         else None), make_active=True, make_default=True)
+                                         else None, c=self.c), make_active=True, make_default=True)
 
     # -- per step ------------------------------------------------------------------------
     def on_step(self, record: Any) -> None:

@@ -42,26 +42,40 @@ def _whole_run(duration_s: float | None) -> dict[str, object]:
     return out
 
 
+def xi_range(c: float | None) -> tuple[float, float] | None:
+    """Value range of the ``Xi_on`` plot: ``(-2c, 6c)`` for a finite ``c > 0``, else ``None`` (automatic)."""
+    if c is None or not np.isfinite(c) or c <= 0:
+        return None
+    return (-2.0 * float(c), 6.0 * float(c))
+
+
+def _xi_axis(c: float | None) -> dict[str, object]:
+    r = xi_range(c)
+    return {} if r is None else {"axis_y": rrb.ScalarAxis(range=r)}
+
+
 def camera_for(centre: Sequence[float], radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Eye position and look target framing a sphere (z up): from the front right, above.
 
-    The eye is ``2.2 radius`` from the target, which sits a third of the radius above the centre.
+    The eye is ``1.5 radius`` from the target, which sits a third of the radius above the centre.
     """
     c = np.asarray(centre, dtype=float).reshape(3)
     target = c + np.array([0.0, 0.0, radius / 3.0])
     direction = np.array([1.0, -0.8, 0.6])
-    eye = target + 2.2 * radius * direction / np.linalg.norm(direction)
+    eye = target + 1.5 * radius * direction / np.linalg.norm(direction)
     return eye, target
 
 
 def arm_blueprint(eye: Sequence[float] | None = None, target: Sequence[float] | None = None,
-                  duration_s: float | None = None) -> rrb.Blueprint:
+                  duration_s: float | None = None, c: float | None = None) -> rrb.Blueprint:
     """Arm layout: scene in 3-D (left); h, Xi_on, mode and command correction stacked (right).
 
     Args:
         eye: Camera position [m] (default: the viewer's own framing of everything).
         target: Point the camera looks at [m].
         duration_s: The run's length: the plots' time axes span it.
+        c: The off margin: the ``Xi_on`` plot's value axis starts at ``[-2c, 6c]`` (:func:`xi_range`),
+            so its thresholds 0 and ``c`` stay apart however large ``Xi_on`` gets far from obstacles.
 
     """
     eye_controls = None
@@ -71,7 +85,7 @@ def arm_blueprint(eye: Sequence[float] | None = None, target: Sequence[float] | 
     span = _whole_run(duration_s)
     right = rrb.Vertical(
         rrb.TimeSeriesView(origin=f"{PLOTS}/barrier", name="barrier h [m] (closest pairs, min)", **span),
-        rrb.TimeSeriesView(origin=f"{PLOTS}/xi", name="min Xi_on with 0 and c", **span),
+        rrb.TimeSeriesView(origin=f"{PLOTS}/xi", name="min Xi_on with 0 and c", **span, **_xi_axis(c)),
         rrb.TimeSeriesView(origin=f"{PLOTS}/mode", name="filter mode (1 = on)", **span),
         rrb.Tabs(
             rrb.TimeSeriesView(origin=f"{PLOTS}/command", name="|u - u_nom| [rad/s]", **span),

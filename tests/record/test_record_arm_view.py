@@ -15,7 +15,7 @@ from rerun.components import FillMode
 
 from isf_robot.record import read_columns, read_rrd
 from isf_robot.record.arm import ArmRecorder
-from isf_robot.record.blueprints import camera_for
+from isf_robot.record.blueprints import camera_for, xi_range
 from isf_robot.record.mjgeometry import TINT, MujocoDrawing
 
 SHAPES = {"Capsules3D", "Ellipsoids3D", "Boxes3D", "Cylinders3D", "Mesh3D"}
@@ -162,3 +162,12 @@ def test_default_blueprint_frames_the_workspace(arm_run) -> None:  # type: ignor
     np.testing.assert_allclose(target, want_target, atol=1e-5)
     # the camera is a few workspace radii from the arm, whatever the size of the floor
     assert np.linalg.norm(eye - target) < 3 * radius
+
+
+def test_xi_plot_opens_on_its_thresholds(arm_run) -> None:  # type: ignore[no-untyped-def]
+    reader = RrdReader(arm_run.path)
+    ranges = [b.column("ScalarAxis:range").to_pylist()[-1] for entry in reader.blueprints()
+              for chunk in reader.stream(store=entry) if "ScalarAxis:range" in (b := chunk.to_record_batch()).schema.names]
+    c = float(arm_run.collector.info["c"])
+    assert ranges and np.allclose(np.asarray(ranges[-1], dtype=float).reshape(2), [-2 * c, 6 * c])
+    assert xi_range(float("nan")) is None and xi_range(0.0) is None
