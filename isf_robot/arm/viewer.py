@@ -7,7 +7,8 @@ dragged with Ctrl + right/left mouse button gets ``xfrc_applied`` forces, a dist
 filter has to answer. The viewer's left panel switches geom groups, frames and contacts; the
 robot and obstacle geoms' groups are switched on at the start whatever their group, and the camera
 looks at the workspace as in ``isf-robot render``. The run is
-paced to ``speed`` x real time; Space pauses and resumes it; the overlay shows the time, the
+paced to ``speed`` x real time; Space pauses and resumes it; the robot is orange while the filter
+is on; the overlay shows the time, the
 filter mode, ``min h`` and ``min Xi_on``. The window is updated at most 60 times a second of
 wall time, and at most every other sync's duration, so a slow (software) renderer shows fewer
 frames instead of slowing the run. Closing the window stops the run (:class:`ViewerClosedError`).
@@ -31,7 +32,7 @@ import numpy as np
 
 from isf_robot.core import ConfigError, IsfError, Observer
 
-from .render import frame_workspace
+from .render import ON_RGBA, frame_workspace
 
 __all__ = ["LiveViewer", "ViewerUnavailableError", "ViewerClosedError", "check_display"]
 
@@ -77,6 +78,10 @@ class LiveViewer(Observer):
         self._launch, self._clock, self._sleep = launch, clock, sleep
         self.handle: Any = None
         self._threads: list[threading.Thread] = []
+        self._model: Any = None
+        self._robot = np.zeros(0, dtype=int)
+        self._rgba = np.zeros((0, 4))
+        self._on = False
         self.paused = False
         self.syncs = 0
         self._t0_wall = 0.0
@@ -110,6 +115,8 @@ class LiveViewer(Observer):
         robot, others = (np.asarray(info.get(key, ()), dtype=int).reshape(-1)
                          for key in ("robot_geom_ids", "obstacle_geom_ids"))
         groups = {int(model.geom_group[g]) for g in np.concatenate((robot, others))}
+        self._model, self._robot, self._on = model, robot, False
+        self._rgba = np.array(model.geom_rgba[robot], copy=True)  # restored when the window closes
         with self.handle.lock():
             for g in groups:
                 if 0 <= g < len(self.handle.opt.geomgroup):
@@ -124,6 +131,9 @@ class LiveViewer(Observer):
         if not h.is_running():
             raise ViewerClosedError(f"the viewer was closed at t = {float(record.t):.3f} s; the run stopped there")
         t = float(record.t)
+        if bool(record.on) != self._on:
+            self._on = bool(record.on)
+            self._tint(self._on)
         if self.paused:
             self._overlay(record, paused=True)
             h.sync()
@@ -142,6 +152,15 @@ class LiveViewer(Observer):
             self._last_sync = after = self._clock()
             self._sync_cost = after - now  # a slow (software) renderer gets fewer frames; the run keeps time
 
+    def _tint(self, on: bool) -> None:
+        """The robot orange while the filter is on (as in the Rerun view and the videos), else its colours.
+
+        Only the shared model's ``geom_rgba`` changes (no physics reads it), under the viewer's lock.
+        """
+        if self._robot.size:
+            with self.handle.lock():
+                self._model.geom_rgba[self._robot] = ON_RGBA if on else self._rgba
+
     def _overlay(self, record: Any, paused: bool = False) -> None:
         import mujoco
 
@@ -152,9 +171,12 @@ class LiveViewer(Observer):
         self.handle.set_texts((None, mujoco.mjtGridPos.mjGRID_TOPLEFT, text, None))
 
     def _close(self) -> None:
-        h, self.handle = self.handle, None
+        h = self.handle
         if h is None:
             return
+        if self._on:  # the model is the scene's: leave its colours as they were
+            self._tint(False)
+        self.handle = None
         h.close()
         for t in self._threads:  # let the window thread tear GLFW down before the interpreter exits
             t.join(timeout=5.0)

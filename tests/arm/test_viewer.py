@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from isf_robot.arm import load_scene, resolve_params
+from isf_robot.arm.render import ON_RGBA
 from isf_robot.arm.sim import ArmSimulation
 from isf_robot.arm.viewer import SPACE, LiveViewer, ViewerClosedError, ViewerUnavailableError, check_display
 
@@ -37,7 +38,7 @@ class FakeHandle:
         self.model, self.data, self.key = model, data, key_callback
         self.opt = type("Opt", (), {"geomgroup": np.zeros(6, dtype=np.uint8)})()
         self.cam = type("Cam", (), {"lookat": np.zeros(3), "distance": 0.0, "azimuth": 0.0, "elevation": 0.0})()
-        self.running, self.synced_t, self.texts = True, [], []
+        self.running, self.synced_t, self.texts, self.rgba = True, [], [], []
         self.on_sync = on_sync
 
     def lock(self) -> Any:
@@ -48,6 +49,7 @@ class FakeHandle:
 
     def sync(self) -> None:
         self.synced_t.append(float(self.data.time))
+        self.rgba.append(np.array(self.model.geom_rgba, copy=True))
         if self.on_sync is not None:
             self.on_sync(self)
 
@@ -83,6 +85,11 @@ def test_paced_to_real_time_and_shows_every_robot_group() -> None:
     # at most 60 updates a second of wall time, and the window saw the run's data advance
     assert 25 <= v.syncs <= 31 and h.synced_t == sorted(h.synced_t) and h.synced_t[-1] > 0.9
     assert "filter" in h.texts[-1] and not h.running  # closed at the end
+    # the robot is orange exactly in the frames whose overlay says the filter is on; colours restored
+    robot = np.asarray(scene.robot_geom_ids)
+    orange = [bool(np.allclose(rgba[robot], ON_RGBA)) for rgba in h.rgba]
+    assert orange == ["filter ON" in text for text in h.texts] and any(orange) and not all(orange)
+    assert not np.allclose(scene.model.geom_rgba[robot], ON_RGBA)
 
 
 def test_space_pauses_and_closing_the_window_stops_the_run() -> None:
