@@ -153,7 +153,7 @@ class QPSolver:
             viol = 0.0
         if box:
             viol = max(viol, qp.max_violation(u))
-        if not np.isfinite(u.sum()) or self._distance_violation(qp, u, res) > self.feas_tol:
+        if not math.isfinite(float(u.sum())) or self._distance_violation(qp, u, res) > self.feas_tol:
             raise SolverError(
                 f"{self.backend} returned a command violating the constraints by {viol:.3g} "
                 f"({iters} iterations)", qp=qp)
@@ -169,7 +169,7 @@ class QPSolver:
         rows of 1e9 or 1e-9 are judged alike.
         """
         worst = 0.0
-        if res.size:
+        if res.size and float(res.min()) < 0.0:  # (rows all satisfied: each distance is <= 0)
             nrm = np.sqrt(np.einsum("ij,ij->i", qp.A, qp.A))
             d = np.where(nrm > 0.0, -res / np.where(nrm > 0.0, nrm, 1.0), -res)
             worst = max(0.0, float(d.max()))
@@ -177,6 +177,8 @@ class QPSolver:
             worst = max(worst, float(np.max(qp.u_min - u, initial=0.0)))
         if qp.u_max is not None:
             worst = max(worst, float(np.max(u - qp.u_max, initial=0.0)))
+        if worst == 0.0:
+            return 0.0
         size = max(1.0, float(np.abs(u).max(initial=0.0)), float(np.abs(qp.u_nom).max(initial=0.0)))
         return worst / size
 
