@@ -115,7 +115,7 @@ class StrategyBars:
         strategy: Strategy name.
         duty_cycle: Fraction of time the filter is on, shape (k,).
         on_switches: Number of off -> on switches, shape (k,).
-        intervention: Mean ``|u - u_nom|^2`` [(rad/s)^2], shape (k,).
+        intervention: ``sum_k |u_k - u_nom,k|^2 dt_k`` over the run [rad^2/s], shape (k,).
         min_barrier: Smallest true-geometry barrier [m], shape (k,).
 
     """
