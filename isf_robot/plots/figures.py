@@ -121,11 +121,12 @@ def compare_figure(runs: Sequence[RunSeries], bars: Sequence[StrategyBars], titl
     fig = new_figure(9.0, 1.6 * n + 2.8)
     grid = fig.add_gridspec(n + 1, 4, height_ratios=[1.0] * n + [1.5])
     first: Any = None
+    keyed = next((i for i, run in enumerate(runs) if run.intervals), 0)  # its legend shows the shading too
     for i, run in enumerate(runs):
         ax = fig.add_subplot(grid[i, :], sharex=first, sharey=first)
         first = first or ax
         _h_axis(ax, run, f"{run.label}: duty cycle {np.mean(run.on):.2f}, {len(run.intervals)} on-interval(s)")
-        if i == 0:
+        if i == keyed:
             ax.legend(loc="upper right", fontsize=8)
         if i < n - 1:
             ax.tick_params(labelbottom=False)
