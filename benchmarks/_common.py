@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import platform
+from collections.abc import Callable
 from pathlib import Path
 
 __all__ = ["cpu_model", "write_section"]
@@ -19,11 +20,13 @@ def cpu_model() -> str:
     return platform.processor() or "unknown CPU"
 
 
-def write_section(path: Path, start: str, end: str, body: str) -> None:
+def write_section(path: Path, start: str, end: str, body: str,
+                  write: Callable[[Path, str], None] | None = None) -> None:
     """Replace the text between the ``start`` and ``end`` markers of ``path`` with ``body``.
 
     The markers are kept; a file without them gets the section appended, a missing file is
-    created with a ``# Benchmarks`` title. Other sections are left as they are.
+    created with a ``# Benchmarks`` title. Other sections are left as they are. ``write(path,
+    text)`` writes the file (e.g. an atomic writer; default ``Path.write_text``).
     """
     block = f"{start}\n{body}\n{end}"
     if path.exists():
@@ -36,4 +39,7 @@ def write_section(path: Path, start: str, end: str, body: str) -> None:
             text = text.rstrip("\n") + "\n\n" + block + "\n"
     else:
         text = "# Benchmarks\n\n" + block + "\n"
-    path.write_text(text, encoding="utf-8")
+    if write is not None:
+        write(path, text)
+    else:
+        path.write_text(text, encoding="utf-8")
