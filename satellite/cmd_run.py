@@ -78,6 +78,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--hours", type=float, default=2400.0, help="simulated time in hours (default 2400)")
     p.add_argument("--seed", type=int, default=0, help="seed of the initial orbit's node, latitude and body phase")
     p.add_argument("--tau", metavar="FILE", help="tau_p fit written by `isf-satellite tau` (maneuver trigger)")
+    p.add_argument("--period-h", type=float, default=None, metavar="HOURS",
+                   help="impulse period of the periodic trigger (baseline station keeping), hours")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout (nothing else)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.add_argument("--disturbance-scale", type=float, default=1.0, metavar="K",
@@ -130,7 +132,7 @@ def format_text(res: RunResult) -> str:
         f"inter-event        min {f(res.min_inter_event_h, '.4g')} h, mean {f(res.mean_inter_event_h, '.4g')} h",
         f"miet_bound         {res.miet_bound_h:.3g} h",
     ]
-    if res.trigger is Trigger.NONE or res.band_exits:
+    if res.trigger in (Trigger.NONE, Trigger.PERIODIC) or res.band_exits:
         lines.append(f"left_band          {f(res.left_band_h, '.4g')} h ({res.band_exits} exit(s))")
     if res.surface is not None:
         s = res.surface
@@ -174,6 +176,10 @@ def run(args: argparse.Namespace) -> int:
         from satellite.tau import load_tau
 
         tau = load_tau(args.tau)
+    if (trigger is Trigger.PERIODIC) != (args.period_h is not None):
+        raise ConfigError("--period-h HOURS goes with --trigger periodic (and only with it)")
+    if args.period_h is not None and not (math.isfinite(args.period_h) and args.period_h > 0):
+        raise ConfigError(f"--period-h must be a positive number of hours, got {args.period_h:g}")
     model = OrbitModel(load_field(args.gravity), spin=not args.no_spin, disturbance_scale=args.disturbance_scale)
     initial = InitialOrbit(radius_over_R=args.radius, inclination_deg=args.inclination, seed=args.seed)
     control = ControlParams(alpha_gain=args.alpha_gain, d_bar=args.d_bar, c=args.c)
@@ -187,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
     res = simulate(trigger, args.hours, initial=initial, model=model, control=control, tau=tau,
                    observers=observers, surface=surface, surface_step_s=args.surface_step,
                    body_mesh=recorder is not None, contact=args.contact, contact_surface=shape,
-                   integrator=IntegratorSettings(event_scan=not args.no_event_scan))
+                   integrator=IntegratorSettings(event_scan=not args.no_event_scan), period_h=args.period_h)
     if args.json:
         out = res.summary()
         if args.events:

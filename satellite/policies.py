@@ -8,6 +8,10 @@ end time is :func:`satellite.simulate.simulate`.
 * ``none``: no control; one arc that stops when the satellite first leaves the band (``h = 0``
   falling), whose time is reported (the series gravity model is not meant for deep inside).
 * ``greedy``: event ``Xi = 0`` (falling), then ``x+ = G(x, K(x))``.
+* ``periodic`` (the baseline of traditional station keeping): an impulse ``x+ = G(x, K(x))``
+  every ``period_s`` whatever ``Xi``; each arc stops at the first band exit (``h = 0`` falling),
+  which ends the run and is reported (an impulse cannot bring a satellite outside the band back:
+  it changes the velocity only, so ``h(x+) = h(x) < 0`` would break the post-jump condition).
 * ``maneuver``: first impulse by ``Xi``; then integrate to the gate ``t_first + tau_p(h(x+))``
   with the ``Xi`` event only (a ``safe`` second impulse if it fires first), then enable
   ``Xi_tau = (1 + tau_p'(h) LF h) / 2`` (a ``tau`` second impulse at the gate itself when
@@ -30,7 +34,7 @@ from satellite.arcs import ArcIntegrator
 from satellite.events import event
 from satellite.triggers import BandTriggers, Trigger
 
-__all__ = ["TriggerPolicy", "NoControl", "Greedy", "Maneuver", "make_policy"]
+__all__ = ["TriggerPolicy", "NoControl", "Greedy", "Maneuver", "Periodic", "make_policy"]
 
 Step = tuple[float, NDArray[np.float64], bool]
 """``(t, y, finished)`` after one policy step."""
@@ -188,7 +192,28 @@ def _xi_tau_rate(trig: BandTriggers, tau: Any) -> Any:
     return trig.xi_tau_rate(d1, d2)
 
 
-_POLICIES: dict[Trigger, type[TriggerPolicy]] = {p.trigger: p for p in (NoControl, Greedy, Maneuver)}
+class Periodic(TriggerPolicy):
+    """``periodic``: an impulse every ``period_s`` (set by :func:`make_policy`), stopped at a band exit."""
+
+    trigger = Trigger.PERIODIC
+    first_phase = "periodic"
+    period_s = float("nan")
+
+    def step(self, t: float, y: NDArray[np.float64], t_end: float) -> Step:
+        """One arc to the next impulse time (impulse applied), to ``t_end`` or to the band exit (run ends)."""
+        exit_ev = event(self.trig.h, True, -1.0, self.rates["h"], self.trig.h_batch)
+        t_next = min(t + self.period_s, t_end)
+        sol = self.arc(t, t_next, y, [exit_ev, self.apsis_ev], "periodic", None)
+        if sol.status == 1:
+            self.left_band_s = float(sol.t_events[0][0])
+            return self.left_band_s, sol.y_events[0][0], True
+        t, y = float(sol.t[-1]), sol.y[:, -1]
+        if t < t_end:
+            y = self._jump(t, y, "periodic")
+        return t, y, False
+
+
+_POLICIES: dict[Trigger, type[TriggerPolicy]] = {p.trigger: p for p in (NoControl, Greedy, Maneuver, Periodic)}
 
 
 def make_policy(
@@ -198,6 +223,12 @@ def make_policy(
     arc: ArcIntegrator,
     on_jump: Callable[[JumpEvent], None],
     tau: Any = None,
+    period_s: float | None = None,
 ) -> TriggerPolicy:
-    """The policy of ``trigger`` (arguments as for :class:`TriggerPolicy`)."""
-    return _POLICIES[trigger](trig, ctrl, arc, on_jump, tau)
+    """The policy of ``trigger`` (arguments as for :class:`TriggerPolicy`; ``period_s`` for ``periodic``)."""
+    policy = _POLICIES[trigger](trig, ctrl, arc, on_jump, tau)
+    if trigger is Trigger.PERIODIC:
+        if period_s is None or not (np.isfinite(period_s) and period_s > 0):
+            raise ConfigError(f"the periodic trigger needs a period > 0 (hours), got {period_s}")
+        policy.period_s = float(period_s)
+    return policy

@@ -55,7 +55,7 @@ class RunResult:
         hours: Requested duration [h].
         simulated_h: Duration actually simulated [h] (shorter for ``none`` leaving the band).
         triggers: Number of impulses.
-        kinds: Impulse counts by kind (``greedy``, ``safe``, ``tau``).
+        kinds: Impulse counts by kind (``greedy``, ``safe``, ``tau``, ``periodic``).
         min_h: Smallest barrier value over the trajectory [m^2].
         r_min_over_R: Smallest radius [R].
         r_max_over_R: Largest radius [R].
@@ -202,12 +202,13 @@ def simulate(
     body_mesh: bool | None = None,
     contact: str = "off",
     contact_surface: SurfaceModel | None = None,
+    period_h: float | None = None,
 ) -> RunResult:
     """Simulate ``hours`` of orbit with the given trigger.
 
     Args:
         trigger: A :class:`~satellite.triggers.Trigger` or its name (``"none"``, ``"greedy"``,
-            ``"maneuver"``).
+            ``"maneuver"``, ``"periodic"`` with ``period_h``).
         hours: Duration [h], >= 0.
         initial: Initial orbit (default :class:`InitialOrbit` with seed 0).
         model: Orbit model; default the Itokawa degree-8 field with spin. Its body phase is
@@ -234,6 +235,7 @@ def simulate(
             ends at the first contact); reported in ``RunResult.contact``.
         contact_surface: The shape for ``contact`` (default: ``surface``, else
             :func:`satellite.mesh_surface.load_surface`).
+        period_h: Impulse period [h] of the ``periodic`` trigger.
 
     Returns:
         The :class:`RunResult`.
@@ -272,7 +274,8 @@ def simulate(
     if contact != "off":
         watch = make_contact(model, contact_surface or surface or load_surface())
     arcs = ArcIntegrator(model, integ, track, check, exit_watch, watch, contact == "stop")
-    policy = make_policy(trigger, trig, ctrl, arcs, obs.on_event, tau)
+    policy = make_policy(trigger, trig, ctrl, arcs, obs.on_event, tau,
+                         period_h * 3600.0 if period_h is not None else None)
 
     y = initial.state(model)
     t = 0.0
@@ -284,6 +287,8 @@ def simulate(
     settings["accel_bound"] = bound
     if tau is not None:
         settings["tau"] = tau.describe()
+    if period_h is not None:
+        settings["period_h"] = float(period_h)
     if obs:
         send_mesh = body_mesh if body_mesh is not None else True
         mesh = body_mesh_info(surface) if send_mesh else None

@@ -40,6 +40,7 @@ class Trigger(str, Enum):
     NONE = "none"
     GREEDY = "greedy"
     MANEUVER = "maneuver"
+    PERIODIC = "periodic"
 
     def __str__(self) -> str:
         return self.value
@@ -75,6 +76,8 @@ _DESCRIPTIONS = {
     Trigger.NONE: "no control: the run stops when the satellite leaves the band",
     Trigger.GREEDY: "an impulse whenever Xi reaches 0",
     Trigger.MANEUVER: "two-impulse maneuvers timed by a fitted tau_p (needs --tau)",
+    Trigger.PERIODIC: "baseline station keeping: an impulse every --period-h hours whatever Xi, the run "
+                      "stops at the first band exit",
 }
 
 TRIGGERS: tuple[str, ...] = tuple(t.value for t in Trigger)

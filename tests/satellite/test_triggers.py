@@ -30,12 +30,12 @@ def random_states(model: OrbitModel, n: int, seed: int) -> list[np.ndarray]:
 
 
 def test_registry_parses_names_and_refuses_others() -> None:
-    assert TRIGGERS == ("none", "greedy", "maneuver")
+    assert TRIGGERS == ("none", "greedy", "maneuver", "periodic")
     for name in TRIGGERS:
         t = Trigger.parse(name)
         assert t is Trigger.parse(t)
         assert t == name and str(t) == name and f"{t}" == name
-    assert [t.needs_tau for t in Trigger] == [False, False, True]
+    assert [t.needs_tau for t in Trigger] == [False, False, True, False]
     with pytest.raises(UnknownNameError, match="greedy"):
         Trigger.parse("greed")
 
