@@ -152,7 +152,7 @@ class ArmSimulation:
         """What observers learn when a run starts: the run's settings and the model's geometry."""
         s, p = self.scene, self.params
         return {
-            "scene": s.name, "model_path": str(s.xml_path),
+            "scene": s.name, "model_path": str(s.xml_path) if s.xml_path is not None else None,
             "config_path": str(s.config.source) if s.config.source else None,
             "strategy": self.info.name, "seed": self.seed, "dt": self.timestep,
             "control_period": self.control_period, "duration": duration, "names": self.names,

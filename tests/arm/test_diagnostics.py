@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from isf_robot.arm import build_scene, calibrate_d_bar, load_scene, load_scene_from_files
+from isf_robot.arm import ArmSimulation, build_scene, calibrate_d_bar, load_scene, load_scene_from_files
 from isf_robot.arm.diagnostics import check_calibration, check_scene, joint_speed_limits
 from isf_robot.cli import main
 from isf_robot.paths import models_dir
@@ -118,6 +118,8 @@ def test_build_scene_from_model_and_dict() -> None:
     assert sc.joint_names == ref.joint_names
     np.testing.assert_array_equal(sc.robot_geom_ids, ref.robot_geom_ids)
     np.testing.assert_array_equal(sc.goal_positions, ref.goal_positions)
+    info = ArmSimulation(sc, "cbf", d_bar=0.05).start_info(1.0)
+    assert info["model_path"] is None and info["config_path"] is None  # no file: None, not "None"
     again = build_scene(models_dir() / "ur5e_pole.xml", sc.config)
     assert again.xml_path is not None and again.config is sc.config
     with pytest.raises(ValueError, match="mapping"):
