@@ -13,6 +13,7 @@ import argparse
 import json
 import os
 import sys
+from pathlib import Path
 from typing import Any
 
 from isf_robot.core.exceptions import ConfigError
@@ -116,6 +117,9 @@ def register(subparsers: Any) -> None:
                         "a body, closing the window stops the run; needs a display)")
     p.add_argument("--view-speed", type=float, default=1.0, metavar="X",
                    help="with --view: simulated seconds per wall-clock second (default 1)")
+    p.add_argument("--video", type=Path, default=None, metavar="PATH",
+                   help="also render the run offscreen to PATH: .gif, .mp4 (the 'video' extra) or .png (one frame); "
+                        "as `isf-robot render`, which has the frame size and rate options")
     add_recording_args(p)
     p.set_defaults(handler=_cmd_run)
 
@@ -164,6 +168,13 @@ def _cmd_scenes(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    video = None
+    if args.video is not None:  # the offscreen GL backend is chosen before MuJoCo is imported
+        from isf_robot.arm.render import VideoRecorder, select_gl
+
+        video = VideoRecorder(args.video)  # checks the path and format before anything runs
+        if "mujoco" not in sys.modules:
+            select_gl()
     from isf_robot.arm.sim import ArmSimulation
 
     _check_seed(args)
@@ -171,7 +182,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     kwargs = _params(args, scene)
     sim = ArmSimulation(scene, args.filter, seed=args.seed, **kwargs)  # validates before any output
     sim.control_steps(args.duration)
-    observers = [make_observer(args, "arm", name=f"{scene.name}-{args.filter}-seed{args.seed}")]
+    observers = [make_observer(args, "arm", name=f"{scene.name}-{args.filter}-seed{args.seed}"), video]
     if args.view:
         from isf_robot.arm.viewer import LiveViewer, check_display
 

@@ -100,3 +100,20 @@ def test_bad_output_names_the_valid_formats(tmp_path: Path) -> None:
         VideoRecorder(tmp_path / "x.avi")
     with pytest.raises(ConfigError, match="16..4096"):
         VideoRecorder(tmp_path / "x.gif", width=5)
+
+
+def test_run_video_writes_the_run_it_reports(tmp_path: Path) -> None:
+    from PIL import Image, ImageSequence
+
+    out = tmp_path / "run.gif"
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    cmd = [sys.executable, "-m", "isf_robot.cli", "run", "--scene", "planar_moving", "--duration", "0.5", "--json"]
+    proc = subprocess.run([*cmd, "--video", str(out)], capture_output=True, text=True, env=env, timeout=300)
+    if proc.returncode == 2 and "offscreen rendering is not available" in proc.stderr:
+        pytest.skip(f"no offscreen OpenGL here: {proc.stderr.strip()}")
+    assert proc.returncode == 0, proc.stderr
+    assert '"schema"' in proc.stdout  # the run's own output is unchanged
+    assert len(list(ImageSequence.Iterator(Image.open(out)))) == 10  # 0.5 s at 20 frames/s
+    bad = subprocess.run([*cmd, "--video", str(tmp_path / "x.avi")], capture_output=True, text=True, env=env,
+                         timeout=300)
+    assert bad.returncode == 2 and "valid: .gif, .mp4, .png" in bad.stderr and bad.stdout == ""
