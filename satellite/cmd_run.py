@@ -93,10 +93,11 @@ def register(subparsers: Any) -> None:
                    help="alpha(h) = gain * h (default: mean motion at 2R, 2.63e-4 1/s)")
     p.add_argument("--d-bar", type=float, default=0.0, help="disturbance bound used in Xi (default 0)")
     p.add_argument("--c", type=float, default=None, help="post-jump margin (default: half the smallest post-jump Xi)")
-    p.add_argument("--gravity", default=DEFAULT_GRAVITY, metavar="{" + ",".join(GRAVITY_MODELS) + "}|FILE.json",
+    p.add_argument("--gravity", default=DEFAULT_GRAVITY,
+                   metavar="{" + ",".join(GRAVITY_MODELS) + "}|FILE.json|FILE.npz",
                    help="truth gravity: table (default: the exact polyhedron field, tabulated), sh8 (the paper's "
                         "degree-8 series, invalid inside 1.925R), polyhedron (exact at every step, slow), or a "
-                        "spherical-harmonic table written by `isf-satellite gravity`")
+                        "file written by `isf-satellite gravity` (.json series, .npz --table)")
     p.add_argument("--events", action="store_true", help="with --json, include the impulse list")
     p.add_argument("--surface-check", action="store_true",
                    help="also check the trajectory against the body's shape (off by default: like the paper, "

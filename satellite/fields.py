@@ -11,7 +11,9 @@
   the series diverges inside the Brillouin sphere (1.925 R), i.e. in the band's inner part.
 * ``polyhedron``: the exact field evaluated at every step (:mod:`satellite.polyhedron`; needs
   the shape file; some ms per evaluation, for checks, not for long runs).
-* a path ending in ``.json``: a spherical-harmonic table written by ``isf-satellite gravity``.
+* a path ending in ``.json``: a spherical-harmonic table written by ``isf-satellite gravity``;
+  a path ending in ``.npz``: a table written by ``isf-satellite gravity --table`` (of any body:
+  no exact field behind it, so a point outside its radii is an error).
 
 All share the interface :class:`satellite.model.OrbitModel` uses: ``r_ref_m``, ``gm``,
 ``acceleration(p)`` (one body-frame point) and ``acceleration_batch(P)``, plus ``model_name``.
@@ -102,7 +104,12 @@ def load_field(name: str = DEFAULT_GRAVITY) -> Any:
         return exact
     if name.endswith(".json"):
         return GravityField.from_json(name)
-    raise GravityModelError(f"unknown gravity model {name!r}; valid: {', '.join(GRAVITY_MODELS)} or FILE.json")
+    if name.endswith(".npz"):
+        if not Path(name).is_file():
+            raise GravityModelError(f"gravity table not found: {name}")
+        return GravityTable.load(name)
+    raise GravityModelError(f"unknown gravity model {name!r}; valid: {', '.join(GRAVITY_MODELS)}, FILE.json "
+                            "or FILE.npz")
 
 
 class _LazyExact:

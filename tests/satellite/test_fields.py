@@ -8,6 +8,7 @@ import pytest
 from satellite.errors import GravityModelError
 from satellite.fields import DEFAULT_GRAVITY, exact_itokawa, load_field, model_name
 from satellite.gravity import GravityField
+from satellite.gravity_table import GravityTable, TableGrid
 
 
 def test_names_and_errors() -> None:
@@ -19,8 +20,20 @@ def test_names_and_errors() -> None:
     assert load_field("table") is table  # read once per process
     assert table.r_ref_m == pytest.approx(sh8.r_ref_m) and table.gm == pytest.approx(sh8.gm)
     assert "shape_sha256" in table.provenance and "Gaskell" in table.provenance["citation"]
-    with pytest.raises(GravityModelError, match="valid: table, sh8, polyhedron or FILE.json"):
+    with pytest.raises(GravityModelError, match="valid: table, sh8, polyhedron, FILE.json or FILE.npz"):
         load_field("sh9")
+
+
+def test_a_table_file_of_another_body_loads_without_an_exact_field(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    grid = TableGrid(10.0, 20.0, 5, 4)
+    GravityTable(grid, np.zeros((5, 4, 8, 3)), 7.0, 1.5).save(tmp_path / "t.npz")
+    table = load_field(str(tmp_path / "t.npz"))
+    p = np.array([12.0, 3.0, 4.0])
+    np.testing.assert_allclose(table.acceleration(p), -1.5 * p / np.linalg.norm(p) ** 3, rtol=1e-12)  # Kepler + 0
+    with pytest.raises(GravityModelError, match="outside the table"):
+        table.acceleration(np.array([30.0, 0.0, 0.0]))
+    with pytest.raises(GravityModelError, match="not found"):
+        load_field(str(tmp_path / "missing.npz"))
 
 
 def test_committed_table_is_within_one_percent_of_the_exact_field(itokawa_obj) -> None:  # type: ignore[no-untyped-def]
