@@ -175,6 +175,9 @@ class FilterConfig:
         c: Off-trigger threshold: the filter turns off once every ``Xi_on >= c``.
         b: Promotion level of the safety-promoting filter, ``b > 0``.
         d_bar: Bound on the disturbance ``|d|`` of ``q_dot = u + d`` [rad/s].
+        min_off: Asked-for shortest off period of the intermittent filter [s] (0: the fixed margin ``c``).
+        blend: Hand-over time of the intermittent filter after each switch [s] (0: none).
+        horizon: Horizon of its predictive off trigger [s] (0: none).
 
     """
 
@@ -182,6 +185,9 @@ class FilterConfig:
     c: float = 0.05
     b: float = 0.02
     d_bar: float = 0.0
+    min_off: float = 0.0
+    blend: float = 0.0
+    horizon: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -285,6 +285,9 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
         c=f.number("c", df.c, positive=True),
         b=f.number("b", df.b, positive=True),
         d_bar=f.number("d_bar", df.d_bar, nonneg=True),
+        min_off=f.number("min_off", df.min_off, nonneg=True),
+        blend=f.number("blend", df.blend, nonneg=True),
+        horizon=f.number("horizon", df.horizon, nonneg=True),
     )
     f.finish()
 

@@ -53,10 +53,10 @@ def resolve_params(
         d_bar: Tracking-error bound [rad/s]; default ``[filter] d_bar`` when positive, else
             calibrated (when ``calibrate``).
         calibrate: Allow the calibration run.
-        min_off: Asked-for shortest off period [s] (``None``: the fixed margin ``c``).
+        min_off: Asked-for shortest off period [s]; default ``[filter] min_off`` (0: the fixed margin ``c``).
         c_max: Largest margin ``min_off`` may design (``None``: no cap beyond the scene's).
-        blend: Hand-over time after each switch [s] (``None``/0: none).
-        horizon: Horizon of the predictive off trigger [s] (``None``/0: none).
+        blend: Hand-over time after each switch [s]; default ``[filter] blend`` (0: none).
+        horizon: Horizon of the predictive off trigger [s]; default ``[filter] horizon`` (0: none).
         predict_every: Control steps between its rollouts (``None``: 5).
 
     Raises:
@@ -72,6 +72,9 @@ def resolve_params(
         a = _positive("alpha", fc.alpha if alpha is None else alpha)
     cc = _positive("c", fc.c if c is None else c)
     bb = _positive("b", fc.b if b is None else b)
+    min_off = (fc.min_off or None) if min_off is None else min_off  # the scene's [filter] when not given
+    blend = fc.blend if blend is None else blend
+    horizon = fc.horizon if horizon is None else horizon
     opts = _options(cc, min_off, c_max, blend, horizon, predict_every)
     if d_bar is not None:
         if not (math.isfinite(d_bar) and d_bar >= 0):

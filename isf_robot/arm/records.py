@@ -17,8 +17,12 @@ from typing import Any
 import numpy as np
 
 from isf_robot.core import ClassK, DutyCycleMetrics, FilterStats, SwitchEvent, as_class_k
+from isf_robot.core.strategies import strategy_info
 
-__all__ = ["ArmStepRecord", "FilterParams", "RunResult"]
+__all__ = ["ArmStepRecord", "FilterParams", "RunResult", "INTERMITTENT_KEYS"]
+
+INTERMITTENT_KEYS = ("min_off", "c_max", "blend", "horizon", "predict_every")
+"""Keys of :meth:`FilterParams.as_dict` that only an intermittent strategy uses."""
 
 
 
@@ -212,7 +216,10 @@ class RunResult:
                    goals_missed=self.goals_missed)
         st = self.stats.as_dict()
         out.update(fallbacks=st.pop("fallbacks"), relaxations=st.pop("relaxations"), resolves=st.pop("resolves"))
-        out.update(self.params.as_dict())
+        params = self.params.as_dict()
+        if not strategy_info(self.filter).intermittent:  # the intermittent options do not apply
+            params = {k: v for k, v in params.items() if k not in INTERMITTENT_KEYS}
+        out.update(params)
         out.update(control_period=self.control_period, timestep=self.timestep,
                    tracking_error_q99=self.tracking_error_q99,
                    d_bar_covered=bool(self.tracking_error_q99 <= self.params.d_bar))

@@ -118,3 +118,15 @@ def test_min_off_is_capped_at_what_a_pair_at_the_cutoff_can_reach(planar):
 def test_bad_intermittent_options_are_refused(planar, kw, match):
     with pytest.raises(ConfigError, match=match):
         resolve_params(planar, d_bar=0.05, **kw)
+
+
+def test_scene_filter_table_gives_the_defaults_and_arguments_override_them(planar):
+    from isf_robot.arm import load_scene
+
+    pole = load_scene("panda_pole")
+    p = resolve_params(pole, d_bar=0.04)
+    assert (p.blend, p.horizon, p.min_off) == (0.05, 0.3, None)  # models/panda_pole.toml [filter]
+    q = resolve_params(pole, d_bar=0.04, blend=0.0, horizon=0.0)
+    assert (q.blend, q.horizon) == (0.0, 0.0) and "horizon" not in q.as_dict()
+    r = resolve_params(planar, d_bar=0.05)
+    assert (r.blend, r.horizon, r.min_off) == (0.0, 0.0, None)  # a scene without them: off
