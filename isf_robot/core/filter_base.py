@@ -8,6 +8,7 @@ infeasibility policy.
 
 from __future__ import annotations
 
+import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
@@ -15,7 +16,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .barrier import Barrier, evaluate_barriers
-from .class_k import ClassK, as_class_k
+from .class_k import ClassK, Linear, as_class_k
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
 from .qp import FilterQP, QPResult
 from .qp_solver import QPSolver
@@ -25,6 +26,8 @@ from .triggers import xi_on
 from .validation import as_vector, check_finite_scalar, check_nonnegative
 
 __all__ = ["FilterStep", "FallbackFn"]
+
+_F64 = np.dtype(np.float64)
 
 FallbackFn = Callable[[float, "np.ndarray | None", LieData, QPResult], np.ndarray]
 
@@ -227,6 +230,16 @@ class _FilterBase:
                 keep |= promote  # a promoted row is never screened out
             if not keep.all():
                 rows = keep.nonzero()[0]
+                if rows.size <= 1 and promote is None and self._one_row_ok(lie):
+                    i = int(xi.argmin()) if rows.size == 0 else int(rows[0])
+                    res = self._solve_one(lie, u_nom, i, rows.size == 1)
+                    if res is not None:
+                        keep[i] = True
+                        if self._screened_rows_hold(lie, xi, res.u - u_nom, keep):
+                            return res, (), False, False
+                        first = res.solve_time_s
+                        res, relaxed, fb = self._solve_block(t, x, lie, u_nom, None, lie.names, None)
+                        return replace(res, solve_time_s=res.solve_time_s + first), relaxed, fb, True
                 if rows.size == 0:  # the row of least slack alone (views: no copies)
                     i = int(xi.argmin())
                     rows = np.array([i])
@@ -245,6 +258,37 @@ class _FilterBase:
                 return res, relaxed, fb, False
         res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote, lie.names, None)
         return res, relaxed, fb, False
+
+    def _one_row_ok(self, lie: LieData) -> bool:
+        """Whether one robust row may go the short way (:meth:`_solve_one`): no input bounds, the
+        closed form enabled, float64 barrier data (the row's bound is then the same in floats)."""
+        return (self.u_min is None and self.u_max is None and self.solver.closed_form
+                and lie.h.dtype == _F64 and lie.lf.dtype == _F64 and lie.grad_norm.dtype == _F64)
+
+    def _solve_one(self, lie: LieData, u_nom: np.ndarray, i: int, packed: bool) -> QPResult | None:
+        """Row ``i`` alone, robust, no bounds: the closed form without building the QP.
+
+        The same numbers as :meth:`build_qp` and :meth:`QPSolver.solve` on that row: the bound
+        ``-alpha(h_i) - Lf h_i + |dh_i/dx| d_bar`` in the same order of operations (IEEE float64
+        arithmetic in floats and in numpy agree). ``None`` when the closed form fails its check
+        (the caller then solves the general way). ``packed``: the general way would have copied the
+        row (``take``), so a strided row is copied here too (a dot product of a strided row may sum
+        in another order).
+        """
+        t0 = time.perf_counter()
+        alpha = self.alpha
+        if type(alpha) is Linear:
+            av = alpha.gain * float(lie.h[i])
+        else:
+            av = float(alpha.vector(lie.h[i:i + 1])[0])
+        lb = (-av - float(lie.lf[i])) + float(lie.grad_norm[i]) * self.d_bar
+        a = lie.lg[i]
+        if packed and not a.flags.c_contiguous:
+            a = a.copy()
+        res = self.solver.solve_row(u_nom, a, lb, t0)
+        if res is not None:
+            self.qp_solves += 1
+        return res
 
     def _screened_rows_hold(self, lie: LieData, xi: np.ndarray, du: np.ndarray, keep: np.ndarray) -> bool:
         """Whether every screened-out row's robust condition has slack >= active_tol at ``u_nom + du``.

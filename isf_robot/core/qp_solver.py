@@ -119,17 +119,9 @@ class QPSolver:
         if k == 0 and not box:
             return QPResult(qp.u_nom.copy(), "unconstrained", np.zeros(0, bool), time.perf_counter() - t0)
         if k == 1 and not box and self.closed_form:
-            # project_halfspace inlined (the same operations); |a|^2 > 1e-200 also means a != 0
-            a = qp.A[0]
-            aa = float(a @ a)
-            if aa > 1e-200:
-                lb = float(qp.lb[0])
-                u_nom = qp.u_nom
-                gap = lb - float(a @ u_nom)
-                u = u_nom.copy() if gap <= 0.0 else u_nom + (gap / aa) * a
-                slack = float(a @ u) - lb
-                if slack >= -self.feas_tol * max(1.0, abs(lb)) and math.isfinite(float(u @ u)):
-                    return QPResult(u, "closed_form", np.array([slack <= self.active_tol]), time.perf_counter() - t0)
+            res = self.solve_row(qp.u_nom, qp.A[0], float(qp.lb[0]), t0)
+            if res is not None:
+                return res
             # an answer that fails the check goes to the backend
         self.solves += 1
         if self.backend == "daqp":
@@ -158,6 +150,25 @@ class QPSolver:
                 f"{self.backend} returned a command violating the constraints by {viol:.3g} "
                 f"({iters} iterations)", qp=qp)
         return QPResult(u, "optimal", res <= self.active_tol, time.perf_counter() - t0, iters, viol)
+
+    def solve_row(self, u_nom: np.ndarray, a: np.ndarray, lb: float, t0: float | None = None) -> QPResult | None:
+        """The closed form of one row ``a u >= lb`` without bounds, checked; ``None`` when it fails.
+
+        :func:`~isf_robot.core.qp.project_halfspace` inlined (the same operations; ``|a|^2 >
+        1e-200`` also means ``a != 0``). ``None`` (a row so small that ``|a|^2`` underflows, or an
+        answer violating the row beyond ``feas_tol``, or not finite) sends the problem to the
+        backend. ``t0``: the ``perf_counter`` time the caller's solve began (default: now).
+        """
+        if t0 is None:
+            t0 = time.perf_counter()
+        aa = float(a @ a)
+        if aa > 1e-200:
+            gap = lb - float(a @ u_nom)
+            u = u_nom.copy() if gap <= 0.0 else u_nom + (gap / aa) * a
+            slack = float(a @ u) - lb
+            if slack >= -self.feas_tol * max(1.0, abs(lb)) and math.isfinite(float(u @ u)):
+                return QPResult(u, "closed_form", np.array([slack <= self.active_tol]), time.perf_counter() - t0)
+        return None
 
     @staticmethod
     def _distance_violation(qp: FilterQP, u: np.ndarray, res: np.ndarray) -> float:

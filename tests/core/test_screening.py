@@ -63,3 +63,45 @@ def test_non_finite_input_raises_even_without_validation() -> None:
     lie = LieData(np.array([0.5, math.nan]), np.zeros(2), np.eye(2), np.ones(2))
     with pytest.raises(NonFiniteError):
         f.step_lie(0.0, lie, np.zeros(2))
+
+
+@pytest.mark.parametrize("alpha", [2.0, Power(3.0, 0.7)])
+@pytest.mark.parametrize("order", ["C", "F"])
+def test_one_kept_row_goes_the_short_way_with_the_same_numbers(alpha, order) -> None:  # type: ignore[no-untyped-def]
+    # at most one row kept (or none: the row of least slack alone) and no bounds: the filter
+    # solves that row without building the QP; the command must be bit for bit the general
+    # way's (build_qp on the kept row + QPSolver.solve), and the QP is built only to re-solve
+    rng = np.random.default_rng(3)
+    f = SafetyFilter(alpha, 0.05, validate=False)
+    built = []
+    build = f.build_qp
+    f.build_qp = lambda *a, **kw: built.append(1) or build(*a, **kw)  # type: ignore[method-assign]
+    short = resolves = 0
+    for i in range(400):
+        lie = _random_lie(rng, int(rng.integers(2, 4)), 3)  # <= 3 rows in R^3: always feasible
+        lie = LieData(lie.h, lie.lf, np.asarray(lie.lg, order=order), lie.grad_norm, lie.names)
+        u_nom = rng.normal(size=3)
+        xi = lie.lf + lie.lg @ u_nom - lie.grad_norm * 0.05 + f.alpha.vector(lie.h)
+        screen = float(np.sort(xi)[int(rng.integers(0, 2))]) + 1e-3  # keeps one or two rows
+        screen = max(screen, 2e-6)
+        n_built = len(built)
+        s = f.step_lie(0.01 * i, lie, u_nom, screen=screen)
+        kept = np.flatnonzero(xi < screen)
+        if kept.size > 1:
+            continue
+        row = kept if kept.size else np.array([int(xi.argmin())])
+        ref = f.solver.solve(build(lie.select(row), u_nom))
+        if s.resolved:
+            resolves += 1
+            full = f.solver.solve(build(lie, u_nom))
+            np.testing.assert_array_equal(s.u, full.u)
+            assert len(built) == n_built + 1
+            continue
+        short += 1
+        assert len(built) == n_built, "one kept row must not build the QP"
+        np.testing.assert_array_equal(s.u, ref.u)
+        np.testing.assert_array_equal(s.qp.active, ref.active)
+        assert s.qp.status == ref.status == "closed_form"
+        assert s.on == bool(ref.active.any())
+        assert np.all(lie.lf + lie.lg @ s.u - lie.grad_norm * 0.05 + f.alpha.vector(lie.h) >= -1e-9)
+    assert short > 100 and resolves > 0
