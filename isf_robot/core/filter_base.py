@@ -8,6 +8,7 @@ infeasibility policy.
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -174,16 +175,22 @@ class _FilterBase:
         return not ((self.u_min is not None and bool(np.any(u < self.u_min)))
                     or (self.u_max is not None and bool(np.any(u > self.u_max))))
 
-    def _xi(self, t: float, lie: LieData, u_nom: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Checked inputs and ``Xi_on`` per row (a non-finite input raises NonFiniteError)."""
+    def _xi(self, t: float, lie: LieData, u_nom: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """Checked inputs, ``Xi_on`` per row and its minimum (``inf`` without rows).
+
+        A non-finite input raises NonFiniteError. (The check and the minimum work on a list:
+        a sum of NaN or inf is not finite, and the minimum of finite floats is exact, so both
+        give what the array reductions give, at a third of their cost for a robot's rows.)
+        """
         if self.validate:
             lie.validate()
             u_nom = as_vector(u_nom, "nominal command u_nom", lie.m)
         xi = xi_on(lie, u_nom, self.alpha, self.d_bar)
-        if not np.isfinite(xi.sum()):
+        xl = xi.tolist()
+        if not math.isfinite(sum(xl)):
             raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
                                  f"Xi_on = {xi}, u_nom = {u_nom}")
-        return u_nom, xi
+        return u_nom, xi, min(xl) if xl else math.inf
 
     def build_qp(
         self, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None = None, b: float = 0.0,

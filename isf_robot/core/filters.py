@@ -92,10 +92,10 @@ class SafetyFilter(_FilterBase):
         ``screen`` overrides the constructor's row-screening threshold for this step (scalar or
         one per row of ``lie``).
         """
-        u_nom, xi = self._xi(t, lie, u_nom)
+        u_nom, xi, xi_min = self._xi(t, lie, u_nom)
         res, _, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, None, 0.0, screen)
         on = bool(res.active.any()) or fb
-        event = self._switches.update(t, on, float(xi.min()) if xi.size else float("inf"))
+        event = self._switches.update(t, on, xi_min)
         return FilterStep(t, res.u, u_nom, on, lie.h, xi, event, res, (), fb, lie.names, resolved)
 
 
@@ -208,8 +208,7 @@ class IntermittentSafetyFilter(_FilterBase):
         ``screen`` overrides the constructor's row-screening threshold for this step (scalar or
         one per row of ``lie``).
         """
-        u_nom, xi = self._xi(t, lie, u_nom)
-        xi_min = float(xi.min()) if xi.size else math.inf
+        u_nom, xi, xi_min = self._xi(t, lie, u_nom)
         was_on = self.trigger.on
         self.fall_rate.observe(t, xi_min, not was_on)
         c = self.margin()

@@ -24,6 +24,8 @@ from .exceptions import ShapeError
 
 __all__ = ["DutyCycleMetrics", "FilterStats", "compute_metrics", "MetricsAccumulator"]
 
+_F64 = np.dtype(np.float64)
+
 
 @dataclass(frozen=True)
 class DutyCycleMetrics:
@@ -178,7 +180,7 @@ class MetricsAccumulator:
         self._t.append(t)
         self._dt.append(dt)
         self._on.append(bool(on))
-        self._rate.append(float(d @ d))
+        self._rate.append(float(d.dot(d)))  # (dot: the same BLAS product as @, with less overhead)
         self._solved.append(bool(solved))
 
     def add_step(self, step: Any, dt: float) -> None:
@@ -197,10 +199,12 @@ class MetricsAccumulator:
             self._relaxations += 1
         if getattr(step, "resolved", False):
             self._resolves += 1
-        u = np.asarray(step.u, dtype=float)
+        u = step.u
+        if type(u) is not np.ndarray or u.dtype != _F64:
+            u = np.asarray(u, dtype=float)
         if self._u_prev is not None:
             d = u - self._u_prev
-            jump = math.sqrt(float(d @ d))
+            jump = math.sqrt(float(d.dot(d)))
             self._jump_max = jump if self._jump_max is None else max(self._jump_max, jump)
             if step.event is not None:
                 self._switch_jump = jump if self._switch_jump is None else max(self._switch_jump, jump)
