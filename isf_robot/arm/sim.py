@@ -292,7 +292,7 @@ class _Episode:
             names = self._names_cache[key] = tuple(sim.coll.names[i] for i in key) + sim.joints.names
         g = np.concatenate((near.grad, self._jgrad))  # joint rows: +-e_i, so |row| = 1 exactly
         lf = np.concatenate((near.dhdt, self._jzero)) if self.moving else np.zeros(g.shape[0])
-        lie = LieData(np.concatenate((near.h, jh)), lf, g, np.sqrt(np.einsum("ij,ij->i", g, g)), names)
+        lie = LieData._of(np.concatenate((near.h, jh)), lf, g, np.sqrt(np.einsum("ij,ij->i", g, g)), names)
         return near, jh, lie
 
     def nominal(self, t: float) -> np.ndarray:

@@ -96,7 +96,7 @@ class SafetyFilter(_FilterBase):
         res, _, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, None, 0.0, screen)
         on = bool(res.active.any()) or fb
         event = self._switches.update(t, on, xi_min)
-        return FilterStep(t, res.u, u_nom, on, lie.h, xi, event, res, (), fb, lie.names, resolved)
+        return FilterStep._of(t, res.u, u_nom, on, lie.h, xi, event, res, (), fb, lie.names, resolved)
 
 
 class IntermittentSafetyFilter(_FilterBase):
@@ -236,16 +236,16 @@ class IntermittentSafetyFilter(_FilterBase):
             w = blend_weight(t, self._t_off, self.blend) if self._u_handover is not None else 0.0
             target = u_nom if w == 0.0 else u_nom + w * (self._u_handover - u_nom)
             if w == 0.0 and self._within_bounds(u_nom):
-                return self._done(FilterStep(t, u_nom, u_nom, False, lie.h, xi, event, None, (), False,
+                return self._done(FilterStep._of(t, u_nom, u_nom, False, lie.h, xi, event, None, (), False,
                                              lie.names, **extra))
             slack = xi if w == 0.0 else xi + lie.lg @ (target - u_nom)  # robust slack at the target
             if w > 0.0 and float(slack.min()) >= 0.0 and self._within_bounds(target):
-                return self._done(FilterStep(t, target, u_nom, False, lie.h, xi, event, None, (), False,
+                return self._done(FilterStep._of(t, target, u_nom, False, lie.h, xi, event, None, (), False,
                                              lie.names, **extra))
             # off, but the target breaks the input bounds or (blending) a robust condition: the
             # command closest to it within them that keeps every robust condition; the mode stays off
             res, relaxed, fb, resolved = self._solve_rows(t, x, lie, target, slack, None, 0.0, screen)
-            return self._done(FilterStep(t, res.u, u_nom, False, lie.h, xi, event, res, relaxed, fb,
+            return self._done(FilterStep._of(t, res.u, u_nom, False, lie.h, xi, event, res, relaxed, fb,
                                          lie.names, resolved, **extra))
         promote = xi < c
         if held and pred is not None and pred.failing:  # steer away from the predicted failures
@@ -256,7 +256,7 @@ class IntermittentSafetyFilter(_FilterBase):
             res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, promote, c, screen)
         finally:
             self._ramp = 1.0
-        return self._done(FilterStep(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names,
+        return self._done(FilterStep._of(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names,
                                      resolved, **extra))
 
     def _row_ramp(self, t: float, names: tuple[str, ...], promote: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -108,6 +108,18 @@ class LieData:
     grad_norm: np.ndarray
     names: tuple[str, ...] = ()
 
+    @classmethod
+    def _of(cls, h: np.ndarray, lf: np.ndarray, lg: np.ndarray, grad_norm: np.ndarray,
+            names: tuple[str, ...] = ()) -> LieData:
+        """The data with these fields, unchecked: the per-step producers' fast path.
+
+        Same object as ``LieData(...)`` would build, without the frozen dataclass's
+        field-by-field ``__init__``.
+        """
+        lie = object.__new__(cls)
+        lie.__dict__.update(h=h, lf=lf, lg=lg, grad_norm=grad_norm, names=names)
+        return lie
+
     @property
     def k(self) -> int:
         """Number of barriers."""

@@ -39,7 +39,7 @@ def xi_on(lie: LieData, u_nom: np.ndarray, alpha: ClassK, d_bar: float) -> np.nd
         Shape (k,).
 
     """
-    return lie.lf + lie.lg @ u_nom - lie.grad_norm * d_bar + alpha.vector(lie.h)
+    return lie.lf + lie.lg.dot(u_nom) - lie.grad_norm * d_bar + alpha.vector(lie.h)  # dot: the BLAS product of @
 
 
 def xi_on_scalar(lf: float, lg_u: float, grad_norm: float, h: float, alpha: ClassK, d_bar: float) -> float:

@@ -105,3 +105,30 @@ def test_one_kept_row_goes_the_short_way_with_the_same_numbers(alpha, order) -> 
         assert s.on == bool(ref.active.any())
         assert np.all(lie.lf + lie.lg @ s.u - lie.grad_norm * 0.05 + f.alpha.vector(lie.h) >= -1e-9)
     assert short > 100 and resolves > 0
+
+
+@pytest.mark.parametrize("cls", ["FilterStep", "LieData"])
+def test_fast_constructors_build_the_dataclass_itself(cls) -> None:  # type: ignore[no-untyped-def]
+    # _of skips the frozen dataclass's __init__: its parameters must be the fields (names, order,
+    # defaults), and it must build an object equal to the dataclass's own, still frozen
+    import dataclasses
+    import inspect
+
+    from isf_robot.core.filter_base import FilterStep
+
+    kind = {"FilterStep": FilterStep, "LieData": LieData}[cls]
+    fields = dataclasses.fields(kind)
+    params = list(inspect.signature(kind._of).parameters.values())
+    assert [p.name for p in params] == [f.name for f in fields]
+    for p, f in zip(params, fields):
+        default = f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default
+        assert (p.default is inspect.Parameter.empty) == (default is dataclasses.MISSING), f.name
+        if default is not dataclasses.MISSING:
+            assert p.default == default, f.name
+    rng = np.random.default_rng(0)
+    args = [rng.normal(size=3) if i % 2 else float(i) for i in range(len(fields))]
+    a, b = kind(*args), kind._of(*args)
+    assert vars(a).keys() == vars(b).keys()
+    assert all(x is y for x, y in zip(vars(a).values(), vars(b).values()))
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        b.h = None  # type: ignore[misc]
