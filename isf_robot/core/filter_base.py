@@ -252,8 +252,8 @@ class _FilterBase:
             keep = xi < np.maximum(screen, floor) if floor > 0 else xi < screen
             if promote is not None:
                 keep |= promote  # a promoted row is never screened out
-            if not keep.all():
-                rows = keep.nonzero()[0]
+            rows = keep.nonzero()[0]
+            if rows.size < keep.size:  # (not keep.all())
                 if rows.size <= 1 and promote is None and self._one_row_ok(lie):
                     i = int(xi.argmin()) if rows.size == 0 else int(rows[0])
                     res = self._solve_one(lie, u_nom, i, rows.size == 1)
@@ -323,7 +323,7 @@ class _FilterBase:
         The slack of row i at u is ``Xi_on,i + Lg h_i (u - u_nom)`` (the robust condition's
         left side minus its right side), so one product covers every row.
         """
-        slack = xi + lie.lg @ du
+        slack = xi + lie.lg.dot(du)
         slack[keep] = np.inf
         return bool(slack.min() >= self.solver.active_tol)
 

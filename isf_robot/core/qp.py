@@ -109,6 +109,19 @@ class QPResult:
     max_violation: float = 0.0
     relaxed: tuple[int, ...] = field(default_factory=tuple)
 
+    @classmethod
+    def _of(cls, u: np.ndarray, status: str, active: np.ndarray, solve_time_s: float, iterations: int = 0,
+            max_violation: float = 0.0, relaxed: tuple[int, ...] = ()) -> QPResult:
+        """The result with these fields, unchecked: the closed form's fast path.
+
+        Same object as ``QPResult(...)`` would build, without the frozen dataclass's
+        field-by-field ``__init__``.
+        """
+        res = object.__new__(cls)
+        res.__dict__.update(u=u, status=status, active=active, solve_time_s=solve_time_s, iterations=iterations,
+                            max_violation=max_violation, relaxed=relaxed)
+        return res
+
     @property
     def ok(self) -> bool:
         """Whether ``u`` satisfies every constraint (solved exactly or by closed form)."""

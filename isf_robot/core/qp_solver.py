@@ -161,13 +161,14 @@ class QPSolver:
         """
         if t0 is None:
             t0 = time.perf_counter()
-        aa = float(a @ a)
+        aa = float(a.dot(a))  # (dot: the BLAS product of @, with less overhead)
         if aa > 1e-200:
-            gap = lb - float(a @ u_nom)
+            gap = lb - float(a.dot(u_nom))
             u = u_nom.copy() if gap <= 0.0 else u_nom + (gap / aa) * a
-            slack = float(a @ u) - lb
-            if slack >= -self.feas_tol * max(1.0, abs(lb)) and math.isfinite(float(u @ u)):
-                return QPResult(u, "closed_form", np.array([slack <= self.active_tol]), time.perf_counter() - t0)
+            slack = float(a.dot(u)) - lb
+            if slack >= -self.feas_tol * max(1.0, abs(lb)) and math.isfinite(float(u.dot(u))):
+                return QPResult._of(u, "closed_form", np.array([slack <= self.active_tol]),
+                                    time.perf_counter() - t0)
         return None
 
     @staticmethod

@@ -107,7 +107,7 @@ def test_one_kept_row_goes_the_short_way_with_the_same_numbers(alpha, order) -> 
     assert short > 100 and resolves > 0
 
 
-@pytest.mark.parametrize("cls", ["FilterStep", "LieData"])
+@pytest.mark.parametrize("cls", ["FilterStep", "LieData", "QPResult"])
 def test_fast_constructors_build_the_dataclass_itself(cls) -> None:  # type: ignore[no-untyped-def]
     # _of skips the frozen dataclass's __init__: its parameters must be the fields (names, order,
     # defaults), and it must build an object equal to the dataclass's own, still frozen
@@ -115,8 +115,9 @@ def test_fast_constructors_build_the_dataclass_itself(cls) -> None:  # type: ign
     import inspect
 
     from isf_robot.core.filter_base import FilterStep
+    from isf_robot.core.qp import QPResult
 
-    kind = {"FilterStep": FilterStep, "LieData": LieData}[cls]
+    kind = {"FilterStep": FilterStep, "LieData": LieData, "QPResult": QPResult}[cls]
     fields = dataclasses.fields(kind)
     params = list(inspect.signature(kind._of).parameters.values())
     assert [p.name for p in params] == [f.name for f in fields]
@@ -131,4 +132,4 @@ def test_fast_constructors_build_the_dataclass_itself(cls) -> None:  # type: ign
     assert vars(a).keys() == vars(b).keys()
     assert all(x is y for x, y in zip(vars(a).values(), vars(b).values()))
     with pytest.raises(dataclasses.FrozenInstanceError):
-        b.h = None  # type: ignore[misc]
+        b.u = None  # type: ignore[misc]
