@@ -220,12 +220,11 @@ class JointCoherence:
         """Rows of ``broadphase.live`` (ascending) whose bound is below the cut-off."""
         q = data.qpos.take(self._qadr)
         if self._q is not None:
-            self.lower -= self._lever @ np.abs(q - self._q)
+            self.lower -= self._lever.dot(np.abs(q - self._q))  # (dot: the BLAS product of @)
         self._q = q
         return (self.lower < self.cutoff).nonzero()[0]
 
     def update(self, rows: np.ndarray, dist: list[float]) -> None:
         """The narrow phase's distances (at most :attr:`distmax`) of the candidate ``rows``."""
         if len(rows):
-            self.lower[rows] = dist
-            self.lower[rows] -= self._slack
+            self.lower[rows] = np.subtract(dist, self._slack)  # (each dist - slack, as before)

@@ -287,8 +287,9 @@ class CollisionBarriers:
         # n = (p1 - p2) / dist, as (p1 - p2) * (1 / dist); where the witness points coincide, the
         # direction between the geom centres.
         n = fr[:, :3] - fr[:, 3:]
-        touching = [r for r, d in enumerate(ds) if -_EPS_DIST < d < _EPS_DIST]
-        n *= np.array([0.0 if -_EPS_DIST < d < _EPS_DIST else 1.0 / d for d in ds])[:, None]
+        inv = [0.0 if -_EPS_DIST < d < _EPS_DIST else 1.0 / d for d in ds]
+        touching = [r for r, v in enumerate(inv) if v == 0.0]  # (1/d is never 0 for a finite d)
+        n *= np.array(inv)[:, None]
         idx = np.array(rows, dtype=np.int64)
         if touching:
             ti = idx[touching]

@@ -318,7 +318,7 @@ class _Episode:
         sim, model, data, monitor = self.sim, self.model, self.data, self.monitor
         tracker = sim.tracker
         e = data.qvel[sim.scene.dof_adr] - tracker.u
-        self.track_err[k] = math.sqrt(float(e @ e))
+        self.track_err[k] = math.sqrt(float(e.dot(e)))
         tracker.set_command(u, sim.control_period)
         tracker.apply(data)
         mujoco.mj_step2(model, data)
