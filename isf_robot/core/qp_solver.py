@@ -138,18 +138,19 @@ class QPSolver:
         if self.polish and self.backend != "daqp":
             u = self._polish(qp, u)
         if k:
-            res = qp.A @ u - qp.lb
-            viol = max(0.0, -float(res.min()))
+            res = qp.A.dot(u) - qp.lb  # (dot: the BLAS product of @)
+            rmin = min(res.tolist())  # (u finite, checked below, so res is; the minimum is exact)
+            viol = max(0.0, -rmin)
         else:
             res = np.zeros(0)
-            viol = 0.0
+            rmin = viol = 0.0
         if box:
             viol = max(viol, qp.max_violation(u))
-        if not math.isfinite(float(u.sum())) or self._distance_violation(qp, u, res) > self.feas_tol:
+        if not math.isfinite(sum(u.tolist())) or self._distance_violation(qp, u, res, rmin) > self.feas_tol:
             raise SolverError(
                 f"{self.backend} returned a command violating the constraints by {viol:.3g} "
                 f"({iters} iterations)", qp=qp)
-        return QPResult(u, "optimal", res <= self.active_tol, time.perf_counter() - t0, iters, viol)
+        return QPResult._of(u, "optimal", res <= self.active_tol, time.perf_counter() - t0, iters, viol)
 
     def solve_row(self, u_nom: np.ndarray, a: np.ndarray, lb: float, t0: float | None = None) -> QPResult | None:
         """The closed form of one row ``a u >= lb`` without bounds, checked; ``None`` when it fails.
@@ -172,16 +173,16 @@ class QPSolver:
         return None
 
     @staticmethod
-    def _distance_violation(qp: FilterQP, u: np.ndarray, res: np.ndarray) -> float:
+    def _distance_violation(qp: FilterQP, u: np.ndarray, res: np.ndarray, rmin: float | None = None) -> float:
         """How far ``u`` lies outside the feasible set, relative to the size of the problem.
 
         Each row's violation is measured as the distance to its half-space (``-res_i / |a_i|``;
         a zero row keeps its absolute violation), the bounds' as they are, and the largest is
         divided by ``max(1, |u|, |u_nom|)``: a solver's rounding is relative to the iterates, so
-        rows of 1e9 or 1e-9 are judged alike.
+        rows of 1e9 or 1e-9 are judged alike. ``rmin``: ``res.min()``, when the caller has it.
         """
         worst = 0.0
-        if res.size and float(res.min()) < 0.0:  # (rows all satisfied: each distance is <= 0)
+        if res.size and (float(res.min()) if rmin is None else rmin) < 0.0:  # (all satisfied: distances <= 0)
             nrm = np.sqrt(np.einsum("ij,ij->i", qp.A, qp.A))
             d = np.where(nrm > 0.0, -res / np.where(nrm > 0.0, nrm, 1.0), -res)
             worst = max(0.0, float(d.max()))

@@ -133,3 +133,30 @@ def test_fast_constructors_build_the_dataclass_itself(cls) -> None:  # type: ign
     assert all(x is y for x, y in zip(vars(a).values(), vars(b).values()))
     with pytest.raises(dataclasses.FrozenInstanceError):
         b.u = None  # type: ignore[misc]
+
+
+def test_backend_answers_are_judged_by_their_distance_to_the_feasible_set() -> None:
+    # a backend's answer is checked in solve(): a violation of 1e-3 is refused, rounding is not,
+    # and a row scaled by 1e9 is judged by the distance to its half-space, not by its residual
+    from isf_robot.core import QPSolver, SolverError
+    from isf_robot.core.qp import FilterQP
+
+    solver = QPSolver()
+    answer: list[np.ndarray] = []
+    solver._solve_daqp = lambda qp: (answer[0], 3, "solved")  # type: ignore[method-assign]
+    qp = FilterQP(np.zeros(2), np.eye(2), np.ones(2))
+    for u, ok in (([1.0, 1.0 - 1e-3], False), ([1.0, 1.0 - 1e-12], True), ([math.nan, 1.0], False)):
+        answer[:] = [np.array(u)]
+        if ok:
+            res = solver.solve(qp)
+            assert res.status == "optimal" and res.active.tolist() == [True, True]
+            assert res.max_violation == pytest.approx(1e-12, rel=1e-3)
+        else:
+            with pytest.raises(SolverError):
+                solver.solve(qp)
+    big = FilterQP(np.zeros(2), np.diag([1e9, 1.0]), np.array([1e9, 1.0]))
+    answer[:] = [np.array([1.0 - 1e-10, 1.0])]  # residual -0.1, distance 1e-10: accepted
+    assert solver.solve(big).max_violation == pytest.approx(0.1, rel=1e-3)
+    answer[:] = [np.array([1.0 - 1e-4, 1.0])]  # distance 1e-4: refused
+    with pytest.raises(SolverError):
+        solver.solve(big)
