@@ -224,8 +224,8 @@ class _FilterBase:
             level = b if np.all(np.asarray(ramp) >= 1.0) else np.maximum(rhs, ramp * b + (1.0 - ramp) * rhs)
             rhs = np.where(promote, level, rhs)
             kinds = tuple("promote" if p else "robust" for p in promote)
-        return FilterQP(u_nom, lie.lg, rhs - lie.lf + lie.grad_norm * self.d_bar, self.u_min, self.u_max,
-                        kinds, lie.names)
+        return FilterQP._of(u_nom, lie.lg, rhs - lie.lf + lie.grad_norm * self.d_bar, self.u_min, self.u_max,
+                            kinds, lie.names)
 
     # -- solving -------------------------------------------------------------------------
     def _solve(self, qp: FilterQP) -> QPResult:
@@ -337,7 +337,7 @@ class _FilterBase:
         """
         b = getattr(self, "b", 0.0)
         ramp = getattr(self, "_ramp", 1.0)
-        if rows is not None and np.ndim(ramp):
+        if rows is not None and type(ramp) is not float and np.ndim(ramp):
             ramp = ramp[rows]
         qp = self.build_qp(lie, u_nom, promote, b, ramp)
         res = self._solve(qp)

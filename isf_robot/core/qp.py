@@ -54,6 +54,18 @@ class FilterQP:
     kinds: tuple[str, ...] = ()
     names: tuple[str, ...] = ()
 
+    @classmethod
+    def _of(cls, u_nom: np.ndarray, A: np.ndarray, lb: np.ndarray, u_min: np.ndarray | None = None,
+            u_max: np.ndarray | None = None, kinds: tuple[str, ...] = (), names: tuple[str, ...] = ()) -> FilterQP:
+        """The problem with these fields, unchecked: the filters' per-step fast path.
+
+        Same object as ``FilterQP(...)`` would build, without the frozen dataclass's
+        field-by-field ``__init__``.
+        """
+        qp = object.__new__(cls)
+        qp.__dict__.update(u_nom=u_nom, A=A, lb=lb, u_min=u_min, u_max=u_max, kinds=kinds, names=names)
+        return qp
+
     @property
     def m(self) -> int:
         """Number of decision variables."""

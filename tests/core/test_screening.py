@@ -107,7 +107,7 @@ def test_one_kept_row_goes_the_short_way_with_the_same_numbers(alpha, order) -> 
     assert short > 100 and resolves > 0
 
 
-@pytest.mark.parametrize("cls", ["FilterStep", "LieData", "QPResult"])
+@pytest.mark.parametrize("cls", ["FilterStep", "LieData", "QPResult", "FilterQP"])
 def test_fast_constructors_build_the_dataclass_itself(cls) -> None:  # type: ignore[no-untyped-def]
     # _of skips the frozen dataclass's __init__: its parameters must be the fields (names, order,
     # defaults), and it must build an object equal to the dataclass's own, still frozen
@@ -115,9 +115,9 @@ def test_fast_constructors_build_the_dataclass_itself(cls) -> None:  # type: ign
     import inspect
 
     from isf_robot.core.filter_base import FilterStep
-    from isf_robot.core.qp import QPResult
+    from isf_robot.core.qp import FilterQP, QPResult
 
-    kind = {"FilterStep": FilterStep, "LieData": LieData, "QPResult": QPResult}[cls]
+    kind = {"FilterStep": FilterStep, "LieData": LieData, "QPResult": QPResult, "FilterQP": FilterQP}[cls]
     fields = dataclasses.fields(kind)
     params = list(inspect.signature(kind._of).parameters.values())
     assert [p.name for p in params] == [f.name for f in fields]
