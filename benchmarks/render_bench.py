@@ -76,7 +76,8 @@ def main() -> int:
         "|---|---|---|---|---|",
         *rows,
         "",
-        f"Rendering runs on the CPU here (Mesa's llvmpipe, software OpenGL, behind EGL; no GPU). The machine is shared: "
+        "Rendering runs on the CPU here (Mesa's llvmpipe, software OpenGL, behind EGL; no GPU). "
+        "The machine is shared: "
         f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores at the end of the measurement.",
     ])
     write_section(args.out, START, END, body)

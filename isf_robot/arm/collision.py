@@ -244,7 +244,9 @@ class CollisionBarriers:
         Needs the kinematics of the current state, like :meth:`evaluate`.
 
         Args:
-            data, mocap_lin, mocap_ang: As :meth:`evaluate`.
+            data: The MuJoCo data at the state (kinematics computed).
+            mocap_lin: As :meth:`evaluate` (mocap linear velocities, for ``dh/dt``).
+            mocap_ang: As :meth:`evaluate` (mocap angular velocities).
             witness: Also return the witness points (a copy).
             coherence: The run's distance bounds (:meth:`coherence`), for the states of one run
                 in order: pairs they prove beyond the cut-off skip the narrow phase. The rows
@@ -327,8 +329,10 @@ class CollisionBarriers:
         return NearPairs(idx, rows, np.array(hs), g, dhdt, wit, min(hs), min(ds))
 
     def coherence(self) -> JointCoherence | None:
-        """Distance bounds for one run's states, or ``None`` where the joint angles do not
-        capture the geoms' motion (:class:`~isf_robot.arm.broadphase.JointCoherence`)."""
+        """Distance bounds for one run's states (:class:`~isf_robot.arm.broadphase.JointCoherence`).
+
+        ``None`` where the joint angles do not capture the geoms' motion.
+        """
         return JointCoherence.of(self.model, self.broadphase)
 
     def min_distance(self, data: mujoco.MjData) -> Clearance:

@@ -310,8 +310,11 @@ def _d_bar(scene: Scene, d: float) -> list[Finding]:
 
 
 def run_findings(scene: Scene, params: FilterParams) -> list[Finding]:
-    """What a run should warn about before it starts: :func:`check_scene`, then the calibration's
-    findings when ``d_bar`` was calibrated (the cached calibration), else the ``d_bar`` check."""
+    """What a run should warn about before it starts.
+
+    :func:`check_scene`, then the calibration's findings when ``d_bar`` was calibrated (the
+    cached calibration), else the ``d_bar`` check.
+    """
     out = check_scene(scene)
     if params.d_bar_source == "calibration":
         from .calibration import calibrate_d_bar

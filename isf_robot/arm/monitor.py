@@ -55,7 +55,9 @@ class SafetyMonitor:
         return self.tick_min(float(h.min()), near, dist)
 
     def tick_min(self, h_min: float, rows: list[int], dist_min: float) -> float:
-        """:meth:`tick` given its minima: the smallest barrier value over every pair, the pairs
+        """:meth:`tick` given its minima; returns the smallest barrier value.
+
+        The minima: the smallest barrier value over every pair, the pairs
         within the cut-off and their smallest ``h + margin`` (``inf`` when none); returns that.
         """
         self.steps += 1

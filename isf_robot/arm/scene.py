@@ -164,8 +164,11 @@ class Scene:
 
 
 def _torque_limit(model: mujoco.MjModel, a: int) -> float:
-    """Largest joint torque actuator ``a`` can give [N m]: ``forcerange`` x gear, and for a motor
-    (no bias) also ``ctrlrange`` x gain x gear; ``inf`` when unlimited."""
+    """Largest joint torque actuator ``a`` can give [N m].
+
+    ``forcerange`` x gear, and for a motor
+    (no bias) also ``ctrlrange`` x gain x gear; ``inf`` when unlimited.
+    """
     gear = abs(float(model.actuator_gear[a, 0]))
     lim = np.inf
     if model.actuator_forcelimited[a]:

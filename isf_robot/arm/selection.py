@@ -82,6 +82,7 @@ def geom_by_label(model: mujoco.MjModel, label: str) -> int:
 
 
 def body_id(model: mujoco.MjModel, name: str) -> int:
+    """The id of body ``name`` (an error listing the model's bodies when there is none)."""
     b = mujoco.mj_name2id(model, _BODY, name)
     if b < 0:
         raise UnknownNameError("body", name, [_body_name(model, i) for i in range(1, model.nbody)])

@@ -64,7 +64,6 @@ def starter_toml(xml_path: str | Path) -> str:
         raise ConfigError(f"{xml}: no actuator drives a hinge or slide joint; isf-robot needs one "
                           "actuator per arm joint")
     jid = [int(model.joint(j).id) for j in joints]
-    qadr = model.jnt_qposadr[jid]
     dofs = model.jnt_dofadr[jid]
     keys = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, k) or "" for k in range(model.nkey)]
     named = [k for k in keys if k]
@@ -104,7 +103,8 @@ def starter_toml(xml_path: str | Path) -> str:
 
     root = _root(model, int(model.jnt_bodyid[jid[0]]))
     bodies = subtree_bodies(model, root)
-    colliding = [g for b in bodies for g in range(int(model.body_geomadr[b]), int(model.body_geomadr[b] + model.body_geomnum[b]))
+    colliding = [g for b in bodies
+                 for g in range(int(model.body_geomadr[b]), int(model.body_geomadr[b] + model.body_geomnum[b]))
                  if model.geom_contype[g] or model.geom_conaffinity[g]]
     groups = sorted({int(model.geom_group[g]) for g in colliding})
     lines.append(f"# Colliding geoms of the arm (subtree of {_body(model, root)!r}), by body:")

@@ -85,9 +85,12 @@ def grid_points(strategies: Sequence[str], grid: Mapping[str, Sequence[float]]) 
 
 def random_points(strategies: Sequence[str], ranges: Mapping[str, tuple[float, float]], n: int,
                   seed: int = 0) -> list[SweepPoint]:
-    """``n`` points per intermittent strategy drawn uniformly from ``ranges`` (log-uniform for a range
+    """Random sweep points.
+
+    ``n`` points per intermittent strategy drawn uniformly from ``ranges`` (log-uniform for a range
     spanning more than a factor 10 with both ends > 0); other strategies get one point each at the
-    ranges' midpoints of the parameters they use. ``predict_every`` is rounded to a whole number."""
+    ranges' midpoints of the parameters they use. ``predict_every`` is rounded to a whole number.
+    """
     if n < 1:
         raise ConfigError(f"--random must be >= 1, got {n}")
     for k, (lo, hi) in ranges.items():

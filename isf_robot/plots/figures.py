@@ -134,7 +134,8 @@ def compare_figure(runs: Sequence[RunSeries], bars: Sequence[StrategyBars], titl
             ax.set_xlabel("time [s]")
     k = max(len(b.duty_cycle) for b in bars)
     spec = (("duty_cycle", "duty cycle"), ("on_switches", "on switches"),
-            ("intervention", "intervention \u222b|u \u2212 u_nom|\u00b2 dt [rad\u00b2/s]"), ("min_barrier", "min h [m]"))
+            ("intervention", "intervention \u222b|u \u2212 u_nom|\u00b2 dt [rad\u00b2/s]"),
+            ("min_barrier", "min h [m]"))
     for j, (name, label) in enumerate(spec):
         _bars(fig.add_subplot(grid[n, j]), bars, name, label)
     if title:

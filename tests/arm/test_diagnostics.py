@@ -3,11 +3,11 @@ commands init / check / run say so."""
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
+import tomllib
 
 from isf_robot.arm import ArmSimulation, build_scene, calibrate_d_bar, load_scene, load_scene_from_files
 from isf_robot.arm.diagnostics import check_calibration, check_scene, joint_speed_limits
