@@ -15,18 +15,17 @@ back exactly. Outside ``[r_lo + dr, r_hi - dr]`` the exact field is evaluated (s
 The interpolant is continuous except exactly at the poles, where its value depends on the
 longitude of approach by at most about twice the interpolation error.
 
-The grid is generated once (the polyhedron costs a few ms per node) and cached as ``.npz`` in
-:func:`cache_dir`, named by a hash of the mesh, ``GM`` and the grid; the measured accuracy of the
-default grid is in REPRODUCTION.md.
+The grid is generated once (the polyhedron costs a few ms per node: about 23 min for the default
+grid on 2 cores) by ``isf-satellite gravity --table`` and written as ``.npz`` with its provenance;
+the default Itokawa table is committed (``satellite/data/``, loaded by
+:func:`satellite.fields.load_field`). The measured accuracy of the default grid is in REPRODUCTION.md.
 """
 
 from __future__ import annotations
 
-import hashlib
 import io
 import json
 import math
-import os
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -39,19 +38,13 @@ from isf_robot.core.files import write_bytes_atomic
 from satellite.errors import GravityModelError
 from satellite.polyhedron import PolyhedronField
 
-__all__ = ["GravityTable", "TableGrid", "cache_dir", "build_table", "bspline3", "prefilter"]
+__all__ = ["GravityTable", "TableGrid", "build_table", "bspline3", "prefilter"]
 
 TABLE_FORMAT = "isf-satellite-gravity-table/2"
 """/2: cubic B-spline through the node values (/1 was Catmull-Rom and is refused: rebuild it)."""
 
 _GHOSTS = 6
 """Radial ghost nodes (cubic extrapolation) on each side for the prefilter: edge effects ~0.27^6."""
-
-
-def cache_dir() -> Path:
-    """``$ISF_SATELLITE_CACHE``, else ``~/.cache/isf_robot/satellite``."""
-    env = os.environ.get("ISF_SATELLITE_CACHE")
-    return Path(env) if env else Path.home() / ".cache" / "isf_robot" / "satellite"
 
 
 def bspline3(t: Any) -> tuple[Any, Any, Any, Any]:
@@ -328,12 +321,3 @@ def build_table(field: PolyhedronField, grid: TableGrid, r_ref_m: float, *, work
 
         near = build_near_tiles(field, grid, r_cut=near_cut)
     return GravityTable(grid, values, r_ref_m, field.gm, field, provenance, near)
-
-
-def table_key(field: PolyhedronField, grid: TableGrid) -> str:
-    """Hash naming a cached table: the mesh, ``GM`` and the grid."""
-    h = hashlib.sha256()
-    h.update(np.ascontiguousarray(field.vertices).tobytes())
-    h.update(np.ascontiguousarray(field.faces).tobytes())
-    h.update(json.dumps({"gm": field.gm, **grid.describe(), "format": TABLE_FORMAT}).encode())
-    return h.hexdigest()[:16]

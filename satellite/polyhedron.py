@@ -236,21 +236,6 @@ class FacePatch:
             raise GravityModelError(f"face mask must have shape ({len(field.faces)},), got {m.shape}")
         return cls(field.vertices[field.faces[m]], field.g_rho)
 
-    def face_terms(self, x: NDArray[np.float64], sel: NDArray[np.intp] | slice = slice(None)) -> NDArray[np.float64]:
-        """``s_f`` with ``a_f = G rho s_f n_f`` at one point ``x`` [m], for the faces ``sel``."""
-        r = self.triangles[sel] - x
-        rn = np.sqrt(np.einsum("fvi,fvi->fv", r, r))
-        r0, r1, r2 = r[:, 0], r[:, 1], r[:, 2]
-        l0, l1, l2 = rn[:, 0], rn[:, 1], rn[:, 2]
-        num = np.einsum("fi,fi->f", r0, np.cross(r1, r2))
-        den = (l0 * l1 * l2 + l0 * np.einsum("fi,fi->f", r1, r2) + l1 * np.einsum("fi,fi->f", r2, r0)
-               + l2 * np.einsum("fi,fi->f", r0, r1))
-        w = 2.0 * np.arctan2(num, den)
-        ab = rn + np.roll(rn, -1, axis=1)
-        ln = self._len[sel]
-        le = np.log((ab + ln) / (ab - ln))
-        return np.einsum("fi,fi->f", self.normals[sel], r0) * w - np.einsum("fei,fei,fe->f", self._en[sel], r, le)
-
     def acceleration(self, points: ArrayLike, chunk: int = 128) -> NDArray[np.float64]:
         """Acceleration [m/s^2] of these faces at points [m], shape (N, 3) -> (N, 3) (chunks of points)."""
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
