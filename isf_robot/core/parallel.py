@@ -1,11 +1,22 @@
-"""Running a batch of independent tasks, here or in worker processes, that stops cleanly.
+"""Running a batch of independent tasks, here, in worker processes or on Ray, that stops cleanly.
 
 :func:`run_tasks` is the one loop behind every command that runs many episodes (``compare``,
-``sweep``, the satellite study). With ``jobs > 1`` the tasks run in ``spawn`` worker processes
-that ignore SIGINT: Ctrl-C (to the parent or to the whole process group) and SIGTERM reach the
-parent only, which terminates every worker at once and raises :class:`Interrupted` carrying the
-tasks that did finish, so the caller can report them marked as partial. No worker is left
-behind, and a worker's error stops the batch with that error.
+``sweep``, the satellite study). Backends (:data:`BACKENDS`):
+
+* ``processes`` (default): with ``jobs > 1`` the tasks run in ``spawn`` worker processes that
+  ignore SIGINT: Ctrl-C (to the parent or to the whole process group) and SIGTERM reach the
+  parent only, which terminates every worker at once and raises :class:`Interrupted` carrying
+  the tasks that did finish, so the caller can report them marked as partial. No worker is left
+  behind, and a worker's error stops the batch with that error.
+* ``ray`` (optional extra ``ray``): each task is a Ray task with one CPU, at most ``jobs`` in
+  flight. Without ``address`` a local Ray instance with ``jobs`` CPUs is started for the batch
+  and shut down after it; with ``address`` (``"auto"`` or ``"HOST:PORT"``) the batch joins that
+  cluster, whose nodes must have this package importable. Ctrl-C / SIGTERM cancel the pending
+  tasks (force) and raise :class:`Interrupted` with what finished, as above; a task's error is
+  re-raised as itself (not Ray's wrapper).
+
+Tasks are matched to results by their index, so a backend returns the same ``(task, result)``
+pairs as any other; only the completion order may differ.
 """
 
 from __future__ import annotations
@@ -16,13 +27,20 @@ import signal
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
-__all__ = ["Interrupted", "Terminated", "run_tasks", "MAX_JOBS"]
+from .exceptions import ConfigError
+
+__all__ = ["Interrupted", "Terminated", "run_tasks", "MAX_JOBS", "BACKENDS", "check_backend"]
 
 T = TypeVar("T")
 R = TypeVar("R")
 
 MAX_JOBS = 256
 """Most worker processes :func:`run_tasks` starts."""
+
+BACKENDS: tuple[str, ...] = ("processes", "ray")
+"""Where :func:`run_tasks` runs the tasks (``--backend`` of the commands that use it)."""
+
+RAY_MISSING = "the ray backend needs Ray: pip install 'isf-robot[ray]' (or use --backend processes)"
 
 
 class Terminated(KeyboardInterrupt):
@@ -55,29 +73,60 @@ def _indexed(fn: Callable[[Any], Any], item: tuple[int, Any]) -> tuple[int, Any]
     return item[0], fn(item[1])
 
 
+def check_backend(backend: str, address: str | None = None) -> None:
+    """Check a backend name (and that Ray is importable for ``ray``) before any task runs.
+
+    Raises:
+        ConfigError: Unknown backend, ``address`` without ``ray``, or Ray not installed.
+
+    """
+    if backend not in BACKENDS:
+        raise ConfigError(f"unknown backend {backend!r}; valid backends: {', '.join(BACKENDS)}")
+    if address is not None and backend != "ray":
+        raise ConfigError("--address goes with --backend ray (the address of a Ray cluster)")
+    if backend == "ray":
+        _import_ray()
+
+
+def _import_ray() -> Any:
+    try:
+        import ray
+    except ImportError:
+        raise ConfigError(RAY_MISSING) from None
+    return ray
+
+
 def run_tasks(
     fn: Callable[[T], R],
     tasks: Sequence[T],
     *,
     jobs: int = 1,
     on_result: Callable[[int, int, T, R], None] | None = None,
+    backend: str = "processes",
+    address: str | None = None,
 ) -> list[tuple[T, R]]:
     """Run ``fn(task)`` for every task and return ``(task, result)`` in completion order.
 
     Args:
-        fn: A module-level (picklable) function when ``jobs > 1``.
+        fn: A module-level (picklable) function when ``jobs > 1`` or on Ray.
         tasks: Picklable tasks.
-        jobs: Worker processes (1: run here, in order).
+        jobs: Worker processes (1: run here, in order), or Ray tasks in flight.
         on_result: Called as ``on_result(done, total, task, result)`` after each task.
+        backend: One of :data:`BACKENDS`.
+        address: Ray cluster to join (``ray`` only); default a local instance with ``jobs`` CPUs.
 
     Raises:
+        ConfigError: Bad backend (see :func:`check_backend`).
         Interrupted: Ctrl-C or SIGTERM (as :class:`Terminated`) arrived; ``done`` holds what
-            finished. Workers are terminated before it is raised.
+            finished. Workers are terminated (Ray tasks cancelled) before it is raised.
         Exception: A task's own error (the other workers are terminated first).
 
     """
+    check_backend(backend, address)
     tasks = list(tasks)
     jobs = int(jobs)
+    if not 1 <= jobs <= MAX_JOBS:
+        raise ConfigError(f"jobs must be between 1 and {MAX_JOBS}, got {jobs}")
     done: list[tuple[T, R]] = []
 
     def keep(task: T, result: R) -> None:
@@ -86,7 +135,9 @@ def run_tasks(
             on_result(len(done), len(tasks), task, result)
 
     try:
-        if jobs <= 1 or len(tasks) <= 1:
+        if backend == "ray":
+            _run_ray(fn, tasks, jobs, address, keep)
+        elif jobs <= 1 or len(tasks) <= 1:
             for task in tasks:
                 keep(task, fn(task))
         else:
@@ -106,3 +157,44 @@ def run_tasks(
     except KeyboardInterrupt as exc:
         raise Interrupted(done, terminated=isinstance(exc, Terminated)) from None
     return done
+
+
+def _run_ray(fn: Callable[[Any], Any], tasks: list[Any], jobs: int, address: str | None,
+             keep: Callable[[Any, Any], None]) -> None:
+    """The Ray backend of :func:`run_tasks`: at most ``jobs`` tasks in flight, results by index."""
+    ray = _import_ray()
+    started = not ray.is_initialized()
+    if started:
+        opts: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False, "logging_level": "error"}
+        if address is None:
+            ray.init(num_cpus=jobs, **opts)
+        else:
+            ray.init(address=address, **opts)
+    remote = ray.remote(num_cpus=1, max_retries=0)(_indexed)
+    pending: list[Any] = []
+    try:
+        nxt = 0
+        while nxt < len(tasks) or pending:
+            while nxt < len(tasks) and len(pending) < jobs:
+                pending.append(remote.remote(fn, (nxt, tasks[nxt])))
+                nxt += 1
+            ready, pending = ray.wait(pending, num_returns=1)
+            for ref in ready:
+                try:
+                    i, result = ray.get(ref)
+                except ray.exceptions.RayTaskError as exc:
+                    cause = getattr(exc, "cause", None)
+                    if isinstance(cause, BaseException):
+                        raise cause from None
+                    raise
+                keep(tasks[i], result)
+    except BaseException:
+        for ref in pending:
+            try:
+                ray.cancel(ref, force=True)
+            except Exception:  # noqa: BLE001 - already finished or gone
+                pass
+        raise
+    finally:
+        if started:
+            ray.shutdown()
