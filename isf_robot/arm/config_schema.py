@@ -178,6 +178,8 @@ class FilterConfig:
         min_off: Asked-for shortest off period of the intermittent filter [s] (0: the fixed margin ``c``).
         blend: Hand-over time of the intermittent filter after each switch [s] (0: none).
         horizon: Horizon of its predictive off trigger [s] (0: none).
+        c_pred: Its off margin when the rollout predicts the nominal safe over the horizon (0: none,
+            off at ``c``; needs ``horizon > 0``).
 
     """
 
@@ -188,6 +190,7 @@ class FilterConfig:
     min_off: float = 0.0
     blend: float = 0.0
     horizon: float = 0.0
+    c_pred: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -288,6 +288,7 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
         min_off=f.number("min_off", df.min_off, nonneg=True),
         blend=f.number("blend", df.blend, nonneg=True),
         horizon=f.number("horizon", df.horizon, nonneg=True),
+        c_pred=f.number("c_pred", df.c_pred, nonneg=True),
     )
     f.finish()
 

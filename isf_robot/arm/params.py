@@ -42,6 +42,7 @@ def resolve_params(
     blend: float | None = None,
     horizon: float | None = None,
     predict_every: int | None = None,
+    c_pred: float | None = None,
 ) -> FilterParams:
     """The filter parameters of a run on ``scene``: arguments first, then ``[filter]`` of the config.
 
@@ -58,6 +59,8 @@ def resolve_params(
         blend: Hand-over time after each switch [s]; default ``[filter] blend`` (0: none).
         horizon: Horizon of the predictive off trigger [s]; default ``[filter] horizon`` (0: none).
         predict_every: Control steps between its rollouts (``None``: 5).
+        c_pred: Off margin when the rollout predicts the nominal safe over the horizon (``0 < c_pred <= c``);
+            default ``[filter] c_pred`` (0: none, the prediction only delays the off switch at ``c``).
 
     Raises:
         ConfigError: A parameter is not a positive number (``d_bar``: not >= 0), or ``d_bar``
@@ -75,7 +78,15 @@ def resolve_params(
     min_off = (fc.min_off or None) if min_off is None else min_off  # the scene's [filter] when not given
     blend = fc.blend if blend is None else blend
     horizon = fc.horizon if horizon is None else horizon
+    c_pred = (fc.c_pred or None) if c_pred is None else c_pred
     opts = _options(cc, min_off, c_max, blend, horizon, predict_every)
+    if c_pred is not None:
+        c_pred = _positive("c_pred", c_pred)
+        if c_pred > cc:
+            raise ConfigError(f"filter parameter c_pred must be <= c = {cc}, got {c_pred}")
+        if not opts.get("horizon", 0.0) > 0:
+            raise ConfigError("filter parameter c_pred needs the predictive off trigger: a horizon > 0 [s]")
+        opts["c_pred"] = c_pred
     if d_bar is not None:
         if not (math.isfinite(d_bar) and d_bar >= 0):
             raise ConfigError(f"d_bar must be >= 0 [rad/s], got {d_bar}")

@@ -21,7 +21,7 @@ from isf_robot.core.strategies import strategy_info
 
 __all__ = ["ArmStepRecord", "FilterParams", "RunResult", "INTERMITTENT_KEYS"]
 
-INTERMITTENT_KEYS = ("min_off", "c_max", "blend", "horizon", "predict_every")
+INTERMITTENT_KEYS = ("min_off", "c_max", "blend", "horizon", "predict_every", "c_pred")
 """Keys of :meth:`FilterParams.as_dict` that only an intermittent strategy uses."""
 
 
@@ -106,6 +106,8 @@ class FilterParams:
         blend: Hand-over time after each switch [s] (0: none).
         horizon: Horizon of the predictive off trigger [s] (0: off at ``Xi_on >= c`` at once).
         predict_every: Control steps between rollouts of the predictive off trigger.
+        c_pred: Off margin when the rollout predicts the nominal safe over the horizon (``None``:
+            the prediction only delays the off switch at ``c``; needs ``horizon > 0``).
 
     """
 
@@ -119,11 +121,15 @@ class FilterParams:
     blend: float = 0.0
     horizon: float = 0.0
     predict_every: int = 5
+    c_pred: float | None = None
 
     def intermittent_options(self) -> dict[str, Any]:
         """Keyword arguments of the intermittent filter besides ``alpha, c, b, d_bar`` (no rollout)."""
-        return {"min_off": self.min_off, "c_max": self.c_max, "blend": self.blend,
-                "predict_every": self.predict_every}
+        out = {"min_off": self.min_off, "c_max": self.c_max, "blend": self.blend,
+               "predict_every": self.predict_every}
+        if self.c_pred is not None:
+            out["c_pred"] = self.c_pred
+        return out
 
     @property
     def class_k(self) -> ClassK:
@@ -142,6 +148,8 @@ class FilterParams:
             out["blend"] = self.blend
         if self.horizon > 0:
             out.update(horizon=self.horizon, predict_every=self.predict_every)
+        if self.c_pred is not None:
+            out["c_pred"] = self.c_pred
         return out
 
 

@@ -64,10 +64,14 @@ def _add_intermittent_args(p: argparse.ArgumentParser) -> None:
                         "q_dot = u_nom(q), keeps every Xi_on > 0")
     g.add_argument("--predict-every", type=int, default=None, metavar="K",
                    help="control steps between rollouts of the predictive off trigger (default 5)")
+    g.add_argument("--c-pred", type=float, default=None, metavar="C",
+                   help="off margin when the rollout predicts the nominal safe over the horizon "
+                        "(0 < C <= c; off as soon as it is predicted safe instead of at Xi_on >= c)")
 
 
 def _intermittent_kwargs(args: argparse.Namespace) -> dict[str, Any]:
-    return {k: getattr(args, k, None) for k in ("min_off", "c_max", "blend", "horizon", "predict_every")}
+    return {k: getattr(args, k, None) for k in ("min_off", "c_max", "blend", "horizon", "predict_every",
+                                                   "c_pred")}
 
 
 def _params(args: argparse.Namespace, scene: Any) -> dict[str, Any]:

@@ -21,7 +21,8 @@ from isf_robot.core.strategies import strategy_names
 __all__ = ["register"]
 
 _FLAGS = {"alpha": "--alpha", "c": "--c", "b": "--b", "min_off": "--min-off", "c_max": "--c-max",
-          "blend": "--blend", "horizon": "--horizon", "predict_every": "--predict-every"}
+          "blend": "--blend", "horizon": "--horizon", "predict_every": "--predict-every",
+          "c_pred": "--c-pred"}
 
 
 def register(subparsers: Any) -> None:

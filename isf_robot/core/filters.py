@@ -130,6 +130,10 @@ class IntermittentSafetyFilter(_FilterBase):
             (:data:`~isf_robot.core.intermittent.RolloutFn`); ``None``: off at ``Xi_on >= c``.
         predict_every: Control steps between rollouts while the off condition holds, >= 1.
         blend: Hand-over time [s] after each switch (0: the command steps at switches).
+        c_pred: Off margin when the rollout predicts the nominal safe (``0 < c_pred <= c``; needs
+            ``rollout``): the filter turns off as soon as every ``Xi_on >= c_pred`` and the rollout
+            predicts every ``Xi_on > 0`` over its horizon, instead of pushing on to ``Xi_on >= c``
+            (``None``: the prediction only delays the off switch at ``c``).
 
     """
 
@@ -159,6 +163,7 @@ class IntermittentSafetyFilter(_FilterBase):
         rollout: RolloutFn | None = None,
         predict_every: int = 5,
         blend: float = 0.0,
+        c_pred: float | None = None,
     ) -> None:
         super().__init__(alpha, d_bar, system=system, barriers=barriers, u_min=u_min, u_max=u_max,
                          solver=solver, on_infeasible=on_infeasible, fallback=fallback, validate=validate,
@@ -172,7 +177,13 @@ class IntermittentSafetyFilter(_FilterBase):
         self.fall_rate = FallRateBound(fall_rate_prior, fall_rate_forget)
         self.predictor = None if rollout is None else OffPredictor(rollout, predict_every)
         self.blend = check_nonnegative(blend, "blend (hand-over time) [s]")
-        self.trigger = OnOffTrigger(self.c, t0)
+        self.c_pred = None if c_pred is None else check_positive(c_pred, "c_pred (predicted-safe off margin)")
+        if self.c_pred is not None:
+            if self.predictor is None:
+                raise ConfigError("c_pred (predicted-safe off margin) needs a rollout (the predictive off trigger)")
+            if self.c_pred > self.c:
+                raise ConfigError(f"c_pred must be <= c = {self.c}, got {self.c_pred}")
+        self.trigger = OnOffTrigger(self.c if self.c_pred is None else self.c_pred, t0)
         self.reset(t0)
 
     @property
@@ -212,13 +223,16 @@ class IntermittentSafetyFilter(_FilterBase):
         was_on = self.trigger.on
         self.fall_rate.observe(t, xi_min, not was_on)
         c = self.margin()
+        gate = c if self.c_pred is None else min(c, self.c_pred)  # off needs every Xi_on >= gate
         pred, ran = None, False
         if self.predictor is not None:
-            if was_on and xi_min >= c:
+            if was_on and xi_min >= gate:
                 pred, ran = self.predictor.check(t, x, self.alpha, self.d_bar)
             else:
                 self.predictor.idle()
         held = pred is not None and not pred.ok
+        if pred is not None and pred.ok:
+            c = gate  # predicted safe over the horizon: off at the lower margin
         event = self.trigger.update(t, xi_min, c, not held)
         bound = None
         if event is not None:

@@ -19,7 +19,12 @@ default, so a filter built without them behaves exactly as before):
   ``alpha`` and ``d_bar`` (:func:`~isf_robot.core.triggers.xi_on`: the formula lives once), and
   turns off only if every predicted ``Xi_on > 0``. Rows predicted to fail are promoted while the
   filter stays on, steering toward states with a longer off time. The prediction only *delays*
-  switching off; the on trigger is monitored exactly as before, so Theorem 1 is untouched. The
+  switching off at ``c``; with ``c_pred < c`` (the filter's option) it may also switch off *early*, at
+  every ``Xi_on >= c_pred``, when the rollout predicts every ``Xi_on > 0`` over the horizon, so the
+  promotion stops as soon as the nominal is predicted safe instead of pushing on to ``c``. Either way
+  the on trigger is monitored exactly as before and the robust condition is enforced whenever it
+  binds, so Theorem 1 is untouched (``c_pred > 0`` keeps the hysteresis; the off period's length now
+  rests on the prediction, and the measured off periods are reported). The
   rollout runs at most once every ``every`` control steps (its cost per step is bounded).
 * **A smooth hand-over** (:func:`blend_weight`). For ``blend`` seconds after an off switch the
   command moves linearly from the last filtered command to the nominal one, projected onto the

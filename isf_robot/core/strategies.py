@@ -35,7 +35,7 @@ __all__ = [
 ]
 
 INTERMITTENT_OPTIONS = ("min_off", "c_max", "fall_rate_prior", "fall_rate_forget", "rollout", "predict_every",
-                        "blend")
+                        "blend", "c_pred")
 """Keyword arguments only an intermittent strategy takes (designed off periods, the predictive off
 trigger, the hand-over; :class:`~isf_robot.core.filters.IntermittentSafetyFilter`). :func:`make_strategy`
 drops them for the other strategies, so one set of options serves a comparison."""

@@ -113,7 +113,8 @@ def test_min_off_is_capped_at_what_a_pair_at_the_cutoff_can_reach(planar):
 @pytest.mark.parametrize("kw, match", [
     (dict(min_off=0.0), "min_off"), (dict(c_max=1e-6), "c_max"), (dict(blend=-1.0), "blend"),
     (dict(horizon=math.nan), "horizon"), (dict(predict_every=0), "predict_every"),
-    (dict(predict_every=1.5), "predict_every"),
+    (dict(predict_every=1.5), "predict_every"), (dict(c_pred=0.01), "c_pred needs the predictive off"),
+    (dict(c_pred=0.5, horizon=0.2), "c_pred must be <= c"), (dict(c_pred=-0.01, horizon=0.2), "c_pred"),
 ])
 def test_bad_intermittent_options_are_refused(planar, kw, match):
     with pytest.raises(ConfigError, match=match):
@@ -130,3 +131,14 @@ def test_scene_filter_table_gives_the_defaults_and_arguments_override_them(plana
     assert (q.blend, q.horizon) == (0.0, 0.0) and "horizon" not in q.as_dict()
     r = resolve_params(planar, d_bar=0.05)
     assert (r.blend, r.horizon, r.min_off) == (0.0, 0.0, None)  # a scene without them: off
+
+
+def test_c_pred_reaches_the_filter_and_the_result_on_the_arm(planar_moving):
+    p = resolve_params(planar_moving, d_bar=0.05, horizon=0.15, c_pred=0.01)
+    sim = ArmSimulation(planar_moving, "isf", seed=3, params=p)
+    assert sim.strategy.c_pred == 0.01 and sim.strategy.trigger.c == 0.01
+    res = sim.run(2.0)
+    assert res.collisions == 0 and res.min_barrier >= 0
+    assert res.as_dict()["c_pred"] == 0.01
+    assert not hasattr(ArmSimulation(planar_moving, "cbf", seed=3, params=p).strategy, "c_pred")
+    assert "c_pred" not in resolve_params(planar_moving, d_bar=0.05).as_dict()

@@ -1,0 +1,270 @@
+"""Randomized stress benchmark of the safety filters on the arm scenes (issue 13), written to RESULTS.md.
+
+    nice -n 19 python benchmarks/stress_bench.py [--episodes 1000] [--duration 3] [--jobs 2]
+        [--scenes panda_pole panda_shelf panda_moving panda_servo] [--strategies cbf isf]
+        [--seed 0] [--output stress.json] [--no-write]
+
+``--episodes`` episodes per strategy, spread evenly over the scenes. Episode ``i`` of a scene is one
+random draw (:func:`draw`), from the generator seeded with ``(seed, scene index, i)``, so every strategy
+runs on the same perturbed scene, goals, start and obstacle phase (paired), and the same command gives
+the same draws. The ranges (:data:`RANGES`):
+
+* every static obstacle (a geom on the world body, or a non-mocap obstacle body) shifted by a uniform
+  offset in ``[-0.05, 0.05]^3`` m; every moving obstacle's path shifted likewise;
+* every goal shifted by a uniform offset in ``[-0.08, 0.08]^3`` m, on top of the seed's own jitter
+  (start ``home + N(0, 0.05^2)`` rad per joint, goals +-3 cm in x and y, a random obstacle phase;
+  :func:`~isf_robot.arm.episode.episode_setup`); a draw whose start is not safe is drawn again;
+* filter parameters: ``alpha`` uniform in [2, 10] 1/s (both strategies, the same value); for isf
+  ``c`` in [0.02, 0.15], ``b`` in [0.005, 0.05], ``blend`` in [0, 0.1] s, ``horizon`` in
+  [0.1, 0.4] s with probability 3/4 (else no predictive off trigger) and, when there is a horizon,
+  ``c_pred`` in [0.005, c] with probability 1/2; ``d_bar`` the scene's calibrated value.
+
+Safety is judged on the true geometry at every physics step (:mod:`isf_robot.arm.monitor`): a
+violation is a physics step with some pair's ``distance - margin < 0``. An episode that raises an
+:class:`~isf_robot.core.exceptions.IsfError` counts as a failure (kept, with its message). Progress
+goes to stderr; Ctrl-C stops the workers and keeps (reports and writes) the finished episodes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import datetime as _dt
+import json
+import math
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from _common import cpu_model, write_section  # noqa: E402
+
+from isf_robot.arm import ArmSimulation, Scene, load_scene  # noqa: E402
+from isf_robot.arm.compare import json_safe  # noqa: E402
+from isf_robot.arm.episode import episode_setup  # noqa: E402
+from isf_robot.arm.params import resolve_params  # noqa: E402
+from isf_robot.core.exceptions import IsfError  # noqa: E402
+from isf_robot.core.files import write_text_atomic  # noqa: E402
+from isf_robot.core.parallel import Interrupted, run_tasks  # noqa: E402
+
+START, END = "<!-- stress_bench:start -->", "<!-- stress_bench:end -->"
+SCENES = ("panda_pole", "panda_shelf", "panda_moving", "panda_servo")
+RANGES: dict[str, Any] = {
+    "obstacle_offset_m": 0.05, "goal_offset_m": 0.08, "alpha": (2.0, 10.0), "c": (0.02, 0.15),
+    "b": (0.005, 0.05), "blend": (0.0, 0.1), "horizon": (0.1, 0.4), "p_horizon": 0.75, "c_pred_lo": 0.005,
+    "p_c_pred": 0.5,
+}
+MAX_REDRAWS = 20
+
+
+def draw(scene: Scene, seed: int, scene_index: int, i: int) -> dict[str, Any]:
+    """The random draw of episode ``i`` of a scene: offsets, goals and filter parameters (plain values)."""
+    rng = np.random.default_rng([seed, scene_index, i])
+    r = RANGES
+    units = _obstacle_units(scene)
+    d: dict[str, Any] = {
+        "obstacles": {k: rng.uniform(-r["obstacle_offset_m"], r["obstacle_offset_m"], 3).tolist() for k in units},
+        "moving": [rng.uniform(-r["obstacle_offset_m"], r["obstacle_offset_m"], 3).tolist()
+                   for _ in scene.config.moving],
+        "goals": rng.uniform(-r["goal_offset_m"], r["goal_offset_m"], scene.goal_positions.shape).tolist(),
+        "alpha": float(rng.uniform(*r["alpha"])),
+    }
+    isf = {"c": float(rng.uniform(*r["c"])), "b": float(rng.uniform(*r["b"])),
+           "blend": float(rng.uniform(*r["blend"])), "horizon": 0.0}
+    if rng.uniform() < r["p_horizon"]:
+        isf["horizon"] = float(rng.uniform(*r["horizon"]))
+        if rng.uniform() < r["p_c_pred"]:
+            isf["c_pred"] = float(rng.uniform(r["c_pred_lo"], isf["c"]))
+    d["isf"] = isf
+    return d
+
+
+def _obstacle_units(scene: Scene) -> list[str]:
+    """What a draw shifts: ``geom:<id>`` for obstacle geoms on the world body, ``body:<id>`` for other
+    static obstacle bodies (mocap bodies move along their paths instead)."""
+    m = scene.model
+    out: list[str] = []
+    for g in scene.obstacle_geom_ids.tolist():
+        body = int(m.geom_bodyid[g])
+        key = f"geom:{g}" if body == 0 else f"body:{body}"
+        if (body == 0 or int(m.body_mocapid[body]) < 0) and key not in out:
+            out.append(key)
+    return out
+
+
+def perturbed(scene: Scene, d: dict[str, Any]) -> Scene:
+    """``scene`` (freshly loaded: its model is changed in place) with the draw's offsets and goals."""
+    m = scene.model
+    for key, off in d["obstacles"].items():
+        kind, idx = key.split(":")
+        arr = m.geom_pos if kind == "geom" else m.body_pos
+        arr[int(idx)] += np.asarray(off)
+    moving = []
+    for mv, off in zip(scene.config.moving, d["moving"]):
+        p = mv.path
+        shift = np.asarray(off)
+        if hasattr(p, "center"):
+            p = dataclasses.replace(p, center=tuple((np.asarray(p.center) + shift).tolist()))
+        else:
+            p = dataclasses.replace(p, start=tuple((np.asarray(p.start) + shift).tolist()),
+                                    end=tuple((np.asarray(p.end) + shift).tolist()))
+        moving.append(dataclasses.replace(mv, path=p))
+    cfg = dataclasses.replace(scene.config, moving=tuple(moving))
+    return dataclasses.replace(scene, config=cfg, goal_positions=scene.goal_positions + np.asarray(d["goals"]))
+
+
+def run_one(task: dict[str, Any]) -> dict[str, Any]:
+    """Run one episode (a worker's function); failures are returned, not raised."""
+    out: dict[str, Any] = {"scene": task["scene"], "strategy": task["strategy"], "index": task["index"]}
+    t0 = time.perf_counter()
+    base = load_scene(task["scene"])
+    redraws, d = 0, None
+    for redraws in range(MAX_REDRAWS):  # a draw whose start is not safe is drawn again
+        d = draw(base, task["seed"], task["scene_index"], task["index"] + 100_000 * redraws)
+        scene = perturbed(load_scene(task["scene"]), d)
+        try:
+            episode_setup(scene, task["index"])
+            break
+        except IsfError:
+            continue
+    else:
+        out.update(failure=f"no safe start in {MAX_REDRAWS} draws", wall_s=time.perf_counter() - t0)
+        return out
+    assert d is not None
+    values = dict(d["isf"]) if task["strategy"] == "isf" else {}
+    try:
+        params = resolve_params(scene, alpha=d["alpha"], d_bar=task["d_bar"], **values)
+        res = ArmSimulation(scene, task["strategy"], seed=task["index"], params=params).run(task["duration"])
+        out.update(json_safe(res.as_dict()))
+        out.pop("timings", None)
+    except IsfError as exc:
+        out["failure"] = f"{type(exc).__name__}: {exc}".splitlines()[0][:300]
+    out.update(redraws=redraws, draw={"alpha": d["alpha"], **values}, wall_s=time.perf_counter() - t0)
+    return out
+
+
+def _fmt(v: float, spec: str) -> str:
+    return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, spec)
+
+
+def summarize(results: list[dict[str, Any]], scenes: list[str], strategies: list[str]) -> list[dict[str, Any]]:
+    """One row per scene and strategy (and one over all scenes)."""
+    rows = []
+    for sc in scenes + ["all"]:
+        for st in strategies:
+            rs = [r for r in results if r["strategy"] == st and (sc == "all" or r["scene"] == sc)]
+            if not rs:
+                continue
+            ok = [r for r in rs if "failure" not in r]
+
+            def mean(k: str, rows_: list[dict[str, Any]] = ok) -> float:
+                vals = [float(r[k]) for r in rows_ if r.get(k) is not None]
+                return statistics.fmean(vals) if vals else float("nan")
+
+            offs = [float(r["min_off_s"]) for r in ok if r.get("min_off_s") is not None]
+            rows.append({
+                "scene": sc, "strategy": st, "episodes": len(rs), "failures": len(rs) - len(ok),
+                "violation_episodes": sum(1 for r in ok if int(r["collisions"]) > 0),
+                "violation_steps": sum(int(r["collisions"]) for r in ok),
+                "min_clearance_m": min((float(r["min_barrier"]) for r in ok), default=float("nan")),
+                "duty": mean("duty_cycle"), "switches": mean("on_switches"),
+                "min_off_s": min(offs) if offs else float("nan"),
+                "goals": mean("goals_reached"), "intervention": mean("intervention"),
+                "fallback_episodes": sum(1 for r in ok if int(r["fallbacks"]) > 0),
+                "fallback_steps": sum(int(r["fallbacks"]) for r in ok),
+                "relaxations": sum(int(r["relaxations"]) for r in ok),
+                "d_bar_covered": sum(1 for r in ok if r.get("d_bar_covered")) / max(1, len(ok)),
+                "err_q99": mean("tracking_error_q99"), "wall_s": mean("wall_s", rs),
+            })
+    return rows
+
+
+def table(rows: list[dict[str, Any]]) -> str:
+    head = ("| scene | strategy | episodes | failures | violations (episodes / steps) | min true clearance [m] | "
+            "duty | on-switches | shortest off [s] | goals | intervention | fallbacks (episodes / steps) | "
+            "relaxations | d_bar covered | err q99 [rad/s] | wall/episode [s] |")
+    lines = [head, "|" + "---|" * (head.count("|") - 1)]
+    for r in rows:
+        lines.append(
+            f"| {r['scene']} | {r['strategy']} | {r['episodes']} | {r['failures']} | {r['violation_episodes']} / "
+            f"{r['violation_steps']} | {_fmt(r['min_clearance_m'], '.4f')} | {_fmt(r['duty'], '.3f')} | "
+            f"{_fmt(r['switches'], '.2f')} | {_fmt(r['min_off_s'], '.3f')} | {_fmt(r['goals'], '.2f')} | "
+            f"{_fmt(r['intervention'], '.3f')} | {r['fallback_episodes']} / {r['fallback_steps']} | "
+            f"{r['relaxations']} | {r['d_bar_covered'] * 100:.0f}% | {_fmt(r['err_q99'], '.3f')} | "
+            f"{_fmt(r['wall_s'], '.2f')} |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--episodes", type=int, default=1000, help="episodes per strategy (over all scenes)")
+    ap.add_argument("--duration", type=float, default=3.0, help="simulated time per episode [s]")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--scenes", nargs="+", default=list(SCENES))
+    ap.add_argument("--strategies", nargs="+", default=["cbf", "isf"])
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--output", type=Path, default=None, help="write every episode's result here (JSON)")
+    ap.add_argument("--no-write", action="store_true", help="do not write RESULTS.md")
+    args = ap.parse_args()
+    if args.episodes < 1 or not (args.duration > 0) or args.jobs < 1:
+        ap.error("--episodes and --jobs must be >= 1 and --duration > 0")
+    per_scene = -(-args.episodes // len(args.scenes))
+    d_bars = {sc: resolve_params(load_scene(sc)).d_bar for sc in args.scenes}  # calibrated once per scene
+    tasks = [{"scene": sc, "scene_index": j, "strategy": st, "index": i, "seed": args.seed,
+              "duration": args.duration, "d_bar": d_bars[sc]}
+             for i in range(per_scene) for j, sc in enumerate(args.scenes) for st in args.strategies]
+    t0 = time.time()
+    started = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+
+    def progress(done: int, total: int, task: dict[str, Any], r: dict[str, Any]) -> None:
+        if "failure" in r:
+            msg = f"FAILED {r['failure'][:100]}"
+        else:
+            msg = (f"viol {r['collisions']}, min h {r['min_barrier']:.4f}, duty {r['duty_cycle']:.3f}, "
+                   f"switches {r['on_switches']}, goals {r['goals_reached']}")
+        eta = (time.time() - t0) / done * (total - done)
+        print(f"[{done}/{total}] {task['scene']} {task['strategy']} #{task['index']}: {msg}, "
+              f"{r['wall_s']:.1f} s (eta {eta / 60:.0f} min)", file=sys.stderr, flush=True)
+
+    partial = False
+    try:
+        done = run_tasks(run_one, tasks, jobs=args.jobs, on_result=progress)
+    except Interrupted as exc:
+        done, partial = exc.done, True
+        print(f"interrupted: keeping {len(done)} finished episode(s)", file=sys.stderr)
+    results = [r for _, r in done]
+    wall = time.time() - t0
+    rows = summarize(results, list(args.scenes), list(args.strategies))
+    load = os.getloadavg()
+    if args.output is not None:
+        write_text_atomic(args.output, json.dumps(
+            {"schema": "isf-robot-stress/1", "partial": partial, "ranges": RANGES, "args": {
+                k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
+             "d_bar": d_bars, "wall_s": wall, "summary": rows, "episodes": results}, indent=1))
+    cmd = ("nice -n 19 python benchmarks/stress_bench.py " + " ".join(
+        [f"--episodes {args.episodes}", f"--duration {args.duration:g}", f"--jobs {args.jobs}",
+         "--scenes " + " ".join(args.scenes), "--strategies " + " ".join(args.strategies), f"--seed {args.seed}"]))
+    body = "\n".join([
+        "", f"`{cmd}`", "",
+        f"Started {started} on {cpu_model()} ({os.cpu_count()} logical CPUs, shared), {len(results)} of "
+        f"{len(tasks)} episodes{' (interrupted: partial)' if partial else ''}, {args.duration:g} s each, "
+        f"{wall / 60:.1f} min wall in all, load average at the end {load[0]:.1f}. d_bar per scene (calibrated): "
+        + ", ".join(f"{k} {v:.4f}" for k, v in d_bars.items()) + " rad/s. Ranges: see the script's docstring.",
+        "", table(rows), ""])
+    print(body)
+    if not args.no_write:
+        write_section(ROOT / "RESULTS.md", START, END, body, write_text_atomic)
+    if partial:
+        sys.exit(130)
+
+
+if __name__ == "__main__":
+    main()
