@@ -10,18 +10,46 @@ import time
 from collections.abc import Mapping
 from typing import Any, TextIO
 
-from isf_robot.core import ConfigError, Observer
+from isf_robot.core import ConfigError, Observer, UnknownNameError
 from isf_robot.core.report import with_schema
 from isf_robot.record.options import add_recording_args, make_observer
 from satellite.arcs import IntegratorSettings
 from satellite.contact import CONTACT_MODES
-from satellite.controller import ControlParams
+from satellite.controller import CONTROLLERS, ControlParams
 from satellite.fields import DEFAULT_GRAVITY, GRAVITY_MODELS, load_field
 from satellite.model import InitialOrbit, OrbitModel
+from satellite.shooting import ShootingParams
 from satellite.simulate import RunResult, SatelliteSample, simulate
 from satellite.triggers import TRIGGERS, Trigger
 
-__all__ = ["register", "run", "ProgressObserver", "format_text"]
+__all__ = ["register", "run", "ProgressObserver", "format_text", "add_controller_args", "control_from_args"]
+
+
+def add_controller_args(p: argparse.ArgumentParser) -> None:
+    """``--controller`` and the shooting controller's ``--shoot-*`` options (``run``, ``tau``)."""
+    p.add_argument("--controller", default="kepler", metavar="{" + ",".join(CONTROLLERS) + "}",
+                   help="safeguarding controller: kepler (the paper's: a Kepler target orbit, default) or shooting "
+                        "(the impulse whose predicted time to the next trigger in the truth field is longest)")
+    d = ShootingParams()
+    p.add_argument("--shoot-horizon-h", type=float, default=None, metavar="HOURS",
+                   help=f"shooting: prediction horizon (default {d.horizon_h:g})")
+    p.add_argument("--shoot-grid", type=int, default=None, metavar="N",
+                   help=f"shooting: odd number of lattice points per velocity axis (default {d.grid})")
+    p.add_argument("--shoot-dv-max", type=float, default=None, metavar="M_PER_S",
+                   help="shooting: largest impulse in m/s (default: no limit beyond the lattice)")
+
+
+def control_from_args(args: argparse.Namespace) -> ControlParams:
+    """The run's :class:`ControlParams` from the parsed options (one-line errors for bad ones)."""
+    shoot = {k: getattr(args, f"shoot_{k}") for k in ("horizon_h", "grid", "dv_max")}
+    given = [f"--shoot-{k.replace('_', '-')}" for k, v in shoot.items() if v is not None]
+    if args.controller not in CONTROLLERS:
+        raise UnknownNameError("controller", args.controller, CONTROLLERS)
+    if given and args.controller != "shooting":
+        raise ConfigError(f"{', '.join(given)} need(s) --controller shooting")
+    params = ShootingParams(**{k: v for k, v in shoot.items() if v is not None})
+    return ControlParams(alpha_gain=args.alpha_gain, d_bar=args.d_bar, c=getattr(args, "c", None),
+                         controller=args.controller, shooting=params)
 
 
 class ProgressObserver(Observer):
@@ -93,6 +121,7 @@ def register(subparsers: Any) -> None:
                    help="alpha(h) = gain * h (default: mean motion at 2R, 2.63e-4 1/s)")
     p.add_argument("--d-bar", type=float, default=0.0, help="disturbance bound used in Xi (default 0)")
     p.add_argument("--c", type=float, default=None, help="post-jump margin (default: half the smallest post-jump Xi)")
+    add_controller_args(p)
     p.add_argument("--gravity", default=DEFAULT_GRAVITY,
                    metavar="{" + ",".join(GRAVITY_MODELS) + "}|FILE.json|FILE.npz",
                    help="truth gravity: table (default: the exact polyhedron field, tabulated), sh8 (the paper's "
@@ -183,7 +212,7 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--period-h must be a positive number of hours, got {args.period_h:g}")
     model = OrbitModel(load_field(args.gravity), spin=not args.no_spin, disturbance_scale=args.disturbance_scale)
     initial = InitialOrbit(radius_over_R=args.radius, inclination_deg=args.inclination, seed=args.seed)
-    control = ControlParams(alpha_gain=args.alpha_gain, d_bar=args.d_bar, c=args.c)
+    control = control_from_args(args)
     from satellite.controller import resolve_control
 
     resolve_control(model, control)  # every parameter checked before a recording is opened

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from isf_robot.core import ConfigError
-from satellite.controller import ControlParams
+from satellite.cmd_run import add_controller_args, control_from_args
 from satellite.fields import DEFAULT_GRAVITY, GRAVITY_MODELS, load_field
 from satellite.files import write_text_atomic
 from satellite.model import OrbitModel
@@ -44,6 +44,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--alpha-gain", type=float, default=None, metavar="PER_S",
                    help="alpha gain (default: mean motion at 2R)")
     p.add_argument("--d-bar", type=float, default=0.0, help="disturbance bound used in Xi (default 0)")
+    add_controller_args(p)
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
     p.set_defaults(func=run)
 
@@ -68,14 +69,17 @@ def run(args: argparse.Namespace) -> int:
     if not out.parent.is_dir():
         raise ConfigError(f"output directory does not exist: {out.parent}")
     field = load_field(args.gravity)  # fails here, once, on a bad name
-    control = ControlParams(alpha_gain=args.alpha_gain, d_bar=args.d_bar)
+    control = control_from_args(args)
     data = collect_tau(args.samples, seed=args.seed, workers=args.workers, spin=not args.no_spin,
                        control=control, max_hours=args.max_hours,
                        disturbance_scale=args.disturbance_scale, gravity=args.gravity)
     model = OrbitModel(field, spin=not args.no_spin)
     fit = fit_tau(data, model.h_max, model.R, args.degree)
     settings = {"alpha_gain": args.alpha_gain, "d_bar": args.d_bar, "degree": args.degree,
-                "disturbance_scale": args.disturbance_scale, "gravity": args.gravity}
+                "disturbance_scale": args.disturbance_scale, "gravity": args.gravity,
+                "controller": control.controller}
+    if control.controller == "shooting":
+        settings["shooting"] = control.shooting.describe()
     write_text_atomic(out, json.dumps(tau_document(data, fit, settings), indent=1) + "\n")
     if not args.quiet:
         sys.stdout.write(f"wrote {out}: {args.samples} samples x {len(data.radii_over_R)} radii, "

@@ -31,11 +31,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from isf_robot.core import ClassK, ConfigError, EventTriggeredImpulsiveController, Linear, ZenoGuard
+from isf_robot.core import ClassK, ConfigError, EventTriggeredImpulsiveController, Linear, UnknownNameError, ZenoGuard
 from isf_robot.core.triggers import xi_on_scalar
 from satellite.model import BAND_INNER, BAND_OUTER, BandBarrier, OrbitModel
+from satellite.shooting import ShootingController, ShootingParams, plane_basis
+from satellite.triggers import BandTriggers
 
 __all__ = [
+    "CONTROLLERS",
     "SafeguardingController",
     "ControlParams",
     "ResolvedControl",
@@ -43,6 +46,11 @@ __all__ = [
     "make_controller",
     "jump_map",
 ]
+
+
+CONTROLLERS: tuple[str, ...] = ("kepler", "shooting")
+"""Safeguarding controllers: ``kepler`` (the paper's, :class:`SafeguardingController`) and
+``shooting`` (:class:`satellite.shooting.ShootingController`, issue 14 item 5)."""
 
 
 class SafeguardingController:
@@ -94,19 +102,7 @@ class SafeguardingController:
 
     def velocity_after(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Velocity ``v+`` [m/s] after the jump at state ``x``, shape (3,)."""
-        rv = np.asarray(x[:3], dtype=float)
-        vv = np.asarray(x[3:6], dtype=float)
-        r = float(np.linalg.norm(rv))
-        if not (math.isfinite(r) and r > 0.0):
-            raise ConfigError(f"controller needs a finite non-zero position, got {rv}")
-        rhat = rv / r
-        k = np.cross(rv, vv)
-        kn = float(np.linalg.norm(k))
-        if not kn > 1e-9 * r * max(float(np.linalg.norm(vv)), 1e-300):
-            axis = np.array([0.0, 0.0, 1.0]) if abs(rhat[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-            k = np.cross(rhat, axis)
-            kn = float(np.linalg.norm(k))
-        that = np.cross(k / kn, rhat)
+        r, rhat, that = plane_basis(x)
         v_r, v_t = self.post_jump_speeds(r)
         return v_r * rhat + v_t * that
 
@@ -136,6 +132,10 @@ class ControlParams:
         c: Post-jump margin [m^2/s]; default (``None``) ``c_fraction`` times the smallest
             ``Xi(G(x, K(x)))`` over the band (sampled on 4001 radii).
         c_fraction: Fraction used for the default ``c``, in (0, 1].
+        controller: Safeguarding controller, one of :data:`CONTROLLERS` (default the paper's
+            ``kepler``). ``c`` is the paper's controller's in both cases (the shooting controller
+            keeps only candidates with ``Xi(G(x, v)) >= c`` and always has the paper's impulse).
+        shooting: Settings of the ``shooting`` controller (ignored by ``kepler``).
 
     """
 
@@ -143,8 +143,14 @@ class ControlParams:
     d_bar: float = 0.0
     c: float | None = None
     c_fraction: float = 0.5
+    controller: str = "kepler"
+    shooting: ShootingParams = ShootingParams()
 
     def __post_init__(self) -> None:
+        if self.controller not in CONTROLLERS:
+            raise UnknownNameError("controller", str(self.controller), CONTROLLERS)
+        if not isinstance(self.shooting, ShootingParams):
+            raise ConfigError(f"shooting must be a ShootingParams, got {type(self.shooting).__name__}")
         if self.alpha_gain is not None and not (math.isfinite(self.alpha_gain) and self.alpha_gain > 0.0):
             raise ConfigError(f"alpha gain must be positive [1/s], got {self.alpha_gain}")
         if not (math.isfinite(self.d_bar) and self.d_bar >= 0.0):
@@ -165,6 +171,8 @@ class ResolvedControl:
         c: Post-jump margin [m^2/s].
         min_post_jump_xi: Smallest sampled ``Xi(G(x, K(x)))`` over the band [m^2/s].
         argmin_r_over_R: Radius of that minimum [R].
+        controller: Safeguarding controller name (:data:`CONTROLLERS`).
+        shooting: Shooting settings (used by ``shooting``).
 
     """
 
@@ -173,6 +181,14 @@ class ResolvedControl:
     c: float
     min_post_jump_xi: float
     argmin_r_over_R: float
+    controller: str = "kepler"
+    shooting: ShootingParams = ShootingParams()
+
+    def describe(self) -> dict[str, object]:
+        """The controller's settings for a run's report: empty for ``kepler`` (the paper's, the default)."""
+        if self.controller == "kepler":
+            return {}
+        return {"controller": self.controller, "shooting": self.shooting.describe()}
 
 
 def resolve_control(model: OrbitModel, params: ControlParams | None = None, samples: int = 4001) -> ResolvedControl:
@@ -203,18 +219,28 @@ def resolve_control(model: OrbitModel, params: ControlParams | None = None, samp
             f"c = {c:g} exceeds the smallest post-jump Xi over the band, {low:g} at r = "
             f"{radii[i] / model.R:.4f} R; the post-jump check would fail"
         )
-    return ResolvedControl(gain, params.d_bar, c, low, float(radii[i] / model.R))
+    return ResolvedControl(gain, params.d_bar, c, low, float(radii[i] / model.R), params.controller, params.shooting)
 
 
 def make_controller(
     model: OrbitModel, resolved: ResolvedControl, *, tol: float = 1e-9, zeno: ZenoGuard | None = None
 ) -> EventTriggeredImpulsiveController:
-    """Core controller: Kepler flow model, jump ``[r, v + dv]``, band barrier, safeguarding ``K``."""
+    """Core controller: Kepler flow model, jump ``[r, v + dv]``, band barrier, safeguarding ``K``.
+
+    ``K`` is the paper's :class:`SafeguardingController` or, for ``resolved.controller ==
+    "shooting"``, a :class:`satellite.shooting.ShootingController` over the run's truth field
+    (``model``, with its body phase) that has the paper's impulse among its candidates.
+    """
+    paper = SafeguardingController(model)
+    k: object = paper
+    if resolved.controller == "shooting":
+        trig = BandTriggers(model, Linear(resolved.alpha_gain), resolved.d_bar)
+        k = ShootingController(model, trig, resolved.c, resolved.shooting, paper)
     return EventTriggeredImpulsiveController(
         flow_model=model.kepler_rhs,
         jump_map=jump_map,
         barrier=BandBarrier(model),
-        controller=SafeguardingController(model),
+        controller=k,  # type: ignore[arg-type]
         alpha=Linear(resolved.alpha_gain),
         c=resolved.c,
         d_bar=resolved.d_bar,

@@ -30,7 +30,9 @@ from satellite.mesh_surface import body_mesh_info, load_surface
 from satellite.model import BAND_INNER, BAND_OUTER, InitialOrbit, OrbitModel
 from satellite.policies import make_policy
 from satellite.shapes import SurfaceModel
+from satellite.shooting import shooting_report
 from satellite.surface import SurfaceCheck
+from satellite.tau import check_tau_controller
 from satellite.triggers import TRIGGERS, BandTriggers, Trigger
 
 __all__ = [
@@ -76,6 +78,7 @@ class RunResult:
         nfev: Right-hand-side evaluations.
         surface: Report of the optional surface check (:meth:`satellite.surface.SurfaceCheck.report`),
             ``None`` when the check was off; merged into :meth:`summary` when present.
+        shooting: The shooting controller's report (:func:`satellite.shooting.shooting_report`), or ``None``.
 
     """
 
@@ -100,6 +103,7 @@ class RunResult:
     surface: dict[str, Any] | None = None
     band_exits: int = 0
     contact: dict[str, Any] | None = None
+    shooting: dict[str, Any] | None = None
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary (everything but the event list; the surface keys when checked)."""
@@ -109,10 +113,9 @@ class RunResult:
             "left_band_h", "band_exits", "wall_s", "seed", "nfev", "settings",
         )
         out = {k: getattr(self, k) for k in keys}
-        if self.surface is not None:
-            out.update(self.surface)
-        if self.contact is not None:
-            out.update(self.contact)
+        for extra in (self.surface, self.contact, self.shooting):
+            if extra is not None:
+                out.update(extra)
         return out
 
 
@@ -261,6 +264,7 @@ def simulate(
     base = model or OrbitModel()
     model = base.with_phase(initial.body_phase())
     resolved = resolve_control(model, control)
+    check_tau_controller(tau if trigger.needs_tau else None, resolved.controller)
     integ = integrator or IntegratorSettings()
     ctrl = make_controller(model, resolved)
     bound = model.accel_bound() if integ.event_scan else None
@@ -285,6 +289,7 @@ def simulate(
         raise ConfigError(f"initial state is outside the band (h = {h0:.4g})")
     settings = _settings(resolved, model, initial, integ)
     settings["accel_bound"] = bound
+    settings.update(resolved.describe())
     if tau is not None:
         settings["tau"] = tau.describe()
     if period_h is not None:
@@ -337,6 +342,7 @@ def simulate(
         surface=check.report() if check is not None else None,
         band_exits=len(exits),
         contact=_contact_report(contact, watch, track, arcs.stopped),
+        shooting=shooting_report(ctrl.controller),
     )
     obs.on_finish(result.summary())
     return result

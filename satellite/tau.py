@@ -45,6 +45,7 @@ __all__ = [
     "collect_tau",
     "fit_tau",
     "load_tau",
+    "check_tau_controller",
     "time_to_trigger",
 ]
 
@@ -113,6 +114,7 @@ class TauFit:
         self.coef = [float(v) for v in c]
         self.h_max = float(h_max)
         self._dcoef = [k * self.coef[k] for k in range(1, len(self.coef))]
+        self.controller: str | None = None  # the safeguarding controller of the data (set by load_tau)
 
     def _poly(self, s: float) -> float:
         acc = 0.0
@@ -333,6 +335,19 @@ def tau_document(data: TauData, fit: TauFit, settings: dict[str, Any]) -> dict[s
     }
 
 
+def check_tau_controller(tau: Any, controller: str) -> None:
+    """Refuse a ``tau_p`` fit made with another safeguarding controller than the run's (``None`` passes).
+
+    Raises:
+        ConfigError: The fit's ``controller`` (set by :func:`load_tau`) differs from ``controller``.
+
+    """
+    made = getattr(tau, "controller", None)
+    if made is not None and made != controller:
+        raise SatelliteError(f"the tau_p fit was made with the {made} controller but the run uses {controller}; "
+                             f"fit one with `isf-satellite tau --controller {controller}`")
+
+
 def load_tau(path: str | Path) -> TauFit:
     """Read the fit from a file written by ``isf-satellite tau``.
 
@@ -355,6 +370,9 @@ def load_tau(path: str | Path) -> TauFit:
     if not isinstance(fit, dict) or "coef_s" not in fit or "h_max" not in fit:
         raise TauFileError(f"{p}: tau file lacks fit.coef_s / fit.h_max")
     try:
-        return TauFit(fit["coef_s"], float(fit["h_max"]))
+        out = TauFit(fit["coef_s"], float(fit["h_max"]))
     except (TypeError, ValueError) as exc:
         raise TauFileError(f"{p}: bad tau fit ({exc})") from None
+    settings = doc.get("settings")
+    out.controller = str(settings.get("controller", "kepler")) if isinstance(settings, dict) else "kepler"
+    return out
