@@ -26,6 +26,7 @@ SUBCOMMAND_MODULES: tuple[str, ...] = (
     "satellite.cmd_gravity",
     "satellite.cmd_run",
     "satellite.cmd_tau",
+    "satellite.cmd_study",
 )
 """Modules providing subcommands, in ``--help`` order; missing ones are skipped."""
 

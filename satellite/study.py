@@ -1,163 +1,280 @@
-"""Greedy versus maneuver triggers on the same initial orbits (the paper's comparison, repeated).
+"""The paired study (``isf-satellite study``): every trigger x controller from the same starts.
 
-Run as ``python -m satellite.study --tau FILE.json --seeds 10 --hours 2400 --out FILE.json``.
-Every seed gives one initial orbit (:class:`satellite.model.InitialOrbit`); both triggers start
-from it. Surface contact is counted in every run (``contact="count"``: the orbit is unchanged,
-passes through the shape are reported per row). ``--rtol-check`` adds a second greedy run with a
-tighter tolerance (1e-11), whose
-difference from the first measures how much of a count difference is numerical (the orbits are
-chaotic; any change of the integration path changes the trigger sequence).
+A *start* is one initial orbit, ``(seed, inclination)`` (:class:`satellite.model.InitialOrbit`:
+radius 2R, circular speed, node, argument of latitude and body phase drawn from the seed). A
+*configuration* is a trigger (``greedy``, ``maneuver`` with the controller's fitted tau_p,
+``periodic`` every T hours) with a safeguarding controller (``kepler``, the paper's; any other
+name :data:`satellite.controller.CONTROLLERS` offers is passed through ``ControlParams``). Every
+configuration flies every start, so configurations are compared orbit by orbit
+(:mod:`satellite.study_stats`: mean paired reduction with a 95 % confidence interval).
+
+Runs go through :func:`isf_robot.core.parallel.run_tasks` (local processes or Ray); a
+``checkpoint`` callback gets the document after every finished run (the CLI writes it atomically,
+marked partial), and ``done_runs`` (from such a file) are not run again.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
-import os
 import sys
-from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
-import numpy as np
-
+from isf_robot.core import ConfigError, UnknownNameError
+from isf_robot.core.parallel import Interrupted, run_tasks
 from satellite.controller import ControlParams
-from satellite.fields import DEFAULT_GRAVITY, load_field
-from satellite.files import write_text_atomic
-from satellite.model import InitialOrbit, OrbitModel
-from satellite.simulate import IntegratorSettings, simulate
-from satellite.tau import load_tau
-from satellite.triggers import Trigger
+from satellite.study_stats import paired_comparison, summarize_config
 
-__all__ = ["compare", "main"]
+__all__ = ["StudyConfig", "StudySettings", "StudyTask", "run_one", "run_study", "plan", "controllers",
+           "STUDY_TRIGGERS", "main"]
+
+STUDY_TRIGGERS = ("greedy", "maneuver", "periodic")
+"""Triggers a study can compare."""
+
+CI_METHOD = ("paired t (mean +- t_0.975,n-1 sd/sqrt(n)) of the per-orbit reductions 1 - a/b; "
+             "percentile bootstrap (10,000 resamples of the orbits) beside it")
 
 
-def _one(args: tuple[Any, ...]) -> dict[str, Any]:
-    trigger, seed, hours, tau_path, spin, scale, alpha_gain, inclination, rtol, gravity = args
-    tau = load_tau(tau_path) if trigger.needs_tau else None
+def controllers() -> tuple[str, ...]:
+    """Controllers available in this tree (``kepler`` always; others as :mod:`satellite.controller` offers)."""
+    from satellite import controller
+
+    return tuple(getattr(controller, "CONTROLLERS", ("kepler",)))
+
+
+@dataclass(frozen=True)
+class StudyConfig:
+    """One configuration: trigger, controller and (periodic only) the period [h]."""
+
+    trigger: str
+    controller: str = "kepler"
+    period_h: float | None = None
+
+    @property
+    def label(self) -> str:
+        trig = f"periodic {self.period_h:g}h" if self.trigger == "periodic" else self.trigger
+        return f"{trig}/{self.controller}"
+
+
+@dataclass(frozen=True)
+class StudySettings:
+    """What every run of a study shares (recorded in the output; a resumed study must match it)."""
+
+    hours: float
+    gravity: str = "table"
+    spin: bool = True
+    disturbance_scale: float = 1.0
+    alpha_gain: float | None = None
+    rtol: float = 1e-10
+    tau: Mapping[str, str] = field(default_factory=dict)
+    """tau_p file per controller (``maneuver`` needs its controller's)."""
+
+    def as_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["tau"] = dict(self.tau)
+        return out
+
+
+@dataclass(frozen=True)
+class StudyTask:
+    """One orbit run: a configuration from a start."""
+
+    config: StudyConfig
+    seed: int
+    inclination_deg: float
+    settings: StudySettings
+
+    @property
+    def key(self) -> tuple[str, int, float]:
+        return self.config.label, self.seed, self.inclination_deg
+
+
+def _control(settings: StudySettings, controller: str) -> ControlParams:
+    if controller == "kepler":
+        return ControlParams(alpha_gain=settings.alpha_gain)
+    return ControlParams(alpha_gain=settings.alpha_gain, controller=controller)  # type: ignore[call-arg]
+
+
+_LOADED: dict[tuple[str, str], Any] = {}
+"""Gravity fields and the shape read once per process (a worker flies many orbits; read-only objects)."""
+
+
+def _loaded(kind: str, name: str) -> Any:
+    key = (kind, name)
+    if key not in _LOADED:
+        if kind == "gravity":
+            from satellite.fields import load_field
+
+            _LOADED[key] = load_field(name)
+        else:
+            from satellite.mesh_surface import load_surface
+
+            _LOADED[key] = load_surface()
+    return _LOADED[key]
+
+
+def run_one(task: StudyTask) -> dict[str, Any]:
+    """Fly one orbit; return its JSON-ready record (the study's per-run row)."""
+    from satellite.model import InitialOrbit, OrbitModel
+    from satellite.simulate import IntegratorSettings, simulate
+    from satellite.tau import load_tau
+
+    cfg, st = task.config, task.settings
+    tau = load_tau(st.tau[cfg.controller]) if cfg.trigger == "maneuver" else None
+    initial = InitialOrbit(seed=task.seed, inclination_deg=task.inclination_deg)
+    model = OrbitModel(_loaded("gravity", st.gravity), spin=st.spin, disturbance_scale=st.disturbance_scale)
     res = simulate(
-        trigger, hours, initial=InitialOrbit(seed=seed, inclination_deg=inclination),
-        model=OrbitModel(load_field(gravity), spin=spin, disturbance_scale=scale),
-        control=ControlParams(alpha_gain=alpha_gain),
-        tau=tau, integrator=IntegratorSettings(rtol=rtol), miet_samples=200, contact="count",
+        cfg.trigger, st.hours, initial=initial, model=model, control=_control(st, cfg.controller), tau=tau,
+        integrator=IntegratorSettings(rtol=st.rtol), miet_samples=200, contact="count",
+        contact_surface=_loaded("shape", "default"), period_h=cfg.period_h,
     )
-    out = res.summary()
-    out.pop("settings")
-    out["rtol"] = rtol
+    s = res.summary()
+    keys = ("triggers", "kinds", "min_h", "r_min_over_R", "r_max_over_R", "total_dv", "min_inter_event_h",
+            "mean_inter_event_h", "miet_bound_h", "left_band_h", "band_exits", "simulated_h", "wall_s", "nfev",
+            "surface_contacts", "min_pass_clearance_m")
+    out: dict[str, Any] = {"config": cfg.label, "seed": task.seed, "inclination_deg": task.inclination_deg}
+    start = model.with_phase(initial.body_phase())  # as simulate() sets the run up: the pairing's evidence
+    out["x0"] = initial.state(start).tolist()
+    out["body_phase_rad"] = start.body_phase
+    out.update({k: s.get(k) for k in keys})
+    out["completed"] = bool(res.simulated_h >= st.hours * (1.0 - 1e-9))
     return out
 
 
-def compare(
-    seeds: Sequence[int],
-    hours: float,
-    tau_path: str,
-    *,
-    spin: bool = True,
-    disturbance_scale: float = 1.0,
-    alpha_gain: float | None = None,
-    inclination_deg: float = 45.0,
-    rtol_check: bool = False,
-    workers: int | None = None,
-    gravity: str = "sh8",
-) -> dict[str, Any]:
-    """Run greedy and maneuver triggers from the same initial orbits.
+def plan(triggers: Sequence[str], ctrls: Sequence[str], periods_h: Sequence[float]) -> list[StudyConfig]:
+    """The configurations: every trigger with every controller (periodic once per period).
 
-    Returns:
-        JSON-ready dict: ``rows`` (one per seed with both counts), ``reduction`` statistics
-        (``1 - maneuver / greedy``: mean, sample standard deviation, min, max, count of seeds with
-        fewer maneuver triggers) and the settings.
+    Raises:
+        UnknownNameError: A trigger or controller that does not exist.
+        ConfigError: A bad period, or periods without the periodic trigger.
 
     """
-    jobs = []
-    for s in seeds:
-        runs = ((Trigger.GREEDY, 1e-10), (Trigger.MANEUVER, 1e-10)) + (((Trigger.GREEDY, 1e-11),) if rtol_check else ())
-        for trig, rtol in runs:
-            jobs.append(
-                (trig, int(s), float(hours), tau_path, spin, disturbance_scale, alpha_gain, inclination_deg, rtol,
-                 gravity)
-            )
-    with ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1) as pool:
-        results = list(pool.map(_one, jobs))
-    rows = []
-    for s in seeds:
-        mine = [r for r in results if r["seed"] == s]
-        g = next(r for r in mine if r["trigger"] is Trigger.GREEDY and r["rtol"] == 1e-10)
-        m = next(r for r in mine if r["trigger"] is Trigger.MANEUVER)
-        row = {
-            "seed": s,
-            "greedy": g["triggers"],
-            "maneuver": m["triggers"],
-            "maneuver_kinds": m["kinds"],
-            "reduction": 1.0 - m["triggers"] / g["triggers"] if g["triggers"] else math.nan,
-            "greedy_min_h": g["min_h"],
-            "maneuver_min_h": m["min_h"],
-            "greedy_r_range": [g["r_min_over_R"], g["r_max_over_R"]],
-            "maneuver_r_range": [m["r_min_over_R"], m["r_max_over_R"]],
-            "greedy_dv": g["total_dv"],
-            "maneuver_dv": m["total_dv"],
-            "greedy_wall_s": g["wall_s"],
-            "maneuver_wall_s": m["wall_s"],
-            "greedy_surface_contacts": g.get("surface_contacts"),
-            "maneuver_surface_contacts": m.get("surface_contacts"),
-            "greedy_min_clearance_m": g.get("min_pass_clearance_m"),
-            "maneuver_min_clearance_m": m.get("min_pass_clearance_m"),
-        }
-        tight = [r for r in mine if r["trigger"] is Trigger.GREEDY and r["rtol"] == 1e-11]
-        if tight:
-            row["greedy_rtol1e-11"] = tight[0]["triggers"]
-        rows.append(row)
-    red = np.array([r["reduction"] for r in rows])
-    out: dict[str, Any] = {
-        "hours": hours,
-        "tau": tau_path,
-        "spin": spin,
-        "disturbance_scale": disturbance_scale,
-        "gravity": gravity,
-        "alpha_gain": alpha_gain,
-        "inclination_deg": inclination_deg,
-        "rows": rows,
-        "reduction": {
-            "mean": float(red.mean()),
-            "std": float(red.std(ddof=1)) if red.size > 1 else 0.0,
-            "min": float(red.min()),
-            "max": float(red.max()),
-            "seeds_with_fewer_maneuver_triggers": int(np.sum(red > 0)),
-            "seeds": len(rows),
-        },
-    }
-    if rtol_check:
-        noise = np.array([1.0 - r["greedy_rtol1e-11"] / r["greedy"] for r in rows])
-        sd = float(noise.std(ddof=1)) if noise.size > 1 else 0.0
-        out["greedy_rtol_noise"] = {"mean": float(noise.mean()), "std": sd}
+    for t in triggers:
+        if t not in STUDY_TRIGGERS:
+            raise UnknownNameError("study trigger", t, STUDY_TRIGGERS)
+    for c in ctrls:
+        if c not in controllers():
+            raise UnknownNameError("controller", c, controllers())
+    for p in periods_h:
+        if not (math.isfinite(p) and p > 0):
+            raise ConfigError(f"--period-h must be positive numbers of hours, got {p:g}")
+    if "periodic" in triggers and not periods_h:
+        raise ConfigError("the periodic trigger needs at least one --period-h")
+    out = []
+    for c in dict.fromkeys(ctrls):
+        for t in dict.fromkeys(triggers):
+            if t == "periodic":
+                out += [StudyConfig(t, c, float(p)) for p in dict.fromkeys(periods_h)]
+            else:
+                out.append(StudyConfig(t, c))
+    if not out:
+        raise ConfigError("no configuration to run (give --triggers and --controllers)")
     return out
+
+
+def _comparisons(configs: Sequence[StudyConfig], runs: Mapping[str, list[dict[str, Any]]]) -> list[dict[str, Any]]:
+    pairs: list[tuple[StudyConfig, StudyConfig]] = []
+    for a in configs:
+        for b in configs:
+            same_ctrl = a.controller == b.controller
+            if same_ctrl and a.trigger == "maneuver" and b.trigger in ("greedy", "periodic"):
+                pairs.append((a, b))
+            elif same_ctrl and a.trigger == "greedy" and b.trigger == "periodic":
+                pairs.append((a, b))
+            elif (a.trigger, a.period_h) == (b.trigger, b.period_h) and a.controller != "kepler" == b.controller:
+                pairs.append((a, b))
+    pairs.sort(key=lambda ab: (ab[0].controller != ab[1].controller, ab[1].trigger != "greedy"))
+    return [{"a": a.label, "b": b.label, **paired_comparison(runs.get(a.label, []), runs.get(b.label, []))}
+            for a, b in pairs]
+
+
+def _document(configs: Sequence[StudyConfig], starts: Sequence[tuple[int, float]], settings: StudySettings,
+              done: Sequence[dict[str, Any]], total: int, partial: bool) -> dict[str, Any]:
+    by_label: dict[str, list[dict[str, Any]]] = {}
+    for r in sorted(done, key=lambda r: (r["seed"], r["inclination_deg"])):
+        by_label.setdefault(r["config"], []).append(r)
+    return {
+        "partial": partial,
+        "orbits_done": len(done),
+        "orbits_total": total,
+        "settings": settings.as_dict(),
+        "starts": [list(s) for s in starts],
+        "ci_method": CI_METHOD,
+        "configs": [{"label": c.label, "trigger": c.trigger, "controller": c.controller, "period_h": c.period_h,
+                     "summary": summarize_config(by_label.get(c.label, []))} for c in configs],
+        "comparisons": _comparisons(configs, by_label),
+        "runs": [r for c in configs for r in by_label.get(c.label, [])],
+    }
+
+
+def run_study(
+    configs: Sequence[StudyConfig],
+    starts: Sequence[tuple[int, float]],
+    settings: StudySettings,
+    *,
+    jobs: int = 1,
+    backend: str = "processes",
+    address: str | None = None,
+    done_runs: Sequence[dict[str, Any]] = (),
+    progress: Callable[[int, int, StudyTask, dict[str, Any]], None] | None = None,
+    checkpoint: Callable[[dict[str, Any]], None] | None = None,
+) -> dict[str, Any]:
+    """Run every configuration from every start; return the study document.
+
+    Args:
+        configs: From :func:`plan`.
+        starts: ``(seed, inclination_deg)`` pairs, the same for every configuration.
+        settings: Shared settings (``tau`` must name a file for every controller with ``maneuver``).
+        jobs: Worker processes or Ray tasks in flight (:func:`isf_robot.core.parallel.run_tasks`).
+        backend: ``processes`` or ``ray``.
+        address: Ray cluster to join (``ray`` only).
+        done_runs: Runs of an earlier, interrupted call with the same settings (not run again).
+        progress: ``progress(done, total, task, run)`` after each run.
+        checkpoint: Gets the (partial) document after each run.
+
+    Raises:
+        ConfigError: No starts, duplicate starts, a missing tau file.
+        Interrupted: Ctrl-C / SIGTERM; ``exc.partial`` is the document of the finished runs.
+
+    """
+    if not starts:
+        raise ConfigError("no starts (give --seeds >= 1 and at least one --inclinations)")
+    if len(set(starts)) != len(starts):
+        raise ConfigError("duplicate starts (seed, inclination)")
+    if not (math.isfinite(settings.hours) and settings.hours > 0):
+        raise ConfigError(f"--hours must be a finite number > 0, got {settings.hours:g}")
+    for c in configs:
+        if c.trigger == "maneuver" and c.controller not in settings.tau:
+            raise ConfigError(f"maneuver/{c.controller} needs a tau_p file: --tau FILE or --tau {c.controller}=FILE "
+                              f"(make one with `isf-satellite tau --out FILE`)")
+    tasks = [StudyTask(c, int(s), float(i), settings) for c in configs for s, i in starts]
+    total = len(tasks)
+    keep = {(r["config"], r["seed"], r["inclination_deg"]): r for r in done_runs}
+    done = [keep[t.key] for t in tasks if t.key in keep]
+    todo = [t for t in tasks if t.key not in keep]
+
+    def on_result(k: int, n: int, task: StudyTask, run: dict[str, Any]) -> None:
+        done.append(run)
+        if progress is not None:
+            progress(len(done), total, task, run)
+        if checkpoint is not None:
+            checkpoint(_document(configs, starts, settings, done, total, True))
+
+    try:
+        run_tasks(run_one, todo, jobs=jobs, on_result=on_result, backend=backend, address=address)
+    except Interrupted as exc:
+        exc.partial = _document(configs, starts, settings, done, total, True)
+        raise
+    return _document(configs, starts, settings, done, total, False)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Command line of the study (``python -m satellite.study``)."""
-    p = argparse.ArgumentParser(prog="python -m satellite.study", description=__doc__.splitlines()[0])
-    p.add_argument("--tau", required=True, help="tau file from `isf-satellite tau`")
-    p.add_argument("--seeds", type=int, default=10, help="number of initial orbits (seeds 0..N-1)")
-    p.add_argument("--hours", type=float, default=2400.0)
-    p.add_argument("--no-spin", action="store_true")
-    p.add_argument("--disturbance-scale", type=float, default=1.0)
-    p.add_argument("--alpha-gain", type=float, default=None)
-    p.add_argument("--inclination", type=float, default=45.0)
-    p.add_argument("--rtol-check", action="store_true")
-    p.add_argument("--workers", type=int, default=None)
-    p.add_argument("--gravity", default=DEFAULT_GRAVITY, help="truth gravity model (default: table)")
-    p.add_argument("--out", required=True)
-    a = p.parse_args(argv)
-    load_tau(a.tau)
-    load_field(a.gravity)
-    res = compare(
-        list(range(a.seeds)), a.hours, a.tau, spin=not a.no_spin, disturbance_scale=a.disturbance_scale,
-        alpha_gain=a.alpha_gain, inclination_deg=a.inclination, rtol_check=a.rtol_check, workers=a.workers,
-        gravity=a.gravity,
-    )
-    write_text_atomic(a.out, json.dumps(res, indent=1) + "\n")
-    sys.stdout.write(json.dumps(res["reduction"]) + "\n")
-    return 0
+    """``python -m satellite.study`` is retired: it points to ``isf-satellite study``."""
+    sys.stderr.write("python -m satellite.study: replaced by `isf-satellite study` (paired orbits over seeds and "
+                     "inclinations, greedy/maneuver/periodic x controllers, 95 % CIs); see "
+                     "`isf-satellite study --help`\n")
+    return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

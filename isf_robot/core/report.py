@@ -32,6 +32,7 @@ SCHEMAS: dict[str, int] = {
     "isf-robot-replay": 1,     # isf-robot replay --json: {"recordings": [...]} for any number of inputs
     "isf-robot-core-demo": 1,  # isf-robot core-demo --json
     "isf-satellite-run": 1,    # isf-satellite run --json: one orbit run's summary
+    "isf-satellite-study": 1,  # isf-satellite study: paired orbits, per-configuration summaries, CIs
 }
 """Current version of each JSON document the commands print."""
 

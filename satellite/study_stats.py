@@ -1,0 +1,142 @@
+"""Statistics of the paired satellite study: per-configuration summaries, paired reductions, CIs.
+
+Every configuration (trigger x controller) runs from the same starts, so two configurations are
+compared orbit by orbit: the reduction of orbit ``i`` is ``1 - n_cfg_i / n_ref_i`` (impulse count
+``n``; the same for the total delta-v). Its mean over the orbits gets a 95 % confidence interval
+from the **paired t** interval (``mean +- t_{0.975, n-1} sd / sqrt(n)``, the primary one) and a
+percentile **bootstrap** interval (10,000 resamples of the orbits, fixed seed) beside it as a check
+that does not lean on normality. Only orbits that both configurations flew to the end (no run
+stopped by a band exit, as the periodic baseline's runs do) enter a comparison; how many did is
+reported as ``n``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+__all__ = ["paired_t_ci", "bootstrap_ci", "summarize_config", "paired_comparison", "format_study"]
+
+BOOTSTRAP_RESAMPLES = 10_000
+
+
+def paired_t_ci(values: Sequence[float], level: float = 0.95) -> tuple[float, float, float]:
+    """Mean and two-sided t confidence interval of ``values`` (the per-orbit paired differences).
+
+    Returns:
+        ``(mean, low, high)``; ``low = high = mean`` for one value, all NaN for none.
+
+    """
+    x = np.asarray(values, dtype=float)
+    if x.size == 0:
+        return math.nan, math.nan, math.nan
+    mean = float(x.mean())
+    if x.size == 1:
+        return mean, mean, mean
+    from scipy.stats import t
+
+    half = float(t.ppf(0.5 + level / 2.0, x.size - 1)) * float(x.std(ddof=1)) / math.sqrt(x.size)
+    return mean, mean - half, mean + half
+
+
+def bootstrap_ci(values: Sequence[float], level: float = 0.95, resamples: int = BOOTSTRAP_RESAMPLES,
+                 seed: int = 0) -> tuple[float, float]:
+    """Percentile bootstrap interval of the mean of ``values`` (orbits resampled with replacement)."""
+    x = np.asarray(values, dtype=float)
+    if x.size == 0:
+        return math.nan, math.nan
+    rng = np.random.default_rng(seed)
+    means = x[rng.integers(0, x.size, size=(resamples, x.size))].mean(axis=1)
+    lo, hi = np.quantile(means, [0.5 - level / 2.0, 0.5 + level / 2.0])
+    return float(lo), float(hi)
+
+
+def _stats(v: Sequence[float]) -> dict[str, float | None]:
+    x = np.asarray([a for a in v if a is not None], dtype=float)
+    if x.size == 0:
+        return {"mean": None, "sd": None, "min": None, "max": None}
+    return {"mean": float(x.mean()), "sd": float(x.std(ddof=1)) if x.size > 1 else 0.0,
+            "min": float(x.min()), "max": float(x.max())}
+
+
+def summarize_config(runs: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """Counts, delta-v, safety (min h, band exits) and surface contacts over one configuration's orbits."""
+    full = [r for r in runs if r["completed"]]
+    contacts = [r["surface_contacts"] for r in runs if r.get("surface_contacts") is not None]
+    clear = [r["min_pass_clearance_m"] for r in runs if r.get("min_pass_clearance_m") is not None]
+    return {
+        "orbits": len(runs),
+        "completed": len(full),
+        "triggers": _stats([r["triggers"] for r in full]),
+        "total_dv": _stats([r["total_dv"] for r in full]),
+        "min_h": min((r["min_h"] for r in runs), default=None),
+        "band_exits": sum(r["band_exits"] for r in runs),
+        "orbits_with_band_exit": sum(1 for r in runs if r["band_exits"] > 0),
+        "first_band_exit_h": _stats([r["left_band_h"] for r in runs if r["left_band_h"] is not None]),
+        "surface_contacts": sum(contacts),
+        "orbits_with_contact": sum(1 for c in contacts if c > 0),
+        "min_pass_clearance_m": min(clear, default=None),
+        "tau_impulses": sum(r["kinds"].get("tau", 0) for r in runs),
+        "min_inter_event_h": min((r["min_inter_event_h"] for r in runs if r["min_inter_event_h"] is not None),
+                                 default=None),
+        "wall_s": sum(r["wall_s"] for r in runs),
+    }
+
+
+def paired_comparison(runs: Sequence[Mapping[str, Any]], ref: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """Per-orbit reductions of ``runs`` against ``ref`` (matched by start), mean and 95 % CIs.
+
+    Returns:
+        ``n`` (orbits both flew to the end), and for ``triggers`` and ``total_dv``: ``mean``,
+        ``ci_t`` (paired t), ``ci_bootstrap``, ``fewer`` (orbits where ``runs`` needed less).
+
+    """
+    by_start = {(r["seed"], r["inclination_deg"]): r for r in ref}
+    pairs = [(r, by_start[k]) for r in runs
+             if (k := (r["seed"], r["inclination_deg"])) in by_start and r["completed"] and by_start[k]["completed"]]
+    out: dict[str, Any] = {"n": len(pairs)}
+    for key in ("triggers", "total_dv"):
+        red = [1.0 - a[key] / b[key] for a, b in pairs if b[key]]
+        mean, lo, hi = paired_t_ci(red)
+        blo, bhi = bootstrap_ci(red)
+        out[key] = {"mean": None if math.isnan(mean) else mean,
+                    "ci_t": None if math.isnan(lo) else [lo, hi],
+                    "ci_bootstrap": None if math.isnan(blo) else [blo, bhi],
+                    "fewer": sum(1 for v in red if v > 0), "n": len(red)}
+    return out
+
+
+def _f(v: Any, fmt: str) -> str:
+    return "-" if v is None else format(v, fmt)
+
+
+def _ci(c: Mapping[str, Any] | None) -> str:
+    if not c or c["mean"] is None:
+        return "-"
+    lo, hi = c["ci_t"]
+    return f"{100 * c['mean']:+.1f} % [{100 * lo:+.1f}, {100 * hi:+.1f}]"
+
+
+def format_study(doc: Mapping[str, Any]) -> str:
+    """The study as two text tables: configurations, then paired comparisons (reductions, 95 % t CI)."""
+    lines = [f"{'configuration':<24} {'orbits':>6} {'triggers mean (sd)':>20} {'dv [m/s]':>9} {'min h':>9} "
+             f"{'exits':>5} {'contacts':>8} {'tau':>5}"]
+    for c in doc["configs"]:
+        s = c["summary"]
+        t, dv = s["triggers"], s["total_dv"]
+        trig = f"{_f(t['mean'], '.1f')} ({_f(t['sd'], '.1f')})"
+        lines.append(f"{c['label']:<24} {s['completed']:>3}/{s['orbits']:<2} {trig:>20} {_f(dv['mean'], '9.3f')} "
+                     f"{_f(s['min_h'], '9.1f')} {s['orbits_with_band_exit']:>5} {s['surface_contacts']:>8} "
+                     f"{s['tau_impulses']:>5}")
+    if doc["comparisons"]:
+        lines += ["", f"{'paired reduction (1 - a/b)':<44} {'n':>3} {'triggers: mean [95% t CI]':>28} "
+                      f"{'fewer':>5} {'dv: mean [95% t CI]':>28}"]
+        for c in doc["comparisons"]:
+            lines.append(f"{c['a'] + ' vs ' + c['b']:<44} {c['n']:>3} {_ci(c['triggers']):>28} "
+                         f"{c['triggers']['fewer']:>5} {_ci(c['total_dv']):>28}")
+    if doc.get("partial"):
+        lines.append(f"(partial: {doc['orbits_done']} of {doc['orbits_total']} runs finished)")
+    return "\n".join(lines)
