@@ -4,7 +4,7 @@ A sweep is a list of :class:`SweepPoint` (a strategy and the filter parameters i
 on every scene and seed. Every point of a scene runs on the same seeds (same initial configuration,
 goal jitter and obstacle phase per seed) with the same ``d_bar`` (resolved once per scene: flag,
 config or the tracking calibration). Episodes run through :func:`isf_robot.core.parallel.run_tasks`
-(local processes; Ctrl-C keeps what finished) and every result is a plain JSON-ready dict, so the
+(local processes or Ray; Ctrl-C keeps what finished) and every result is a plain JSON-ready dict, so the
 same seeds give the same numbers whatever the number of workers.
 
 Per scene and point, :func:`summarize_point` gives the means over episodes plus the worst episode's
@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from isf_robot.core import ConfigError
-from isf_robot.core.parallel import MAX_JOBS, Interrupted, run_tasks
+from isf_robot.core.parallel import MAX_JOBS, Interrupted, check_backend, run_tasks
 from isf_robot.core.report import format_table
 from isf_robot.core.strategies import strategy_info
 
@@ -183,8 +183,12 @@ ProgressFn = Callable[[int, int, SweepTask, Mapping[str, Any]], None]
 
 def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: Sequence[int], *,
               duration: float | None = None, jobs: int = 1, d_bar: float | None = None,
-              progress: ProgressFn | None = None) -> dict[str, Any]:
+              progress: ProgressFn | None = None, backend: str = "processes",
+              address: str | None = None) -> dict[str, Any]:
     """Run every point on every scene and seed; return the JSON-ready sweep (see :func:`_summary`).
+
+    ``backend``/``address``: where the episodes run (:func:`isf_robot.core.parallel.run_tasks`:
+    local processes, or Ray); the numbers do not depend on it nor on ``jobs``.
 
     Raises:
         ConfigError: Bad parameters (checked for every scene and point before any episode runs).
@@ -200,6 +204,7 @@ def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: S
     n = len(specs) * len(points) * len(seeds)
     if n > MAX_SWEEP_EPISODES:
         raise ConfigError(f"{n} episodes asked for; at most {MAX_SWEEP_EPISODES} per sweep")
+    check_backend(backend, address)  # a missing Ray extra is said before any episode runs
     from .sim import ArmSimulation
 
     tasks: list[SweepTask] = []
@@ -223,7 +228,7 @@ def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: S
         return _summary(names, points, list(seeds), results, partial)
 
     try:
-        run_tasks(run_sweep_task, tasks, jobs=int(jobs), on_result=keep)
+        run_tasks(run_sweep_task, tasks, jobs=int(jobs), on_result=keep, backend=backend, address=address)
     except Interrupted as exc:
         exc.partial = summary(True)
         raise

@@ -2,7 +2,9 @@
 
 Parameters are given as lists (``--c 0.05,0.2,0.5``: a grid over every combination) or, with
 ``--random N``, as ranges (``--c 0.05:0.5``: N random draws per intermittent strategy, seeded by
-``--sweep-seed``). Progress goes to stderr; ``--json`` prints the whole sweep (every episode's
+``--sweep-seed``). Episodes run in local worker processes (``--jobs K``) or on Ray (``--backend
+ray``: a local Ray, or the cluster at ``--address``; the ``ray`` extra), with the same numbers on
+both. Progress goes to stderr; ``--json`` prints the whole sweep (every episode's
 result) and ``--output PATH.json`` writes it atomically. Ctrl-C stops the workers and prints (and
 writes) what finished, marked partial.
 """
@@ -15,6 +17,7 @@ import sys
 from typing import Any
 
 from isf_robot.core.exceptions import ConfigError
+from isf_robot.core.parallel import BACKENDS, check_backend
 from isf_robot.core.report import with_schema
 from isf_robot.core.strategies import strategy_names
 
@@ -39,7 +42,15 @@ def register(subparsers: Any) -> None:
     p.add_argument("--episodes", type=int, default=5, help="seeds per point (default 5)")
     p.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
     p.add_argument("--duration", type=float, default=None, metavar="S", help="simulated time per episode [s]")
-    p.add_argument("--jobs", type=int, default=1, metavar="K", help="worker processes (default 1)")
+    p.add_argument("--jobs", type=int, default=1, metavar="K",
+                   help="worker processes; with --backend ray: local Ray CPUs, or tasks in flight on --address "
+                        "(default 1)")
+    p.add_argument("--backend", choices=BACKENDS, default="processes",
+                   help="where episodes run: local worker processes (default) or Ray (the ray extra: "
+                        "pip install 'isf-robot[ray]'); the numbers are the same on both")
+    p.add_argument("--address", default=None, metavar="ADDR",
+                   help="Ray cluster to join ('auto' or HOST:PORT; every node needs isf-robot installed); "
+                        "default with --backend ray: start a local Ray with --jobs CPUs")
     p.add_argument("--d-bar", type=float, default=None, metavar="D",
                    help="tracking-error bound [rad/s] for every scene (default: each scene's, else calibrated)")
     for name, flag in _FLAGS.items():
@@ -100,6 +111,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
     if args.episodes < 1 or args.seed < 0:
         raise ConfigError(f"--episodes must be >= 1 and --seed >= 0, got {args.episodes} and {args.seed}")
+    check_backend(args.backend, args.address)
     if args.output:
         check_output_path(args.output, "--output")
     points = _points(args)
@@ -113,7 +125,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
     try:
         sweep = run_sweep([SceneSpec(name=n) for n in args.scenes], points, seeds, duration=args.duration,
-                          jobs=args.jobs, d_bar=args.d_bar, progress=progress)
+                          jobs=args.jobs, d_bar=args.d_bar, progress=progress, backend=args.backend,
+                          address=args.address)
     except Interrupted as exc:
         if exc.partial is not None:
             _emit(args, exc.partial)

@@ -23,7 +23,9 @@ from __future__ import annotations
 
 import functools
 import multiprocessing
+import os
 import signal
+import threading
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
@@ -159,6 +161,11 @@ def run_tasks(
     return done
 
 
+def _set_sigterm(handler: Any) -> None:
+    if threading.current_thread() is threading.main_thread():  # signal.signal works there only
+        signal.signal(signal.SIGTERM, handler)
+
+
 def _run_ray(fn: Callable[[Any], Any], tasks: list[Any], jobs: int, address: str | None,
              keep: Callable[[Any, Any], None]) -> None:
     """The Ray backend of :func:`run_tasks`: at most ``jobs`` tasks in flight, results by index."""
@@ -166,10 +173,29 @@ def _run_ray(fn: Callable[[Any], Any], tasks: list[Any], jobs: int, address: str
     started = not ray.is_initialized()
     if started:
         opts: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False, "logging_level": "error"}
-        if address is None:
-            ray.init(num_cpus=jobs, **opts)
-        else:
-            ray.init(address=address, **opts)
+        term = signal.getsignal(signal.SIGTERM)  # ray.init replaces the driver's SIGTERM handler
+        try:
+            if address is None:  # a private instance, even when RAY_ADDRESS names a cluster
+                saved = os.environ.pop("RAY_ADDRESS", None)
+                try:
+                    ray.init(num_cpus=jobs, **opts)
+                finally:
+                    if saved is not None:
+                        os.environ["RAY_ADDRESS"] = saved
+            else:
+                ray.init(address=address, **opts)
+        finally:
+            if term is not None:
+                _set_sigterm(term)
+    hit: list[int] = []
+    term = signal.getsignal(signal.SIGTERM)
+    if callable(term):  # Ray's wait turns any exception of a signal handler into a bare KeyboardInterrupt
+
+        def on_term(signum: int, frame: Any) -> None:
+            hit.append(signum)
+            term(signum, frame)
+
+        _set_sigterm(on_term)
     remote = ray.remote(num_cpus=1, max_retries=0)(_indexed)
     pending: list[Any] = []
     try:
@@ -188,13 +214,17 @@ def _run_ray(fn: Callable[[Any], Any], tasks: list[Any], jobs: int, address: str
                         raise cause from None
                     raise
                 keep(tasks[i], result)
-    except BaseException:
+    except BaseException as exc:
         for ref in pending:
             try:
                 ray.cancel(ref, force=True)
             except Exception:  # noqa: BLE001 - already finished or gone
                 pass
+        if hit and isinstance(exc, KeyboardInterrupt) and not isinstance(exc, Terminated):
+            raise Terminated() from None  # SIGTERM, whatever Ray made of its handler's exception
         raise
     finally:
+        if callable(term):
+            _set_sigterm(term)
         if started:
             ray.shutdown()
