@@ -63,7 +63,8 @@ TARGET = {"cbf": 10.0, "isf": 8.0}  # per-step cost as a multiple of mj_step (is
 
 class _StepClock:
     """Stands in for the loop's ``PhaseTimers`` (see the module docstring): the wall time of every
-    phase of every step, and ``mj_step`` samples on a copy of the run's state every 10th step."""
+    step (from the start of ``sense`` to the end of ``act``: the loop's own work between the phases
+    included) and of its phases, and ``mj_step`` samples on a copy of the run's state every 10th step."""
 
     every, block = 10, 5
 
@@ -71,23 +72,31 @@ class _StepClock:
         self.totals = dict.fromkeys(phases, 0.0)
         self.per: dict[str, list[float]] = {name: [] for name in phases}
         self.mj: list[float] = []
+        self.steps: list[float] = []
+        self._t_step = 0.0
         ep = phases["sense"].__self__  # the loop's episode: its model and live data
         model, scratch = ep.model, mujoco.MjData(ep.model)
         perf = time.perf_counter
 
         def wrap(name: str, fn):  # type: ignore[no-untyped-def]
             rec = self.per[name]
+            first, last = name == "sense", name == "act"
 
             def timed(*args):  # type: ignore[no-untyped-def]
                 t0 = perf()
+                if first:
+                    self._t_step = t0
                 out = fn(*args)
-                rec.append(perf() - t0)
-                if name == "act" and args[0] % self.every == 0:
-                    mujoco.mj_copyData(scratch, model, ep.data)
-                    t1 = perf()
-                    for _ in range(self.block):
-                        mujoco.mj_step(model, scratch)
-                    self.mj.append((perf() - t1) / self.block)
+                t1 = perf()
+                rec.append(t1 - t0)
+                if last:
+                    self.steps.append(t1 - self._t_step)  # the whole step: the loop's own work between phases too
+                    if args[0] % self.every == 0:
+                        mujoco.mj_copyData(scratch, model, ep.data)
+                        t2 = perf()
+                        for _ in range(self.block):
+                            mujoco.mj_step(model, scratch)
+                        self.mj.append((perf() - t2) / self.block)
                 return out
 
             return timed
@@ -98,7 +107,7 @@ class _StepClock:
     def result(self) -> tuple[float, dict[str, float], float]:
         """(step cost [us], mean per phase [us], mj_step [us]) over the samples a preemption
         did not stretch over 3x their median."""
-        steps = [sum(v) for v in zip(*self.per.values())]
+        steps = self.steps
         cap = 3.0 * statistics.median(steps)
         keep = [i for i, v in enumerate(steps) if v <= cap]
         split = {k: sum(v[i] for i in keep) / len(keep) * 1e6 for k, v in self.per.items()}

@@ -44,7 +44,7 @@ def _per_joint(v: Sequence[float] | np.ndarray | float, n: int, label: str) -> n
     return a
 
 
-def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
+def as_slice(idx: np.ndarray) -> slice | np.ndarray:
     """A slice when the indices are contiguous and increasing (views are cheaper)."""
     if idx.size and np.array_equal(idx, np.arange(idx[0], idx[0] + idx.size)):
         return slice(int(idx[0]), int(idx[0]) + int(idx.size))
@@ -103,9 +103,9 @@ class VelocityTracker:
         rng = model.actuator_ctrlrange[act]
         self._lo = np.where(limited, rng[:, 0], -np.inf)
         self._hi = np.where(limited, rng[:, 1], np.inf)
-        self._act = _as_slice(np.asarray(act))
-        self._dof = _as_slice(np.asarray(scene.dof_adr))
-        self._qadr = _as_slice(np.asarray(scene.qpos_adr))
+        self._act = as_slice(np.asarray(act))
+        self._dof = as_slice(np.asarray(scene.dof_adr))
+        self._qadr = as_slice(np.asarray(scene.qpos_adr))
         self._acc_full = np.zeros(model.nv)
         self._tau_full = np.zeros(model.nv)
         self.feedforward = bool(feedforward)
@@ -116,6 +116,8 @@ class VelocityTracker:
         self._tmp = np.zeros(n)
         self._inv_gain = 1.0 / self._gain
         self._dt = float(model.opt.timestep)
+        self._data: mujoco.MjData | None = None
+        self._views: tuple[np.ndarray, ...] | None = None
 
     def reset(self, data: mujoco.MjData) -> None:
         """Set the reference to the current joint positions and the command to zero."""
@@ -140,12 +142,51 @@ class VelocityTracker:
             self.a_ff[:] = 0.0
         self.u[:] = u
 
+    def _bind(self, data: mujoco.MjData) -> None:
+        """Views into ``data`` that :meth:`apply` works on (``data``'s arrays never move)."""
+        self._data = data
+        dof, view = self._dof, type(self._dof) is slice and type(self._qadr) is slice and type(self._act) is slice
+        self._views = ((data.qpos[self._qadr], data.qvel[dof], self._acc_full[dof], self._tau_full[dof],
+                        data.ctrl[self._act], data.qfrc_bias, data.qfrc_passive) if view else None)
+
     def apply(self, data: mujoco.MjData) -> None:
         """Write ``data.ctrl`` for the current state; call between ``mj_step1`` and ``mj_step2``.
 
-        Advances the reference by one physics step. Works in preallocated buffers (it runs at
-        the physics rate).
+        Advances the reference by one physics step. Works in preallocated buffers and, with the
+        arm's joints and actuators contiguous, in views bound once per ``data`` (it runs at the
+        physics rate).
         """
+        if data is not self._data:
+            self._bind(data)
+        views = self._views
+        if views is None:
+            self._apply_indexed(data)
+            return
+        q, qd, acc, tau, ctrl, bias, passive = views
+        u, ref, err = self.u, self.q_ref, self._err
+        # reference: ref <- q + clip(ref + u dt - q, +-e_max)
+        np.multiply(u, self._dt, out=err)
+        ref += err
+        np.subtract(ref, q, out=err)
+        np.minimum(err, self.max_ref_error, out=err)
+        np.maximum(err, -self.max_ref_error, out=err)
+        np.add(q, err, out=ref)
+        # desired acceleration: a_ff + kd (u - qd) + kp err
+        np.subtract(u, qd, out=acc)
+        acc *= self.kd
+        err *= self.kp
+        acc += err
+        acc += self.a_ff
+        mujoco.mj_mulM(self.model, data, self._tau_full, self._acc_full)
+        tau_full = self._tau_full
+        tau_full += bias
+        tau_full -= passive
+        np.multiply(tau, self._inv_gain, out=ctrl)
+        np.minimum(ctrl, self._hi, out=ctrl)
+        np.maximum(ctrl, self._lo, out=ctrl)
+
+    def _apply_indexed(self, data: mujoco.MjData) -> None:
+        """:meth:`apply` for joints or actuators that are not contiguous (index arrays, copies)."""
         dof = self._dof
         q = data.qpos[self._qadr]
         u = self.u

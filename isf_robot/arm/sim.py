@@ -46,6 +46,7 @@ from .actuation import Actuation, make_actuation
 from .barriers import CollisionBarriers, JointLimitBarriers
 from .collision import NearPairs
 from .episode import EpisodeSetup, check_control_period, episode_setup, path_track
+from .lowlevel import as_slice
 from .monitor import SafetyMonitor
 from .nominal import NominalController, ReachingController
 from .params import filter_options, resolve_params
@@ -262,6 +263,8 @@ class _Episode:
         self._screen_j = np.full(nj, sim.keep_joint)
         self._screen_cache: dict[int, np.ndarray] = {}
         self._names_cache: dict[bytes, tuple[str, ...]] = {}
+        dofs = as_slice(np.asarray(scene.dof_adr))
+        self._qvel = data.qvel[dofs] if type(dofs) is slice else None  # the arm's joint speeds (a view)
 
     # -- phases --------------------------------------------------------------------------
     def sense(self, k: int) -> None:
@@ -315,15 +318,13 @@ class _Episode:
 
     def act(self, k: int, u: np.ndarray) -> None:
         """Track ``u`` over the control period: S physics steps, each checked for safety."""
-        sim, model, data, monitor = self.sim, self.model, self.data, self.monitor
-        tracker = sim.tracker
-        e = data.qvel[sim.scene.dof_adr] - tracker.u
+        sim, model, data, monitor, tracker = self.sim, self.model, self.data, self.monitor, self.sim.tracker
+        e = (self._qvel if self._qvel is not None else data.qvel[sim.scene.dof_adr]) - tracker.u
         self.track_err[k] = math.sqrt(float(e.dot(e)))
         tracker.set_command(u, sim.control_period)
         tracker.apply(data)
         mujoco.mj_step2(model, data)
-        bound = self.dmin if self.recording else -math.inf
-        base = k * self.S
+        bound, base = (self.dmin if self.recording else -math.inf), k * self.S
         for s in range(1, self.S):
             if self.moving:
                 data.mocap_pos[self.mocap_rows] = self.track[base + s]

@@ -184,9 +184,20 @@ class MetricsAccumulator:
         self._solved.append(bool(solved))
 
     def add_step(self, step: Any, dt: float) -> None:
-        """Record a :class:`~isf_robot.core.filters.FilterStep` (and its solver figures)."""
-        qp = step.qp
-        self.add(step.t, dt, step.on, step.u, step.u_nom, qp is not None)
+        """Record a :class:`~isf_robot.core.filters.FilterStep` (and its solver figures).
+
+        The same figures as :meth:`add` and the bookkeeping below it, in one call (it runs every
+        control step).
+        """
+        qp, u = step.qp, step.u
+        if type(u) is not np.ndarray or u.dtype != _F64:
+            u = np.asarray(u, dtype=float)
+        d = u - step.u_nom
+        self._t.append(step.t)
+        self._dt.append(dt)
+        self._on.append(bool(step.on))
+        self._rate.append(float(d.dot(d)))
+        self._solved.append(qp is not None)
         if qp is not None:
             self._qp_times.append(qp.solve_time_s)
             if qp.status == "closed_form":
@@ -199,16 +210,15 @@ class MetricsAccumulator:
             self._relaxations += 1
         if getattr(step, "resolved", False):
             self._resolves += 1
-        u = step.u
-        if type(u) is not np.ndarray or u.dtype != _F64:
-            u = np.asarray(u, dtype=float)
-        if self._u_prev is not None:
-            d = u - self._u_prev
-            jump = math.sqrt(float(d.dot(d)))
-            self._jump_max = jump if self._jump_max is None else max(self._jump_max, jump)
-            if step.event is not None:
-                self._switch_jump = jump if self._switch_jump is None else max(self._switch_jump, jump)
+        prev = self._u_prev
         self._u_prev = u.copy()
+        if prev is not None:
+            d = u - prev
+            jump = math.sqrt(float(d.dot(d)))
+            if self._jump_max is None or jump > self._jump_max:
+                self._jump_max = jump
+            if step.event is not None and (self._switch_jump is None or jump > self._switch_jump):
+                self._switch_jump = jump
         bound = getattr(step, "off_bound_s", None)
         if bound is not None:
             self._off_bound = bound if self._off_bound is None else min(self._off_bound, bound)

@@ -59,10 +59,13 @@ class NominalStrategy:
     def step_lie(self, t: float, lie: LieData | None, u_nom: np.ndarray,
                  x: np.ndarray | None = None) -> FilterStep:
         """Return ``u_nom`` unchanged (``lie`` may be ``None``)."""
-        empty = np.zeros(0)
-        h = lie.h if lie is not None else empty
-        return FilterStep(t, u_nom, u_nom, False, h, np.full(h.shape, np.inf), None, None, (), False,
-                          lie.names if lie is not None else ())
+        if lie is None:
+            return FilterStep._of(t, u_nom, u_nom, False, _EMPTY, _EMPTY)
+        return FilterStep._of(t, u_nom, u_nom, False, lie.h, np.full(lie.h.shape, np.inf), names=lie.names)
+
+
+_EMPTY = np.zeros(0)
+_EMPTY.flags.writeable = False  # shared by every step without rows
 
 
 @dataclass(frozen=True)

@@ -151,6 +151,47 @@ def test_tracker_follows_constant_velocity(planar) -> None:  # type: ignore[no-u
     np.testing.assert_allclose(data.qvel[planar.dof_adr], u, atol=2e-3)
 
 
+
+def test_tracker_views_equal_the_indexed_path_to_the_bit() -> None:
+    """``apply`` works in views bound once per MjData; the indexed path (copies) gives the same bits.
+
+    Two Panda arms stepped side by side with changing commands (torque limits reached too); the
+    second tracker is forced onto the indexed path. Then the first is handed a fresh MjData: it
+    must write that one's ``ctrl`` (rebinding), not the old one's.
+    """
+    scene = load_scene("panda_pole")
+    model = scene.model
+    datas = [scene.make_data(), scene.make_data()]
+    trackers = [VelocityTracker(scene), VelocityTracker(scene)]
+    for tr, d in zip(trackers, datas):
+        mujoco.mj_forward(model, d)
+        tr.reset(d)
+    trackers[1]._data, trackers[1]._views = datas[1], None  # the indexed path
+    rng = np.random.default_rng(7)
+    for i in range(300):
+        u = rng.normal(scale=1.5 if i % 50 < 5 else 0.3, size=scene.n_joints)
+        for tr, d in zip(trackers, datas):
+            mujoco.mj_step1(model, d)
+            tr.set_command(u, 0.001)
+            tr.apply(d)
+        assert np.array_equal(datas[0].ctrl, datas[1].ctrl)
+        assert np.array_equal(trackers[0].q_ref, trackers[1].q_ref)
+        for d in datas:
+            mujoco.mj_step2(model, d)
+    assert trackers[0]._views is not None and trackers[1]._views is None
+    assert np.any(np.abs(datas[0].ctrl) >= np.abs(model.actuator_ctrlrange[:scene.n_joints, 1]) - 1e-12)
+    fresh, other = scene.make_data(), scene.make_data()
+    before = datas[0].ctrl.copy()
+    for tr, d in ((trackers[0], fresh), (VelocityTracker(scene), other)):
+        mujoco.mj_forward(model, d)
+        tr.reset(d)
+        tr.set_command(np.full(scene.n_joints, 0.1), 0.001)
+        mujoco.mj_step1(model, d)
+        tr.apply(d)
+    assert np.array_equal(datas[0].ctrl, before)  # the old data is left alone
+    assert np.array_equal(fresh.ctrl, other.ctrl) and not np.array_equal(fresh.ctrl, before)
+
+
 _NO_MOTOR_XML = """
 <mujoco>
   <option timestep="0.001"/>

@@ -40,3 +40,36 @@ def test_accumulator_matches_batch():
     b = compute_metrics(np.arange(200) * 0.01, 0.01, np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
                         np.array([r[0] for r in rows]))
     assert a == b
+
+
+def test_add_step_records_steps_and_their_solver_figures():
+    """add_step keeps add's per-step figures plus the jumps and solver counts, against a direct count."""
+    from isf_robot.core import FilterStep, QPResult, SwitchEvent
+
+    rng = np.random.default_rng(3)
+    acc, plain = MetricsAccumulator(), MetricsAccumulator()
+    us, events, kinds = [], [], []
+    for k in range(120):
+        u, un = rng.normal(size=4), rng.normal(size=4)
+        kind = ("none", "closed_form", "optimal")[k % 3]
+        qp = None if kind == "none" else QPResult(u, kind, np.zeros(1, bool), 1e-6 * (k + 1), 1, 0.0)
+        ev = SwitchEvent(k * 0.01, "on" if k % 2 else "off", 0.0, 1) if k % 17 == 5 else None
+        step = FilterStep(k * 0.01, u, un, bool(k % 4 == 1), np.zeros(1), np.zeros(1), ev, qp,
+                          ("r",) if k % 11 == 0 else (), k % 13 == 0, resolved=k % 7 == 0, off_bound_s=float(200 - k))
+        acc.add_step(step, 0.01)
+        plain.add(k * 0.01, 0.01, step.on, u, un, qp is not None)
+        us.append(u)
+        events.append(ev is not None)
+        kinds.append(kind)
+    assert acc.arrays().keys() == plain.arrays().keys()
+    for name, col in acc.arrays().items():
+        assert np.array_equal(col, plain.arrays()[name]), name
+    jumps = [float(np.linalg.norm(us[k] - us[k - 1])) for k in range(1, len(us))]
+    st = acc.stats()
+    assert st.jump_max == pytest.approx(max(jumps), rel=1e-14)
+    assert st.switch_jump_max == pytest.approx(max(j for j, e in zip(jumps, events[1:]) if e), rel=1e-14)
+    assert st.qp_closed_form == kinds.count("closed_form")
+    assert st.fallbacks == len(range(0, 120, 13)) and st.relaxations == len(range(0, 120, 11))
+    assert st.resolves == len(range(0, 120, 7)) and st.off_bound_min_s == 81.0
+    times = [1e-6 * (k + 1) for k in range(120) if kinds[k] == "optimal"]
+    assert st.solver_time_median_us == pytest.approx(float(np.median(times)) * 1e6)
