@@ -66,7 +66,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--out", metavar="FILE.json",
                    help="write the study here (atomically; rewritten after every finished orbit, marked partial)")
     p.add_argument("--resume", action="store_true",
-                   help="with --out: keep the finished orbits of that file (same settings) and run the rest")
+                   help="with --out: keep the finished orbits of that file (same settings; maneuver runs only "
+                        "with the same tau file) and run the rest, e.g. configurations added since")
     p.add_argument("--json", action="store_true", help="print the JSON document on stdout instead of the table")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=run)
@@ -110,10 +111,15 @@ def _resumed(path: str, settings: StudySettings) -> list[dict[str, Any]]:
         raise ConfigError(f"--resume: cannot read {path}: {exc}") from None
     if not isinstance(doc, dict) or not str(doc.get("schema", "")).startswith(SCHEMA + "/"):
         raise ConfigError(f"--resume: {path} is not an isf-satellite study file")
-    if doc.get("settings") != json.loads(json.dumps(settings.as_dict())):
-        raise ConfigError(f"--resume: {path} was made with other settings ({doc.get('settings')}); "
+    old = dict(doc.get("settings") or {})
+    new = json.loads(json.dumps(settings.as_dict()))
+    old_tau, new_tau = old.pop("tau", {}) or {}, new.pop("tau")
+    if old != new:
+        raise ConfigError(f"--resume: {path} was made with other settings ({old}); "
                           "use the same options or another --out")
-    return list(doc.get("runs", []))
+    # the tau files only matter to maneuver runs: keep those flown with the same file
+    return [r for r in doc.get("runs", []) if not str(r.get("config", "")).startswith("maneuver/")
+            or old_tau.get(r["config"].split("/", 1)[1]) == new_tau.get(r["config"].split("/", 1)[1])]
 
 
 def run(args: argparse.Namespace) -> int:

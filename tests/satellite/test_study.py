@@ -17,7 +17,7 @@ import pytest
 from satellite.cli import main as satellite_main
 from satellite.model import OrbitModel
 from satellite.study import StudySettings, plan, run_study
-from satellite.study_stats import bootstrap_ci, paired_comparison, paired_t_ci
+from satellite.study_stats import bootstrap_ci, paired_comparison, paired_t_ci, summarize_config
 
 SATELLITE = [sys.executable, "-c", "import sys; from satellite.cli import main; sys.exit(main())"]
 
@@ -61,6 +61,13 @@ def test_paired_comparison_matches_orbits_and_skips_unfinished_ones() -> None:
     assert c["total_dv"]["mean"] == pytest.approx(0.5 / 3)
     lo, hi = c["triggers"]["ci_t"]
     assert lo < c["triggers"]["mean"] < hi
+    # a run stopped at its first band exit (periodic) counts as an orbit with an exit
+    for r in ref:
+        r.update(band_exits=0, left_band_h=None if r["completed"] else 3.5, min_h=10.0, kinds={}, wall_s=1.0,
+                 min_inter_event_h=None)
+    s = summarize_config(ref)
+    assert (s["orbits"], s["completed"], s["orbits_with_band_exit"], s["band_exits"]) == (4, 3, 1, 1)
+    assert s["triggers"]["mean"] == pytest.approx(350 / 3)
 
 
 def test_configurations_fly_the_same_starts_and_workers_do_not_change_numbers(tmp_path: Path) -> None:
