@@ -36,7 +36,8 @@ __all__ = ["NominalController", "GoalSequence", "ReachingController", "JointPDCo
 class GoalSequence:
     """Goal bookkeeping shared by the nominal controllers.
 
-    A goal is *reached* the first time the error falls below the tolerance; after its dwell
+    A goal is *reached* the first time the error falls below the tolerance (its time is kept in
+    ``arrivals``); after its dwell
     time the sequence moves to the next goal (back to the first when ``loop``; the last goal
     is held otherwise). A goal not reached within ``timeout`` seconds is given up (counted in
     ``missed``) and the sequence moves on, so that an arm held back by a safety filter keeps
@@ -73,6 +74,7 @@ class GoalSequence:
         self.index = 0
         self.reached = 0
         self.missed = 0
+        self.arrivals: tuple[float, ...] = ()  # a tuple: snapshots (a dict copy) keep their own
         self._arrived: float | None = None
         self._started: float | None = None
         self._done = False
@@ -97,6 +99,7 @@ class GoalSequence:
             if error < self.tolerance:
                 self._arrived = t
                 self.reached += 1
+                self.arrivals += (float(t),)
             elif t - self._started >= self.timeout:
                 self.missed += 1
                 self._advance()
@@ -131,6 +134,11 @@ class NominalController(ABC):
     def goals_missed(self) -> int:
         """Number of goals given up after the timeout."""
         return self.goals.missed
+
+    @property
+    def goal_times(self) -> tuple[float, ...]:
+        """Time [s] of every goal arrival so far, in order (``len == goals_reached``)."""
+        return self.goals.arrivals
 
     _rate: _RateLimit
 

@@ -172,6 +172,7 @@ class RunResult:
         min_joint_barrier: Smallest joint-limit barrier [rad] over the control steps.
         goals_reached: Goal arrivals of the nominal task.
         goals_missed: Goals given up after the nominal task's timeout.
+        goal_times: Time [s] of every goal arrival, in order (``goal_times_s`` in :meth:`as_dict`).
         control_period: Control period T [s].
         timestep: Physics timestep dt [s].
         tracking_error_q99: 99th percentile of ``|q_dot - u|`` at the control ticks [rad/s];
@@ -204,6 +205,7 @@ class RunResult:
     tracking_error_q99: float
     wall_s: float
     timings: Mapping[str, float] = dataclasses.field(default_factory=dict)
+    goal_times: tuple[float, ...] = ()
 
     def __getattr__(self, name: str) -> Any:
         for part in ("metrics", "stats", "params"):
@@ -221,7 +223,7 @@ class RunResult:
         out.update(m)
         out.update(min_barrier=self.min_barrier, collisions=self.collisions,
                    min_joint_barrier=self.min_joint_barrier, goals_reached=self.goals_reached,
-                   goals_missed=self.goals_missed)
+                   goals_missed=self.goals_missed, goal_times_s=list(self.goal_times))
         st = self.stats.as_dict()
         out.update(fallbacks=st.pop("fallbacks"), relaxations=st.pop("relaxations"), resolves=st.pop("resolves"))
         params = self.params.as_dict()

@@ -376,7 +376,7 @@ class _Episode:
             min_joint_barrier=float(self.min_joint), goals_reached=sim.nominal.goals_reached,
             goals_missed=sim.nominal.goals_missed, control_period=sim.control_period,
             timestep=sim.timestep, tracking_error_q99=float(np.quantile(self.track_err, 0.99)),
-            wall_s=wall, timings=timings,
+            wall_s=wall, timings=timings, goal_times=tuple(getattr(sim.nominal, "goal_times", ())),
         )
 
 

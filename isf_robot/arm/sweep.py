@@ -11,6 +11,14 @@ Per scene and point, :func:`summarize_point` gives the means over episodes plus 
 figures the issue's targets need (shortest off period over all episodes, violations, whether the
 ``d_bar`` in use covered the tracking error in every episode); :func:`pareto_front` marks the points
 no other point beats on every objective of :data:`OBJECTIVES` at once.
+
+Time to complete the goals (``goals_time_s``): the scene's goal sequence has ``n`` goals and every
+episode reports the time of each arrival (``goal_times_s``). Per scene, ``k`` (``goals_time_k``)
+is ``n`` if every episode of every point reached ``n`` goals, else the fewest arrivals any episode
+of the scene made (at least 1); ``goals_time_s`` of a point is the mean over its episodes of the
+time of the k-th arrival, an episode with fewer than k arrivals counting as its whole duration
+(``goals_time_censored`` counts them). So it is the time to complete the goals when every point
+completes them, else the time to the k-th goal, the same k for every point of the scene.
 """
 
 from __future__ import annotations
@@ -33,7 +41,7 @@ from .params import resolve_params
 from .records import FilterParams
 
 __all__ = ["SweepPoint", "SweepTask", "grid_points", "random_points", "run_sweep", "summarize_point",
-           "pareto_front", "format_sweep", "PARAMETERS", "OBJECTIVES", "MAX_SWEEP_EPISODES"]
+           "pareto_front", "goals_time", "format_sweep", "PARAMETERS", "OBJECTIVES", "MAX_SWEEP_EPISODES"]
 
 PARAMETERS = ("alpha", "c", "b", "min_off", "c_max", "blend", "horizon", "predict_every", "c_pred")
 """Filter parameters a sweep can vary (the names of :func:`~isf_robot.arm.params.resolve_params`)."""
@@ -42,7 +50,7 @@ _INTERMITTENT_ONLY = frozenset(PARAMETERS) - {"alpha"}
 
 OBJECTIVES: tuple[tuple[str, int], ...] = (
     ("duty_cycle", -1), ("on_switches", -1), ("min_off_all_s", +1), ("intervention", -1),
-    ("goals_reached", +1), ("violations", -1),
+    ("goals_reached", +1), ("goals_time_s", -1), ("violations", -1),
 )
 """``(key, sense)`` of the Pareto front: -1 smaller is better, +1 larger is better."""
 
@@ -160,6 +168,23 @@ def summarize_point(runs: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     return out
 
 
+def goals_time(points: Sequence[Sequence[Mapping[str, Any]]], n_goals: int) -> tuple[int, list[dict[str, Any]]]:
+    """``k`` and, per point, ``goals_time_s``/``goals_time_censored`` (see the module docstring).
+
+    ``points`` are the episodes' results of each point of one scene (``goal_times_s``,
+    ``duration_s``); a point without episodes gets ``None``.
+    """
+    counts = [len(r.get("goal_times_s") or ()) for runs in points for r in runs]
+    k = max(1, min([int(n_goals)] + counts)) if counts else max(1, int(n_goals))
+    out = []
+    for runs in points:
+        times = [(r["goal_times_s"][k - 1] if len(r.get("goal_times_s") or ()) >= k else None, r["duration_s"])
+                 for r in runs]
+        out.append({"goals_time_s": float(np.mean([t if t is not None else d for t, d in times])) if times else None,
+                    "goals_time_censored": sum(1 for t, _ in times if t is None)})
+    return k, out
+
+
 def _objective(row: Mapping[str, Any], key: str, sense: int) -> float:
     v = row.get(key)
     if v is None:  # no complete off period: the best case for min off (never switched back on)
@@ -208,10 +233,10 @@ def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: S
     from .sim import ArmSimulation
 
     tasks: list[SweepTask] = []
-    names: list[str] = []
+    names: list[tuple[str, int]] = []
     for i, spec in enumerate(specs):
         scene = spec.load()
-        names.append(scene.name)
+        names.append((scene.name, len(scene.goal_positions)))
         base = resolve_params(scene, d_bar=d_bar)
         for j, pt in enumerate(points):
             fp = _params_of(scene, base, pt)
@@ -235,16 +260,17 @@ def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: S
     return summary(False)
 
 
-def _summary(names: list[str], points: Sequence[SweepPoint], seeds: list[int],
+def _summary(names: list[tuple[str, int]], points: Sequence[SweepPoint], seeds: list[int],
              results: Mapping[tuple[int, int], list[dict[str, Any]]], partial: bool) -> dict[str, Any]:
     scenes = []
-    for i, name in enumerate(names):
+    for i, (name, n_goals) in enumerate(names):
         rows = []
-        for j, pt in enumerate(points):
-            runs = sorted(results.get((i, j), []), key=lambda r: r["seed"])
-            if runs:
-                rows.append({"strategy": pt.strategy, "values": dict(pt.values), "label": pt.label,
-                             **summarize_point(runs), "runs": runs})
+        done = [(pt, sorted(runs, key=lambda r: r["seed"])) for j, pt in enumerate(points)
+                if (runs := results.get((i, j)))]
+        goal_k, times = goals_time([runs for _, runs in done], n_goals)
+        for (pt, runs), t in zip(done, times):
+            rows.append({"strategy": pt.strategy, "values": dict(pt.values), "label": pt.label,
+                         **summarize_point(runs), **t, "runs": runs})
         cbf = next((r for r in rows if r["strategy"] == "cbf"), None)
         for r, on in zip(rows, pareto_front(rows)):
             r["pareto"] = on
@@ -253,14 +279,14 @@ def _summary(names: list[str], points: Sequence[SweepPoint], seeds: list[int],
                                for k in ("duty_cycle", "on_switches", "intervention")}
                 r["vs_cbf"]["goals_diff"] = (None if r["goals_reached"] is None or cbf["goals_reached"] is None
                                              else r["goals_reached"] - cbf["goals_reached"])
-        scenes.append({"scene": name, "points": rows})
+        scenes.append({"scene": name, "goals": n_goals, "goals_time_k": goal_k, "points": rows})
     return json_safe({"partial": partial, "seeds": seeds, "objectives": [k for k, _ in OBJECTIVES],
                       "scenes": scenes})
 
 
 _COLUMNS = (("duty_cycle", "duty", ".3f"), ("on_switches", "switches", ".1f"),
             ("min_off_all_s", "min off [s]", ".3f"), ("off_bound_min_s", "bound [s]", ".3f"),
-            ("intervention", "interv.", ".3f"), ("goals_reached", "goals", ".2f"),
+            ("intervention", "interv.", ".3f"), ("goals_reached", "goals", ".2f"), ("goals_time_s", "t goals", ".2f"),
             ("violations", "viol.", "d"), ("switch_jump_max", "jump", ".3f"),
             ("tracking_error_q99", "err q99", ".3f"))
 
@@ -282,7 +308,7 @@ def format_sweep(sweep: Mapping[str, Any]) -> str:
                         + ["yes" if r["d_bar_covered_all"] else "no"])
         title = (("PARTIAL (interrupted) " if sweep["partial"] else "") + f"scene {sc['scene']}: "
                  f"{len(sweep['seeds'])} seed(s) per point, means (min off: shortest over episodes; "
-                 "* Pareto front)")
+                 f"t goals: time of goal {sc['goals_time_k']} of {sc['goals']} [s]; * Pareto front)")
         out.append(format_table(["point"] + [h for _, h, _ in _COLUMNS]
                                 + ["duty/cbf", "sw/cbf", "int/cbf", "d_bar ok"], rows, title=title))
     return "\n\n".join(out)
