@@ -33,6 +33,7 @@ import datetime as _dt
 import json
 import math
 import os
+import signal
 import statistics
 import sys
 import time
@@ -53,7 +54,7 @@ from isf_robot.arm.episode import episode_setup  # noqa: E402
 from isf_robot.arm.params import resolve_params  # noqa: E402
 from isf_robot.core.exceptions import IsfError  # noqa: E402
 from isf_robot.core.files import write_text_atomic  # noqa: E402
-from isf_robot.core.parallel import Interrupted, run_tasks  # noqa: E402
+from isf_robot.core.parallel import Interrupted, Terminated, run_tasks  # noqa: E402
 
 START, END = "<!-- stress_bench:start -->", "<!-- stress_bench:end -->"
 SCENES = ("panda_pole", "panda_shelf", "panda_moving", "panda_servo")
@@ -203,6 +204,10 @@ def table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+def _terminated(signum: int, frame: Any) -> None:
+    raise Terminated()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--episodes", type=int, default=1000, help="episodes per strategy (over all scenes)")
@@ -214,6 +219,9 @@ def main() -> None:
     ap.add_argument("--output", type=Path, default=None, help="write every episode's result here (JSON)")
     ap.add_argument("--no-write", action="store_true", help="do not write RESULTS.md")
     args = ap.parse_args()
+    # Ctrl-C and SIGTERM stop the batch even when started in the background (where SIGINT is ignored)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, _terminated)
     if args.episodes < 1 or not (args.duration > 0) or args.jobs < 1:
         ap.error("--episodes and --jobs must be >= 1 and --duration > 0")
     per_scene = -(-args.episodes // len(args.scenes))

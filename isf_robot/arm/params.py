@@ -10,6 +10,7 @@ and :func:`isf_robot.arm.run_episode` call this function, and a script may too.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -43,6 +44,7 @@ def resolve_params(
     horizon: float | None = None,
     predict_every: int | None = None,
     c_pred: float | None = None,
+    in_loop: str | None = None,
 ) -> FilterParams:
     """The filter parameters of a run on ``scene``: arguments first, then ``[filter]`` of the config.
 
@@ -61,6 +63,10 @@ def resolve_params(
         predict_every: Control steps between its rollouts (``None``: 5).
         c_pred: Off margin when the rollout predicts the nominal safe over the horizon (``0 < c_pred <= c``);
             default ``[filter] c_pred`` (0: none, the prediction only delays the off switch at ``c``).
+        in_loop: A strategy name: raise ``d_bar`` (from whatever source above) until the tracking error
+            that strategy produces in the loop is covered
+            (:func:`~isf_robot.arm.calibration_loop.calibrate_in_loop`, a few episodes); ``d_bar_source``
+            gets ``"+loop"``.
 
     Raises:
         ConfigError: A parameter is not a positive number (``d_bar``: not >= 0), or ``d_bar``
@@ -90,16 +96,23 @@ def resolve_params(
     if d_bar is not None:
         if not (math.isfinite(d_bar) and d_bar >= 0):
             raise ConfigError(f"d_bar must be >= 0 [rad/s], got {d_bar}")
-        return FilterParams(a, cc, bb, float(d_bar), "argument", **opts)
-    if fc.d_bar > 0:
-        return FilterParams(a, cc, bb, float(fc.d_bar), "config", **opts)
-    if not calibrate:
+        p = FilterParams(a, cc, bb, float(d_bar), "argument", **opts)
+    elif fc.d_bar > 0:
+        p = FilterParams(a, cc, bb, float(fc.d_bar), "config", **opts)
+    elif not calibrate:
         raise ConfigError(
             f"scene {scene.name!r} has no d_bar ([filter] d_bar = 0): pass d_bar=, or "
             "params=resolve_params(scene) (runs the tracking calibration, about 4 s)")
-    from .calibration import calibrate_d_bar
+    else:
+        from .calibration import calibrate_d_bar
 
-    return FilterParams(a, cc, bb, calibrate_d_bar(scene).d_bar, "calibration", **opts)
+        p = FilterParams(a, cc, bb, calibrate_d_bar(scene).d_bar, "calibration", **opts)
+    if in_loop is None:
+        return p
+    from .calibration_loop import calibrate_in_loop
+
+    cal = calibrate_in_loop(scene, in_loop, p)
+    return replace(p, d_bar=cal.d_bar, d_bar_source=f"{p.d_bar_source}+loop")
 
 
 def _options(c: float, min_off: float | None, c_max: float | None, blend: float | None,

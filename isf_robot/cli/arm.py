@@ -79,8 +79,9 @@ def _params(args: argparse.Namespace, scene: Any) -> dict[str, Any]:
     from isf_robot.arm.diagnostics import run_findings
     from isf_robot.arm.params import resolve_params
 
+    in_loop = args.filter if getattr(args, "d_bar_in_loop", False) else None
     out: dict[str, Any] = {"params": resolve_params(
-        scene, args.alpha, args.c, args.b, args.d_bar, **_intermittent_kwargs(args))}
+        scene, args.alpha, args.c, args.b, args.d_bar, in_loop=in_loop, **_intermittent_kwargs(args))}
     for f in run_findings(scene, out["params"]):  # what `isf-robot check` reports, before the run
         print(f"warning [{f.code}]: {f.message}", file=sys.stderr)
     if getattr(args, "control_period", None) is not None:
@@ -115,6 +116,9 @@ def register(subparsers: Any) -> None:
                    help=f"strategy (default isf) -- {_strategy_help()}")
     p.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
     _add_filter_args(p)
+    p.add_argument("--d-bar-in-loop", action="store_true",
+                   help="raise d_bar until the tracking error this filter produces is covered (runs it on seeds "
+                        "0-5 for 6 s a round, a few rounds; cached per process)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--view", action="store_true",
                    help="watch the run in MuJoCo's viewer in real time (Space pauses, Ctrl + mouse drag perturbs "
