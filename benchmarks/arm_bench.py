@@ -48,7 +48,7 @@ from pathlib import Path  # noqa: E402
 import mujoco  # noqa: E402
 from _common import cpu_model, write_section  # noqa: E402  (benchmarks/ is on sys.path as a script)
 
-from isf_robot.arm import load_scene  # noqa: E402
+from isf_robot.arm import kernels, load_scene  # noqa: E402
 from isf_robot.arm import sim as sim_module  # noqa: E402
 from isf_robot.arm.params import resolve_params  # noqa: E402
 from isf_robot.arm.sim import ArmSimulation  # noqa: E402
@@ -188,6 +188,14 @@ def _f(v: float | None, fmt: str = ".1f") -> str:
     return "-" if v is None else format(v, fmt)
 
 
+def _kernels() -> str:
+    if not kernels.available():
+        return "numpy (numba not installed, or ISF_ROBOT_JIT=0)"
+    import numba
+
+    return f"compiled (numba {numba.__version__})"
+
+
 def render(scenes: list[dict], backends: dict, far: dict | None, args: argparse.Namespace) -> str:
     now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M")
     load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
@@ -196,7 +204,8 @@ def render(scenes: list[dict], backends: dict, far: dict | None, args: argparse.
         f"Machine: {platform.platform()}; CPU {cpu_model()}; {os.cpu_count()} cores; Python "
         f"{platform.python_version()}; MuJoCo {mujoco.__version__}. Date (UTC): {now}. One process "
         f"pinned to one core, BLAS threads 1. Load average at the end (1/5/15 min): {load} (a shared "
-        "machine: absolute figures move with it, the ratios measured side by side much less).", "",
+        "machine: absolute figures move with it, the ratios measured side by side much less). Barrier "
+        f"kernels: {_kernels()} (`isf_robot/arm/kernels.py`).", "",
         f"Episodes of {args.duration:g} s, seed 0, control period {args.period * 1e3:g} ms with a 1 ms physics "
         f"step, d_bar as calibrated; medians of {args.repeats} repeats. `us/step`: wall time of a control step "
         "(QP and metrics included), `mj_step`: one `mj_step` on a copy of the run's state taken every 10th step, "

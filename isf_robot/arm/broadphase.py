@@ -100,6 +100,8 @@ class BroadPhase:
     Attributes:
         live: Indices of the pairs tested at every step (the others can never be candidates),
             shape (l,).
+        thresh2: The live pairs' squared thresholds ``(cutoff + r1 + r2)^2`` [m^2] (``inf``:
+            always a candidate), shape (l,).
 
     """
 
@@ -126,7 +128,7 @@ class BroadPhase:
         self._dmat = np.zeros((self.live.size, self._cols.size))
         self._dmat[rows, pos[: rows.size]] += 1.0
         self._dmat[rows, pos[rows.size:]] -= 1.0
-        self._thresh2 = thresh[self.live] ** 2
+        self.thresh2 = self._thresh2 = thresh[self.live] ** 2
         self.cutoff = float(cutoff)
         self.geom1, self.geom2 = geom1, geom2
         # Per-call buffers (overwritten on every call).
@@ -197,11 +199,11 @@ class JointCoherence:
         n = broadphase.live.size
         pair = levers[:n] + levers[n:]
         used = np.flatnonzero(pair.any(axis=0))
-        self._lever = np.ascontiguousarray(pair[:, used])
-        self._qadr = np.asarray(qpos_adr, dtype=np.int64)[used]
+        self.lever = self._lever = np.ascontiguousarray(pair[:, used])
+        self.qadr = self._qadr = np.asarray(qpos_adr, dtype=np.int64)[used]
         self.cutoff = broadphase.cutoff
         self.distmax = broadphase.cutoff + float(reach)
-        self._slack = float(slack)
+        self.slack = self._slack = float(slack)
         self._n = n
         self.reset()
 
@@ -214,14 +216,16 @@ class JointCoherence:
     def reset(self) -> None:
         """Forget the bounds: every live pair is a candidate at the next state."""
         self.lower = np.full(self._n, -math.inf)
-        self._q: np.ndarray | None = None
+        self.qprev = np.zeros(self._qadr.size)  # the joint angles at the last state (once qstate[0] is 1)
+        self.qstate = np.zeros(1, dtype=np.int64)
 
     def candidates(self, data: mujoco.MjData) -> np.ndarray:
         """Rows of ``broadphase.live`` (ascending) whose bound is below the cut-off."""
         q = data.qpos.take(self._qadr)
-        if self._q is not None:
-            self.lower -= self._lever.dot(np.abs(q - self._q))  # (dot: the BLAS product of @)
-        self._q = q
+        if self.qstate[0]:
+            self.lower -= self._lever.dot(np.abs(q - self.qprev))  # (dot: the BLAS product of @)
+        self.qprev[:] = q
+        self.qstate[0] = 1
         return (self.lower < self.cutoff).nonzero()[0]
 
     def update(self, rows: np.ndarray, dist: list[float]) -> None:

@@ -31,24 +31,25 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
-from isf_robot.core.exceptions import ConfigError, IsfWarning, ShapeError
+from isf_robot.core.exceptions import ConfigError, IsfWarning
 
+from . import kernels
 from .batch import BarrierBatch
 from .broadphase import BroadPhase, JointCoherence
 from .clearance import Clearance, _ClearanceSearch
+from .narrow import FilterRows, NarrowPhase, NearPairs
 from .pairs import CollisionPairs, collision_pairs
 
 if TYPE_CHECKING:
+    from .joint_limits import JointLimitBarriers
     from .scene import Scene
 
-__all__ = ["CollisionBarriers", "NearPairs"]
-
-_EPS_DIST = 1e-9  # [m] below this |dist| the witness points give no direction
+__all__ = ["CollisionBarriers", "FilterRows", "NearPairs"]
 
 _G = mujoco.mjtGeom
 # Type pairs whose penetration depth from mj_geomDistance (MuJoCo's primitive capsule-box
@@ -56,38 +57,7 @@ _G = mujoco.mjtGeom
 _BAD_OVERLAP = {frozenset((int(_G.mjGEOM_CAPSULE), int(_G.mjGEOM_BOX)))}
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross product of (k, 3) arrays (cheaper than ``np.cross`` for small k)."""
-    i, j = [1, 2, 0], [2, 0, 1]
-    return a[:, i] * b[:, j] - a[:, j] * b[:, i]
-
-
-class NearPairs(NamedTuple):
-    """The collision pairs within the cut-off at one state (:meth:`CollisionBarriers.near`).
-
-    Attributes:
-        rows: Their pair indices, ascending, shape (j,) int64.
-        row_list: The same as a list.
-        h: ``dist - margin``, shape (j,).
-        grad: ``dh/dq``, shape (j, n).
-        dhdt: ``dh/dt``, shape (j,).
-        witness: Witness points (on geom 1, on geom 2) [m], shape (j, 2, 3), when asked for.
-        h_min: Smallest ``h`` (``inf`` when no pair is near).
-        dist_min: Smallest distance [m] (``inf`` when no pair is near).
-
-    """
-
-    rows: np.ndarray
-    row_list: list[int]
-    h: np.ndarray
-    grad: np.ndarray
-    dhdt: np.ndarray
-    witness: np.ndarray | None
-    h_min: float
-    dist_min: float
-
-
-class CollisionBarriers:
+class CollisionBarriers(NarrowPhase):
     """Collision barriers ``h = min(dist, cutoff) - margin`` for a fixed set of geom pairs.
 
     Index arrays and scratch buffers are built once; :meth:`evaluate` returns fresh output
@@ -105,11 +75,13 @@ class CollisionBarriers:
         pairs: The geom pairs (from :func:`~isf_robot.arm.pairs.collision_pairs`).
         dof_adr: The arm's dof addresses (columns of ``dh/dq``), shape (n,).
         cutoff: Broad-phase cut-off distance [m], > 0.
+        jit: Use the compiled kernel of :mod:`isf_robot.arm.kernels` when it is available (the
+            same rows, bit for bit; ``False``: always the numpy path).
 
     """
 
     def __init__(self, model: mujoco.MjModel, pairs: CollisionPairs, dof_adr: Sequence[int] | np.ndarray,
-                 cutoff: float) -> None:
+                 cutoff: float, *, jit: bool = True) -> None:
         if not cutoff > 0:
             raise ConfigError(f"cutoff must be > 0 [m], got {cutoff}")
         if pairs.k == 0:
@@ -132,7 +104,8 @@ class CollisionBarriers:
         self.broadphase = BroadPhase(model, pairs.geom1, pairs.geom2, self.cutoff)
         self._g1 = pairs.geom1.tolist()
         self._g2 = pairs.geom2.tolist()
-        self._b1 = model.body_weldid[model.geom_bodyid[pairs.geom1]].tolist()
+        b1arr = model.body_weldid[model.geom_bodyid[pairs.geom1]]
+        self._b1 = b1arr.tolist()
         self._b2 = model.body_weldid[model.geom_bodyid[pairs.geom2]].tolist()
         self._self = pairs.is_self.tolist()
         self._margin = pairs.margin
@@ -172,6 +145,24 @@ class CollisionBarriers:
         self._all_live = self.broadphase.live.size == k
         self._obstacle_body = b2
         self._clearance = _ClearanceSearch(model, pairs)
+        # The compiled kernel's tables: one row per live pair (pair, geom1, geom2, body1, body2, self).
+        self._kernel = kernels.near_kernel() if jit else None
+        live = self.broadphase.live
+        self._ktab = np.ascontiguousarray(np.stack(
+            [live, pairs.geom1[live], pairs.geom2[live], b1arr[live], b2[live], pairs.is_self[live]], axis=1),
+            dtype=np.int64)
+        self._kmargin = np.ascontiguousarray(pairs.margin[live], dtype=float)
+        self._kthr2 = np.ascontiguousarray(self.broadphase.thresh2, dtype=float)
+        self._kfromto = np.zeros((max(live.size, 1), 6))
+        self._kjac1 = np.zeros((3, model.nv))
+        self._kjac2 = np.zeros((3, model.nv))
+        self._knone = (np.zeros(0), np.zeros(0), np.zeros(1, dtype=np.int64), np.zeros((0, 0)),
+                       np.zeros(0, dtype=np.int64))  # (no coherence bounds)
+        self._kjoints = (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros((0, n)))  # (no joint rows)
+        self._kjoints[3].flags.writeable = False  # (typed like JointLimitBarriers.tables' grad: one compilation)
+        self._maddr = model._address
+        self._data: mujoco.MjData | None = None  # the last data seen, and its address
+        self._daddr = 0
 
     @classmethod
     def from_scene(cls, scene: Scene) -> CollisionBarriers:
@@ -256,77 +247,34 @@ class CollisionBarriers:
             Fresh arrays (the empty result's arrays are shared and read-only).
 
         """
-        m, cutoff = self.model, self.cutoff
-        if coherence is None:
-            cand = self.broadphase.candidates(data)
-            distmax = cutoff
-        else:
-            live = coherence.candidates(data)
-            cand = (live if self._all_live else self.broadphase.live[live]).tolist()
-            distmax = coherence.distmax
-        if not cand:
-            return self._none
-        gd, g1, g2, ft = mujoco.mj_geomDistance, self._g1, self._g2, self._ft_rows
-        ds = [gd(m, data, g1[i], g2[i], distmax, ft[r]) for r, i in enumerate(cand)]
-        if coherence is not None:
-            coherence.update(live, ds)
-        # Scratch row r holds candidate r's witness points; fr those of the near ones, packed.
-        sel = [r for r, d in enumerate(ds) if d < cutoff]
-        j = len(sel)
-        if not j:
-            return self._none
-        if j < len(cand):
-            rows = [cand[r] for r in sel]
-            ds = [ds[r] for r in sel]
-            fr = self._fromto.take(sel, 0)
-        else:
-            rows = cand
-            fr = self._fromto[:j]
-        marg, b1, p1r, j1r, jac = self._marginl, self._b1, self._p1_rows, self._j1_rows, mujoco.mj_jac
-        hs = [d - marg[i] for d, i in zip(ds, rows)]
-        for k, r in enumerate(sel):
-            jac(m, data, j1r[k], None, p1r[r], b1[cand[r]])
-        # n = (p1 - p2) / dist, as (p1 - p2) * (1 / dist); where the witness points coincide, the
-        # direction between the geom centres.
-        n = fr[:, :3] - fr[:, 3:]
-        inv = [0.0 if -_EPS_DIST < d < _EPS_DIST else 1.0 / d for d in ds]
-        touching = [r for r, v in enumerate(inv) if v == 0.0]  # (1/d is never 0 for a finite d)
-        n *= np.array(inv)[:, None]
-        idx = np.array(rows, dtype=np.int64)
-        if touching:
-            ti = idx[touching]
-            c = data.geom_xpos[self.pairs.geom1[ti]] - data.geom_xpos[self.pairs.geom2[ti]]
-            n[touching] = c / np.maximum(np.linalg.norm(c, axis=1, keepdims=True), 1e-12)
-        n_row = n[:, None, :]
-        g = np.matmul(n_row, self._jac1[:j])[:, 0]
-        if self._any_self:
-            selfs = [r for r, i in enumerate(rows) if self._self[i]]
-            if selfs:
-                b2, p2r, j2r = self._b2, self._p2_rows, self._j2_rows
-                for k in selfs:
-                    jac(m, data, j2r[k], None, p2r[sel[k]], b2[rows[k]])
-                g[selfs] -= np.matmul(n_row[selfs], self._jac2[selfs])[:, 0]
-        if not self._all_dofs:
-            g = g[:, self.dof_adr]
-        dhdt = np.zeros(j)
-        if self._any_moving and mocap_lin is not None:
-            is_moving = self._is_moving
-            moving = [t for t, i in enumerate(rows) if is_moving[i]]
-            if moving:  # pairs with a mocap obstacle
-                shape = (m.nmocap, 3)
-                if mocap_lin.shape != shape or (mocap_ang is not None and mocap_ang.shape != shape):
-                    raise ShapeError(f"mocap velocities must have shape {shape} (rows like "
-                                     f"data.mocap_pos); got {mocap_lin.shape} and "
-                                     f"{None if mocap_ang is None else mocap_ang.shape}")
-                mp = idx[moving]
-                mi = self._mocap[mp]
-                v = mocap_lin[mi]
-                if mocap_ang is not None and np.any(mocap_ang):
-                    r = fr[moving, 3:] - data.xpos[self._obstacle_body[mp]]
-                    v = v + _cross(mocap_ang[mi], r)
-                dhdt[moving] = -np.einsum("ij,ij->i", n[moving], v)
-        wit = fr.reshape(j, 2, 3).copy() if witness else None
-        return NearPairs(idx, rows, np.array(hs), g, dhdt, wit, min(hs), min(ds))
+        if self._kernel is None:
+            return self._near_numpy(data, mocap_lin, mocap_ang, witness, coherence)
+        return self._near_compiled(data, mocap_lin, mocap_ang, witness, coherence, None)[0]
+
+    def rows(self, data: mujoco.MjData, joints: JointLimitBarriers, mocap_lin: np.ndarray | None = None, *,
+             witness: bool = False, coherence: JointCoherence | None = None) -> FilterRows:
+        """:meth:`near` and the joint-limit rows after it, stacked: the rows of a filter at the state.
+
+        Args:
+            data: As :meth:`near`.
+            joints: The arm's joint-limit barriers (:class:`~isf_robot.arm.joint_limits.JointLimitBarriers`).
+            mocap_lin: As :meth:`near`.
+            witness: As :meth:`near`.
+            coherence: As :meth:`near`.
+
+        Returns:
+            ``near`` and ``h``, ``grad`` of its pairs followed by the joint rows (``near.h`` and
+            ``near.grad`` are views of their first rows), and the smallest joint value.
+
+        """
+        if self._kernel is not None:
+            near, h, g, jmin = self._near_compiled(data, mocap_lin, None, witness, coherence, joints)
+            return FilterRows(near, h, g, jmin)
+        near = self._near_numpy(data, mocap_lin, None, witness, coherence)
+        jh = joints.values(data)
+        jl = jh.tolist()
+        return FilterRows(near, np.concatenate((near.h, jh)), np.concatenate((near.grad, joints.grad)),
+                          min(jl) if jl else math.inf)
 
     def coherence(self) -> JointCoherence | None:
         """Distance bounds for one run's states (:class:`~isf_robot.arm.broadphase.JointCoherence`).

@@ -61,6 +61,8 @@ class JointLimitBarriers:
         }
         for arr in self._const.values():
             arr.flags.writeable = False
+        self._tables = (np.ascontiguousarray(self._qadr), np.ascontiguousarray(self._sign),
+                        np.ascontiguousarray(self._offset), self._grad)
 
     @classmethod
     def from_scene(cls, scene: Scene) -> JointLimitBarriers:
@@ -80,6 +82,11 @@ class JointLimitBarriers:
     def grad(self) -> np.ndarray:
         """``dh/dq`` of every row, shape (k, n): constant, shared, read-only."""
         return self._grad
+
+    @property
+    def tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(qpos address, sign, offset, grad)`` per row: ``h = sign q[adr] + offset`` (read-only)."""
+        return self._tables
 
     def values(self, data: mujoco.MjData) -> np.ndarray:
         """The barrier values ``h`` at ``data.qpos``, shape (k,) (the rest of a batch is constant)."""

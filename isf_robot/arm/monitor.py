@@ -13,6 +13,7 @@ import math
 import mujoco
 import numpy as np
 
+from . import kernels
 from .barriers import CollisionBarriers
 
 __all__ = ["SafetyMonitor"]
@@ -36,6 +37,14 @@ class SafetyMonitor:
         self.model = coll.model
         self.g1l, self.g2l = p.geom1.tolist(), p.geom2.tolist()
         self.marginl = p.margin.tolist()
+        # The compiled sub-step check (isf_robot.arm.kernels), with the collision barriers' choice.
+        self._kernel = kernels.monitor_kernel() if getattr(coll, "_kernel", None) is not None else None
+        self._g1, self._g2 = p.geom1.astype(np.int64), p.geom2.astype(np.int64)
+        self._margin = np.ascontiguousarray(p.margin, dtype=float)
+        self._maddr = coll.model._address
+        self._data: mujoco.MjData | None = None
+        self._daddr = 0
+        self._rows_arr: np.ndarray | None = None
         self.min_h = math.inf
         self.collisions = 0
         self.steps = 0
@@ -54,14 +63,17 @@ class SafetyMonitor:
         dist = float((h[rows] + margin[rows]).min()) if near else math.inf
         return self.tick_min(float(h.min()), near, dist)
 
-    def tick_min(self, h_min: float, rows: list[int], dist_min: float) -> float:
+    def tick_min(self, h_min: float, rows: list[int], dist_min: float,
+                 rows_array: np.ndarray | None = None) -> float:
         """:meth:`tick` given its minima; returns the smallest barrier value.
 
         The minima: the smallest barrier value over every pair, the pairs
         within the cut-off and their smallest ``h + margin`` (``inf`` when none); returns that.
+        ``rows_array``: the same rows as an int64 array, if at hand.
         """
         self.steps += 1
         self.rows = rows
+        self._rows_arr = rows_array
         if h_min < 0.0:
             self.collisions += 1
         if h_min < self.min_h:
@@ -88,8 +100,27 @@ class SafetyMonitor:
         rows = self.rows
         if not rows:
             return math.inf
-        m, g1, g2, marg = self.model, self.g1l, self.g2l, self.marginl
         thresh = max(self.min_h, 0.0)
+        if self._kernel is not None:
+            if data is not self._data:
+                self._data, self._daddr = data, data._address
+            ra = self._rows_arr
+            if ra is None:
+                ra = self._rows_arr = np.array(rows, dtype=np.int64)
+            step_h, step_d = self._kernel(self._maddr, self._daddr, ra, self._g1, self._g2,
+                                          self._margin, thresh, bound)
+        else:
+            step_h, step_d = self._substep_python(data, rows, thresh, bound)
+        if step_h < 0.0:
+            self.collisions += 1
+        if step_h < self.min_h:
+            self.min_h = step_h
+        return step_d
+
+    def _substep_python(self, data: mujoco.MjData, rows: list[int], thresh: float,
+                        bound: float) -> tuple[float, float]:
+        """The smallest ``h`` and distance of ``rows`` (per-pair calls; :meth:`substep` without the kernel)."""
+        m, g1, g2, marg = self.model, self.g1l, self.g2l, self.marginl
         step_h = math.inf
         step_d = math.inf
         for i in rows:
@@ -99,8 +130,4 @@ class SafetyMonitor:
                 step_h = d - marg[i]
             if d < step_d:
                 step_d = d
-        if step_h < 0.0:
-            self.collisions += 1
-        if step_h < self.min_h:
-            self.min_h = step_h
-        return step_d
+        return step_h, step_d

@@ -257,7 +257,6 @@ class _Episode:
         nj = sim.joints.evaluate(data).k
         self._ones = np.ones(nj)
         self._jzero = np.zeros(nj)
-        self._jgrad = sim.joints.grad
         self._h_far_min = sim.coll.h_far_min
         self.coherence = sim.coll.coherence()  # this run's distance bounds (None: not applicable)
         self._screen_j = np.full(nj, sim.keep_joint)
@@ -281,21 +280,20 @@ class _Episode:
         ``cutoff - margin``, above the near ones' and never a row of the filter).
         """
         sim = self.sim
-        near = sim.coll.near(self.data, self.lin, witness=self.recording, coherence=self.coherence)
-        self.dmin = self.monitor.tick_min(min(near.h_min, self._h_far_min), near.row_list, near.dist_min)
-        jh = sim.joints.values(self.data)
-        jl = jh.tolist()
-        if jl and min(jl) < self.min_joint:
-            self.min_joint = min(jl)
+        near, h, g, jmin = sim.coll.rows(self.data, sim.joints, self.lin, witness=self.recording,
+                                         coherence=self.coherence)
+        self.dmin = self.monitor.tick_min(min(near.h_min, self._h_far_min), near.row_list, near.dist_min, near.rows)
+        if jmin < self.min_joint:
+            self.min_joint = jmin
+        jh = h[len(near.row_list):]
         if not self.uses_rows:
             return near, jh, None
         key = tuple(near.row_list)
         names = self._names_cache.get(key)
         if names is None:
             names = self._names_cache[key] = tuple(sim.coll.names[i] for i in key) + sim.joints.names
-        g = np.concatenate((near.grad, self._jgrad))  # joint rows: +-e_i, so |row| = 1 exactly
         lf = np.concatenate((near.dhdt, self._jzero)) if self.moving else np.zeros(g.shape[0])
-        lie = LieData._of(np.concatenate((near.h, jh)), lf, g, np.sqrt(np.einsum("ij,ij->i", g, g)), names)
+        lie = LieData._of(h, lf, g, np.sqrt(np.einsum("ij,ij->i", g, g)), names)  # joint rows: |+-e_i| = 1
         return near, jh, lie
 
     def nominal(self, t: float) -> np.ndarray:

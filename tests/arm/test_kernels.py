@@ -1,0 +1,172 @@
+"""The compiled barrier kernels (``isf_robot.arm.kernels``) against the numpy path, bit for bit.
+
+The kernels must give the very rows the numpy path gives (``tests/golden`` pins whole runs to
+them): the same ``h``, ``dh/dq`` (signed zeros included), ``dh/dt``, witness points and minima, at
+random states, along a run with the coherence bounds, for robot-robot pairs (a second Jacobian),
+for mocap obstacles, for coinciding witness points (handed to the numpy path), and in the safety
+monitor's sub-steps. Skipped where numba is not installed (the numpy path is then the only one).
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from isf_robot.arm import CollisionBarriers, JointLimitBarriers, kernels, load_scene
+from isf_robot.arm import narrow as narrow_module
+from isf_robot.arm.monitor import SafetyMonitor
+from isf_robot.arm.pairs import collision_pairs
+from isf_robot.arm.params import resolve_params
+from isf_robot.arm.sim import ArmSimulation
+
+pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba not installed (the fast extra)")
+
+
+def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    """Equal shape, dtype and bytes (so signed zeros and NaNs count)."""
+    if a is None or b is None:
+        return a is None and b is None
+    a, b = np.ascontiguousarray(a), np.ascontiguousarray(b)
+    return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+def _assert_same_near(x, y) -> None:  # type: ignore[no-untyped-def]
+    assert x.row_list == y.row_list
+    for field in ("rows", "h", "grad", "dhdt", "witness"):
+        assert _same(getattr(x, field), getattr(y, field)), field
+    assert (x.h_min, x.dist_min) == (y.h_min, y.dist_min)
+
+
+def _pair(scene, self_collision: bool = False) -> tuple[CollisionBarriers, CollisionBarriers]:  # type: ignore[no-untyped-def]
+    fast = CollisionBarriers.from_scene(scene)
+    if self_collision:
+        bc = scene.config.barrier
+        pairs = collision_pairs(scene.model, scene.robot_geom_ids, scene.obstacle_geom_ids, margin=bc.margin,
+                                self_collision=True, self_margin=bc.self_margin)
+        fast = CollisionBarriers(scene.model, pairs, scene.dof_adr, bc.cutoff)
+    slow = CollisionBarriers(scene.model, fast.pairs, scene.dof_adr, fast.cutoff, jit=False)
+    assert fast._kernel is not None and slow._kernel is None
+    return fast, slow
+
+
+def _random_states(scene, rng, n: int, spread: float = 0.6):  # type: ignore[no-untyped-def]
+    m, d = scene.model, scene.make_data()
+    lo, hi = scene.joint_range[:, 0], scene.joint_range[:, 1]
+    for _ in range(n):
+        d.qpos[scene.qpos_adr] = scene.home + rng.uniform(lo - scene.home, hi - scene.home) * spread
+        mujoco.mj_forward(m, d)
+        yield d
+
+
+@pytest.mark.parametrize("name,self_collision", [("panda_pole", False), ("panda_shelf", False),
+                                                 ("panda_pole", True)])
+def test_kernel_rows_equal_the_numpy_rows_at_random_states(rng, name, self_collision) -> None:  # type: ignore[no-untyped-def]
+    scene = load_scene(name)
+    fast, slow = _pair(scene, self_collision)
+    joints = JointLimitBarriers.from_scene(scene)
+    seen = selfs = 0
+    for d in _random_states(scene, rng, 60):
+        x, y = fast.near(d, witness=True), slow.near(d, witness=True)
+        _assert_same_near(x, y)
+        seen += len(x.row_list)
+        selfs += sum(bool(fast.pairs.is_self[i]) for i in x.row_list)
+        rx, ry = fast.rows(d, joints), slow.rows(d, joints)
+        _assert_same_near(rx.near, ry.near)
+        assert _same(rx.h, ry.h) and _same(rx.grad, ry.grad) and rx.joint_min == ry.joint_min
+        jh = joints.values(d)
+        assert _same(rx.h[len(x.row_list):], jh) and rx.joint_min == min(jh.tolist())
+        assert _same(rx.grad[len(x.row_list):], joints.grad)
+    assert seen > 100  # the states do bring pairs within the cut-off
+    assert selfs > 0 or not self_collision  # the second Jacobian (robot-robot pairs) is exercised
+
+
+def test_kernel_rows_equal_along_a_path_with_the_coherence_bounds(rng) -> None:  # type: ignore[no-untyped-def]
+    scene = load_scene("panda_shelf")
+    fast, slow = _pair(scene)
+    cf, cs = fast.coherence(), slow.coherence()
+    assert cf is not None and cs is not None
+    m, d = scene.model, scene.make_data()
+    q = scene.home.copy()
+    skipped = 0
+    for _ in range(300):
+        q = np.clip(q + rng.normal(0.0, 0.03, q.size), scene.joint_range[:, 0], scene.joint_range[:, 1])
+        d.qpos[scene.qpos_adr] = q
+        mujoco.mj_forward(m, d)
+        x, y = fast.near(d, coherence=cf), slow.near(d)
+        _assert_same_near(x, y)
+        skipped += int((cf.lower >= cf.cutoff).sum())
+        _assert_same_near(slow.near(d, coherence=cs), y)
+    assert skipped > 0  # the bounds did skip far pairs
+
+
+def test_kernel_dhdt_of_mocap_obstacles_equals_numpy(rng) -> None:  # type: ignore[no-untyped-def]
+    scene = load_scene("panda_moving")
+    fast, slow = _pair(scene)
+    lin = rng.normal(0.0, 0.3, (scene.model.nmocap, 3))
+    moving = 0
+    for d in _random_states(scene, rng, 60):
+        x, y = fast.near(d, lin, witness=True), slow.near(d, lin, witness=True)
+        _assert_same_near(x, y)
+        moving += int(np.count_nonzero(x.dhdt))
+    assert moving > 0
+
+
+def test_coinciding_witness_points_go_to_the_numpy_path(rng, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    scene = load_scene("panda_pole")
+    fast, slow = _pair(scene)
+    monkeypatch.setattr(narrow_module, "_EPS_DIST", 10.0)  # every near pair counts as touching
+    joints = JointLimitBarriers.from_scene(scene)
+    cf = fast.coherence()
+    hit = 0
+    for d in _random_states(scene, rng, 20):
+        y = slow.near(d, witness=True)
+        _assert_same_near(fast.near(d, witness=True, coherence=cf), y)
+        rx = fast.rows(d, joints)
+        assert _same(rx.h, np.concatenate((y.h, joints.values(d))))
+        hit += len(y.row_list)
+    assert hit > 0
+
+
+def test_monitor_substeps_equal_the_per_pair_calls(rng) -> None:  # type: ignore[no-untyped-def]
+    scene = load_scene("panda_shelf")
+    fast, slow = _pair(scene)
+    mf, ms = SafetyMonitor(fast), SafetyMonitor(slow)
+    assert mf._kernel is not None and ms._kernel is None
+    checked = 0
+    for d in _random_states(scene, rng, 40, spread=0.8):
+        near = slow.near(d)
+        for mon, arr in ((mf, near.rows), (ms, None)):
+            mon.tick_min(min(near.h_min, slow.h_far_min), near.row_list, near.dist_min, arr)
+        for bound in (-math.inf, 0.05, near.dist_min):
+            assert mf.substep(d, bound) == ms.substep(d, bound)
+            assert (mf.min_h, mf.collisions, mf.steps) == (ms.min_h, ms.collisions, ms.steps)
+        checked += bool(near.row_list)
+    assert checked > 5
+
+
+@pytest.mark.parametrize("strategy", ["cbf", "isf"])
+def test_runs_are_identical_with_and_without_the_kernels(monkeypatch, strategy) -> None:  # type: ignore[no-untyped-def]
+    scene = load_scene("panda_pole")
+    params = resolve_params(scene)
+    out = []
+    for jit in ("1", "0"):
+        monkeypatch.setenv("ISF_ROBOT_JIT", jit)
+        cmds: list[bytes] = []
+
+        class Obs:
+            def on_start(self, info): ...  # type: ignore[no-untyped-def]
+            def on_step(self, rec): cmds.append(np.asarray(rec.u).tobytes() + np.asarray(rec.h).tobytes())  # type: ignore[no-untyped-def]
+            def on_event(self, ev): ...  # type: ignore[no-untyped-def]
+            def on_finish(self, summary): ...  # type: ignore[no-untyped-def]
+            def on_abort(self, exc): ...  # type: ignore[no-untyped-def]
+
+        sim = ArmSimulation(scene, strategy, seed=0, params=params, observers=[Obs()])
+        assert (sim.coll._kernel is not None) == (jit == "1")
+        r = sim.run(0.4)
+        quiet = ArmSimulation(scene, strategy, seed=0, params=params).run(0.4)  # no observer: no witness points
+        out.append((cmds, r.min_barrier, r.collisions, r.min_joint_barrier, r.physics_steps, quiet.min_barrier,
+                    quiet.collisions, quiet.qp_solves, quiet.duty_cycle, quiet.min_joint_barrier))
+    assert out[0] == out[1] and len(out[0][0]) == 200
