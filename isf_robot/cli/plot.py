@@ -9,7 +9,9 @@ What is drawn follows from the inputs:
   per strategy (mean, whiskers over the episodes);
 * a satellite recording (``isf-satellite run --rrd``): ``r/R`` in the band and ``Xi`` with a
   star at each trigger over the first ``--hours`` (150, as in the paper);
-* a tau file (``isf-satellite tau --out``): the samples, medians and the fitted ``tau_p``.
+* a tau file (``isf-satellite tau --out``): the samples, medians and the fitted ``tau_p``;
+* a sweep file (``isf-robot sweep --output``): duty cycle vs intervention per scene, the Pareto
+  front marked, cbf as the reference.
 
 matplotlib is the optional ``plots`` extra; without it the command says which extra to install.
 """
@@ -35,7 +37,7 @@ def register(sub: Any) -> None:
                     "`compare --rrd` directory), a satellite run (its recording) or a tau file "
                     "(`isf-satellite tau --out`) with matplotlib.")
     p.add_argument("inputs", nargs="+", type=Path, metavar="INPUT",
-                   help=".rrd recordings, directories of them, or one tau .json file")
+                   help=".rrd recordings, directories of them, or one tau or sweep .json file")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="PATH",
                    help="figure file: .png, .svg or .pdf")
     p.add_argument("--hours", type=float, default=150.0,
@@ -54,8 +56,8 @@ def handle(args: argparse.Namespace) -> int:
         raise ConfigError(f"--hours must be a positive number, got {args.hours:g}")
     if any(p.suffix.lower() == ".json" for p in args.inputs):
         if len(args.inputs) != 1:
-            raise ConfigError("a tau file is drawn alone: give one .json file, or .rrd recordings")
-        fig, what = _tau(args.inputs[0])
+            raise ConfigError("a tau or sweep file is drawn alone: give one .json file, or .rrd recordings")
+        fig, what = _json(args.inputs[0])
     else:
         fig, what = _recordings(args)
     save_figure(fig, args.output)
@@ -92,6 +94,27 @@ def _recordings(args: argparse.Namespace) -> tuple[Any, str]:
     scenes = sorted({str(log.info.get("scene", "?")) for log in logs})
     title = args.title if args.title is not None else f"scene {', '.join(scenes)}"
     return compare_figure(runs, bars, title), f"comparison of {len(bars)} strategies over {len(logs)} recordings"
+
+
+def _json(path: Path) -> tuple[Any, str]:
+    import json
+
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"{path}: cannot read JSON ({exc})") from None
+    if isinstance(doc, dict) and str(doc.get("schema", "")).startswith("isf-robot-sweep/"):
+        return sweep_figure(doc)
+    return _tau(path)
+
+
+def sweep_figure(doc: Any) -> tuple[Any, str]:
+    """The Pareto figure of a sweep document, and what it shows."""
+    from isf_robot.plots import pareto_figure, sweep_scenes
+
+    scenes = sweep_scenes(doc)
+    n = sum(len(v) for v in scenes.values())
+    return pareto_figure(scenes), f"Pareto figure, {n} points of {len(scenes)} scene(s)"
 
 
 def _tau(path: Path) -> tuple[Any, str]:

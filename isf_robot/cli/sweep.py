@@ -60,6 +60,9 @@ def register(subparsers: Any) -> None:
                    help="N random draws per intermittent strategy from the LO:HI ranges")
     p.add_argument("--sweep-seed", type=int, default=0, help="seed of the random draws (default 0)")
     p.add_argument("--output", metavar="PATH.json", help="also write the JSON here (atomically)")
+    p.add_argument("--plot", metavar="FIG.png", default=None,
+                   help="also draw the Pareto figure (duty vs intervention per scene; .png/.svg/.pdf; "
+                        "the plots extra)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(handler=_cmd_sweep)
@@ -100,6 +103,13 @@ def _emit(args: argparse.Namespace, sweep: dict[str, Any]) -> None:
     if args.output:
         write_text_atomic(args.output, json.dumps(doc, indent=1) + "\n")
         print(f"sweep written to {args.output}", file=sys.stderr)
+    if args.plot:
+        from isf_robot.cli.plot import sweep_figure
+        from isf_robot.plots import save_figure
+
+        fig, what = sweep_figure(doc)
+        save_figure(fig, args.plot)
+        print(f"wrote {args.plot}: {what}", file=sys.stderr)
     print(json.dumps(doc) if args.json else format_sweep(sweep), flush=True)
 
 
@@ -114,6 +124,11 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     check_backend(args.backend, args.address)
     if args.output:
         check_output_path(args.output, "--output")
+    if args.plot:
+        from isf_robot.plots import check_figure_path, require_matplotlib
+
+        check_figure_path(args.plot)
+        require_matplotlib()
     points = _points(args)
     seeds = list(range(args.seed, args.seed + args.episodes))
 
