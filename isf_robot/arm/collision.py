@@ -147,6 +147,7 @@ class CollisionBarriers(NarrowPhase):
         self._clearance = _ClearanceSearch(model, pairs)
         # The compiled kernel's tables: one row per live pair (pair, geom1, geom2, body1, body2, self).
         self._kernel = kernels.near_kernel() if jit else None
+        self._klanes = kernels.norm_lanes(self.dof_adr.size) if self._kernel is not None else 0
         live = self.broadphase.live
         self._ktab = np.ascontiguousarray(np.stack(
             [live, pairs.geom1[live], pairs.geom2[live], b1arr[live], b2[live], pairs.is_self[live]], axis=1),
@@ -268,8 +269,7 @@ class CollisionBarriers(NarrowPhase):
 
         """
         if self._kernel is not None:
-            near, h, g, jmin = self._near_compiled(data, mocap_lin, None, witness, coherence, joints)
-            return FilterRows(near, h, g, jmin)
+            return FilterRows(*self._near_compiled(data, mocap_lin, None, witness, coherence, joints))
         near = self._near_numpy(data, mocap_lin, None, witness, coherence)
         jh = joints.values(data)
         jl = jh.tolist()

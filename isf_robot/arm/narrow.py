@@ -63,6 +63,8 @@ class FilterRows(NamedTuple):
         h: Their ``h``, then the joint-limit values, shape (j + l,).
         grad: Their ``dh/dq``, then the joint-limit rows (``+-e_i``), shape (j + l, n).
         joint_min: The smallest joint-limit value (``inf`` without joint rows).
+        grad_norm: ``sqrt(einsum("ij,ij->i", grad, grad))``, the same bits, shape (j + l,), or ``None``
+            (not computed: the caller computes it).
 
     """
 
@@ -70,6 +72,7 @@ class FilterRows(NamedTuple):
     h: np.ndarray
     grad: np.ndarray
     joint_min: float
+    grad_norm: np.ndarray | None = None
 
 
 class NarrowPhase:
@@ -87,8 +90,13 @@ class NarrowPhase:
 
     def _near_compiled(self, data: mujoco.MjData, mocap_lin: np.ndarray | None, mocap_ang: np.ndarray | None,
                        witness: bool, coherence: JointCoherence | None,
-                       joints: JointLimitBarriers | None) -> tuple[NearPairs, np.ndarray, np.ndarray, float]:
-        """:meth:`near` by the compiled kernel, with the joint rows of ``joints`` appended (see :meth:`rows`)."""
+                       joints: JointLimitBarriers | None
+                       ) -> tuple[NearPairs, np.ndarray, np.ndarray, float, np.ndarray | None]:
+        """:meth:`near` by the compiled kernel, with the joint rows of ``joints`` appended (see :meth:`rows`).
+
+        The last item: the rows' norms ``|dh/dq|`` (only with ``joints``; ``None`` where numpy must
+        compute them, see :func:`~isf_robot.arm.kernels.norm_lanes`).
+        """
         if data is not self._data:
             self._data, self._daddr = data, data._address
         if coherence is None:
@@ -99,25 +107,29 @@ class NarrowPhase:
                 coherence.lever, coherence.qadr
             distmax, slack = coherence.distmax, coherence.slack
         jq, jsign, joff, jgrad = self._kjoints if joints is None else joints.tables
-        rows, h, g, n, wit, h_min, dist_min, jmin, touching = self._kernel(
+        rows, h, g, gn, dhdt, n, wit, h_min, dist_min, jmin, touching = self._kernel(
             self._maddr, self._daddr, data.qpos, data.geom_xpos, self._ktab, self._kmargin, self._kthr2,
             coherence is not None, lower, qprev, qstate, lever, qadr, self.cutoff, distmax, slack, _EPS_DIST,
-            self.dof_adr, self._kfromto, self._kjac1, self._kjac2, jq, jsign, joff, jgrad)
+            self.dof_adr, self._kfromto, self._kjac1, self._kjac2, jq, jsign, joff, jgrad,
+            self._klanes if joints is not None else 0)
         if touching:  # coinciding witness points: the numpy path (the same rows without the bounds)
             near = self._near_numpy(data, mocap_lin, mocap_ang, witness, None)
             if joints is None:
-                return near, near.h, near.grad, jmin
-            return near, np.concatenate((near.h, h[rows.size:])), np.concatenate((near.grad, joints.grad)), jmin
+                return near, near.h, near.grad, jmin, None
+            return (near, np.concatenate((near.h, h[rows.size:])), np.concatenate((near.grad, joints.grad)),
+                    jmin, None)
         j = rows.size
         if not j:
-            return self._none, h, g, jmin
+            return self._none, h, g, jmin, gn if gn.size else None
         row_list = rows.tolist()
-        dhdt = self._dhdt(data, row_list, rows, n, wit[:, 1], mocap_lin, mocap_ang)
+        if self._any_moving and mocap_lin is not None:
+            dhdt = self._dhdt(data, row_list, rows, n, wit[:, 1], mocap_lin, mocap_ang)
         if joints is not None:
             h0, g0 = h[:j], g[:j]
         else:
             h0, g0 = h, g
-        return NearPairs(rows, row_list, h0, g0, dhdt, wit if witness else None, h_min, dist_min), h, g, jmin
+        near = NearPairs(rows, row_list, h0, g0, dhdt, wit if witness else None, h_min, dist_min)
+        return near, h, g, jmin, gn if gn.size else None
 
     def _dhdt(self, data: mujoco.MjData, row_list: list[int], idx: np.ndarray, n: np.ndarray,
               p2: np.ndarray, mocap_lin: np.ndarray | None, mocap_ang: np.ndarray | None) -> np.ndarray:

@@ -280,8 +280,8 @@ class _Episode:
         ``cutoff - margin``, above the near ones' and never a row of the filter).
         """
         sim = self.sim
-        near, h, g, jmin = sim.coll.rows(self.data, sim.joints, self.lin, witness=self.recording,
-                                         coherence=self.coherence)
+        near, h, g, jmin, gn = sim.coll.rows(self.data, sim.joints, self.lin, witness=self.recording,
+                                             coherence=self.coherence)
         self.dmin = self.monitor.tick_min(min(near.h_min, self._h_far_min), near.row_list, near.dist_min, near.rows)
         if jmin < self.min_joint:
             self.min_joint = jmin
@@ -293,7 +293,8 @@ class _Episode:
         if names is None:
             names = self._names_cache[key] = tuple(sim.coll.names[i] for i in key) + sim.joints.names
         lf = np.concatenate((near.dhdt, self._jzero)) if self.moving else np.zeros(g.shape[0])
-        lie = LieData._of(h, lf, g, np.sqrt(np.einsum("ij,ij->i", g, g)), names)  # joint rows: |+-e_i| = 1
+        gn = gn if gn is not None else np.sqrt(np.einsum("ij,ij->i", g, g))  # joint rows: |+-e_i| = 1
+        lie = LieData._of(h, lf, g, gn, names)
         return near, jh, lie
 
     def nominal(self, t: float) -> np.ndarray:

@@ -76,11 +76,26 @@ def test_kernel_rows_equal_the_numpy_rows_at_random_states(rng, name, self_colli
         rx, ry = fast.rows(d, joints), slow.rows(d, joints)
         _assert_same_near(rx.near, ry.near)
         assert _same(rx.h, ry.h) and _same(rx.grad, ry.grad) and rx.joint_min == ry.joint_min
+        assert ry.grad_norm is None and (rx.grad_norm is not None) == (kernels.norm_lanes(7) != 0)
+        if rx.grad_norm is not None:
+            assert _same(rx.grad_norm, np.sqrt(np.einsum("ij,ij->i", ry.grad, ry.grad)))
         jh = joints.values(d)
         assert _same(rx.h[len(x.row_list):], jh) and rx.joint_min == min(jh.tolist())
         assert _same(rx.grad[len(x.row_list):], joints.grad)
     assert seen > 100  # the states do bring pairs within the cut-off
     assert selfs > 0 or not self_collision  # the second Jacobian (robot-robot pairs) is exercised
+
+
+@pytest.mark.parametrize("n", [3, 7, 9])
+def test_norm_order_found_for_this_machine_matches_numpy_on_fresh_rows(rng, n) -> None:  # type: ignore[no-untyped-def]
+    lanes = kernels.norm_lanes(n)
+    if lanes == 0:
+        pytest.skip(f"no summation order matches numpy's einsum for rows of {n} here (numpy computes them)")
+    g = rng.normal(size=(3000, n)) * 10.0 ** rng.uniform(-6, 6, size=(3000, n))
+    g[rng.random(g.shape) < 0.3] = -0.0
+    assert _same(kernels._kernels()["norms"](g, lanes), np.sqrt(np.einsum("ij,ij->i", g, g)))
+    other = 1 if lanes != 1 else 2  # another order does differ (so the check above can fail)
+    assert not _same(kernels._kernels()["norms"](g, other), np.sqrt(np.einsum("ij,ij->i", g, g)))
 
 
 def test_kernel_rows_equal_along_a_path_with_the_coherence_bounds(rng) -> None:  # type: ignore[no-untyped-def]
