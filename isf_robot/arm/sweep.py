@@ -308,7 +308,7 @@ def format_sweep(sweep: Mapping[str, Any]) -> str:
                         + ["yes" if r["d_bar_covered_all"] else "no"])
         title = (("PARTIAL (interrupted) " if sweep["partial"] else "") + f"scene {sc['scene']}: "
                  f"{len(sweep['seeds'])} seed(s) per point, means (min off: shortest over episodes; "
-                 f"t goals: time of goal {sc['goals_time_k']} of {sc['goals']} [s]; * Pareto front)")
+                 f"t goals: time of goal {sc.get('goals_time_k', '-')} of {sc.get('goals', '-')} [s]; * Pareto front)")
         out.append(format_table(["point"] + [h for _, h, _ in _COLUMNS]
                                 + ["duty/cbf", "sw/cbf", "int/cbf", "d_bar ok"], rows, title=title))
     return "\n\n".join(out)
