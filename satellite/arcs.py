@@ -118,6 +118,9 @@ class Tracker:
         contacts: Times [s] of surface contacts (first entry of each pass into the shape).
         envelope_passes: Passes inside the contact envelope (necessary for contact).
         min_pass_clearance: Smallest radial clearance [m] sampled during those passes.
+        surface_h: ``h_s`` of the surface barrier at many states, ``(t (k,), y (6, k)) -> (k,)``, or
+            ``None`` (no surface barrier).
+        surface_h_min: Smallest ``h_s`` at step points and located events [m].
 
     """
 
@@ -135,6 +138,8 @@ class Tracker:
         self.contacts: list[float] = []
         self.envelope_passes = 0
         self.min_pass_clearance = math.inf
+        self.surface_h: Callable[[Any, NDArray[np.float64]], NDArray[np.float64]] | None = None
+        self.surface_h_min = math.inf
 
     def radius(self, y: NDArray[np.float64]) -> None:
         """Account for one state ``y``, shape (6,)."""
@@ -153,6 +158,11 @@ class Tracker:
         for evs in sol.y_events:
             for y in evs:
                 self.radius(y)
+        if self.surface_h is not None:  # the surface barrier's smallest value at step points and events
+            self.surface_h_min = min(self.surface_h_min, float(self.surface_h(sol.t, ys).min()))
+            for te, evs in zip(sol.t_events, sol.y_events):
+                if len(te):
+                    self.surface_h_min = min(self.surface_h_min, float(self.surface_h(te, evs.T).min()))
         if not self.obs:
             return
         for k, t in enumerate(sol.t):

@@ -19,7 +19,7 @@ from satellite.controller import CONTROLLERS, ControlParams
 from satellite.fields import DEFAULT_GRAVITY, GRAVITY_MODELS, load_field
 from satellite.model import InitialOrbit, OrbitModel
 from satellite.shooting import ShootingParams
-from satellite.simulate import RunResult, SatelliteSample, simulate
+from satellite.simulate import MIN_INTERVAL_S, RunResult, SatelliteSample, simulate
 from satellite.triggers import TRIGGERS, Trigger
 
 __all__ = ["register", "run", "ProgressObserver", "format_text", "add_controller_args", "control_from_args"]
@@ -134,6 +134,19 @@ def register(subparsers: Any) -> None:
     p.add_argument("--contact", choices=CONTACT_MODES, default="count",
                    help="surface contact in the dynamics: count (default: contacts counted, the orbit goes on "
                         "through the body as in the paper), stop (the run ends at the first contact), off")
+    p.add_argument("--min-interval", type=float, default=MIN_INTERVAL_S, metavar="S",
+                   help="practical minimum interval between impulses in seconds: an impulse due by Xi sooner after "
+                        "the previous one waits, unless the satellite would leave the band; 0 turns it off "
+                        f"(default {MIN_INTERVAL_S:g}; reported as min_interval_binds/overrides)")
+    p.add_argument("--surface-barrier", action="store_true",
+                   help="greedy only: a second barrier keeps the satellite outside a smooth envelope of the shape "
+                        "(h_s = distance outside the envelope - --surface-clearance); its trigger fires 'surface' "
+                        "impulses and every impulse keeps both post-jump conditions")
+    p.add_argument("--surface-clearance", type=float, default=0.0, metavar="M",
+                   help="clearance above the envelope for --surface-barrier, metres (default 0)")
+    p.add_argument("--surface-c", type=float, default=None, metavar="M_PER_S",
+                   help="post-jump margin of the surface trigger, m/s "
+                        "(default: c / (0.8 R), the band's margin as a speed)")
     p.add_argument("--no-event-scan", action="store_true",
                    help="see events at integrator step points only (solve_ivp's rule; can miss crossings)")
     p.add_argument("--shape", metavar="PATH.obj",
@@ -160,8 +173,12 @@ def format_text(res: RunResult) -> str:
         f"r range            [{res.r_min_over_R:.4f}, {res.r_max_over_R:.4f}] R",
         f"total_dv           {res.total_dv:.6g} m/s",
         f"inter-event        min {f(res.min_inter_event_h, '.4g')} h, mean {f(res.mean_inter_event_h, '.4g')} h",
-        f"miet_bound         {res.miet_bound_h:.3g} h",
+        f"miet               estimate {f(res.miet_estimate_h, '.3g')} h (c / sup|dXi/dt|), Proposition 1's "
+        f"product {res.miet_bound_h:.3g} h",
     ]
+    if res.min_interval_binds:
+        lines.append(f"min interval       {res.min_interval_s:g} s bound {res.min_interval_binds} time(s), "
+                     f"{res.min_interval_overrides} cut short at the band's edge")
     if res.trigger in (Trigger.NONE, Trigger.PERIODIC) or res.band_exits:
         lines.append(f"left_band          {f(res.left_band_h, '.4g')} h ({res.band_exits} exit(s))")
     if res.surface is not None:
@@ -180,6 +197,11 @@ def format_text(res: RunResult) -> str:
             f"min clearance {f(c['min_pass_clearance_m'], '.3g')} m){' - run stopped' if c['contact_stopped'] else ''}",
             f"contact model      {c['contact_model']}",
         ]
+    if res.surface_barrier is not None:
+        b = res.surface_barrier
+        lines.append(f"surface barrier    {res.kinds.get('surface', 0)} surface impulse(s), min h_s "
+                     f"{f(b['surface_min_h_m'], '.4g')} m, {b['surface_filtered']} impulse(s) filtered; "
+                     f"{b['surface_barrier']['name']}")
     lines.append(f"wall               {res.wall_s:.2f} s")
     return "\n".join(lines)
 
@@ -190,11 +212,19 @@ def run(args: argparse.Namespace) -> int:
     if not math.isfinite(args.hours) or args.hours <= 0:
         raise ConfigError(f"--hours must be a finite number > 0, got {args.hours:g}")
     surface = shape = None
-    if args.shape and not args.surface_check and args.contact == "off":
+    if args.shape and not args.surface_check and args.contact == "off" and not args.surface_barrier:
         raise ConfigError("--shape needs --surface-check or --contact count|stop")
     if args.surface_check and not (math.isfinite(args.surface_step) and args.surface_step > 0):
         raise ConfigError(f"--surface-step must be a positive number of seconds, got {args.surface_step:g}")
-    if args.surface_check or args.contact != "off":
+    if not args.surface_barrier and (args.surface_clearance != 0.0 or args.surface_c is not None):
+        raise ConfigError("--surface-clearance and --surface-c go with --surface-barrier")
+    if args.surface_barrier and trigger is not Trigger.GREEDY:
+        raise ConfigError(f"--surface-barrier works with --trigger greedy, not {trigger}")
+    if args.surface_barrier and not (math.isfinite(args.surface_clearance) and args.surface_clearance >= 0):
+        raise ConfigError(f"--surface-clearance must be a number of metres >= 0, got {args.surface_clearance:g}")
+    if args.surface_c is not None and not (math.isfinite(args.surface_c) and args.surface_c > 0):
+        raise ConfigError(f"--surface-c must be a positive speed in m/s, got {args.surface_c:g}")
+    if args.surface_check or args.contact != "off" or args.surface_barrier:
         from satellite.mesh_surface import load_surface
 
         shape = load_surface(args.shape, units=args.shape_units)
@@ -208,6 +238,8 @@ def run(args: argparse.Namespace) -> int:
         tau = load_tau(args.tau)
     if (trigger is Trigger.PERIODIC) != (args.period_h is not None):
         raise ConfigError("--period-h HOURS goes with --trigger periodic (and only with it)")
+    if not (math.isfinite(args.min_interval) and args.min_interval >= 0):
+        raise ConfigError(f"--min-interval must be a number of seconds >= 0, got {args.min_interval:g}")
     if args.period_h is not None and not (math.isfinite(args.period_h) and args.period_h > 0):
         raise ConfigError(f"--period-h must be a positive number of hours, got {args.period_h:g}")
     model = OrbitModel(load_field(args.gravity), spin=not args.no_spin, disturbance_scale=args.disturbance_scale)
@@ -223,7 +255,9 @@ def run(args: argparse.Namespace) -> int:
     res = simulate(trigger, args.hours, initial=initial, model=model, control=control, tau=tau,
                    observers=observers, surface=surface, surface_step_s=args.surface_step,
                    body_mesh=recorder is not None, contact=args.contact, contact_surface=shape,
-                   integrator=IntegratorSettings(event_scan=not args.no_event_scan), period_h=args.period_h)
+                   integrator=IntegratorSettings(event_scan=not args.no_event_scan), period_h=args.period_h,
+                   min_interval_s=args.min_interval, surface_barrier=args.surface_barrier,
+                   surface_clearance_m=args.surface_clearance, surface_c=args.surface_c)
     if args.json:
         out = res.summary()
         if args.events:

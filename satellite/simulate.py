@@ -1,7 +1,7 @@
 """Closed-loop orbit runs: no control, the greedy trigger, or two-impulse maneuvers.
 
 :func:`simulate` sets a run up (model with the initial body phase, resolved controller settings,
-the sampled MIET bound, observers, the optional surface check), calls its trigger's policy
+the sampled MIET figures, observers, the optional surface check), calls its trigger's policy
 (:mod:`satellite.policies`) arc by arc until the end time, and sums the run up in a
 :class:`RunResult`. The arcs themselves are integrated by :class:`satellite.arcs.ArcIntegrator`.
 
@@ -15,23 +15,30 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from isf_robot.core import ConfigError, JumpEvent, Linear, Observer, Observers, estimate_miet_constants
+from isf_robot.core import ConfigError, Observer, Observers
 from satellite.arcs import ArcIntegrator, IntegratorSettings, SatelliteSample, SimulationError, Tracker
 from satellite.contact import CONTACT_MODES, make_contact
-from satellite.controller import ControlParams, ResolvedControl, make_controller, resolve_control
+from satellite.controller import ControlParams, make_controller, resolve_control
 from satellite.events import event
-from satellite.fields import model_name
 from satellite.mesh_surface import body_mesh_info, load_surface
 from satellite.model import BAND_INNER, BAND_OUTER, InitialOrbit, OrbitModel
-from satellite.policies import make_policy
+from satellite.policies import MIN_INTERVAL_S, make_policy
 from satellite.shapes import SurfaceModel
 from satellite.shooting import shooting_report
+from satellite.simulate_result import (
+    MietReport,
+    RunResult,
+    contact_report,
+    miet_estimate,
+    run_settings,
+    surface_barrier_report,
+)
 from satellite.surface import SurfaceCheck
+from satellite.surface_barrier import add_surface_barrier
 from satellite.tau import check_tau_controller
 from satellite.triggers import TRIGGERS, BandTriggers, Trigger
 
@@ -45,108 +52,9 @@ __all__ = [
     "simulate",
     "start_info",
     "miet_estimate",
+    "MietReport",
+    "MIN_INTERVAL_S",
 ]
-
-
-@dataclass(frozen=True)
-class RunResult:
-    """Outcome of :func:`simulate`.
-
-    Attributes:
-        trigger: The trigger (compares equal to, and serialises as, its name).
-        hours: Requested duration [h].
-        simulated_h: Duration actually simulated [h] (shorter for ``none`` leaving the band).
-        triggers: Number of impulses.
-        kinds: Impulse counts by kind (``greedy``, ``safe``, ``tau``, ``periodic``).
-        min_h: Smallest barrier value over the trajectory [m^2].
-        r_min_over_R: Smallest radius [R].
-        r_max_over_R: Largest radius [R].
-        total_dv: Sum of impulse magnitudes [m/s].
-        min_inter_event_h: Shortest interval between impulses [h] (``None`` for < 2 impulses).
-        mean_inter_event_h: Mean interval between impulses [h] (``None`` for < 2 impulses).
-        miet_bound_h: Sampled MIET bound ``c / (L_Xi (B + d_bar))`` [h].
-        left_band_h: First time outside the band [h] (``None`` if it stayed in): the first
-            falling zero of ``h``, watched on every arc (scanned between step points unless
-            ``IntegratorSettings.event_scan`` is off).
-        band_exits: Number of times ``h`` fell through 0 (``none`` stops at the first).
-        contact: Surface contact report (see :func:`_contact_report`), ``None`` when off;
-            merged into :meth:`summary` when present.
-        wall_s: Wall time of the run [s].
-        seed: Seed of the initial orbit.
-        settings: Resolved settings (JSON-ready).
-        events: The impulses.
-        nfev: Right-hand-side evaluations.
-        surface: Report of the optional surface check (:meth:`satellite.surface.SurfaceCheck.report`),
-            ``None`` when the check was off; merged into :meth:`summary` when present.
-        shooting: The shooting controller's report (:func:`satellite.shooting.shooting_report`), or ``None``.
-
-    """
-
-    trigger: Trigger
-    hours: float
-    simulated_h: float
-    triggers: int
-    kinds: dict[str, int]
-    min_h: float
-    r_min_over_R: float
-    r_max_over_R: float
-    total_dv: float
-    min_inter_event_h: float | None
-    mean_inter_event_h: float | None
-    miet_bound_h: float
-    left_band_h: float | None
-    wall_s: float
-    seed: int
-    settings: dict[str, Any]
-    events: tuple[JumpEvent, ...] = field(repr=False)
-    nfev: int = 0
-    surface: dict[str, Any] | None = None
-    band_exits: int = 0
-    contact: dict[str, Any] | None = None
-    shooting: dict[str, Any] | None = None
-
-    def summary(self) -> dict[str, Any]:
-        """JSON-ready summary (everything but the event list; the surface keys when checked)."""
-        keys = (
-            "trigger", "hours", "simulated_h", "triggers", "kinds", "min_h", "r_min_over_R",
-            "r_max_over_R", "total_dv", "min_inter_event_h", "mean_inter_event_h", "miet_bound_h",
-            "left_band_h", "band_exits", "wall_s", "seed", "nfev", "settings",
-        )
-        out = {k: getattr(self, k) for k in keys}
-        for extra in (self.surface, self.contact, self.shooting):
-            if extra is not None:
-                out.update(extra)
-        return out
-
-
-def miet_estimate(
-    model: OrbitModel, resolved: ResolvedControl, samples: int = 2000, seed: int = 0
-) -> tuple[float, float, float]:
-    """Sampled MIET bound (paper, Proposition 1) on the band with bounded-orbit speeds.
-
-    States are drawn with radius uniform in the band, uniform directions, and speeds up to the
-    escape speed at 1.6R; ``L_Xi`` and ``B`` come from :func:`isf_robot.core.estimate_miet_constants`
-    (Kepler flow), ``d_bar`` from the largest sampled disturbance over the band.
-
-    Returns:
-        ``(bound_s, L_Xi, d_bar_flow)``.
-
-    """
-    rng = np.random.default_rng(seed)
-    trig = BandTriggers(model, Linear(resolved.alpha_gain), resolved.d_bar)
-    v_max = math.sqrt(2.0 * model.mu / (BAND_INNER * model.R))
-    u = rng.normal(size=(samples, 3))
-    u /= np.linalg.norm(u, axis=1)[:, None]
-    w = rng.normal(size=(samples, 3))
-    w /= np.linalg.norm(w, axis=1)[:, None]
-    rad = rng.uniform(BAND_INNER, BAND_OUTER, samples) * model.R
-    spd = rng.uniform(0.0, v_max, samples)
-    states = np.hstack([u * rad[:, None], w * spd[:, None]])
-    d_flow = model.disturbance_bound(samples=samples, seed=seed)
-    consts = estimate_miet_constants(
-        lambda x: trig.xi(0.0, x), lambda x: model.kepler_rhs(0.0, x), states, resolved.c, d_flow
-    )
-    return consts.bound_s, consts.lipschitz_xi, d_flow
 
 
 def start_info(
@@ -206,6 +114,10 @@ def simulate(
     contact: str = "off",
     contact_surface: SurfaceModel | None = None,
     period_h: float | None = None,
+    min_interval_s: float = MIN_INTERVAL_S,
+    surface_barrier: bool = False,
+    surface_clearance_m: float = 0.0,
+    surface_c: float | None = None,
 ) -> RunResult:
     """Simulate ``hours`` of orbit with the given trigger.
 
@@ -239,6 +151,19 @@ def simulate(
         contact_surface: The shape for ``contact`` (default: ``surface``, else
             :func:`satellite.mesh_surface.load_surface`).
         period_h: Impulse period [h] of the ``periodic`` trigger.
+        min_interval_s: Practical minimum interval between impulses [s], >= 0 (0: none): an
+            impulse due by ``Xi`` sooner after the previous one is held until the interval has
+            passed, or until ``h`` reaches the band's edge (:mod:`satellite.policies`); the result
+            counts both. Not applied to the ``periodic`` clock nor to ``tau`` impulses (gated by
+            ``tau_p``).
+        surface_barrier: Add the surface-clearance barrier (:mod:`satellite.surface_barrier`;
+            ``greedy`` only): ``h_s`` = distance outside a smooth envelope of the shape (the
+            contact shape, else ``surface``, else the default shape file) minus
+            ``surface_clearance_m``; its trigger ``Xi_s`` fires ``surface`` impulses and every
+            impulse keeps both post-jump conditions. Reported in ``RunResult.surface_barrier``.
+        surface_clearance_m: Clearance above the envelope [m], >= 0.
+        surface_c: Post-jump margin of ``Xi_s`` [m/s], > 0; default the band's ``c`` divided by
+            the band's largest ``|dh/dx|`` (``2 * 0.4 R``): the same margin, as a speed.
 
     Returns:
         The :class:`RunResult`.
@@ -256,6 +181,9 @@ def simulate(
         raise ConfigError(f"hours must be a finite number >= 0, got {hours!r}")
     if not (math.isfinite(sample_interval_s) and sample_interval_s > 0):
         raise ConfigError(f"sample_interval_s must be positive, got {sample_interval_s}")
+    if isinstance(min_interval_s, bool) or not (
+            isinstance(min_interval_s, (int, float)) and math.isfinite(min_interval_s) and min_interval_s >= 0):
+        raise ConfigError(f"min_interval_s must be a finite number of seconds >= 0, got {min_interval_s!r}")
     if contact not in CONTACT_MODES:
         raise ConfigError(f"contact must be one of {', '.join(CONTACT_MODES)}; got {contact!r}")
     if trigger.needs_tau and tau is None:
@@ -271,7 +199,7 @@ def simulate(
     trig = BandTriggers(model, ctrl.alpha, resolved.d_bar, accel_bound=bound)
     obs = Observers(observers)
     track = Tracker(model, trig, obs, sample_interval_s)
-    miet_s, _, _ = miet_estimate(model, resolved, samples=miet_samples)
+    miet: MietReport = miet_estimate(model, resolved, samples=miet_samples)
     check = SurfaceCheck(surface, model.body_phase, model.omega, surface_step_s) if surface is not None else None
     exit_watch = event(trig.h, False, -1.0, trig.rates()["h"], trig.h_batch)
     watch = None
@@ -279,7 +207,12 @@ def simulate(
         watch = make_contact(model, contact_surface or surface or load_surface())
     arcs = ArcIntegrator(model, integ, track, check, exit_watch, watch, contact == "stop")
     policy = make_policy(trigger, trig, ctrl, arcs, obs.on_event, tau,
-                         period_h * 3600.0 if period_h is not None else None)
+                         period_h * 3600.0 if period_h is not None else None, float(min_interval_s))
+    sfilter = None
+    if surface_barrier:
+        shape = contact_surface or surface or load_surface()
+        sfilter = add_surface_barrier(model, resolved, ctrl, trig, policy, shape, surface_clearance_m, surface_c)
+        track.surface_h = sfilter.strig.h_batch
 
     y = initial.state(model)
     t = 0.0
@@ -287,7 +220,9 @@ def simulate(
     h0 = trig.h(0.0, y)
     if h0 < 0.0:
         raise ConfigError(f"initial state is outside the band (h = {h0:.4g})")
-    settings = _settings(resolved, model, initial, integ)
+    if sfilter is not None and sfilter.strig.h(0.0, y) < 0.0:
+        raise ConfigError(f"initial state is inside the surface envelope (h_s = {sfilter.strig.h(0.0, y):.4g} m)")
+    settings = run_settings(resolved, model, initial, integ)
     settings["accel_bound"] = bound
     settings.update(resolved.describe())
     if tau is not None:
@@ -332,7 +267,11 @@ def simulate(
         total_dv=float(sum(float(np.linalg.norm(j.v)) for j in jumps)),
         min_inter_event_h=float(iet.min()) if iet.size else None,
         mean_inter_event_h=float(iet.mean()) if iet.size else None,
-        miet_bound_h=miet_s / 3600.0,
+        miet_bound_h=miet.bound_s / 3600.0,
+        miet_estimate_h=miet.estimate_s / 3600.0,
+        min_interval_s=float(min_interval_s),
+        min_interval_binds=policy.holds,
+        min_interval_overrides=policy.hold_overrides,
         left_band_h=left_band / 3600.0 if left_band is not None else None,
         wall_s=time.perf_counter() - wall0,
         seed=int(initial.seed),
@@ -341,57 +280,12 @@ def simulate(
         nfev=track.nfev,
         surface=check.report() if check is not None else None,
         band_exits=len(exits),
-        contact=_contact_report(contact, watch, track, arcs.stopped),
-        shooting=shooting_report(ctrl.controller),
+        contact=contact_report(contact, watch, track, arcs.stopped),
+        shooting=shooting_report(sfilter.nominal if sfilter is not None else ctrl.controller),
+        surface_barrier=surface_barrier_report(sfilter, track),
     )
     obs.on_finish(result.summary())
     return result
-
-
-def _contact_report(mode: str, watch: Any, track: Tracker, stopped: float | None) -> dict[str, Any] | None:
-    """The contact report of a run (``None`` when off).
-
-    Keys: ``contact_mode``, ``contact_model``, ``surface_contacts`` (passes into the shape),
-    ``first_contact_h``, ``contact_stopped`` (the run ended at a contact), ``envelope_passes``
-    and ``min_pass_clearance_m`` (smallest radial clearance sampled inside the envelope; < 0 is a
-    depth).
-    """
-    if watch is None:
-        return None
-    clear = track.min_pass_clearance
-    return {
-        "contact_mode": mode, "contact_model": watch.surface.name, "surface_contacts": len(track.contacts),
-        "first_contact_h": track.contacts[0] / 3600.0 if track.contacts else None,
-        "contact_stopped": stopped is not None, "envelope_passes": track.envelope_passes,
-        "min_pass_clearance_m": clear if math.isfinite(clear) else None,
-    }
-
-
-def _settings(
-    resolved: ResolvedControl, model: OrbitModel, initial: InitialOrbit, integ: IntegratorSettings
-) -> dict[str, Any]:
-    """The resolved settings reported in :attr:`RunResult.settings` (JSON-ready)."""
-    return {
-        "alpha_gain": resolved.alpha_gain,
-        "c": resolved.c,
-        "d_bar": resolved.d_bar,
-        "min_post_jump_xi": resolved.min_post_jump_xi,
-        "spin": model.spin,
-        "spin_period_h": model.spin_period_h,
-        "gravity_degree": getattr(model.field, "degree", None),
-        "gravity_model": model_name(model.field),
-        "disturbance_scale": model.disturbance_scale,
-        "R_m": model.R,
-        "mu": model.mu,
-        "inclination_deg": initial.inclination_deg,
-        "radius_over_R": initial.radius_over_R,
-        "speed_factor": initial.speed_factor,
-        "rtol": integ.rtol,
-        "atol": integ.atol,
-        "max_step_s": integ.max_step_s,
-        "event_scan": integ.event_scan,
-        "scan_min_dt_s": integ.scan_min_dt_s,
-    }
 
 
 def summary_line(result: RunResult) -> Mapping[str, Any]:

@@ -22,7 +22,7 @@ _EXPORTS: dict[str, str] = {
     "DutyCycleMetrics": "metrics", "FilterStats": "metrics", "compute_metrics": "metrics",
     "MetricsAccumulator": "metrics",
     "miet_bound": "miet", "MietConstants": "miet", "estimate_miet_constants": "miet", "ZenoGuard": "miet",
-    "min_interval": "miet",
+    "min_interval": "miet", "MietRate": "miet", "estimate_miet_rate": "miet",
     "FilterQP": "qp", "QPResult": "qp", "build_filter_qp": "qp", "project_halfspace": "qp",
     "QPSolver": "qp_solver", "BACKENDS": "qp_solver",
     "to_jsonable": "report", "format_table": "report", "format_value": "report", "mean_std_cell": "report",

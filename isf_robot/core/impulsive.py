@@ -12,7 +12,7 @@ two-impulse maneuver scheduler.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,6 +81,11 @@ class EventTriggeredImpulsiveController:
         tol: Slack allowed in the post-jump checks (round-off), >= 0.
         zeno: Zeno guard (default: stop when 50 jumps fall within 1e-6 s... see ZenoGuard).
         t0: Start time [s].
+        extra: Further barriers the jump must keep, each ``(barrier, c_i)``: the same flow model,
+            class-K function and ``d_bar``, its own post-jump margin ``c_i > 0``. Every jump is
+            checked against all of them as against ``barrier`` (``h_i(x+) >= 0``,
+            ``Xi_i(x+) >= c_i``); the controller ``K`` must meet them (e.g. a filter of the
+            nominal impulse).
 
     """
 
@@ -97,6 +102,7 @@ class EventTriggeredImpulsiveController:
         tol: float = 1e-9,
         zeno: ZenoGuard | None = None,
         t0: float = 0.0,
+        extra: Sequence[tuple[Barrier, float]] = (),
     ) -> None:
         for nm, fn in (("flow_model", flow_model), ("jump_map", jump_map), ("controller", controller)):
             if not callable(fn):
@@ -112,6 +118,11 @@ class EventTriggeredImpulsiveController:
         self.d_bar = check_nonnegative(d_bar, "d_bar (disturbance bound)")
         self.tol = check_nonnegative(tol, "tol")
         self.zeno = zeno if zeno is not None else ZenoGuard()
+        self.extra: list[tuple[Barrier, float]] = []
+        for b, ci in extra:
+            if not isinstance(b, Barrier):
+                raise ConfigError(f"extra barriers must be isf_robot.core.Barrier, got {type(b).__name__}")
+            self.extra.append((b, check_positive(ci, f"c of barrier {getattr(b, 'name', '?')!r}")))
         self.reset(t0)
 
     def reset(self, t0: float = 0.0) -> None:
@@ -125,11 +136,12 @@ class EventTriggeredImpulsiveController:
         """``LF h(x) = dh/dx F(x) + dh/dt`` along the flow model."""
         return float(self.barrier.gradient(x, t) @ self.flow_model(t, x) + self.barrier.time_derivative(x, t))
 
-    def xi(self, t: float, x: np.ndarray) -> float:
-        """Greedy trigger value ``Xi(x)`` (eq. greedy_cond); a jump is due when ``<= 0``."""
-        grad = self.barrier.gradient(x, t)
-        lfh = float(grad @ self.flow_model(t, x)) + self.barrier.time_derivative(x, t)
-        return lfh - float(np.linalg.norm(grad)) * self.d_bar + self.alpha(self.barrier.value(x, t))
+    def xi(self, t: float, x: np.ndarray, barrier: Barrier | None = None) -> float:
+        """Greedy trigger value ``Xi(x)`` (eq. greedy_cond) of ``barrier`` (default the main one); due when ``<= 0``."""
+        b = self.barrier if barrier is None else barrier
+        grad = b.gradient(x, t)
+        lfh = float(grad @ self.flow_model(t, x)) + b.time_derivative(x, t)
+        return lfh - float(np.linalg.norm(grad)) * self.d_bar + self.alpha(b.value(x, t))
 
     # -- the jump ------------------------------------------------------------------------
     def apply_jump(self, t: float, x: np.ndarray, kind: str = "greedy") -> JumpEvent:
@@ -160,6 +172,15 @@ class EventTriggeredImpulsiveController:
                 f"(needs >= c = {self.c:.6g})",
                 t=t, x_before=x, x_after=x_after, h_after=h_after, xi_after=xi_after, c=self.c,
             )
+        for b, ci in self.extra:
+            hb, xb = b.value(x_after, t), self.xi(t, x_after, b)
+            if not (hb >= -self.tol and xb >= ci - self.tol):
+                raise PostJumpConditionError(
+                    f"safeguarding controller broke the post-jump condition of barrier "
+                    f"{getattr(b, 'name', '?')!r} at t={t:.6g}: h = {hb:.6g} (needs >= 0), Xi = {xb:.6g} "
+                    f"(needs >= c = {ci:.6g})",
+                    t=t, x_before=x, x_after=x_after, h_after=hb, xi_after=xb, c=ci,
+                )
         interval = t - self.t_last
         self.zeno.record(t, interval)
         ev = JumpEvent(t, kind, len(self.jumps) + 1, x, x_after, v, h_before, h_after, xi_before, xi_after, interval)

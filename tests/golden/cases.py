@@ -2,7 +2,9 @@
 
 Arm: ``isf-robot run --json`` for each Panda scene x strategy at a fixed seed (4 s episodes, the
 scene's own control period, ``d_bar`` calibrated as a user would get it). Satellite:
-``isf-satellite run --trigger greedy --json`` at a fixed seed over 200 h.
+``isf-satellite run --trigger greedy --json`` at a fixed seed over 12 h (compared like the arm
+cases), with the surface barrier over 12 h, and over 200 h (compared with the tolerances of
+``TOLERANCES``: the orbit is chaotic).
 """
 
 from __future__ import annotations
@@ -23,6 +25,30 @@ for _scene in ARM_SCENES:
             "--duration", "4", "--json"]
 CASES["satellite-greedy"] = ["isf-satellite", "run", "--trigger", "greedy", "--hours", "200",
                              "--seed", "2", "--json", "--quiet"]
+CASES["satellite-greedy-12h"] = ["isf-satellite", "run", "--trigger", "greedy", "--hours", "12",
+                                 "--seed", "2", "--json", "--quiet"]
+CASES["satellite-surface-12h"] = ["isf-satellite", "run", "--trigger", "greedy", "--hours", "12",
+                                  "--seed", "0", "--surface-barrier", "--json", "--quiet"]
+
+# The long satellite case is chaotic: a change of rounding of 1e-15 (another CPU's SIMD/BLAS kernels,
+# a reordered sum) flips an adaptive step's accept/reject decision and, within ~60 h, the trajectory;
+# over 200 h the same start perturbed by 1e-13 R gives 90-115 impulses (REPRODUCTION.md, "Golden
+# satellite cases"). Its orbit-dependent fields are compared with these tolerances; every other
+# field (settings, margins, MIET figures, band exits, holds, the case's shape) exactly as the
+# arm cases. The 12 h cases are short enough to be compared to RTOL like the arm cases.
+# Spec: ("rel", r): |got - want| <= r |want|; ("range", lo, hi): lo <= got <= hi; ("any",): not compared.
+ANY = ("any",)
+TOLERANCES: dict[str, dict[str, tuple[object, ...]]] = {
+    "satellite-greedy": {
+        "triggers": ("rel", 0.35), "kinds.greedy": ("rel", 0.35), "total_dv": ("rel", 0.35),
+        "mean_inter_event_h": ("rel", 0.35),
+        "min_inter_event_h": ("range", 60.0 / 3600.0, 3.0),  # above the practical minimum interval
+        "min_h": ("range", 0.0, 4196.0),  # h >= 0: the safety invariant, whatever the orbit
+        "r_min_over_R": ("range", 1.6, 2.0), "r_max_over_R": ("range", 2.0, 2.4),
+        "surface_contacts": ("range", 0, 5), "envelope_passes": ("range", 0, 8),
+        "first_contact_h": ANY, "min_pass_clearance_m": ANY,
+    },
+}
 
 # Fields that measure the machine, not the behaviour: never compared.
 VOLATILE = frozenset({"wall_s", "timings", "qp_time_median_us", "proxqp_time_median_us", "solver_time_median_us",

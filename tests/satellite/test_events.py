@@ -153,3 +153,45 @@ def test_band_exit_is_reported_at_the_first_zero_of_h(high_gain) -> None:  # typ
     h = trig.h_batch(ts, dense.sol(ts))
     assert ts[np.argmax(h < 0)] == pytest.approx(track.band_exits[0], abs=1.0)
     assert model.h_of_r(track.r_max) < 0 or model.h_of_r(track.r_min) < 0  # the extremes say so too
+
+
+# Post-jump state of impulse 113 of `simulate("greedy", hours, initial=InitialOrbit(seed=7),
+# control=ControlParams(alpha_gain=2.6262e-2))` (alpha 100x the default, the library's degree-8
+# field) at t = 389.16 h, and the body's angle then. From here, with events seen at step points only
+# (`--no-event-scan`), the next dip of Xi below 0 is missed and the orbit leaves the band to
+# h = -4.55 m^2 about 4 h later (seed 7 over 1200 h: min h -4.55; found by bisection on hours).
+MISS_X0 = np.array([-49.20415829171131, 362.2569237877976, 131.00317428663783,
+                    -0.05408972810621127, 0.005377145943188517, -0.055882339021585486])
+MISS_PHASE = 5.353222021298137
+
+
+def _start_at(x0: np.ndarray, phase: float):  # type: ignore[no-untyped-def]
+    from dataclasses import dataclass
+
+    from satellite.model import InitialOrbit
+
+    @dataclass(frozen=True)
+    class At(InitialOrbit):
+        def state(self, model: OrbitModel) -> np.ndarray:
+            return x0.copy()
+
+        def body_phase(self) -> float:
+            return phase
+
+    return At(seed=7)
+
+
+def test_alpha_100x_greedy_run_keeps_h_nonnegative_only_with_the_scan() -> None:
+    from satellite.controller import ControlParams
+    from satellite.simulate import IntegratorSettings, simulate
+
+    runs = {scan: simulate("greedy", 10.0, initial=_start_at(MISS_X0, MISS_PHASE),
+                           control=ControlParams(alpha_gain=2.6262e-2), miet_samples=50,
+                           integrator=IntegratorSettings(event_scan=scan)) for scan in (False, True)}
+    # the step-point rule misses the dip (the case reproduces the old failure: the test can fail)
+    assert runs[False].min_h < -1.0
+    on = runs[True]
+    assert on.min_h >= 0.0 and on.band_exits == 0 and on.left_band_h is None
+    assert on.events[0].t < runs[False].events[0].t  # the impulse the step-point rule missed
+    for j in on.events:  # every impulse at a zero of Xi inside the band, post-jump conditions met
+        assert j.h_before >= 0.0 and abs(j.xi_before) < 1e-6 and j.xi_after >= on.settings["c"] - 1e-9
