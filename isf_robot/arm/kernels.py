@@ -81,6 +81,15 @@ def _build() -> dict[str, Callable[..., Any]] | None:
             for c in range(n):
                 s += g[k, c] * g[k, c]
             return np.sqrt(s)
+        if lanes == 2:
+            a0 = 0.0
+            a1 = 0.0
+            for c in range(0, n - 1, 2):
+                a0 += g[k, c] * g[k, c]
+                a1 += g[k, c + 1] * g[k, c + 1]
+            if n % 2:
+                a0 += g[k, n - 1] * g[k, n - 1]
+            return np.sqrt(a0 + a1)
         width = abs(lanes)
         acc = np.zeros(width)
         for c in range(n):
@@ -101,7 +110,12 @@ def _build() -> dict[str, Callable[..., Any]] | None:
 
     @njit(cache=True, nogil=True)
     def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, lever, qadr,
-             cutoff, distmax, slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, lanes):  # pragma: no cover
+             cutoff, distmax, slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, lanes,
+             rows, h, g, gn, wit):  # pragma: no cover (compiled)
+        """Fill rows[:j], h[:j + l], g[:j + l], gn[:j + l] (if lanes) and wit[:j] = (p1, p2, n).
+
+        Returns (j, min h, min dist, min joint value, whether some witness points coincide).
+        """
         n_live = live.shape[0]
         cand = np.empty(n_live, np.int64)
         nc = 0
@@ -150,18 +164,13 @@ def _build() -> dict[str, Callable[..., Any]] | None:
                 j += 1
         ndof = dof.size
         nj = jq.size
-        rows = np.empty(j, np.int64)
-        h = np.empty(j + nj)  # the near pairs' rows, then the joint-limit rows
-        g = np.empty((j + nj, ndof))
         jmin = math.inf
-        for i in range(nj):
+        for i in range(nj):  # the joint-limit rows after the pairs'
             hj = jsign[i] * qpos[jq[i]] + joff[i]
             h[j + i] = hj
             jmin = min(jmin, hj)
             for c in range(ndof):
                 g[j + i, c] = jgrad[i, c]
-        nrm = np.empty((j, 3))
-        wit = np.empty((j, 2, 3))
         hmin = math.inf
         dmin = math.inf
         touching = False
@@ -183,7 +192,7 @@ def _build() -> dict[str, Callable[..., Any]] | None:
             n0 = (fromto[k, 0] - fromto[k, 3]) * inv
             n1 = (fromto[k, 1] - fromto[k, 4]) * inv
             n2 = (fromto[k, 2] - fromto[k, 5]) * inv
-            nrm[k, 0], nrm[k, 1], nrm[k, 2] = n0, n1, n2
+            wit[k, 2, 0], wit[k, 2, 1], wit[k, 2, 2] = n0, n1, n2
             jac(ma, da, jac1.ctypes.data, 0, fromto[k].ctypes.data, np.int32(live[r, 3]))
             for c in range(ndof):
                 col = dof[c]
@@ -193,10 +202,10 @@ def _build() -> dict[str, Callable[..., Any]] | None:
                 for c in range(ndof):
                     col = dof[c]
                     g[k, c] = g[k, c] - (0.0 + n0 * jac2[0, col] + n1 * jac2[1, col] + n2 * jac2[2, col])
-        gn = np.empty(j + nj if lanes != 0 else 0)
-        for k in range(gn.size):
-            gn[k] = row_norm(g, k, lanes)
-        return rows, h, g, gn, np.zeros(j), nrm, wit, hmin, dmin, jmin, touching
+        if lanes != 0:
+            for k in range(j + nj):
+                gn[k] = row_norm(g, k, lanes)
+        return j, hmin, dmin, jmin, touching
 
     @njit(cache=True, nogil=True)
     def monitor(ma, da, rows, g1, g2, margin, thresh, bound):  # pragma: no cover (compiled)

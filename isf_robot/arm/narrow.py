@@ -107,29 +107,33 @@ class NarrowPhase:
                 coherence.lever, coherence.qadr
             distmax, slack = coherence.distmax, coherence.slack
         jq, jsign, joff, jgrad = self._kjoints if joints is None else joints.tables
-        rows, h, g, gn, dhdt, n, wit, h_min, dist_min, jmin, touching = self._kernel(
+        n_live, nj = self._ktab.shape[0], jq.size
+        lanes = self._klanes if joints is not None else 0
+        # Fresh outputs at their largest size (allocated here: arrays made inside a kernel cost more to return).
+        rows, h, g = np.empty(n_live, dtype=np.int64), np.empty(n_live + nj), np.empty((n_live + nj, self.dof_adr.size))
+        gn, wit = np.empty(n_live + nj if lanes else 0), np.empty((n_live, 3, 3))  # wit[k]: p1, p2, n
+        j, h_min, dist_min, jmin, touching = self._kernel(
             self._maddr, self._daddr, data.qpos, data.geom_xpos, self._ktab, self._kmargin, self._kthr2,
             coherence is not None, lower, qprev, qstate, lever, qadr, self.cutoff, distmax, slack, _EPS_DIST,
-            self.dof_adr, self._kfromto, self._kjac1, self._kjac2, jq, jsign, joff, jgrad,
-            self._klanes if joints is not None else 0)
+            self.dof_adr, self._kfromto, self._kjac1, self._kjac2, jq, jsign, joff, jgrad, lanes,
+            rows, h, g, gn, wit)
+        k = j + nj
         if touching:  # coinciding witness points: the numpy path (the same rows without the bounds)
             near = self._near_numpy(data, mocap_lin, mocap_ang, witness, None)
             if joints is None:
                 return near, near.h, near.grad, jmin, None
-            return (near, np.concatenate((near.h, h[rows.size:])), np.concatenate((near.grad, joints.grad)),
+            return (near, np.concatenate((near.h, h[j:k])), np.concatenate((near.grad, joints.grad)),
                     jmin, None)
-        j = rows.size
         if not j:
-            return self._none, h, g, jmin, gn if gn.size else None
+            return self._none, h[:k], g[:k], jmin, gn[:k] if lanes else None
+        rows = rows[:j]
         row_list = rows.tolist()
         if self._any_moving and mocap_lin is not None:
-            dhdt = self._dhdt(data, row_list, rows, n, wit[:, 1], mocap_lin, mocap_ang)
-        if joints is not None:
-            h0, g0 = h[:j], g[:j]
+            dhdt = self._dhdt(data, row_list, rows, wit[:j, 2], wit[:j, 1], mocap_lin, mocap_ang)
         else:
-            h0, g0 = h, g
-        near = NearPairs(rows, row_list, h0, g0, dhdt, wit if witness else None, h_min, dist_min)
-        return near, h, g, jmin, gn if gn.size else None
+            dhdt = np.zeros(j)
+        near = NearPairs(rows, row_list, h[:j], g[:j], dhdt, wit[:j, :2] if witness else None, h_min, dist_min)
+        return near, h[:k], g[:k], jmin, gn[:k] if lanes else None
 
     def _dhdt(self, data: mujoco.MjData, row_list: list[int], idx: np.ndarray, n: np.ndarray,
               p2: np.ndarray, mocap_lin: np.ndarray | None, mocap_ang: np.ndarray | None) -> np.ndarray:
