@@ -146,7 +146,7 @@ def register(subparsers: Any) -> None:
                    help="clearance above the envelope for --surface-barrier, metres (default 0)")
     p.add_argument("--surface-c", type=float, default=None, metavar="M_PER_S",
                    help="post-jump margin of the surface trigger, m/s "
-                        "(default: c / (0.8 R), the band's margin as a speed)")
+                        "(default 0.01: fewer, larger surface impulses than a smaller margin)")
     p.add_argument("--no-event-scan", action="store_true",
                    help="see events at integrator step points only (solve_ivp's rule; can miss crossings)")
     p.add_argument("--shape", metavar="PATH.obj",

@@ -162,8 +162,8 @@ def simulate(
             ``surface_clearance_m``; its trigger ``Xi_s`` fires ``surface`` impulses and every
             impulse keeps both post-jump conditions. Reported in ``RunResult.surface_barrier``.
         surface_clearance_m: Clearance above the envelope [m], >= 0.
-        surface_c: Post-jump margin of ``Xi_s`` [m/s], > 0; default the band's ``c`` divided by
-            the band's largest ``|dh/dx|`` (``2 * 0.4 R``): the same margin, as a speed.
+        surface_c: Post-jump margin of ``Xi_s`` [m/s], > 0; default
+            :data:`satellite.surface_barrier.DEFAULT_SURFACE_C` (0.01 m/s).
 
     Returns:
         The :class:`RunResult`.

@@ -146,7 +146,12 @@ def test_run_with_the_surface_barrier_avoids_the_contact_the_band_alone_allows(s
     assert sb is not None and sb["surface_min_h_m"] >= 0.0 and on.kinds.get("surface", 0) >= 1
     assert on.min_h >= 0.0 and on.band_exits == 0
     c, c_s = on.settings["c"], sb["surface_c"]
-    assert c_s == pytest.approx(c / (0.8 * on.settings["R_m"]))
+    assert c_s == 0.01  # the default margin
+    sb_run = SurfaceBarrier(Superellipsoid.of_surface(shape), _At(seed=0).body_phase(), OrbitModel().omega)
+    gain = on.settings["alpha_gain"]
+    for e in on.events:  # the surface's post-jump condition, recomputed from the impulse's states
+        h_s, lf, _ = sb_run.parts(e.t, e.x_after)
+        assert h_s >= 0.0 and lf + gain * h_s >= c_s - 1e-12
     for e in on.events:
         assert e.xi_after >= c - 1e-9 and e.h_after >= 0.0
     with pytest.raises(ConfigError, match="greedy"):
