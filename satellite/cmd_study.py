@@ -25,7 +25,7 @@ def register(subparsers: Any) -> None:
     """Add the ``study`` subcommand."""
     p = subparsers.add_parser(
         "study",
-        help="paired orbits: greedy / maneuver / periodic x controllers from the same starts, with 95 % CIs",
+        help="paired orbits: greedy / maneuver / periodic x controllers from the same starts, with 95 %% CIs",
         description=(
             "Flies every configuration (trigger x controller) from the same starts (seed x inclination) and "
             "compares them orbit by orbit: mean paired reduction of impulses and delta-v with a 95 % "
