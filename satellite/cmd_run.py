@@ -139,9 +139,9 @@ def register(subparsers: Any) -> None:
                         "the previous one waits, unless the satellite would leave the band; 0 turns it off "
                         f"(default {MIN_INTERVAL_S:g}; reported as min_interval_binds/overrides)")
     p.add_argument("--surface-barrier", action="store_true",
-                   help="greedy only: a second barrier keeps the satellite outside a smooth envelope of the shape "
-                        "(h_s = distance outside the envelope - --surface-clearance); its trigger fires 'surface' "
-                        "impulses and every impulse keeps both post-jump conditions")
+                   help="greedy and maneuver: a second barrier keeps the satellite outside a smooth envelope of "
+                        "the shape (h_s = distance outside the envelope - --surface-clearance); its trigger fires "
+                        "impulses too and every impulse keeps both post-jump conditions")
     p.add_argument("--surface-clearance", type=float, default=0.0, metavar="M",
                    help="clearance above the envelope for --surface-barrier, metres (default 0)")
     p.add_argument("--surface-c", type=float, default=None, metavar="M_PER_S",
@@ -199,7 +199,7 @@ def format_text(res: RunResult) -> str:
         ]
     if res.surface_barrier is not None:
         b = res.surface_barrier
-        lines.append(f"surface barrier    {res.kinds.get('surface', 0)} surface impulse(s), min h_s "
+        lines.append(f"surface barrier    {b['surface_impulses']} surface impulse(s), min h_s "
                      f"{f(b['surface_min_h_m'], '.4g')} m, {b['surface_filtered']} impulse(s) filtered; "
                      f"{b['surface_barrier']['name']}")
     lines.append(f"wall               {res.wall_s:.2f} s")
@@ -218,8 +218,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--surface-step must be a positive number of seconds, got {args.surface_step:g}")
     if not args.surface_barrier and (args.surface_clearance != 0.0 or args.surface_c is not None):
         raise ConfigError("--surface-clearance and --surface-c go with --surface-barrier")
-    if args.surface_barrier and trigger is not Trigger.GREEDY:
-        raise ConfigError(f"--surface-barrier works with --trigger greedy, not {trigger}")
+    if args.surface_barrier and trigger not in (Trigger.GREEDY, Trigger.MANEUVER):
+        raise ConfigError(f"--surface-barrier works with --trigger greedy or maneuver, not {trigger}")
     if args.surface_barrier and not (math.isfinite(args.surface_clearance) and args.surface_clearance >= 0):
         raise ConfigError(f"--surface-clearance must be a number of metres >= 0, got {args.surface_clearance:g}")
     if args.surface_c is not None and not (math.isfinite(args.surface_c) and args.surface_c > 0):

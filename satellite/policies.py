@@ -110,6 +110,7 @@ class TriggerPolicy:
         self.xi_ev = event(trig.xi, True, -1.0, self.rates["xi"], trig.xi_batch)
         self.apsis_ev = event(trig.r_dot, False, 0.0, self.rates["apsis"], trig.r_dot_batch)
         self.fire_evs = [self.xi_ev]  # + the surface barrier's Xi_s (set_surface)
+        self.surface_fires = 0
         edge = trig.h_max * _EDGE
 
         def near_edge(s: float, x: NDArray[np.float64]) -> float:
@@ -123,14 +124,16 @@ class TriggerPolicy:
     def set_surface(self, strig: Any) -> None:
         """Watch the surface barrier's ``Xi_s`` too (:class:`satellite.surface_barrier.SurfaceTriggers`).
 
-        Its falling zero fires a ``surface`` impulse (the run's controller keeps both barriers).
+        Its falling zero fires an impulse (the run's controller keeps both barriers): of kind
+        ``surface`` for ``greedy``; for ``maneuver`` wherever ``Xi`` would fire one (a first
+        ``greedy`` or a ``safe`` second impulse), counted in :attr:`surface_fires`.
 
         Raises:
-            ConfigError: The trigger is not ``greedy``.
+            ConfigError: The trigger is neither ``greedy`` nor ``maneuver``.
 
         """
-        if self.trigger is not Trigger.GREEDY:
-            raise ConfigError(f"the surface barrier works with the greedy trigger, not {self.trigger}")
+        if self.trigger not in (Trigger.GREEDY, Trigger.MANEUVER):
+            raise ConfigError(f"the surface barrier works with the greedy and maneuver triggers, not {self.trigger}")
         scan = self.trig.accel_bound is not None
         self.fire_evs = [self.xi_ev, event(strig.xi, True, -1.0, strig.xi_rate if scan else None, strig.xi_batch)]
 
@@ -198,9 +201,10 @@ class Greedy(TriggerPolicy):
         sol = self.arc(t, t_end, y, [*fire, self.apsis_ev], "greedy", None)
         t, y = float(sol.t[-1]), sol.y[:, -1]
         if sol.status == 1:
-            i = min((k for k in range(len(fire)) if len(sol.t_events[k])), key=lambda k: float(sol.t_events[k][0]))
+            i = _first(sol, range(len(fire)))
             t, y, due = self._hold(float(sol.t_events[i][0]), sol.y_events[i][0], t_end, "greedy")
             if due:
+                self.surface_fires += i
                 y = self._jump(t, y, "greedy" if i == 0 else "surface")
         return t, y, False
 
@@ -234,38 +238,51 @@ class Maneuver(TriggerPolicy):
     def step(self, t: float, y: NDArray[np.float64], t_end: float) -> Step:
         """One arc of the current phase; at most one impulse."""
         sched = self.sched
+        fire = self.fire_evs  # Xi (and Xi_s with the surface barrier)
         if sched.phase == "first":
-            sol = self.arc(t, t_end, y, [self.xi_ev, self.apsis_ev], "first", None)
+            sol = self.arc(t, t_end, y, [*fire, self.apsis_ev], "first", None)
             t, y = float(sol.t[-1]), sol.y[:, -1]
             if sol.status == 1:
-                t, y, fire = self._hold(float(sol.t_events[0][0]), sol.y_events[0][0], t_end, "first")
-                if fire:
+                i = _first(sol, range(len(fire)))
+                t, y, due = self._hold(float(sol.t_events[i][0]), sol.y_events[i][0], t_end, "first")
+                if due:
+                    self.surface_fires += i
                     y = self._jump(t, y, "greedy")
             return t, y, False
         gate = float(sched.gate_time)  # type: ignore[arg-type]
         if t < gate:
-            sol = self.arc(t, min(gate, t_end), y, [self.xi_ev, self.apsis_ev], "second", None)
+            sol = self.arc(t, min(gate, t_end), y, [*fire, self.apsis_ev], "second", None)
             t, y = float(sol.t[-1]), sol.y[:, -1]
             if sol.status == 1:
-                t, y, fire = self._hold(float(sol.t_events[0][0]), sol.y_events[0][0], t_end, "second")
-                return t, self._jump(t, y, "safe") if fire else y, False
+                i = _first(sol, range(len(fire)))
+                t, y, due = self._hold(float(sol.t_events[i][0]), sol.y_events[i][0], t_end, "second")
+                if due:
+                    self.surface_fires += i
+                    y = self._jump(t, y, "safe")
+                return t, y, False
             if t >= t_end:
                 return t, y, True
             t = gate
         if self.xi_tau(t, y) <= 0.0:
             return t, self._jump(t, y, "tau"), False
-        sol = self.arc(t, t_end, y, [self.xi_ev, self.xi_tau_ev, self.apsis_ev], "second-gated", self.xi_tau)
+        evs = [self.xi_ev, self.xi_tau_ev, *fire[1:], self.apsis_ev]  # Xi, Xi_tau, (Xi_s)
+        sol = self.arc(t, t_end, y, evs, "second-gated", self.xi_tau)
         t, y = float(sol.t[-1]), sol.y[:, -1]
         if sol.status == 1:
-            fired = [i for i in (0, 1) if len(sol.t_events[i])]
-            i = min(fired, key=lambda k: float(sol.t_events[k][0]))
+            i = _first(sol, range(len(evs) - 1))
             t, y = float(sol.t_events[i][0]), sol.y_events[i][0]
-            fire = True
-            if i == 0:
-                t, y, fire = self._hold(t, y, t_end, "second-gated")
-            if fire:
-                y = self._jump(t, y, "safe" if i == 0 else "tau")
+            due = True
+            if i != 1:
+                t, y, due = self._hold(t, y, t_end, "second-gated")
+            if due:
+                self.surface_fires += i == 2
+                y = self._jump(t, y, "tau" if i == 1 else "safe")
         return t, y, False
+
+
+def _first(sol: Any, indices: Any) -> int:
+    """The index among ``indices`` of the event that stopped the arc (the earliest located)."""
+    return min((k for k in indices if len(sol.t_events[k])), key=lambda k: float(sol.t_events[k][0]))
 
 
 def _xi_tau_rate(trig: BandTriggers, tau: Any) -> Any:

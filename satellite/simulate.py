@@ -157,10 +157,10 @@ def simulate(
             counts both. Not applied to the ``periodic`` clock nor to ``tau`` impulses (gated by
             ``tau_p``).
         surface_barrier: Add the surface-clearance barrier (:mod:`satellite.surface_barrier`;
-            ``greedy`` only): ``h_s`` = distance outside a smooth envelope of the shape (the
+            ``greedy`` and ``maneuver``): ``h_s`` = distance outside a smooth envelope of the shape (the
             contact shape, else ``surface``, else the default shape file) minus
-            ``surface_clearance_m``; its trigger ``Xi_s`` fires ``surface`` impulses and every
-            impulse keeps both post-jump conditions. Reported in ``RunResult.surface_barrier``.
+            ``surface_clearance_m``; its trigger ``Xi_s`` fires impulses (``surface`` ones for
+            ``greedy``) and every impulse keeps both post-jump conditions. Reported in ``RunResult.surface_barrier``.
         surface_clearance_m: Clearance above the envelope [m], >= 0.
         surface_c: Post-jump margin of ``Xi_s`` [m/s], > 0; default
             :data:`satellite.surface_barrier.DEFAULT_SURFACE_C` (0.01 m/s).
@@ -282,7 +282,7 @@ def simulate(
         band_exits=len(exits),
         contact=contact_report(contact, watch, track, arcs.stopped),
         shooting=shooting_report(sfilter.nominal if sfilter is not None else ctrl.controller),
-        surface_barrier=surface_barrier_report(sfilter, track),
+        surface_barrier=surface_barrier_report(sfilter, track, policy.surface_fires),
     )
     obs.on_finish(result.summary())
     return result

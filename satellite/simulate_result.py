@@ -215,13 +215,14 @@ def run_settings(
     }
 
 
-def surface_barrier_report(sfilter: Any, track: Tracker) -> dict[str, Any] | None:
+def surface_barrier_report(sfilter: Any, track: Tracker, fires: int = 0) -> dict[str, Any] | None:
     """The surface barrier's report (``None`` when off).
 
     Keys: ``surface_barrier`` (the envelope: name, centre, semi-axes, exponent),
     ``surface_clearance_m``, ``surface_c`` [m/s], ``surface_min_h_m`` (smallest ``h_s`` at step
     points and located events; ``Xi_s >= 0`` between impulses keeps it from falling through 0) and
-    ``surface_filtered`` (impulses the filter changed from the nominal controller's).
+    ``surface_filtered`` (impulses the filter changed from the nominal controller's) and
+    ``surface_impulses`` (impulses fired by the surface trigger, ``fires``).
     """
     if sfilter is None:
         return None
@@ -229,5 +230,5 @@ def surface_barrier_report(sfilter: Any, track: Tracker) -> dict[str, Any] | Non
     return {
         "surface_barrier": sfilter.surface.envelope.describe(), "surface_clearance_m": sfilter.surface.clearance_m,
         "surface_c": sfilter.c_s, "surface_min_h_m": low if math.isfinite(low) else None,
-        "surface_filtered": sfilter.filtered,
+        "surface_filtered": sfilter.filtered, "surface_impulses": int(fires),
     }

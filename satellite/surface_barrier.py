@@ -378,7 +378,7 @@ def add_surface_barrier(model: Any, resolved: Any, ctrl: Any, trig: Any, policy:
         The filter (also the report's source: its barrier, ``c_s``, the count of changed impulses).
 
     Raises:
-        ConfigError: Bad clearance or margin, or a trigger other than ``greedy``.
+        ConfigError: Bad clearance or margin, or a trigger other than ``greedy`` or ``maneuver``.
 
     """
     if c_s is None:

@@ -36,7 +36,8 @@ Changes so far, each deliberate:
   (regenerated with ``python tests/golden/generate.py satellite-greedy satellite-greedy-12h
   satellite-surface-12h``; the 200 h orbit's numbers unchanged: 90 impulses, min h 1107.6 m^2).
   ``satellite-surface-12h`` regenerated once more when the surface margin's default went from
-  ``c / 0.8 R`` (3.2 mm/s) to 10 mm/s (46 -> 20 impulses in 12 h; fewer, larger surface impulses).
+  ``c / 0.8 R`` (3.2 mm/s) to 10 mm/s (46 -> 20 impulses in 12 h; fewer, larger surface impulses),
+  and for the new key ``surface_impulses`` (16; every other value unchanged).
 * Versioned outputs (issue 12, item 3): one new key in every case, ``"schema"``
   (``"isf-robot-run/1"``, ``"isf-satellite-run/1"``), added to the data files by hand (every
   other value untouched, not regenerated).

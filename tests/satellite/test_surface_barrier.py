@@ -154,7 +154,25 @@ def test_run_with_the_surface_barrier_avoids_the_contact_the_band_alone_allows(s
         assert h_s >= 0.0 and lf + gain * h_s >= c_s - 1e-12
     for e in on.events:
         assert e.xi_after >= c - 1e-9 and e.h_after >= 0.0
-    with pytest.raises(ConfigError, match="greedy"):
+    assert sb["surface_impulses"] == on.kinds["surface"]
+    with pytest.raises(ConfigError, match="greedy and maneuver"):
         simulate("periodic", 1.0, period_h=0.5, surface_barrier=True, miet_samples=20)
     with pytest.raises(ConfigError, match="clearance"):
         simulate("greedy", 1.0, surface_barrier=True, surface_clearance_m=-1.0, miet_samples=20)
+
+
+def test_maneuver_run_with_the_surface_barrier(shape) -> None:  # type: ignore[no-untyped-def]
+    from satellite.tau import TauFit
+
+    model = OrbitModel()
+    tau = TauFit([3000.0, 3000.0], model.h_max)  # tau_p from 50 to 100 min over the band
+    kw = dict(initial=_At(seed=0), miet_samples=50, contact="count", contact_surface=shape, tau=tau)
+    on = simulate("maneuver", 6.0, surface_barrier=True, **kw)
+    sb = on.surface_barrier
+    assert on.contact["surface_contacts"] == 0 and sb["surface_impulses"] >= 1 and sb["surface_min_h_m"] >= 0.0
+    assert on.min_h >= 0.0 and set(on.kinds) <= {"greedy", "safe", "tau"}
+    sb_run = SurfaceBarrier(Superellipsoid.of_surface(shape), _At(seed=0).body_phase(), model.omega)
+    for e in on.events:
+        h_s, lf, _ = sb_run.parts(e.t, e.x_after)
+        assert h_s >= 0.0 and lf + on.settings["alpha_gain"] * h_s >= sb["surface_c"] - 1e-12
+        assert e.xi_after >= on.settings["c"] - 1e-9
