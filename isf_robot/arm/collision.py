@@ -146,7 +146,8 @@ class CollisionBarriers(NarrowPhase):
         self._obstacle_body = b2
         self._clearance = _ClearanceSearch(model, pairs)
         # The compiled kernel's tables: one row per live pair (pair, geom1, geom2, body1, body2, self).
-        self._kernel = kernels.near_kernel() if jit else None
+        # (the kernels need the raw MjModel/MjData addresses the bindings expose as _address)
+        self._kernel = kernels.near_kernel() if jit and getattr(model, "_address", 0) else None
         self._klanes = kernels.norm_lanes(self.dof_adr.size) if self._kernel is not None else 0
         live = self.broadphase.live
         self._ktab = np.ascontiguousarray(np.stack(
@@ -161,7 +162,7 @@ class CollisionBarriers(NarrowPhase):
                        np.zeros(0, dtype=np.int64))  # (no coherence bounds)
         self._kjoints = (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros((0, n)))  # (no joint rows)
         self._kjoints[3].flags.writeable = False  # (typed like JointLimitBarriers.tables' grad: one compilation)
-        self._maddr = model._address
+        self._maddr = getattr(model, "_address", 0)
         self._data: mujoco.MjData | None = None  # the last data seen, and its address
         self._daddr = 0
 

@@ -41,7 +41,7 @@ class SafetyMonitor:
         self._kernel = kernels.monitor_kernel() if getattr(coll, "_kernel", None) is not None else None
         self._g1, self._g2 = p.geom1.astype(np.int64), p.geom2.astype(np.int64)
         self._margin = np.ascontiguousarray(p.margin, dtype=float)
-        self._maddr = coll.model._address
+        self._maddr = getattr(coll.model, "_address", 0)
         self._data: mujoco.MjData | None = None
         self._daddr = 0
         self._rows_arr: np.ndarray | None = None

@@ -1,0 +1,176 @@
+"""The numba kernels of :mod:`isf_robot.arm.kernels` (imported only when numba is installed).
+
+Module-level functions, so numba's cache (``__pycache__``) serves later processes; MuJoCo's C
+functions are resolved by symbol in the ``libmujoco`` the ``mujoco`` package loaded.
+"""
+
+from __future__ import annotations
+
+import math
+
+import llvmlite.binding as llvm
+import numpy as np
+from numba import njit, types
+
+from .kernels import _library
+
+_PATH = _library()
+if _PATH is None:  # (kernels._build treats this as "numba missing")
+    raise ImportError("the mujoco package's libmujoco was not found")
+llvm.load_library_permanently(_PATH)
+
+_ptr, _i32, _f64 = types.intp, types.int32, types.float64
+# mjtNum mj_geomDistance(const mjModel*, mjData*, int geom1, int geom2, mjtNum distmax, mjtNum fromto[6])
+geom_distance = types.ExternalFunction("mj_geomDistance", _f64(_ptr, _ptr, _i32, _i32, _f64, _ptr))
+# void mj_jac(const mjModel*, const mjData*, mjtNum* jacp, mjtNum* jacr, const mjtNum point[3], int body)
+jac = types.ExternalFunction("mj_jac", types.void(_ptr, _ptr, _ptr, _ptr, _ptr, _i32))
+
+
+@njit(cache=True, nogil=True)
+def row_norm(g, k, lanes):  # pragma: no cover (compiled)
+    """|g[k]| summed the way :func:`norm_lanes` found numpy's einsum does it (``lanes``)."""
+    n = g.shape[1]
+    if lanes == 1:
+        s = 0.0
+        for c in range(n):
+            s += g[k, c] * g[k, c]
+        return np.sqrt(s)
+    if lanes == 2:
+        a0 = 0.0
+        a1 = 0.0
+        for c in range(0, n - 1, 2):
+            a0 += g[k, c] * g[k, c]
+            a1 += g[k, c + 1] * g[k, c + 1]
+        if n % 2:
+            a0 += g[k, n - 1] * g[k, n - 1]
+        return np.sqrt(a0 + a1)
+    width = abs(lanes)
+    acc = np.zeros(width)
+    for c in range(n):
+        acc[c % width] += g[k, c] * g[k, c]
+    if lanes == -4:
+        return np.sqrt((acc[0] + acc[2]) + (acc[1] + acc[3]))
+    s = acc[0]
+    for lane in range(1, width):
+        s += acc[lane]
+    return np.sqrt(s)
+
+@njit(cache=True, nogil=True)
+def norms(g, lanes):  # pragma: no cover (compiled)
+    out = np.empty(g.shape[0])
+    for k in range(g.shape[0]):
+        out[k] = row_norm(g, k, lanes)
+    return out
+
+@njit(cache=True, nogil=True)
+def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, lever, qadr,
+         cutoff, distmax, slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, lanes,
+         rows, h, g, gn, wit):  # pragma: no cover (compiled)
+    """Fill rows[:j], h[:j + l], g[:j + l], gn[:j + l] (if lanes) and wit[:j] = (p1, p2, n).
+
+    Returns (j, min h, min dist, min joint value, whether some witness points coincide).
+    """
+    n_live = live.shape[0]
+    cand = np.empty(n_live, np.int64)
+    nc = 0
+    if coh:
+        nu = qadr.size
+        if qstate[0] != 0:
+            dq = np.empty(nu)
+            for u in range(nu):
+                dq[u] = abs(qpos[qadr[u]] - qprev[u])
+            for r in range(n_live):
+                s = 0.0
+                for u in range(nu):
+                    s += lever[r, u] * dq[u]
+                lower[r] -= s
+        for u in range(nu):
+            qprev[u] = qpos[qadr[u]]
+        qstate[0] = 1
+        for r in range(n_live):
+            if lower[r] < cutoff:
+                cand[nc] = r
+                nc += 1
+        dmax = distmax
+    else:
+        for r in range(n_live):
+            a, b = live[r, 1], live[r, 2]
+            dx = xpos[a, 0] - xpos[b, 0]
+            dy = xpos[a, 1] - xpos[b, 1]
+            dz = xpos[a, 2] - xpos[b, 2]
+            if dx * dx + dy * dy + dz * dz < thr2[r]:
+                cand[nc] = r
+                nc += 1
+        dmax = cutoff
+    # Narrow phase: near pairs packed in rows 0, 1, ... of the scratch (a far one's row is reused).
+    sel = np.empty(nc, np.int64)
+    ds = np.empty(nc)
+    j = 0
+    for c in range(nc):
+        r = cand[c]
+        d = geom_distance(ma, da, np.int32(live[r, 1]), np.int32(live[r, 2]), dmax,
+                          fromto[j].ctypes.data)
+        if coh:
+            lower[r] = d - slack
+        if d < cutoff:
+            sel[j] = r
+            ds[j] = d
+            j += 1
+    ndof = dof.size
+    nj = jq.size
+    jmin = math.inf
+    for i in range(nj):  # the joint-limit rows after the pairs'
+        hj = jsign[i] * qpos[jq[i]] + joff[i]
+        h[j + i] = hj
+        jmin = min(jmin, hj)
+        for c in range(ndof):
+            g[j + i, c] = jgrad[i, c]
+    hmin = math.inf
+    dmin = math.inf
+    touching = False
+    for k in range(j):
+        r = sel[k]
+        d = ds[k]
+        rows[k] = live[r, 0]
+        hk = d - margin[r]
+        h[k] = hk
+        hmin = min(hmin, hk)
+        dmin = min(dmin, d)
+        for e in range(3):
+            wit[k, 0, e] = fromto[k, e]
+            wit[k, 1, e] = fromto[k, 3 + e]
+        if -eps < d < eps:
+            touching = True
+            continue
+        inv = 1.0 / d
+        n0 = (fromto[k, 0] - fromto[k, 3]) * inv
+        n1 = (fromto[k, 1] - fromto[k, 4]) * inv
+        n2 = (fromto[k, 2] - fromto[k, 5]) * inv
+        wit[k, 2, 0], wit[k, 2, 1], wit[k, 2, 2] = n0, n1, n2
+        jac(ma, da, jac1.ctypes.data, 0, fromto[k].ctypes.data, np.int32(live[r, 3]))
+        for c in range(ndof):
+            col = dof[c]
+            g[k, c] = 0.0 + n0 * jac1[0, col] + n1 * jac1[1, col] + n2 * jac1[2, col]
+        if live[r, 5] != 0:
+            jac(ma, da, jac2.ctypes.data, 0, fromto[k, 3:].ctypes.data, np.int32(live[r, 4]))
+            for c in range(ndof):
+                col = dof[c]
+                g[k, c] = g[k, c] - (0.0 + n0 * jac2[0, col] + n1 * jac2[1, col] + n2 * jac2[2, col])
+    if lanes != 0:
+        for k in range(j + nj):
+            gn[k] = row_norm(g, k, lanes)
+    return j, hmin, dmin, jmin, touching
+
+@njit(cache=True, nogil=True)
+def monitor(ma, da, rows, g1, g2, margin, thresh, bound):  # pragma: no cover (compiled)
+    step_h = math.inf
+    step_d = math.inf
+    for t in range(rows.size):
+        i = rows[t]
+        cap = max(thresh + margin[i], bound) + 1e-6
+        d = geom_distance(ma, da, np.int32(g1[i]), np.int32(g2[i]), cap, 0)
+        if d - margin[i] < step_h:
+            step_h = d - margin[i]
+        if d < step_d:
+            step_d = d
+    return step_h, step_d
