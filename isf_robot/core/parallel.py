@@ -29,7 +29,7 @@ import threading
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
-from .exceptions import ConfigError
+from .exceptions import ConfigError, IsfError
 
 __all__ = ["Interrupted", "Terminated", "run_tasks", "MAX_JOBS", "BACKENDS", "check_backend"]
 
@@ -88,6 +88,10 @@ def check_backend(backend: str, address: str | None = None) -> None:
         raise ConfigError("--address goes with --backend ray (the address of a Ray cluster)")
     if backend == "ray":
         _import_ray()
+
+
+class RayStartError(IsfError):
+    """Ray could not be started or joined (one line on the command line, exit status 2)."""
 
 
 def _import_ray() -> Any:
@@ -184,6 +188,11 @@ def _run_ray(fn: Callable[[Any], Any], tasks: list[Any], jobs: int, address: str
                         os.environ["RAY_ADDRESS"] = saved
             else:
                 ray.init(address=address, **opts)
+        except (KeyboardInterrupt, ConfigError):
+            raise
+        except Exception as exc:  # noqa: BLE001 - Ray's own start-up errors carry no common type
+            where = f"join the Ray cluster at {address}" if address is not None else "start a local Ray instance"
+            raise RayStartError(f"could not {where}: {type(exc).__name__}: {exc}") from None
         finally:
             if term is not None:
                 _set_sigterm(term)

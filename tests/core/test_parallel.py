@@ -51,3 +51,23 @@ def test_ray_gives_the_same_pairs_and_errors() -> None:
             run_tasks(math.sqrt, [1.0, -1.0, 4.0], jobs=2, backend="ray")
     finally:
         ray.shutdown()
+
+
+def test_a_ray_that_cannot_start_is_one_error(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    import sys
+    import types
+
+    from isf_robot.core.parallel import RayStartError
+
+    fake = types.ModuleType("ray")
+    fake.is_initialized = lambda: False  # type: ignore[attr-defined]
+
+    def init(**kw):  # type: ignore[no-untyped-def]
+        raise RuntimeError("The current node timed out during startup.\nsecond line")
+
+    fake.init = init  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "ray", fake)
+    with pytest.raises(RayStartError, match="could not start a local Ray instance: RuntimeError: The current node"):
+        run_tasks(math.sqrt, TASKS, jobs=2, backend="ray")
+    with pytest.raises(RayStartError, match="could not join the Ray cluster at head:6379"):
+        run_tasks(math.sqrt, TASKS, jobs=2, backend="ray", address="head:6379")
