@@ -31,6 +31,7 @@ import numpy as np
 
 from .exceptions import ConfigError, SolverError
 from .qp import FilterQP, QPResult
+from .qp_small import FEW_ROWS, project_few
 from .validation import check_positive
 
 __all__ = ["QPSolver", "BACKENDS"]
@@ -66,6 +67,11 @@ class QPSolver:
         closed_form: Use :func:`~isf_robot.core.qp.project_halfspace` for a single row without
             bounds (its answer is checked like any other; a violating one, or a row so small
             that ``|Lg h|^2`` underflows, goes to the backend instead).
+        few_rows: With ``closed_form``, solve 2 to ``FEW_ROWS`` rows without bounds exactly when
+            one or two rows are active at the solution (:func:`~isf_robot.core.qp_small.project_few`;
+            status ``"optimal"``, every row checked; anything else goes to the backend). The answers
+            equal the backend's to rounding (about 1e-15), so off by default: a chaotic caller (the
+            satellite's post-jump problem) keeps its bit-exact runs; the arm turns it on.
         backend: One of :data:`BACKENDS` (see the module docstring).
         polish: Active-set polish of the iterative backends' answers (ProxQP).
 
@@ -80,6 +86,7 @@ class QPSolver:
         closed_form: bool = True,
         backend: str = "daqp",
         polish: bool = True,
+        few_rows: bool = False,
     ) -> None:
         self.eps_abs = check_positive(eps_abs, "eps_abs")
         self.feas_tol = check_positive(feas_tol, "feas_tol")
@@ -92,6 +99,7 @@ class QPSolver:
             raise ConfigError(f"backend must be one of {', '.join(BACKENDS)}; got {backend!r}")
         self.backend = backend
         self.polish = bool(polish)
+        self.few_rows = bool(few_rows)
         self._cache: dict[tuple[int, int, bool], _Workspace] = {}
         self._eye: dict[int, np.ndarray] = {}
         self._upper: dict[int, np.ndarray] = {}
@@ -123,6 +131,12 @@ class QPSolver:
             if res is not None:
                 return res
             # an answer that fails the check goes to the backend
+        elif self.few_rows and 1 < k <= FEW_ROWS and not box and self.closed_form:
+            hit = project_few(qp.A, qp.lb, qp.u_nom)
+            if hit is not None:  # the exact solution, checked on every row (one or two rows active)
+                u, res, rmin = hit
+                return QPResult._of(u, "optimal", res <= self.active_tol, time.perf_counter() - t0, 0,
+                                    max(0.0, -rmin))
         self.solves += 1
         if self.backend == "daqp":
             u, iters, status = self._solve_daqp(qp)

@@ -141,7 +141,7 @@ def test_backend_answers_are_judged_by_their_distance_to_the_feasible_set() -> N
     from isf_robot.core import QPSolver, SolverError
     from isf_robot.core.qp import FilterQP
 
-    solver = QPSolver()
+    solver = QPSolver(closed_form=False)  # every problem to the (fake) backend, none to the closed forms
     answer: list[np.ndarray] = []
     solver._solve_daqp = lambda qp: (answer[0], 3, "solved")  # type: ignore[method-assign]
     qp = FilterQP(np.zeros(2), np.eye(2), np.ones(2))

@@ -1,0 +1,112 @@
+"""Exact solutions of small filter QPs without input bounds: active sets of one or two rows.
+
+Without input bounds the filter QP ``min |u - u_nom|^2  s.t.  A u >= lb`` (k rows) is the
+projection of ``u_nom`` onto a polyhedron. Its KKT conditions for an active set ``S`` are::
+
+    u = u_nom + A_S^T lam,   A_S u = lb_S,   lam >= 0,   A u >= lb,
+
+and, the problem being convex, any ``u`` that meets them is the (unique) solution. With
+``r = A u_nom - lb`` (the residuals at ``u_nom``) and ``G = A A^T`` (the Gram matrix):
+
+* ``S = {}``: ``u = u_nom`` when every ``r_i >= 0``;
+* ``S = {i}``: ``lam = -r_i / G_ii`` (``r_i < 0``), the residuals at ``u`` are ``r + lam G[:, i]``;
+* ``S = {i, j}``: ``[G_ii G_ij; G_ij G_jj] lam = -[r_i; r_j]`` by Cramer's rule, skipped when the
+  two rows are nearly parallel (``det <= 1e-12 G_ii G_jj``).
+
+The candidates are screened in floats with ``G`` (most violated row first; the active rows'
+own residuals are zero by construction), and the first that meets the conditions is confirmed
+on the rows themselves (to ``rel_tol max(1, |lb_i|) max(1, |u|_inf)``): ``u`` is built and ``A u - lb``
+computed as the backends' answers are checked. An active set of three or more rows, nearly
+parallel rows, an infeasible problem, a row violated beyond ``tol`` at every candidate: ``None``,
+and the caller solves with its backend (which decides infeasibility). On the arm, most filter
+QPs with several rows have one or two active rows at the solution.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["project_few", "FEW_ROWS"]
+
+FEW_ROWS = 8
+"""Largest number of rows :func:`project_few` enumerates (the pairs grow as k^2)."""
+
+
+def _holds(res: list[float], tol: list[float]) -> bool:
+    return all(r >= -t for r, t in zip(res, tol))
+
+
+def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray,
+                rel_tol: float = 1e-12) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """The solution of ``min |u - u_nom|^2 s.t. A u >= lb`` if at most two rows are active there.
+
+    Args:
+        A: Rows, shape (k, m), ``k <= FEW_ROWS``.
+        lb: Lower bounds, shape (k,).
+        u_nom: The point projected, shape (m,).
+        rel_tol: A row counts as satisfied at ``r_i >= -rel_tol max(1, |lb_i|)`` (rounding).
+
+    Returns:
+        ``(u, A u - lb, min_i (A u - lb)_i)``, or ``None`` (see the module docstring).
+
+    """
+    r0 = A.dot(u_nom) - lb
+    rl = r0.tolist()
+    if not math.isfinite(sum(rl)):
+        return None
+    tol = [rel_tol * max(1.0, abs(b)) for b in lb.tolist()]
+    if _holds(rl, tol):
+        u = u_nom.copy()
+        return u, r0, min(rl)
+    k = len(rl)
+    G = A.dot(A.T).tolist()
+    viol = sorted((i for i in range(k) if rl[i] < -tol[i] and G[i][i] > 1e-200),
+                  key=lambda i: rl[i] / math.sqrt(G[i][i]))
+    for i in viol:  # one active row
+        lam = -rl[i] / G[i][i]
+        gi = G[i]
+        pred = [r + lam * g for r, g in zip(rl, gi)]
+        pred[i] = 0.0  # active by construction (the float sum would only add cancellation)
+        if _holds(pred, tol):
+            hit = _confirm(A, lb, u_nom, tol, u_nom + lam * A[i])
+            if hit is not None:
+                return hit
+    for i in viol:  # two active rows: i (violated at u_nom) and any other
+        gi = G[i]
+        for j in range(k):
+            if j == i or (j in viol and j < i) or G[j][j] <= 1e-200:
+                continue
+            gij, gjj, gii = gi[j], G[j][j], gi[i]
+            det = gii * gjj - gij * gij
+            if not det > 1e-12 * gii * gjj:
+                continue
+            li = (-rl[i] * gjj + rl[j] * gij) / det
+            lj = (-rl[j] * gii + rl[i] * gij) / det
+            if not (li >= 0.0 and lj >= 0.0):
+                continue
+            gj = G[j]
+            pred = [r + li * a + lj * b for r, a, b in zip(rl, gi, gj)]
+            pred[i] = pred[j] = 0.0
+            if _holds(pred, tol):
+                hit = _confirm(A, lb, u_nom, tol, u_nom + li * A[i] + lj * A[j])
+                if hit is not None:
+                    return hit
+    return None
+
+
+def _confirm(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, tol: list[float],
+             u: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """``(u, A u - lb, min)`` when ``u`` is finite and every row holds on the rows themselves.
+
+    To ``tol`` times ``max(1, |u|_inf)``: the rounding of ``A u`` grows with ``u``.
+    """
+    res = A.dot(u) - lb
+    rl, ul = res.tolist(), u.tolist()
+    if not (math.isfinite(sum(rl)) and math.isfinite(sum(ul))):
+        return None
+    scale = max(1.0, max(map(abs, ul)))
+    if not _holds(rl, [t * scale for t in tol]):
+        return None
+    return u, res, min(rl)

@@ -1,0 +1,133 @@
+"""The exact solution of small QPs without bounds (one or two active rows) against known answers and the backends."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from isf_robot.core import FilterQP, QPSolver
+from isf_robot.core.qp_small import FEW_ROWS, project_few
+
+
+def _kkt(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, u: np.ndarray) -> None:
+    """Primal feasibility, stationarity with multipliers >= 0 on the active rows, complementarity."""
+    scale = max(1.0, float(np.abs(lb).max()), float(np.abs(u).max()))
+    slack = A @ u - lb
+    assert slack.min() >= -1e-12 * scale
+    act = slack <= 1e-9 * scale
+    if not act.any():
+        np.testing.assert_array_equal(u, u_nom)
+        return
+    lam, *_ = np.linalg.lstsq(A[act].T, u - u_nom, rcond=None)
+    assert lam.min() >= -1e-12 * max(1.0, float(np.abs(lam).max()))
+    np.testing.assert_allclose(A[act].T @ lam, u - u_nom, atol=1e-12 * scale)
+
+
+def test_known_answers() -> None:
+    A = np.array([[1.0, 0.0], [0.0, 1.0]])
+    u, res, rmin = project_few(A, np.array([1.0, 1.0]), np.zeros(2))  # a corner: both rows active
+    np.testing.assert_allclose(u, [1.0, 1.0], atol=1e-15)
+    u, res, rmin = project_few(A, np.array([1.0, -5.0]), np.zeros(2))  # one row active
+    np.testing.assert_array_equal(u, [1.0, 0.0])
+    np.testing.assert_array_equal(res, [0.0, 5.0])
+    assert rmin == 0.0
+    u_nom = np.array([3.0, 4.0])
+    u, res, rmin = project_few(A, np.array([1.0, 1.0]), u_nom)  # nothing active: u_nom itself (a copy)
+    np.testing.assert_array_equal(u, u_nom)
+    assert u is not u_nom and rmin == 2.0
+    # x + y >= 2 and x - y >= 0 from (0, 1): the corner (1, 1), multipliers 0.5 and 0.5 (KKT by hand)
+    A2 = np.array([[1.0, 1.0], [1.0, -1.0]])
+    u, _, _ = project_few(A2, np.array([2.0, 0.0]), np.array([0.0, 1.0]))
+    np.testing.assert_allclose(u, [1.0, 1.0], atol=1e-15)
+    np.testing.assert_allclose(u - np.array([0.0, 1.0]), A2.T @ np.array([0.5, 0.5]), atol=1e-15)
+
+
+def test_three_active_rows_infeasible_and_non_finite_go_to_the_backend() -> None:
+    eye = np.eye(3)
+    assert project_few(eye, np.ones(3), np.zeros(3)) is None  # the solution (1, 1, 1) has 3 active rows
+    assert project_few(np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([1.0, 0.0]), np.zeros(2)) is None  # x>=1, x<=0
+    # x >= 1 and -x + 1e-9 y >= -1 + 1e-3: both active at (1, 1e6), rows nearly parallel (det 1e-18): left alone
+    assert project_few(np.array([[1.0, 0.0], [-1.0, 1e-9]]), np.array([1.0, -1.0 + 1e-3]), np.zeros(2)) is None
+    assert project_few(eye[:2], np.array([np.nan, 0.0]), np.zeros(3)) is None
+    with np.errstate(invalid="ignore"):
+        assert project_few(eye[:2], np.ones(2), np.array([np.inf, 0.0, 0.0])) is None
+    solver = QPSolver(few_rows=True)
+    r = solver.solve(FilterQP(np.zeros(3), eye, np.ones(3)))
+    assert r.status == "optimal" and solver.solves == 1  # the backend's answer
+    np.testing.assert_allclose(r.u, np.ones(3), atol=1e-9)
+    r = solver.solve(FilterQP(np.zeros(2), np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([1.0, 0.0])))
+    assert r.status == "infeasible" and not r.ok  # never presented as a safe answer
+
+
+@pytest.mark.parametrize("backend", ["daqp", "proxsuite"])
+def test_random_two_row_problems_agree_with_the_backends(backend: str) -> None:
+    """Every feasible 2-row problem is answered here (at most two rows can be active) and equals the backend's."""
+    rng = np.random.default_rng(11)
+    ref, ours = QPSolver(backend=backend, closed_form=False), QPSolver(backend=backend, few_rows=True)
+    kinds = {0: 0, 1: 0, 2: 0}
+    for _ in range(80):
+        m = int(rng.integers(2, 8))
+        A = rng.normal(size=(2, m)) * rng.choice([1e-2, 1.0, 1e2])
+        u_nom = rng.normal(size=m)
+        lb = A @ u_nom + rng.normal(size=2) * np.abs(A).max()
+        hit = project_few(A, lb, u_nom)
+        assert hit is not None
+        u, res, rmin = hit
+        _kkt(A, lb, u_nom, u)
+        np.testing.assert_array_equal(res, A.dot(u) - lb)
+        assert rmin == res.min()
+        kinds[int((res <= 1e-9 * max(1.0, np.abs(lb).max())).sum())] += 1
+        r = ref.solve(FilterQP(u_nom, A, lb))
+        np.testing.assert_allclose(u, r.u, rtol=0, atol=1e-8 * max(1.0, np.abs(r.u).max()))
+        mine = ours.solve(FilterQP(u_nom, A, lb))
+        assert mine.status == "optimal" and mine.iterations == 0
+        np.testing.assert_array_equal(mine.u, u)
+    assert ours.solves == 0 and min(kinds.values()) > 8  # no backend call; every active-set size seen
+
+
+def test_random_few_row_problems_answered_or_left_to_the_backend() -> None:
+    """Up to FEW_ROWS rows: an answer is the backend's (and meets KKT); a problem it leaves has >= 3 active rows."""
+    rng = np.random.default_rng(5)
+    daqp = QPSolver(closed_form=False)
+    answered = left = 0
+    for _ in range(200):
+        k, m = int(rng.integers(3, FEW_ROWS + 1)), int(rng.integers(2, 8))
+        A = rng.normal(size=(k, m))
+        u_nom = rng.normal(size=m)
+        x = rng.normal(size=m)  # a feasible point: the problem is feasible by construction
+        lb = A @ x - np.abs(rng.normal(size=k)) * 0.7
+        r = daqp.solve(FilterQP(u_nom, A, lb))
+        hit = project_few(A, lb, u_nom)
+        if hit is None:
+            left += 1
+            assert int(r.active.sum()) >= 3
+            continue
+        answered += 1
+        _kkt(A, lb, u_nom, hit[0])
+        np.testing.assert_allclose(hit[0], r.u, rtol=0, atol=1e-8 * max(1.0, np.abs(r.u).max()))
+    assert answered > 50 and left > 5
+
+
+def test_random_infeasible_two_row_problems_are_never_answered() -> None:
+    rng = np.random.default_rng(2)
+    solver = QPSolver()
+    for n in range(40):
+        m = int(rng.integers(1, 6))
+        a = rng.normal(size=m)
+        A = np.vstack([a, -a * rng.uniform(0.5, 2.0)])  # a u >= l1 and a u <= l2 (scaled) with l2 < l1
+        u_nom = rng.normal(size=m)
+        l1 = float(a @ u_nom) + rng.uniform(0.1, 1.0)
+        lb = np.array([l1, -(l1 - rng.uniform(0.05, 1.0)) * (A[1, 0] / -a[0])])
+        assert project_few(A, lb, u_nom) is None
+        if n < 3:  # the backend proves it (slowly: the phase-1 problem)
+            r = solver.solve(FilterQP(u_nom, A, lb))
+            assert r.status == "infeasible" and not r.ok
+
+
+def test_off_by_default_and_only_with_the_closed_forms() -> None:
+    qp = FilterQP(np.zeros(2), np.eye(2), np.ones(2))
+    for solver, backend_calls in ((QPSolver(), 1), (QPSolver(few_rows=True, closed_form=False), 1),
+                                  (QPSolver(few_rows=True), 0)):
+        r = solver.solve(qp)
+        assert r.status == "optimal" and solver.solves == backend_calls
+        np.testing.assert_allclose(r.u, [1.0, 1.0], atol=1e-12)
