@@ -162,3 +162,10 @@ def test_unknown_controller_and_mismatched_tau() -> None:
     fit.controller = "kepler"
     with pytest.raises(ConfigError, match="tau --controller shooting"):
         simulate("maneuver", 1.0, tau=fit, control=ControlParams(controller="shooting"))
+
+
+def test_periodic_baseline_with_the_shooting_controller() -> None:
+    control = ControlParams(controller="shooting", shooting=ShootingParams(horizon_h=2.0, grid=3, refine=0))
+    res = simulate("periodic", 1.0, period_h=0.3, control=control)
+    assert res.kinds == {"periodic": 3} and res.shooting is not None and res.shooting["shooting_impulses"] == 3
+    assert all(e.xi_after >= res.settings["c"] - 1e-9 for e in res.events) and res.min_h > 0
