@@ -108,6 +108,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--tau", metavar="FILE", help="tau_p fit written by `isf-satellite tau` (maneuver trigger)")
     p.add_argument("--period-h", type=float, default=None, metavar="HOURS",
                    help="impulse period of the periodic trigger (baseline station keeping), hours")
+    p.add_argument("--period-at-start", action="store_true",
+                   help="periodic: the first impulse at t = 0 (insertion), then every --period-h (default: at t = T)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout (nothing else)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.add_argument("--disturbance-scale", type=float, default=1.0, metavar="K",
@@ -236,6 +238,8 @@ def run(args: argparse.Namespace) -> int:
         from satellite.tau import load_tau
 
         tau = load_tau(args.tau)
+    if args.period_at_start and trigger is not Trigger.PERIODIC:
+        raise ConfigError("--period-at-start goes with --trigger periodic (and only with it)")
     if (trigger is Trigger.PERIODIC) != (args.period_h is not None):
         raise ConfigError("--period-h HOURS goes with --trigger periodic (and only with it)")
     if not (math.isfinite(args.min_interval) and args.min_interval >= 0):
@@ -257,7 +261,8 @@ def run(args: argparse.Namespace) -> int:
                    body_mesh=recorder is not None, contact=args.contact, contact_surface=shape,
                    integrator=IntegratorSettings(event_scan=not args.no_event_scan), period_h=args.period_h,
                    min_interval_s=args.min_interval, surface_barrier=args.surface_barrier,
-                   surface_clearance_m=args.surface_clearance, surface_c=args.surface_c)
+                   surface_clearance_m=args.surface_clearance, surface_c=args.surface_c,
+                   period_at_start=args.period_at_start)
     if args.json:
         out = res.summary()
         if args.events:

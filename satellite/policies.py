@@ -302,14 +302,21 @@ def _xi_tau_rate(trig: BandTriggers, tau: Any) -> Any:
 
 
 class Periodic(TriggerPolicy):
-    """``periodic``: an impulse every ``period_s`` (set by :func:`make_policy`), stopped at a band exit."""
+    """``periodic``: an impulse every ``period_s`` (set by :func:`make_policy`), stopped at a band exit.
+
+    With ``at_start`` the first impulse comes at the run's start (an insertion impulse, as station
+    keeping starts on a designed orbit), else after the first period.
+    """
 
     trigger = Trigger.PERIODIC
     first_phase = "periodic"
     period_s = float("nan")
+    at_start = False
 
     def step(self, t: float, y: NDArray[np.float64], t_end: float) -> Step:
         """One arc to the next impulse time (impulse applied), to ``t_end`` or to the band exit (run ends)."""
+        if self.at_start and not self.ctrl.jumps and t < t_end:
+            y = self._jump(t, y, "periodic")
         exit_ev = event(self.trig.h, True, -1.0, self.rates["h"], self.trig.h_batch)
         t_next = min(t + self.period_s, t_end)
         sol = self.arc(t, t_next, y, [exit_ev, self.apsis_ev], "periodic", None)
@@ -334,15 +341,20 @@ def make_policy(
     tau: Any = None,
     period_s: float | None = None,
     min_interval_s: float = MIN_INTERVAL_S,
+    at_start: bool = False,
 ) -> TriggerPolicy:
     """The policy of ``trigger`` (arguments as for :class:`TriggerPolicy`; ``period_s`` for ``periodic``).
 
-    ``min_interval_s`` is the practical minimum interval between impulses [s] (module docstring).
+    ``min_interval_s`` is the practical minimum interval between impulses [s] (module docstring);
+    ``at_start``: the periodic trigger's first impulse at the start (:class:`Periodic`).
     """
     policy = _POLICIES[trigger](trig, ctrl, arc, on_jump, tau)
     policy.min_interval_s = float(min_interval_s)
-    if trigger is Trigger.PERIODIC:
+    if isinstance(policy, Periodic):
         if period_s is None or not (np.isfinite(period_s) and period_s > 0):
             raise ConfigError(f"the periodic trigger needs a period > 0 (hours), got {period_s}")
         policy.period_s = float(period_s)
+        policy.at_start = bool(at_start)
+    elif at_start:
+        raise ConfigError(f"an impulse at the start goes with the periodic trigger only, not {trigger}")
     return policy

@@ -114,6 +114,7 @@ def simulate(
     contact: str = "off",
     contact_surface: SurfaceModel | None = None,
     period_h: float | None = None,
+    period_at_start: bool = False,
     min_interval_s: float = MIN_INTERVAL_S,
     surface_barrier: bool = False,
     surface_clearance_m: float = 0.0,
@@ -151,6 +152,7 @@ def simulate(
         contact_surface: The shape for ``contact`` (default: ``surface``, else
             :func:`satellite.mesh_surface.load_surface`).
         period_h: Impulse period [h] of the ``periodic`` trigger.
+        period_at_start: ``periodic`` also fires at ``t = 0`` (an insertion impulse), then every ``period_h``.
         min_interval_s: Practical minimum interval between impulses [s], >= 0 (0: none): an
             impulse due by ``Xi`` sooner after the previous one is held until the interval has
             passed, or until ``h`` reaches the band's edge (:mod:`satellite.policies`); the result
@@ -207,7 +209,8 @@ def simulate(
         watch = make_contact(model, contact_surface or surface or load_surface())
     arcs = ArcIntegrator(model, integ, track, check, exit_watch, watch, contact == "stop")
     policy = make_policy(trigger, trig, ctrl, arcs, obs.on_event, tau,
-                         period_h * 3600.0 if period_h is not None else None, float(min_interval_s))
+                         period_h * 3600.0 if period_h is not None else None, float(min_interval_s),
+                         period_at_start)
     sfilter = None
     if surface_barrier:
         shape = contact_surface or surface or load_surface()
@@ -229,6 +232,8 @@ def simulate(
         settings["tau"] = tau.describe()
     if period_h is not None:
         settings["period_h"] = float(period_h)
+    if period_at_start:
+        settings["period_at_start"] = True
     if obs:
         send_mesh = body_mesh if body_mesh is not None else True
         mesh = body_mesh_info(surface) if send_mesh else None

@@ -89,6 +89,7 @@ SATELLITE = [
     ["run", "--trigger", "greedy", "--period-h", "1", "--hours", "1"],
     ["run", "--trigger", "periodic", "--period-h", "-1", "--hours", "1"],
     ["run", "--controller", "bogus", "--hours", "1"],
+    ["run", "--period-at-start", "--hours", "1"],
     ["run", "--shoot-horizon-h", "2", "--hours", "1"],
     ["run", "--controller", "shooting", "--shoot-grid", "4", "--hours", "1"],
     ["run", "--controller", "shooting", "--shoot-dv-max", "-1", "--hours", "1"],

@@ -28,3 +28,12 @@ def test_a_long_period_leaves_the_band_and_the_run_stops_there() -> None:
 def test_the_periodic_trigger_needs_a_period() -> None:
     with pytest.raises(ConfigError, match="needs a period"):
         simulate("periodic", 1.0)
+
+
+def test_an_impulse_at_the_start_then_every_period() -> None:
+    res = simulate("periodic", 1.0, period_h=0.25, period_at_start=True)
+    t = np.array([e.t for e in res.events]) / 3600.0
+    np.testing.assert_allclose(t, [0.0, 0.25, 0.5, 0.75], atol=1e-9)
+    assert res.settings["period_at_start"] is True and res.events[0].xi_after >= res.settings["c"] - 1e-9
+    with pytest.raises(ConfigError, match="periodic trigger only"):
+        simulate("greedy", 1.0, period_at_start=True)
