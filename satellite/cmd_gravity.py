@@ -62,6 +62,12 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--near-cut", type=float, default=1.4, metavar="R_OVER_R",
                         help="--table: faces reaching above this radius (units of R) are tiled and summed exactly "
                              "near the surface (default 1.4; 0: the table alone)")
+    parser.add_argument("--fine-step", type=float, default=4.0, metavar="M",
+                        help="--table: node spacing of the fine boxes near the surface, metres (default 4; 0: none; "
+                             "satellite.gravity_fine)")
+    parser.add_argument("--fine-from", metavar="TABLE.npz",
+                        help="--table: instead of tabulating the shell again, read this table (of the same shape, "
+                             "with its near-surface tiles) and add fine boxes to it")
     parser.add_argument(
         "--mass",
         type=float,
@@ -154,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _table(args: argparse.Namespace, shape: Path) -> int:
     """``isf-satellite gravity --table``: the exact field tabulated (see :mod:`satellite.gravity_table`)."""
-    from satellite.gravity_table import TableGrid, build_table
+    from satellite.gravity_table import GravityTable, TableGrid, build_table
     from satellite.mesh import read_obj
     from satellite.polyhedron import PolyhedronField
 
@@ -174,8 +180,29 @@ def _table(args: argparse.Namespace, shape: Path) -> int:
     if args.near_cut > 0:
         prov["near_surface"] = (f"faces reaching above {args.near_cut:g} R tiled and summed exactly within 30-40 m "
                                 "(satellite.gravity_near)")
-    table = build_table(field, grid, r_ref, workers=args.workers, provenance=prov,
-                        near_cut=args.near_cut * r_ref if args.near_cut > 0 else None)
+    if not (args.fine_step == 0 or 0.5 <= args.fine_step <= 20.0):
+        raise GravityModelError(f"--fine-step must be 0 (no fine boxes) or in [0.5, 20] m, got {args.fine_step:g}")
+    if args.fine_from:
+        table = GravityTable.load(args.fine_from)
+        if abs(table.r_ref_m - r_ref) > 1e-6 * r_ref or abs(table.gm - field.gm) > 1e-9 * field.gm:
+            raise GravityModelError(f"--fine-from {args.fine_from}: R or GM differ from the shape's "
+                                    f"({table.r_ref_m:.6g} m, {table.gm:.6g} vs {r_ref:.6g} m, {field.gm:.6g})")
+        grid = table.grid
+        prov = {**table.provenance, "date": prov["date"]}
+        prov["generator"] += f" (shell and tiles from {Path(args.fine_from).name})"
+    else:
+        table = build_table(field, grid, r_ref, workers=args.workers, provenance=prov,
+                            near_cut=args.near_cut * r_ref if args.near_cut > 0 else None)
+    if args.fine_step > 0:
+        from satellite.gravity_fine import add_fine_boxes
+        from satellite.mesh_surface import MeshSurface
+
+        add_fine_boxes(table, field, MeshSurface(mesh), step=args.fine_step, workers=args.workers,
+                       log=lambda line: print(line, file=sys.stderr, flush=True))
+        prov["fine_boxes"] = (f"Cartesian B-spline boxes, {args.fine_step:g} m nodes, within 35 m of the surface, "
+                              "exterior field continued inside (satellite.gravity_fine)")
+        prov["generator"] = prov["generator"].replace(" --out ", f" --fine-step {args.fine_step:g} --out ", 1)
+        table.provenance = prov
     table.save(args.out)
     print(f"wrote {args.out}: {grid.n_r} x {grid.n_lat} x {grid.n_lon} nodes, r in [{grid.r_lo:.6g}, "
           f"{grid.r_hi:.6g}] m", file=sys.stdout)

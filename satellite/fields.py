@@ -2,8 +2,9 @@
 
 * ``table`` (default): the exact constant-density polyhedron field of the Gaskell shape model,
   tabulated once on a body-frame shell grid around the band (:mod:`satellite.gravity_table`),
-  with the faces near the band summed exactly within 30-40 m of the surface
-  (:mod:`satellite.gravity_near`); committed as ``satellite/data/itokawa_polyhedron_table.npz``
+  corrected within 35 m of the surface by fine Cartesian B-spline boxes (4 m nodes,
+  :mod:`satellite.gravity_fine`, built from exact sums of the nearby faces,
+  :mod:`satellite.gravity_near`); committed as ``satellite/data/itokawa_polyhedron_table.npz``
   (derived from the shape file, provenance inside: ``GravityTable.load(...).provenance``).
   Valid everywhere in the band; its measured error is in REPRODUCTION.md. Outside the table's
   radii (1.5625 R .. 2.4375 R) the exact field answers (needs the shape file; slow).

@@ -13,7 +13,11 @@ Catmull-Rom) made DOP853 at rtol 1e-10 take 6x more steps than the degree-8 seri
 derivative jumping at every cell face; with the B-spline it takes about 1.2x. The Kepler part is added
 back exactly. Outside ``[r_lo + dr, r_hi - dr]`` the exact field is evaluated (slow, correct).
 The interpolant is continuous except exactly at the poles, where its value depends on the
-longitude of approach by at most about twice the interpolation error.
+longitude of approach by at most about twice the interpolation error. Within a few tens of metres
+of the surface the shell's cells are too coarse: fine Cartesian B-spline boxes correct it there
+(:mod:`satellite.gravity_fine`, also C2), built from the exact near-surface tile sums of
+:mod:`satellite.gravity_near` (which the table applies itself, at 0.2-0.7 ms a call, only when it
+has no boxes).
 
 The grid is generated once (the polyhedron costs a few ms per node: about 23 min for the default
 grid on 2 cores) by ``isf-satellite gravity --table`` and written as ``.npz`` with its provenance;
@@ -46,6 +50,9 @@ TABLE_FORMAT = "isf-satellite-gravity-table/2"
 _GHOSTS = 6
 """Radial ghost nodes (cubic extrapolation) on each side for the prefilter: edge effects ~0.27^6."""
 
+_RG = 3
+"""Radial ghost coefficient layers a table keeps on each side (its spline reaches two cells below ``r_lo``)."""
+
 
 def bspline3(t: Any) -> tuple[Any, Any, Any, Any]:
     """Uniform cubic B-spline weights of the coefficients ``i-1 .. i+2`` at fraction ``t`` of cell ``[i, i+1]``."""
@@ -55,12 +62,13 @@ def bspline3(t: Any) -> tuple[Any, Any, Any, Any]:
             t3 / 6.0)
 
 
-def prefilter(values: NDArray[np.float64]) -> NDArray[np.float64]:
+def prefilter(values: NDArray[np.float64], ghosts: int = 0) -> NDArray[np.float64]:
     """B-spline coefficients whose spline passes through ``values`` (shape (n_r, n_lat, n_lon, 3)).
 
     Latitude: each pair of meridians half a turn apart forms one periodic great circle (up one,
     over the pole, down the other). Longitude: periodic. Radius: ``_GHOSTS`` nodes of cubic
-    extrapolation on each side, mirror beyond them.
+    extrapolation on each side, mirror beyond them; ``ghosts`` (<= ``_GHOSTS``) of their
+    coefficient layers are kept on each side (shape (n_r + 2 ghosts, ...)).
     """
     from scipy.ndimage import spline_filter1d
 
@@ -77,7 +85,7 @@ def prefilter(values: NDArray[np.float64]) -> NDArray[np.float64]:
     hi = np.einsum("gn,n...->g...", lag, c[-1:-5:-1])
     ext = np.concatenate([lo, c, hi], axis=0)
     ext = spline_filter1d(ext, 3, axis=0, mode="mirror")
-    return np.ascontiguousarray(ext[_GHOSTS: _GHOSTS + n_r])
+    return np.ascontiguousarray(ext[_GHOSTS - ghosts: _GHOSTS + n_r + ghosts])
 
 
 class TableGrid:
@@ -132,6 +140,9 @@ class GravityTable:
         exact: The exact field (anything with ``acceleration((N, 3))``), used outside the table's
             radii (``None``: an error there).
         provenance: Where the table came from (stored with it).
+        near: Exact near-surface tiles (:mod:`satellite.gravity_near`), used when there are no
+            ``fine`` boxes (and to build them).
+        fine: Fine correction boxes near the surface (:mod:`satellite.gravity_fine`).
 
     """
 
@@ -139,20 +150,26 @@ class GravityTable:
     model_name = "polyhedron-table"
 
     def __init__(self, grid: TableGrid, values: NDArray[np.float64], r_ref_m: float, gm: float,
-                 exact: Any = None, provenance: dict[str, Any] | None = None, near: Any = None) -> None:
+                 exact: Any = None, provenance: dict[str, Any] | None = None, near: Any = None,
+                 fine: Any = None) -> None:
         if values.shape != (grid.n_r, grid.n_lat, grid.n_lon, 3) or not np.isfinite(values).all():
             raise GravityModelError(f"table values must be finite, shape {(grid.n_r, grid.n_lat, grid.n_lon, 3)}")
         self.grid, self.values = grid, values
         self.r_ref_m, self.gm = float(r_ref_m), float(gm)
         self.exact = exact
         self.provenance = dict(provenance or {})
-        self._ext = np.ascontiguousarray(_pad(prefilter(values), grid.n_lat))
+        # radial ghost layers of coefficients on each side: the spline extends two cells below r_lo
+        self._ext = np.ascontiguousarray(_pad(prefilter(values, ghosts=_RG), grid.n_lat))
+        n_r, n_la, n_lo, _ = self._ext.shape
+        self._ext3 = self._ext.reshape(n_r, n_la, n_lo * 3)
         self._r_in, self._r_out = grid.r_lo + grid.dr, grid.r_hi - grid.dr
+        self._inv_dr, self._inv_dang = 1.0 / grid.dr, 1.0 / grid.dang
         self.near = near
         if near is not None:
             from satellite.gravity_near import cell_flags
 
             self._near_cells = cell_flags(near, grid)
+        self.fine = fine
 
     @property
     def fast_radii(self) -> tuple[float, float]:
@@ -161,32 +178,75 @@ class GravityTable:
 
     # -- evaluation ---------------------------------------------------------------------------
     def acceleration(self, r_body: ArrayLike) -> NDArray[np.float64]:
-        """Acceleration [m/s^2] at one body-frame point [m] (shape (3,)); (k, 3) goes to the batch path."""
-        p = np.asarray(r_body, dtype=np.float64)
-        if p.ndim == 2:
-            return self.acceleration_batch(p)
-        x, y, z = p.tolist()
+        """Acceleration [m/s^2] at one body-frame point [m] (shape (3,) or a 3-tuple); (k, 3) goes to the batch path.
+
+        One lookup: the shell B-spline (64 coefficients, weights as Python floats, one 16 x 12
+        product) plus, inside a fine box, the box's B-spline; Kepler added back exactly.
+        """
+        if type(r_body) is tuple:
+            x, y, z = r_body
+        else:
+            p = np.asarray(r_body, dtype=np.float64)
+            if p.ndim == 2:
+                return self.acceleration_batch(p)
+            x, y, z = p.tolist()
         r2 = x * x + y * y + z * z
         r = math.sqrt(r2)
         if not self._r_in <= r <= self._r_out:
-            return self._exact(p.reshape(1, 3))[0]
+            return self._exact(np.array([[x, y, z]], dtype=np.float64))[0]
         g = self.grid
-        u = (r - g.r_lo) / g.dr
+        u = (r - g.r_lo) * self._inv_dr
         k = min(int(u), g.n_r - 3)
-        v = (math.asin(z / r) + 0.5 * math.pi) / g.dang - 0.5
-        i = int(math.floor(v))
-        w = (math.atan2(y, x) + math.pi) / g.dang - 0.5
-        j = int(math.floor(w))
-        block = self._ext[k - 1: k + 3, i + 1: i + 5, j + 1: j + 5]  # two ghost nodes before each axis
-        wr, wl, wn = bspline3(u - k), bspline3(v - i), bspline3(w - j)
-        wr, wl, wn = np.array(wr), np.array(wl), np.array(wn)
-        nk = np.einsum("a,b,c,abcd->d", wr, wl, wn, block)
-        if self.near is not None and self._near_cells[k, i + 1, j + 1]:
-            fix = self.near.correction(p, k, i, j, wr, wl, wn)
+        v = (math.asin(z / r) + 0.5 * math.pi) * self._inv_dang - 0.5
+        i = math.floor(v)
+        w = (math.atan2(y, x) + math.pi) * self._inv_dang - 0.5
+        j = math.floor(w)
+        a0, a1, a2, a3 = bspline3(u - k)
+        b0, b1, b2, b3 = bspline3(v - i)
+        c0, c1, c2, c3 = bspline3(w - j)
+        wab = np.array([a0 * b0, a0 * b1, a0 * b2, a0 * b3, a1 * b0, a1 * b1, a1 * b2, a1 * b3,
+                        a2 * b0, a2 * b1, a2 * b2, a2 * b3, a3 * b0, a3 * b1, a3 * b2, a3 * b3])
+        s = (wab @ self._ext3[k + _RG - 1: k + _RG + 3, i + 1: i + 5, 3 * j + 3: 3 * j + 15].reshape(16, 12)).tolist()
+        ax = c0 * s[0] + c1 * s[3] + c2 * s[6] + c3 * s[9]
+        ay = c0 * s[1] + c1 * s[4] + c2 * s[7] + c3 * s[10]
+        az = c0 * s[2] + c1 * s[5] + c2 * s[8] + c3 * s[11]
+        if self.fine is not None:
+            f = self.fine.at(x, y, z)
+            if f is not None:
+                ax, ay, az = ax + f[0], ay + f[1], az + f[2]
+        elif self.near is not None and self._near_cells[k, i + 1, j + 1]:
+            fix = self.near.correction(np.array([x, y, z]), k, i, j, np.array((a0, a1, a2, a3)),
+                                       np.array((b0, b1, b2, b3)), np.array((c0, c1, c2, c3)))
             if fix is not None:
-                nk = nk + fix
+                ax, ay, az = ax + float(fix[0]), ay + float(fix[1]), az + float(fix[2])
         kep = -self.gm / (r2 * r)
-        return nk + kep * p  # type: ignore[no-any-return]
+        return np.array([ax + kep * x, ay + kep * y, az + kep * z])
+
+    def spline_batch(self, r_body: ArrayLike) -> NDArray[np.float64]:
+        """The shell B-spline alone (non-Kepler part [m/s^2], no tiles, no boxes) at points [m], (N, 3) -> (N, 3).
+
+        Defined from two radial steps below ``r_lo`` to ``r_hi`` (below the table's radii the
+        spline is continued through extrapolated ghost nodes: for building fine boxes only).
+        """
+        q = np.asarray(r_body, dtype=np.float64).reshape(-1, 3)
+        g = self.grid
+        rq = np.linalg.norm(q, axis=1)
+        if len(q) and not (rq.min() >= g.r_lo - 2 * g.dr and rq.max() <= g.r_hi):
+            raise GravityModelError(f"spline_batch: radii must lie in [{g.r_lo - 2 * g.dr:.6g}, {g.r_hi:.6g}] m")
+        u = (rq - g.r_lo) / g.dr
+        k = np.minimum(np.floor(u).astype(np.intp), g.n_r - 3)
+        v = (np.arcsin(np.clip(q[:, 2] / np.where(rq > 0, rq, 1.0), -1.0, 1.0)) + 0.5 * math.pi) / g.dang - 0.5
+        i = np.floor(v).astype(np.intp)
+        w = (np.arctan2(q[:, 1], q[:, 0]) + math.pi) / g.dang - 0.5
+        j = np.floor(w).astype(np.intp)
+        wr, wl, wn = (np.stack(bspline3(t), axis=1) for t in (u - k, v - i, w - j))
+        acc = np.zeros((len(q), 3))
+        for a in range(4):
+            for b in range(4):
+                wab = wr[:, a] * wl[:, b]
+                for c in range(4):
+                    acc += (wab * wn[:, c])[:, None] * self._ext[k + _RG - 1 + a, i + 1 + b, j + 1 + c]
+        return acc
 
     def acceleration_batch(self, r_body: ArrayLike) -> NDArray[np.float64]:
         """Acceleration [m/s^2] at body-frame points [m], shape (N, 3) -> (N, 3)."""
@@ -198,24 +258,20 @@ class GravityTable:
         if (~ok).any():
             out[~ok] = self._exact(p[~ok])
         q, rq = p[ok], r[ok]
-        u = (rq - g.r_lo) / g.dr
-        k = np.minimum(u.astype(np.intp), g.n_r - 3)
-        v = (np.arcsin(q[:, 2] / rq) + 0.5 * math.pi) / g.dang - 0.5
-        i = np.floor(v).astype(np.intp)
-        w = (np.arctan2(q[:, 1], q[:, 0]) + math.pi) / g.dang - 0.5
-        j = np.floor(w).astype(np.intp)
-        wr, wl, wn = (np.stack(bspline3(t), axis=1) for t in (u - k, v - i, w - j))
-        acc = np.zeros((len(q), 3))
-        for a in range(4):
-            for b in range(4):
-                wab = wr[:, a] * wl[:, b]
-                for c in range(4):
-                    acc += (wab * wn[:, c])[:, None] * self._ext[k - 1 + a, i + 1 + b, j + 1 + c]
-        if self.near is not None:
-            for n in np.flatnonzero(self._near_cells[k, i + 1, j + 1]).tolist():
-                fix = self.near.correction(q[n], int(k[n]), int(i[n]), int(j[n]), wr[n], wl[n], wn[n])
-                if fix is not None:
-                    acc[n] += fix
+        acc = self.spline_batch(q)
+        if self.fine is not None:
+            acc += self.fine.at_batch(q)
+        elif self.near is not None:
+            u = (rq - g.r_lo) / g.dr
+            k = np.minimum(u.astype(np.intp), g.n_r - 3)
+            v = (np.arcsin(q[:, 2] / rq) + 0.5 * math.pi) / g.dang - 0.5
+            i = np.floor(v).astype(np.intp)
+            w = (np.arctan2(q[:, 1], q[:, 0]) + math.pi) / g.dang - 0.5
+            j = np.floor(w).astype(np.intp)
+            wr, wl, wn = (np.stack(bspline3(t), axis=1) for t in (u - k, v - i, w - j))
+            m = np.flatnonzero(self._near_cells[k, i + 1, j + 1])
+            if len(m):
+                acc[m] += self.near.correction_batch(q[m], k[m], i[m], j[m], wr[m], wl[m], wn[m])
         out[ok] = acc - self.gm * q / (rq**3)[:, None]
         return out
 
@@ -233,8 +289,10 @@ class GravityTable:
         meta = {"format": TABLE_FORMAT, "grid": self.grid.describe(), "r_ref_m": self.r_ref_m, "gm": self.gm,
                 "provenance": self.provenance}
         arrays = self.near.to_arrays() if self.near is not None else {}
+        if self.fine is not None:
+            arrays.update(self.fine.to_arrays())
         buf = io.BytesIO()
-        np.savez(buf, values=self.values, meta=np.array(json.dumps(meta)), **arrays)
+        np.savez_compressed(buf, values=self.values, meta=np.array(json.dumps(meta)), **arrays)
         write_bytes_atomic(path, buf.getvalue())
 
     @classmethod
@@ -245,6 +303,7 @@ class GravityTable:
                 values = np.asarray(data["values"], dtype=np.float64)
                 meta = json.loads(str(data["meta"]))
                 near_arrays = {key: data[key] for key in data.files if key.startswith("near_")}
+                fine_arrays = {key: data[key] for key in data.files if key.startswith("fine_")}
         except (OSError, KeyError, ValueError) as exc:
             raise GravityModelError(f"{path}: not a gravity table ({exc})") from None
         if meta.get("format") != TABLE_FORMAT:
@@ -259,7 +318,15 @@ class GravityTable:
                 near = NearTiles.from_arrays(near_arrays, grid)
             except (KeyError, ValueError, IndexError) as exc:
                 raise GravityModelError(f"{path}: bad near-surface tiles ({exc})") from None
-        return cls(grid, values, meta["r_ref_m"], meta["gm"], exact, meta.get("provenance"), near)
+        fine = None
+        if fine_arrays:
+            from satellite.gravity_fine import FineBoxes
+
+            try:
+                fine = FineBoxes.from_arrays(fine_arrays)
+            except (KeyError, ValueError, IndexError) as exc:
+                raise GravityModelError(f"{path}: bad fine boxes ({exc})") from None
+        return cls(grid, values, meta["r_ref_m"], meta["gm"], exact, meta.get("provenance"), near, fine)
 
 
 _WORKER: PolyhedronField | None = None
@@ -273,6 +340,32 @@ def _init(field: PolyhedronField) -> None:
 def _chunk(points: NDArray[np.float64]) -> NDArray[np.float64]:
     assert _WORKER is not None
     return _WORKER.acceleration(points)
+
+
+def exact_parallel(field: PolyhedronField, points: NDArray[np.float64], workers: int = 1,
+                   progress: Callable[[int, int], None] | None = None) -> NDArray[np.float64]:
+    """The exact field at points (N, 3) [m], in chunks of 512 over ``workers`` processes (Ctrl-C stops them)."""
+    chunks = [points[s: s + 512] for s in range(0, len(points), 512)]
+    out: list[NDArray[np.float64]] = []
+    done = 0
+    if workers <= 1 or len(chunks) <= 1:
+        for c in chunks:
+            out.append(field.acceleration(c))
+            done += len(c)
+            if progress:
+                progress(done, len(points))
+    else:
+        with ProcessPoolExecutor(workers, initializer=_init, initargs=(field,)) as pool:
+            try:
+                for c, a in zip(chunks, pool.map(_chunk, chunks)):
+                    out.append(a)
+                    done += len(c)
+                    if progress:
+                        progress(done, len(points))
+            except BaseException:
+                pool.shutdown(wait=False, cancel_futures=True)
+                raise
+    return np.concatenate(out) if out else np.empty((0, 3))
 
 
 def build_table(field: PolyhedronField, grid: TableGrid, r_ref_m: float, *, workers: int = 1,
@@ -292,27 +385,7 @@ def build_table(field: PolyhedronField, grid: TableGrid, r_ref_m: float, *, work
 
     """
     nodes = grid.nodes().reshape(-1, 3)
-    chunks = [nodes[s: s + 512] for s in range(0, len(nodes), 512)]
-    out: list[NDArray[np.float64]] = []
-    done = 0
-    if workers <= 1:
-        for c in chunks:
-            out.append(field.acceleration(c))
-            done += len(c)
-            if progress:
-                progress(done, len(nodes))
-    else:
-        with ProcessPoolExecutor(workers, initializer=_init, initargs=(field,)) as pool:
-            try:
-                for c, a in zip(chunks, pool.map(_chunk, chunks)):
-                    out.append(a)
-                    done += len(c)
-                    if progress:
-                        progress(done, len(nodes))
-            except BaseException:
-                pool.shutdown(wait=False, cancel_futures=True)
-                raise
-    acc = np.concatenate(out)
+    acc = exact_parallel(field, nodes, workers, progress)
     r = np.linalg.norm(nodes, axis=1)
     values = (acc + field.gm * nodes / (r**3)[:, None]).reshape(grid.n_r, grid.n_lat, grid.n_lon, 3)
     near = None

@@ -38,6 +38,10 @@ Changes so far, each deliberate:
   ``satellite-surface-12h`` regenerated once more when the surface margin's default went from
   ``c / 0.8 R`` (3.2 mm/s) to 10 mm/s (46 -> 20 impulses in 12 h; fewer, larger surface impulses),
   and for the new key ``surface_impulses`` (16; every other value unchanged).
+* Faster shell-table lookup (issue 14, item 1): the table's one-point path sums the same 64 B-spline
+  coefficients in another order (Python-float weights, one 16 x 12 product instead of a 4-operand
+  einsum; ~1e-16): ``satellite-greedy-12h`` and ``satellite-surface-12h`` regenerated (changes of
+  1e-9 relative in times, h and dv, same impulses); ``satellite-greedy`` stays within its tolerances.
 * Versioned outputs (issue 12, item 3): one new key in every case, ``"schema"``
   (``"isf-robot-run/1"``, ``"isf-satellite-run/1"``), added to the data files by hand (every
   other value untouched, not regenerated).

@@ -66,6 +66,7 @@ def test_units_option_scales_the_mesh(box_obj, tmp_path):
         (["--degree", "99"], "--degree must be in 0..20"),
         (["--degree", "2", "--mass", "-5"], "--mass must be a positive"),
         (["--degree", "2", "--mass", "nan"], "--mass must be a positive"),
+        (["--table", "--fine-step", "100"], "--fine-step must be 0 (no fine boxes) or in [0.5, 20] m"),
     ],
 )
 def test_bad_parameters_exit_2_with_one_line(box_obj, tmp_path, capsys, extra, pattern):
@@ -139,6 +140,7 @@ def test_gravity_table_command(tmp_path, helpers, capsys):
     got = table.values[1, 3, 5] - G_CODATA2018 * 1e10 * nodes[1, 3, 5] / np.linalg.norm(nodes[1, 3, 5]) ** 3
     np.testing.assert_allclose(got, exact.acceleration(nodes[1, 3, 5][None])[0], rtol=1e-12)
     assert table.provenance["generator"].startswith("isf-satellite gravity --table")
+    assert table.fine is not None and "--fine-step 4" in table.provenance["generator"]  # the default boxes
     assert table.r_ref_m == pytest.approx(mesh.volume_equivalent_radius)
     assert main(["gravity", "--shape", str(obj), "--out", str(tmp_path / "x.json")]) == 2
     assert "--degree N is required" in capsys.readouterr().err
