@@ -42,6 +42,12 @@ Changes so far, each deliberate:
   coefficients in another order (Python-float weights, one 16 x 12 product instead of a 4-operand
   einsum; ~1e-16): ``satellite-greedy-12h`` and ``satellite-surface-12h`` regenerated (changes of
   1e-9 relative in times, h and dv, same impulses); ``satellite-greedy`` stays within its tolerances.
+* Fine boxes in the committed gravity table (issue 14, item 1): within 35 m of the surface the
+  default field is a 4 m Cartesian B-spline instead of exact tile sums (a different, C2
+  approximation of the same exact field, within 1 % of it): the satellite cases regenerated
+  (``python tests/golden/generate.py satellite-greedy satellite-greedy-12h satellite-surface-12h``):
+  12 h orbits move by ~1e-5 relative (same impulses), the 200 h one is another orbit (104 impulses
+  instead of 90, min h 1383 m^2), inside its tolerances either way.
 * Versioned outputs (issue 12, item 3): one new key in every case, ``"schema"``
   (``"isf-robot-run/1"``, ``"isf-satellite-run/1"``), added to the data files by hand (every
   other value untouched, not regenerated).
