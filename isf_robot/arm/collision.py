@@ -156,6 +156,7 @@ class CollisionBarriers(NarrowPhase):
         self._kmargin = np.ascontiguousarray(pairs.margin[live], dtype=float)
         self._kthr2 = np.ascontiguousarray(self.broadphase.thresh2, dtype=float)
         self._kfromto = np.zeros((max(live.size, 1), 6))
+        self._kwit = np.zeros((max(live.size, 1), 3, 3))  # (the kernel's witness output when nobody reads it)
         self._kjac1 = np.zeros((3, model.nv))
         self._kjac2 = np.zeros((3, model.nv))
         self._knone = (np.zeros(0), np.zeros(0), np.zeros(1, dtype=np.int64), np.zeros((0, 0)),
@@ -270,7 +271,7 @@ class CollisionBarriers(NarrowPhase):
 
         """
         if self._kernel is not None:
-            return FilterRows(*self._near_compiled(data, mocap_lin, None, witness, coherence, joints))
+            return FilterRows._make(self._near_compiled(data, mocap_lin, None, witness, coherence, joints))
         near = self._near_numpy(data, mocap_lin, None, witness, coherence)
         jh = joints.values(data)
         jl = jh.tolist()

@@ -111,7 +111,9 @@ class NarrowPhase:
         lanes = self._klanes if joints is not None else 0
         # Fresh outputs at their largest size (allocated here: arrays made inside a kernel cost more to return).
         rows, h, g = np.empty(n_live, dtype=np.int64), np.empty(n_live + nj), np.empty((n_live + nj, self.dof_adr.size))
-        gn, wit = np.empty(n_live + nj if lanes else 0), np.empty((n_live, 3, 3))  # wit[k]: p1, p2, n
+        gn = np.empty(n_live + nj if lanes else 0)
+        moving = self._any_moving and mocap_lin is not None
+        wit = np.empty((n_live, 3, 3)) if witness or moving else self._kwit  # wit[k]: p1, p2, n (scratch if unused)
         j, h_min, dist_min, jmin, touching = self._kernel(
             self._maddr, self._daddr, data.qpos, data.geom_xpos, self._ktab, self._kmargin, self._kthr2,
             coherence is not None, lower, qprev, qstate, lever, qadr, self.cutoff, distmax, slack, _EPS_DIST,
@@ -128,11 +130,12 @@ class NarrowPhase:
             return self._none, h[:k], g[:k], jmin, gn[:k] if lanes else None
         rows = rows[:j]
         row_list = rows.tolist()
-        if self._any_moving and mocap_lin is not None:
+        if moving:
             dhdt = self._dhdt(data, row_list, rows, wit[:j, 2], wit[:j, 1], mocap_lin, mocap_ang)
         else:
             dhdt = np.zeros(j)
-        near = NearPairs(rows, row_list, h[:j], g[:j], dhdt, wit[:j, :2] if witness else None, h_min, dist_min)
+        near = NearPairs._make((rows, row_list, h[:j], g[:j], dhdt, wit[:j, :2] if witness else None, h_min,
+                                dist_min))  # (_make: tuple.__new__, cheaper than the generated __new__)
         return near, h[:k], g[:k], jmin, gn[:k] if lanes else None
 
     def _dhdt(self, data: mujoco.MjData, row_list: list[int], idx: np.ndarray, n: np.ndarray,
