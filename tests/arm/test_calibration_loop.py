@@ -43,3 +43,38 @@ def test_bad_in_loop_arguments_are_refused(planar):
         calibrate_in_loop(planar, "cbf", p, factor=0.5, **KW)
     with pytest.raises(ConfigError, match="seed"):
         calibrate_in_loop(planar, "cbf", p, seeds=(), duration=1.0)
+
+
+class _FakeSim:
+    """Stands in for ArmSimulation: the tracking error is a known function of the d_bar in use."""
+
+    law = staticmethod(lambda d: d)
+    calls: list[float] = []
+
+    def __init__(self, scene, strategy, seed, params):
+        self.d = params.d_bar
+
+    def run(self, duration):
+        _FakeSim.calls.append(self.d)
+
+        class R:
+            tracking_error_q99 = _FakeSim.law(self.d)
+
+        return R()
+
+
+@pytest.mark.parametrize("law, settles", [(lambda d: 0.05 + 0.2 * d, True), (lambda d: 0.1 + 2.0 * d, False)])
+def test_known_answers_settling_and_a_diverging_error(planar, monkeypatch, law, settles):
+    import isf_robot.arm.sim as sim_mod
+
+    monkeypatch.setattr(sim_mod, "ArmSimulation", _FakeSim)
+    monkeypatch.setattr(_FakeSim, "law", staticmethod(law))
+    p = resolve_params(planar, d_bar=0.01)
+    cal = calibrate_in_loop(planar, "isf", p, seeds=(0,), duration=1.0, factor=1.25, max_rounds=6, use_cache=False)
+    if settles:  # 0.052 -> d = 0.065 -> error 0.063 <= 0.065: covered in the second round
+        assert cal.covered and not cal.diverged
+        assert [d for d, _ in cal.rounds] == pytest.approx([0.01, 1.25 * 0.052])
+        assert cal.d_bar == pytest.approx(1.25 * 0.052)
+    else:  # 0.12 -> d = 0.15 -> error 0.4 > 0.12 grew: stop, keep the starting d_bar, not covered
+        assert cal.diverged and not cal.covered and len(cal.rounds) == 2
+        assert cal.d_bar == 0.01
