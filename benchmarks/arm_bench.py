@@ -213,7 +213,8 @@ def render(scenes: list[dict], backends: dict, far: dict | None, args: argparse.
         "(the repeat with the median ratio is shown). Split: the same steps' mean per phase (the per-phase "
         "timers, about 1 us per step, are included in `us/step`); `QP/step` is the median QP cost of a step "
         "that solved one (every solve, polish and checks included); `backend` the median over the steps that "
-        "went to the QP backend (not the one-row closed form).", "",
+        "went to the QP backend or, with several rows and at most two active, to its exact closed form "
+        "(`QPSolver(few_rows=True)`, the arm's default; not the one-row closed form).", "",
         "| scene | strategy | us/step | mj_step [us] | x mj_step | target | sense | barriers | nominal | strategy | "
         "act | duty | QP steps | closed form | re-solves | QP/step [us] | backend [us] |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
