@@ -164,12 +164,16 @@ class GravityTable:
         self._ext3 = self._ext.reshape(n_r, n_la, n_lo * 3)
         self._r_in, self._r_out = grid.r_lo + grid.dr, grid.r_hi - grid.dr
         self._inv_dr, self._inv_dang = 1.0 / grid.dr, 1.0 / grid.dang
-        self.near = near
-        if near is not None:
+        self.near, self.fine = near, fine
+        self._near_cells: NDArray[np.bool_] | None = None  # the tiles answer only in a table without boxes
+
+    def _cells(self) -> NDArray[np.bool_]:
+        """Per cell: may a tile correct it (:func:`satellite.gravity_near.cell_flags`, computed on first use)."""
+        if self._near_cells is None:
             from satellite.gravity_near import cell_flags
 
-            self._near_cells = cell_flags(near, grid)
-        self.fine = fine
+            self._near_cells = cell_flags(self.near, self.grid)
+        return self._near_cells
 
     @property
     def fast_radii(self) -> tuple[float, float]:
@@ -214,7 +218,7 @@ class GravityTable:
             f = self.fine.at(x, y, z)
             if f is not None:
                 ax, ay, az = ax + f[0], ay + f[1], az + f[2]
-        elif self.near is not None and self._near_cells[k, i + 1, j + 1]:
+        elif self.near is not None and self._cells()[k, i + 1, j + 1]:
             fix = self.near.correction(np.array([x, y, z]), k, i, j, np.array((a0, a1, a2, a3)),
                                        np.array((b0, b1, b2, b3)), np.array((c0, c1, c2, c3)))
             if fix is not None:
@@ -269,7 +273,7 @@ class GravityTable:
             w = (np.arctan2(q[:, 1], q[:, 0]) + math.pi) / g.dang - 0.5
             j = np.floor(w).astype(np.intp)
             wr, wl, wn = (np.stack(bspline3(t), axis=1) for t in (u - k, v - i, w - j))
-            m = np.flatnonzero(self._near_cells[k, i + 1, j + 1])
+            m = np.flatnonzero(self._cells()[k, i + 1, j + 1])
             if len(m):
                 acc[m] += self.near.correction_batch(q[m], k[m], i[m], j[m], wr[m], wl[m], wn[m])
         out[ok] = acc - self.gm * q / (rq**3)[:, None]
