@@ -11,8 +11,8 @@
 * ``ray`` (optional extra ``ray``): each task is a Ray task with one CPU, at most ``jobs`` in
   flight. Without ``address`` a local Ray instance with ``jobs`` CPUs is started for the batch
   and shut down after it; with ``address`` (``"auto"`` or ``"HOST:PORT"``) the batch joins that
-  cluster, whose nodes must have this package importable. Ctrl-C / SIGTERM cancel the pending
-  tasks (force) and raise :class:`Interrupted` with what finished, as above; a task's error is
+  cluster, whose nodes must have this package importable. Ctrl-C / SIGTERM stop the pending
+  tasks (the local instance is shut down; on a cluster they are cancelled, force) and raise :class:`Interrupted` with what finished, as above; a task's error is
   re-raised as itself (not Ray's wrapper).
 
 Tasks are matched to results by their index, so a backend returns the same ``(task, result)``
@@ -224,7 +224,11 @@ def _run_ray(fn: Callable[[Any], Any], tasks: list[Any], jobs: int, address: str
                     raise
                 keep(tasks[i], result)
     except BaseException as exc:
-        for ref in pending:
+        # A private instance: ray.shutdown() below stops its workers. Cancelling there too raced with
+        # the replies of tasks a terminal's Ctrl-C had already ended (the whole process group gets it)
+        # and crashed the driver inside Ray ("Tried to complete task that was not pending", exit 1,
+        # nothing kept); seen once in CI. A cluster keeps running after shutdown: cancel there.
+        for ref in pending if not started or address is not None else ():
             try:
                 ray.cancel(ref, force=True)
             except Exception:  # noqa: BLE001 - already finished or gone
