@@ -12,8 +12,9 @@
   flight. Without ``address`` a local Ray instance with ``jobs`` CPUs is started for the batch
   and shut down after it; with ``address`` (``"auto"`` or ``"HOST:PORT"``) the batch joins that
   cluster, whose nodes must have this package importable. Ctrl-C / SIGTERM stop the pending
-  tasks (the local instance is shut down; on a cluster they are cancelled, force) and raise :class:`Interrupted` with what finished, as above; a task's error is
-  re-raised as itself (not Ray's wrapper).
+  tasks (the local instance is shut down; on a cluster they are cancelled, force) and raise
+  :class:`Interrupted` with what finished, as above; a task's error is re-raised as itself (not
+  Ray's wrapper).
 
 Tasks are matched to results by their index, so a backend returns the same ``(task, result)``
 pairs as any other; only the completion order may differ.
