@@ -168,10 +168,29 @@ class TriggerPolicy:
         sol = self.arc(t, min(self.ctrl.t_last + self.min_interval_s, t_end), y, [*edges, self.apsis_ev], phase, None)
         if sol.status == 1:
             self.hold_overrides += 1
-            i = min((k for k in range(len(edges)) if len(sol.t_events[k])), key=lambda k: float(sol.t_events[k][0]))
+            i = _first(sol, range(len(edges)))
             return float(sol.t_events[i][0]), sol.y_events[i][0], True
         t, y = float(sol.t[-1]), sol.y[:, -1]
         return t, y, t < t_end and min(float(e.fn(t, y)) for e in self.fire_evs) <= 0.0
+
+    def _fire_arc(self, t: float, arc_end: float, y: NDArray[np.float64], t_end: float, phase: str,
+                  kinds: tuple[str, str]) -> tuple[float, NDArray[np.float64], bool]:
+        """One arc to the first falling zero of ``Xi`` (or ``Xi_s``) before ``arc_end``, held and fired.
+
+        ``kinds`` names the impulse fired by ``Xi`` and by ``Xi_s``. Returns ``(t, y, stopped)``:
+        ``stopped`` when an event ended the arc (whether or not the hold let the impulse fire).
+        """
+        fire = self.fire_evs
+        sol = self.arc(t, arc_end, y, [*fire, self.apsis_ev], phase, None)
+        t, y = float(sol.t[-1]), sol.y[:, -1]
+        if sol.status != 1:
+            return t, y, False
+        i = _first(sol, range(len(fire)))
+        t, y, due = self._hold(float(sol.t_events[i][0]), sol.y_events[i][0], t_end, phase)
+        if due:
+            self.surface_fires += i
+            y = self._jump(t, y, kinds[i])
+        return t, y, True
 
 
 class NoControl(TriggerPolicy):
@@ -197,15 +216,7 @@ class Greedy(TriggerPolicy):
 
     def step(self, t: float, y: NDArray[np.float64], t_end: float) -> Step:
         """One arc to the next ``Xi = 0`` (impulse applied) or to ``t_end``."""
-        fire = self.fire_evs
-        sol = self.arc(t, t_end, y, [*fire, self.apsis_ev], "greedy", None)
-        t, y = float(sol.t[-1]), sol.y[:, -1]
-        if sol.status == 1:
-            i = _first(sol, range(len(fire)))
-            t, y, due = self._hold(float(sol.t_events[i][0]), sol.y_events[i][0], t_end, "greedy")
-            if due:
-                self.surface_fires += i
-                y = self._jump(t, y, "greedy" if i == 0 else "surface")
+        t, y, _ = self._fire_arc(t, t_end, y, t_end, "greedy", ("greedy", "surface"))
         return t, y, False
 
 
@@ -240,25 +251,12 @@ class Maneuver(TriggerPolicy):
         sched = self.sched
         fire = self.fire_evs  # Xi (and Xi_s with the surface barrier)
         if sched.phase == "first":
-            sol = self.arc(t, t_end, y, [*fire, self.apsis_ev], "first", None)
-            t, y = float(sol.t[-1]), sol.y[:, -1]
-            if sol.status == 1:
-                i = _first(sol, range(len(fire)))
-                t, y, due = self._hold(float(sol.t_events[i][0]), sol.y_events[i][0], t_end, "first")
-                if due:
-                    self.surface_fires += i
-                    y = self._jump(t, y, "greedy")
+            t, y, _ = self._fire_arc(t, t_end, y, t_end, "first", ("greedy", "greedy"))
             return t, y, False
         gate = float(sched.gate_time)  # type: ignore[arg-type]
         if t < gate:
-            sol = self.arc(t, min(gate, t_end), y, [*fire, self.apsis_ev], "second", None)
-            t, y = float(sol.t[-1]), sol.y[:, -1]
-            if sol.status == 1:
-                i = _first(sol, range(len(fire)))
-                t, y, due = self._hold(float(sol.t_events[i][0]), sol.y_events[i][0], t_end, "second")
-                if due:
-                    self.surface_fires += i
-                    y = self._jump(t, y, "safe")
+            t, y, stopped = self._fire_arc(t, min(gate, t_end), y, t_end, "second", ("safe", "safe"))
+            if stopped:
                 return t, y, False
             if t >= t_end:
                 return t, y, True
