@@ -56,6 +56,9 @@ def register(subparsers: Any) -> None:
                    help="experiment: scale the non-Kepler gravity by K (default 1)")
     p.add_argument("--alpha-gain", type=float, default=None, metavar="PER_S",
                    help="alpha(h) = gain * h (default: mean motion at 2R)")
+    p.add_argument("--surface-barrier", action="store_true",
+                   help="greedy and maneuver runs add the surface-clearance barrier (as `isf-satellite run "
+                        "--surface-barrier`); without it contact with the surface is counted, not prevented")
     p.add_argument("--rtol", type=float, default=1e-10, help="integrator rtol (default 1e-10)")
     p.add_argument("--jobs", type=int, default=1, metavar="K",
                    help="worker processes, or Ray tasks in flight (default 1)")
@@ -112,6 +115,7 @@ def _resumed(path: str, settings: StudySettings) -> list[dict[str, Any]]:
     if not isinstance(doc, dict) or not str(doc.get("schema", "")).startswith(SCHEMA + "/"):
         raise ConfigError(f"--resume: {path} is not an isf-satellite study file")
     old = dict(doc.get("settings") or {})
+    old.setdefault("surface_barrier", False)  # files written before the option
     new = json.loads(json.dumps(settings.as_dict()))
     old_tau, new_tau = old.pop("tau", {}) or {}, new.pop("tau")
     if old != new:
@@ -153,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
     load_field(args.gravity)
     settings = StudySettings(hours=float(args.hours), gravity=args.gravity, spin=not args.no_spin,
                              disturbance_scale=args.disturbance_scale, alpha_gain=args.alpha_gain,
-                             rtol=args.rtol, tau=tau)
+                             rtol=args.rtol, tau=tau, surface_barrier=args.surface_barrier)
     if args.out:
         check_output_path(args.out, "--out")
     done_runs = _resumed(args.out, settings) if args.resume else []

@@ -32,6 +32,9 @@ __all__ = ["StudyConfig", "StudySettings", "StudyTask", "run_one", "run_study", 
 STUDY_TRIGGERS = ("greedy", "maneuver", "periodic")
 """Triggers a study can compare."""
 
+SURFACE_BARRIER_TRIGGERS = ("greedy", "maneuver")
+"""Triggers that can add the surface barrier (a periodic run fires on the clock, not on a barrier)."""
+
 CI_METHOD = ("paired t (mean +- t_0.975,n-1 sd/sqrt(n)) of the per-orbit reductions 1 - a/b; "
              "percentile bootstrap (10,000 resamples of the orbits) beside it")
 
@@ -69,6 +72,8 @@ class StudySettings:
     rtol: float = 1e-10
     tau: Mapping[str, str] = field(default_factory=dict)
     """tau_p file per controller (``maneuver`` needs its controller's)."""
+    surface_barrier: bool = False
+    """Greedy and maneuver runs add the surface-clearance barrier (``isf-satellite run --surface-barrier``)."""
 
     def as_dict(self) -> dict[str, Any]:
         out = asdict(self)
@@ -128,9 +133,11 @@ def run_one(task: StudyTask) -> dict[str, Any]:
         cfg.trigger, st.hours, initial=initial, model=model, control=_control(st, cfg.controller), tau=tau,
         integrator=IntegratorSettings(rtol=st.rtol), miet_samples=200, contact="count",
         contact_surface=_loaded("shape", "default"), period_h=cfg.period_h,
+        surface_barrier=st.surface_barrier and cfg.trigger in SURFACE_BARRIER_TRIGGERS,
     )
     s = res.summary()
-    keys = ("triggers", "kinds", "min_h", "r_min_over_R", "r_max_over_R", "total_dv", "min_inter_event_h",
+    keys = ("triggers", "kinds", "min_h", "surface_min_h_m", "surface_impulses", "r_min_over_R", "r_max_over_R",
+            "total_dv", "min_inter_event_h",
             "mean_inter_event_h", "miet_bound_h", "left_band_h", "band_exits", "simulated_h", "wall_s", "nfev",
             "surface_contacts", "min_pass_clearance_m")
     out: dict[str, Any] = {"config": cfg.label, "seed": task.seed, "inclination_deg": task.inclination_deg}
@@ -244,6 +251,9 @@ def run_study(
         raise ConfigError("duplicate starts (seed, inclination)")
     if not (math.isfinite(settings.hours) and settings.hours > 0):
         raise ConfigError(f"--hours must be a finite number > 0, got {settings.hours:g}")
+    if settings.surface_barrier and any(c.trigger not in SURFACE_BARRIER_TRIGGERS for c in configs):
+        raise ConfigError(f"--surface-barrier works with the triggers {' and '.join(SURFACE_BARRIER_TRIGGERS)}, "
+                          "not periodic (give --triggers greedy maneuver)")
     for c in configs:
         if c.trigger == "maneuver" and c.controller not in settings.tau:
             raise ConfigError(f"maneuver/{c.controller} needs a tau_p file: --tau FILE or --tau {c.controller}=FILE "

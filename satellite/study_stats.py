@@ -79,6 +79,8 @@ def summarize_config(runs: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
         "surface_contacts": sum(contacts),
         "orbits_with_contact": sum(1 for c in contacts if c > 0),
         "min_pass_clearance_m": min(clear, default=None),
+        "surface_min_h_m": min((r["surface_min_h_m"] for r in runs if r.get("surface_min_h_m") is not None),
+                               default=None),
         "tau_impulses": sum(r["kinds"].get("tau", 0) for r in runs),
         "min_inter_event_h": min((r["min_inter_event_h"] for r in runs if r["min_inter_event_h"] is not None),
                                  default=None),

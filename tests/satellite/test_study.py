@@ -91,6 +91,21 @@ def test_configurations_fly_the_same_starts_and_workers_do_not_change_numbers(tm
     assert periodic["triggers"]["mean"] == 2.0  # at 0.5 h and 1 h of 1.5 h
 
 
+def test_the_surface_barrier_option_reaches_the_runs_and_keeps_its_barrier_nonnegative(tmp_path: Path) -> None:
+    configs = plan(["greedy"], ["kepler"], [])
+    starts = [(0, 45.0), (3, 15.0)]
+    plain = run_study(configs, starts, StudySettings(hours=6.0, gravity="sh8"))
+    guarded = run_study(configs, starts, StudySettings(hours=6.0, gravity="sh8", surface_barrier=True))
+    assert guarded["settings"]["surface_barrier"] is True and plain["settings"]["surface_barrier"] is False
+    for r in plain["runs"]:  # contact is counted in every study run; the barrier is off by default
+        assert r["surface_contacts"] is not None and r["surface_min_h_m"] is None
+    for r in guarded["runs"]:
+        assert r["completed"] and r["min_h"] > 0
+        assert r["surface_min_h_m"] is not None and r["surface_min_h_m"] >= 0.0
+        assert r["surface_contacts"] == 0
+    assert guarded["configs"][0]["summary"]["surface_min_h_m"] == min(r["surface_min_h_m"] for r in guarded["runs"])
+
+
 def test_finished_runs_of_an_earlier_study_are_kept(tmp_path: Path) -> None:
     configs = plan(["greedy"], ["kepler"], [])
     settings = StudySettings(hours=1.0, gravity="sh8")
@@ -158,6 +173,7 @@ def test_ctrl_c_keeps_finished_orbits_and_resume_completes(tmp_path: Path) -> No
     ["study", "--resume", "--out", "OUT", "--triggers", "greedy"],  # not a study file
     ["study", "--out", "DIR", "--triggers", "greedy"],
     ["study", "--gravity", "nope", "--triggers", "greedy"],
+    ["study", "--surface-barrier", "--triggers", "greedy", "periodic"],
 ], ids=lambda a: " ".join(a))
 def test_bad_study_input_is_one_line(argv: list[str], tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
     prev = tmp_path / "previous.json"
