@@ -65,6 +65,9 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--fine-step", type=float, default=4.0, metavar="M",
                         help="--table: node spacing of the fine boxes near the surface, metres (default 4; 0: none; "
                              "satellite.gravity_fine)")
+    parser.add_argument("--refine-step", type=float, default=2.0, metavar="M",
+                        help="--table: node spacing of a second level of boxes within 6 m of the surface in the band, "
+                             "node values from the exact field, metres (default 2; 0: none)")
     parser.add_argument("--fine-from", metavar="TABLE.npz",
                         help="--table: instead of tabulating the shell again, read this table (of the same shape, "
                              "with its near-surface tiles) and add fine boxes to it")
@@ -182,6 +185,12 @@ def _table(args: argparse.Namespace, shape: Path) -> int:
                                 "(satellite.gravity_near)")
     if not (args.fine_step == 0 or 0.5 <= args.fine_step <= 20.0):
         raise GravityModelError(f"--fine-step must be 0 (no fine boxes) or in [0.5, 20] m, got {args.fine_step:g}")
+    if not (args.refine_step == 0 or 0.5 <= args.refine_step <= 10.0):
+        raise GravityModelError(f"--refine-step must be 0 (no second level) or in [0.5, 10] m, "
+                                f"got {args.refine_step:g}")
+    if args.refine_step > 0 and args.fine_step == 0 and not args.fine_from:
+        raise GravityModelError("--refine-step needs a table with fine boxes (--fine-step > 0, or --fine-from a "
+                                "table that has them)")
     if args.fine_from:
         table = GravityTable.load(args.fine_from)
         if abs(table.r_ref_m - r_ref) > 1e-6 * r_ref or abs(table.gm - field.gm) > 1e-9 * field.gm:
@@ -202,6 +211,23 @@ def _table(args: argparse.Namespace, shape: Path) -> int:
         prov["fine_boxes"] = (f"Cartesian B-spline boxes, {args.fine_step:g} m nodes, within 35 m of the surface, "
                               "exterior field continued inside (satellite.gravity_fine)")
         prov["generator"] = prov["generator"].replace(" --out ", f" --fine-step {args.fine_step:g} --out ", 1)
+        table.provenance = prov
+    if args.refine_step > 0:
+        from satellite.gravity_fine import FINE2_ZERO_M, add_fine_level
+        from satellite.mesh_surface import MeshSurface
+        from satellite.model import BAND_INNER
+
+        if table.fine is None:
+            raise GravityModelError("--refine-step needs a table with fine boxes (--fine-step > 0, or --fine-from a "
+                                    "table that has them)")
+        n_first = len(table.fine)
+        add_fine_level(table, field, MeshSurface(mesh), step=args.refine_step, r_band=BAND_INNER * r_ref,
+                       workers=args.workers, log=lambda line: print(line, file=sys.stderr, flush=True))
+        if len(table.fine) == n_first:
+            print("no second level: the surface stays below the band", file=sys.stderr)
+        prov["fine_boxes_2"] = (f"second level: {args.refine_step:g} m nodes within {FINE2_ZERO_M:g} m of the surface "
+                                "at r >= 1.6 R, from the exact field (satellite.gravity_fine.add_fine_level)")
+        prov["generator"] = prov["generator"].replace(" --out ", f" --refine-step {args.refine_step:g} --out ", 1)
         table.provenance = prov
     table.save(args.out)
     print(f"wrote {args.out}: {grid.n_r} x {grid.n_lat} x {grid.n_lon} nodes, r in [{grid.r_lo:.6g}, "

@@ -41,7 +41,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from satellite.errors import GravityModelError
 
-__all__ = ["FineBoxes", "build_fine_boxes", "STEP_M", "D_FULL_M", "D_ZERO_M"]
+__all__ = ["FineBoxes", "build_fine_boxes", "add_fine_level", "STEP_M", "D_FULL_M", "D_ZERO_M"]
 
 STEP_M = 4.0
 """Default node spacing [m] of the boxes."""
@@ -51,6 +51,9 @@ D_FULL_M = 25.0
 
 D_ZERO_M = 35.0
 """Default distance [m] from the surface beyond which the shell table alone answers."""
+
+FINE2_STEP_M, FINE2_FULL_M, FINE2_ZERO_M = 2.0, 3.0, 6.0
+"""Second level (:func:`add_fine_level`): node spacing, full correction within, none beyond [m]."""
 
 ZERO_LAYERS = 16
 """Rows of zero nodes on each side of a box (coefficient leakage 0.27^16 = 7e-10 of the correction)."""
@@ -73,7 +76,7 @@ class FineBoxes:
 
     """
 
-    def __init__(self, step: float, boxes: list[tuple[ArrayLike, NDArray[np.float64]]]) -> None:
+    def __init__(self, step: float, boxes: list[tuple[Any, ...]]) -> None:
         from scipy.ndimage import spline_filter1d
 
         if not (math.isfinite(step) and step > 0):
@@ -81,9 +84,13 @@ class FineBoxes:
         self.step = float(step)
         self.origins: list[NDArray[np.int64]] = []
         self.values: list[NDArray[np.float64]] = []
-        self._boxes: list[tuple[float, float, float, int, int, int, NDArray[np.float64]]] = []
+        self.steps: list[float] = []
+        self._boxes: list[tuple[float, float, float, int, int, int, NDArray[np.float64], float]] = []
         self._coef4: list[NDArray[np.float64]] = []
-        for origin, values in boxes:
+        for origin, values, *own in boxes:
+            h = float(own[0]) if own else self.step
+            if not (math.isfinite(h) and h > 0):
+                raise GravityModelError(f"fine box step must be a positive number of metres, got {h}")
             o = np.asarray(origin, dtype=np.int64).reshape(3)
             v = np.asarray(values, dtype=np.float64)
             if v.ndim != 4 or v.shape[3] != 3 or min(v.shape[:3]) < 4 or not np.isfinite(v).all():
@@ -94,18 +101,22 @@ class FineBoxes:
             nx, ny, nz = v.shape[:3]
             self.origins.append(o)
             self.values.append(v)
+            self.steps.append(h)
             self._coef4.append(np.ascontiguousarray(c))
-            self._boxes.append((float(o[0]) * self.step, float(o[1]) * self.step, float(o[2]) * self.step,
-                                nx, ny, nz, self._coef4[-1].reshape(nx, ny, nz * 3)))
+            self._boxes.append((float(o[0]) * h, float(o[1]) * h, float(o[2]) * h,
+                                nx, ny, nz, self._coef4[-1].reshape(nx, ny, nz * 3), 1.0 / h))
+
+    def merged(self, other: FineBoxes) -> FineBoxes:
+        """The boxes of ``self`` and ``other`` (each keeps its step): their corrections add."""
+        return FineBoxes(self.step, [(o, v, h) for b in (self, other) for o, v, h in zip(b.origins, b.values, b.steps)])
 
     def __len__(self) -> int:
         return len(self._boxes)
 
     def at(self, x: float, y: float, z: float) -> list[float] | None:
         """Correction [m/s^2] at one point [m] as three floats, or None outside every box."""
-        inv = 1.0 / self.step
         out = None
-        for x0, y0, z0, nx, ny, nz, coef in self._boxes:
+        for x0, y0, z0, nx, ny, nz, coef, inv in self._boxes:
             u = (x - x0) * inv
             v = (y - y0) * inv
             w = (z - z0) * inv
@@ -129,8 +140,8 @@ class FineBoxes:
 
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         out = np.zeros_like(p)
-        for (x0, y0, z0, nx, ny, nz, _), coef in zip(self._boxes, self._coef4):
-            u = (p - np.array([x0, y0, z0])) / self.step
+        for (x0, y0, z0, nx, ny, nz, _, inv), coef in zip(self._boxes, self._coef4):
+            u = (p - np.array([x0, y0, z0])) * inv
             ok = ((u >= 1.0) & (u < np.array([nx, ny, nz]) - 2.0)).all(axis=1)
             if not ok.any():
                 continue
@@ -157,7 +168,8 @@ class FineBoxes:
             heads.append([*o.tolist(), *v.shape[:3], len(nz)])
             index.append(nz.astype(np.int32))
             values.append(flat[nz].astype(np.float32))
-        return {"fine_step": np.array([self.step]), "fine_boxes": np.array(heads, dtype=np.int64),
+        return {"fine_step": np.array([self.step]), "fine_box_step": np.array(self.steps),
+                "fine_boxes": np.array(heads, dtype=np.int64),
                 "fine_index": np.concatenate(index), "fine_values": np.concatenate(values)}
 
     @classmethod
@@ -165,12 +177,14 @@ class FineBoxes:
         """Inverse of :meth:`to_arrays` (node values come back as stored, float32)."""
         step = float(np.asarray(data["fine_step"]).reshape(-1)[0])
         heads = np.asarray(data["fine_boxes"], dtype=np.int64).reshape(-1, 7)
+        steps = np.asarray(data["fine_box_step"], dtype=np.float64) if "fine_box_step" in data else \
+            np.full(len(heads), step)  # tables before the second level: one step
         index, values = np.asarray(data["fine_index"]), np.asarray(data["fine_values"], dtype=np.float64)
         boxes, s = [], 0
-        for ox, oy, oz, nx, ny, nz, n in heads.tolist():
+        for (ox, oy, oz, nx, ny, nz, n), h in zip(heads.tolist(), steps.tolist()):
             dense = np.zeros((nx * ny * nz, 3))
             dense[index[s: s + n]] = values[s: s + n]
-            boxes.append(((ox, oy, oz), dense.reshape(nx, ny, nz, 3)))
+            boxes.append(((ox, oy, oz), dense.reshape(nx, ny, nz, 3), h))
             s += n
         return cls(step, boxes)
 
@@ -183,6 +197,9 @@ def _smoothstep(t: NDArray[np.float64]) -> NDArray[np.float64]:
 def build_fine_boxes(table: Any, source: Callable[[NDArray[np.float64]], NDArray[np.float64]], vertices: ArrayLike,
                      faces: ArrayLike, inside: Callable[[NDArray[np.float64]], NDArray[np.bool_]], g_rho: float, *,
                      step: float = STEP_M, d_full: float = D_FULL_M, d_zero: float = D_ZERO_M,
+                     base: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
+                     r_min: float | None = None,
+                     region: Callable[[NDArray[np.float64]], NDArray[np.bool_]] | None = None,
                      log: Callable[[str], None] | None = None) -> FineBoxes | None:
     """Fine boxes correcting ``table`` (a :class:`~satellite.gravity_table.GravityTable`) near the surface.
 
@@ -197,10 +214,15 @@ def build_fine_boxes(table: Any, source: Callable[[NDArray[np.float64]], NDArray
         step: Node spacing [m].
         d_full: Full correction within this distance [m] of the surface.
         d_zero: No correction beyond this distance [m]; ``d_full < d_zero``.
+        base: The acceleration [m/s^2] the boxes correct, Kepler included, at points (N, 3)
+            (default: the table's B-spline plus Kepler; a second level passes that plus the first boxes).
+        r_min: No nodes below this radius [m] (default: every node a stencil of a point within
+            the table's radii uses, down to the spline's reach below them).
+        region: Keep only the nodes where this is True (default: all).
         log: Called with progress lines.
 
     Returns:
-        The boxes, or None when no part of the surface comes within ``d_zero`` of the table's radii.
+        The boxes, or None when no part of the surface comes within ``d_zero`` of ``r_min``.
 
     """
     from scipy import ndimage
@@ -215,7 +237,8 @@ def build_fine_boxes(table: Any, source: Callable[[NDArray[np.float64]], NDArray
     reach = 2.0 * math.sqrt(3.0) * step  # farthest node a point's stencil uses
     depth = reach + step
     r_in = table.fast_radii[0]
-    r_min = max(r_in - reach - step, table.grid.r_lo - 2.0 * table.grid.dr)  # the spline's reach below r_lo
+    if r_min is None:
+        r_min = max(r_in - reach - step, table.grid.r_lo - 2.0 * table.grid.dr)  # the spline's reach below r_lo
     rv = np.linalg.norm(v, axis=1)
     keep = rv >= r_min - d_zero - reach
     if not keep.any():
@@ -227,6 +250,8 @@ def build_fine_boxes(table: Any, source: Callable[[NDArray[np.float64]], NDArray
     nodes = nodes_idx * step
     r = np.linalg.norm(nodes, axis=1)
     sel = r >= r_min
+    if region is not None:
+        sel &= region(nodes)
     f = np.asarray(faces, dtype=np.intp)
     edge = float(np.linalg.norm(v[f] - v[np.roll(f, 1, axis=1)], axis=2).max())  # a vertex within d + edge
     near_any = np.isfinite(cKDTree(v).query(nodes[sel], distance_upper_bound=max(d_zero, depth) + edge)[0])
@@ -242,8 +267,10 @@ def build_fine_boxes(table: Any, source: Callable[[NDArray[np.float64]], NDArray
     if not len(nodes):
         return None
     acc = source(nodes)
-    base = table.spline_batch(nodes) - table.gm * nodes / (np.linalg.norm(nodes, axis=1) ** 3)[:, None]
-    delta = acc - base
+    if base is None:
+        delta = acc - (table.spline_batch(nodes) - table.gm * nodes / (np.linalg.norm(nodes, axis=1) ** 3)[:, None])
+    else:
+        delta = acc - base(nodes)
     delta[ins] += 4.0 * math.pi * g_rho * (nodes[ins] - cp[ins])
     delta[~ins] *= _smoothstep((d_zero - d[~ins]) / (d_zero - d_full))[:, None]
     # boxes: connected groups of nodes (bricks of 8 steps), merged while their padded boxes overlap
@@ -272,7 +299,7 @@ def build_fine_boxes(table: Any, source: Callable[[NDArray[np.float64]], NDArray
         m = ((nodes_idx >= s_lo) & (nodes_idx <= s_hi)).all(axis=1)
         dense = np.zeros((*(s_hi - s_lo + 1).tolist(), 3))
         dense[tuple((nodes_idx[m] - s_lo).T)] = delta[m].astype(np.float32)  # as stored
-        boxes.append((s_lo, dense))
+        boxes.append((s_lo, dense, step))
     say(f"fine boxes: {len(boxes)} box(es), shapes {[b[1].shape[:3] for b in boxes]}")
     return FineBoxes(step, boxes)
 
@@ -314,4 +341,34 @@ def add_fine_boxes(table: Any, field: Any, surface: Any, *, step: float = STEP_M
     finally:
         table.exact, table.fine = saved_exact, saved_fine
     table.fine = fine
+    return table
+
+
+def add_fine_level(table: Any, field: Any, surface: Any, *, step: float = FINE2_STEP_M, d_full: float = FINE2_FULL_M,
+                   d_zero: float = FINE2_ZERO_M, r_band: float, workers: int = 1,
+                   log: Callable[[str], None] | None = None) -> Any:
+    """Add a finer level of boxes to ``table.fine`` within ``d_zero`` of the surface, in the band; returns ``table``.
+
+    The first level (4 m nodes) cannot follow the exact field within a metre or two of sharp
+    features of the surface (its gradient is log-singular at edges). This level corrects what
+    the table and its first boxes leave, ``a_exact - (T + F)``, on ``step``-metre nodes: fully
+    within ``d_full`` of the surface, faded out by a smoothstep at ``d_zero``, the exterior
+    field continued inside the body as for the first level, and only at nodes a point at
+    ``r >= r_band`` (the band's inner edge) reaches. Node values come from the exact field.
+    """
+    from satellite.gravity_table import exact_parallel
+
+    if table.fine is None:
+        raise GravityModelError("a second level of fine boxes needs a table with a first level (--fine-step)")
+    first = table.fine
+
+    def base(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        kep = table.gm * p / (np.linalg.norm(p, axis=1) ** 3)[:, None]
+        return table.spline_batch(p) - kep + first.at_batch(p)  # type: ignore[no-any-return]
+
+    level = build_fine_boxes(table, lambda p: exact_parallel(field, p, workers), surface.vertices, surface.faces,
+                             lambda p: surface.query(p)[0], field.g_rho, step=step, d_full=d_full, d_zero=d_zero,
+                             base=base, r_min=r_band - (2.0 * math.sqrt(3.0) + 1.0) * step, log=log)
+    if level is not None:
+        table.fine = first.merged(level)
     return table

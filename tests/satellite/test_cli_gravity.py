@@ -67,6 +67,8 @@ def test_units_option_scales_the_mesh(box_obj, tmp_path):
         (["--degree", "2", "--mass", "-5"], "--mass must be a positive"),
         (["--degree", "2", "--mass", "nan"], "--mass must be a positive"),
         (["--table", "--fine-step", "100"], "--fine-step must be 0 (no fine boxes) or in [0.5, 20] m"),
+        (["--table", "--refine-step", "0.1"], "--refine-step must be 0 (no second level) or in [0.5, 10] m"),
+        (["--table", "--fine-step", "0"], "--refine-step needs a table with fine boxes"),
     ],
 )
 def test_bad_parameters_exit_2_with_one_line(box_obj, tmp_path, capsys, extra, pattern):
@@ -140,7 +142,8 @@ def test_gravity_table_command(tmp_path, helpers, capsys):
     got = table.values[1, 3, 5] - G_CODATA2018 * 1e10 * nodes[1, 3, 5] / np.linalg.norm(nodes[1, 3, 5]) ** 3
     np.testing.assert_allclose(got, exact.acceleration(nodes[1, 3, 5][None])[0], rtol=1e-12)
     assert table.provenance["generator"].startswith("isf-satellite gravity --table")
-    assert table.fine is not None and "--fine-step 4" in table.provenance["generator"]  # the default boxes
+    assert table.fine is not None and "--fine-step 4 --refine-step 2" in table.provenance["generator"]  # default
+    assert set(table.fine.steps) == {4.0, 2.0}  # its tips come within a stencil of the band: two levels
     assert table.r_ref_m == pytest.approx(mesh.volume_equivalent_radius)
     assert main(["gravity", "--shape", str(obj), "--out", str(tmp_path / "x.json")]) == 2
     assert "--degree N is required" in capsys.readouterr().err

@@ -9,7 +9,7 @@ import pytest
 
 from satellite.closest import ClosestPoints, closest_on_triangles
 from satellite.errors import GravityModelError
-from satellite.gravity_fine import FineBoxes, build_fine_boxes
+from satellite.gravity_fine import FineBoxes, add_fine_level, build_fine_boxes
 from satellite.gravity_table import GravityTable, TableGrid, build_table
 from satellite.polyhedron import PolyhedronField
 
@@ -147,3 +147,50 @@ def test_boxes_survive_a_round_trip_and_bad_input_is_refused(body, tables, tmp_p
     with pytest.raises(GravityModelError, match="d_full < d_zero"):
         build_fine_boxes(fine, body.acceleration, body.vertices, body.faces, lambda q: inside(body, q),
                          body.g_rho, d_full=30.0, d_zero=20.0)
+
+
+@pytest.fixture(scope="module")
+def two_levels(body, tables):  # type: ignore[no-untyped-def]
+    """The boxed table with a second level (half the step) within 6 m of the surface above r = 170 m."""
+    _, fine = tables
+    surface = type("Surface", (), {"vertices": body.vertices, "faces": body.faces,
+                                   "query": staticmethod(lambda p: (inside(body, p),))})
+    two = GravityTable(fine.grid, fine.values, 100.0, GM, body, None, None, fine.fine)
+    add_fine_level(two, body, surface, step=STEP / 2, d_full=3.0, d_zero=6.0, r_band=170.0)
+    assert len(two.fine) > len(fine.fine) and set(two.fine.steps) == {STEP, STEP / 2}
+    return two
+
+
+def test_a_second_level_follows_the_exact_field_closer_to_the_surface(body, tables, two_levels) -> None:  # type: ignore[no-untyped-def]
+    _, fine = tables
+    p, a, d = near_surface_points(body, 400, 7, 3.0)
+    keep = np.linalg.norm(p, axis=1) >= 170.0
+    p, a, d = p[keep], a[keep], d[keep]
+    assert len(p) > 100 and d.min() < 0.5
+    nonkep = np.linalg.norm(a + GM * p / (np.linalg.norm(p, axis=1) ** 3)[:, None], axis=1)
+    e_one = np.linalg.norm(fine.acceleration_batch(p) - a, axis=1) / nonkep
+    e_two = np.linalg.norm(two_levels.acceleration_batch(p) - a, axis=1) / nonkep
+    assert e_two.max() < 0.6 * e_one.max(), (e_two.max(), e_one.max())
+    assert np.median(e_two) < 0.6 * np.median(e_one), (np.median(e_two), np.median(e_one))
+    one = np.array([two_levels.acceleration(tuple(q)) for q in p[:20]])  # the scalar path sums both levels too
+    np.testing.assert_allclose(one, two_levels.acceleration_batch(p[:20]), rtol=1e-13, atol=1e-22)
+    # beyond the second level's reach (6 m + its stencil) nothing changes but the spline's ringing
+    q, _, dq = near_surface_points(body, 300, 8, 40.0)
+    far = dq > 6.0 + (2 * math.sqrt(3) + 1) * STEP / 2
+    assert far.sum() > 30
+    diff = two_levels.acceleration_batch(q[far]) - fine.acceleration_batch(q[far])
+    assert np.abs(diff).max() < 1e-5 * np.abs(two_levels.fine.values[-1]).max()
+
+
+def test_two_levels_survive_a_round_trip(body, two_levels, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    two_levels.save(tmp_path / "t2.npz")
+    back = GravityTable.load(tmp_path / "t2.npz", exact=body)
+    assert back.fine is not None and back.fine.steps == two_levels.fine.steps
+    p, _, _ = near_surface_points(body, 40, 9, 6.0)
+    np.testing.assert_array_equal(back.acceleration_batch(p), two_levels.acceleration_batch(p))
+    # a file of one level (no per-box steps, as written before the second level) still loads
+    arrays = two_levels.fine.to_arrays()
+    del arrays["fine_box_step"]
+    assert FineBoxes.from_arrays(arrays).steps == [STEP] * len(two_levels.fine)
+    with pytest.raises(GravityModelError, match="first level"):
+        add_fine_level(GravityTable(two_levels.grid, two_levels.values, 100.0, GM, body), body, None, r_band=170.0)
