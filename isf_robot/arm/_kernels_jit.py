@@ -10,7 +10,9 @@ import math
 
 import llvmlite.binding as llvm
 import numpy as np
-from numba import njit, types
+from llvmlite import ir
+from numba import carray, njit, types
+from numba.extending import intrinsic
 
 from .kernels import _library
 
@@ -24,6 +26,27 @@ _ptr, _i32, _f64 = types.intp, types.int32, types.float64
 geom_distance = types.ExternalFunction("mj_geomDistance", _f64(_ptr, _ptr, _i32, _i32, _f64, _ptr))
 # void mj_jac(const mjModel*, const mjData*, mjtNum* jacp, mjtNum* jacr, const mjtNum point[3], int body)
 jac = types.ExternalFunction("mj_jac", types.void(_ptr, _ptr, _ptr, _ptr, _ptr, _i32))
+
+
+
+
+def _pointer(kind: ir.Type, numba_type: types.Type):  # type: ignore[no-untyped-def]
+    @intrinsic
+    def cast(typingctx, addr):  # pragma: no cover (compile time)
+        sig = types.CPointer(numba_type)(types.intp)
+
+        def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+            return builder.inttoptr(args[0], ir.PointerType(kind))
+
+        return sig, codegen
+
+    return cast
+
+
+f64p = _pointer(ir.DoubleType(), types.float64)
+"""``f64p(addr)``: the address ``addr`` (an int) as a float64 pointer, for ``carray``."""
+i64p = _pointer(ir.IntType(64), types.int64)
+"""``i64p(addr)``: the address ``addr`` as an int64 pointer."""
 
 
 @njit(cache=True, nogil=True)
@@ -174,3 +197,51 @@ def monitor(ma, da, rows, g1, g2, margin, thresh, bound):  # pragma: no cover (c
         if d < step_d:
             step_d = d
     return step_h, step_d
+
+
+# The tables of near_packed's P (addresses and sizes; see NarrowPhase._kernel_context).
+(P_LIVE, P_NJ, P_NDOF, P_NV, P_NGEOM, P_NQ, P_NU, P_NLOWER, P_NFT, P_QPOS, P_XPOS, P_TAB, P_MARGIN, P_THR2,
+ P_LOWER, P_QPREV, P_QSTATE, P_LEVER, P_QADR, P_DOF, P_FROMTO, P_JAC1, P_JAC2, P_JQ, P_JSIGN, P_JOFF,
+ P_JGRAD) = range(27)
+
+
+@njit(cache=True, nogil=True)
+def near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, lanes):  # pragma: no cover (compiled)
+    """:func:`near` with its tables given as the addresses in ``p`` and its outputs in ``blk``.
+
+    One numba call costs about 0.1 us per 1-D array argument and 0.6 us per 2-D one; :func:`near`'s
+    31 arguments cost more than its work. ``blk`` (float64, fresh per call) holds, for
+    ``L = live pairs + joint rows`` and ``n`` dofs: ``h`` (L), ``g`` (L, n), ``gn`` (L), ``lf`` (L,
+    zeroed here: the rows' ``dh/dt``, filled by the caller for moving obstacles) and the witness
+    points (live pairs, 3, 3).
+    """
+    n_live, nj, n, nv = p[P_LIVE], p[P_NJ], p[P_NDOF], p[P_NV]
+    nu, nlower = p[P_NU], p[P_NLOWER]
+    qpos = carray(f64p(p[P_QPOS]), p[P_NQ])
+    xpos = carray(f64p(p[P_XPOS]), (p[P_NGEOM], 3))
+    live = carray(i64p(p[P_TAB]), (n_live, 6))
+    margin = carray(f64p(p[P_MARGIN]), n_live)
+    thr2 = carray(f64p(p[P_THR2]), n_live)
+    lower = carray(f64p(p[P_LOWER]), nlower)
+    qprev = carray(f64p(p[P_QPREV]), nu)
+    qstate = carray(i64p(p[P_QSTATE]), 1)
+    lever = carray(f64p(p[P_LEVER]), (nlower, nu))
+    qadr = carray(i64p(p[P_QADR]), nu)
+    dof = carray(i64p(p[P_DOF]), n)
+    fromto = carray(f64p(p[P_FROMTO]), (p[P_NFT], 6))
+    jac1 = carray(f64p(p[P_JAC1]), (3, nv))
+    jac2 = carray(f64p(p[P_JAC2]), (3, nv))
+    jq = carray(i64p(p[P_JQ]), nj)
+    jsign = carray(f64p(p[P_JSIGN]), nj)
+    joff = carray(f64p(p[P_JOFF]), nj)
+    jgrad = carray(f64p(p[P_JGRAD]), (nj, n))
+    m = n_live + nj
+    h = blk[:m]
+    g = blk[m: m + m * n].reshape((m, n))
+    gn = blk[m + m * n: 2 * m + m * n]
+    lf = blk[2 * m + m * n: 3 * m + m * n]
+    wit = blk[3 * m + m * n: 3 * m + m * n + 9 * n_live].reshape((n_live, 3, 3))
+    for i in range(m):
+        lf[i] = 0.0
+    return near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, lever, qadr, cutoff, distmax,
+                slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, lanes, rows, h, g, gn, wit)

@@ -147,7 +147,7 @@ class CollisionBarriers(NarrowPhase):
         self._clearance = _ClearanceSearch(model, pairs)
         # The compiled kernel's tables: one row per live pair (pair, geom1, geom2, body1, body2, self).
         # (the kernels need the raw MjModel/MjData addresses the bindings expose as _address)
-        self._kernel = kernels.near_kernel() if jit and getattr(model, "_address", 0) else None
+        self._kernel = kernels.near_kernel(packed=True) if jit and getattr(model, "_address", 0) else None
         self._klanes = kernels.norm_lanes(self.dof_adr.size) if self._kernel is not None else 0
         live = self.broadphase.live
         self._ktab = np.ascontiguousarray(np.stack(
@@ -156,16 +156,14 @@ class CollisionBarriers(NarrowPhase):
         self._kmargin = np.ascontiguousarray(pairs.margin[live], dtype=float)
         self._kthr2 = np.ascontiguousarray(self.broadphase.thresh2, dtype=float)
         self._kfromto = np.zeros((max(live.size, 1), 6))
-        self._kwit = np.zeros((max(live.size, 1), 3, 3))  # (the kernel's witness output when nobody reads it)
+        self._kdof = np.ascontiguousarray(self.dof_adr, dtype=np.int64)
+        self._kctx: tuple | None = None  # (see NarrowPhase._kernel_context)
         self._kjac1 = np.zeros((3, model.nv))
         self._kjac2 = np.zeros((3, model.nv))
         self._knone = (np.zeros(0), np.zeros(0), np.zeros(1, dtype=np.int64), np.zeros((0, 0)),
                        np.zeros(0, dtype=np.int64))  # (no coherence bounds)
         self._kjoints = (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros((0, n)))  # (no joint rows)
-        self._kjoints[3].flags.writeable = False  # (typed like JointLimitBarriers.tables' grad: one compilation)
         self._maddr = getattr(model, "_address", 0)
-        self._data: mujoco.MjData | None = None  # the last data seen, and its address
-        self._daddr = 0
 
     @classmethod
     def from_scene(cls, scene: Scene) -> CollisionBarriers:
@@ -267,7 +265,8 @@ class CollisionBarriers(NarrowPhase):
 
         Returns:
             ``near`` and ``h``, ``grad`` of its pairs followed by the joint rows (``near.h`` and
-            ``near.grad`` are views of their first rows), and the smallest joint value.
+            ``near.grad`` are views of their first rows), the smallest joint value, the norms (or
+            ``None``) and ``dh/dt`` of the rows.
 
         """
         if self._kernel is not None:
@@ -276,7 +275,7 @@ class CollisionBarriers(NarrowPhase):
         jh = joints.values(data)
         jl = jh.tolist()
         return FilterRows(near, np.concatenate((near.h, jh)), np.concatenate((near.grad, joints.grad)),
-                          min(jl) if jl else math.inf)
+                          min(jl) if jl else math.inf, None, np.concatenate((near.dhdt, np.zeros(jh.size))))
 
     def coherence(self) -> JointCoherence | None:
         """Distance bounds for one run's states (:class:`~isf_robot.arm.broadphase.JointCoherence`).

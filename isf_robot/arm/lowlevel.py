@@ -23,6 +23,7 @@ model (its bound is measured by :mod:`isf_robot.arm.calibration`).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import mujoco
@@ -30,6 +31,7 @@ import numpy as np
 
 from isf_robot.core.exceptions import ConfigError
 
+from . import kernels
 from .scene import Scene
 
 __all__ = ["VelocityTracker"]
@@ -62,6 +64,8 @@ class VelocityTracker:
         max_ref_error: Clip on ``q_ref - q`` [rad].
         feedforward: Use the acceleration feedforward (needs the control period in
             :meth:`set_command`).
+        jit: Use the compiled :meth:`apply` of :mod:`isf_robot.arm.kernels` when it is available
+            (the same numbers, bit for bit; ``False``: always numpy).
 
     Raises:
         ConfigError: An arm joint has no actuator, or its actuator is not a plain motor
@@ -77,6 +81,7 @@ class VelocityTracker:
         *,
         max_ref_error: float = 0.05,
         feedforward: bool = True,
+        jit: bool = True,
     ) -> None:
         model = scene.model
         n = scene.n_joints
@@ -86,7 +91,6 @@ class VelocityTracker:
         self.kd = _per_joint(gains.tracking_kd if kd is None else kd, n, "tracking kd")
         if not max_ref_error > 0:
             raise ConfigError(f"max_ref_error must be > 0 [rad], got {max_ref_error}")
-        self.max_ref_error = float(max_ref_error)
         act = scene.actuator_ids
         missing = [scene.joint_names[i] for i in range(n) if act[i] < 0]
         if missing:
@@ -98,26 +102,52 @@ class VelocityTracker:
                 raise ConfigError(f"actuator of joint {scene.joint_names[i]!r} is not a motor "
                                   "(fixed gain, no bias); the velocity tracker commands torques")
         self.model = model
+        nv = int(model.nv)
+        # One buffer holds the tracker's state and constants (rows of n: see _kernels_step), the
+        # full-size acceleration/torque scratch and two scalars: the compiled apply reads it whole.
+        self._buf = buf = np.zeros(9 * n + 2 * nv + 2)
+        rows = buf[: 9 * n].reshape(9, n)
+        self.u, self.q_ref, self.a_ff, kd_row, kp_row, self._inv_gain, self._lo, self._hi, self._err = rows
+        kp_row[:], kd_row[:] = self.kp, self.kd
+        self.kp, self.kd = kp_row, kd_row  # (views of the buffer: change them in place)
         self._gain = (model.actuator_gear[act, 0] * model.actuator_gainprm[act, 0]).copy()
         limited = model.actuator_ctrllimited[act].astype(bool)
         rng = model.actuator_ctrlrange[act]
-        self._lo = np.where(limited, rng[:, 0], -np.inf)
-        self._hi = np.where(limited, rng[:, 1], np.inf)
+        self._lo[:] = np.where(limited, rng[:, 0], -np.inf)
+        self._hi[:] = np.where(limited, rng[:, 1], np.inf)
         self._act = as_slice(np.asarray(act))
         self._dof = as_slice(np.asarray(scene.dof_adr))
         self._qadr = as_slice(np.asarray(scene.qpos_adr))
-        self._acc_full = np.zeros(model.nv)
-        self._tau_full = np.zeros(model.nv)
+        self._acc_full = buf[9 * n: 9 * n + nv]
+        self._tau_full = buf[9 * n + nv: 9 * n + 2 * nv]
         self.feedforward = bool(feedforward)
-        self.q_ref = np.zeros(n)
-        self.u = np.zeros(n)
-        self.a_ff = np.zeros(n)
-        self._err = np.zeros(n)
         self._tmp = np.zeros(n)
-        self._inv_gain = 1.0 / self._gain
+        self._inv_gain[:] = 1.0 / self._gain
         self._dt = float(model.opt.timestep)
+        buf[9 * n + 2 * nv] = self._dt
+        self.max_ref_error = float(max_ref_error)
         self._data: mujoco.MjData | None = None
         self._views: tuple[np.ndarray, ...] | None = None
+        # The compiled apply (isf_robot.arm.kernels), for contiguous joints and actuators and this
+        # class's own control law (a subclass that overrides apply or set_command keeps its own).
+        contiguous = all(type(x) is slice for x in (self._act, self._dof, self._qadr))
+        own = type(self).apply is VelocityTracker.apply and type(self).set_command is VelocityTracker.set_command
+        k = kernels.step_kernels(n) if jit and contiguous and own and getattr(model, "_address", 0) else None
+        self._kernels = k
+        self._maddr = int(getattr(model, "_address", 0))
+        self._daddr = 0
+        self._ptrs = np.zeros(6, dtype=np.int64)
+
+    @property
+    def max_ref_error(self) -> float:
+        """Clip on ``q_ref - q`` [rad]."""
+        return float(self._buf[-1])
+
+    @max_ref_error.setter
+    def max_ref_error(self, value: float) -> None:
+        if not value > 0:
+            raise ConfigError(f"max_ref_error must be > 0 [rad], got {value}")
+        self._buf[-1] = float(value)
 
     def reset(self, data: mujoco.MjData) -> None:
         """Set the reference to the current joint positions and the command to zero."""
@@ -143,21 +173,51 @@ class VelocityTracker:
         self.u[:] = u
 
     def _bind(self, data: mujoco.MjData) -> None:
-        """Views into ``data`` that :meth:`apply` works on (``data``'s arrays never move)."""
+        """Views into ``data`` that :meth:`apply` works on, and their addresses (the arrays never move)."""
         self._data = data
         dof, view = self._dof, type(self._dof) is slice and type(self._qadr) is slice and type(self._act) is slice
         self._views = ((data.qpos[self._qadr], data.qvel[dof], self._acc_full[dof], self._tau_full[dof],
                         data.ctrl[self._act], data.qfrc_bias, data.qfrc_passive) if view else None)
+        if self._views is not None:
+            q, qd, _, _, ctrl, bias, passive = self._views
+            d0 = int(dof.start)  # type: ignore[union-attr]
+            self._ptrs[:] = (q.ctypes.data, qd.ctypes.data, ctrl.ctypes.data, bias[d0:].ctypes.data,
+                             passive[d0:].ctypes.data, d0)
+            self._daddr = int(data._address) if self._kernels is not None else 0
+
+    def command(self, data: mujoco.MjData, u: np.ndarray, period: float | None = None) -> float:
+        """The tracking error of the held command, then :meth:`set_command` and :meth:`apply` in one.
+
+        Returns ``|q_dot - u_held|`` [rad/s] at the state in ``data`` (before ``u`` takes over): the
+        error the simulation records per control step.
+        """
+        k = self._kernels
+        if k is not None and k["dot"]:
+            if data is not self._data:
+                self._bind(data)
+            ff = self.feedforward and period is not None and period > 0
+            return float(k["track_step"](self._maddr, self._daddr, self._ptrs, self._buf, self.n,
+                                         self._acc_full.size, u if type(u) is np.ndarray else np.asarray(u, float),
+                                         1.0 / period if ff else 0.0, ff))  # type: ignore[operator]
+        e = data.qvel[self._dof] - self.u
+        err = math.sqrt(float(e.dot(e)))
+        self.set_command(u, period)
+        self.apply(data)
+        return err
 
     def apply(self, data: mujoco.MjData) -> None:
         """Write ``data.ctrl`` for the current state; call between ``mj_step1`` and ``mj_step2``.
 
         Advances the reference by one physics step. Works in preallocated buffers and, with the
         arm's joints and actuators contiguous, in views bound once per ``data`` (it runs at the
-        physics rate).
+        physics rate), or in one compiled call (:mod:`isf_robot.arm.kernels`; the same numbers).
         """
         if data is not self._data:
             self._bind(data)
+        if self._daddr:
+            self._kernels["track_apply"](self._maddr, self._daddr, self._ptrs, self._buf, self.n,  # type: ignore[index]
+                                         self._acc_full.size)
+            return
         views = self._views
         if views is None:
             self._apply_indexed(data)

@@ -65,6 +65,7 @@ class FilterRows(NamedTuple):
         joint_min: The smallest joint-limit value (``inf`` without joint rows).
         grad_norm: ``sqrt(einsum("ij,ij->i", grad, grad))``, the same bits, shape (j + l,), or ``None``
             (not computed: the caller computes it).
+        lf: ``dh/dt`` of every row (the pairs', then zeros for the joint rows), shape (j + l,).
 
     """
 
@@ -73,6 +74,7 @@ class FilterRows(NamedTuple):
     grad: np.ndarray
     joint_min: float
     grad_norm: np.ndarray | None = None
+    lf: np.ndarray | None = None
 
 
 class NarrowPhase:
@@ -87,18 +89,16 @@ class NarrowPhase:
     broadphase: BroadPhase
     dof_adr: np.ndarray
     _none: NearPairs
+    _kctx: tuple | None
 
-    def _near_compiled(self, data: mujoco.MjData, mocap_lin: np.ndarray | None, mocap_ang: np.ndarray | None,
-                       witness: bool, coherence: JointCoherence | None,
-                       joints: JointLimitBarriers | None
-                       ) -> tuple[NearPairs, np.ndarray, np.ndarray, float, np.ndarray | None]:
-        """:meth:`near` by the compiled kernel, with the joint rows of ``joints`` appended (see :meth:`rows`).
+    def _kernel_context(self, data: mujoco.MjData, coherence: JointCoherence | None,
+                        joints: JointLimitBarriers | None) -> tuple:
+        """The packed kernel's tables for ``data``, ``coherence`` and ``joints``, cached until one of them changes.
 
-        The last item: the rows' norms ``|dh/dq|`` (only with ``joints``; ``None`` where numpy must
-        compute them, see :func:`~isf_robot.arm.kernels.norm_lanes`).
+        Their addresses (``p``), sizes and the layout of the output block (see ``_kernels_jit.near_packed``).
         """
-        if data is not self._data:
-            self._data, self._daddr = data, data._address
+        from . import _kernels_jit as kj
+
         if coherence is None:
             lower, qprev, qstate, lever, qadr = self._knone
             distmax, slack = self.cutoff, 0.0
@@ -107,36 +107,71 @@ class NarrowPhase:
                 coherence.lever, coherence.qadr
             distmax, slack = coherence.distmax, coherence.slack
         jq, jsign, joff, jgrad = self._kjoints if joints is None else joints.tables
-        n_live, nj = self._ktab.shape[0], jq.size
-        lanes = self._klanes if joints is not None else 0
-        # Fresh outputs at their largest size (allocated here: arrays made inside a kernel cost more to return).
-        rows, h, g = np.empty(n_live, dtype=np.int64), np.empty(n_live + nj), np.empty((n_live + nj, self.dof_adr.size))
-        gn = np.empty(n_live + nj if lanes else 0)
-        moving = self._any_moving and mocap_lin is not None
-        wit = np.empty((n_live, 3, 3)) if witness or moving else self._kwit  # wit[k]: p1, p2, n (scratch if unused)
-        j, h_min, dist_min, jmin, touching = self._kernel(
-            self._maddr, self._daddr, data.qpos, data.geom_xpos, self._ktab, self._kmargin, self._kthr2,
-            coherence is not None, lower, qprev, qstate, lever, qadr, self.cutoff, distmax, slack, _EPS_DIST,
-            self.dof_adr, self._kfromto, self._kjac1, self._kjac2, jq, jsign, joff, jgrad, lanes,
-            rows, h, g, gn, wit)
+        f64 = (data.qpos, data.geom_xpos, self._kmargin, self._kthr2, lower, qprev, lever, self._kfromto, self._kjac1,
+               self._kjac2, jsign, joff, jgrad)
+        i64 = (self._ktab, qstate, qadr, self._kdof, jq)
+        if any(a.dtype != np.float64 or not a.flags.c_contiguous for a in f64) or any(
+                a.dtype != np.int64 or not a.flags.c_contiguous for a in i64):
+            raise TypeError("the collision kernel's tables must be C-contiguous float64/int64 arrays")
+        n_live, nj, n = self._ktab.shape[0], jq.size, self.dof_adr.size
+        p = np.zeros(27, dtype=np.int64)
+        p[:9] = (n_live, nj, n, self.model.nv, data.geom_xpos.shape[0], data.qpos.size, qadr.size, lower.size,
+                 self._kfromto.shape[0])
+        arrays = {kj.P_QPOS: data.qpos, kj.P_XPOS: data.geom_xpos, kj.P_TAB: self._ktab, kj.P_MARGIN: self._kmargin,
+                  kj.P_THR2: self._kthr2, kj.P_LOWER: lower, kj.P_QPREV: qprev, kj.P_QSTATE: qstate,
+                  kj.P_LEVER: lever, kj.P_QADR: qadr, kj.P_DOF: self._kdof, kj.P_FROMTO: self._kfromto,
+                  kj.P_JAC1: self._kjac1, kj.P_JAC2: self._kjac2, kj.P_JQ: jq, kj.P_JSIGN: jsign, kj.P_JOFF: joff,
+                  kj.P_JGRAD: jgrad}
+        for slot, arr in arrays.items():
+            p[slot] = arr.ctypes.data
+        m = n_live + nj
+        layout = (m, n, nj, m + m * n, 2 * m + m * n, 3 * m + m * n + 9 * n_live,  # offsets of gn and lf; size
+                  self._klanes if joints is not None else 0, distmax, slack)
+        self._kctx = (data, coherence, joints, lower, p, int(data._address), arrays, *layout)
+        return self._kctx
+
+    def _near_compiled(self, data: mujoco.MjData, mocap_lin: np.ndarray | None, mocap_ang: np.ndarray | None,
+                       witness: bool, coherence: JointCoherence | None, joints: JointLimitBarriers | None
+                       ) -> tuple[NearPairs, np.ndarray, np.ndarray, float, np.ndarray | None, np.ndarray]:
+        """:meth:`near` by the compiled kernel, with the joint rows of ``joints`` appended (see :meth:`rows`).
+
+        Items after ``near``: ``h``, ``dh/dq``, the smallest joint value, the rows' norms ``|dh/dq|`` (only
+        with ``joints``; ``None`` where numpy must compute them, see
+        :func:`~isf_robot.arm.kernels.norm_lanes`) and ``dh/dt`` (zero for the joint rows).
+        """
+        c = self._kctx
+        if (c is None or c[0] is not data or c[1] is not coherence or c[2] is not joints
+                or (coherence is not None and c[3] is not coherence.lower)):  # (a reset replaces the bounds)
+            c = self._kernel_context(data, coherence, joints)
+        _, _, _, _, p, daddr, _, m, n, nj, o_gn, o_lf, size, lanes, distmax, slack = c
+        blk, rows = np.empty(size), np.empty(m - nj, dtype=np.int64)  # fresh outputs (a kernel's cost more to return)
+        j, h_min, dist_min, jmin, touching = self._kernel(self._maddr, daddr, p, blk, rows, coherence is not None,
+                                                          self.cutoff, distmax, slack, _EPS_DIST, lanes)
         k = j + nj
         if touching:  # coinciding witness points: the numpy path (the same rows without the bounds)
             near = self._near_numpy(data, mocap_lin, mocap_ang, witness, None)
+            lf = np.concatenate((near.dhdt, np.zeros(nj)))
             if joints is None:
-                return near, near.h, near.grad, jmin, None
-            return (near, np.concatenate((near.h, h[j:k])), np.concatenate((near.grad, joints.grad)),
-                    jmin, None)
+                return near, near.h, near.grad, jmin, None, lf
+            return (near, np.concatenate((near.h, blk[j:k])), np.concatenate((near.grad, joints.grad)),
+                    jmin, None, lf)
+        h, g, lf = blk[:k], blk[m: m + k * n].reshape(k, n), blk[o_lf: o_lf + k]
+        gn = blk[o_gn: o_gn + k] if lanes else None
         if not j:
-            return self._none, h[:k], g[:k], jmin, gn[:k] if lanes else None
+            return self._none, h, g, jmin, gn, lf
         rows = rows[:j]
         row_list = rows.tolist()
-        if moving:
-            dhdt = self._dhdt(data, row_list, rows, wit[:j, 2], wit[:j, 1], mocap_lin, mocap_ang)
+        if witness or (self._any_moving and mocap_lin is not None):
+            wit = blk[o_lf + m: o_lf + m + 9 * j].reshape(j, 3, 3)  # wit[k]: p1, p2, n
+            if mocap_lin is not None and self._any_moving:
+                dhdt = lf[:j] = self._dhdt(data, row_list, rows, wit[:, 2], wit[:, 1], mocap_lin, mocap_ang)
+            else:
+                dhdt = lf[:j]
+            wit = wit[:, :2] if witness else None
         else:
-            dhdt = np.zeros(j)
-        near = NearPairs._make((rows, row_list, h[:j], g[:j], dhdt, wit[:j, :2] if witness else None, h_min,
-                                dist_min))  # (_make: tuple.__new__, cheaper than the generated __new__)
-        return near, h[:k], g[:k], jmin, gn[:k] if lanes else None
+            dhdt, wit = lf[:j], None
+        near = NearPairs._make((rows, row_list, h[:j], g[:j], dhdt, wit, h_min, dist_min))  # (_make: no __new__ call)
+        return near, h, g, jmin, gn, lf
 
     def _dhdt(self, data: mujoco.MjData, row_list: list[int], idx: np.ndarray, n: np.ndarray,
               p2: np.ndarray, mocap_lin: np.ndarray | None, mocap_ang: np.ndarray | None) -> np.ndarray:

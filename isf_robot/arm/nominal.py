@@ -28,84 +28,11 @@ import numpy as np
 
 from isf_robot.core.exceptions import ConfigError, ShapeError
 
+from . import kernels
+from .goals import GoalSequence
 from .scene import Scene
 
 __all__ = ["NominalController", "GoalSequence", "ReachingController", "JointPDController"]
-
-
-class GoalSequence:
-    """Goal bookkeeping shared by the nominal controllers.
-
-    A goal is *reached* the first time the error falls below the tolerance (its time is kept in
-    ``arrivals``); after its dwell
-    time the sequence moves to the next goal (back to the first when ``loop``; the last goal
-    is held otherwise). A goal not reached within ``timeout`` seconds is given up (counted in
-    ``missed``) and the sequence moves on, so that an arm held back by a safety filter keeps
-    working on its task instead of pushing against an obstacle for the rest of the episode.
-
-    Args:
-        n_goals: Number of goals, >= 1.
-        dwell: Dwell time per goal [s], shape (n_goals,).
-        tolerance: Error below which a goal counts as reached (controller units: [m] or [rad]).
-        loop: Restart at the first goal after the last one.
-        timeout: Time [s] after which an unreached goal is given up (``inf``: never).
-
-    """
-
-    def __init__(self, n_goals: int, dwell: Sequence[float] | np.ndarray, tolerance: float,
-                 loop: bool = True, timeout: float = math.inf) -> None:
-        if n_goals < 1:
-            raise ConfigError("a goal sequence needs at least one goal")
-        self.n_goals = int(n_goals)
-        self.dwell = np.asarray(dwell, dtype=float).reshape(-1)
-        if self.dwell.shape != (self.n_goals,) or np.any(self.dwell < 0):
-            raise ConfigError(f"dwell must be {self.n_goals} non-negative times [s], got {dwell!r}")
-        if not tolerance > 0:
-            raise ConfigError(f"goal tolerance must be > 0, got {tolerance}")
-        self.tolerance = float(tolerance)
-        self.loop = bool(loop)
-        if not timeout > 0:
-            raise ConfigError(f"goal timeout must be > 0 [s], got {timeout}")
-        self.timeout = float(timeout)
-        self.reset()
-
-    def reset(self) -> None:
-        """Start again at the first goal with nothing reached."""
-        self.index = 0
-        self.reached = 0
-        self.missed = 0
-        self.arrivals: tuple[float, ...] = ()  # a tuple: snapshots (a dict copy) keep their own
-        self._arrived: float | None = None
-        self._started: float | None = None
-        self._done = False
-
-    def _advance(self) -> None:
-        if self.index + 1 < self.n_goals:
-            self.index += 1
-        elif self.loop:
-            self.index = 0
-        else:
-            self._done = True
-        self._arrived = None
-        self._started = None
-
-    def update(self, t: float, error: float) -> None:
-        """Advance the sequence given the current goal error at time ``t`` [s]."""
-        if self._done:
-            return
-        if self._started is None:
-            self._started = t
-        if self._arrived is None:
-            if error < self.tolerance:
-                self._arrived = t
-                self.reached += 1
-                self.arrivals += (float(t),)
-            elif t - self._started >= self.timeout:
-                self.missed += 1
-                self._advance()
-            return
-        if t - self._arrived >= self.dwell[self.index]:
-            self._advance()
 
 
 class NominalController(ABC):
@@ -180,11 +107,11 @@ class _RateLimit:
     The whole change is scaled (its direction kept). ``a_max = inf`` disables it.
     """
 
-    def __init__(self, n: int, a_max: float) -> None:
+    def __init__(self, n: int, a_max: float, prev: np.ndarray | None = None) -> None:
         if not a_max > 0:
             raise ConfigError(f"max_joint_acc must be > 0 [rad/s^2], got {a_max}")
         self.a_max = float(a_max)
-        self.prev = np.zeros(n)
+        self.prev = np.zeros(n) if prev is None else prev  # (prev: a caller's buffer, shape (n,), zeros)
         self.t_prev: float | None = None
 
     def reset(self) -> None:
@@ -232,6 +159,8 @@ class ReachingController(NominalController):
             ``[gains] max_joint_acc`` or 10. ``inf`` disables it.
         timeout: Give up a goal not reached within this time [s]; default
             ``[gains] goal_timeout`` or 4 s.
+        jit: Use the compiled command of :mod:`isf_robot.arm.kernels` when it is available and
+            gives numpy's numbers on this machine (an ee site, contiguous dofs; ``False``: numpy).
 
     """
 
@@ -249,6 +178,7 @@ class ReachingController(NominalController):
         loop: bool | None = None,
         max_joint_acc: float | None = None,
         timeout: float | None = None,
+        jit: bool = True,
     ) -> None:
         gains, task = scene.config.gains, scene.config.task
         self.scene = scene
@@ -284,14 +214,29 @@ class ReachingController(NominalController):
         self._a = np.zeros((3, 3))
         self._jac_arm = np.zeros((3, self.n))
         self._y = np.zeros(3)
-        self._rate = _RateLimit(self.n, _max_acc(scene, max_joint_acc))
+        # The compiled command (isf_robot.arm.kernels.step_kernels: the same numbers, bit for bit) works in
+        # one buffer: the rate limit's previous command, a copy of it, the Jacobian (3, nv) and scratch.
+        model, n, nv = scene.model, self.n, int(scene.model.nv)
+        self._buf = np.zeros(2 * n + 3 * nv + 15)
+        self._rate = _RateLimit(n, _max_acc(scene, max_joint_acc), prev=self._buf[:n])
+        self._lam2 = float(self._damp[0, 0])
+        use = contiguous and scene.ee_site_id >= 0 and getattr(model, "_address", 0) and jit
+        k = kernels.step_kernels(n) if use else None
+        self._reach = k["reach"] if k is not None else None
+        self._maddr, self._daddr = int(getattr(model, "_address", 0)), 0
+        self._data: mujoco.MjData | None = None
+        self._goals_seen: np.ndarray | None = None
+        self._ptrs = np.zeros(2, dtype=np.int64)  # addresses: the goal positions, data.site_xpos
+        self._dof0 = int(dofs[0]) if dofs.size else 0
 
     def ee_position(self, data: mujoco.MjData) -> np.ndarray:
         """End-effector position [m], shape (3,) (a view into ``data``)."""
         return self.scene.ee_position(data)
 
     def __call__(self, t: float, data: mujoco.MjData) -> np.ndarray:
-        """DLS command toward the current goal; shape (n,) [rad/s]."""
+        """DLS command toward the current goal; shape (n,) [rad/s] (a fresh array)."""
+        if self._reach is not None and self._bound(data):
+            return self._compiled(t)
         index = self.goals.index
         err = self.goal_positions[index] - self.scene.ee_position(data)
         dist = math.sqrt(float(err.dot(err)))  # (dot: the BLAS product of @, with less overhead)
@@ -311,6 +256,33 @@ class ReachingController(NominalController):
         mujoco.mju_cholSolve(self._y, a, v)
         u = self._y.dot(jac)
         return self._rate(t, _cap(u, self.max_joint_speed))
+
+    def _bound(self, data: mujoco.MjData) -> bool:
+        """Point the compiled command at ``data`` and the goal positions; ``False``: use numpy."""
+        if data is not self._data:
+            self._data, self._daddr = data, int(data._address)
+            self._ptrs[1] = data.site_xpos.ctypes.data
+        g = self.goal_positions
+        if g is not self._goals_seen:
+            ok = (type(g) is np.ndarray and g.dtype == np.float64 and g.flags.c_contiguous
+                  and g.shape == (self.goals.n_goals, 3))
+            self._goals_seen, self._ptrs[0] = (g, g.ctypes.data) if ok else (None, 0)
+        return self._goals_seen is not None
+
+    def _compiled(self, t: float) -> np.ndarray:
+        """:meth:`__call__` by the compiled kernel (the same operations in the same order)."""
+        goals, rate, out = self.goals, self._rate, np.empty(self.n)
+        index, t_prev = goals.index, rate.t_prev
+        args = (t, 0.0 if t_prev is None else t_prev, t_prev is not None, rate.a_max, self.kp, self.max_ee_speed,
+                self.max_joint_speed, self._lam2)
+        dist = self._reach(self._maddr, self._daddr, self._ptrs, self._buf, out, self.n, self._jac.shape[1],  # type: ignore[misc]
+                           self._dof0, self.scene.ee_site_id, index, False, *args)
+        goals.update(t, dist)
+        if goals.index != index:  # a new goal: the command toward it (the rate limit's state put back)
+            self._reach(self._maddr, self._daddr, self._ptrs, self._buf, out, self.n, self._jac.shape[1],  # type: ignore[misc]
+                        self._dof0, self.scene.ee_site_id, goals.index, True, *args)
+        rate.t_prev = t
+        return out
 
 
 class JointPDController(NominalController):

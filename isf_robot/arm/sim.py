@@ -46,7 +46,6 @@ from .actuation import Actuation, make_actuation
 from .barriers import CollisionBarriers, JointLimitBarriers
 from .collision import NearPairs
 from .episode import EpisodeSetup, check_control_period, episode_setup, path_track
-from .lowlevel import as_slice
 from .monitor import SafetyMonitor
 from .nominal import NominalController, ReachingController
 from .params import filter_options, resolve_params
@@ -256,14 +255,12 @@ class _Episode:
         self.uses_rows = bool(getattr(sim.strategy, "uses_rows", True))
         nj = sim.joints.evaluate(data).k
         self._ones = np.ones(nj)
-        self._jzero = np.zeros(nj)
         self._h_far_min = sim.coll.h_far_min
         self.coherence = sim.coll.coherence()  # this run's distance bounds (None: not applicable)
         self._screen_j = np.full(nj, sim.keep_joint)
         self._screen_cache: dict[int, np.ndarray] = {}
         self._names_cache: dict[bytes, tuple[str, ...]] = {}
-        dofs = as_slice(np.asarray(scene.dof_adr))
-        self._qvel = data.qvel[dofs] if type(dofs) is slice else None  # the arm's joint speeds (a view)
+        self._command = getattr(sim.tracker, "command", None) or self._track  # tracking error, command, apply
 
     # -- phases --------------------------------------------------------------------------
     def sense(self, k: int) -> None:
@@ -280,22 +277,21 @@ class _Episode:
         ``cutoff - margin``, above the near ones' and never a row of the filter).
         """
         sim = self.sim
-        near, h, g, jmin, gn = sim.coll.rows(self.data, sim.joints, self.lin, witness=self.recording,
-                                             coherence=self.coherence)
-        self.dmin = self.monitor.tick_min(min(near.h_min, self._h_far_min), near.row_list, near.dist_min, near.rows)
+        near, h, g, jmin, gn, lf = sim.coll.rows(self.data, sim.joints, self.lin, witness=self.recording,
+                                                 coherence=self.coherence)
+        row_list = near.row_list
+        self.dmin = self.monitor.tick_min(min(near.h_min, self._h_far_min), row_list, near.dist_min, near.rows)
         if jmin < self.min_joint:
             self.min_joint = jmin
-        jh = h[len(near.row_list):]
+        jh = h[len(row_list):]
         if not self.uses_rows:
             return near, jh, None
-        key = tuple(near.row_list)
+        key = tuple(row_list)
         names = self._names_cache.get(key)
         if names is None:
             names = self._names_cache[key] = tuple(sim.coll.names[i] for i in key) + sim.joints.names
-        lf = np.concatenate((near.dhdt, self._jzero)) if self.moving else np.zeros(g.shape[0])
         gn = gn if gn is not None else np.sqrt(np.einsum("ij,ij->i", g, g))  # joint rows: |+-e_i| = 1
-        lie = LieData._of(h, lf, g, gn, names)
-        return near, jh, lie
+        return near, jh, LieData._of(h, lf, g, gn, names)
 
     def nominal(self, t: float) -> np.ndarray:
         """The nominal command at the tick."""
@@ -318,10 +314,7 @@ class _Episode:
     def act(self, k: int, u: np.ndarray) -> None:
         """Track ``u`` over the control period: S physics steps, each checked for safety."""
         sim, model, data, monitor, tracker = self.sim, self.model, self.data, self.monitor, self.sim.tracker
-        e = (self._qvel if self._qvel is not None else data.qvel[sim.scene.dof_adr]) - tracker.u
-        self.track_err[k] = math.sqrt(float(e.dot(e)))
-        tracker.set_command(u, sim.control_period)
-        tracker.apply(data)
+        self.track_err[k] = self._command(data, u, sim.control_period)
         mujoco.mj_step2(model, data)
         bound, base = (self.dmin if self.recording else -math.inf), k * self.S
         for s in range(1, self.S):
@@ -334,6 +327,14 @@ class _Episode:
                 bound = d2 if self.recording else bound
             tracker.apply(data)
             mujoco.mj_step2(model, data)
+
+    def _track(self, data: mujoco.MjData, u: np.ndarray, period: float) -> float:
+        """:meth:`~isf_robot.arm.lowlevel.VelocityTracker.command` of a tracker without it."""
+        tracker = self.sim.tracker
+        e = data.qvel[self.sim.scene.dof_adr] - tracker.u
+        tracker.set_command(u, period)
+        tracker.apply(data)
+        return math.sqrt(float(e.dot(e)))
 
     # -- records and summary ---------------------------------------------------------------
     def record(self, t: float, step: Any, near: NearPairs, jh: np.ndarray) -> ArmStepRecord:

@@ -1,0 +1,225 @@
+"""The numba kernels of the nominal and act phases (:mod:`isf_robot.arm.kernels`; only with numba).
+
+Module-level functions, so numba's cache serves later processes. MuJoCo's C functions are called
+directly (``mj_mulM``, ``mj_jacSite``, ``mju_cholFactor``, ``mju_cholSolve``), on the raw addresses of
+the ``MjModel``/``MjData`` the bindings hold. The arrays a kernel works on are passed as one int64
+array of their addresses (a numba call costs about 0.1-0.6 us per array argument, more than the
+kernels' own work): the callers keep the arrays alive and never reallocate them (see
+:class:`~isf_robot.arm.lowlevel.VelocityTracker` and :class:`~isf_robot.arm.nominal.ReachingController`).
+
+Same answers: each kernel makes the floating-point operations of the numpy code it replaces in the
+same order. Elementwise operations are exact anyway; the three small BLAS products of the reaching
+controller (``err.dot(err)`` of 3, ``J J^T`` of (3, n), ``y J``) and the tracking error's dot product
+of n are summed the way this machine's BLAS does it (:func:`blas_orders`), which
+:func:`isf_robot.arm.kernels.step_kernels` checks against numpy before using them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from llvmlite import ir
+from numba import carray, njit, types
+from numba.extending import intrinsic
+
+from ._kernels_jit import f64p as _f64p  # (importing it loads libmujoco's symbols; ImportError without it)
+
+_ptr, _i32, _f64 = types.intp, types.int32, types.float64
+# void mj_mulM(const mjModel* m, const mjData* d, mjtNum* res, const mjtNum* vec)
+mul_m = types.ExternalFunction("mj_mulM", types.void(_ptr, _ptr, _ptr, _ptr))
+# void mj_jacSite(const mjModel* m, const mjData* d, mjtNum* jacp, mjtNum* jacr, int site)
+jac_site = types.ExternalFunction("mj_jacSite", types.void(_ptr, _ptr, _ptr, _ptr, _i32))
+# int mju_cholFactor(mjtNum* mat, int n, mjtNum mindiag)
+chol_factor = types.ExternalFunction("mju_cholFactor", _i32(_ptr, _i32, _f64))
+# void mju_cholSolve(mjtNum* res, const mjtNum* mat, const mjtNum* vec, int n)
+chol_solve = types.ExternalFunction("mju_cholSolve", types.void(_ptr, _ptr, _ptr, _i32))
+
+
+@intrinsic
+def fma(typingctx, a, b, c):  # pragma: no cover (compile time)
+    """``a * b + c`` rounded once (LLVM's ``llvm.fma.f64``: the hardware FMA where there is one)."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        dbl = ir.DoubleType()
+        fn = builder.module.declare_intrinsic("llvm.fma", [dbl], ir.FunctionType(dbl, [dbl, dbl, dbl]))
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _vec(addr, n):  # pragma: no cover (compiled)
+    return carray(_f64p(addr), n)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _minimum(a, b):  # pragma: no cover (compiled)
+    """``np.minimum`` of two floats (NaN propagates; of two equal values, ``b``)."""
+    return a if (a < b or a != a) else b
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _maximum(a, b):  # pragma: no cover (compiled)
+    """``np.maximum`` of two floats (NaN propagates; of two equal values, ``b``)."""
+    return a if (a > b or a != a) else b
+
+
+@njit(cache=True, nogil=True, inline="always")
+def dot_plain(x, y, n):  # pragma: no cover (compiled)
+    """``x.dot(y)`` of short vectors, summed in order (this BLAS's scalar loop, no FMA)."""
+    s = 0.0
+    for i in range(n):
+        s += x[i] * y[i]
+    return s
+
+
+# -- the tracker (VelocityTracker.apply), its buffer: rows of n, then two of nv, then scalars ----
+U, REF, AFF, KD, KP, INVG, LO, HI, ERR = range(9)
+"""Rows of the tracker's buffer (n values each): command, reference, feedforward, gains, limits, scratch."""
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _apply(ma, da, p, buf, n, nv):  # pragma: no cover (compiled)
+    """VelocityTracker.apply's view path, the same operations in the same order."""
+    q, qd, ctrl, bias, passive = _vec(p[0], n), _vec(p[1], n), _vec(p[2], n), _vec(p[3], n), _vec(p[4], n)
+    dof0 = p[5]
+    acc_full = buf[9 * n: 9 * n + nv]
+    tau_full = buf[9 * n + nv: 9 * n + 2 * nv]
+    dt, emax = buf[9 * n + 2 * nv], buf[9 * n + 2 * nv + 1]
+    for i in range(n):
+        u = buf[U * n + i]
+        ref = buf[REF * n + i] + u * dt
+        err = _maximum(_minimum(ref - q[i], emax), -emax)
+        buf[REF * n + i] = q[i] + err
+        acc_full[dof0 + i] = (((u - qd[i]) * buf[KD * n + i]) + err * buf[KP * n + i]) + buf[AFF * n + i]
+    mul_m(ma, da, tau_full.ctypes.data, acc_full.ctypes.data)
+    for i in range(n):
+        tau = (tau_full[dof0 + i] + bias[i]) - passive[i]
+        ctrl[i] = _maximum(_minimum(tau * buf[INVG * n + i], buf[HI * n + i]), buf[LO * n + i])
+
+
+@njit(cache=True, nogil=True)
+def track_apply(ma, da, p, buf, n, nv):  # pragma: no cover (compiled)
+    """VelocityTracker.apply: the torques for the held command (one physics step)."""
+    _apply(ma, da, p, buf, n, nv)
+
+
+@njit(cache=True, nogil=True)
+def track_step(ma, da, p, buf, n, nv, cmd, inv_period, feedforward):  # pragma: no cover (compiled)
+    """Tracking error of the held command, then set_command(cmd) and apply.
+
+    Returns ``|qd - u_held|`` (the dot product summed in order; the caller uses it only where that is
+    numpy's order, see :func:`isf_robot.arm.kernels.step_kernels`).
+    """
+    qd = _vec(p[1], n)
+    s = 0.0
+    for i in range(n):
+        e = qd[i] - buf[U * n + i]
+        s += e * e
+    for i in range(n):
+        if feedforward:
+            buf[AFF * n + i] = (cmd[i] - buf[U * n + i]) * inv_period
+        else:
+            buf[AFF * n + i] = 0.0
+        buf[U * n + i] = cmd[i]
+    _apply(ma, da, p, buf, n, nv)
+    return math.sqrt(s)
+
+
+# -- the reaching controller (ReachingController.__call__) -------------------------------------
+@njit(cache=True, nogil=True)
+def reach(ma, da, p, nb, out, n, nv, dof0, site, index, restore, t, t_prev, has_prev, a_max,
+          kp, max_ee, max_js, lam2):  # pragma: no cover (compiled)
+    """The DLS command toward goal ``index``, speed-capped and rate-limited, into ``out``.
+
+    ``p``: addresses of the goal positions (g, 3) and of ``site_xpos``; ``nb``: the controller's
+    buffer (the rate limit's previous command, a copy of it, and scratch). The rate limit's previous
+    command becomes ``out`` (``restore``: first put back the copy, for a second call at the same tick).
+    Returns the distance to the goal.
+    """
+    goal = _vec(p[0] + index * 24, 3)
+    ee = _vec(p[1] + site * 24, 3)
+    prev = nb[0:n]
+    backup = nb[n: 2 * n]
+    jac = nb[2 * n: 2 * n + 3 * nv]  # (3, nv), row-major
+    a = nb[2 * n + 3 * nv: 2 * n + 3 * nv + 9]
+    v = nb[2 * n + 3 * nv + 9: 2 * n + 3 * nv + 12]
+    y = nb[2 * n + 3 * nv + 12: 2 * n + 3 * nv + 15]
+    if restore:
+        for i in range(n):
+            prev[i] = backup[i]
+    else:
+        for i in range(n):
+            backup[i] = prev[i]
+    e0, e1, e2 = goal[0] - ee[0], goal[1] - ee[1], goal[2] - ee[2]
+    dist = math.sqrt(((0.0 + e0 * e0) + e1 * e1) + e2 * e2)
+    speed = kp * dist
+    gain = kp if speed <= max_ee else max_ee / dist
+    v[0], v[1], v[2] = e0 * gain, e1 * gain, e2 * gain
+    jac_site(ma, da, jac.ctypes.data, 0, np.int32(site))
+    # J J^T as this BLAS's syrk: each entry one FMA chain in column order, from 0
+    for r in range(3):
+        for c in range(r, 3):
+            s = 0.0
+            for k in range(n):
+                s = fma(jac[r * nv + dof0 + k], jac[c * nv + dof0 + k], s)
+            a[r * 3 + c] = s
+            a[c * 3 + r] = s
+    for r in range(3):
+        for c in range(3):
+            a[r * 3 + c] = a[r * 3 + c] + (lam2 if r == c else 0.0)
+    chol_factor(a.ctypes.data, 3, 0.0)
+    chol_solve(y.ctypes.data, a.ctypes.data, v.ctypes.data, 3)
+    # u = y J (this BLAS's gemv: ((0 + y0 J0) + y1 J1) + y2 J2), then the speed cap (the whole command scaled)
+    peak = -1.0
+    for k in range(n):
+        col = dof0 + k
+        uk = ((0.0 + y[0] * jac[col]) + y[1] * jac[nv + col]) + y[2] * jac[2 * nv + col]
+        out[k] = uk
+        m = abs(uk)
+        if k == 0 or m > peak:
+            peak = m
+    if peak > max_js:
+        f = max_js / peak
+        for k in range(n):
+            out[k] = out[k] * f
+    # the rate limit (see nominal._RateLimit)
+    if a_max != math.inf:
+        if has_prev:
+            dtk = t - t_prev
+            step = (dtk if not (0.0 > dtk) else 0.0) * a_max
+            peak = -1.0
+            for k in range(n):
+                m = abs(out[k] - prev[k])
+                if k == 0 or m > peak:
+                    peak = m
+            if peak > step:
+                f = step / peak
+                for k in range(n):
+                    out[k] = prev[k] + (out[k] - prev[k]) * f
+        else:
+            for k in range(n):
+                out[k] = 0.0
+    for k in range(n):
+        prev[k] = out[k]
+    return dist
+
+
+# -- the probes of the BLAS orders ---------------------------------------------------------------
+@njit(cache=True, nogil=True)
+def blas_orders(x, jac, y, dot_out, syrk_out, gemv_out):  # pragma: no cover (compiled)
+    """The kernels' versions of ``x[i].dot(x[i])``, ``J J^T`` and ``y J`` for a batch, to compare with numpy."""
+    for i in range(x.shape[0]):
+        dot_out[i] = dot_plain(x[i], x[i], x.shape[1])
+    n = jac.shape[2]
+    for b in range(jac.shape[0]):
+        for r in range(3):
+            for c in range(3):
+                s = 0.0
+                for k in range(n):
+                    s = fma(jac[b, r, k], jac[b, c, k], s)
+                syrk_out[b, r, c] = s
+        for k in range(n):
+            gemv_out[b, k] = ((0.0 + y[b, 0] * jac[b, 0, k]) + y[b, 1] * jac[b, 1, k]) + y[b, 2] * jac[b, 2, k]

@@ -1,0 +1,126 @@
+"""The compiled tracker and reaching controller (``isf_robot.arm.kernels.step_kernels``) against numpy, bit for bit.
+
+Both run at every step of every arm run, and ``tests/golden`` pins whole runs to their numbers: the
+compiled ``VelocityTracker.apply``/``command`` must write the very torques, references and tracking
+errors of the numpy path (torque limits reached too), and the compiled ``ReachingController`` the
+very commands and goal bookkeeping (goal switches, the speed cap, the rate limit, a rollout's
+snapshot/restore, another MjData). Skipped where numba is not installed.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from isf_robot.arm import kernels, load_scene
+from isf_robot.arm.lowlevel import VelocityTracker
+from isf_robot.arm.nominal import ReachingController
+
+pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba not installed (the fast extra)")
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+def test_tracker_kernel_equals_numpy(rng) -> None:  # type: ignore[no-untyped-def]
+    scene = load_scene("panda_pole")
+    model = scene.model
+    datas = [scene.make_data(), scene.make_data()]
+    fast, slow = VelocityTracker(scene), VelocityTracker(scene, jit=False)
+    assert fast._kernels is not None and slow._kernels is None
+    for tr, d in ((fast, datas[0]), (slow, datas[1])):
+        tr.reset(d)
+    errs = []
+    for i in range(400):
+        u = rng.normal(scale=2.0 if i % 60 < 6 else 0.3, size=scene.n_joints)
+        for d in datas:
+            mujoco.mj_step1(model, d)
+        if i % 3 == 0:  # the sub-step path: apply alone
+            for tr, d in ((fast, datas[0]), (slow, datas[1])):
+                tr.apply(d)
+        else:  # the control tick: tracking error, command and apply in one
+            period = None if i % 7 == 0 else 0.001
+            e = [tr.command(d, u, period) for tr, d in ((fast, datas[0]), (slow, datas[1]))]
+            assert e[0] == e[1]
+            errs.append(e[0])
+        assert _same(datas[0].ctrl, datas[1].ctrl)
+        for a, b in ((fast.q_ref, slow.q_ref), (fast.u, slow.u), (fast.a_ff, slow.a_ff)):
+            assert _same(a, b)
+        for d in datas:
+            mujoco.mj_step2(model, d)
+    assert _same(datas[0].qpos, datas[1].qpos)
+    lim = model.actuator_ctrlrange[: scene.n_joints, 1]
+    assert np.any(np.abs(datas[0].ctrl) >= lim - 1e-12) or max(errs) > 1.0  # driven hard: limits or large errors
+
+
+def test_tracker_kernel_follows_a_new_mjdata_and_changed_gains() -> None:
+    scene = load_scene("panda_pole")
+    fast, slow = VelocityTracker(scene), VelocityTracker(scene, jit=False)
+    for tr in (fast, slow):
+        tr.kp *= 0.5  # in place: the kernel reads the same buffer
+        tr.max_ref_error = 0.01
+    out = []
+    for tr in (fast, slow):
+        first, second = scene.make_data(), scene.make_data()
+        second.qpos[scene.qpos_adr] += 0.05
+        mujoco.mj_forward(scene.model, second)
+        for d in (first, second):
+            tr.reset(first)
+            mujoco.mj_step1(scene.model, d)
+            tr.command(d, np.full(scene.n_joints, 0.2), 0.001)
+        out.append((first.ctrl.copy(), second.ctrl.copy()))
+    assert _same(out[0][0], out[1][0]) and _same(out[0][1], out[1][1])
+    assert not _same(out[0][0], out[0][1])  # each data got its own torques
+
+
+def _controllers(scene, **kw):  # type: ignore[no-untyped-def]
+    fast, slow = ReachingController(scene, **kw), ReachingController(scene, jit=False, **kw)
+    assert fast._reach is not None and slow._reach is None
+    return fast, slow
+
+
+@pytest.mark.parametrize("kw", [{}, {"max_joint_acc": float("inf"), "max_joint_speed": 0.05}, {"max_joint_speed": 0.2, "max_ee_speed": 0.05}])
+def test_reaching_kernel_equals_numpy_along_random_motion(rng, kw) -> None:  # type: ignore[no-untyped-def]
+    scene = load_scene("panda_shelf")
+    goals = scene.goal_positions + rng.normal(0.0, 0.02, scene.goal_positions.shape)
+    fast, slow = _controllers(scene, goals=goals, tolerance=0.2, dwell=np.full(len(goals), 0.01), timeout=0.05, **kw)
+    d = scene.make_data()
+    q = scene.home.copy()
+    seen_goals, capped, limited = set(), 0, 0
+    for k in range(600):
+        t = 0.002 * k + (0.0 if k % 97 else 0.002)  # sometimes the same tick twice (dt = 0)
+        q = np.clip(q + rng.normal(0.0, 0.01, q.size), scene.joint_range[:, 0], scene.joint_range[:, 1])
+        d.qpos[scene.qpos_adr] = q
+        mujoco.mj_forward(scene.model, d)
+        prev = fast._rate.prev.copy()
+        a, b = fast(t, d), slow(t, d)
+        assert _same(a, b) and a is not fast._rate.prev
+        gf, gs = dict(vars(fast.goals)), dict(vars(slow.goals))
+        assert _same(gf.pop("dwell"), gs.pop("dwell")) and gf == gs and fast._rate.t_prev == slow._rate.t_prev
+        assert _same(fast._rate.prev, slow._rate.prev)
+        seen_goals.add(fast.goal_index)
+        capped += bool(np.max(np.abs(a)) >= fast.max_joint_speed * (1 - 1e-12))
+        limited += bool(np.max(np.abs(a - prev)) >= fast._rate.a_max * 0.002 * (1 - 1e-12))
+        if k % 50 == 25:  # a rollout: calls at predicted states, then back to the snapshot
+            snaps = fast.snapshot(), slow.snapshot()
+            for _ in range(3):
+                assert _same(fast(t + 0.01, d), slow(t + 0.01, d))
+            fast.restore(snaps[0])
+            slow.restore(snaps[1])
+    assert len(seen_goals) > 1 and fast.goals_reached + fast.goals_missed > 1  # goals switched
+    assert capped > 0 or limited > 0
+
+
+def test_reaching_kernel_uses_numpy_where_the_blas_order_differs(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    scene = load_scene("panda_pole")
+    monkeypatch.setitem(kernels._STATE.setdefault("blas", {}), scene.n_joints, (False, False))
+    ctrl = ReachingController(scene)
+    tr = VelocityTracker(scene)
+    assert ctrl._reach is None and tr._kernels is not None and not tr._kernels["dot"]
+    d = scene.make_data()
+    ref = ReachingController(scene, jit=False)
+    for t in (0.0, 0.001, 0.002):
+        assert _same(ctrl(t, d), ref(t, d))
