@@ -16,7 +16,7 @@ _EXPORTS: dict[str, str] = {
     "IsfError": "exceptions", "ConfigError": "exceptions", "ShapeError": "exceptions", "NonFiniteError": "exceptions",
     "UnknownNameError": "exceptions", "InfeasibleFilterError": "exceptions", "SolverError": "exceptions",
     "PostJumpConditionError": "exceptions", "ZenoError": "exceptions", "IsfWarning": "exceptions",
-    "FilterStep": "filter_base", "SafetyFilter": "filters", "IntermittentSafetyFilter": "filters",
+    "FilterStep": "step", "SafetyFilter": "filters", "IntermittentSafetyFilter": "filters",
     "Observer": "hooks", "Observers": "hooks",
     "JumpEvent": "impulsive", "EventTriggeredImpulsiveController": "impulsive", "ManeuverScheduler": "impulsive",
     "DutyCycleMetrics": "metrics", "FilterStats": "metrics", "compute_metrics": "metrics",

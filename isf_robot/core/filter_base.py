@@ -1,4 +1,4 @@
-"""What both safety filters share: the step result and the QP machinery (rows, screening, re-solve).
+"""What both safety filters share: the QP machinery (rows, screening, re-solve); the step result is in :mod:`.step`.
 
 The filters' semantics (when they are on, which rows they solve) are in
 :mod:`isf_robot.core.filters`; this module holds the parts they have in common: evaluating the
@@ -12,102 +12,41 @@ import math
 import time
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 
 from .barrier import Barrier, evaluate_barriers
-from .class_k import ClassK, Linear, as_class_k
+from .class_k import ClassK, CustomClassK, Linear, as_class_k
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
 from .qp import FilterQP, QPResult
 from .qp_solver import QPSolver
-from .switches import SwitchCounter, SwitchEvent
+from .step import FilterStep
+from .switches import SwitchCounter
 from .system import ControlAffineSystem, LieData, lie_data
 from .triggers import xi_on
 from .validation import as_vector, check_finite_scalar, check_nonnegative
 
-__all__ = ["FilterStep", "FallbackFn"]
+__all__ = ["FilterStep", "FallbackFn"]  # (FilterStep: from .step, where it lives)
 
 _F64 = np.dtype(np.float64)
 
 FallbackFn = Callable[[float, "np.ndarray | None", LieData, QPResult], np.ndarray]
 
+_ACTIVE = (np.zeros(1, bool), np.ones(1, bool))  # one row's activity, shared (read-only)
+for _a in _ACTIVE:
+    _a.flags.writeable = False
 
-@dataclass(frozen=True)
-class FilterStep:
-    """One control step of a filter.
 
-    Attributes:
-        t: Time [s].
-        u: The command to apply, shape (m,).
-        u_nom: The nominal command, shape (m,).
-        on: Whether the filter acted in this step (intermittent: its mode; standard: a
-            constraint was active).
-        h: Barrier values, shape (k,).
-        xi: ``Xi_on`` per barrier under the nominal command, shape (k,).
-        event: The on/off switch at this step, if any.
-        qp: The QP result when a QP was solved, else ``None``.
-        relaxed: Names of barriers whose promotion was relaxed in this step.
-        fallback: Whether the command came from the infeasibility fallback.
-        names: Barrier labels.
-        resolved: Whether a screened row was needed, so the QP was solved again with every row.
-        margin: The off margin in force at this step (intermittent filter: ``c``, or the margin
-            designed for ``min_off``; ``None`` for other strategies).
-        off_bound_s: At an off switch, the shortest off period the margin guarantees at the
-            measured fall rate of ``Xi_on`` (:class:`~isf_robot.core.intermittent.FallRateBound`).
-        rollout: Whether the predictive off trigger ran a rollout in this step.
-        held: Whether the prediction kept the filter on although every ``Xi_on >= margin``.
+class _Xi(NamedTuple):
+    """A step's checked ``Xi_on`` (:meth:`_FilterBase._xi`)."""
 
-    """
-
-    t: float
-    u: np.ndarray
     u_nom: np.ndarray
-    on: bool
-    h: np.ndarray
     xi: np.ndarray
-    event: SwitchEvent | None = None
-    qp: QPResult | None = None
-    relaxed: tuple[str, ...] = ()
-    fallback: bool = False
-    names: tuple[str, ...] = field(default_factory=tuple)
-    resolved: bool = False
-    margin: float | None = None
-    off_bound_s: float | None = None
-    rollout: bool = False
-    held: bool = False
-
-    @classmethod
-    def _of(cls, t: float, u: np.ndarray, u_nom: np.ndarray, on: bool, h: np.ndarray, xi: np.ndarray,
-            event: SwitchEvent | None = None, qp: QPResult | None = None, relaxed: tuple[str, ...] = (),
-            fallback: bool = False, names: tuple[str, ...] = (), resolved: bool = False,
-            margin: float | None = None, off_bound_s: float | None = None, rollout: bool = False,
-            held: bool = False) -> FilterStep:
-        """The step with these fields: the filters' fast path.
-
-        Same object as ``FilterStep(...)`` would build, without the frozen dataclass's
-        field-by-field ``__init__`` (about 6 us per call against 1 us).
-        """
-        step = object.__new__(cls)
-        step.__dict__.update(t=t, u=u, u_nom=u_nom, on=on, h=h, xi=xi, event=event, qp=qp, relaxed=relaxed,
-                             fallback=fallback, names=names, resolved=resolved, margin=margin,
-                             off_bound_s=off_bound_s, rollout=rollout, held=held)
-        return step
-
-    @property
-    def h_min(self) -> float:
-        """Smallest barrier value."""
-        return float(np.min(self.h)) if self.h.size else float("inf")
-
-    @property
-    def xi_min(self) -> float:
-        """Smallest ``Xi_on``."""
-        return float(np.min(self.xi)) if self.xi.size else float("inf")
-
-    @property
-    def solved_qp(self) -> bool:
-        """Whether a QP (or its closed form) was solved in this step."""
-        return self.qp is not None
+    xl: list[float]  # xi as floats (finite)
+    xi_min: float
+    av: np.ndarray  # alpha(h) per row
 
 
 class _FilterBase:
@@ -192,22 +131,25 @@ class _FilterBase:
         return not ((self.u_min is not None and bool(np.any(u < self.u_min)))
                     or (self.u_max is not None and bool(np.any(u > self.u_max))))
 
-    def _xi(self, t: float, lie: LieData, u_nom: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-        """Checked inputs, ``Xi_on`` per row and its minimum (``inf`` without rows).
+    def _xi(self, t: float, lie: LieData, u_nom: np.ndarray) -> _Xi:
+        """Checked inputs, ``Xi_on`` per row (array and list), its minimum and ``alpha(h)``.
 
         A non-finite input raises NonFiniteError. (The check and the minimum work on a list:
         a sum of NaN or inf is not finite, and the minimum of finite floats is exact, so both
         give what the array reductions give, at a third of their cost for a robot's rows.)
+        A finite ``Xi_on`` also means finite ``Lg h`` and ``u_nom`` (an infinite or NaN entry of
+        either makes ``Lg h u_nom`` infinite or NaN).
         """
         if self.validate:
             lie.validate()
             u_nom = as_vector(u_nom, "nominal command u_nom", lie.m)
-        xi = xi_on(lie, u_nom, self.alpha, self.d_bar)
+        av = self.alpha.vector(lie.h)
+        xi = xi_on(lie, u_nom, self.alpha, self.d_bar, av)
         xl = xi.tolist()
         if not math.isfinite(sum(xl)):
             raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
                                  f"Xi_on = {xi}, u_nom = {u_nom}")
-        return u_nom, xi, min(xl) if xl else math.inf
+        return _Xi(u_nom, xi, xl, min(xl) if xl else math.inf, av)
 
     def build_qp(
         self, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None = None, b: float = 0.0,
@@ -245,26 +187,33 @@ class _FilterBase:
     def _solve_rows(
         self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, xi: np.ndarray,
         promote: np.ndarray | None, floor: float, screen: float | np.ndarray | None = None,
+        xs: _Xi | None = None,
     ) -> tuple[QPResult, tuple[str, ...], bool, bool]:
-        """Solve with screening; return ``(result, relaxed names, fallback, resolved)``."""
+        """Solve with screening; return ``(result, relaxed names, fallback, resolved)``.
+
+        ``xi``: each row's robust slack at ``u_nom`` (``Xi_on``, or the slack at a blended
+        target); ``xs``: the step's :meth:`_xi` when ``xi`` is its ``Xi_on`` (its list, minimum
+        and ``alpha(h)`` then save array work).
+        """
         screen = self.screen if screen is None else screen
         if screen is not None and lie.k > 1:
             keep = xi < np.maximum(screen, floor) if floor > 0 else xi < screen
             if promote is not None:
                 keep |= promote  # a promoted row is never screened out
             rows = keep.nonzero()[0]
-            if rows.size < keep.size:  # (not keep.all())
-                if rows.size <= 1 and promote is None and self._one_row_ok(lie):
-                    i = int(xi.argmin()) if rows.size == 0 else int(rows[0])
-                    res = self._solve_one(lie, u_nom, i, rows.size == 1)
+            n = rows.size
+            if n < keep.size:  # (not keep.all())
+                if n <= 1 and promote is None and self._one_row_ok(lie):
+                    xl = xs.xl if xs is not None else None
+                    i = (xl.index(xs.xi_min) if xl is not None else int(xi.argmin())) if n == 0 else int(rows[0])
+                    res = self._solve_one(lie, u_nom, i, n == 1, xs)
                     if res is not None:
-                        keep[i] = True
-                        if self._screened_rows_hold(lie, xi, res.u - u_nom, keep):
+                        if self._screened_rows_hold(lie, xi, xl, res.u, u_nom, i):
                             return res, (), False, False
                         first = res.solve_time_s
                         res, relaxed, fb = self._solve_block(t, x, lie, u_nom, None, lie.names, None)
                         return replace(res, solve_time_s=res.solve_time_s + first), relaxed, fb, True
-                if rows.size == 0:  # the row of least slack alone (views: no copies)
+                if n == 0:  # the row of least slack alone (views: no copies)
                     i = int(xi.argmin())
                     rows = np.array([i])
                     keep[i] = True
@@ -275,7 +224,7 @@ class _FilterBase:
                                       lie.grad_norm.take(rows))
                 res, relaxed, fb = self._solve_block(t, x, sub, u_nom, None if promote is None else promote[rows],
                                                      lie.names, rows)
-                if not fb and not self._screened_rows_hold(lie, xi, res.u - u_nom, keep):
+                if not fb and not self._screened_rows_hold_mask(lie, xi, res.u - u_nom, keep):
                     first = res.solve_time_s
                     res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote, lie.names, None)
                     return replace(res, solve_time_s=res.solve_time_s + first), relaxed, fb, True
@@ -292,32 +241,70 @@ class _FilterBase:
         return (self.u_min is None and self.u_max is None and self.solver.closed_form
                 and lie.h.dtype == _F64 and lie.lf.dtype == _F64 and lie.grad_norm.dtype == _F64)
 
-    def _solve_one(self, lie: LieData, u_nom: np.ndarray, i: int, packed: bool) -> QPResult | None:
+    def _solve_one(self, lie: LieData, u_nom: np.ndarray, i: int, packed: bool, xs: _Xi | None) -> QPResult | None:
         """Row ``i`` alone, robust, no bounds: the closed form without building the QP.
 
-        The same numbers as :meth:`build_qp` and :meth:`QPSolver.solve` on that row: the bound
+        The same numbers as :meth:`build_qp` and :meth:`QPSolver.solve_row` on that row: the bound
         ``-alpha(h_i) - Lf h_i + |dh_i/dx| d_bar`` in the same order of operations (IEEE float64
-        arithmetic in floats and in numpy agree). ``None`` when the closed form fails its check
-        (the caller then solves the general way). ``packed``: the general way would have copied the
-        row (``take``), so a strided row is copied here too (a dot product of a strided row may sum
-        in another order).
+        arithmetic in floats and in numpy agree), the same products and the same check. ``None``
+        when the closed form fails its check (the caller then solves the general way).
+        ``packed``: the general way would have copied the row (``take``), so a strided row is
+        copied here too (a dot product of a strided row may sum in another order). When the row
+        holds at ``u_nom`` the command is ``u_nom`` itself (not a copy).
         """
         t0 = time.perf_counter()
         alpha = self.alpha
         if type(alpha) is Linear:
-            av = alpha.gain * float(lie.h[i])
+            av = alpha.gain * lie.h.item(i)  # (= alpha.vector(h)[i]: one IEEE product)
+        elif xs is not None and type(alpha) is CustomClassK:
+            av = xs.av.item(i)  # (the same call of alpha on the same float)
         else:
             av = float(alpha.vector(lie.h[i:i + 1])[0])
-        lb = (-av - float(lie.lf[i])) + float(lie.grad_norm[i]) * self.d_bar
+        lb = (-av - lie.lf.item(i)) + lie.grad_norm.item(i) * self.d_bar
         a = lie.lg[i]
         if packed and not a.flags.c_contiguous:
             a = a.copy()
-        res = self.solver.solve_row(u_nom, a, lb, t0)
-        if res is not None:
-            self.qp_solves += 1
-        return res
+        aa = float(a.dot(a))  # (dot: the BLAS product of @, with less overhead)
+        if not aa > 1e-200:  # (|a|^2 underflows: the backend decides)
+            return None
+        solver = self.solver
+        au = float(a.dot(u_nom))
+        gap = lb - au
+        if gap <= 0.0:  # u = u_nom: slack = au - lb = -gap exactly (IEEE subtraction is antisymmetric)
+            u, slack = u_nom, -gap
+            if not math.isfinite(float(u.dot(u))):
+                return None
+        else:
+            u = u_nom + (gap / aa) * a
+            slack = float(a.dot(u)) - lb
+            if not (slack >= -solver.feas_tol * max(1.0, abs(lb)) and math.isfinite(float(u.dot(u)))):
+                return None
+        self.qp_solves += 1
+        return QPResult._of(u, "closed_form", _ACTIVE[slack <= solver.active_tol], time.perf_counter() - t0)
 
-    def _screened_rows_hold(self, lie: LieData, xi: np.ndarray, du: np.ndarray, keep: np.ndarray) -> bool:
+    def _screened_rows_hold(self, lie: LieData, xi: np.ndarray, xl: list[float] | None, u: np.ndarray,
+                            u_nom: np.ndarray, i: int) -> bool:
+        """Whether every row but ``i`` has robust slack >= active_tol at ``u`` (row ``i`` solved alone).
+
+        The slack of row j at u is ``xi_j + Lg h_j (u - u_nom)`` (``xi``: the slacks at ``u_nom``),
+        so one product covers every row; at ``u = u_nom`` it is ``xi_j`` itself (``Lg h`` finite:
+        its product with zero is zero). ``xl``: ``xi`` as a finite list, when the caller has it.
+        """
+        tol = self.solver.active_tol
+        if u is u_nom and xl is not None:
+            if min(xl) >= tol:
+                return True
+            sl = xl.copy()
+        else:
+            slack = xi + lie.lg.dot(u - u_nom)
+            sl = slack.tolist()
+            if not math.isfinite(sum(sl)):  # (NaN: as the array minimum, never >= tol)
+                slack[i] = math.inf
+                return bool(slack.min() >= tol)
+        sl[i] = math.inf
+        return min(sl) >= tol
+
+    def _screened_rows_hold_mask(self, lie: LieData, xi: np.ndarray, du: np.ndarray, keep: np.ndarray) -> bool:
         """Whether every screened-out row's robust condition has slack >= active_tol at ``u_nom + du``.
 
         The slack of row i at u is ``Xi_on,i + Lg h_i (u - u_nom)`` (the robust condition's

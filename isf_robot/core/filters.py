@@ -92,10 +92,13 @@ class SafetyFilter(_FilterBase):
         ``screen`` overrides the constructor's row-screening threshold for this step (scalar or
         one per row of ``lie``).
         """
-        u_nom, xi, xi_min = self._xi(t, lie, u_nom)
-        res, _, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, None, 0.0, screen)
-        on = bool(res.active.any()) or fb
-        event = self._switches.update(t, on, xi_min)
+        xs = self._xi(t, lie, u_nom)
+        u_nom, xi = xs.u_nom, xs.xi
+        res, _, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, None, 0.0, screen, xs)
+        active = res.active
+        on = fb or (bool(active[0]) if active.size == 1 else bool(active.any()))
+        sw = self._switches
+        event = None if on == sw.on else sw.update(t, on, xs.xi_min)
         return FilterStep._of(t, res.u, u_nom, on, lie.h, xi, event, res, (), fb, lie.names, resolved)
 
 
@@ -219,10 +222,12 @@ class IntermittentSafetyFilter(_FilterBase):
         ``screen`` overrides the constructor's row-screening threshold for this step (scalar or
         one per row of ``lie``).
         """
-        u_nom, xi, xi_min = self._xi(t, lie, u_nom)
-        was_on = self.trigger.on
+        xs = self._xi(t, lie, u_nom)
+        u_nom, xi, xi_min = xs.u_nom, xs.xi, xs.xi_min
+        trigger = self.trigger
+        was_on = trigger.on
         self.fall_rate.observe(t, xi_min, not was_on)
-        c = self.margin()
+        c = self.c if self.min_off is None else self.margin()
         gate = c if self.c_pred is None else min(c, self.c_pred)  # off needs every Xi_on >= gate
         pred, ran = None, False
         if self.predictor is not None:
@@ -233,7 +238,7 @@ class IntermittentSafetyFilter(_FilterBase):
         held = pred is not None and not pred.ok
         if pred is not None and pred.ok:
             c = gate  # predicted safe over the horizon: off at the lower margin
-        event = self.trigger.update(t, xi_min, c, not held)
+        event = trigger.update(t, xi_min, c, not held)
         bound = None
         if event is not None:
             if event.kind == "on":
@@ -245,33 +250,35 @@ class IntermittentSafetyFilter(_FilterBase):
                 bound = self.fall_rate.bound_s(c)
                 if self.predictor is not None:
                     self.predictor.idle()
-        extra = dict(margin=c, off_bound_s=bound, rollout=ran, held=held)
-        if not self.trigger.on:
+        if not trigger.on:
             w = blend_weight(t, self._t_off, self.blend) if self._u_handover is not None else 0.0
+            if w == 0.0 and (self.u_min is None and self.u_max is None or self._within_bounds(u_nom)):
+                self._u_prev = u_nom
+                return FilterStep._of(t, u_nom, u_nom, False, lie.h, xi, event, None, (), False, lie.names, False,
+                                      c, bound, ran, held)
             target = u_nom if w == 0.0 else u_nom + w * (self._u_handover - u_nom)
-            if w == 0.0 and self._within_bounds(u_nom):
-                return self._done(FilterStep._of(t, u_nom, u_nom, False, lie.h, xi, event, None, (), False,
-                                             lie.names, **extra))
             slack = xi if w == 0.0 else xi + lie.lg @ (target - u_nom)  # robust slack at the target
             if w > 0.0 and float(slack.min()) >= 0.0 and self._within_bounds(target):
-                return self._done(FilterStep._of(t, target, u_nom, False, lie.h, xi, event, None, (), False,
-                                             lie.names, **extra))
+                self._u_prev = target
+                return FilterStep._of(t, target, u_nom, False, lie.h, xi, event, None, (), False, lie.names, False,
+                                      c, bound, ran, held)
             # off, but the target breaks the input bounds or (blending) a robust condition: the
             # command closest to it within them that keeps every robust condition; the mode stays off
-            res, relaxed, fb, resolved = self._solve_rows(t, x, lie, target, slack, None, 0.0, screen)
+            res, relaxed, fb, resolved = self._solve_rows(t, x, lie, target, slack, None, 0.0, screen,
+                                                          xs if w == 0.0 else None)
             return self._done(FilterStep._of(t, res.u, u_nom, False, lie.h, xi, event, res, relaxed, fb,
-                                         lie.names, resolved, **extra))
+                                             lie.names, resolved, c, bound, ran, held))
         promote = xi < c
         if held and pred is not None and pred.failing:  # steer away from the predicted failures
             promote |= np.fromiter((n in pred.failing for n in lie.names), bool, lie.k)
         if self.blend > 0:
             promote, self._ramp = self._row_ramp(t, lie.names, promote)
         try:
-            res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, promote, c, screen)
+            res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, promote, c, screen, xs)
         finally:
             self._ramp = 1.0
         return self._done(FilterStep._of(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names,
-                                     resolved, **extra))
+                                         resolved, c, bound, ran, held))
 
     def _row_ramp(self, t: float, names: tuple[str, ...], promote: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per row, a promotion weight ``w`` in [0, 1] that moves at most ``dt / blend`` per step.

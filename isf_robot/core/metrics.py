@@ -157,47 +157,39 @@ def compute_metrics(
 class MetricsAccumulator:
     """Collects per-step data during a run and computes :class:`DutyCycleMetrics` at the end.
 
-    Memory is 4 numbers per step (about 32 MB per million steps).
+    Memory is one tuple of 5 numbers per step (about 100 MB per million steps).
     """
 
     def __init__(self) -> None:
-        self._t: list[float] = []
-        self._dt: list[float] = []
-        self._on: list[bool] = []
-        self._rate: list[float] = []
-        self._solved: list[bool] = []
+        self._steps: list[tuple[float, float, bool, float, bool]] = []  # (t, dt, on, |u - u_nom|^2, solved)
         self._qp_times: list[float] = []
         self._solver_times: list[float] = []
         self._fallbacks = self._relaxations = self._resolves = self._closed_form = 0
         self._u_prev: np.ndarray | None = None
-        self._jump_max: float | None = None
-        self._switch_jump: float | None = None
+        self._jump2: float | None = None  # largest |u_k - u_{k-1}|^2 (its root is the largest jump: sqrt is monotone)
+        self._switch_jump2: float | None = None
         self._off_bound: float | None = None
 
     def add(self, t: float, dt: float, on: bool, u: np.ndarray, u_nom: np.ndarray, solved: bool) -> None:
         """Record one step."""
         d = u - u_nom
-        self._t.append(t)
-        self._dt.append(dt)
-        self._on.append(bool(on))
-        self._rate.append(float(d.dot(d)))  # (dot: the same BLAS product as @, with less overhead)
-        self._solved.append(bool(solved))
+        self._steps.append((t, dt, bool(on), float(d.dot(d)), bool(solved)))  # (dot: the BLAS product of @)
 
     def add_step(self, step: Any, dt: float) -> None:
         """Record a :class:`~isf_robot.core.filters.FilterStep` (and its solver figures).
 
         The same figures as :meth:`add` and the bookkeeping below it, in one call (it runs every
-        control step).
+        control step; a command that is ``u_nom`` itself has intervention 0 without a product).
         """
-        qp, u = step.qp, step.u
+        qp, u, u_nom = step.qp, step.u, step.u_nom
         if type(u) is not np.ndarray or u.dtype != _F64:
             u = np.asarray(u, dtype=float)
-        d = u - step.u_nom
-        self._t.append(step.t)
-        self._dt.append(dt)
-        self._on.append(bool(step.on))
-        self._rate.append(float(d.dot(d)))
-        self._solved.append(qp is not None)
+        if u is u_nom:
+            rate = 0.0
+        else:
+            d = u - u_nom
+            rate = float(d.dot(d))
+        self._steps.append((step.t, dt, bool(step.on), rate, qp is not None))
         if qp is not None:
             self._qp_times.append(qp.solve_time_s)
             if qp.status == "closed_form":
@@ -214,11 +206,11 @@ class MetricsAccumulator:
         self._u_prev = u.copy()
         if prev is not None:
             d = u - prev
-            jump = math.sqrt(float(d.dot(d)))
-            if self._jump_max is None or jump > self._jump_max:
-                self._jump_max = jump
-            if step.event is not None and (self._switch_jump is None or jump > self._switch_jump):
-                self._switch_jump = jump
+            jump2 = float(d.dot(d))
+            if self._jump2 is None or jump2 > self._jump2:
+                self._jump2 = jump2
+            if step.event is not None and (self._switch_jump2 is None or jump2 > self._switch_jump2):
+                self._switch_jump2 = jump2
         bound = getattr(step, "off_bound_s", None)
         if bound is not None:
             self._off_bound = bound if self._off_bound is None else min(self._off_bound, bound)
@@ -228,21 +220,25 @@ class MetricsAccumulator:
         def med(v: list[float]) -> float | None:
             return float(np.median(v)) * 1e6 if v else None
 
+        def root(v: float | None) -> float | None:
+            return None if v is None else math.sqrt(v)
+
         return FilterStats(self._fallbacks, self._relaxations, self._resolves, self._closed_form,
-                           med(self._qp_times), med(self._solver_times), self._switch_jump, self._jump_max,
-                           self._off_bound)
+                           med(self._qp_times), med(self._solver_times), root(self._switch_jump2),
+                           root(self._jump2), self._off_bound)
 
     def __len__(self) -> int:
-        return len(self._t)
+        return len(self._steps)
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The recorded per-step arrays: t, dt, on, intervention_rate, qp_solved."""
+        cols = tuple(zip(*self._steps)) if self._steps else ((),) * 5
         return {
-            "t": np.asarray(self._t, dtype=float),
-            "dt": np.asarray(self._dt, dtype=float),
-            "on": np.asarray(self._on, dtype=bool),
-            "intervention_rate": np.asarray(self._rate, dtype=float),
-            "qp_solved": np.asarray(self._solved, dtype=bool),
+            "t": np.asarray(cols[0], dtype=float),
+            "dt": np.asarray(cols[1], dtype=float),
+            "on": np.asarray(cols[2], dtype=bool),
+            "intervention_rate": np.asarray(cols[3], dtype=float),
+            "qp_solved": np.asarray(cols[4], dtype=bool),
         }
 
     def result(self) -> DutyCycleMetrics:

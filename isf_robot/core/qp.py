@@ -28,6 +28,8 @@ from .exceptions import ShapeError, SolverError
 __all__ = ["FilterQP", "QPResult", "build_filter_qp", "project_halfspace"]
 
 
+_new, _set = object.__new__, object.__setattr__  # (the fast constructors: a frozen dataclass's __dict__ set whole)
+
 QPStatus = Literal["unconstrained", "closed_form", "optimal", "infeasible", "fallback"]
 
 
@@ -62,8 +64,9 @@ class FilterQP:
         Same object as ``FilterQP(...)`` would build, without the frozen dataclass's
         field-by-field ``__init__``.
         """
-        qp = object.__new__(cls)
-        qp.__dict__.update(u_nom=u_nom, A=A, lb=lb, u_min=u_min, u_max=u_max, kinds=kinds, names=names)
+        qp = _new(cls)
+        _set(qp, "__dict__", {"u_nom": u_nom, "A": A, "lb": lb, "u_min": u_min, "u_max": u_max, "kinds": kinds,
+                              "names": names})
         return qp
 
     @property
@@ -129,9 +132,9 @@ class QPResult:
         Same object as ``QPResult(...)`` would build, without the frozen dataclass's
         field-by-field ``__init__``.
         """
-        res = object.__new__(cls)
-        res.__dict__.update(u=u, status=status, active=active, solve_time_s=solve_time_s, iterations=iterations,
-                            max_violation=max_violation, relaxed=relaxed)
+        res = _new(cls)
+        _set(res, "__dict__", {"u": u, "status": status, "active": active, "solve_time_s": solve_time_s,
+                               "iterations": iterations, "max_violation": max_violation, "relaxed": relaxed})
         return res
 
     @property

@@ -13,6 +13,8 @@ from .exceptions import ConfigError, ShapeError
 
 __all__ = ["ControlAffineSystem", "SingleIntegrator", "FunctionSystem", "LieData", "lie_data"]
 
+_new, _set = object.__new__, object.__setattr__  # (LieData._of: a frozen dataclass's __dict__ set whole)
+
 
 class ControlAffineSystem(ABC):
     """``x_dot = f0(x, t) + g(x, t) u`` (the disturbance bound lives in the filter).
@@ -116,8 +118,8 @@ class LieData:
         Same object as ``LieData(...)`` would build, without the frozen dataclass's
         field-by-field ``__init__``.
         """
-        lie = object.__new__(cls)
-        lie.__dict__.update(h=h, lf=lf, lg=lg, grad_norm=grad_norm, names=names)
+        lie = _new(cls)
+        _set(lie, "__dict__", {"h": h, "lf": lf, "lg": lg, "grad_norm": grad_norm, "names": names})
         return lie
 
     @property

@@ -23,7 +23,8 @@ from .validation import check_finite_scalar, check_positive
 __all__ = ["SwitchEvent", "OnOffTrigger", "xi_on", "xi_on_scalar", "xi_tau"]
 
 
-def xi_on(lie: LieData, u_nom: np.ndarray, alpha: ClassK, d_bar: float) -> np.ndarray:
+def xi_on(lie: LieData, u_nom: np.ndarray, alpha: ClassK, d_bar: float,
+          alpha_h: np.ndarray | None = None) -> np.ndarray:
     """Per-barrier on-trigger values ``Xi_on = Lf h(x, u_nom) - |dh/dx| d_bar + alpha(h)``.
 
     Also the greedy impulsive trigger ``Xi`` (eq. greedy_cond) when ``lg`` is empty / u_nom
@@ -34,12 +35,15 @@ def xi_on(lie: LieData, u_nom: np.ndarray, alpha: ClassK, d_bar: float) -> np.nd
         u_nom: Nominal command, shape (m,).
         alpha: Class-K function.
         d_bar: Disturbance bound.
+        alpha_h: ``alpha.vector(lie.h)`` when the caller has it already.
 
     Returns:
         Shape (k,).
 
     """
-    return lie.lf + lie.lg.dot(u_nom) - lie.grad_norm * d_bar + alpha.vector(lie.h)  # dot: the BLAS product of @
+    if alpha_h is None:
+        alpha_h = alpha.vector(lie.h)
+    return lie.lf + lie.lg.dot(u_nom) - lie.grad_norm * d_bar + alpha_h  # dot: the BLAS product of @
 
 
 def xi_on_scalar(lf: float, lg_u: float, grad_norm: float, h: float, alpha: ClassK, d_bar: float) -> float:

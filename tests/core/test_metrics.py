@@ -51,6 +51,8 @@ def test_add_step_records_steps_and_their_solver_figures():
     us, events, kinds = [], [], []
     for k in range(120):
         u, un = rng.normal(size=4), rng.normal(size=4)
+        if k % 5 == 0:
+            u = un  # the nominal command passed through: no intervention
         kind = ("none", "closed_form", "optimal")[k % 3]
         qp = None if kind == "none" else QPResult(u, kind, np.zeros(1, bool), 1e-6 * (k + 1), 1, 0.0)
         ev = SwitchEvent(k * 0.01, "on" if k % 2 else "off", 0.0, 1) if k % 17 == 5 else None

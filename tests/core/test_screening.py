@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from isf_robot.core import ConfigError, IntermittentSafetyFilter, LieData, Power, SafetyFilter
+from isf_robot.core import ConfigError, CustomClassK, IntermittentSafetyFilter, LieData, Power, SafetyFilter
 
 
 def _random_lie(rng: np.random.Generator, k: int, m: int) -> LieData:
@@ -65,7 +65,7 @@ def test_non_finite_input_raises_even_without_validation() -> None:
         f.step_lie(0.0, lie, np.zeros(2))
 
 
-@pytest.mark.parametrize("alpha", [2.0, Power(3.0, 0.7)])
+@pytest.mark.parametrize("alpha", [2.0, Power(3.0, 0.7), CustomClassK(lambda h: h + h ** 3, "cubic")])
 @pytest.mark.parametrize("order", ["C", "F"])
 def test_one_kept_row_goes_the_short_way_with_the_same_numbers(alpha, order) -> None:  # type: ignore[no-untyped-def]
     # at most one row kept (or none: the row of least slack alone) and no bounds: the filter
