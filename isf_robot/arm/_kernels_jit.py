@@ -79,6 +79,25 @@ def row_norm(g, k, lanes):  # pragma: no cover (compiled)
     return np.sqrt(s)
 
 @njit(cache=True, nogil=True)
+def dot3(a0, a1, a2, b0, b1, b2, lanes):  # pragma: no cover (compiled)
+    """``a . b`` of 3-vectors summed like numpy's ``einsum("ij,ij->i")`` (``lanes``: 1 in order, 2 interleaved)."""
+    if lanes == 2:
+        s0 = 0.0 + a0 * b0
+        s1 = 0.0 + a1 * b1
+        s0 += a2 * b2
+        return s0 + s1
+    return ((0.0 + a0 * b0) + a1 * b1) + a2 * b2
+
+
+@njit(cache=True, nogil=True)
+def dots3(a, b, lanes):  # pragma: no cover (compiled)
+    out = np.empty(a.shape[0])
+    for k in range(a.shape[0]):
+        out[k] = dot3(a[k, 0], a[k, 1], a[k, 2], b[k, 0], b[k, 1], b[k, 2], lanes)
+    return out
+
+
+@njit(cache=True, nogil=True)
 def norms(g, lanes):  # pragma: no cover (compiled)
     out = np.empty(g.shape[0])
     for k in range(g.shape[0]):
@@ -88,8 +107,12 @@ def norms(g, lanes):  # pragma: no cover (compiled)
 @njit(cache=True, nogil=True)
 def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, lever, qadr,
          cutoff, distmax, slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, lanes,
-         rows, h, g, gn, wit):  # pragma: no cover (compiled)
+         mocap, lin, dlanes, rows, h, g, gn, wit, lf):  # pragma: no cover (compiled)
     """Fill rows[:j], h[:j + l], g[:j + l], gn[:j + l] (if lanes) and wit[:j] = (p1, p2, n).
+
+    With ``dlanes`` (the order of numpy's einsum for 3 products, :func:`dot3`): ``lf[k] = dh/dt = -n^T v``
+    of each near pair whose obstacle is mocap body ``mocap[r] >= 0``, ``v`` its row of ``lin``
+    (flat, 3 per mocap body); ``lf`` is left alone otherwise.
 
     Returns (j, min h, min dist, min joint value, whether some witness points coincide).
     """
@@ -170,6 +193,9 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
         n1 = (fromto[k, 1] - fromto[k, 4]) * inv
         n2 = (fromto[k, 2] - fromto[k, 5]) * inv
         wit[k, 2, 0], wit[k, 2, 1], wit[k, 2, 2] = n0, n1, n2
+        if dlanes != 0 and mocap[r] >= 0:
+            b = 3 * mocap[r]
+            lf[k] = -dot3(n0, n1, n2, lin[b], lin[b + 1], lin[b + 2], dlanes)
         jac(ma, da, jac1.ctypes.data, 0, fromto[k].ctypes.data, np.int32(live[r, 3]))
         for c in range(ndof):
             col = dof[c]
@@ -202,18 +228,18 @@ def monitor(ma, da, rows, g1, g2, margin, thresh, bound):  # pragma: no cover (c
 # The tables of near_packed's P (addresses and sizes; see NarrowPhase._kernel_context).
 (P_LIVE, P_NJ, P_NDOF, P_NV, P_NGEOM, P_NQ, P_NU, P_NLOWER, P_NFT, P_QPOS, P_XPOS, P_TAB, P_MARGIN, P_THR2,
  P_LOWER, P_QPREV, P_QSTATE, P_LEVER, P_QADR, P_DOF, P_FROMTO, P_JAC1, P_JAC2, P_JQ, P_JSIGN, P_JOFF,
- P_JGRAD) = range(27)
+ P_JGRAD, P_MOCAP) = range(28)
 
 
 @njit(cache=True, nogil=True)
-def near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, lanes):  # pragma: no cover (compiled)
+def near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, lanes, lin, dlanes):  # pragma: no cover
     """:func:`near` with its tables given as the addresses in ``p`` and its outputs in ``blk``.
 
     One numba call costs about 0.1 us per 1-D array argument and 0.6 us per 2-D one; :func:`near`'s
     31 arguments cost more than its work. ``blk`` (float64, fresh per call) holds, for
     ``L = live pairs + joint rows`` and ``n`` dofs: ``h`` (L), ``g`` (L, n), ``gn`` (L), ``lf`` (L,
-    zeroed here: the rows' ``dh/dt``, filled by the caller for moving obstacles) and the witness
-    points (live pairs, 3, 3).
+    zeroed here: the rows' ``dh/dt``, of moving obstacles filled here with ``dlanes``, else by the caller)
+    and the witness points (live pairs, 3, 3). ``lin``: the mocap bodies' velocities, flat.
     """
     n_live, nj, n, nv = p[P_LIVE], p[P_NJ], p[P_NDOF], p[P_NV]
     nu, nlower = p[P_NU], p[P_NLOWER]
@@ -235,6 +261,7 @@ def near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, lanes): 
     jsign = carray(f64p(p[P_JSIGN]), nj)
     joff = carray(f64p(p[P_JOFF]), nj)
     jgrad = carray(f64p(p[P_JGRAD]), (nj, n))
+    mocap = carray(i64p(p[P_MOCAP]), n_live)
     m = n_live + nj
     h = blk[:m]
     g = blk[m: m + m * n].reshape((m, n))
@@ -244,4 +271,5 @@ def near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, lanes): 
     for i in range(m):
         lf[i] = 0.0
     return near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, lever, qadr, cutoff, distmax,
-                slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, lanes, rows, h, g, gn, wit)
+                slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, lanes, mocap, lin, dlanes, rows, h, g,
+                gn, wit, lf)

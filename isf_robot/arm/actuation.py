@@ -23,7 +23,8 @@ at their force or torque limit).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Callable, Sequence
 from typing import Protocol
 
 import mujoco
@@ -34,7 +35,7 @@ from isf_robot.core.exceptions import ConfigError
 from .lowlevel import VelocityTracker
 from .scene import Scene
 
-__all__ = ["ActuatorInfo", "actuator_info", "Actuation", "ServoTracker", "make_actuation", "KINDS"]
+__all__ = ["ActuatorInfo", "actuator_info", "Actuation", "ServoTracker", "make_actuation", "tracking_step", "KINDS"]
 
 KINDS = ("torque", "position", "velocity")
 """Actuator kinds the adapters support."""
@@ -293,3 +294,22 @@ def make_actuation(scene: Scene, **kwargs: object) -> TorqueTracker | ServoTrack
         raise ConfigError(f"arm actuators mix motors and servos ({mixed}); use one kind for "
                           "every arm joint (computed torque needs all of them)")
     return ServoTracker(scene, infos, **kwargs)  # type: ignore[arg-type]
+
+
+def tracking_step(tracker: Actuation, dof_adr: np.ndarray) -> Callable[[mujoco.MjData, np.ndarray, float], float]:
+    """``(data, u, period) -> |q_dot - u_held|``: the tracking error, then ``set_command`` and ``apply``.
+
+    The tracker's own ``command`` where it has one (:meth:`VelocityTracker.command`: one compiled call),
+    else the three calls in that order (``dof_adr``: the arm's dofs, for ``q_dot``).
+    """
+    command = getattr(tracker, "command", None)
+    if command is not None:
+        return command  # type: ignore[no-any-return]
+
+    def step(data: mujoco.MjData, u: np.ndarray, period: float) -> float:
+        e = data.qvel[dof_adr] - tracker.u
+        tracker.set_command(u, period)
+        tracker.apply(data)
+        return math.sqrt(float(e.dot(e)))
+
+    return step

@@ -109,19 +109,19 @@ class NarrowPhase:
         jq, jsign, joff, jgrad = self._kjoints if joints is None else joints.tables
         f64 = (data.qpos, data.geom_xpos, self._kmargin, self._kthr2, lower, qprev, lever, self._kfromto, self._kjac1,
                self._kjac2, jsign, joff, jgrad)
-        i64 = (self._ktab, qstate, qadr, self._kdof, jq)
+        i64 = (self._ktab, qstate, qadr, self._kdof, jq, self._kmocap)
         if any(a.dtype != np.float64 or not a.flags.c_contiguous for a in f64) or any(
                 a.dtype != np.int64 or not a.flags.c_contiguous for a in i64):
             raise TypeError("the collision kernel's tables must be C-contiguous float64/int64 arrays")
         n_live, nj, n = self._ktab.shape[0], jq.size, self.dof_adr.size
-        p = np.zeros(27, dtype=np.int64)
+        p = np.zeros(28, dtype=np.int64)
         p[:9] = (n_live, nj, n, self.model.nv, data.geom_xpos.shape[0], data.qpos.size, qadr.size, lower.size,
                  self._kfromto.shape[0])
         arrays = {kj.P_QPOS: data.qpos, kj.P_XPOS: data.geom_xpos, kj.P_TAB: self._ktab, kj.P_MARGIN: self._kmargin,
                   kj.P_THR2: self._kthr2, kj.P_LOWER: lower, kj.P_QPREV: qprev, kj.P_QSTATE: qstate,
                   kj.P_LEVER: lever, kj.P_QADR: qadr, kj.P_DOF: self._kdof, kj.P_FROMTO: self._kfromto,
                   kj.P_JAC1: self._kjac1, kj.P_JAC2: self._kjac2, kj.P_JQ: jq, kj.P_JSIGN: jsign, kj.P_JOFF: joff,
-                  kj.P_JGRAD: jgrad}
+                  kj.P_JGRAD: jgrad, kj.P_MOCAP: self._kmocap}
         for slot, arr in arrays.items():
             p[slot] = arr.ctypes.data
         m = n_live + nj
@@ -145,8 +145,15 @@ class NarrowPhase:
             c = self._kernel_context(data, coherence, joints)
         _, _, _, _, p, daddr, _, m, n, nj, o_gn, o_lf, size, lanes, distmax, slack = c
         blk, rows = np.empty(size), np.empty(m - nj, dtype=np.int64)  # fresh outputs (a kernel's cost more to return)
+        moving = self._any_moving and mocap_lin is not None
+        lin, dlanes = self._knolin, 0
+        if moving and self._kdot and mocap_ang is None:  # dh/dt in the kernel (in numpy's order)
+            if mocap_lin.shape != self._lin_shape:  # type: ignore[union-attr]
+                raise ShapeError(f"mocap velocities must have shape {self._lin_shape} (rows like data.mocap_pos); "
+                                 f"got {mocap_lin.shape}")  # type: ignore[union-attr]
+            lin, dlanes = np.ascontiguousarray(mocap_lin, dtype=np.float64).reshape(-1), self._kdot
         j, h_min, dist_min, jmin, touching = self._kernel(self._maddr, daddr, p, blk, rows, coherence is not None,
-                                                          self.cutoff, distmax, slack, _EPS_DIST, lanes)
+                                                          self.cutoff, distmax, slack, _EPS_DIST, lanes, lin, dlanes)
         k = j + nj
         if touching:  # coinciding witness points: the numpy path (the same rows without the bounds)
             near = self._near_numpy(data, mocap_lin, mocap_ang, witness, None)
@@ -161,9 +168,9 @@ class NarrowPhase:
             return self._none, h, g, jmin, gn, lf
         rows = rows[:j]
         row_list = rows.tolist()
-        if witness or (self._any_moving and mocap_lin is not None):
+        if witness or (moving and not dlanes):
             wit = blk[o_lf + m: o_lf + m + 9 * j].reshape(j, 3, 3)  # wit[k]: p1, p2, n
-            if mocap_lin is not None and self._any_moving:
+            if moving and not dlanes:
                 dhdt = lf[:j] = self._dhdt(data, row_list, rows, wit[:, 2], wit[:, 1], mocap_lin, mocap_ang)
             else:
                 dhdt = lf[:j]

@@ -42,10 +42,11 @@ import numpy as np
 from isf_robot.core import ConfigError, LieData, MetricsAccumulator, Observer, Observers, QPSolver, as_class_k
 from isf_robot.core.strategies import make_strategy, strategy_info
 
-from .actuation import Actuation, make_actuation
+from .actuation import Actuation, make_actuation, tracking_step
 from .barriers import CollisionBarriers, JointLimitBarriers
 from .collision import NearPairs
 from .episode import EpisodeSetup, check_control_period, episode_setup, path_track
+from .lowlevel import as_slice
 from .monitor import SafetyMonitor
 from .nominal import NominalController, ReachingController
 from .params import filter_options, resolve_params
@@ -241,7 +242,9 @@ class _Episode:
                 pos, vel = path_track(mv.path, t_phys)
                 self.track[:, j] = pos
                 self.lin_all[:, self.mocap_rows[j]] = vel[: n_ctrl * self.S: self.S]
-            data.mocap_pos[self.mocap_rows] = self.track[0]
+            sel = as_slice(np.asarray(self.mocap_rows))
+            self._mocap_view = data.mocap_pos[sel] if type(sel) is slice else None  # (a view: cheaper to write)
+            self._place(0)
         mujoco.mj_forward(model, data)
         sim.nominal.reset()
         sim.tracker.reset(data)
@@ -260,15 +263,22 @@ class _Episode:
         self._screen_j = np.full(nj, sim.keep_joint)
         self._screen_cache: dict[int, np.ndarray] = {}
         self._names_cache: dict[bytes, tuple[str, ...]] = {}
-        self._command = getattr(sim.tracker, "command", None) or self._track  # tracking error, command, apply
+        self._command = tracking_step(sim.tracker, scene.dof_adr)  # tracking error, set_command and apply in one
 
     # -- phases --------------------------------------------------------------------------
     def sense(self, k: int) -> None:
         """Move the obstacles to their place at the tick and run ``mj_step1``."""
         if self.moving:
-            self.data.mocap_pos[self.mocap_rows] = self.track[k * self.S]
+            self._place(k * self.S)
             self.lin = self.lin_all[k]
         mujoco.mj_step1(self.model, self.data)
+
+    def _place(self, i: int) -> None:
+        """Put the moving obstacles where they are at physics step ``i`` of the run."""
+        if self._mocap_view is not None:
+            self._mocap_view[...] = self.track[i]
+        else:
+            self.data.mocap_pos[self.mocap_rows] = self.track[i]
 
     def barriers(self) -> tuple[NearPairs, np.ndarray, LieData | None]:
         """Barrier values at the tick (and its safety accounting); the rows for the strategy.
@@ -279,14 +289,12 @@ class _Episode:
         sim = self.sim
         near, h, g, jmin, gn, lf = sim.coll.rows(self.data, sim.joints, self.lin, witness=self.recording,
                                                  coherence=self.coherence)
-        row_list = near.row_list
-        self.dmin = self.monitor.tick_min(min(near.h_min, self._h_far_min), row_list, near.dist_min, near.rows)
-        if jmin < self.min_joint:
-            self.min_joint = jmin
-        jh = h[len(row_list):]
+        self.dmin = self.monitor.tick_min(min(near.h_min, self._h_far_min), near.row_list, near.dist_min, near.rows)
+        self.min_joint = min(self.min_joint, jmin)  # (jmin when smaller)
+        jh = h[len(near.row_list):]
         if not self.uses_rows:
             return near, jh, None
-        key = tuple(row_list)
+        key = tuple(near.row_list)
         names = self._names_cache.get(key)
         if names is None:
             names = self._names_cache[key] = tuple(sim.coll.names[i] for i in key) + sim.joints.names
@@ -319,7 +327,7 @@ class _Episode:
         bound, base = (self.dmin if self.recording else -math.inf), k * self.S
         for s in range(1, self.S):
             if self.moving:
-                data.mocap_pos[self.mocap_rows] = self.track[base + s]
+                self._place(base + s)
             mujoco.mj_step1(model, data)
             d2 = monitor.substep(data, bound)
             if d2 < self.dmin:
@@ -327,14 +335,6 @@ class _Episode:
                 bound = d2 if self.recording else bound
             tracker.apply(data)
             mujoco.mj_step2(model, data)
-
-    def _track(self, data: mujoco.MjData, u: np.ndarray, period: float) -> float:
-        """:meth:`~isf_robot.arm.lowlevel.VelocityTracker.command` of a tracker without it."""
-        tracker = self.sim.tracker
-        e = data.qvel[self.sim.scene.dof_adr] - tracker.u
-        tracker.set_command(u, period)
-        tracker.apply(data)
-        return math.sqrt(float(e.dot(e)))
 
     # -- records and summary ---------------------------------------------------------------
     def record(self, t: float, step: Any, near: NearPairs, jh: np.ndarray) -> ArmStepRecord:
@@ -364,7 +364,7 @@ class _Episode:
         """Account the state after the last step and summarise the run."""
         sim, model, data = self.sim, self.model, self.data
         if self.moving:
-            data.mocap_pos[self.mocap_rows] = self.track[self.n_ctrl * self.S]
+            self._place(self.n_ctrl * self.S)
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         last = sim.coll.evaluate(data)

@@ -21,6 +21,7 @@ from isf_robot.arm.monitor import SafetyMonitor
 from isf_robot.arm.pairs import collision_pairs
 from isf_robot.arm.params import resolve_params
 from isf_robot.arm.sim import ArmSimulation
+from isf_robot.core.exceptions import ShapeError
 
 pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba not installed (the fast extra)")
 
@@ -120,13 +121,32 @@ def test_kernel_rows_equal_along_a_path_with_the_coherence_bounds(rng) -> None: 
 def test_kernel_dhdt_of_mocap_obstacles_equals_numpy(rng) -> None:  # type: ignore[no-untyped-def]
     scene = load_scene("panda_moving")
     fast, slow = _pair(scene)
+    joints = JointLimitBarriers.from_scene(scene)
+    assert fast._kdot == kernels.dot3_lanes()  # dh/dt in the kernel where the order matches numpy's einsum
     lin = rng.normal(0.0, 0.3, (scene.model.nmocap, 3))
     moving = 0
     for d in _random_states(scene, rng, 60):
         x, y = fast.near(d, lin, witness=True), slow.near(d, lin, witness=True)
         _assert_same_near(x, y)
         moving += int(np.count_nonzero(x.dhdt))
+        rx, ry = fast.rows(d, joints, lin), slow.rows(d, joints, lin)
+        _assert_same_near(rx.near, ry.near)
+        assert _same(rx.lf, ry.lf) and _same(rx.lf[: len(rx.near.row_list)], x.dhdt)
+        assert not rx.lf[len(rx.near.row_list):].any()  # the joint rows' dh/dt is zero
     assert moving > 0
+    with pytest.raises(ShapeError, match="mocap velocities"):
+        fast.rows(scene.make_data(), joints, np.zeros((scene.model.nmocap + 1, 3)))
+
+
+def test_dhdt_order_found_for_this_machine_matches_numpy_on_fresh_rows(rng) -> None:  # type: ignore[no-untyped-def]
+    lanes = kernels.dot3_lanes()
+    if lanes == 0:
+        pytest.skip("no summation order matches numpy's einsum for 3 products here (numpy computes dh/dt)")
+    a, b = (rng.normal(size=(3000, 3)) * 10.0 ** rng.uniform(-6, 6, size=(3000, 3)) for _ in range(2))
+    a[rng.random(a.shape) < 0.3] = -0.0
+    want = np.einsum("ij,ij->i", a, b)
+    assert _same(kernels._kernels()["dots3"](a, b, lanes), want)
+    assert not _same(kernels._kernels()["dots3"](a, b, 3 - lanes), want)  # the other order differs
 
 
 def test_coinciding_witness_points_go_to_the_numpy_path(rng, monkeypatch) -> None:  # type: ignore[no-untyped-def]
