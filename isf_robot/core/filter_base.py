@@ -20,6 +20,7 @@ import numpy as np
 from .barrier import Barrier, evaluate_barriers
 from .class_k import ClassK, CustomClassK, Linear, as_class_k
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
+from .fast import xi_kernel
 from .qp import FilterQP, QPResult
 from .qp_solver import QPSolver
 from .step import FilterStep
@@ -39,14 +40,19 @@ for _a in _ACTIVE:
     _a.flags.writeable = False
 
 
+_NO_SCREEN = np.zeros(0)  # the kernel's "no screening"
+
+
 class _Xi(NamedTuple):
     """A step's checked ``Xi_on`` (:meth:`_FilterBase._xi`)."""
 
     u_nom: np.ndarray
     xi: np.ndarray
-    xl: list[float]  # xi as floats (finite)
     xi_min: float
     av: np.ndarray  # alpha(h) per row
+    argmin: int  # first row of least Xi_on (-1: not computed)
+    kept: int  # rows with Xi_on below their screening threshold (-1: not counted)
+    first: int  # the first of them (-1: none, or not counted)
 
 
 class _FilterBase:
@@ -94,6 +100,7 @@ class _FilterBase:
             raise ConfigError("fallback must be callable fallback(t, x, lie, qp_result) -> u")
         self.fallback = fallback
         self.screen = self._check_screen(screen)
+        self._kernel = xi_kernel()  # (ISF_ROBOT_JIT is read when the filter is built)
         self.qp_solves = 0
         self._switches = SwitchCounter()
 
@@ -131,25 +138,50 @@ class _FilterBase:
         return not ((self.u_min is not None and bool(np.any(u < self.u_min)))
                     or (self.u_max is not None and bool(np.any(u > self.u_max))))
 
-    def _xi(self, t: float, lie: LieData, u_nom: np.ndarray) -> _Xi:
-        """Checked inputs, ``Xi_on`` per row (array and list), its minimum and ``alpha(h)``.
+    def _xi(self, t: float, lie: LieData, u_nom: np.ndarray, screen: float | np.ndarray | None = None) -> _Xi:
+        """Checked inputs, ``Xi_on`` per row, its minimum and ``alpha(h)``; with ``screen``, the screening count.
 
-        A non-finite input raises NonFiniteError. (The check and the minimum work on a list:
-        a sum of NaN or inf is not finite, and the minimum of finite floats is exact, so both
-        give what the array reductions give, at a third of their cost for a robot's rows.)
-        A finite ``Xi_on`` also means finite ``Lg h`` and ``u_nom`` (an infinite or NaN entry of
-        either makes ``Lg h u_nom`` infinite or NaN).
+        A non-finite input raises NonFiniteError (a finite ``Xi_on`` also means finite ``Lg h`` and
+        ``u_nom``). The compiled kernel (:mod:`isf_robot.core.fast`) makes the same numbers in one
+        pass for float64 vectors of one length; otherwise numpy (check and minimum on a list: a sum
+        of NaN or inf is not finite, the minimum of finite floats is exact).
         """
         if self.validate:
             lie.validate()
             u_nom = as_vector(u_nom, "nominal command u_nom", lie.m)
         av = self.alpha.vector(lie.h)
+        kernel = self._kernel
+        if kernel is not None:
+            lf, gn, k = lie.lf, lie.grad_norm, lie.h.shape
+            lgu = lie.lg.dot(u_nom)  # (dot: the BLAS product of @, as in xi_on)
+            sa = self._screen_array(screen, k[0])
+            if (sa is not None and lf.shape == k and gn.shape == k and av.shape == k and lgu.shape == k
+                    and lf.dtype == _F64 and gn.dtype == _F64 and av.dtype == _F64 and lgu.dtype == _F64):
+                xi = np.empty(k)
+                total, low, arg, kept, first = kernel(lf, lgu, gn, self.d_bar, av, sa, xi)
+                if not math.isfinite(total):
+                    raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
+                                         f"Xi_on = {xi}, u_nom = {u_nom}")
+                return _Xi(u_nom, xi, low, av, arg, kept, first)
         xi = xi_on(lie, u_nom, self.alpha, self.d_bar, av)
         xl = xi.tolist()
         if not math.isfinite(sum(xl)):
             raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
                                  f"Xi_on = {xi}, u_nom = {u_nom}")
-        return _Xi(u_nom, xi, xl, min(xl) if xl else math.inf, av)
+        return _Xi(u_nom, xi, min(xl) if xl else math.inf, av, -1, -1, -1)
+
+    def _screen_array(self, screen: float | np.ndarray | None, k: int) -> np.ndarray | None:
+        """The screening thresholds as the kernel takes them (``None``: leave it to numpy)."""
+        if screen is None:
+            return _NO_SCREEN
+        if type(screen) is np.ndarray:
+            if screen.dtype == _F64 and screen.ndim == 1 and screen.shape[0] in (1, k):
+                return screen
+            return None
+        try:
+            return np.full(1, float(screen))
+        except (TypeError, ValueError):
+            return None
 
     def build_qp(
         self, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None = None, b: float = 0.0,
@@ -196,23 +228,33 @@ class _FilterBase:
         and ``alpha(h)`` then save array work).
         """
         screen = self.screen if screen is None else screen
-        if screen is not None and lie.k > 1:
-            keep = xi < np.maximum(screen, floor) if floor > 0 else xi < screen
-            if promote is not None:
-                keep |= promote  # a promoted row is never screened out
-            rows = keep.nonzero()[0]
-            n = rows.size
-            if n < keep.size:  # (not keep.all())
+        k = xi.shape[0]
+        if screen is not None and k > 1:
+            keep = rows = None
+            if xs is not None and xs.kept >= 0 and promote is None and not floor > 0:
+                n = xs.kept  # counted by the kernel, with these thresholds
+            else:
+                keep = xi < np.maximum(screen, floor) if floor > 0 else xi < screen
+                if promote is not None:
+                    keep |= promote  # a promoted row is never screened out
+                rows = keep.nonzero()[0]
+                n = rows.size
+            if n < k:  # (not keep.all())
                 if n <= 1 and promote is None and self._one_row_ok(lie):
-                    xl = xs.xl if xs is not None else None
-                    i = (xl.index(xs.xi_min) if xl is not None else int(xi.argmin())) if n == 0 else int(rows[0])
+                    if n == 1:
+                        i = int(rows[0]) if rows is not None else xs.first  # type: ignore[union-attr]
+                    else:
+                        i = xs.argmin if xs is not None and xs.argmin >= 0 else int(xi.argmin())
                     res = self._solve_one(lie, u_nom, i, n == 1, xs)
                     if res is not None:
-                        if self._screened_rows_hold(lie, xi, xl, res.u, u_nom, i):
+                        if self._screened_rows_hold(lie, xi, None if xs is None else xs.xi_min, res.u, u_nom, i):
                             return res, (), False, False
                         first = res.solve_time_s
                         res, relaxed, fb = self._solve_block(t, x, lie, u_nom, None, lie.names, None)
                         return replace(res, solve_time_s=res.solve_time_s + first), relaxed, fb, True
+                if keep is None or rows is None:  # (the kernel counted: the rows themselves now)
+                    keep = xi < screen
+                    rows = keep.nonzero()[0]
                 if n == 0:  # the row of least slack alone (views: no copies)
                     i = int(xi.argmin())
                     rows = np.array([i])
@@ -282,27 +324,28 @@ class _FilterBase:
         self.qp_solves += 1
         return QPResult._of(u, "closed_form", _ACTIVE[slack <= solver.active_tol], time.perf_counter() - t0)
 
-    def _screened_rows_hold(self, lie: LieData, xi: np.ndarray, xl: list[float] | None, u: np.ndarray,
+    def _screened_rows_hold(self, lie: LieData, xi: np.ndarray, xi_min: float | None, u: np.ndarray,
                             u_nom: np.ndarray, i: int) -> bool:
         """Whether every row but ``i`` has robust slack >= active_tol at ``u`` (row ``i`` solved alone).
 
         The slack of row j at u is ``xi_j + Lg h_j (u - u_nom)`` (``xi``: the slacks at ``u_nom``),
         so one product covers every row; at ``u = u_nom`` it is ``xi_j`` itself (``Lg h`` finite:
-        its product with zero is zero). ``xl``: ``xi`` as a finite list, when the caller has it.
+        its product with zero is zero). ``xi_min``: the minimum of a finite ``xi``, when the caller
+        has it.
         """
         tol = self.solver.active_tol
-        if u is u_nom and xl is not None:
-            if min(xl) >= tol:
+        if u is u_nom and xi_min is not None:
+            if xi_min >= tol:
                 return True
-            sl = xl.copy()
+            slack = xi.copy()
         else:
             slack = xi + lie.lg.dot(u - u_nom)
             sl = slack.tolist()
-            if not math.isfinite(sum(sl)):  # (NaN: as the array minimum, never >= tol)
-                slack[i] = math.inf
-                return bool(slack.min() >= tol)
-        sl[i] = math.inf
-        return min(sl) >= tol
+            if math.isfinite(sum(sl)):
+                sl[i] = math.inf
+                return min(sl) >= tol
+        slack[i] = math.inf  # (NaN: as the array minimum, never >= tol)
+        return bool(slack.min() >= tol)
 
     def _screened_rows_hold_mask(self, lie: LieData, xi: np.ndarray, du: np.ndarray, keep: np.ndarray) -> bool:
         """Whether every screened-out row's robust condition has slack >= active_tol at ``u_nom + du``.

@@ -92,7 +92,8 @@ class SafetyFilter(_FilterBase):
         ``screen`` overrides the constructor's row-screening threshold for this step (scalar or
         one per row of ``lie``).
         """
-        xs = self._xi(t, lie, u_nom)
+        screen = self.screen if screen is None else screen
+        xs = self._xi(t, lie, u_nom, screen)
         u_nom, xi = xs.u_nom, xs.xi
         res, _, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, None, 0.0, screen, xs)
         active = res.active

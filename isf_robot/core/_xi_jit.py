@@ -1,0 +1,39 @@
+"""The numba kernel of :mod:`isf_robot.core.fast` (imported only when numba is installed).
+
+A module-level function, so numba's cache (``__pycache__``) serves later processes.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def xi_screen(lf, lgu, gn, d_bar, av, screen, out):  # pragma: no cover (compiled)
+    """``out = ((lf + lgu) - gn d_bar) + av`` and, in the same pass, what the filter step reads of it.
+
+    Returns ``(sum, min, first index of the min, rows below their threshold, first such row)``;
+    ``screen``: no entries (no screening: count -1), one (every row's threshold) or one per row.
+    """
+    k = out.shape[0]
+    ns = screen.shape[0]
+    total = 0.0
+    low = math.inf
+    arg = 0
+    kept = 0 if ns else -1
+    first = -1
+    for i in range(k):
+        x = ((lf[i] + lgu[i]) - gn[i] * d_bar) + av[i]
+        out[i] = x
+        total += x
+        if x < low:
+            low = x
+            arg = i
+        if ns:
+            if x < (screen[i] if ns > 1 else screen[0]):
+                kept += 1
+                if first < 0:
+                    first = i
+    return total, low, arg, kept, first

@@ -1,0 +1,50 @@
+"""The filter step's compiled kernel (optional: needs ``numba``, the ``fast`` extra).
+
+Why: the robust slack ``Xi_on`` of every row (:func:`~isf_robot.core.triggers.xi_on`), its sum
+(the finiteness check), its minimum and where it is, and the screening count, are about ten
+numpy calls and list passes on a robot's 10-30 rows; their call overhead, not the arithmetic,
+was a third of the standard filter's step. :func:`xi_kernel` does them in one compiled pass.
+
+Same answers: the product ``Lg h u_nom`` stays numpy's (BLAS sums it in its own order, with fused
+multiply-adds), and the kernel then makes exactly the elementwise operations of
+:func:`~isf_robot.core.triggers.xi_on` in its order, ``((lf + lg u) - |dh/dx| d_bar) + alpha(h)``,
+each an IEEE operation that numpy and the compiled loop round alike (numba does not contract
+them into fused multiply-adds without ``fastmath``); the sum runs in Python's order, and the
+minimum and the first index of it are those of ``min``/``argmin``. ``tests/core/test_fast.py``
+checks it bit for bit against the numpy path.
+
+Without numba, or with ``ISF_ROBOT_JIT=0`` in the environment, :func:`xi_kernel` returns ``None``
+and the filters use numpy. The first use compiles the kernel (about a second; cached in
+``__pycache__`` for later processes).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from typing import Any
+
+__all__ = ["xi_kernel"]
+
+_STATE: dict[str, Any] = {}
+
+
+def _build() -> Callable[..., Any] | None:
+    if os.environ.get("ISF_ROBOT_JIT", "1").strip().lower() in ("0", "false", "no", "off"):
+        return None
+    try:
+        from ._xi_jit import xi_screen
+    except ImportError:
+        return None
+    return xi_screen
+
+
+def xi_kernel() -> Callable[..., Any] | None:
+    """``xi_screen(lf, lgu, gn, d_bar, av, screen, out) -> (sum, min, argmin, kept, first)``, or ``None``.
+
+    See :mod:`isf_robot.core._xi_jit`. ``None``: numba is missing or ``ISF_ROBOT_JIT=0``.
+    """
+    key = os.environ.get("ISF_ROBOT_JIT", "1")
+    if _STATE.get("key") != key:
+        _STATE["key"], _STATE["kernel"] = key, _build()
+    return _STATE["kernel"]

@@ -1,0 +1,89 @@
+"""The filter step's compiled kernel (isf_robot.core.fast): the numpy path's numbers, bit for bit."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from isf_robot.core import CustomClassK, IntermittentSafetyFilter, LieData, Linear, NonFiniteError, Power, SafetyFilter
+from isf_robot.core.triggers import xi_on
+
+pytest.importorskip("numba")
+
+ALPHAS = [Linear(2.0), Power(3.0, 0.7), CustomClassK(lambda h: h + h ** 3, "cubic")]
+
+
+def _kernel():  # type: ignore[no-untyped-def]
+    from isf_robot.core.fast import xi_kernel
+
+    kernel = xi_kernel()
+    assert kernel is not None, "numba is installed: the kernel must load"
+    return kernel
+
+
+def _lie(rng: np.random.Generator, k: int, m: int) -> LieData:
+    lg = rng.normal(size=(k, m)) * 10.0 ** rng.uniform(-3, 3, size=(k, 1))
+    h = rng.uniform(-0.1, 0.5, k)
+    h[rng.random(k) < 0.2] = 0.0  # signed zeros and ties
+    return LieData(h, rng.normal(scale=0.2, size=k), lg, np.linalg.norm(lg, axis=1), tuple(f"b{i}" for i in range(k)))
+
+
+@pytest.mark.parametrize("alpha", ALPHAS, ids=repr)
+def test_kernel_makes_xi_on_and_its_reductions_bit_for_bit(alpha) -> None:  # type: ignore[no-untyped-def]
+    kernel = _kernel()
+    rng = np.random.default_rng(11)
+    for _ in range(400):
+        k, m = int(rng.integers(1, 40)), int(rng.integers(1, 10))
+        lie, u = _lie(rng, k, m), rng.normal(size=m)
+        d_bar = float(rng.choice([0.0, 0.05, 3.0]))
+        ref = xi_on(lie, u, alpha, d_bar)
+        for screen in (np.zeros(0), np.full(1, 0.1), rng.uniform(-0.5, 1.0, k)):
+            out = np.empty(k)
+            total, low, arg, kept, first = kernel(lie.lf, lie.lg.dot(u), lie.grad_norm, d_bar,
+                                                  alpha.vector(lie.h), screen, out)
+            assert out.tobytes() == ref.tobytes()  # signed zeros included
+            assert total == sum(ref.tolist()) and low == min(ref.tolist()) and arg == int(ref.argmin())
+            below = np.flatnonzero(ref < (screen if screen.size else np.inf))
+            assert kept == (below.size if screen.size else -1)
+            assert first == (int(below[0]) if screen.size and below.size else -1)
+
+
+def _run(make, jit: str, monkeypatch: pytest.MonkeyPatch, seed: int) -> list:  # type: ignore[no-untyped-def]
+    monkeypatch.setenv("ISF_ROBOT_JIT", jit)
+    f = make()
+    assert (f._kernel is None) == (jit == "0")
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(300):
+        lie = _lie(rng, int(rng.integers(1, 9)), 8)  # at most as many rows as inputs: feasible
+        screen = float(rng.choice([0.05, 0.3])) if i % 3 else rng.uniform(0.01, 0.5, lie.k)
+        s = f.step_lie(0.01 * i, lie, rng.normal(size=8), screen=screen)
+        out.append((s.u.tobytes(), s.xi.tobytes(), s.on, str(s.event), s.resolved,
+                    None if s.qp is None else (s.qp.status, s.qp.active.tolist())))
+    return out
+
+
+@pytest.mark.parametrize("alpha", ALPHAS, ids=repr)
+@pytest.mark.parametrize("kind", ["cbf", "isf"])
+def test_filters_give_the_same_steps_with_and_without_the_kernel(alpha, kind, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    def make():  # type: ignore[no-untyped-def]
+        if kind == "cbf":
+            return SafetyFilter(alpha, 0.05, validate=False)
+        return IntermittentSafetyFilter(alpha, 0.1, 0.05, 0.05, validate=False, blend=0.03)
+
+    steps = _run(make, "1", monkeypatch, 5)
+    assert steps == _run(make, "0", monkeypatch, 5)
+    assert any(s[2] for s in steps) and any(s[5] is not None and s[5][0] == "closed_form" for s in steps)
+
+
+def test_non_finite_data_and_bad_shapes_are_refused_as_without_the_kernel() -> None:
+    f = SafetyFilter(1.0, 0.1, validate=False)
+    assert f._kernel is not None
+    lie = LieData(np.array([0.5, 0.2]), np.array([0.0, math.inf]), np.eye(2), np.ones(2))
+    with pytest.raises(NonFiniteError):
+        f.step_lie(0.0, lie, np.zeros(2), screen=0.2)
+    long = LieData(np.array([0.5, 0.2]), np.zeros(3), np.eye(2), np.ones(2))  # lf one row too many
+    with pytest.raises(ValueError):  # numpy's broadcasting error, never the kernel reading 2 of 3 rows
+        f.step_lie(0.0, long, np.zeros(2), screen=0.2)
