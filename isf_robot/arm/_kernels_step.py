@@ -24,6 +24,7 @@ from numba import carray, njit, types
 from numba.extending import intrinsic
 
 from ._kernels_jit import f64p as _f64p  # (importing it loads libmujoco's symbols; ImportError without it)
+from ._kernels_jit import monitor
 
 _ptr, _i32, _f64 = types.intp, types.int32, types.float64
 # void mj_mulM(const mjModel* m, const mjData* d, mjtNum* res, const mjtNum* vec)
@@ -126,6 +127,14 @@ def track_step(ma, da, p, buf, n, nv, cmd, inv_period, feedforward):  # pragma: 
         buf[U * n + i] = cmd[i]
     _apply(ma, da, p, buf, n, nv)
     return math.sqrt(s)
+
+
+@njit(cache=True, nogil=True)
+def monitor_apply(ma, da, rows, g1, g2, margin, thresh, bound, p, buf, n, nv):  # pragma: no cover (compiled)
+    """A physics sub-step's safety check (``_kernels_jit.monitor``), then the tracker's apply, in one call."""
+    step_h, step_d = monitor(ma, da, rows, g1, g2, margin, thresh, bound)
+    _apply(ma, da, p, buf, n, nv)
+    return step_h, step_d
 
 
 # -- the reaching controller (ReachingController.__call__) -------------------------------------

@@ -63,6 +63,7 @@ def _build() -> dict[str, Callable[..., Any]] | None:
         return None
     return {"near": kj.near, "near_packed": kj.near_packed, "monitor": kj.monitor, "norms": kj.norms, "dots3": kj.dots3,
             "track_apply": ks.track_apply, "track_step": ks.track_step, "reach": ks.reach,
+            "monitor_apply": ks.monitor_apply,
             "blas_orders": ks.blas_orders}
 
 
@@ -178,7 +179,8 @@ def _blas_orders(n: int) -> tuple[bool, bool]:
 def step_kernels(n: int) -> dict[str, Any] | None:
     """The compiled kernels of the act and nominal phases for an arm of ``n`` joints (``None``: numpy).
 
-    Keys: ``track_apply`` and ``track_step`` (:class:`~isf_robot.arm.lowlevel.VelocityTracker`), ``reach``
+    Keys: ``track_apply`` and ``track_step`` (:class:`~isf_robot.arm.lowlevel.VelocityTracker`),
+    ``monitor_apply`` (a sub-step's safety check and the tracker's apply in one call), ``reach``
     (:class:`~isf_robot.arm.nominal.ReachingController`, ``None`` where this machine's BLAS sums its
     products in another order than the kernel), ``dot``: whether ``track_step``'s tracking error is
     numpy's to the bit.
@@ -187,5 +189,5 @@ def step_kernels(n: int) -> dict[str, Any] | None:
     if k is None:
         return None
     ok_dot, ok_reach = _blas_orders(int(n))
-    return {"track_apply": k["track_apply"], "track_step": k["track_step"],
+    return {"track_apply": k["track_apply"], "track_step": k["track_step"], "monitor_apply": k["monitor_apply"],
             "reach": k["reach"] if ok_reach else None, "dot": ok_dot}

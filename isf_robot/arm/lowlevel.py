@@ -185,6 +185,18 @@ class VelocityTracker:
                              passive[d0:].ctypes.data, d0)
             self._daddr = int(data._address) if self._kernels is not None else 0
 
+    def compiled_apply(self, data: mujoco.MjData) -> tuple | None:
+        """``(kernels, addresses, buffer, n, nv)`` of the compiled :meth:`apply` bound to ``data`` (``None``: numpy).
+
+        For a caller that fuses :meth:`apply` with its own compiled work
+        (:meth:`~isf_robot.arm.monitor.SafetyMonitor.substep`).
+        """
+        if self._kernels is None:
+            return None
+        if data is not self._data:
+            self._bind(data)
+        return self._kernels, self._ptrs, self._buf, self.n, self._acc_full.size
+
     def command(self, data: mujoco.MjData, u: np.ndarray, period: float | None = None) -> float:
         """The tracking error of the held command, then :meth:`set_command` and :meth:`apply` in one.
 

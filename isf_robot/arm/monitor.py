@@ -9,12 +9,16 @@ physics steps, ``collisions`` counts the physics steps at which some pair has
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
 from . import kernels
 from .barriers import CollisionBarriers
+
+if TYPE_CHECKING:
+    from .actuation import Actuation
 
 __all__ = ["SafetyMonitor"]
 
@@ -80,7 +84,7 @@ class SafetyMonitor:
             self.min_h = h_min
         return dist_min if rows else math.inf
 
-    def substep(self, data: mujoco.MjData, bound: float = -math.inf) -> float:
+    def substep(self, data: mujoco.MjData, bound: float = -math.inf, tracker: Actuation | None = None) -> float:
         """Check the pairs near at the last tick; return their smallest distance.
 
         Args:
@@ -90,6 +94,8 @@ class SafetyMonitor:
                 only the run's minimum barrier and the collision count matter). Each pair's
                 ``distmax`` is the larger of that and what could change the running minimum
                 barrier or count a collision, so ``mj_geomDistance`` can stop early.
+            tracker: Then ``tracker.apply(data)`` (in the same compiled call where both have one:
+                :meth:`~isf_robot.arm.lowlevel.VelocityTracker.compiled_apply`).
 
         Returns:
             The smallest distance found [m]: exact when below ``bound``, otherwise a value
@@ -99,18 +105,29 @@ class SafetyMonitor:
         self.steps += 1
         rows = self.rows
         if not rows:
+            if tracker is not None:
+                tracker.apply(data)
             return math.inf
         thresh = max(self.min_h, 0.0)
+        fused = tracker.compiled_apply(data) if self._kernel is not None and tracker is not None and hasattr(
+            tracker, "compiled_apply") else None
         if self._kernel is not None:
             if data is not self._data:
                 self._data, self._daddr = data, data._address
             ra = self._rows_arr
             if ra is None:
                 ra = self._rows_arr = np.array(rows, dtype=np.int64)
-            step_h, step_d = self._kernel(self._maddr, self._daddr, ra, self._g1, self._g2,
-                                          self._margin, thresh, bound)
+            if fused is not None:
+                k, ptrs, buf, n, nv = fused
+                step_h, step_d = k["monitor_apply"](self._maddr, self._daddr, ra, self._g1, self._g2, self._margin,
+                                                    thresh, bound, ptrs, buf, n, nv)
+            else:
+                step_h, step_d = self._kernel(self._maddr, self._daddr, ra, self._g1, self._g2,
+                                              self._margin, thresh, bound)
         else:
             step_h, step_d = self._substep_python(data, rows, thresh, bound)
+        if tracker is not None and fused is None:
+            tracker.apply(data)
         if step_h < 0.0:
             self.collisions += 1
         if step_h < self.min_h:

@@ -329,11 +329,10 @@ class _Episode:
             if self.moving:
                 self._place(base + s)
             mujoco.mj_step1(model, data)
-            d2 = monitor.substep(data, bound)
+            d2 = monitor.substep(data, bound, tracker)  # (then tracker.apply, in one compiled call where it can)
             if d2 < self.dmin:
                 self.dmin = d2
                 bound = d2 if self.recording else bound
-            tracker.apply(data)
             mujoco.mj_step2(model, data)
 
     # -- records and summary ---------------------------------------------------------------

@@ -13,8 +13,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from isf_robot.arm import kernels, load_scene
+from isf_robot.arm import CollisionBarriers, kernels, load_scene
 from isf_robot.arm.lowlevel import VelocityTracker
+from isf_robot.arm.monitor import SafetyMonitor
 from isf_robot.arm.nominal import ReachingController
 
 pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba not installed (the fast extra)")
@@ -74,6 +75,34 @@ def test_tracker_kernel_follows_a_new_mjdata_and_changed_gains() -> None:
         out.append((first.ctrl.copy(), second.ctrl.copy()))
     assert _same(out[0][0], out[1][0]) and _same(out[0][1], out[1][1])
     assert not _same(out[0][0], out[0][1])  # each data got its own torques
+
+
+def test_substep_check_and_apply_in_one_call_equal_the_separate_calls(rng) -> None:  # type: ignore[no-untyped-def]
+    scene = load_scene("panda_shelf")
+    model = scene.model
+    fast_c = CollisionBarriers.from_scene(scene)
+    slow_c = CollisionBarriers(model, fast_c.pairs, scene.dof_adr, fast_c.cutoff, jit=False)
+    runs = [(fast_c, VelocityTracker(scene)), (slow_c, VelocityTracker(scene, jit=False))]
+    out = []
+    for coll, tr in runs:
+        mon, d = SafetyMonitor(coll), scene.make_data()
+        d.qpos[scene.qpos_adr] += np.linspace(-0.3, 0.5, scene.n_joints)  # toward the shelf
+        mujoco.mj_forward(model, d)
+        tr.reset(d)
+        seq, fused = [], 0
+        for i in range(300):
+            mujoco.mj_step1(model, d)
+            near = coll.near(d)
+            mon.tick_min(min(near.h_min, coll.h_far_min), near.row_list, near.dist_min, near.rows)
+            tr.command(d, np.sin(0.02 * i + np.arange(scene.n_joints)) * 0.8, 0.002)
+            mujoco.mj_step2(model, d)
+            mujoco.mj_step1(model, d)
+            fused += bool(near.row_list) and tr.compiled_apply(d) is not None
+            seq.append((mon.substep(d, near.dist_min if i % 2 else -np.inf, tr), d.ctrl.tobytes()))
+            mujoco.mj_step2(model, d)
+        out.append((seq, mon.min_h, mon.collisions, mon.steps, d.qpos.tobytes(), fused))
+    assert out[0][:5] == out[1][:5]
+    assert out[0][5] > 50 and out[1][5] == 0  # the fused call did run (and not on the numpy side)
 
 
 def _controllers(scene, **kw):  # type: ignore[no-untyped-def]
