@@ -42,7 +42,7 @@ from . import kernels
 from .batch import BarrierBatch
 from .broadphase import BroadPhase, JointCoherence
 from .clearance import Clearance, _ClearanceSearch
-from .narrow import FilterRows, NarrowPhase, NearPairs
+from .narrow import FilterRows, NarrowPhase, NearPairs, _new
 from .pairs import CollisionPairs, collision_pairs
 
 if TYPE_CHECKING:
@@ -274,7 +274,7 @@ class CollisionBarriers(NarrowPhase):
 
         """
         if self._kernel is not None:
-            return FilterRows._make(self._near_compiled(data, mocap_lin, None, witness, coherence, joints))
+            return _new(FilterRows, self._near_compiled(data, mocap_lin, None, witness, coherence, joints))
         near = self._near_numpy(data, mocap_lin, None, witness, coherence)
         jh = joints.values(data)
         jl = jh.tolist()

@@ -23,6 +23,7 @@ if TYPE_CHECKING:
 __all__ = ["FilterRows", "NarrowPhase", "NearPairs"]
 
 _EPS_DIST = 1e-9  # [m] below this |dist| the witness points give no direction
+_new = tuple.__new__  # a NamedTuple from a tuple of its fields (as _make, without the length check)
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise cross product of (k, 3) arrays (cheaper than ``np.cross`` for small k)."""
@@ -177,7 +178,7 @@ class NarrowPhase:
             wit = wit[:, :2] if witness else None
         else:
             dhdt, wit = lf[:j], None
-        near = NearPairs._make((rows, row_list, h[:j], g[:j], dhdt, wit, h_min, dist_min))  # (_make: no __new__ call)
+        near = _new(NearPairs, (rows, row_list, h[:j], g[:j], dhdt, wit, h_min, dist_min))  # (no __new__ call)
         return near, h, g, jmin, gn, lf
 
     def _dhdt(self, data: mujoco.MjData, row_list: list[int], idx: np.ndarray, n: np.ndarray,
