@@ -24,9 +24,13 @@ import os
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["xi_kernel"]
+import numpy as np
+
+__all__ = ["xi_kernel", "screen_array"]
 
 _STATE: dict[str, Any] = {}
+_F64 = np.dtype(np.float64)
+_NO_SCREEN = np.zeros(0)  # the kernel's "no screening"
 
 
 def _build() -> Callable[..., Any] | None:
@@ -48,3 +52,21 @@ def xi_kernel() -> Callable[..., Any] | None:
     if _STATE.get("key") != key:
         _STATE["key"], _STATE["kernel"] = key, _build()
     return _STATE["kernel"]
+
+
+def screen_array(screen: float | np.ndarray | None, k: int) -> np.ndarray | None:
+    """Screening thresholds as the kernel takes them: none, one for every row, or one per row of ``k``.
+
+    ``None`` (a shape or type the kernel does not take): the caller uses numpy, which broadcasts
+    or refuses it as before.
+    """
+    if screen is None:
+        return _NO_SCREEN
+    if type(screen) is np.ndarray:
+        if screen.dtype == _F64 and screen.ndim == 1 and screen.shape[0] in (1, k):
+            return screen
+        return None
+    try:
+        return np.full(1, float(screen))
+    except (TypeError, ValueError):
+        return None

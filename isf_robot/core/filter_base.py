@@ -20,7 +20,7 @@ import numpy as np
 from .barrier import Barrier, evaluate_barriers
 from .class_k import ClassK, CustomClassK, Linear, as_class_k
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
-from .fast import xi_kernel
+from .fast import screen_array, xi_kernel
 from .qp import FilterQP, QPResult
 from .qp_solver import QPSolver
 from .step import FilterStep
@@ -38,9 +38,6 @@ FallbackFn = Callable[[float, "np.ndarray | None", LieData, QPResult], np.ndarra
 _ACTIVE = (np.zeros(1, bool), np.ones(1, bool))  # one row's activity, shared (read-only)
 for _a in _ACTIVE:
     _a.flags.writeable = False
-
-
-_NO_SCREEN = np.zeros(0)  # the kernel's "no screening"
 
 
 class _Xi(NamedTuple):
@@ -154,7 +151,7 @@ class _FilterBase:
         if kernel is not None:
             lf, gn, k = lie.lf, lie.grad_norm, lie.h.shape
             lgu = lie.lg.dot(u_nom)  # (dot: the BLAS product of @, as in xi_on)
-            sa = self._screen_array(screen, k[0])
+            sa = screen_array(screen, k[0])
             if (sa is not None and lf.shape == k and gn.shape == k and av.shape == k and lgu.shape == k
                     and lf.dtype == _F64 and gn.dtype == _F64 and av.dtype == _F64 and lgu.dtype == _F64):
                 xi = np.empty(k)
@@ -169,19 +166,6 @@ class _FilterBase:
             raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
                                  f"Xi_on = {xi}, u_nom = {u_nom}")
         return _Xi(u_nom, xi, min(xl) if xl else math.inf, av, -1, -1, -1)
-
-    def _screen_array(self, screen: float | np.ndarray | None, k: int) -> np.ndarray | None:
-        """The screening thresholds as the kernel takes them (``None``: leave it to numpy)."""
-        if screen is None:
-            return _NO_SCREEN
-        if type(screen) is np.ndarray:
-            if screen.dtype == _F64 and screen.ndim == 1 and screen.shape[0] in (1, k):
-                return screen
-            return None
-        try:
-            return np.full(1, float(screen))
-        except (TypeError, ValueError):
-            return None
 
     def build_qp(
         self, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None = None, b: float = 0.0,
@@ -240,17 +224,17 @@ class _FilterBase:
                 rows = keep.nonzero()[0]
                 n = rows.size
             if n < k:  # (not keep.all())
-                if n <= 1 and promote is None and self._one_row_ok(lie):
+                if n <= 1 and self._one_row_ok(lie):
                     if n == 1:
                         i = int(rows[0]) if rows is not None else xs.first  # type: ignore[union-attr]
                     else:
                         i = xs.argmin if xs is not None and xs.argmin >= 0 else int(xi.argmin())
-                    res = self._solve_one(lie, u_nom, i, n == 1, xs)
+                    res = self._solve_one(lie, u_nom, i, n == 1, xs, promote is not None and bool(promote[i]))
                     if res is not None:
                         if self._screened_rows_hold(lie, xi, None if xs is None else xs.xi_min, res.u, u_nom, i):
                             return res, (), False, False
                         first = res.solve_time_s
-                        res, relaxed, fb = self._solve_block(t, x, lie, u_nom, None, lie.names, None)
+                        res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote, lie.names, None)
                         return replace(res, solve_time_s=res.solve_time_s + first), relaxed, fb, True
                 if keep is None or rows is None:  # (the kernel counted: the rows themselves now)
                     keep = xi < screen
@@ -283,11 +267,13 @@ class _FilterBase:
         return (self.u_min is None and self.u_max is None and self.solver.closed_form
                 and lie.h.dtype == _F64 and lie.lf.dtype == _F64 and lie.grad_norm.dtype == _F64)
 
-    def _solve_one(self, lie: LieData, u_nom: np.ndarray, i: int, packed: bool, xs: _Xi | None) -> QPResult | None:
-        """Row ``i`` alone, robust, no bounds: the closed form without building the QP.
+    def _solve_one(self, lie: LieData, u_nom: np.ndarray, i: int, packed: bool, xs: _Xi | None,
+                   promoted: bool = False) -> QPResult | None:
+        """Row ``i`` alone (robust, or promoted), no bounds: the closed form without building the QP.
 
         The same numbers as :meth:`build_qp` and :meth:`QPSolver.solve_row` on that row: the bound
-        ``-alpha(h_i) - Lf h_i + |dh_i/dx| d_bar`` in the same order of operations (IEEE float64
+        ``r - Lf h_i + |dh_i/dx| d_bar`` with ``r = -alpha(h_i)``, or the promotion level (``b``, or
+        its ramp ``max(r, w b + (1 - w) r)``), in the same order of operations (IEEE float64
         arithmetic in floats and in numpy agree), the same products and the same check. ``None``
         when the closed form fails its check (the caller then solves the general way).
         ``packed``: the general way would have copied the row (``take``), so a strided row is
@@ -302,7 +288,12 @@ class _FilterBase:
             av = xs.av.item(i)  # (the same call of alpha on the same float)
         else:
             av = float(alpha.vector(lie.h[i:i + 1])[0])
-        lb = (-av - lie.lf.item(i)) + lie.grad_norm.item(i) * self.d_bar
+        rhs = -av
+        if promoted:  # (build_qp's level for this row)
+            b, w = getattr(self, "b", 0.0), getattr(self, "_ramp", 1.0)
+            w = w if type(w) is float else float(w[i])
+            rhs = b if w >= 1.0 else max(rhs, w * b + (1.0 - w) * rhs)
+        lb = (rhs - lie.lf.item(i)) + lie.grad_norm.item(i) * self.d_bar
         a = lie.lg[i]
         if packed and not a.flags.c_contiguous:
             a = a.copy()

@@ -290,20 +290,26 @@ class IntermittentSafetyFilter(_FilterBase):
         still ramping down) and their weights (1 elsewhere).
         """
         w = self._promotion_w  # key -> weight
-        keys: Sequence[Any] = names if len(names) == promote.size else range(promote.size)
+        k = promote.size
+        keys: Sequence[Any] = names if len(names) == k else range(k)
         rate = (t - self._t_ramp) / self.blend if self._t_ramp is not None else 0.0
         self._t_ramp = t
-        now = dict(zip(keys, promote.tolist()))
+        now = dict(zip(keys, promote.tolist()))  # (a repeated name: its last row decides, as before)
         for n in list(w):
             if not now.get(n, False):
                 w[n] -= rate
                 if w[n] <= 0.0:
                     del w[n]
-        for n, p in now.items():
-            if p:
+        for n in {keys[i] for i in promote.nonzero()[0].tolist()}:  # the promoted keys (each once)
+            if now[n]:
                 w[n] = min(1.0, w[n] + rate) if n in w else 0.0
-        mask = np.fromiter((n in w for n in keys), bool, promote.size)
-        return mask, np.array([w.get(n, 1.0) for n in keys])
+        if not w:
+            return np.zeros(k, bool), np.ones(k)
+        get = w.get
+        weights = np.array([get(n, -1.0) for n in keys])  # (weights are >= 0: -1 marks the rows not in w)
+        mask = weights >= 0.0
+        weights[~mask] = 1.0
+        return mask, weights
 
     def _done(self, step: FilterStep) -> FilterStep:
         self._u_prev = step.u

@@ -160,3 +160,34 @@ def test_backend_answers_are_judged_by_their_distance_to_the_feasible_set() -> N
     answer[:] = [np.array([1.0 - 1e-4, 1.0])]  # distance 1e-4: refused
     with pytest.raises(SolverError):
         solver.solve(big)
+
+
+@pytest.mark.parametrize("alpha", [2.0, Power(3.0, 0.7)])
+@pytest.mark.parametrize("blend", [0.0, 0.04])
+def test_the_short_way_of_one_kept_row_equals_the_general_way_on_and_off(alpha, blend) -> None:  # type: ignore[no-untyped-def]
+    # the intermittent filter's one kept row (robust, or promoted at b or on its hand-over ramp) goes
+    # the short way (_solve_one); the same filter with the short way switched off (the general
+    # way: build_qp + QPSolver.solve on the kept rows) must give every step bit for bit
+    def make():  # type: ignore[no-untyped-def]
+        return IntermittentSafetyFilter(alpha, 0.1, 0.05, 0.05, validate=False, blend=blend, screen=0.15)
+
+    short, general = make(), make()
+    general._one_row_ok = lambda lie: False  # type: ignore[method-assign]
+    calls = []
+    one = short._solve_one
+    short._solve_one = lambda *a: calls.append(a[-1]) or one(*a)  # type: ignore[method-assign]
+    rng = np.random.default_rng(8)
+    lie = _random_lie(rng, 6, 8)
+    for i in range(600):  # a slowly moving state, so the filter switches on and off and ramps
+        h = np.clip(lie.h + rng.normal(scale=0.02, size=6), -0.05, 0.6)
+        lie = LieData(h, lie.lf + rng.normal(scale=0.05, size=6), lie.lg + rng.normal(scale=0.05, size=(6, 8)),
+                      lie.grad_norm, lie.names)
+        u_nom = rng.normal(size=8)
+        a, b = short.step_lie(0.01 * i, lie, u_nom), general.step_lie(0.01 * i, lie, u_nom)
+        assert a.u.tobytes() == b.u.tobytes() and a.on == b.on and str(a.event) == str(b.event)
+        assert (a.qp is None) == (b.qp is None) and a.resolved == b.resolved
+        if a.qp is not None:
+            assert a.qp.status == b.qp.status and a.qp.active.tolist() == b.qp.active.tolist()
+    assert short.qp_solves == general.qp_solves
+    assert calls.count(True) > 20, "promoted rows must go the short way"
+    assert blend == 0 or calls.count(False) > 5, "robust rows (the hand-over's projection) too"
