@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 from isf_robot.core import IsfError, Observers
 from satellite.contact import ContactWatch
 from satellite.events import Event, IntegrationFailed, event, integrate
+from satellite.fast_arcs import CONTACT, FastArcs
 from satellite.model import OrbitModel
 from satellite.surface import SurfaceCheck
 from satellite.triggers import BandTriggers, EventFn
@@ -239,7 +240,9 @@ class ArcIntegrator:
         self.contact = contact
         self.contact_stop = contact_stop
         self.stopped: float | None = None
-        self._contact_ev = event(contact.g, False, 0.0, contact.rate, contact.batch) if contact is not None else None
+        self._contact_ev = (event(contact.g, False, 0.0, contact.rate, contact.batch, (CONTACT, 0.0, None))
+                            if contact is not None else None)
+        self.fast = FastArcs.make(model, track.trig, contact)
         self._in_contact = False
         self._in_env = False
 
@@ -269,11 +272,17 @@ class ArcIntegrator:
         s = self.settings
         extra = [w for w in (self.exit_watch, self._contact_ev) if w is not None]
         watched = list(events) + extra
-        if not s.event_scan:
-            watched = [event(e.fn, e.terminal, e.direction) for e in watched]
+        dense = self.check is not None or self.contact is not None
         try:
-            sol = integrate(self.rhs, t0, t1, y0, watched, rtol=s.rtol, atol=s.atol, max_step=s.max_step_s,
-                            dense=self.check is not None or self.contact is not None, min_dt=s.scan_min_dt_s)
+            sol = None
+            if self.fast is not None:
+                sol = self.fast.integrate(t0, t1, y0, watched, rtol=s.rtol, atol=s.atol, max_step=s.max_step_s,
+                                          dense=dense, min_dt=s.scan_min_dt_s, scan=s.event_scan)
+            if sol is None:
+                if not s.event_scan:
+                    watched = [event(e.fn, e.terminal, e.direction) for e in watched]
+                sol = integrate(self.rhs, t0, t1, y0, watched, rtol=s.rtol, atol=s.atol, max_step=s.max_step_s,
+                                dense=dense, min_dt=s.scan_min_dt_s)
         except IntegrationFailed as exc:
             raise SimulationError(f"integration failed at t = {exc.t / 3600:.4g} h: {exc}") from None
         if self._contact_ev is not None:
@@ -308,7 +317,8 @@ class ArcIntegrator:
                     return
         y1 = sol.y[:, -1]
         self._in_env = c.g(t1, y1) < 0.0
-        self._in_contact = bool(c.surface.inside(c.body_point(t1, y1)))
+        # outside the envelope is outside the shape: the exact inside test only within it
+        self._in_contact = self._in_env and bool(c.surface.inside(c.body_point(t1, y1)))
 
 
 def _truncate(sol: Any, tc: float) -> None:

@@ -66,6 +66,8 @@ class Event:
             states of shape (6,) or (6, k) and ``dt`` a float or shape (k,).
         batch: ``g`` at many points, ``(t (k,), y (6, k)) -> (k,)``, or ``None`` (a loop over
             ``fn``); must agree with ``fn``.
+        code: The compiled form of ``fn`` and ``rate`` for :mod:`satellite.fast_arcs`,
+            ``(kind, parameter, extra)``, or ``None`` (the arcs that watch it run in Python).
 
     """
 
@@ -74,6 +76,7 @@ class Event:
     direction: float
     rate: RateBound | None = None
     batch: BatchFn | None = None
+    code: tuple[int, float, Any] | None = None
 
     def __call__(self, t: float, y: NDArray[np.float64]) -> float:
         """``g(t, y)``."""
@@ -81,10 +84,11 @@ class Event:
 
 
 def event(
-    fn: EventFn, terminal: bool, direction: float, rate: RateBound | None = None, batch: BatchFn | None = None
+    fn: EventFn, terminal: bool, direction: float, rate: RateBound | None = None, batch: BatchFn | None = None,
+    code: tuple[int, float, Any] | None = None,
 ) -> Event:
     """Declare an event (see :class:`Event`)."""
-    return Event(fn, bool(terminal), float(direction), rate, batch)
+    return Event(fn, bool(terminal), float(direction), rate, batch, code)
 
 
 def _active(ga: float, gb: float, direction: float) -> bool:

@@ -46,8 +46,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from isf_robot.core import ConfigError, EventTriggeredImpulsiveController, JumpEvent, ManeuverScheduler
+from isf_robot.core.class_k import Linear
 from satellite.arcs import ArcIntegrator
 from satellite.events import event
+from satellite.fast_arcs import RDOT, XI, XITAU, H
 from satellite.triggers import BandTriggers, Trigger
 
 __all__ = [
@@ -107,8 +109,8 @@ class TriggerPolicy:
         self.holds = 0
         self.hold_overrides = 0
         self.rates = trig.rates()
-        self.xi_ev = event(trig.xi, True, -1.0, self.rates["xi"], trig.xi_batch)
-        self.apsis_ev = event(trig.r_dot, False, 0.0, self.rates["apsis"], trig.r_dot_batch)
+        self.xi_ev = event(trig.xi, True, -1.0, self.rates["xi"], trig.xi_batch, _xi_code(trig))
+        self.apsis_ev = event(trig.r_dot, False, 0.0, self.rates["apsis"], trig.r_dot_batch, (RDOT, 0.0, None))
         self.fire_evs = [self.xi_ev]  # + the surface barrier's Xi_s (set_surface)
         self.surface_fires = 0
         edge = trig.h_max * _EDGE
@@ -119,7 +121,7 @@ class TriggerPolicy:
         def near_edge_batch(s: NDArray[np.float64], x: NDArray[np.float64]) -> NDArray[np.float64]:
             return trig.h_batch(s, x) - edge
 
-        self.edge_evs = [event(near_edge, True, -1.0, self.rates["h"], near_edge_batch)]  # ends a hold
+        self.edge_evs = [event(near_edge, True, -1.0, self.rates["h"], near_edge_batch, (H, edge, None))]  # ends a hold
 
     def set_surface(self, strig: Any) -> None:
         """Watch the surface barrier's ``Xi_s`` too (:class:`satellite.surface_barrier.SurfaceTriggers`).
@@ -201,7 +203,7 @@ class NoControl(TriggerPolicy):
 
     def step(self, t: float, y: NDArray[np.float64], t_end: float) -> Step:
         """One arc to ``t_end`` or to the band exit; the run then ends."""
-        exit_ev = event(self.trig.h, True, -1.0, self.rates["h"], self.trig.h_batch)
+        exit_ev = event(self.trig.h, True, -1.0, self.rates["h"], self.trig.h_batch, (H, 0.0, None))
         sol = self.arc(t, t_end, y, [exit_ev, self.apsis_ev], "none", None)
         if sol.status == 1:
             self.left_band_s = float(sol.t_events[0][0])
@@ -239,7 +241,7 @@ class Maneuver(TriggerPolicy):
             raise ConfigError("the maneuver trigger needs a fitted tau_p (make one with `isf-satellite tau`)")
         self.sched = ManeuverScheduler(self.ctrl, tau.tau_p, tau.dtau_dh)
         self.xi_tau = self.trig.xi_tau_fn(tau.dtau_dh)
-        self.xi_tau_ev = event(self.xi_tau, True, -1.0, _xi_tau_rate(trig, tau))
+        self.xi_tau_ev = event(self.xi_tau, True, -1.0, _xi_tau_rate(trig, tau), code=(XITAU, 0.0, tau))
 
     def _jump(self, t: float, y: NDArray[np.float64], kind: str) -> NDArray[np.float64]:
         ev = self.sched.apply_jump(t, y, kind)
@@ -276,6 +278,11 @@ class Maneuver(TriggerPolicy):
                 self.surface_fires += i == 2
                 y = self._jump(t, y, "tau" if i == 1 else "safe")
         return t, y, False
+
+
+def _xi_code(trig: BandTriggers) -> tuple[int, float, Any] | None:
+    """The compiled form of ``Xi`` (:mod:`satellite.fast_arcs`): for a linear class-K function only."""
+    return (XI, 0.0, None) if isinstance(trig.alpha, Linear) else None
 
 
 def _first(sol: Any, indices: Any) -> int:
@@ -315,7 +322,7 @@ class Periodic(TriggerPolicy):
         """One arc to the next impulse time (impulse applied), to ``t_end`` or to the band exit (run ends)."""
         if self.at_start and not self.ctrl.jumps and t < t_end:
             y = self._jump(t, y, "periodic")
-        exit_ev = event(self.trig.h, True, -1.0, self.rates["h"], self.trig.h_batch)
+        exit_ev = event(self.trig.h, True, -1.0, self.rates["h"], self.trig.h_batch, (H, 0.0, None))
         t_next = min(t + self.period_s, t_end)
         sol = self.arc(t, t_next, y, [exit_ev, self.apsis_ev], "periodic", None)
         if sol.status == 1:

@@ -24,6 +24,7 @@ from satellite.arcs import ArcIntegrator, IntegratorSettings, SatelliteSample, S
 from satellite.contact import CONTACT_MODES, make_contact
 from satellite.controller import ControlParams, make_controller, resolve_control
 from satellite.events import event
+from satellite.fast_arcs import H as EV_H
 from satellite.mesh_surface import body_mesh_info, load_surface
 from satellite.model import BAND_INNER, BAND_OUTER, InitialOrbit, OrbitModel
 from satellite.policies import MIN_INTERVAL_S, make_policy
@@ -203,7 +204,7 @@ def simulate(
     track = Tracker(model, trig, obs, sample_interval_s)
     miet: MietReport = miet_estimate(model, resolved, samples=miet_samples)
     check = SurfaceCheck(surface, model.body_phase, model.omega, surface_step_s) if surface is not None else None
-    exit_watch = event(trig.h, False, -1.0, trig.rates()["h"], trig.h_batch)
+    exit_watch = event(trig.h, False, -1.0, trig.rates()["h"], trig.h_batch, (EV_H, 0.0, None))
     watch = None
     if contact != "off":
         watch = make_contact(model, contact_surface or surface or load_surface())

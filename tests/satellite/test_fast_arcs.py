@@ -1,0 +1,152 @@
+"""Compiled arcs (satellite/fast_arcs.py) against the Python path (satellite/events.py + scipy's DOP853)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip("numba")
+
+from isf_robot.core import Linear  # noqa: E402
+from satellite.contact import make_contact  # noqa: E402
+from satellite.events import event, integrate  # noqa: E402
+from satellite.fast_arcs import CONTACT, RDOT, XI, FastArcs, H, jit_enabled  # noqa: E402
+from satellite.fields import DEFAULT_GRAVITY, load_field  # noqa: E402
+from satellite.mesh_surface import load_surface  # noqa: E402
+from satellite.model import OrbitModel  # noqa: E402
+from satellite.triggers import BandTriggers  # noqa: E402
+
+KW = dict(rtol=1e-10, atol=1e-12, max_step=1200.0, min_dt=1e-2)
+
+
+@pytest.fixture(scope="module")
+def setup():  # type: ignore[no-untyped-def]
+    if not jit_enabled():
+        pytest.skip("compiled arcs switched off (ISF_ROBOT_JIT=0)")
+    model = OrbitModel(load_field(DEFAULT_GRAVITY), body_phase=0.7)
+    trig = BandTriggers(model, Linear(2.6e-4), 0.0, accel_bound=model.accel_bound(samples=400))
+    watch = make_contact(model, load_surface(), samples=400, slow_samples=5)
+    fast = FastArcs.make(model, trig, watch)
+    assert fast is not None
+    return model, trig, watch, fast
+
+
+def _state(model: OrbitModel, r_over_R: float, speed: float, incl: float) -> np.ndarray:
+    r = r_over_R * model.R
+    v = speed * math.sqrt(model.mu / r)
+    return np.array([r, 0.0, 0.0, 0.0, v * math.cos(incl), v * math.sin(incl)])
+
+
+def test_compiled_right_hand_side_is_the_models(setup) -> None:  # type: ignore[no-untyped-def]
+    from satellite._jit_parts import rhs
+
+    model, _, _, fast = setup
+    rng = np.random.default_rng(3)
+    u = rng.normal(size=(300, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    pts = u * rng.uniform(1.6, 2.4, size=300)[:, None] * model.R
+    tips = np.array([[s * x, 0.0, 0.0] for s in (-1, 1) for x in (265.0, 280.0, 300.0, 320.0)])  # in the fine boxes
+    out = np.empty(6)
+    for k, p in enumerate(np.vstack([pts, tips])):
+        y = np.concatenate([p, rng.normal(size=3) * 0.1])
+        t = float(rng.uniform(0, 1e6))
+        assert rhs(t, y, out, fast.fp, fast.ext, fast.box_o, fast.box_n, fast.coef)
+        want = model.truth_rhs(t, y)
+        np.testing.assert_allclose(out, want, rtol=1e-12, atol=1e-12 * np.abs(want[3:]).max(), err_msg=str(k))
+    far = np.array([3.0 * model.R, 0.0, 0.0, 0.0, 0.1, 0.0])
+    assert not rhs(0.0, far, out, fast.fp, fast.ext, fast.box_o, fast.box_n, fast.coef)  # the exact field's domain
+
+
+def _events(trig, watch, xi_terminal: bool = True):  # type: ignore[no-untyped-def]
+    rates = trig.rates()
+    return [event(trig.xi, xi_terminal, -1.0, rates["xi"], trig.xi_batch, (XI, 0.0, None)),
+            event(trig.r_dot, False, 0.0, rates["apsis"], trig.r_dot_batch, (RDOT, 0.0, None)),
+            event(trig.h, False, -1.0, rates["h"], trig.h_batch, (H, 0.0, None)),
+            event(watch.g, False, 0.0, watch.rate, watch.batch, (CONTACT, 0.0, None))]
+
+
+@pytest.mark.parametrize("speed, incl", [(1.05, 0.0), (1.0, 1.2), (0.95, 1.5)])
+def test_same_arc_and_events_as_the_python_path(setup, speed, incl) -> None:  # type: ignore[no-untyped-def]
+    model, trig, watch, fast = setup
+    y0 = _state(model, 2.0, speed, incl)
+    evs = _events(trig, watch, xi_terminal=False)
+    t1 = 3.5 * 3600.0  # uncontrolled orbits from 2 R leave the table's radii within 4-5 h
+    got = fast.integrate(0.0, t1, y0, evs, dense=True, scan=True, **KW)
+    ref = integrate(model.truth_rhs, 0.0, t1, y0, evs, dense=True, **KW)
+    assert got is not None and got.status == ref.status == 0
+    for k, (a, b) in enumerate(zip(got.t_events, ref.t_events)):
+        assert len(a) == len(b), k
+        # two integrations to rtol 1e-10 whose steps differ by rounding (measured: up to 3e-5 m apart after
+        # 3.5 h; an apsis of a near-circular orbit, where r . v is flat, then moves by ~1 ms)
+        np.testing.assert_allclose(a, b, rtol=0, atol=2e-2)  # seconds
+    assert abs(len(got.t) - len(ref.t)) <= 3
+    tt = np.linspace(0.0, t1, 101)
+    tol = np.array([1e-3] * 3 + [1e-7] * 3)[:, None]  # m, m/s
+    assert (np.abs(got.sol(tt) - ref.sol(tt)) <= tol).all()
+    assert (np.abs(got.sol(float(tt[37])) - ref.sol(float(tt[37]))) <= tol[:, 0]).all()
+    assert got.t[-1] == t1
+    np.testing.assert_allclose(got.y[:, -1], got.sol(t1), rtol=0, atol=1e-9)
+
+
+def test_a_dip_between_step_points_is_found(setup) -> None:  # type: ignore[no-untyped-def]
+    """``h - c`` dips below 0 around the inner apsis, inside one step: found only by the scan (both paths)."""
+    model, trig, watch, fast = setup
+    y0 = _state(model, 2.0, 1.05, 0.0)
+    t1 = 4.0 * 3600.0
+    apsis = fast.integrate(0.0, t1, y0, _events(trig, watch, xi_terminal=False)[1:2], dense=False, scan=True, **KW)
+    assert apsis is not None
+    k = int(np.argmin([trig.h(0, y) for y in apsis.y_events[0]]))
+    t_apo, y_apo = float(apsis.t_events[0][k]), apsis.y_events[0][k]
+    assert 0.0 < t_apo < t1
+    h_apo = trig.h(t_apo, y_apo)
+    near = [j for j in range(len(apsis.t) - 1) if apsis.t[j] < t_apo < apsis.t[j + 1]][0]
+    h_steps = min(trig.h(0, apsis.y[:, near]), trig.h(0, apsis.y[:, near + 1]))
+    c = h_apo + 0.3 * (h_steps - h_apo)  # above h at the apsis, below h at both step points
+    t1 = float(apsis.t[near + 1])  # the same steps up to here, the arc ends at the dip's step
+    assert min(trig.h(0, y) for y in apsis.y[:, : near + 2].T) > c
+    rates = trig.rates()
+
+    def dip(t: float, y: np.ndarray) -> float:
+        return trig.h(t, y) - c
+
+    def dip_batch(t: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return trig.h_batch(t, y) - c
+
+    scanned = [event(dip, True, -1.0, rates["h"], dip_batch, (H, c, None))]
+    got = fast.integrate(0.0, t1, y0, scanned, dense=False, scan=True, **KW)
+    ref = integrate(model.truth_rhs, 0.0, t1, y0, scanned, **KW)
+    blind = fast.integrate(0.0, t1, y0, scanned, dense=False, scan=False, **KW)
+    assert got is not None and blind is not None
+    assert got.status == ref.status == 1 and blind.status == 0  # unscanned: the dip goes unseen
+    assert got.t[-1] == pytest.approx(ref.t[-1], abs=0.5)  # a shallow minimum: the root moves with rounding
+    assert got.t[-1] < t_apo and abs(dip(0, got.y[:, -1])) < 1e-9 * c and abs(dip(0, ref.y[:, -1])) < 1e-9 * c
+    assert got.scan_points > 0
+
+
+def test_arcs_outside_the_table_fall_back(setup) -> None:  # type: ignore[no-untyped-def]
+    model, trig, watch, fast = setup
+    y0 = _state(model, 2.35, 1.3, 0.2)  # leaves the band outward, then the table's radii
+    evs = _events(trig, watch)[1:]
+    assert fast.integrate(0.0, 20 * 3600.0, y0, evs, dense=True, scan=True, **KW) is None
+    assert fast.integrate(5.0, 5.0, y0, evs, dense=True, scan=True, **KW) is None  # empty arc: Python's rules
+    uncoded = [event(trig.h, False, -1.0)]
+    assert fast.integrate(0.0, 100.0, y0, uncoded, dense=True, scan=True, **KW) is None
+
+
+def test_greedy_run_agrees_with_the_python_path(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    from satellite.model import InitialOrbit
+    from satellite.simulate import simulate
+
+    if not jit_enabled():
+        pytest.skip("compiled arcs switched off")
+    model = OrbitModel(load_field(DEFAULT_GRAVITY))
+    kw = dict(initial=InitialOrbit(seed=2), model=model, contact="count", miet_samples=50)
+    fast = simulate("greedy", 6.0, **kw)  # type: ignore[arg-type]
+    monkeypatch.setenv("ISF_ROBOT_JIT", "0")
+    slow = simulate("greedy", 6.0, **kw)  # type: ignore[arg-type]
+    assert fast.triggers == slow.triggers > 0
+    assert fast.min_h == pytest.approx(slow.min_h, rel=1e-6)
+    assert fast.total_dv == pytest.approx(slow.total_dv, rel=1e-6)
+    np.testing.assert_allclose([e.t for e in fast.events], [e.t for e in slow.events], rtol=1e-8)
