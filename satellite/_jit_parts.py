@@ -11,7 +11,8 @@ arguments. Module-level functions, so numba's cache (``__pycache__``) serves lat
 Packed parameters (float arrays, filled by :mod:`satellite.fast_arcs`):
 
 * ``fp`` (field): body phase, spin rate, disturbance scale, GM, r_lo, 1/dr, 1/dang, r_in,
-  r_out, n_r, 1/box step, number of boxes.
+  r_out, n_r, (unused), number of boxes; per box ``box_o`` its corner and 1/step, ``box_n``
+  its node counts and offset in ``coef`` (each box's coefficients, C order, flattened).
 * ``bp`` (band): r_centre, h_max, d_bar, accel bound A, r_inner, r_outer, half width,
   alpha gain, alpha slope bound.
 * ``cp`` (contact): body phase, spin rate, cell size, n_lat, n_lon, max radius, min radius,
@@ -81,12 +82,12 @@ def rhs(t, y, out, fp, ext, box_o, box_n, coef):  # pragma: no cover (compiled)
         ax += wc[cc] * sx
         ay += wc[cc] * sy
         az += wc[cc] * sz
-    inv = fp[10]
     fx = 0.0
     fy = 0.0
     fz = 0.0
     for b in range(int(fp[11])):
         nx, ny, nz, off = box_n[b, 0], box_n[b, 1], box_n[b, 2], box_n[b, 3]
+        inv = box_o[b, 3]
         bu = (x - box_o[b, 0]) * inv
         bv = (yy - box_o[b, 1]) * inv
         bw = (z - box_o[b, 2]) * inv
@@ -96,6 +97,9 @@ def rhs(t, y, out, fp, ext, box_o, box_n, coef):  # pragma: no cover (compiled)
         qa = _w(bu - bi)
         qb = _w(bv - bj)
         qc = _w(bw - bk)
+        gx = 0.0
+        gy = 0.0
+        gz = 0.0
         for cc in range(4):
             sx = 0.0
             sy = 0.0
@@ -107,9 +111,12 @@ def rhs(t, y, out, fp, ext, box_o, box_n, coef):  # pragma: no cover (compiled)
                     sx += wab * coef[n]
                     sy += wab * coef[n + 1]
                     sz += wab * coef[n + 2]
-            fx += qc[cc] * sx
-            fy += qc[cc] * sy
-            fz += qc[cc] * sz
+            gx += qc[cc] * sx
+            gy += qc[cc] * sy
+            gz += qc[cc] * sz
+        fx += gx
+        fy += gy
+        fz += gz
     ax += fx
     ay += fy
     az += fz

@@ -66,18 +66,19 @@ def _pack_field(field: Any) -> tuple[Any, ...] | None:
     ext = np.ascontiguousarray(field._ext, dtype=np.float64)
     fine = field.fine
     boxes = list(zip(fine._boxes, fine._coef4)) if fine is not None else []
-    box_o = np.zeros((max(1, len(boxes)), 3))
+    if any(len(b) != 8 for b, _ in boxes):  # a layout this kernel does not know: the Python path
+        return None
+    box_o = np.zeros((max(1, len(boxes)), 4))
     box_n = np.zeros((max(1, len(boxes)), 4), dtype=np.int64)
     parts, off = [], 0
-    for b, ((x0, y0, z0, nx, ny, nz, _), c4) in enumerate(boxes):
-        box_o[b] = (x0, y0, z0)
+    for b, ((x0, y0, z0, nx, ny, nz, _, inv), c4) in enumerate(boxes):
+        box_o[b] = (x0, y0, z0, inv)
         box_n[b] = (nx, ny, nz, off)
         parts.append(np.ascontiguousarray(c4, dtype=np.float64).ravel())
         off += parts[-1].size
     coef = np.concatenate(parts) if parts else np.zeros(1)
     g = field.grid
-    base = [field.gm, g.r_lo, field._inv_dr, field._inv_dang, field._r_in, field._r_out, g.n_r,
-            1.0 / fine.step if fine is not None else 1.0, len(boxes)]
+    base = [field.gm, g.r_lo, field._inv_dr, field._inv_dang, field._r_in, field._r_out, g.n_r, 0.0, len(boxes)]
     _PACKS[key] = (field, base, ext, box_o, box_n, coef)
     return base, ext, box_o, box_n, coef
 
