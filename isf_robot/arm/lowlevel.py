@@ -87,8 +87,8 @@ class VelocityTracker:
         n = scene.n_joints
         gains = scene.config.gains
         self.n = n
-        self.kp = _per_joint(gains.tracking_kp if kp is None else kp, n, "tracking kp")
-        self.kd = _per_joint(gains.tracking_kd if kd is None else kd, n, "tracking kd")
+        kp_v = _per_joint(gains.tracking_kp if kp is None else kp, n, "tracking kp")
+        kd_v = _per_joint(gains.tracking_kd if kd is None else kd, n, "tracking kd")
         if not max_ref_error > 0:
             raise ConfigError(f"max_ref_error must be > 0 [rad], got {max_ref_error}")
         act = scene.actuator_ids
@@ -107,9 +107,8 @@ class VelocityTracker:
         # full-size acceleration/torque scratch and two scalars: the compiled apply reads it whole.
         self._buf = buf = np.zeros(9 * n + 2 * nv + 2)
         rows = buf[: 9 * n].reshape(9, n)
-        self.u, self.q_ref, self.a_ff, kd_row, kp_row, self._inv_gain, self._lo, self._hi, self._err = rows
-        kp_row[:], kd_row[:] = self.kp, self.kd
-        self.kp, self.kd = kp_row, kd_row  # (views of the buffer: change them in place)
+        self.u, self.q_ref, self.a_ff, self._kd, self._kp, self._inv_gain, self._lo, self._hi, self._err = rows
+        self._kp[:], self._kd[:] = kp_v, kd_v
         self._gain = (model.actuator_gear[act, 0] * model.actuator_gainprm[act, 0]).copy()
         limited = model.actuator_ctrllimited[act].astype(bool)
         rng = model.actuator_ctrlrange[act]
@@ -137,6 +136,24 @@ class VelocityTracker:
         self._maddr = int(getattr(model, "_address", 0))
         self._daddr = 0
         self._ptrs = np.zeros(6, dtype=np.int64)
+
+    @property
+    def kp(self) -> np.ndarray:
+        """Reference-position gains [1/s^2], shape (n,) (a view of the tracker's buffer; setting copies)."""
+        return self._kp
+
+    @kp.setter
+    def kp(self, value: Sequence[float] | np.ndarray | float) -> None:
+        self._kp[:] = _per_joint(value, self.n, "tracking kp")
+
+    @property
+    def kd(self) -> np.ndarray:
+        """Velocity gains [1/s], shape (n,) (a view of the tracker's buffer; setting copies)."""
+        return self._kd
+
+    @kd.setter
+    def kd(self, value: Sequence[float] | np.ndarray | float) -> None:
+        self._kd[:] = _per_joint(value, self.n, "tracking kd")
 
     @property
     def max_ref_error(self) -> float:
@@ -245,8 +262,8 @@ class VelocityTracker:
         np.add(q, err, out=ref)
         # desired acceleration: a_ff + kd (u - qd) + kp err
         np.subtract(u, qd, out=acc)
-        acc *= self.kd
-        err *= self.kp
+        acc *= self._kd
+        err *= self._kp
         acc += err
         acc += self.a_ff
         mujoco.mj_mulM(self.model, data, self._tau_full, self._acc_full)
@@ -272,8 +289,8 @@ class VelocityTracker:
         np.add(q, err, out=ref)
         # desired acceleration: a_ff + kd (u - qd) + kp err
         np.subtract(u, data.qvel[dof], out=tmp)
-        tmp *= self.kd
-        err *= self.kp
+        tmp *= self._kd
+        err *= self._kp
         tmp += err
         tmp += self.a_ff
         acc[dof] = tmp

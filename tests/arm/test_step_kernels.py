@@ -62,7 +62,9 @@ def test_tracker_kernel_follows_a_new_mjdata_and_changed_gains() -> None:
     fast, slow = VelocityTracker(scene), VelocityTracker(scene, jit=False)
     for tr in (fast, slow):
         tr.kp *= 0.5  # in place: the kernel reads the same buffer
+        tr.kd = 30.0  # set: copied into it
         tr.max_ref_error = 0.01
+    assert fast.kd.tolist() == [30.0] * scene.n_joints
     out = []
     for tr in (fast, slow):
         first, second = scene.make_data(), scene.make_data()
