@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 from satellite.shapes import EllipsoidSurface, SurfaceModel
 
-__all__ = ["CONTACT_MODES", "RadiusEnvelope", "ContactWatch", "ellipsoid_mesh", "make_contact"]
+__all__ = ["CONTACT_MODES", "RadiusEnvelope", "ContactWatch", "ellipsoid_mesh", "make_contact", "contact_samples"]
 
 CONTACT_MODES = ("off", "count", "stop")
 """``off``: surface ignored (the paper); ``count``: contacts counted, the orbit goes on through
@@ -249,15 +249,39 @@ class ContactWatch:
         return hi, float(clear.min())
 
 
+def contact_samples(model: Any, surface: SurfaceModel, samples: int = 4000,
+                    slow_samples: int = 100) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The points of :func:`make_contact`'s acceleration bound: ``(fast, slow)``, body frame [m], shapes (k, 3).
+
+    ``slow`` are the points outside the field's fast radii (at most ``slow_samples``, the first drawn;
+    none when the field has no such radii).
+    """
+    env = RadiusEnvelope.from_surface(surface)
+    rng = np.random.default_rng(0)
+    u = rng.normal(size=(samples, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    lo = env.radius(u)
+    pts = u * rng.uniform(lo, np.maximum(lo, 2.4 * model.R))[:, None]
+    fast = getattr(model.field, "fast_radii", None)
+    if fast is None:
+        return pts, pts[:0]
+    r = np.linalg.norm(pts, axis=1)
+    slow = np.flatnonzero((r < fast[0]) | (r > fast[1]))
+    keep = np.ones(len(pts), dtype=bool)
+    keep[slow] = False
+    return pts[keep], pts[slow[:slow_samples]]
+
+
 def make_contact(model: Any, surface: SurfaceModel, step_s: float = 1.0, samples: int = 4000,
                  slow_samples: int = 100) -> ContactWatch:
     """The contact watch of a run: the shape's envelope and an acceleration bound outside it.
 
     The bound is ``2 x`` the largest sampled ``|a|`` of the truth field at points between the
-    envelope and 2.4 R (directions uniform, radii uniform): sampled, with a safety factor. A
-    field with a fast range of radii (``fast_radii``, the gravity table's) is sampled at most at
-    ``slow_samples`` points outside it (the first drawn), where it falls back to the exact field
-    (milliseconds per point).
+    envelope and 2.4 R (directions uniform, radii uniform; :func:`contact_samples`): sampled, with a
+    safety factor. A field with a fast range of radii (``fast_radii``, the gravity table's) is sampled
+    at most at ``slow_samples`` points outside it (the first drawn), where it falls back to the exact
+    field (milliseconds per point; the committed table's answers there are cached,
+    :func:`satellite.shape_cache.exact_samples`).
 
     Args:
         model: The run's :class:`satellite.model.OrbitModel` (field, spin, body phase).
@@ -267,20 +291,15 @@ def make_contact(model: Any, surface: SurfaceModel, step_s: float = 1.0, samples
         slow_samples: At most this many of them outside the field's fast radii.
 
     """
+    from satellite.shape_cache import exact_samples
+
     env = RadiusEnvelope.from_surface(surface)
-    rng = np.random.default_rng(0)
-    u = rng.normal(size=(samples, 3))
-    u /= np.linalg.norm(u, axis=1)[:, None]
-    lo = env.radius(u)
-    pts = u * rng.uniform(lo, np.maximum(lo, 2.4 * model.R))[:, None]
-    fast = getattr(model.field, "fast_radii", None)
-    if fast is not None:
-        r = np.linalg.norm(pts, axis=1)
-        slow = np.flatnonzero((r < fast[0]) | (r > fast[1]))
-        keep = np.ones(len(pts), dtype=bool)
-        keep[slow[slow_samples:]] = False
-        pts = pts[keep]
-    kep = -model.mu * pts / (np.linalg.norm(pts, axis=1) ** 3)[:, None]
-    truth = kep + model.disturbance_scale * (model.field.acceleration_batch(pts) - kep)
-    acc = float(np.linalg.norm(truth, axis=1).max())
+    acc = 0.0
+    for k, pts in enumerate(contact_samples(model, surface, samples, slow_samples)):
+        if not len(pts):
+            continue
+        field = exact_samples(model.field, pts) if k else model.field.acceleration_batch(pts)
+        kep = -model.mu * pts / (np.linalg.norm(pts, axis=1) ** 3)[:, None]
+        truth = kep + model.disturbance_scale * (field - kep)
+        acc = max(acc, float(np.linalg.norm(truth, axis=1).max()))
     return ContactWatch(surface, env, model.body_phase, model.omega, 2.0 * acc, step_s)

@@ -35,8 +35,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.integrate import DOP853, OdeSolution
-from scipy.optimize import brentq
 
 __all__ = ["EventFn", "RateBound", "BatchFn", "Event", "event", "ArcSolution", "integrate", "brackets"]
 
@@ -218,6 +216,8 @@ def integrate(
         IntegrationFailed: The integrator failed (e.g. step size underflow).
 
     """
+    from scipy.integrate import DOP853, OdeSolution  # here: importing scipy.integrate costs ~0.5 s at start
+
     solver = DOP853(rhs, float(t0), np.asarray(y0, dtype=float), float(t1), rtol=rtol, atol=atol,
                     max_step=max_step)
     ts, ys, interps = [solver.t], [solver.y.copy()], []
@@ -275,7 +275,7 @@ def integrate(
 class _LazyDense:
     """The current step's dense output, computed on first use (it costs 3 extra evaluations)."""
 
-    def __init__(self, solver: DOP853) -> None:
+    def __init__(self, solver: Any) -> None:
         self.solver = solver
         self.sol: Any = None
 
@@ -299,4 +299,6 @@ class _LazyDense:
 
 def _root(ev: Event, sol: Callable[[float], NDArray[np.float64]], a: float, b: float) -> float:
     """The crossing in ``[a, b]``: ``solve_ivp``'s equation and tolerance (Brent, 4 eps)."""
+    from scipy.optimize import brentq
+
     return float(brentq(lambda t: ev.fn(t, sol(t)), a, b, xtol=4 * _EPS, rtol=4 * _EPS))

@@ -25,7 +25,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from satellite.errors import GravityModelError
 from satellite.polyhedron import FacePatch, PolyhedronField
@@ -197,6 +196,8 @@ def build_near_tiles(field: PolyhedronField, grid: Any, *, r_cut: float, max_fac
     nodes = grid.nodes().reshape(-1, 3)
     reach = 2.0 * math.sqrt(grid.dr**2 + 2.0 * (grid.dang * grid.r_hi) ** 2) + float(patch._len.max())
     k = int(tile.max()) + 1
+    from scipy.spatial import cKDTree  # here: loading a table (every run) needs no k-d tree
+
     dense = np.full((k, len(nodes), 3), np.nan, dtype=np.float32)
     for t in range(k):
         tri = patch.triangles[tile == t]
@@ -221,5 +222,7 @@ def cell_flags(near: NearTiles, grid: Any) -> NDArray[np.bool_]:
     centres = np.stack([R * np.cos(LA) * np.cos(LO), R * np.cos(LA) * np.sin(LO), R * np.sin(LA)], axis=-1)
     half = 0.5 * math.sqrt(grid.dr**2 + 2.0 * (grid.dang * (grid.r_hi + grid.dr)) ** 2)
     verts = np.concatenate(near.vertices)
+    from scipy.spatial import cKDTree
+
     d = cKDTree(verts).query(centres.reshape(-1, 3))[0].reshape(R.shape)
     return d <= near.d_out + half + float(near.patch._len.max())  # type: ignore[no-any-return]

@@ -328,8 +328,8 @@ class TriangleMesh:
         return TriangleMesh(v, self.faces)
 
 
-def read_obj(path: str | Path, units: str = "km") -> TriangleMesh:
-    """Read a closed triangle mesh from a Wavefront OBJ file.
+def parse_obj(path: str | Path, units: str = "km") -> TriangleMesh:
+    """Read a closed triangle mesh from a Wavefront OBJ file (:func:`read_obj` without its caches).
 
     Only ``v`` and ``f`` records are used (texture and normal indices in ``f i/j/k`` records
     are ignored; negative, relative indices are supported; polygons with more than three
@@ -382,3 +382,14 @@ def read_obj(path: str | Path, units: str = "km") -> TriangleMesh:
     return TriangleMesh.from_arrays(
         np.array(verts) * UNIT_SCALES[units], np.array(faces, dtype=np.intp)
     )
+
+
+def read_obj(path: str | Path, units: str = "km") -> TriangleMesh:
+    """:func:`parse_obj`, through :mod:`satellite.shape_cache` (a file read before, the default shape's arrays)."""
+    from satellite.shape_cache import lookup, remember
+
+    mesh = lookup(path, units) if units in UNIT_SCALES else None
+    if mesh is None:
+        mesh = parse_obj(path, units)
+        remember(path, units, mesh)
+    return mesh  # type: ignore[no-any-return]

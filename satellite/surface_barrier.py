@@ -39,8 +39,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import minimize
-from scipy.spatial import ConvexHull
 
 from isf_robot.core import Barrier, ClassK, ConfigError, PostJumpConditionError, QPSolver, build_filter_qp
 from isf_robot.core.triggers import xi_on_scalar
@@ -89,6 +87,9 @@ class Superellipsoid:
     def fit(cls, vertices: NDArray[np.float64], p: int = DEFAULT_EXPONENT, name: str = "shape") -> Superellipsoid:
         """Least-volume envelope of the points (see the module docstring); contains every vertex."""
         v = np.asarray(vertices, dtype=float).reshape(-1, 3)
+        from scipy.optimize import minimize  # here: runs without the surface barrier skip the imports
+        from scipy.spatial import ConvexHull
+
         hull = v[ConvexHull(v).vertices]
 
         def scaled(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -29,7 +29,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.integrate import solve_ivp
 
 from satellite.controller import ControlParams, make_controller, resolve_control
 from satellite.errors import SatelliteError
@@ -231,6 +230,8 @@ def time_to_trigger(
 
     ev.terminal = True  # type: ignore[attr-defined]
     ev.direction = -1.0  # type: ignore[attr-defined]
+    from scipy.integrate import solve_ivp  # here: a run that needs no tau data skips the import
+
     sol = solve_ivp(
         model.truth_rhs, (0.0, max_hours * 3600.0), y, method="DOP853", rtol=1e-10, atol=1e-12,
         max_step=1200.0, events=[ev],
