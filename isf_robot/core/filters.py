@@ -252,7 +252,11 @@ class IntermittentSafetyFilter(_FilterBase):
                 if self.predictor is not None:
                     self.predictor.idle()
         if not trigger.on:
-            w = blend_weight(t, self._t_off, self.blend) if self._u_handover is not None else 0.0
+            w = 0.0
+            if self._u_handover is not None:
+                w = blend_weight(t, self._t_off, self.blend)
+                if w == 0.0:  # the hand-over is over (time only moves on): no weight until the next off switch
+                    self._u_handover = None
             if w == 0.0 and (self.u_min is None and self.u_max is None or self._within_bounds(u_nom)):
                 self._u_prev = u_nom
                 return FilterStep._of(t, u_nom, u_nom, False, lie.h, xi, event, None, (), False, lie.names, False,
