@@ -208,8 +208,8 @@ class _FilterBase:
         """Solve with screening; return ``(result, relaxed names, fallback, resolved)``.
 
         ``xi``: each row's robust slack at ``u_nom`` (``Xi_on``, or the slack at a blended
-        target); ``xs``: the step's :meth:`_xi` when ``xi`` is its ``Xi_on`` (its list, minimum
-        and ``alpha(h)`` then save array work).
+        target); ``xs``: the step's :meth:`_xi` when ``xi`` is its ``Xi_on`` (its minimum, screening
+        count and ``alpha(h)`` then save array work).
         """
         screen = self.screen if screen is None else screen
         k = xi.shape[0]
@@ -259,7 +259,7 @@ class _FilterBase:
         return res, relaxed, fb, False
 
     def _one_row_ok(self, lie: LieData) -> bool:
-        """Whether one robust row may go the short way (:meth:`_solve_one`).
+        """Whether one kept row may go the short way (:meth:`_solve_one`).
 
         No input bounds, the closed form enabled, float64 barrier data (the row's bound is then
         the same in floats).
