@@ -161,6 +161,12 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _before_last_out(generator: str, options: str) -> str:
+    """``generator`` (a command line, or several joined by ``;``) with ``options`` before its last ``--out``."""
+    head, sep, tail = generator.rpartition(" --out ")
+    return f"{head} {options}{sep}{tail}" if sep else f"{generator} {options}"
+
+
 def _table(args: argparse.Namespace, shape: Path) -> int:
     """``isf-satellite gravity --table``: the exact field tabulated (see :mod:`satellite.gravity_table`)."""
     from satellite.gravity_table import GravityTable, TableGrid, build_table
@@ -198,7 +204,8 @@ def _table(args: argparse.Namespace, shape: Path) -> int:
                                     f"({table.r_ref_m:.6g} m, {table.gm:.6g} vs {r_ref:.6g} m, {field.gm:.6g})")
         grid = table.grid
         prov = {**table.provenance, "date": prov["date"]}
-        prov["generator"] += f" (shell and tiles from {Path(args.fine_from).name})"
+        prov["generator"] += (f" ; then isf-satellite gravity --table --shape {shape.as_posix()} "
+                              f"--fine-from {args.fine_from} --out {args.out}")
     else:
         table = build_table(field, grid, r_ref, workers=args.workers, provenance=prov,
                             near_cut=args.near_cut * r_ref if args.near_cut > 0 else None)
@@ -210,8 +217,6 @@ def _table(args: argparse.Namespace, shape: Path) -> int:
                        log=lambda line: print(line, file=sys.stderr, flush=True))
         prov["fine_boxes"] = (f"Cartesian B-spline boxes, {args.fine_step:g} m nodes, within 35 m of the surface, "
                               "exterior field continued inside (satellite.gravity_fine)")
-        prov["generator"] = prov["generator"].replace(" --out ", f" --fine-step {args.fine_step:g} --out ", 1)
-        table.provenance = prov
     if args.refine_step > 0:
         from satellite.gravity_fine import FINE2_ZERO_M, add_fine_level
         from satellite.mesh_surface import MeshSurface
@@ -227,8 +232,9 @@ def _table(args: argparse.Namespace, shape: Path) -> int:
             print("no second level: the surface stays below the band", file=sys.stderr)
         prov["fine_boxes_2"] = (f"second level: {args.refine_step:g} m nodes within {FINE2_ZERO_M:g} m of the surface "
                                 "at r >= 1.6 R, from the exact field (satellite.gravity_fine.add_fine_level)")
-        prov["generator"] = prov["generator"].replace(" --out ", f" --refine-step {args.refine_step:g} --out ", 1)
-        table.provenance = prov
+    prov["generator"] = _before_last_out(prov["generator"], f"--fine-step {args.fine_step:g} "
+                                         f"--refine-step {args.refine_step:g}")
+    table.provenance = prov
     table.save(args.out)
     print(f"wrote {args.out}: {grid.n_r} x {grid.n_lat} x {grid.n_lon} nodes, r in [{grid.r_lo:.6g}, "
           f"{grid.r_hi:.6g}] m", file=sys.stdout)
