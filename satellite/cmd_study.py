@@ -161,8 +161,8 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         check_output_path(args.out, "--out")
     done_runs = _resumed(args.out, settings) if args.resume else []
-    starts = [(s, float(i)) for i in dict.fromkeys(args.inclinations)
-              for s in range(args.first_seed, args.first_seed + args.seeds)]
+    starts = [(s, float(i)) for s in range(args.first_seed, args.first_seed + args.seeds)
+              for i in dict.fromkeys(args.inclinations)]  # seed by seed: every inclination as it goes
 
     def save(doc: dict[str, Any]) -> None:
         if args.out:

@@ -258,7 +258,8 @@ def run_study(
         if c.trigger == "maneuver" and c.controller not in settings.tau:
             raise ConfigError(f"maneuver/{c.controller} needs a tau_p file: --tau FILE or --tau {c.controller}=FILE "
                               f"(make one with `isf-satellite tau --out FILE`)")
-    tasks = [StudyTask(c, int(s), float(i), settings) for c in configs for s, i in starts]
+    # start by start: an interrupted study keeps whole pairs (every configuration of a start) where it can
+    tasks = [StudyTask(c, int(s), float(i), settings) for s, i in starts for c in configs]
     total = len(tasks)
     keep = {(r["config"], r["seed"], r["inclination_deg"]): r for r in done_runs}
     done = [keep[t.key] for t in tasks if t.key in keep]
