@@ -133,6 +133,7 @@ class VelocityTracker:
         own = type(self).apply is VelocityTracker.apply and type(self).set_command is VelocityTracker.set_command
         k = kernels.step_kernels(n) if jit and contiguous and own and getattr(model, "_address", 0) else None
         self._kernels = k
+        self._step = k["track_step"] if k is not None and k["dot"] else None  # (dot: numpy's tracking error)
         self._maddr = int(getattr(model, "_address", 0))
         self._daddr = 0
         self._ptrs = np.zeros(6, dtype=np.int64)
@@ -220,14 +221,14 @@ class VelocityTracker:
         Returns ``|q_dot - u_held|`` [rad/s] at the state in ``data`` (before ``u`` takes over): the
         error the simulation records per control step.
         """
-        k = self._kernels
-        if k is not None and k["dot"]:
+        step = self._step
+        if step is not None:
             if data is not self._data:
                 self._bind(data)
             ff = self.feedforward and period is not None and period > 0
-            return float(k["track_step"](self._maddr, self._daddr, self._ptrs, self._buf, self.n,
-                                         self._acc_full.size, u if type(u) is np.ndarray else np.asarray(u, float),
-                                         1.0 / period if ff else 0.0, ff))  # type: ignore[operator]
+            return float(step(self._maddr, self._daddr, self._ptrs, self._buf, self.n, self._acc_full.size,
+                              u if type(u) is np.ndarray else np.asarray(u, float),
+                              1.0 / period if ff else 0.0, ff))  # type: ignore[operator]
         e = data.qvel[self._dof] - self.u
         err = math.sqrt(float(e.dot(e)))
         self.set_command(u, period)

@@ -298,8 +298,7 @@ class _Episode:
         names = self._names_cache.get(key)
         if names is None:
             names = self._names_cache[key] = tuple(sim.coll.names[i] for i in key) + sim.joints.names
-        gn = gn if gn is not None else np.sqrt(np.einsum("ij,ij->i", g, g))  # joint rows: |+-e_i| = 1
-        return near, jh, LieData._of(h, lf, g, gn, names)
+        return near, jh, LieData._of(h, lf, g, gn if gn is not None else np.sqrt(np.einsum("ij,ij->i", g, g)), names)
 
     def nominal(self, t: float) -> np.ndarray:
         """The nominal command at the tick."""
@@ -321,15 +320,17 @@ class _Episode:
 
     def act(self, k: int, u: np.ndarray) -> None:
         """Track ``u`` over the control period: S physics steps, each checked for safety."""
-        sim, model, data, monitor, tracker = self.sim, self.model, self.data, self.monitor, self.sim.tracker
-        self.track_err[k] = self._command(data, u, sim.control_period)
+        data, model = self.data, self.model
+        self.track_err[k] = self._command(data, u, self.sim.control_period)
         mujoco.mj_step2(model, data)
+        if self.S == 1:
+            return
         bound, base = (self.dmin if self.recording else -math.inf), k * self.S
         for s in range(1, self.S):
             if self.moving:
                 self._place(base + s)
             mujoco.mj_step1(model, data)
-            d2 = monitor.substep(data, bound, tracker)  # (then tracker.apply, in one compiled call where it can)
+            d2 = self.monitor.substep(data, bound, self.sim.tracker)  # (then tracker.apply: one compiled call)
             if d2 < self.dmin:
                 self.dmin = d2
                 bound = d2 if self.recording else bound
