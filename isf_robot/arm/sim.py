@@ -257,11 +257,11 @@ class _Episode:
         self.recording = bool(sim.observers)
         self.uses_rows = bool(getattr(sim.strategy, "uses_rows", True))
         nj = sim.joints.evaluate(data).k
-        self._ones = np.ones(nj)
         self._h_far_min = sim.coll.h_far_min
         self.coherence = sim.coll.coherence()  # this run's distance bounds (None: not applicable)
         self._screen_j = np.full(nj, sim.keep_joint)
         self._screen_cache: dict[int, np.ndarray] = {}
+        self._step_lie, self._add_step, self._period = sim.strategy.step_lie, self.metrics.add_step, sim.control_period
         self._names_cache: dict[bytes, tuple[str, ...]] = {}
         self._command = tracking_step(sim.tracker, scene.dof_adr)  # tracking error, set_command and apply in one
 
@@ -307,15 +307,15 @@ class _Episode:
     def strategy(self, t: float, lie: LieData | None, u_nom: np.ndarray) -> Any:
         """The strategy's step (screening thresholds per row: collision rows, then joint rows)."""
         if lie is None:
-            step = self.sim.strategy.step_lie(t, lie, u_nom)
+            step = self._step_lie(t, lie, u_nom)
         else:
-            nc = lie.k - self._ones.size
+            nc = lie.h.shape[0] - self._screen_j.shape[0]
             screen = self._screen_cache.get(nc)
             if screen is None:
                 screen = self._screen_cache[nc] = np.concatenate(
                     (np.full(nc, self.sim.keep_collision), self._screen_j))
-            step = self.sim.strategy.step_lie(t, lie, u_nom, self.data, screen=screen)  # x: for a rollout
-        self.metrics.add_step(step, self.sim.control_period)
+            step = self._step_lie(t, lie, u_nom, self.data, screen=screen)  # x: for a rollout
+        self._add_step(step, self._period)
         return step
 
     def act(self, k: int, u: np.ndarray) -> None:
