@@ -43,8 +43,13 @@ def _w(t):  # pragma: no cover (compiled)
 
 
 @njit(cache=True, nogil=True)
-def rhs(t, y, out, fp, ext, box_o, box_n, coef):  # pragma: no cover (compiled)
-    """Truth flow at ``(t, y)`` into ``out``; False when the point leaves the table's radii."""
+def rhs(t, y, out, fp, ext, box_o, box_n, coef, xc):  # pragma: no cover (compiled)
+    """Truth flow at ``(t, y)`` into ``out``.
+
+    Outside the table's radii the field is the exact one: looked up in ``xc`` (rows 1.. hold body-frame
+    points and their exact accelerations, filled by the caller); a point not there is written to row 0
+    and False is returned (the caller evaluates it and runs the arc again, which retraces the same points).
+    """
     px, py, pz = y[0], y[1], y[2]
     th = fp[0] + fp[1] * t
     c = math.cos(th)
@@ -54,8 +59,35 @@ def rhs(t, y, out, fp, ext, box_o, box_n, coef):  # pragma: no cover (compiled)
     z = pz
     r2 = x * x + yy * yy + z * z
     r = math.sqrt(r2)
-    if not (fp[7] <= r <= fp[8]):
-        return False
+    if fp[7] <= r <= fp[8]:
+        bx, by, bz = _table(x, yy, z, r2, r, fp, ext, box_o, box_n, coef)
+    else:
+        hit = -1
+        for q in range(1, xc.shape[0]):
+            if xc[q, 0] == x and xc[q, 1] == yy and xc[q, 2] == z:
+                hit = q
+                break
+        if hit < 0:
+            xc[0, 0], xc[0, 1], xc[0, 2] = x, yy, z
+            return False
+        bx, by, bz = xc[hit, 3], xc[hit, 4], xc[hit, 5]
+    kd = fp[2]
+    if kd != 1.0:
+        pr2 = px * px + py * py + pz * pz
+        g = -fp[3] / (pr2 * math.sqrt(pr2))
+        bx, by, bz = g * x + kd * (bx - g * x), g * yy + kd * (by - g * yy), g * pz + kd * (bz - g * pz)
+    out[0] = y[3]
+    out[1] = y[4]
+    out[2] = y[5]
+    out[3] = c * bx - s * by
+    out[4] = s * bx + c * by
+    out[5] = bz
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _table(x, yy, z, r2, r, fp, ext, box_o, box_n, coef):  # pragma: no cover (compiled)
+    """The table's acceleration (shell B-spline + fine boxes + Kepler) at a body-frame point within its radii."""
     u = (r - fp[4]) * fp[5]
     k = min(int(u), int(fp[9]) - 3)
     v = (math.asin(z / r) + 0.5 * math.pi) * fp[6] - 0.5
@@ -124,18 +156,7 @@ def rhs(t, y, out, fp, ext, box_o, box_n, coef):  # pragma: no cover (compiled)
     bx = ax + kep * x
     by = ay + kep * yy
     bz = az + kep * z
-    kd = fp[2]
-    if kd != 1.0:
-        pr2 = px * px + py * py + pz * pz
-        g = -fp[3] / (pr2 * math.sqrt(pr2))
-        bx, by, bz = g * x + kd * (bx - g * x), g * yy + kd * (by - g * yy), g * pz + kd * (bz - g * pz)
-    out[0] = y[3]
-    out[1] = y[4]
-    out[2] = y[5]
-    out[3] = c * bx - s * by
-    out[4] = s * bx + c * by
-    out[5] = bz
-    return True
+    return bx, by, bz
 
 
 @njit(cache=True, nogil=True)

@@ -50,11 +50,9 @@ TOLERANCES: dict[str, dict[str, tuple[object, ...]]] = {
     },
 }
 
-# Cases whose arcs run compiled when numba is installed (satellite/fast_arcs.py; generated that way). The
-# Python path (no numba, or ISF_ROBOT_JIT=0) sums in another order: its adaptive steps differ from the first
-# steps on (step sizes ~3e-5 apart: the error estimate cancels), and at 4.3-4.9 h this orbit nears the body's
-# tip, where differences e-fold every ~2 minutes: same 7 impulses, figures within 0.6 % (min_h 0.5 %).
-PYTHON_PATH_RTOL: dict[str, float] = {"satellite-greedy-12h": 1e-2}
+# Cases whose arcs run compiled when numba is installed (satellite/fast_arcs.py; generated that way): the
+# Python path (no numba, or ISF_ROBOT_JIT=0) sums in another order and reproduces them to ~2e-8, not 1e-9.
+PYTHON_PATH_RTOL: dict[str, float] = {"satellite-greedy-12h": 1e-6}
 
 # Fields that measure the machine, not the behaviour: never compared.
 VOLATILE = frozenset({"wall_s", "timings", "qp_time_median_us", "proxqp_time_median_us", "solver_time_median_us",

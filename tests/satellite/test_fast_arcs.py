@@ -52,11 +52,18 @@ def test_compiled_right_hand_side_is_the_models(setup) -> None:  # type: ignore[
     for k, p in enumerate(np.vstack([pts, tips])):
         y = np.concatenate([p, rng.normal(size=3) * 0.1])
         t = float(rng.uniform(0, 1e6))
-        assert rhs(t, y, out, fast.fp, fast.ext, fast.box_o, fast.box_n, fast.coef)
+        assert rhs(t, y, out, fast.fp, fast.ext, fast.box_o, fast.box_n, fast.coef, np.zeros((1, 6)))
         want = model.truth_rhs(t, y)
         np.testing.assert_allclose(out, want, rtol=1e-12, atol=1e-12 * np.abs(want[3:]).max(), err_msg=str(k))
     far = np.array([3.0 * model.R, 0.0, 0.0, 0.0, 0.1, 0.0])
-    assert not rhs(0.0, far, out, fast.fp, fast.ext, fast.box_o, fast.box_n, fast.coef)  # the exact field's domain
+    xc = np.zeros((1, 6))
+    assert not rhs(0.0, far, out, fast.fp, fast.ext, fast.box_o, fast.box_n, fast.coef, xc)  # the exact field's
+    c, s = math.cos(model.body_phase), math.sin(model.body_phase)
+    np.testing.assert_allclose(xc[0, :3], [c * far[0], -s * far[0], 0.0], rtol=1e-15, atol=1e-12)  # body frame
+    p = tuple(float(v) for v in xc[0, :3])
+    xc = np.vstack([xc, [*p, *model.field.acceleration(p).tolist()]])  # what FastArcs adds: the exact field
+    assert rhs(0.0, far, out, fast.fp, fast.ext, fast.box_o, fast.box_n, fast.coef, xc)
+    np.testing.assert_array_equal(out, model.truth_rhs(0.0, far))
 
 
 def _events(trig, watch, xi_terminal: bool = True):  # type: ignore[no-untyped-def]
