@@ -31,12 +31,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from isf_robot.core import Barrier, ConfigError
-from satellite.gravity import GravityField, load_default_field
 
 __all__ = [
     "SPIN_PERIOD_H",
@@ -62,10 +62,12 @@ BAND_CENTRE = 2.0
 
 
 class OrbitModel:
-    """Kepler model and spherical-harmonic truth of an orbit about a spinning body.
+    """Kepler model and gravity truth of an orbit about a spinning body.
 
     Args:
-        field: Gravity table; default the committed Itokawa degree-8 field.
+        field: Gravity model (the interface of :mod:`satellite.fields`); default the valid
+            one, :data:`satellite.fields.DEFAULT_GRAVITY` (the tabulated exact polyhedron field,
+            as ``isf-satellite run``); ``load_field("sh8")`` gives the paper's degree-8 series.
         spin: Whether the body turns (default True).
         spin_period_h: Rotation period [h], > 0.
         body_phase: Body rotation angle ``theta0`` at ``t = 0`` [rad].
@@ -82,7 +84,7 @@ class OrbitModel:
 
     def __init__(
         self,
-        field: GravityField | None = None,
+        field: Any = None,
         *,
         spin: bool = True,
         spin_period_h: float = SPIN_PERIOD_H,
@@ -95,7 +97,11 @@ class OrbitModel:
             raise ConfigError(f"spin_period_h must be a positive number of hours, got {spin_period_h}")
         if not math.isfinite(body_phase):
             raise ConfigError(f"body_phase must be finite (radians), got {body_phase}")
-        self.field = field if field is not None else load_default_field()
+        if field is None:
+            from satellite.fields import DEFAULT_GRAVITY, load_field  # (fields reads the table: lazily)
+
+            field = load_field(DEFAULT_GRAVITY)
+        self.field = field
         self.R = float(self.field.r_ref_m)
         self.mu = float(self.field.gm)
         self.spin = bool(spin)
@@ -130,7 +136,7 @@ class OrbitModel:
         return np.array([vx, vy, vz, k * px, k * py, k * pz])
 
     def truth_rhs(self, t: float, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Truth flow: spherical-harmonic gravity of the spinning body, shape (6,)."""
+        """Truth flow: the gravity model of the spinning body (body frame turned), shape (6,)."""
         px, py, pz, vx, vy, vz = x.tolist()
         th = self.body_phase + self.omega * t
         c = math.cos(th)

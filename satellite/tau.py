@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from satellite.controller import ControlParams, make_controller, resolve_control
 from satellite.errors import SatelliteError
+from satellite.fields import DEFAULT_GRAVITY
 from satellite.model import BAND_INNER, BAND_OUTER, OrbitModel
 from satellite.triggers import BandTriggers
 
@@ -176,7 +177,7 @@ def fit_tau(data: TauData, h_max: float, R: float, degree: int = 2) -> TauFit:
 _FIELD_CACHE: dict[Any, Any] = {}
 
 
-def _worker_model(spin: bool, phase: float, scale: float = 1.0, gravity: str = "sh8") -> OrbitModel:
+def _worker_model(spin: bool, phase: float, scale: float = 1.0, gravity: str = DEFAULT_GRAVITY) -> OrbitModel:
     field = _FIELD_CACHE.get(("field", gravity))
     if field is None:
         from satellite.fields import load_field
@@ -193,7 +194,7 @@ def time_to_trigger(
     control: ControlParams | None = None,
     max_hours: float = 100.0,
     disturbance_scale: float = 1.0,
-    gravity: str = "sh8",
+    gravity: str = DEFAULT_GRAVITY,
 ) -> float:
     """Time [h] from one controller impulse at a random state of radius ``radius_over_R`` to the trigger.
 
@@ -264,7 +265,7 @@ def collect_tau(
     max_hours: float = 100.0,
     chunk: int = 10,
     disturbance_scale: float = 1.0,
-    gravity: str = "sh8",
+    gravity: str = DEFAULT_GRAVITY,
 ) -> TauData:
     """Collect time-to-trigger samples over the radius grid, in parallel processes.
 
@@ -280,8 +281,8 @@ def collect_tau(
         max_hours: Censoring time [h], > 0.
         chunk: Samples per task.
         disturbance_scale: Factor on the non-Kepler gravity.
-        gravity: Truth gravity model name (:func:`satellite.fields.load_field`; the library's
-            default is the paper's degree-8 series, the command line's the tabulated exact field).
+        gravity: Truth gravity model name (:func:`satellite.fields.load_field`; default the
+            tabulated exact field, as the command line; ``"sh8"``: the paper's degree-8 series).
 
     """
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:

@@ -15,12 +15,13 @@ from satellite.controller import (
     resolve_control,
 )
 from satellite.elements import osculating_elements
+from satellite.gravity import load_default_field  # the degree-8 series: these cases were chosen on it
 from satellite.model import OrbitModel
 
 
 @pytest.fixture(scope="module")
 def model() -> OrbitModel:
-    return OrbitModel()
+    return OrbitModel(load_default_field())
 
 
 def random_states(model: OrbitModel, n: int, seed: int = 0) -> list[np.ndarray]:

@@ -10,6 +10,7 @@ from scipy.integrate import solve_ivp
 
 from isf_robot.core import Linear
 from satellite.events import event, integrate
+from satellite.gravity import load_default_field  # the degree-8 series: these cases were chosen on it
 from satellite.model import OrbitModel
 from satellite.triggers import BandTriggers
 
@@ -50,7 +51,7 @@ def test_terminal_event_stops_at_the_first_falling_crossing() -> None:
 
 
 def test_same_steps_and_events_as_solve_ivp_when_nothing_is_missed() -> None:
-    model = OrbitModel()
+    model = OrbitModel(load_default_field())
     trig = BandTriggers(model, Linear(2.6e-4), 0.0, accel_bound=model.accel_bound(samples=400))
     r = 2.2 * model.R
     y0 = np.array([r, 0.0, 0.0, 0.0, 0.8 * math.sqrt(model.mu / r), 0.3 * math.sqrt(model.mu / r)])
@@ -69,7 +70,7 @@ def test_same_steps_and_events_as_solve_ivp_when_nothing_is_missed() -> None:
 
 def test_band_rate_bounds_hold_along_truth_arcs() -> None:
     """Every bound exceeds the largest finite-difference rate of its function on the interval."""
-    model = OrbitModel()
+    model = OrbitModel(load_default_field())
     trig = BandTriggers(model, Linear(2.6e-2), 1e-6, accel_bound=model.accel_bound(samples=400))
     rng = np.random.default_rng(3)
     fns = {"h": (trig.h_batch, trig.h_rate), "xi": (trig.xi_batch, trig.xi_rate),
@@ -112,7 +113,7 @@ def high_gain() -> tuple[OrbitModel, BandTriggers]:
     from satellite.controller import ControlParams, resolve_control
     from satellite.model import InitialOrbit
 
-    model = OrbitModel().with_phase(InitialOrbit(seed=8).body_phase())
+    model = OrbitModel(load_default_field()).with_phase(InitialOrbit(seed=8).body_phase())
     res = resolve_control(model, ControlParams(alpha_gain=2.6262e-2))
     return model, BandTriggers(model, Linear(res.alpha_gain), res.d_bar, accel_bound=model.accel_bound())
 
@@ -187,6 +188,7 @@ def test_alpha_100x_greedy_run_keeps_h_nonnegative_only_with_the_scan() -> None:
 
     runs = {scan: simulate("greedy", 10.0, initial=_start_at(MISS_X0, MISS_PHASE),
                            control=ControlParams(alpha_gain=2.6262e-2), miet_samples=50,
+                           model=OrbitModel(load_default_field()),  # the case was found on the degree-8 field
                            integrator=IntegratorSettings(event_scan=scan)) for scan in (False, True)}
     # the step-point rule misses the dip (the case reproduces the old failure: the test can fail)
     assert runs[False].min_h < -1.0

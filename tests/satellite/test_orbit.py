@@ -10,12 +10,13 @@ from scipy.integrate import solve_ivp
 
 from isf_robot.core import ConfigError
 from satellite.elements import osculating_elements
+from satellite.gravity import load_default_field  # the degree-8 series: these cases were chosen on it
 from satellite.model import BandBarrier, InitialOrbit, OrbitModel
 
 
 @pytest.fixture(scope="module")
 def model() -> OrbitModel:
-    return OrbitModel()
+    return OrbitModel(load_default_field())
 
 
 def test_constants_from_table(model: OrbitModel) -> None:
@@ -101,3 +102,21 @@ def test_initial_orbit_elements(model: OrbitModel) -> None:
 def test_initial_orbit_rejects_bad_input(kwargs: dict) -> None:
     with pytest.raises(ConfigError):
         InitialOrbit(**kwargs)
+
+
+def test_library_default_field_is_the_valid_one() -> None:
+    """OrbitModel(), simulate() and the tau helpers default to the command line's valid field, not sh8."""
+    import inspect
+
+    from satellite.fields import DEFAULT_GRAVITY, load_field, model_name
+    from satellite.simulate import simulate
+    from satellite.tau import collect_tau, time_to_trigger
+
+    model = OrbitModel()
+    assert DEFAULT_GRAVITY == "table" and model_name(model.field) == model_name(load_field("table")) != "sh8"
+    p = np.array([1.7 * model.R, 0.0, 0.0])  # inside the Brillouin sphere, where the series is invalid
+    np.testing.assert_array_equal(model.field.acceleration(p), load_field("table").acceleration(p))
+    res = simulate("greedy", 0.5)
+    assert res.settings["gravity_model"] == model_name(model.field)
+    for fn in (collect_tau, time_to_trigger):
+        assert inspect.signature(fn).parameters["gravity"].default == DEFAULT_GRAVITY

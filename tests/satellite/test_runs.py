@@ -8,6 +8,7 @@ from typing import Any
 import pytest
 
 from isf_robot.core import ConfigError, Observer, UnknownNameError
+from satellite.gravity import load_default_field  # the degree-8 series: these cases were chosen on it
 from satellite.model import InitialOrbit, OrbitModel
 from satellite.simulate import SatelliteSample, simulate
 from satellite.tau import TauFit, collect_tau, fit_tau
@@ -17,12 +18,12 @@ H_TOL = 1e-6  # m^2, event-location tolerance on h (h_max is about 4195 m^2)
 
 @pytest.fixture(scope="module")
 def model() -> OrbitModel:
-    return OrbitModel()
+    return OrbitModel(load_default_field())
 
 
 @pytest.fixture(scope="module")
 def quick_fit(model: OrbitModel) -> TauFit:
-    data = collect_tau(4, radii_over_R=(1.6, 1.8, 2.0, 2.2, 2.4), workers=1, max_hours=30.0)
+    data = collect_tau(4, radii_over_R=(1.6, 1.8, 2.0, 2.2, 2.4), workers=1, max_hours=30.0, gravity="sh8")
     return fit_tau(data, model.h_max, model.R)
 
 

@@ -11,6 +11,7 @@ from scipy.integrate import solve_ivp
 
 from isf_robot.core import ConfigError
 from satellite.controller import make_controller, resolve_control
+from satellite.gravity import load_default_field  # the degree-8 series: these cases were chosen on it
 from satellite.mesh_surface import load_surface
 from satellite.model import InitialOrbit, OrbitModel
 from satellite.simulate import simulate
@@ -24,7 +25,7 @@ def shape():  # type: ignore[no-untyped-def]
 
 @pytest.fixture(scope="module")
 def model() -> OrbitModel:
-    return OrbitModel()
+    return OrbitModel(load_default_field())
 
 
 @pytest.fixture(scope="module")
@@ -137,7 +138,8 @@ class _At(InitialOrbit):
 
 
 def test_run_with_the_surface_barrier_avoids_the_contact_the_band_alone_allows(shape) -> None:  # type: ignore[no-untyped-def]
-    kw = dict(initial=_At(seed=0), miet_samples=50, contact="count", contact_surface=shape)
+    kw = dict(initial=_At(seed=0), miet_samples=50, contact="count", contact_surface=shape,
+              model=OrbitModel(load_default_field()))  # the state was recorded on the degree-8 field
     off = simulate("greedy", 6.0, **kw)
     assert off.contact["surface_contacts"] >= 1 and off.contact["min_pass_clearance_m"] < -1.0  # the test can fail
     on = simulate("greedy", 6.0, surface_barrier=True, **kw)
@@ -147,7 +149,7 @@ def test_run_with_the_surface_barrier_avoids_the_contact_the_band_alone_allows(s
     assert on.min_h >= 0.0 and on.band_exits == 0
     c, c_s = on.settings["c"], sb["surface_c"]
     assert c_s == 0.01  # the default margin
-    sb_run = SurfaceBarrier(Superellipsoid.of_surface(shape), _At(seed=0).body_phase(), OrbitModel().omega)
+    sb_run = SurfaceBarrier(Superellipsoid.of_surface(shape), _At(seed=0).body_phase(), OrbitModel(load_default_field()).omega)
     gain = on.settings["alpha_gain"]
     for e in on.events:  # the surface's post-jump condition, recomputed from the impulse's states
         h_s, lf, _ = sb_run.parts(e.t, e.x_after)
@@ -164,7 +166,7 @@ def test_run_with_the_surface_barrier_avoids_the_contact_the_band_alone_allows(s
 def test_maneuver_run_with_the_surface_barrier(shape) -> None:  # type: ignore[no-untyped-def]
     from satellite.tau import TauFit
 
-    model = OrbitModel()
+    model = OrbitModel(load_default_field())
     tau = TauFit([3000.0, 3000.0], model.h_max)  # tau_p from 50 to 100 min over the band
     kw = dict(initial=_At(seed=0), miet_samples=50, contact="count", contact_surface=shape, tau=tau)
     on = simulate("maneuver", 6.0, surface_barrier=True, **kw)

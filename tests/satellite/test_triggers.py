@@ -9,13 +9,14 @@ import pytest
 
 from isf_robot.core import Linear, ManeuverScheduler, UnknownNameError
 from satellite.controller import ControlParams, make_controller, resolve_control
+from satellite.gravity import load_default_field  # the degree-8 series: these cases were chosen on it
 from satellite.model import OrbitModel
 from satellite.triggers import TRIGGERS, BandTriggers, Trigger
 
 
 @pytest.fixture(scope="module")
 def model() -> OrbitModel:
-    return OrbitModel()
+    return OrbitModel(load_default_field())
 
 
 def random_states(model: OrbitModel, n: int, seed: int) -> list[np.ndarray]:
