@@ -11,11 +11,13 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def xi_screen(lf, lgu, gn, d_bar, av, screen, out):  # pragma: no cover (compiled)
+def xi_screen(lf, lgu, gn, d_bar, h, gain, av, screen, out):  # pragma: no cover (compiled)
     """``out = ((lf + lgu) - gn d_bar) + av`` and, in the same pass, what the filter step reads of it.
 
-    Returns ``(sum, min, first index of the min, rows below their threshold, first such row)``;
-    ``screen``: no entries (no screening: count -1), one (every row's threshold) or one per row.
+    ``av``: ``alpha(h)`` per row; with ``gain > 0`` (a linear alpha) ``av_i = gain h_i`` instead
+    (the product ``Linear.vector`` makes). Returns ``(sum, min, first index of the min, rows below
+    their threshold, first such row)``; ``screen``: no entries (no screening: count -1), one
+    (every row's threshold) or one per row.
     """
     k = out.shape[0]
     ns = screen.shape[0]
@@ -25,7 +27,7 @@ def xi_screen(lf, lgu, gn, d_bar, av, screen, out):  # pragma: no cover (compile
     kept = 0 if ns else -1
     first = -1
     for i in range(k):
-        x = ((lf[i] + lgu[i]) - gn[i] * d_bar) + av[i]
+        x = ((lf[i] + lgu[i]) - gn[i] * d_bar) + (gain * h[i] if gain > 0.0 else av[i])
         out[i] = x
         total += x
         if x < low:

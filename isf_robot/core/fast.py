@@ -44,7 +44,7 @@ def _build() -> Callable[..., Any] | None:
 
 
 def xi_kernel() -> Callable[..., Any] | None:
-    """``xi_screen(lf, lgu, gn, d_bar, av, screen, out) -> (sum, min, argmin, kept, first)``, or ``None``.
+    """``xi_screen(lf, lgu, gn, d_bar, h, gain, av, screen, out) -> (sum, min, argmin, kept, first)``, or ``None``.
 
     See :mod:`isf_robot.core._xi_jit`. ``None``: numba is missing or ``ISF_ROBOT_JIT=0``.
     """

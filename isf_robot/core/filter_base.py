@@ -40,6 +40,7 @@ for _a in _ACTIVE:
     _a.flags.writeable = False
 
 
+_NO_AV = np.zeros(0)  # the kernel's "alpha is linear: gain h"
 _tuple_new = tuple.__new__  # (builds a _Xi without its generated __new__: 0.8 against 1.5 us)
 
 
@@ -49,7 +50,7 @@ class _Xi(NamedTuple):
     u_nom: np.ndarray
     xi: np.ndarray
     xi_min: float
-    av: np.ndarray  # alpha(h) per row
+    av: np.ndarray | None  # alpha(h) per row (None: a linear alpha, gain h_i where needed)
     argmin: int  # first row of least Xi_on (-1: not computed)
     kept: int  # rows with Xi_on below their screening threshold (-1: not counted)
     first: int  # the first of them (-1: none, or not counted)
@@ -149,20 +150,22 @@ class _FilterBase:
         if self.validate:
             lie.validate()
             u_nom = as_vector(u_nom, "nominal command u_nom", lie.m)
-        av = self.alpha.vector(lie.h)
-        kernel = self._kernel
+        kernel, alpha = self._kernel, self.alpha
         if kernel is not None:
-            lf, gn, k = lie.lf, lie.grad_norm, lie.h.shape
+            h, lf, gn, k = lie.h, lie.lf, lie.grad_norm, lie.h.shape
+            gain = alpha.gain if type(alpha) is Linear and h.dtype == _F64 else 0.0  # (the kernel's gain h)
+            av = _NO_AV if gain else alpha.vector(h)
             lgu = lie.lg.dot(u_nom)  # (dot: the BLAS product of @, as in xi_on)
             sa = screen_array(screen, k[0])
-            if (sa is not None and lf.shape == k and gn.shape == k and av.shape == k and lgu.shape == k
-                    and lf.dtype == _F64 and gn.dtype == _F64 and av.dtype == _F64 and lgu.dtype == _F64):
+            if (sa is not None and lf.shape == k and gn.shape == k and lgu.shape == k and lf.dtype == _F64
+                    and gn.dtype == _F64 and lgu.dtype == _F64 and (gain or av.shape == k and av.dtype == _F64)):
                 xi = np.empty(k)
-                total, low, arg, kept, first = kernel(lf, lgu, gn, self.d_bar, av, sa, xi)
+                total, low, arg, kept, first = kernel(lf, lgu, gn, self.d_bar, h, gain, av, sa, xi)
                 if not math.isfinite(total):
                     raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
                                          f"Xi_on = {xi}, u_nom = {u_nom}")
-                return _tuple_new(_Xi, (u_nom, xi, low, av, arg, kept, first))
+                return _tuple_new(_Xi, (u_nom, xi, low, None if gain else av, arg, kept, first))
+        av = alpha.vector(lie.h)
         xi = xi_on(lie, u_nom, self.alpha, self.d_bar, av)
         xl = xi.tolist()
         if not math.isfinite(sum(xl)):

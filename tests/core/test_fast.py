@@ -39,10 +39,11 @@ def test_kernel_makes_xi_on_and_its_reductions_bit_for_bit(alpha) -> None:  # ty
         lie, u = _lie(rng, k, m), rng.normal(size=m)
         d_bar = float(rng.choice([0.0, 0.05, 3.0]))
         ref = xi_on(lie, u, alpha, d_bar)
+        gain = alpha.gain if isinstance(alpha, Linear) else 0.0  # (linear: the kernel makes gain h itself)
         for screen in (np.zeros(0), np.full(1, 0.1), rng.uniform(-0.5, 1.0, k)):
             out = np.empty(k)
-            total, low, arg, kept, first = kernel(lie.lf, lie.lg.dot(u), lie.grad_norm, d_bar,
-                                                  alpha.vector(lie.h), screen, out)
+            total, low, arg, kept, first = kernel(lie.lf, lie.lg.dot(u), lie.grad_norm, d_bar, lie.h, gain,
+                                                  np.zeros(0) if gain else alpha.vector(lie.h), screen, out)
             assert out.tobytes() == ref.tobytes()  # signed zeros included
             assert total == sum(ref.tolist()) and low == min(ref.tolist()) and arg == int(ref.argmin())
             below = np.flatnonzero(ref < (screen if screen.size else np.inf))
