@@ -12,7 +12,7 @@ Packed parameters (float arrays, filled by :mod:`satellite.fast_arcs`):
 
 * ``fp`` (field): body phase, spin rate, disturbance scale, GM, r_lo, 1/dr, 1/dang, r_in,
   r_out, n_r, (unused), number of boxes; per box ``box_o`` its corner and 1/step, ``box_n``
-  its node counts and offset in ``coef`` (each box's coefficients, C order, flattened).
+  its node counts, ``coef[b]`` its coefficients (a typed list of flat C-order arrays).
 * ``bp`` (band): r_centre, h_max, d_bar, accel bound A, r_inner, r_outer, half width,
   alpha gain, alpha slope bound.
 * ``cp`` (contact): body phase, spin rate, cell size, n_lat, n_lon, max radius, min radius,
@@ -118,7 +118,8 @@ def _table(x, yy, z, r2, r, fp, ext, box_o, box_n, coef):  # pragma: no cover (c
     fy = 0.0
     fz = 0.0
     for b in range(int(fp[11])):
-        nx, ny, nz, off = box_n[b, 0], box_n[b, 1], box_n[b, 2], box_n[b, 3]
+        nx, ny, nz = box_n[b, 0], box_n[b, 1], box_n[b, 2]
+        cb = coef[b]
         inv = box_o[b, 3]
         bu = (x - box_o[b, 0]) * inv
         bv = (yy - box_o[b, 1]) * inv
@@ -139,10 +140,10 @@ def _table(x, yy, z, r2, r, fp, ext, box_o, box_n, coef):  # pragma: no cover (c
             for aa in range(4):
                 for bb in range(4):
                     wab = qa[aa] * qb[bb]
-                    n = off + 3 * (((bi - 1 + aa) * ny + (bj - 1 + bb)) * nz + (bk - 1 + cc))
-                    sx += wab * coef[n]
-                    sy += wab * coef[n + 1]
-                    sz += wab * coef[n + 2]
+                    n = 3 * (((bi - 1 + aa) * ny + (bj - 1 + bb)) * nz + (bk - 1 + cc))
+                    sx += wab * cb[n]
+                    sy += wab * cb[n + 1]
+                    sz += wab * cb[n + 2]
             gx += qc[cc] * sx
             gy += qc[cc] * sy
             gz += qc[cc] * sz
