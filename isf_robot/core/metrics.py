@@ -25,6 +25,8 @@ from .exceptions import ShapeError
 __all__ = ["DutyCycleMetrics", "FilterStats", "compute_metrics", "MetricsAccumulator"]
 
 _F64 = np.dtype(np.float64)
+_CHUNK = 1 << 16  # steps kept as tuples before they are packed into arrays
+_COLUMNS = (("t", float), ("dt", float), ("on", bool), ("intervention_rate", float), ("qp_solved", bool))
 
 
 @dataclass(frozen=True)
@@ -157,11 +159,14 @@ def compute_metrics(
 class MetricsAccumulator:
     """Collects per-step data during a run and computes :class:`DutyCycleMetrics` at the end.
 
-    Memory is one tuple of 5 numbers per step (about 100 MB per million steps).
+    Memory is about 26 bytes per step (26 MB per million steps): the steps are appended as tuples
+    (the cheapest per step) and packed into arrays every ``_CHUNK`` steps.
     """
 
     def __init__(self) -> None:
         self._steps: list[tuple[float, float, bool, float, bool]] = []  # (t, dt, on, |u - u_nom|^2, solved)
+        self._packed: list[dict[str, np.ndarray]] = []  # earlier steps, as arrays
+        self._n_packed = 0
         self._qp_times: list[float] = []
         self._solver_times: list[float] = []
         self._fallbacks = self._relaxations = self._resolves = self._closed_form = 0
@@ -174,6 +179,8 @@ class MetricsAccumulator:
         """Record one step."""
         d = u - u_nom
         self._steps.append((t, dt, bool(on), float(d.dot(d)), bool(solved)))  # (dot: the BLAS product of @)
+        if len(self._steps) >= _CHUNK:
+            self._pack()
 
     def add_step(self, step: Any, dt: float) -> None:
         """Record a :class:`~isf_robot.core.filters.FilterStep` (and its solver figures).
@@ -189,7 +196,10 @@ class MetricsAccumulator:
         else:
             d = u - u_nom
             rate = float(d.dot(d))
-        self._steps.append((step.t, dt, bool(step.on), rate, qp is not None))
+        steps = self._steps
+        steps.append((step.t, dt, bool(step.on), rate, qp is not None))
+        if len(steps) >= _CHUNK:
+            self._pack()
         if qp is not None:
             self._qp_times.append(qp.solve_time_s)
             if qp.status == "closed_form":
@@ -228,18 +238,22 @@ class MetricsAccumulator:
                            root(self._jump2), self._off_bound)
 
     def __len__(self) -> int:
-        return len(self._steps)
+        return self._n_packed + len(self._steps)
+
+    def _columns(self) -> dict[str, np.ndarray]:
+        """The steps not packed yet, as arrays."""
+        cols = tuple(zip(*self._steps)) if self._steps else ((),) * 5
+        return {name: np.asarray(col, dtype=dtype) for (name, dtype), col in zip(_COLUMNS, cols)}
+
+    def _pack(self) -> None:
+        self._packed.append(self._columns())
+        self._n_packed += len(self._steps)
+        self._steps.clear()
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The recorded per-step arrays: t, dt, on, intervention_rate, qp_solved."""
-        cols = tuple(zip(*self._steps)) if self._steps else ((),) * 5
-        return {
-            "t": np.asarray(cols[0], dtype=float),
-            "dt": np.asarray(cols[1], dtype=float),
-            "on": np.asarray(cols[2], dtype=bool),
-            "intervention_rate": np.asarray(cols[3], dtype=float),
-            "qp_solved": np.asarray(cols[4], dtype=bool),
-        }
+        parts = [*self._packed, self._columns()]
+        return {name: np.concatenate([p[name] for p in parts]) for name, _ in _COLUMNS}
 
     def result(self) -> DutyCycleMetrics:
         """Compute the metrics of everything recorded so far."""

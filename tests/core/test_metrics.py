@@ -75,3 +75,23 @@ def test_add_step_records_steps_and_their_solver_figures():
     assert st.resolves == len(range(0, 120, 7)) and st.off_bound_min_s == 81.0
     times = [1e-6 * (k + 1) for k in range(120) if kinds[k] == "optimal"]
     assert st.solver_time_median_us == pytest.approx(float(np.median(times)) * 1e6)
+
+
+def test_steps_packed_into_arrays_read_back_the_same(monkeypatch):
+    """Steps are packed into arrays every _CHUNK steps (memory): arrays(), len() and the metrics do not change."""
+    from isf_robot.core import metrics
+
+    rng = np.random.default_rng(5)
+    data = [(k * 0.01, 0.01, bool(rng.random() < 0.3), rng.normal(size=3), rng.normal(size=3), bool(k % 4))
+            for k in range(50)]
+    whole = MetricsAccumulator()
+    for row in data:
+        whole.add(*row)
+    monkeypatch.setattr(metrics, "_CHUNK", 7)
+    packed = MetricsAccumulator()
+    for row in data:
+        packed.add(*row)
+    assert len(packed._packed) == 7 and len(packed) == len(whole) == 50
+    for name, col in whole.arrays().items():
+        assert np.array_equal(packed.arrays()[name], col) and packed.arrays()[name].dtype == col.dtype, name
+    assert packed.result() == whole.result()
