@@ -23,6 +23,10 @@ boxes around the parts of the surface that reach into the table's radii:
   4 m nodes; REPRODUCTION.md has the final figures);
 * elsewhere (deeper inside, or far from the surface) ``delta_n = 0``.
 
+A second level (:func:`add_fine_level`, 2 m nodes within 6 m of the surface, in the band) corrects
+what the table and the 4 m boxes leave near edges and vertices of the shape, where the exact
+field's gradient is log-singular; every box keeps its own step and the corrections of all boxes add.
+
 Each box carries ``ZERO_LAYERS`` rows of zero nodes on every side, so the B-spline's
 coefficients die out (as ``0.27^k``) before the box's edge: leaving a box changes the field by
 less than 1e-9 of the correction (below the integrator's tolerance), and inside the boxes the
