@@ -119,15 +119,17 @@ def test_finished_runs_of_an_earlier_study_are_kept(tmp_path: Path) -> None:
 
 def test_ctrl_c_keeps_finished_orbits_and_resume_completes(tmp_path: Path) -> None:
     out = tmp_path / "study.json"
-    argv = SATELLITE + ["study", "--gravity", "sh8", "--triggers", "greedy", "--seeds", "4", "--inclinations",
-                        "45", "--hours", "24", "--jobs", "2", "--out", str(out), "--json"]
+    # 6 orbits of 48 h (~3 s each on the degree-8 field): several seconds of work are left when the
+    # first one ends, so the study cannot finish before the signal lands even on a loaded machine
+    argv = SATELLITE + ["study", "--gravity", "sh8", "--triggers", "greedy", "--seeds", "6", "--inclinations",
+                        "45", "--hours", "48", "--jobs", "2", "--out", str(out), "--json"]
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
     assert proc.stderr is not None
     t0 = time.monotonic()
     while time.monotonic() - t0 < 120:
         line = proc.stderr.readline()
-        if not line or line.startswith("[1/4]"):
+        if not line or line.startswith("[1/6]"):
             break
     proc.send_signal(signal.SIGINT)
     stdout, err = proc.communicate(timeout=30)
@@ -136,7 +138,7 @@ def test_ctrl_c_keeps_finished_orbits_and_resume_completes(tmp_path: Path) -> No
     printed = json.loads(stdout)
     saved = json.loads(out.read_text())
     assert printed["partial"] is True and saved["partial"] is True
-    assert 1 <= len(saved["runs"]) < 4 and saved["runs"] == printed["runs"]
+    assert 1 <= len(saved["runs"]) < 6 and saved["runs"] == printed["runs"]
     deadline = time.monotonic() + 10  # multiprocessing's resource tracker exits once the parent is gone
     while True:
         left = subprocess.run(["ps", "-o", "stat=,args=", "-g", str(proc.pid)], capture_output=True,
@@ -147,11 +149,11 @@ def test_ctrl_c_keeps_finished_orbits_and_resume_completes(tmp_path: Path) -> No
         time.sleep(0.2)
     assert live == [], f"workers left behind: {live}"
     finished = {r["seed"]: r for r in saved["runs"]}
-    code = satellite_main(["study", "--gravity", "sh8", "--triggers", "greedy", "--seeds", "4", "--inclinations",
-                           "45", "--hours", "24", "--out", str(out), "--resume", "--quiet", "--jobs", "2"])
+    code = satellite_main(["study", "--gravity", "sh8", "--triggers", "greedy", "--seeds", "6", "--inclinations",
+                           "45", "--hours", "48", "--out", str(out), "--resume", "--quiet", "--jobs", "2"])
     assert code == 0
     full = json.loads(out.read_text())
-    assert full["partial"] is False and len(full["runs"]) == 4
+    assert full["partial"] is False and len(full["runs"]) == 6
     assert all(r == finished[r["seed"]] for r in full["runs"] if r["seed"] in finished)
 
 
