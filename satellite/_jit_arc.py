@@ -8,6 +8,13 @@ its bisection of :func:`satellite.events.brackets`, Brent's method on the step's
 decisions agree with the scipy path to rounding, not bit for bit. Imported only when numba is
 installed (:mod:`satellite.fast_arcs`).
 
+The method is the published one: Dormand and Prince's explicit Runge-Kutta pair of order 8(5,3)
+with its dense output of order 7 and the step-size control and starting-step algorithm of Hairer,
+Norsett and Wanner, *Solving Ordinary Differential Equations I* (2nd ed., Springer 1993), sections
+II.4 and II.10. The coefficients are read from scipy at import (:mod:`satellite.fast_arcs`), and the
+control's constants (safety 0.9, factors 0.2..10, error exponent -1/8) are the ones scipy's
+``DOP853`` uses, so that both paths take the same steps; the loops here are written for this project.
+
 :func:`arc` returns a status: 0 reached the end, 1 stopped by a terminal event, -1 the step
 size underflowed (at the time returned in ``out_t``), -2 a right-hand side outside the table's
 radii at a point not in ``xc`` (written to ``xc[0]``: the caller adds its exact acceleration and runs
