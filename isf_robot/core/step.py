@@ -20,8 +20,11 @@ class FilterStep:
 
     Attributes:
         t: Time [s].
-        u: The command to apply, shape (m,).
-        u_nom: The nominal command, shape (m,).
+        u: The command to apply, shape (m,). When the filter passes the nominal command through
+            (``u == u_nom``), this is the caller's ``u_nom`` array itself, not a copy: copy it
+            to keep it past a later change of that array (a nominal controller may reuse its
+            output buffer).
+        u_nom: The nominal command, shape (m,) (the caller's float array itself when given one).
         on: Whether the filter acted in this step (intermittent: its mode; standard: a
             constraint was active).
         h: Barrier values, shape (k,).
