@@ -35,7 +35,10 @@ FEW_ROWS = 8
 
 
 def _holds(res: list[float], tol: list[float]) -> bool:
-    return all(r >= -t for r, t in zip(res, tol))
+    for r, t in zip(res, tol):
+        if r < -t:  # (finite floats: the negation of r >= -t)
+            return False
+    return True
 
 
 def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray,
@@ -56,47 +59,55 @@ def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray,
     rl = r0.tolist()
     if not math.isfinite(sum(rl)):
         return None
-    tol = [rel_tol * max(1.0, abs(b)) for b in lb.tolist()]
-    if _holds(rl, tol):
-        u = u_nom.copy()
-        return u, r0, min(rl)
+    tol = [rel_tol * b if b > 1.0 else rel_tol for b in map(abs, lb.tolist())]  # (= rel_tol max(1, |lb_i|))
     k = len(rl)
+    neg = [i for i in range(k) if rl[i] < -tol[i]]
+    if not neg:
+        return u_nom.copy(), r0, min(rl)
     G = A.dot(A.T).tolist()
-    viol = sorted((i for i in range(k) if rl[i] < -tol[i] and G[i][i] > 1e-200),
-                  key=lambda i: rl[i] / math.sqrt(G[i][i]))
+    sqrt = math.sqrt
+    viol = sorted((i for i in neg if G[i][i] > 1e-200), key=lambda i: rl[i] / sqrt(G[i][i]))
+    rng = range(k)
     for i in viol:  # one active row
-        lam = -rl[i] / G[i][i]
         gi = G[i]
-        pred = [r + lam * g for r, g in zip(rl, gi)]
-        pred[i] = 0.0  # active by construction (the float sum would only add cancellation)
-        if _holds(pred, tol):
-            hit = _confirm(A, lb, u_nom, tol, u_nom + lam * A[i])
+        lam = -rl[i] / gi[i]
+        for j in rng:  # (row i is active by construction: its predicted residual is 0)
+            if j != i and rl[j] + lam * gi[j] < -tol[j]:
+                break
+        else:
+            hit = _confirm(A, lb, tol, u_nom + lam * A[i])
             if hit is not None:
                 return hit
     for i in viol:  # two active rows: i (violated at u_nom) and any other
         gi = G[i]
-        for j in range(k):
-            if j == i or (j in viol and j < i) or G[j][j] <= 1e-200:
+        gii, ri = gi[i], rl[i]
+        for j in rng:
+            if j == i or (j in viol and j < i):
                 continue
-            gij, gjj, gii = gi[j], G[j][j], gi[i]
+            gj = G[j]
+            gjj = gj[j]
+            if gjj <= 1e-200:
+                continue
+            gij = gi[j]
             det = gii * gjj - gij * gij
             if not det > 1e-12 * gii * gjj:
                 continue
-            li = (-rl[i] * gjj + rl[j] * gij) / det
-            lj = (-rl[j] * gii + rl[i] * gij) / det
+            rj = rl[j]
+            li = (-ri * gjj + rj * gij) / det
+            lj = (-rj * gii + ri * gij) / det
             if not (li >= 0.0 and lj >= 0.0):
                 continue
-            gj = G[j]
-            pred = [r + li * a + lj * b for r, a, b in zip(rl, gi, gj)]
-            pred[i] = pred[j] = 0.0
-            if _holds(pred, tol):
-                hit = _confirm(A, lb, u_nom, tol, u_nom + li * A[i] + lj * A[j])
+            for q in rng:
+                if q != i and q != j and rl[q] + li * gi[q] + lj * gj[q] < -tol[q]:
+                    break
+            else:
+                hit = _confirm(A, lb, tol, u_nom + li * A[i] + lj * A[j])
                 if hit is not None:
                     return hit
     return None
 
 
-def _confirm(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, tol: list[float],
+def _confirm(A: np.ndarray, lb: np.ndarray, tol: list[float],
              u: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
     """``(u, A u - lb, min)`` when ``u`` is finite and every row holds on the rows themselves.
 
@@ -107,6 +118,7 @@ def _confirm(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, tol: list[float],
     if not (math.isfinite(sum(rl)) and math.isfinite(sum(ul))):
         return None
     scale = max(1.0, max(map(abs, ul)))
-    if not _holds(rl, [t * scale for t in tol]):
-        return None
+    for r, t in zip(rl, tol):
+        if r < -t * scale:
+            return None
     return u, res, min(rl)
