@@ -26,21 +26,43 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["xi_kernel", "screen_array"]
+__all__ = ["xi_kernel", "few_kernels", "screen_array"]
 
 _STATE: dict[str, Any] = {}
 _F64 = np.dtype(np.float64)
 _NO_SCREEN = np.zeros(0)  # the kernel's "no screening"
 
 
+def _off() -> bool:
+    return os.environ.get("ISF_ROBOT_JIT", "1").strip().lower() in ("0", "false", "no", "off")
+
+
 def _build() -> Callable[..., Any] | None:
-    if os.environ.get("ISF_ROBOT_JIT", "1").strip().lower() in ("0", "false", "no", "off"):
+    if _off():
         return None
     try:
         from ._xi_jit import xi_screen
     except ImportError:
         return None
     return xi_screen
+
+
+def few_kernels() -> tuple[Callable[..., Any], Callable[..., Any]] | None:
+    """``(few_candidate, few_confirm)`` of :mod:`isf_robot.core._few_jit`, or ``None`` (no numba, or ``ISF_ROBOT_JIT=0``).
+
+    Read when a :class:`~isf_robot.core.qp_solver.QPSolver` is built.
+    """
+    key = os.environ.get("ISF_ROBOT_JIT", "1")
+    if _STATE.get("few_key") != key:
+        kernels = None
+        if not _off():
+            try:
+                from ._few_jit import few_candidate, few_confirm
+                kernels = (few_candidate, few_confirm)
+            except ImportError:
+                pass
+        _STATE["few_key"], _STATE["few"] = key, kernels
+    return _STATE["few"]
 
 
 def xi_kernel() -> Callable[..., Any] | None:

@@ -25,10 +25,15 @@ QPs with several rows have one or two active rows at the solution.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
 __all__ = ["project_few", "FEW_ROWS"]
+
+_F64 = np.dtype(np.float64)
+_PY = object()  # the compiled path's "decide in Python"
 
 FEW_ROWS = 8
 """Largest number of rows :func:`project_few` enumerates (the pairs grow as k^2)."""
@@ -41,8 +46,9 @@ def _holds(res: list[float], tol: list[float]) -> bool:
     return True
 
 
-def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray,
-                rel_tol: float = 1e-12) -> tuple[np.ndarray, np.ndarray, float] | None:
+def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float = 1e-12,
+                kernels: tuple[Callable[..., Any], Callable[..., Any]] | None = None,
+                ) -> tuple[np.ndarray, np.ndarray, float] | None:
     """The solution of ``min |u - u_nom|^2 s.t. A u >= lb`` if at most two rows are active there.
 
     Args:
@@ -50,11 +56,18 @@ def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray,
         lb: Lower bounds, shape (k,).
         u_nom: The point projected, shape (m,).
         rel_tol: A row counts as satisfied at ``r_i >= -rel_tol max(1, |lb_i|)`` (rounding).
+        kernels: :func:`~isf_robot.core.fast.few_kernels` (the same answers, compiled), or ``None``.
 
     Returns:
         ``(u, A u - lb, min_i (A u - lb)_i)``, or ``None`` (see the module docstring).
 
     """
+    if kernels is not None and A.dtype == _F64 and lb.dtype == _F64 and u_nom.dtype == _F64 and A.ndim == 2:
+        k, m = A.shape
+        if lb.shape == (k,) and u_nom.shape == (m,):
+            hit = _compiled(A, lb, u_nom, rel_tol, kernels)
+            if hit is not _PY:
+                return hit
     r0 = A.dot(u_nom) - lb
     rl = r0.tolist()
     if not math.isfinite(sum(rl)):
@@ -105,6 +118,27 @@ def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray,
                 if hit is not None:
                     return hit
     return None
+
+
+def _compiled(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float,
+              kernels: tuple[Callable[..., Any], Callable[..., Any]]) -> Any:
+    """:func:`project_few` with the compiled kernels; ``_PY`` when the Python path must decide.
+
+    The first candidate of the enumeration is confirmed on the rows; if it fails (rounding), the
+    Python path enumerates again from the start (the same first candidate, then the next ones).
+    """
+    candidate, confirm = kernels
+    r0 = A.dot(u_nom) - lb
+    tol = np.empty(A.shape[0])
+    u = np.empty(A.shape[1])
+    code, low = candidate(A, lb, u_nom, r0, A.dot(A.T), rel_tol, tol, u)
+    if code == 1:
+        res = A.dot(u) - lb
+        ok, low = confirm(res, u, tol)
+        return (u, res, low) if ok else _PY
+    if code == 0:
+        return u_nom.copy(), r0, low
+    return None if code < 0 else _PY
 
 
 def _confirm(A: np.ndarray, lb: np.ndarray, tol: list[float],

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from .exceptions import ConfigError, SolverError
+from .fast import few_kernels
 from .qp import FilterQP, QPResult
 from .qp_small import FEW_ROWS, project_few
 from .validation import check_positive
@@ -100,6 +101,7 @@ class QPSolver:
         self.backend = backend
         self.polish = bool(polish)
         self.few_rows = bool(few_rows)
+        self._few = few_kernels() if self.few_rows else None  # (ISF_ROBOT_JIT is read here)
         self._cache: dict[tuple[int, int, bool], _Workspace] = {}
         self._eye: dict[int, np.ndarray] = {}
         self._upper: dict[int, np.ndarray] = {}
@@ -132,7 +134,7 @@ class QPSolver:
                 return res
             # an answer that fails the check goes to the backend
         elif self.few_rows and 1 < k <= FEW_ROWS and not box and self.closed_form:
-            hit = project_few(qp.A, qp.lb, qp.u_nom)
+            hit = project_few(qp.A, qp.lb, qp.u_nom, kernels=self._few)
             if hit is not None:  # the exact solution, checked on every row (one or two rows active)
                 u, res, rmin = hit
                 return QPResult._of(u, "optimal", res <= self.active_tol, time.perf_counter() - t0, 0,

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import collections
 import math
 
 import numpy as np
 import pytest
 
-from isf_robot.core import CustomClassK, IntermittentSafetyFilter, LieData, Linear, NonFiniteError, Power, SafetyFilter
+from isf_robot.core import CustomClassK, QPSolver, IntermittentSafetyFilter, LieData, Linear, NonFiniteError, Power, SafetyFilter
 from isf_robot.core.triggers import xi_on
 
 pytest.importorskip("numba")
@@ -67,12 +68,13 @@ def _run(make, jit: str, monkeypatch: pytest.MonkeyPatch, seed: int) -> list:  #
 
 
 @pytest.mark.parametrize("alpha", ALPHAS, ids=repr)
-@pytest.mark.parametrize("kind", ["cbf", "isf"])
+@pytest.mark.parametrize("kind", ["cbf", "isf", "cbf_few", "isf_few"])
 def test_filters_give_the_same_steps_with_and_without_the_kernel(alpha, kind, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     def make():  # type: ignore[no-untyped-def]
-        if kind == "cbf":
-            return SafetyFilter(alpha, 0.05, validate=False)
-        return IntermittentSafetyFilter(alpha, 0.1, 0.05, 0.05, validate=False, blend=0.03)
+        solver = QPSolver(few_rows=kind.endswith("_few"))  # (built here: it reads ISF_ROBOT_JIT)
+        if kind.startswith("cbf"):
+            return SafetyFilter(alpha, 0.05, validate=False, solver=solver)
+        return IntermittentSafetyFilter(alpha, 0.1, 0.05, 0.05, validate=False, blend=0.03, solver=solver)
 
     steps = _run(make, "1", monkeypatch, 5)
     assert steps == _run(make, "0", monkeypatch, 5)
@@ -88,3 +90,44 @@ def test_non_finite_data_and_bad_shapes_are_refused_as_without_the_kernel() -> N
     long = LieData(np.array([0.5, 0.2]), np.zeros(3), np.eye(2), np.ones(2))  # lf one row too many
     with pytest.raises(ValueError):  # numpy's broadcasting error, never the kernel reading 2 of 3 rows
         f.step_lie(0.0, long, np.zeros(2), screen=0.2)
+
+
+def _few_problems(rng: np.random.Generator, n: int):  # type: ignore[no-untyped-def]
+    """Few-row problems with 0, 1, 2 and more active rows, nearly parallel rows and non-finite data."""
+    for i in range(n):
+        k, m = int(rng.integers(2, 9)), int(rng.integers(1, 8))
+        A = rng.normal(size=(k, m)) * 10.0 ** rng.uniform(-3, 3, size=(k, 1))
+        lb = rng.normal(size=k) * 10.0 ** rng.uniform(-2, 2)
+        u_nom = rng.normal(size=m)
+        if i % 7 == 0:
+            A[1] = A[0] * (1.0 + 1e-9 * rng.random())  # nearly parallel
+        if i % 11 == 0:
+            lb[rng.integers(k)] = 0.0
+            A[rng.integers(k)] = 0.0  # a zero row
+        if i % 97 == 0:
+            (A if i % 2 else lb).flat[0] = rng.choice([np.nan, np.inf])
+        yield A, lb, u_nom
+
+
+def _same(a, b) -> bool:  # type: ignore[no-untyped-def]
+    if a is None or b is None:
+        return a is b
+    return a[0].tobytes() == b[0].tobytes() and a[1].tobytes() == b[1].tobytes() and a[2] == b[2]
+
+
+def test_few_row_kernels_give_project_few_bit_for_bit() -> None:
+    from isf_robot.core.fast import few_kernels
+    from isf_robot.core.qp_small import project_few
+
+    kernels = few_kernels()
+    assert kernels is not None, "numba is installed: the kernels must load"
+    active = collections.Counter()
+    for A, lb, u_nom in _few_problems(np.random.default_rng(3), 6000):
+        ref = project_few(A, lb, u_nom)
+        assert _same(project_few(A, lb, u_nom, kernels=kernels), ref)
+        active["none" if ref is None else int((ref[1] <= 1e-9).sum())] += 1
+    assert min(active["none"], active[0], active[1], active[2]) > 100, active  # every case was met
+    # a candidate that fails its confirmation on the rows: the Python path decides (the same answer)
+    refuse = (kernels[0], lambda res, u, tol: (False, 0.0))
+    for A, lb, u_nom in _few_problems(np.random.default_rng(4), 500):
+        assert _same(project_few(A, lb, u_nom, kernels=refuse), project_few(A, lb, u_nom))
