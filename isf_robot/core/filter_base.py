@@ -40,6 +40,7 @@ for _a in _ACTIVE:
     _a.flags.writeable = False
 
 
+_KINDS = ("robust", "promote")  # a row's kind by its promotion flag
 _NO_AV = np.zeros(0)  # the kernel's "alpha is linear: gain h"
 _tuple_new = tuple.__new__  # (builds a _Xi without its generated __new__: 0.8 against 1.5 us)
 
@@ -187,7 +188,7 @@ class _FilterBase:
         if promote is not None and promote.any():
             level = b if np.all(np.asarray(ramp) >= 1.0) else np.maximum(rhs, ramp * b + (1.0 - ramp) * rhs)
             rhs = np.where(promote, level, rhs)
-            kinds = tuple("promote" if p else "robust" for p in promote)
+            kinds = tuple(map(_KINDS.__getitem__, promote.tolist()))
         return FilterQP._of(u_nom, lie.lg, rhs - lie.lf + lie.grad_norm * self.d_bar, self.u_min, self.u_max,
                             kinds, lie.names)
 

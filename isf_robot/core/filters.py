@@ -209,6 +209,9 @@ class IntermittentSafetyFilter(_FilterBase):
         self._ramp: float | np.ndarray = 1.0
         self._promotion_w: dict[Any, float] = {}  # promotion weights of the hand-over
         self._t_ramp: float | None = None
+        self._ramp_names: Any = None  # the names tuple _ramp_rows was built for
+        self._ramp_rows: dict[Any, list[int]] = {}
+        self._ramp_keys: Sequence[Any] = ()
 
     def margin(self) -> float:
         """The off margin now: ``c``, or the one designed for ``min_off``."""
@@ -275,7 +278,7 @@ class IntermittentSafetyFilter(_FilterBase):
                                              lie.names, resolved, c, bound, ran, held))
         promote = xi < c
         if held and pred is not None and pred.failing:  # steer away from the predicted failures
-            promote |= np.fromiter((n in pred.failing for n in lie.names), bool, lie.k)
+            promote |= np.fromiter(map(pred.failing.__contains__, lie.names), bool, lie.k)
         if self.blend > 0:
             promote, self._ramp = self._row_ramp(t, lie.names, promote)
         try:
@@ -295,24 +298,35 @@ class IntermittentSafetyFilter(_FilterBase):
         """
         w = self._promotion_w  # key -> weight
         k = promote.size
-        keys: Sequence[Any] = names if len(names) == k else range(k)
+        if names is not self._ramp_names or len(self._ramp_keys) != k:  # (each name's rows, built once per names)
+            keys: Sequence[Any] = names if len(names) == k else range(k)
+            rows: dict[Any, list[int]] = {}
+            for i, n in enumerate(keys):
+                rows.setdefault(n, []).append(i)
+            self._ramp_names, self._ramp_rows, self._ramp_keys = names, rows, keys
+        rows, keys = self._ramp_rows, self._ramp_keys  # (a repeated name: its last row is "now")
         rate = (t - self._t_ramp) / self.blend if self._t_ramp is not None else 0.0
         self._t_ramp = t
-        now = dict(zip(keys, promote.tolist()))  # (a repeated name: its last row decides, as before)
+        pl = promote.tolist()
         for n in list(w):
-            if not now.get(n, False):
+            r = rows.get(n)
+            if r is None or not pl[r[-1]]:
                 w[n] -= rate
                 if w[n] <= 0.0:
                     del w[n]
         for n in {keys[i] for i in promote.nonzero()[0].tolist()}:  # the promoted keys (each once)
-            if now[n]:
+            if pl[rows[n][-1]]:
                 w[n] = min(1.0, w[n] + rate) if n in w else 0.0
         if not w:
             return np.zeros(k, bool), np.ones(k)
-        get = w.get
-        weights = np.array([get(n, -1.0) for n in keys])  # (weights are >= 0: -1 marks the rows not in w)
-        mask = weights >= 0.0
-        weights[~mask] = 1.0
+        weights = np.ones(k)
+        mask = np.zeros(k, bool)
+        for n, v in w.items():
+            r = rows.get(n)
+            if r is not None and v >= 0.0:  # (a weight below 0 or NaN: as a row not in w)
+                for i in r:
+                    weights[i] = v
+                    mask[i] = True
         return mask, weights
 
     def _done(self, step: FilterStep) -> FilterStep:

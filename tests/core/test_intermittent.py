@@ -244,3 +244,47 @@ def test_a_row_leaving_the_promotion_set_ramps_down_instead_of_dropping():
     assert down[0] == pytest.approx(0.75 * 1.0 + 0.25 * -0.9, abs=1e-6)  # one step of 0.25 down, not 0
     assert down[-1] == pytest.approx(0.0, abs=1e-9)  # released: u_nom meets the robust condition
     assert all(a - b <= 0.25 * 1.9 + 1e-9 for a, b in zip([ub[-1]] + down, down))
+
+
+def _ramp_reference(state: dict, t: float, names: tuple, promote: np.ndarray, blend: float) -> tuple:
+    """The hand-over ramp as written before its per-names cache: a dict of the rows' flags per step."""
+    w = state["w"]
+    k = promote.size
+    keys = names if len(names) == k else range(k)
+    rate = (t - state["t"]) / blend if state["t"] is not None else 0.0
+    state["t"] = t
+    now = dict(zip(keys, promote.tolist()))
+    for n in list(w):
+        if not now.get(n, False):
+            w[n] -= rate
+            if w[n] <= 0.0:
+                del w[n]
+    for n in {keys[i] for i in promote.nonzero()[0].tolist()}:
+        if now[n]:
+            w[n] = min(1.0, w[n] + rate) if n in w else 0.0
+    if not w:
+        return np.zeros(k, bool), np.ones(k)
+    weights = np.array([w.get(n, -1.0) for n in keys])
+    mask = weights >= 0.0
+    weights[~mask] = 1.0
+    return mask, weights
+
+
+def test_row_ramp_equals_the_reference_with_repeated_and_changing_names() -> None:
+    f = IntermittentSafetyFilter(1.0, 0.1, 0.05, 0.0, blend=0.02)
+    rng = np.random.default_rng(8)
+    tables = [("a", "b", "c", "a"), ("a", "b", "c", "a"), ("b", "d"), ("x",) * 3, tuple(f"r{i}" for i in range(9))]
+    state: dict = {"w": {}, "t": None}
+    t, ramping = 0.0, 0
+    for step in range(3000):
+        names = tables[(step // 40) % len(tables)]
+        k = len(names) if step % 13 else len(names) + 1  # sometimes a row count that does not match the names
+        if step % 40 == 0:
+            names = tuple(list(names))  # (an equal tuple, another object now and then)
+        promote = rng.random(k) < 0.3
+        t += 0.001 if step % 97 else -0.0005  # time going back once in a while
+        mask, weights = f._row_ramp(t, names, promote)
+        ref_mask, ref_weights = _ramp_reference(state, t, names, promote, 0.02)
+        assert mask.tobytes() == ref_mask.tobytes() and weights.tobytes() == ref_weights.tobytes(), step
+        ramping += int(np.any((weights > 0.0) & (weights < 1.0)))
+    assert ramping > 500  # the ramps were exercised, not only 0 and 1
