@@ -9,7 +9,6 @@ infeasibility policy.
 from __future__ import annotations
 
 import math
-import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import replace
@@ -18,9 +17,10 @@ from typing import NamedTuple
 import numpy as np
 
 from .barrier import Barrier, evaluate_barriers
-from .class_k import ClassK, CustomClassK, Linear, as_class_k
+from .class_k import ClassK, Linear, as_class_k
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
 from .fast import screen_array, xi_kernel
+from .filter_short import ShortWays
 from .qp import FilterQP, QPResult
 from .qp_solver import QPSolver
 from .step import FilterStep
@@ -34,11 +34,6 @@ __all__ = ["FilterStep", "FallbackFn"]  # (FilterStep: from .step, where it live
 _F64 = np.dtype(np.float64)
 
 FallbackFn = Callable[[float, "np.ndarray | None", LieData, QPResult], np.ndarray]
-
-_ACTIVE = (np.zeros(1, bool), np.ones(1, bool))  # one row's activity, shared (read-only)
-for _a in _ACTIVE:
-    _a.flags.writeable = False
-
 
 _KINDS = ("robust", "promote")  # a row's kind by its promotion flag
 _NO_AV = np.zeros(0)  # the kernel's "alpha is linear: gain h"
@@ -57,7 +52,7 @@ class _Xi(NamedTuple):
     first: int  # the first of them (-1: none, or not counted)
 
 
-class _FilterBase:
+class _FilterBase(ShortWays):
     uses_rows = True
     intermittent = False
 
@@ -178,19 +173,25 @@ class _FilterBase:
         self, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None = None, b: float = 0.0,
         ramp: float | np.ndarray = 1.0,
     ) -> FilterQP:
-        """Build the filter QP: robust rows, or promoting rows where ``promote`` is True.
+        """Build the filter QP: robust rows, or promoting rows where ``promote`` is True (see :meth:`qp_lower`)."""
+        kinds: tuple[str, ...] = ()  # empty: every row robust
+        if promote is not None and promote.any():
+            kinds = tuple(map(_KINDS.__getitem__, promote.tolist()))
+        return FilterQP._of(u_nom, lie.lg, self.qp_lower(lie, promote, b, ramp), self.u_min, self.u_max,
+                            kinds, lie.names)
+
+    def qp_lower(self, lie: LieData, promote: np.ndarray | None = None, b: float = 0.0,
+                 ramp: float | np.ndarray = 1.0) -> np.ndarray:
+        """The QP's lower bounds ``lb`` (rows ``Lg h u >= lb``): robust, or promoting where ``promote`` is True.
 
         ``ramp`` in [0, 1) (a number, or one per row) lowers the promotion level to ``max(-alpha(h), ramp b + (1 - ramp)
         (-alpha(h)))`` (the smooth hand-over after an on switch; never below the robust condition).
         """
         rhs = -self.alpha.vector(lie.h)
-        kinds: tuple[str, ...] = ()  # empty: every row robust
         if promote is not None and promote.any():
             level = b if np.all(np.asarray(ramp) >= 1.0) else np.maximum(rhs, ramp * b + (1.0 - ramp) * rhs)
             rhs = np.where(promote, level, rhs)
-            kinds = tuple(map(_KINDS.__getitem__, promote.tolist()))
-        return FilterQP._of(u_nom, lie.lg, rhs - lie.lf + lie.grad_norm * self.d_bar, self.u_min, self.u_max,
-                            kinds, lie.names)
+        return rhs - lie.lf + lie.grad_norm * self.d_bar
 
     # -- solving -------------------------------------------------------------------------
     def _solve(self, qp: FilterQP) -> QPResult:
@@ -265,96 +266,6 @@ class _FilterBase:
         res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote, lie.names, None)
         return res, relaxed, fb, False
 
-    def _one_row_ok(self, lie: LieData) -> bool:
-        """Whether one kept row may go the short way (:meth:`_solve_one`).
-
-        No input bounds, the closed form enabled, float64 barrier data (the row's bound is then
-        the same in floats).
-        """
-        return (self.u_min is None and self.u_max is None and self.solver.closed_form
-                and lie.h.dtype == _F64 and lie.lf.dtype == _F64 and lie.grad_norm.dtype == _F64)
-
-    def _solve_one(self, lie: LieData, u_nom: np.ndarray, i: int, packed: bool, xs: _Xi | None,
-                   promoted: bool = False) -> QPResult | None:
-        """Row ``i`` alone (robust, or promoted), no bounds: the closed form without building the QP.
-
-        The same numbers as :meth:`build_qp` and :meth:`QPSolver.solve_row` on that row: the bound
-        ``r - Lf h_i + |dh_i/dx| d_bar`` with ``r = -alpha(h_i)``, or the promotion level (``b``, or
-        its ramp ``max(r, w b + (1 - w) r)``), in the same order of operations (IEEE float64
-        arithmetic in floats and in numpy agree), the same products and the same check. ``None``
-        when the closed form fails its check (the caller then solves the general way).
-        ``packed``: the general way would have copied the row (``take``), so a strided row is
-        copied here too (a dot product of a strided row may sum in another order). When the row
-        holds at ``u_nom`` the command is ``u_nom`` itself (not a copy).
-        """
-        t0 = time.perf_counter()
-        alpha = self.alpha
-        if type(alpha) is Linear:
-            av = alpha.gain * lie.h.item(i)  # (= alpha.vector(h)[i]: one IEEE product)
-        elif xs is not None and type(alpha) is CustomClassK:
-            av = xs.av.item(i)  # (the same call of alpha on the same float)
-        else:
-            av = float(alpha.vector(lie.h[i:i + 1])[0])
-        rhs = -av
-        if promoted:  # (build_qp's level for this row)
-            b, w = getattr(self, "b", 0.0), getattr(self, "_ramp", 1.0)
-            w = w if type(w) is float else float(w[i])
-            rhs = b if w >= 1.0 else max(rhs, w * b + (1.0 - w) * rhs)
-        lb = (rhs - lie.lf.item(i)) + lie.grad_norm.item(i) * self.d_bar
-        a = lie.lg[i]
-        if packed and not a.flags.c_contiguous:
-            a = a.copy()
-        aa = float(a.dot(a))  # (dot: the BLAS product of @, with less overhead)
-        if not aa > 1e-200:  # (|a|^2 underflows: the backend decides)
-            return None
-        solver = self.solver
-        au = float(a.dot(u_nom))
-        gap = lb - au
-        if gap <= 0.0:  # u = u_nom: slack = au - lb = -gap exactly (IEEE subtraction is antisymmetric)
-            u, slack = u_nom, -gap
-            if not math.isfinite(float(u.dot(u))):
-                return None
-        else:
-            u = u_nom + (gap / aa) * a
-            slack = float(a.dot(u)) - lb
-            if not (slack >= -solver.feas_tol * max(1.0, abs(lb)) and math.isfinite(float(u.dot(u)))):
-                return None
-        self.qp_solves += 1
-        return QPResult._of(u, "closed_form", _ACTIVE[slack <= solver.active_tol], time.perf_counter() - t0)
-
-    def _screened_rows_hold(self, lie: LieData, xi: np.ndarray, xi_min: float | None, u: np.ndarray,
-                            u_nom: np.ndarray, i: int) -> bool:
-        """Whether every row but ``i`` has robust slack >= active_tol at ``u`` (row ``i`` solved alone).
-
-        The slack of row j at u is ``xi_j + Lg h_j (u - u_nom)`` (``xi``: the slacks at ``u_nom``),
-        so one product covers every row; at ``u = u_nom`` it is ``xi_j`` itself (``Lg h`` finite:
-        its product with zero is zero). ``xi_min``: the minimum of a finite ``xi``, when the caller
-        has it.
-        """
-        tol = self.solver.active_tol
-        if u is u_nom and xi_min is not None:
-            if xi_min >= tol:
-                return True
-            slack = xi.copy()
-        else:
-            slack = xi + lie.lg.dot(u - u_nom)
-            sl = slack.tolist()
-            if math.isfinite(sum(sl)):
-                sl[i] = math.inf
-                return min(sl) >= tol
-        slack[i] = math.inf  # (NaN: as the array minimum, never >= tol)
-        return bool(slack.min() >= tol)
-
-    def _screened_rows_hold_mask(self, lie: LieData, xi: np.ndarray, du: np.ndarray, keep: np.ndarray) -> bool:
-        """Whether every screened-out row's robust condition has slack >= active_tol at ``u_nom + du``.
-
-        The slack of row i at u is ``Xi_on,i + Lg h_i (u - u_nom)`` (the robust condition's
-        left side minus its right side), so one product covers every row.
-        """
-        slack = xi + lie.lg.dot(du)
-        slack[keep] = np.inf
-        return bool(slack.min() >= self.solver.active_tol)
-
     def _solve_block(
         self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None,
         names: tuple[str, ...], rows: np.ndarray | None,
@@ -367,6 +278,9 @@ class _FilterBase:
         ramp = getattr(self, "_ramp", 1.0)
         if rows is not None and type(ramp) is not float and np.ndim(ramp):
             ramp = ramp[rows]
+        res = self._solve_few(lie, u_nom, promote, b, ramp)  # (None: the QP the general way)
+        if res is not None:
+            return res, (), False
         qp = self.build_qp(lie, u_nom, promote, b, ramp)
         res = self._solve(qp)
         relaxed: tuple[str, ...] = ()

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from isf_robot.core import ConfigError, CustomClassK, IntermittentSafetyFilter, LieData, Power, SafetyFilter
+from isf_robot.core import ConfigError, CustomClassK, IntermittentSafetyFilter, LieData, Power, QPSolver, SafetyFilter
 
 
 def _random_lie(rng: np.random.Generator, k: int, m: int) -> LieData:
@@ -191,3 +191,37 @@ def test_the_short_way_of_one_kept_row_equals_the_general_way_on_and_off(alpha, 
     assert short.qp_solves == general.qp_solves
     assert calls.count(True) > 20, "promoted rows must go the short way"
     assert blend == 0 or calls.count(False) > 5, "robust rows (the hand-over's projection) too"
+
+
+@pytest.mark.parametrize("alpha", [2.0, Power(3.0, 0.7)])
+@pytest.mark.parametrize("kind", ["cbf", "isf"])
+def test_the_few_row_short_way_equals_the_general_way(alpha, kind) -> None:  # type: ignore[no-untyped-def]
+    # with QPSolver(few_rows=True), 2 to FEW_ROWS kept rows without bounds go to project_few
+    # without a FilterQP (_solve_few); the same filter building the QP and calling the solver
+    # (the general way) must give every step bit for bit, the same statuses and solve counts
+    def make():  # type: ignore[no-untyped-def]
+        solver = QPSolver(few_rows=True)
+        if kind == "cbf":
+            return SafetyFilter(alpha, 0.05, validate=False, screen=0.3, solver=solver)
+        return IntermittentSafetyFilter(alpha, 0.1, 0.05, 0.05, validate=False, blend=0.04, screen=0.3, solver=solver)
+
+    short, general = make(), make()
+    general._solve_few = lambda *a: None  # type: ignore[method-assign]
+    hits = []
+    few = short._solve_few
+    short._solve_few = lambda *a: hits.append(few(*a)) or hits[-1]  # type: ignore[method-assign]
+    rng = np.random.default_rng(9)
+    lie = _random_lie(rng, 6, 8)
+    for i in range(600):
+        h = np.clip(lie.h + rng.normal(scale=0.02, size=6), -0.05, 0.6)
+        lie = LieData(h, lie.lf + rng.normal(scale=0.05, size=6), lie.lg + rng.normal(scale=0.05, size=(6, 8)),
+                      lie.grad_norm, lie.names)
+        u_nom = rng.normal(size=8)
+        a, b = short.step_lie(0.01 * i, lie, u_nom), general.step_lie(0.01 * i, lie, u_nom)
+        assert a.u.tobytes() == b.u.tobytes() and a.on == b.on and str(a.event) == str(b.event)
+        assert (a.qp is None) == (b.qp is None) and a.resolved == b.resolved
+        if a.qp is not None:
+            assert (a.qp.status, a.qp.active.tolist(), a.qp.max_violation) == \
+                (b.qp.status, b.qp.active.tolist(), b.qp.max_violation)
+    assert short.qp_solves == general.qp_solves and short.solver.solves == general.solver.solves
+    assert sum(r is not None for r in hits) > 50, "few-row problems must go the short way"

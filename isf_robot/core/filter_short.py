@@ -1,0 +1,163 @@
+"""The filters' short ways around the general QP (a mixin of :class:`~isf_robot.core.filter_base._FilterBase`).
+
+* one kept row: its closed form on the row's own floats (:meth:`ShortWays._solve_one`);
+* two to ``FEW_ROWS`` rows without input bounds: the exact few-row solution
+  (:func:`~isf_robot.core.qp_small.project_few`) without building the QP object
+  (:meth:`ShortWays._solve_few`);
+* the checks that the rows screened out hold at the answer.
+
+Each gives the numbers the general way (``build_qp`` + :meth:`QPSolver.solve`) gives, bit for bit
+(``tests/core/test_screening.py``, ``tests/core/test_fast.py``), or ``None`` and the caller
+solves the general way.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .class_k import CustomClassK, Linear
+from .qp import QPResult
+from .qp_small import FEW_ROWS, project_few
+from .qp_solver import QPSolver
+from .system import LieData
+
+if TYPE_CHECKING:
+    from .filter_base import _Xi
+
+__all__ = ["ShortWays"]
+
+_F64 = np.dtype(np.float64)
+_ACTIVE = (np.zeros(1, bool), np.ones(1, bool))  # one row's activity, shared (read-only)
+for _a in _ACTIVE:
+    _a.flags.writeable = False
+
+
+class ShortWays:
+    """The short ways; the filter provides ``alpha``, ``d_bar``, ``solver``, ``u_min``/``u_max``, ``qp_solves``, ``qp_lower``."""
+
+    alpha: Any
+    d_bar: float
+    solver: QPSolver
+    u_min: np.ndarray | None
+    u_max: np.ndarray | None
+    qp_solves: int
+
+    def qp_lower(self, lie: LieData, promote: np.ndarray | None = None, b: float = 0.0,
+                 ramp: float | np.ndarray = 1.0) -> np.ndarray:
+        raise NotImplementedError
+
+    def _solve_few(self, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None, b: float,
+                   ramp: float | np.ndarray) -> QPResult | None:
+        """2 to ``FEW_ROWS`` rows, no bounds: :meth:`QPSolver.solve`'s few-row closed form without the QP object.
+
+        The same bounds (:meth:`qp_lower`), the same :func:`~isf_robot.core.qp_small.project_few`
+        call and result as ``self._solve(self.build_qp(...))`` on a plain :class:`QPSolver` with
+        ``few_rows``; ``None`` when that does not apply or no few-row solution exists (the caller
+        then builds the QP and its solver decides).
+        """
+        solver = self.solver
+        k = lie.h.shape[0]
+        if not (1 < k <= FEW_ROWS and type(solver) is QPSolver and solver.few_rows and solver.closed_form
+                and self.u_min is None and self.u_max is None):
+            return None
+        t0 = time.perf_counter()
+        hit = project_few(lie.lg, self.qp_lower(lie, promote, b, ramp), u_nom, kernels=solver._few)
+        if hit is None:
+            return None
+        self.qp_solves += 1
+        u, res, rmin = hit
+        return QPResult._of(u, "optimal", res <= solver.active_tol, time.perf_counter() - t0, 0, max(0.0, -rmin))
+
+    def _one_row_ok(self, lie: LieData) -> bool:
+        """Whether one kept row may go the short way (:meth:`_solve_one`).
+
+        No input bounds, the closed form enabled, float64 barrier data (the row's bound is then
+        the same in floats).
+        """
+        return (self.u_min is None and self.u_max is None and self.solver.closed_form
+                and lie.h.dtype == _F64 and lie.lf.dtype == _F64 and lie.grad_norm.dtype == _F64)
+
+    def _solve_one(self, lie: LieData, u_nom: np.ndarray, i: int, packed: bool, xs: _Xi | None,
+                   promoted: bool = False) -> QPResult | None:
+        """Row ``i`` alone (robust, or promoted), no bounds: the closed form without building the QP.
+
+        The same numbers as :meth:`build_qp` and :meth:`QPSolver.solve_row` on that row: the bound
+        ``r - Lf h_i + |dh_i/dx| d_bar`` with ``r = -alpha(h_i)``, or the promotion level (``b``, or
+        its ramp ``max(r, w b + (1 - w) r)``), in the same order of operations (IEEE float64
+        arithmetic in floats and in numpy agree), the same products and the same check. ``None``
+        when the closed form fails its check (the caller then solves the general way).
+        ``packed``: the general way would have copied the row (``take``), so a strided row is
+        copied here too (a dot product of a strided row may sum in another order). When the row
+        holds at ``u_nom`` the command is ``u_nom`` itself (not a copy).
+        """
+        t0 = time.perf_counter()
+        alpha = self.alpha
+        if type(alpha) is Linear:
+            av = alpha.gain * lie.h.item(i)  # (= alpha.vector(h)[i]: one IEEE product)
+        elif xs is not None and type(alpha) is CustomClassK:
+            av = xs.av.item(i)  # (the same call of alpha on the same float)
+        else:
+            av = float(alpha.vector(lie.h[i:i + 1])[0])
+        rhs = -av
+        if promoted:  # (build_qp's level for this row)
+            b, w = getattr(self, "b", 0.0), getattr(self, "_ramp", 1.0)
+            w = w if type(w) is float else float(w[i])
+            rhs = b if w >= 1.0 else max(rhs, w * b + (1.0 - w) * rhs)
+        lb = (rhs - lie.lf.item(i)) + lie.grad_norm.item(i) * self.d_bar
+        a = lie.lg[i]
+        if packed and not a.flags.c_contiguous:
+            a = a.copy()
+        aa = float(a.dot(a))  # (dot: the BLAS product of @, with less overhead)
+        if not aa > 1e-200:  # (|a|^2 underflows: the backend decides)
+            return None
+        solver = self.solver
+        au = float(a.dot(u_nom))
+        gap = lb - au
+        if gap <= 0.0:  # u = u_nom: slack = au - lb = -gap exactly (IEEE subtraction is antisymmetric)
+            u, slack = u_nom, -gap
+            if not math.isfinite(float(u.dot(u))):
+                return None
+        else:
+            u = u_nom + (gap / aa) * a
+            slack = float(a.dot(u)) - lb
+            if not (slack >= -solver.feas_tol * max(1.0, abs(lb)) and math.isfinite(float(u.dot(u)))):
+                return None
+        self.qp_solves += 1
+        return QPResult._of(u, "closed_form", _ACTIVE[slack <= solver.active_tol], time.perf_counter() - t0)
+
+    def _screened_rows_hold(self, lie: LieData, xi: np.ndarray, xi_min: float | None, u: np.ndarray,
+                            u_nom: np.ndarray, i: int) -> bool:
+        """Whether every row but ``i`` has robust slack >= active_tol at ``u`` (row ``i`` solved alone).
+
+        The slack of row j at u is ``xi_j + Lg h_j (u - u_nom)`` (``xi``: the slacks at ``u_nom``),
+        so one product covers every row; at ``u = u_nom`` it is ``xi_j`` itself (``Lg h`` finite:
+        its product with zero is zero). ``xi_min``: the minimum of a finite ``xi``, when the caller
+        has it.
+        """
+        tol = self.solver.active_tol
+        if u is u_nom and xi_min is not None:
+            if xi_min >= tol:
+                return True
+            slack = xi.copy()
+        else:
+            slack = xi + lie.lg.dot(u - u_nom)
+            sl = slack.tolist()
+            if math.isfinite(sum(sl)):
+                sl[i] = math.inf
+                return min(sl) >= tol
+        slack[i] = math.inf  # (NaN: as the array minimum, never >= tol)
+        return bool(slack.min() >= tol)
+
+    def _screened_rows_hold_mask(self, lie: LieData, xi: np.ndarray, du: np.ndarray, keep: np.ndarray) -> bool:
+        """Whether every screened-out row's robust condition has slack >= active_tol at ``u_nom + du``.
+
+        The slack of row i at u is ``Xi_on,i + Lg h_i (u - u_nom)`` (the robust condition's
+        left side minus its right side), so one product covers every row.
+        """
+        slack = xi + lie.lg.dot(du)
+        slack[keep] = np.inf
+        return bool(slack.min() >= self.solver.active_tol)
