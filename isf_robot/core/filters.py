@@ -212,6 +212,8 @@ class IntermittentSafetyFilter(_FilterBase):
         self._ramp_names: Any = None  # the names tuple _ramp_rows was built for
         self._ramp_rows: dict[Any, list[int]] = {}
         self._ramp_keys: Sequence[Any] = ()
+        self._ramp_unique = True
+        self._ramp_base = (np.zeros(0, bool), np.ones(0))
 
     def margin(self) -> float:
         """The off margin now: ``c``, or the one designed for ``min_off``."""
@@ -304,6 +306,8 @@ class IntermittentSafetyFilter(_FilterBase):
             for i, n in enumerate(keys):
                 rows.setdefault(n, []).append(i)
             self._ramp_names, self._ramp_rows, self._ramp_keys = names, rows, keys
+            self._ramp_unique = len(rows) == k
+            self._ramp_base = (np.zeros(k, bool), np.ones(k))  # (copied, never handed out)
         rows, keys = self._ramp_rows, self._ramp_keys  # (a repeated name: its last row is "now")
         rate = (t - self._t_ramp) / self.blend if self._t_ramp is not None else 0.0
         self._t_ramp = t
@@ -314,13 +318,20 @@ class IntermittentSafetyFilter(_FilterBase):
                 w[n] -= rate
                 if w[n] <= 0.0:
                     del w[n]
-        for n in {keys[i] for i in promote.nonzero()[0].tolist()}:  # the promoted keys (each once)
-            if pl[rows[n][-1]]:
+        promoted = promote.nonzero()[0].tolist()
+        if self._ramp_unique:  # (each promoted row its own key, promoted now)
+            for i in promoted:
+                n = keys[i]
                 w[n] = min(1.0, w[n] + rate) if n in w else 0.0
+        else:
+            for n in {keys[i] for i in promoted}:  # the promoted keys (each once)
+                if pl[rows[n][-1]]:
+                    w[n] = min(1.0, w[n] + rate) if n in w else 0.0
+        mask, weights = self._ramp_base
         if not w:
-            return np.zeros(k, bool), np.ones(k)
-        weights = np.ones(k)
-        mask = np.zeros(k, bool)
+            return mask.copy(), weights.copy()
+        weights = weights.copy()
+        mask = mask.copy()
         for n, v in w.items():
             r = rows.get(n)
             if r is not None and v >= 0.0:  # (a weight below 0 or NaN: as a row not in w)
