@@ -44,7 +44,10 @@ def _check(step, lie: LieData, alpha: Linear, d_bar: float, lo: np.ndarray, hi: 
     assert np.all(u >= lo - 1e-9) and np.all(u <= hi + 1e-9), (u, lo, hi)
     if rows_enforced:
         slack = lie.lf + lie.lg @ u - lie.grad_norm * d_bar + alpha(lie.h)
-        scale = 1.0 + np.abs(lie.lg).sum(axis=1) * np.abs(u).max() + np.abs(lie.lf) + np.abs(alpha(lie.h))
+        # rounding scale of each row over the input box (|u| <= max|hi|), not at u alone: a command near
+        # zero on a row of size 1e9 carries the solver's relative tolerance times the row, not times |u|
+        u_range = max(float(np.abs(u).max()), float(np.abs(hi).max()))
+        scale = 1.0 + np.abs(lie.lg).sum(axis=1) * u_range + np.abs(lie.lf) + np.abs(alpha(lie.h))
         assert np.all(slack >= -1e-6 * scale), slack
 
 
