@@ -17,6 +17,24 @@ def _random_lie(rng: np.random.Generator, k: int, m: int) -> LieData:
                    tuple(f"b{i}" for i in range(k)))
 
 
+def _walk_same_steps(short, general, seed: int, *, violation: bool = False) -> None:  # type: ignore[no-untyped-def]
+    """600 steps of a slowly moving random state (the filter switches on and off and ramps): the two
+    filters must give every step bit for bit, the same QP status and activity (and max violation)."""
+    rng = np.random.default_rng(seed)
+    lie = _random_lie(rng, 6, 8)
+    for i in range(600):
+        h = np.clip(lie.h + rng.normal(scale=0.02, size=6), -0.05, 0.6)
+        lie = LieData(h, lie.lf + rng.normal(scale=0.05, size=6), lie.lg + rng.normal(scale=0.05, size=(6, 8)),
+                      lie.grad_norm, lie.names)
+        u_nom = rng.normal(size=8)
+        a, b = short.step_lie(0.01 * i, lie, u_nom), general.step_lie(0.01 * i, lie, u_nom)
+        assert a.u.tobytes() == b.u.tobytes() and a.on == b.on and str(a.event) == str(b.event)
+        assert (a.qp is None) == (b.qp is None) and a.resolved == b.resolved
+        if a.qp is not None:
+            assert a.qp.status == b.qp.status and a.qp.active.tolist() == b.qp.active.tolist()
+            assert not violation or a.qp.max_violation == b.qp.max_violation
+
+
 @pytest.mark.parametrize("make", [
     lambda screen: SafetyFilter(Power(3.0, 0.7), 0.05, screen=screen),
     lambda screen: IntermittentSafetyFilter(Power(3.0, 0.7), 0.1, 0.05, 0.05, screen=screen),
@@ -176,18 +194,7 @@ def test_the_short_way_of_one_kept_row_equals_the_general_way_on_and_off(alpha, 
     calls = []
     one = short._solve_one
     short._solve_one = lambda *a: calls.append(a[-1]) or one(*a)  # type: ignore[method-assign]
-    rng = np.random.default_rng(8)
-    lie = _random_lie(rng, 6, 8)
-    for i in range(600):  # a slowly moving state, so the filter switches on and off and ramps
-        h = np.clip(lie.h + rng.normal(scale=0.02, size=6), -0.05, 0.6)
-        lie = LieData(h, lie.lf + rng.normal(scale=0.05, size=6), lie.lg + rng.normal(scale=0.05, size=(6, 8)),
-                      lie.grad_norm, lie.names)
-        u_nom = rng.normal(size=8)
-        a, b = short.step_lie(0.01 * i, lie, u_nom), general.step_lie(0.01 * i, lie, u_nom)
-        assert a.u.tobytes() == b.u.tobytes() and a.on == b.on and str(a.event) == str(b.event)
-        assert (a.qp is None) == (b.qp is None) and a.resolved == b.resolved
-        if a.qp is not None:
-            assert a.qp.status == b.qp.status and a.qp.active.tolist() == b.qp.active.tolist()
+    _walk_same_steps(short, general, 8)
     assert short.qp_solves == general.qp_solves
     assert calls.count(True) > 20, "promoted rows must go the short way"
     assert blend == 0 or calls.count(False) > 5, "robust rows (the hand-over's projection) too"
@@ -210,18 +217,6 @@ def test_the_few_row_short_way_equals_the_general_way(alpha, kind) -> None:  # t
     hits = []
     few = short._solve_few
     short._solve_few = lambda *a: hits.append(few(*a)) or hits[-1]  # type: ignore[method-assign]
-    rng = np.random.default_rng(9)
-    lie = _random_lie(rng, 6, 8)
-    for i in range(600):
-        h = np.clip(lie.h + rng.normal(scale=0.02, size=6), -0.05, 0.6)
-        lie = LieData(h, lie.lf + rng.normal(scale=0.05, size=6), lie.lg + rng.normal(scale=0.05, size=(6, 8)),
-                      lie.grad_norm, lie.names)
-        u_nom = rng.normal(size=8)
-        a, b = short.step_lie(0.01 * i, lie, u_nom), general.step_lie(0.01 * i, lie, u_nom)
-        assert a.u.tobytes() == b.u.tobytes() and a.on == b.on and str(a.event) == str(b.event)
-        assert (a.qp is None) == (b.qp is None) and a.resolved == b.resolved
-        if a.qp is not None:
-            assert (a.qp.status, a.qp.active.tolist(), a.qp.max_violation) == \
-                (b.qp.status, b.qp.active.tolist(), b.qp.max_violation)
+    _walk_same_steps(short, general, 9, violation=True)
     assert short.qp_solves == general.qp_solves and short.solver.solves == general.solver.solves
     assert sum(r is not None for r in hits) > 50, "few-row problems must go the short way"
