@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
+from isf_robot.core import LieData
 from isf_robot.core.exceptions import ConfigError, IsfWarning
 
 from . import kernels
@@ -145,6 +146,7 @@ class CollisionBarriers(NarrowPhase):
         self._all_live = self.broadphase.live.size == k
         self._obstacle_body = b2
         self._clearance = _ClearanceSearch(model, pairs)
+        self._lie_names: tuple[tuple[str, ...] | None, dict[tuple[int, ...], tuple[str, ...]]] = (None, {})
         # The compiled kernel's tables: one row per live pair (pair, geom1, geom2, body1, body2, self).
         # (the kernels need the raw MjModel/MjData addresses the bindings expose as _address)
         self._kernel = kernels.near_kernel(packed=True) if jit and getattr(model, "_address", 0) else None
@@ -280,6 +282,25 @@ class CollisionBarriers(NarrowPhase):
         jl = jh.tolist()
         return FilterRows(near, np.concatenate((near.h, jh)), np.concatenate((near.grad, joints.grad)),
                           min(jl) if jl else math.inf, None, np.concatenate((near.dhdt, np.zeros(jh.size))))
+
+    def lie(self, rows: FilterRows, joints: JointLimitBarriers) -> LieData:
+        """The filter's Lie data of :meth:`rows` on the reduced model ``q_dot = u``: ``Lg h = dh/dq``, ``Lf h = dh/dt``.
+
+        One row per near pair, then the joint limits, each named (``"<geom1>|<geom2>"``, then
+        the joint names). The simulation and the rollout of the predictive off trigger both build
+        their rows here. The names tuple of each set of near pairs is built once and shared.
+        """
+        cache = self._lie_names
+        if cache[0] is not joints.names:  # (the names of another joint set: start again)
+            cache = self._lie_names = (joints.names, {})
+        key = tuple(rows.near.row_list)
+        names = cache[1].get(key)
+        if names is None:
+            if len(cache[1]) >= 4096:  # (bounded: a long run through many pair sets)
+                cache[1].clear()
+            names = cache[1][key] = tuple(self.pairs.names[i] for i in key) + joints.names
+        g, gn = rows.grad, rows.grad_norm
+        return LieData._of(rows.h, rows.lf, g, gn if gn is not None else np.sqrt(np.einsum("ij,ij->i", g, g)), names)
 
     def coherence(self) -> JointCoherence | None:
         """Distance bounds for one run's states (:class:`~isf_robot.arm.broadphase.JointCoherence`).

@@ -64,13 +64,7 @@ class NominalRollout:
         self.calls = 0
 
     def _rows(self, data: mujoco.MjData, lin: np.ndarray | None) -> LieData:
-        cb = self.coll.evaluate(data, lin)
-        act = cb.active.nonzero()[0]
-        jb = self.joints.evaluate(data)
-        g = np.concatenate((cb.grad[act], jb.grad))
-        names = tuple(cb.names[i] for i in act.tolist()) + tuple(jb.names)
-        return LieData(np.concatenate((cb.h[act], jb.h)), np.concatenate((cb.dhdt[act], jb.dhdt)), g,
-                       np.sqrt(np.einsum("ij,ij->i", g, g)), names)
+        return self.coll.lie(self.coll.rows(data, self.joints, lin), self.joints)  # (as the simulation's rows)
 
     def __call__(self, t: float, x: Any) -> list[tuple[float, LieData, np.ndarray]]:
         """Predicted points ``t + s``, ``s = dt, 2 dt, ..., n dt``, from the state in ``x`` (the episode's MjData)."""

@@ -262,7 +262,6 @@ class _Episode:
         self._screen_j = np.full(nj, sim.keep_joint)
         self._screen_cache: dict[int, np.ndarray] = {}
         self._step_lie, self._add_step, self._period = sim.strategy.step_lie, self.metrics.add_step, sim.control_period
-        self._names_cache: dict[bytes, tuple[str, ...]] = {}
         self._command = tracking_step(sim.tracker, scene.dof_adr)  # tracking error, set_command and apply in one
 
     # -- phases --------------------------------------------------------------------------
@@ -287,18 +286,12 @@ class _Episode:
         ``cutoff - margin``, above the near ones' and never a row of the filter).
         """
         sim = self.sim
-        near, h, g, jmin, gn, lf = sim.coll.rows(self.data, sim.joints, self.lin, witness=self.recording,
-                                                 coherence=self.coherence)
+        rows = sim.coll.rows(self.data, sim.joints, self.lin, witness=self.recording, coherence=self.coherence)
+        near = rows.near
         self.dmin = self.monitor.tick_min(min(near.h_min, self._h_far_min), near.row_list, near.dist_min, near.rows)
-        self.min_joint = min(self.min_joint, jmin)  # (jmin when smaller)
-        jh = h[len(near.row_list):]
-        if not self.uses_rows:
-            return near, jh, None
-        key = tuple(near.row_list)
-        names = self._names_cache.get(key)
-        if names is None:
-            names = self._names_cache[key] = tuple(sim.coll.names[i] for i in key) + sim.joints.names
-        return near, jh, LieData._of(h, lf, g, gn if gn is not None else np.sqrt(np.einsum("ij,ij->i", g, g)), names)
+        self.min_joint = min(self.min_joint, rows.joint_min)  # (jmin when smaller)
+        jh = rows.h[len(near.row_list):]
+        return near, jh, sim.coll.lie(rows, sim.joints) if self.uses_rows else None
 
     def nominal(self, t: float) -> np.ndarray:
         """The nominal command at the tick."""

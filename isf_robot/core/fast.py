@@ -26,11 +26,16 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["xi_kernel", "few_kernels", "screen_array"]
+from .class_k import ClassK, Linear
+from .system import LieData
+
+__all__ = ["xi_kernel", "few_kernels", "screen_array", "xi_pass", "NO_SCREEN"]
 
 _STATE: dict[str, Any] = {}
 _F64 = np.dtype(np.float64)
-_NO_SCREEN = np.zeros(0)  # the kernel's "no screening"
+NO_SCREEN = np.zeros(0)  # the kernel's "no screening"
+_NO_SCREEN = NO_SCREEN
+_NO_AV = np.zeros(0)  # the kernel's "alpha is linear: gain h"
 
 
 def _off() -> bool:
@@ -92,3 +97,26 @@ def screen_array(screen: float | np.ndarray | None, k: int) -> np.ndarray | None
         return np.full(1, float(screen))
     except (TypeError, ValueError):
         return None
+
+
+def xi_pass(kernel: Callable[..., Any], lie: LieData, u_nom: np.ndarray, alpha: ClassK, d_bar: float,
+            sa: np.ndarray) -> tuple[np.ndarray, float, float, int, int, int, np.ndarray | None] | None:
+    """``Xi_on`` of every row in one compiled pass (the kernel of :func:`xi_kernel`), where it takes the inputs.
+
+    Returns ``(xi, sum, min, argmin, kept, first, alpha(h))`` (``alpha(h)`` ``None`` for a
+    linear alpha: the kernel made ``gain h`` itself; ``kept``/``first``: the screening count of
+    the thresholds ``sa`` from :func:`screen_array`, -1 with :data:`NO_SCREEN`), or ``None`` when
+    the inputs are not float64 vectors of one length (the caller then uses
+    :func:`~isf_robot.core.triggers.xi_on`, which broadcasts or refuses them as before). The
+    caller checks the sum for finiteness.
+    """
+    h, lf, gn, k = lie.h, lie.lf, lie.grad_norm, lie.h.shape
+    gain = alpha.gain if type(alpha) is Linear and h.dtype == _F64 else 0.0  # (the kernel's gain h)
+    av = _NO_AV if gain else alpha.vector(h)
+    lgu = lie.lg.dot(u_nom)  # (dot: the BLAS product of @, as in xi_on)
+    if not (lf.shape == k and gn.shape == k and lgu.shape == k and lf.dtype == _F64 and gn.dtype == _F64
+            and lgu.dtype == _F64 and (gain or av.shape == k and av.dtype == _F64)):
+        return None
+    xi = np.empty(k)
+    total, low, arg, kept, first = kernel(lf, lgu, gn, d_bar, h, gain, av, sa, xi)
+    return xi, total, low, arg, kept, first, None if gain else av

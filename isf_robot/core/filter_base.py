@@ -17,9 +17,9 @@ from typing import NamedTuple
 import numpy as np
 
 from .barrier import Barrier, evaluate_barriers
-from .class_k import ClassK, Linear, as_class_k
+from .class_k import ClassK, as_class_k
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
-from .fast import screen_array, xi_kernel
+from .fast import screen_array, xi_kernel, xi_pass
 from .filter_short import ShortWays
 from .qp import FilterQP, QPResult
 from .qp_solver import QPSolver
@@ -36,7 +36,6 @@ _F64 = np.dtype(np.float64)
 FallbackFn = Callable[[float, "np.ndarray | None", LieData, QPResult], np.ndarray]
 
 _KINDS = ("robust", "promote")  # a row's kind by its promotion flag
-_NO_AV = np.zeros(0)  # the kernel's "alpha is linear: gain h"
 _tuple_new = tuple.__new__  # (builds a _Xi without its generated __new__: 0.8 against 1.5 us)
 
 
@@ -146,21 +145,17 @@ class _FilterBase(ShortWays):
         if self.validate:
             lie.validate()
             u_nom = as_vector(u_nom, "nominal command u_nom", lie.m)
-        kernel, alpha = self._kernel, self.alpha
+        kernel = self._kernel
         if kernel is not None:
-            h, lf, gn, k = lie.h, lie.lf, lie.grad_norm, lie.h.shape
-            gain = alpha.gain if type(alpha) is Linear and h.dtype == _F64 else 0.0  # (the kernel's gain h)
-            av = _NO_AV if gain else alpha.vector(h)
-            lgu = lie.lg.dot(u_nom)  # (dot: the BLAS product of @, as in xi_on)
-            sa = screen_array(screen, k[0])
-            if (sa is not None and lf.shape == k and gn.shape == k and lgu.shape == k and lf.dtype == _F64
-                    and gn.dtype == _F64 and lgu.dtype == _F64 and (gain or av.shape == k and av.dtype == _F64)):
-                xi = np.empty(k)
-                total, low, arg, kept, first = kernel(lf, lgu, gn, self.d_bar, h, gain, av, sa, xi)
+            sa = screen_array(screen, lie.h.shape[0])
+            got = None if sa is None else xi_pass(kernel, lie, u_nom, self.alpha, self.d_bar, sa)
+            if got is not None:
+                xi, total, low, arg, kept, first, av = got
                 if not math.isfinite(total):
                     raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
                                          f"Xi_on = {xi}, u_nom = {u_nom}")
-                return _tuple_new(_Xi, (u_nom, xi, low, None if gain else av, arg, kept, first))
+                return _tuple_new(_Xi, (u_nom, xi, low, av, arg, kept, first))
+        alpha = self.alpha
         av = alpha.vector(lie.h)
         xi = xi_on(lie, u_nom, self.alpha, self.d_bar, av)
         xl = xi.tolist()

@@ -45,6 +45,7 @@ import numpy as np
 
 from .class_k import ClassK
 from .exceptions import ConfigError, NonFiniteError
+from .fast import NO_SCREEN, xi_kernel, xi_pass
 from .miet import miet_bound
 from .system import LieData
 from .triggers import xi_on
@@ -127,22 +128,34 @@ class Prediction:
 
 
 def predict(points: Sequence[tuple[float, LieData, np.ndarray]], alpha: ClassK, d_bar: float) -> Prediction:
-    """Evaluate ``Xi_on`` at every predicted point; see :class:`Prediction`."""
+    """Evaluate ``Xi_on`` at every predicted point; see :class:`Prediction`.
+
+    Each point's ``Xi_on`` is :func:`~isf_robot.core.triggers.xi_on`, made in one compiled pass
+    where the kernel is available (:func:`~isf_robot.core.fast.xi_pass`: the same numbers, as in
+    the filter's own step).
+    """
+    kernel = xi_kernel()
     xi_lo = math.inf
     first: float | None = None
     failing: set[str] = set()
     for s, lie, u in points:
-        xi = xi_on(lie, np.asarray(u, dtype=float), alpha, d_bar)
+        u = np.asarray(u, dtype=float)
+        got = None if kernel is None else xi_pass(kernel, lie, u, alpha, d_bar, NO_SCREEN)
+        if got is not None:
+            xi, total, lo = got[0], got[1], got[2]
+        else:
+            xi = xi_on(lie, u, alpha, d_bar)
+            xl = xi.tolist()
+            total, lo = sum(xl), min(xl, default=math.inf)
         if xi.size == 0:
             continue
-        if not np.isfinite(xi.sum()):
+        if not math.isfinite(total):
             raise NonFiniteError(f"predicted Xi_on not finite {s:.3g} s ahead: {xi}")
-        lo = float(xi.min())
         xi_lo = min(xi_lo, lo)
         if lo <= 0.0:
             first = s if first is None else min(first, s)
-            bad = np.flatnonzero(xi <= 0.0)
-            failing.update(lie.names[i] if i < len(lie.names) else str(i) for i in bad.tolist())
+            names, nn = lie.names, len(lie.names)
+            failing.update([names[i] if i < nn else str(i) for i, v in enumerate(xi.tolist()) if v <= 0.0])
     return Prediction(first is None, xi_lo, first, frozenset(failing), len(points))
 
 

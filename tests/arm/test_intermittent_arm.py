@@ -72,6 +72,32 @@ def test_rollout_matches_a_brute_force_fine_step_integration(planar_moving):
     assert p.points == roll.n and math.isfinite(p.xi_min)
 
 
+def test_rollout_rows_are_the_active_rows_of_a_full_evaluation_bit_for_bit(planar_moving):
+    # The rollout builds its rows as the simulation does (CollisionBarriers.rows/lie); they are the
+    # active rows of evaluate() and the joint rows, the same floats and names.
+    scene = planar_moving
+    sim = ArmSimulation(scene, "isf", seed=4, params=resolve_params(scene, d_bar=0.05, horizon=0.2))
+    roll = sim.strategy.predictor.rollout
+    rng = np.random.default_rng(0)
+    data = _state(scene, sim, 0.3)
+    seen_near = 0
+    for _ in range(40):
+        data.qpos[scene.qpos_adr] = sim.setup.q0 + rng.normal(scale=0.6, size=scene.n_joints)
+        mujoco.mj_forward(scene.model, data)
+        lin = scene.mocap_velocities(0.3 + sim.setup.time_offset)[0]
+        lie = roll._rows(data, lin)
+        cb, jb = sim.coll.evaluate(data, lin), sim.joints.evaluate(data)
+        act = cb.active.nonzero()[0]
+        seen_near += act.size
+        assert lie.names == tuple(cb.names[i] for i in act.tolist()) + tuple(jb.names)
+        assert lie.h.tobytes() == np.concatenate((cb.h[act], jb.h)).tobytes()
+        assert lie.lf.tobytes() == np.concatenate((cb.dhdt[act], jb.dhdt)).tobytes()
+        g = np.concatenate((cb.grad[act], jb.grad))
+        assert lie.lg.tobytes() == g.tobytes()
+        assert lie.grad_norm.tobytes() == np.sqrt(np.einsum("ij,ij->i", g, g)).tobytes()
+    assert seen_near > 0  # (some states with pairs within the cut-off)
+
+
 def test_predictive_trigger_on_the_arm_is_safe_and_bounded(planar_moving):
     scene = planar_moving
     base = resolve_params(scene, d_bar=0.05)

@@ -92,6 +92,33 @@ def test_non_finite_data_and_bad_shapes_are_refused_as_without_the_kernel() -> N
         f.step_lie(0.0, long, np.zeros(2), screen=0.2)
 
 
+@pytest.mark.parametrize("alpha", ALPHAS, ids=repr)
+def test_predict_gives_the_same_prediction_with_and_without_the_kernel(alpha, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.core.intermittent import predict
+
+    rng = np.random.default_rng(21)
+    cases = []
+    for i in range(200):
+        m = int(rng.integers(1, 8))
+        pts = [(0.01 * (j + 1), _lie(rng, int(rng.integers(0, 12)), m), rng.normal(size=m))
+               for j in range(int(rng.integers(0, 6)))]
+        cases.append((pts, float(rng.choice([0.0, 0.05, 3.0]))))
+
+    def run(jit: str) -> list:  # type: ignore[no-untyped-def]
+        monkeypatch.setenv("ISF_ROBOT_JIT", jit)
+        return [predict(pts, alpha, d) for pts, d in cases]
+
+    got, ref = run("1"), run("0")
+    assert [repr(p) for p in got] == [repr(p) for p in ref]  # (xi_min as repr: the same float, bit for bit)
+    assert any(p.ok for p in ref) and any(not p.ok and p.failing for p in ref)
+    bad = [(0.1, LieData(np.array([0.5, 0.2]), np.array([0.0, math.nan]), np.eye(2), np.ones(2), ("a", "b")),
+            np.zeros(2))]
+    for jit in ("1", "0"):
+        monkeypatch.setenv("ISF_ROBOT_JIT", jit)
+        with pytest.raises(NonFiniteError):
+            predict(bad, alpha, 0.1)
+
+
 def _few_problems(rng: np.random.Generator, n: int):  # type: ignore[no-untyped-def]
     """Few-row problems with 0, 1, 2 and more active rows, nearly parallel rows and non-finite data."""
     for i in range(n):
