@@ -5,15 +5,18 @@ control period is one physics step) the script runs ``--repeats`` episodes with 
 place of the loop's phase timers: it takes the wall time of every control step (from ``sense``
 to the end of ``act``, QP and metrics included) and, every 10th step, right after it, the time
 of 5 ``mj_step`` calls on a copy of the run's current state (same model, same state, same moment
-of the machine's load). Steps and ``mj_step`` samples hit by a preemption (over 3x their median)
-are dropped; the figure is the mean of the rest, its ratio the step cost in ``mj_step`` units,
-and the reported value the median over the repeats. On a shared machine this keeps the ratio
-honest where a whole-episode wall or CPU time does not (other jobs stretch both; a VM counts
-the host's steal as CPU time). ``mj_step`` from a state with the arm at rest is not used: the
+of the machine's load). The episodes are deterministic, so every repeat runs the same steps from
+the same states: each step's cost is its least wall time over the repeats, and each ``mj_step``
+sample's likewise (a preemption or a burst of another job stretches one repeat's step, rarely the
+same step in every repeat), and the figure is the mean of those per-step costs over every step of
+the episode, its ratio the step cost in ``mj_step`` units. No step is dropped: a step that is dear
+in every repeat (a rollout of the predictive off trigger, a re-solve) counts in full. On a shared
+machine this keeps the ratio honest where a whole-episode wall or CPU time does not (other jobs
+stretch both; a VM counts the host's steal as CPU time). ``mj_step`` from a state with the arm at rest is not used: the
 arm falls onto its joint limits within a second and ``mj_step`` then costs about 20% more, with
 limit constraints the runs never have.
 
-One more episode with the loop's own phase timers gives the split (wall time; sense =
+The same clock gives the split, each phase's least time per step over the repeats (wall time; sense =
 ``mj_step1``; barriers = collision pairs within the cut-off, joint limits, the tick's
 true-geometry accounting and the filter rows; nominal; strategy = the core filter step, QP
 included; act = torques, ``mj_step2`` and the sub-steps' safety checks). ``QP/step`` is the
@@ -106,20 +109,21 @@ class _StepClock:
         for name, fn in list(phases.items()):
             phases[name] = wrap(name, fn)
 
-    def result(self) -> tuple[float, dict[str, float], float]:
-        """(step cost [us], mean per phase [us], mj_step [us]) over the samples a preemption
-        did not stretch over 3x their median."""
-        steps = self.steps
-        cap = 3.0 * statistics.median(steps)
-        keep = [i for i, v in enumerate(steps) if v <= cap]
-        split = {k: sum(v[i] for i in keep) / len(keep) * 1e6 for k, v in self.per.items()}
-        mcap = 3.0 * statistics.median(self.mj)
-        mj = [v for v in self.mj if v <= mcap]
-        return sum(steps[i] for i in keep) / len(keep) * 1e6, split, sum(mj) / len(mj) * 1e6
 
 
-def clocked(scene, strategy: str, params, duration: float, period: float, **kw) -> tuple[float, float, dict, object]:
-    """One episode under the step clock: (step cost [us], mj_step [us], split [us], RunResult)."""
+def combine(clocks: list[_StepClock]) -> tuple[float, dict[str, float], float]:
+    """(step cost [us], mean per phase [us], mj_step [us]) of repeats of one episode: each step's
+    (phase's, ``mj_step`` sample's) least time over the repeats, then the mean over every step."""
+    def least_mean(series: list[list[float]]) -> float:
+        n = min(len(v) for v in series)
+        return sum(min(v[i] for v in series) for i in range(n)) / n * 1e6
+
+    split = {k: least_mean([c.per[k] for c in clocks]) for k in clocks[0].per}
+    return least_mean([c.steps for c in clocks]), split, least_mean([c.mj for c in clocks])
+
+
+def clocked(scene, strategy: str, params, duration: float, period: float, **kw) -> tuple[_StepClock, object]:
+    """One episode under the step clock: (its clock, RunResult)."""
     clocks: list[_StepClock] = []
 
     def make(phases: dict) -> _StepClock:
@@ -133,8 +137,7 @@ def clocked(scene, strategy: str, params, duration: float, period: float, **kw) 
                           **kw).run(duration)
     finally:
         sim_module.PhaseTimers = saved
-    us, split, mj = clocks[0].result()
-    return us, mj, split, r
+    return clocks[0], r
 
 
 def bench_scene(name: str, args: argparse.Namespace) -> dict:
@@ -146,11 +149,10 @@ def bench_scene(name: str, args: argparse.Namespace) -> dict:
             runs[s].append(clocked(scene, s, params, args.duration, args.period))
     out = {"scene": name, "d_bar": params.d_bar, "rows": {}}
     for s in STRATEGIES:
-        ratios = [us / mj for us, mj, _, _ in runs[s]]
-        mid = sorted(range(len(ratios)), key=ratios.__getitem__)[len(ratios) // 2]  # the median repeat
-        us, mj, split, r = runs[s][mid]
+        us, split, mj = combine([c for c, _ in runs[s]])
+        r = runs[s][-1][1]  # (every repeat runs the same steps: the same counts)
         out["rows"][s] = {
-            "us": us, "mj_us": mj, "ratio": ratios[mid], "split": split,
+            "us": us, "mj_us": mj, "ratio": us / mj, "split": split,
             "duty": r.duty_cycle, "qp_solves": r.qp_solves, "closed_form": r.qp_closed_form,
             "qp_us": r.qp_time_median_us, "solver_us": r.solver_time_median_us, "resolves": r.resolves,
         }
@@ -160,21 +162,21 @@ def bench_scene(name: str, args: argparse.Namespace) -> dict:
 def bench_backends(args: argparse.Namespace) -> dict:
     scene = load_scene("panda_pole")
     params = resolve_params(scene)
-    res: dict[str, dict[str, list[float]]] = {b: {"us": [], "qp": [], "solver": []} for b in ("daqp", "proxsuite")}
+    runs: dict[str, list] = {b: [] for b in ("daqp", "proxsuite")}
     for _ in range(args.repeats):
-        for b in res:
-            us, _, _, r = clocked(scene, "cbf", params, args.duration, args.period, solver=QPSolver(backend=b))
-            res[b]["us"].append(us)
-            res[b]["qp"].append(r.qp_time_median_us or 0.0)
-            res[b]["solver"].append(r.solver_time_median_us or 0.0)
-    return {b: {k: statistics.median(v) for k, v in d.items()} for b, d in res.items()}
+        for b, rs in runs.items():
+            rs.append(clocked(scene, "cbf", params, args.duration, args.period, solver=QPSolver(backend=b)))
+    return {b: {"us": combine([c for c, _ in rs])[0],
+                "qp": statistics.median(r.qp_time_median_us or 0.0 for _, r in rs),
+                "solver": statistics.median(r.solver_time_median_us or 0.0 for _, r in rs)}
+            for b, rs in runs.items()}
 
 
 def bench_far(args: argparse.Namespace) -> dict | None:
     """panda_pole with 64 far spheres against panda_pole, episode pairs back to back.
 
-    Three ratios per strategy (medians over the repeats): ``arm``, the arm's own cost per step
-    (step minus S ``mj_step`` of the same episode: a step holds S physics steps) with the
+    Three ratios per strategy (each episode's figures from its repeats, :func:`combine`): ``arm``,
+    the arm's own cost per step (step minus S ``mj_step`` of the same episode: a step holds S physics steps) with the
     spheres over without, the figure the target is about; ``x_mj``, the step in ``mj_step`` units of
     its own episode, with over without; ``wall``, the step's wall time with over without. ``mj``:
     the ``mj_step`` cost with over without (MuJoCo's own collision of the extra geoms).
@@ -186,17 +188,16 @@ def bench_far(args: argparse.Namespace) -> dict | None:
     base, far = load_scene("panda_pole"), far_spheres_scene(64)
     params = resolve_params(base)
     S = max(1, round(args.period / base.model.opt.timestep))  # physics steps per control step
-    keys = ("arm", "x_mj", "wall", "mj")
-    ratios: dict[str, dict[str, list[float]]] = {s: {k: [] for k in keys} for s in STRATEGIES}
-    for _ in range(args.repeats):
-        for s, r in ratios.items():
-            a_us, a_mj = clocked(base, s, params, args.duration, args.period)[:2]
-            b_us, b_mj = clocked(far, s, params, args.duration, args.period)[:2]
-            r["arm"].append((b_us - S * b_mj) / (a_us - S * a_mj))
-            r["x_mj"].append((b_us / b_mj) / (a_us / a_mj))
-            r["wall"].append(b_us / a_us)
-            r["mj"].append(b_mj / a_mj)
-    return {s: {k: statistics.median(v) for k, v in r.items()} for s, r in ratios.items()}
+    out: dict[str, dict[str, float]] = {}
+    for s in STRATEGIES:
+        a_runs, b_runs = [], []
+        for _ in range(args.repeats):  # the two scenes back to back
+            a_runs.append(clocked(base, s, params, args.duration, args.period)[0])
+            b_runs.append(clocked(far, s, params, args.duration, args.period)[0])
+        (a_us, _, a_mj), (b_us, _, b_mj) = combine(a_runs), combine(b_runs)
+        out[s] = {"arm": (b_us - S * b_mj) / (a_us - S * a_mj), "x_mj": (b_us / b_mj) / (a_us / a_mj),
+                  "wall": b_us / a_us, "mj": b_mj / a_mj}
+    return out
 
 
 def _f(v: float | None, fmt: str = ".1f") -> str:
@@ -222,10 +223,11 @@ def render(scenes: list[dict], backends: dict, far: dict | None, args: argparse.
         "machine: absolute figures move with it, the ratios measured side by side much less). Barrier "
         f"kernels: {_kernels()} (`isf_robot/arm/kernels.py`).", "",
         f"Episodes of {args.duration:g} s, seed 0, control period {args.period * 1e3:g} ms with a 1 ms physics "
-        f"step, d_bar as calibrated; medians of {args.repeats} repeats. `us/step`: wall time of a control step "
-        "(QP and metrics included), `mj_step`: one `mj_step` on a copy of the run's state taken every 10th step, "
-        "both means without the samples a preemption stretched over 3x their median; `x mj_step` their ratio "
-        "(the repeat with the median ratio is shown). Split: the same steps' mean per phase (the per-phase "
+        f"step, d_bar as calibrated; {args.repeats} repeats of each (deterministic) episode. `us/step`: wall time "
+        "of a control step (QP, metrics and the predictive trigger's rollouts included), `mj_step`: one `mj_step` "
+        "on a copy of the run's state taken every 10th step; each step's and each sample's least time over the "
+        "repeats, then the mean over every step of the episode (none dropped); `x mj_step` their ratio. "
+        "Split: the same per phase (the per-phase "
         "timers, about 1 us per step, are included in `us/step`); `QP/step` is the median QP cost of a step "
         "that solved one (every solve, polish and checks included); `backend` the median over the steps that "
         "went to the QP backend or, with several rows and at most two active, to its exact closed form "
