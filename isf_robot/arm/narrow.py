@@ -25,6 +25,15 @@ __all__ = ["FilterRows", "NarrowPhase", "NearPairs"]
 _EPS_DIST = 1e-9  # [m] below this |dist| the witness points give no direction
 _new = tuple.__new__  # a NamedTuple from a tuple of its fields (as _make, without the length check)
 
+KERNEL_CONTEXTS = 4
+"""Kernel contexts kept per :class:`NarrowPhase` (the episode's ``MjData`` and a rollout's scratch one, with room)."""
+
+
+def _context_current(c: tuple, coherence: JointCoherence | None) -> bool:
+    """Whether context ``c`` still points at ``coherence``'s arrays (:meth:`JointCoherence.reset` replaces them)."""
+    return coherence is None or (c[3] is coherence.lower and c[7] is coherence.qprev and c[8] is coherence.qstate)
+
+
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise cross product of (k, 3) arrays (cheaper than ``np.cross`` for small k)."""
     i, j = [1, 2, 0], [2, 0, 1]
@@ -91,13 +100,32 @@ class NarrowPhase:
     dof_adr: np.ndarray
     _none: NearPairs
     _kctx: tuple | None
+    _kctxs: dict[tuple[int, int, int], tuple]
 
     def _kernel_context(self, data: mujoco.MjData, coherence: JointCoherence | None,
                         joints: JointLimitBarriers | None) -> tuple:
-        """The packed kernel's tables for ``data``, ``coherence`` and ``joints``, cached until one of them changes.
+        """The packed kernel's tables for ``data``, ``coherence`` and ``joints``, from a small cache.
 
         Their addresses (``p``), sizes and the layout of the output block (see ``_kernels_jit.near_packed``).
+        A few contexts are kept (:data:`KERNEL_CONTEXTS`), keyed by the identity of the three objects,
+        which each entry holds (so an ``id`` is not reused while its entry lives): the predictive off
+        trigger's rollout evaluates its own scratch ``MjData`` between two steps of the episode's,
+        and switching between them is then a lookup, not two rebuilds of the tables. An entry is
+        rebuilt when ``coherence.reset`` has replaced the bounds' arrays (the kernel writes into them).
         """
+        key = (id(data), id(coherence), id(joints))
+        cache = self._kctxs
+        c = cache.get(key)
+        if c is None or not _context_current(c, coherence):
+            if c is None and len(cache) >= KERNEL_CONTEXTS:
+                del cache[next(iter(cache))]  # (the oldest entry)
+            c = cache[key] = self._build_context(data, coherence, joints)
+        self._kctx = c
+        return c
+
+    def _build_context(self, data: mujoco.MjData, coherence: JointCoherence | None,
+                       joints: JointLimitBarriers | None) -> tuple:
+        """The tables of :meth:`_kernel_context`, built."""
         from . import _kernels_jit as kj
 
         if coherence is None:
@@ -128,8 +156,7 @@ class NarrowPhase:
         m = n_live + nj
         layout = (m, n, nj, m + m * n, 2 * m + m * n, 3 * m + m * n + 9 * n_live,  # offsets of gn and lf; size
                   self._klanes if joints is not None else 0, distmax, slack)
-        self._kctx = (data, coherence, joints, lower, p, int(data._address), arrays, *layout)
-        return self._kctx
+        return (data, coherence, joints, lower, p, int(data._address), arrays, qprev, qstate, *layout)
 
     def _near_compiled(self, data: mujoco.MjData, mocap_lin: np.ndarray | None, mocap_ang: np.ndarray | None,
                        witness: bool, coherence: JointCoherence | None, joints: JointLimitBarriers | None
@@ -140,11 +167,11 @@ class NarrowPhase:
         with ``joints``; ``None`` where numpy must compute them, see
         :func:`~isf_robot.arm.kernels.norm_lanes`) and ``dh/dt`` (zero for the joint rows).
         """
-        c = self._kctx
+        c = self._kctx  # (the last context used; else the cache's)
         if (c is None or c[0] is not data or c[1] is not coherence or c[2] is not joints
                 or (coherence is not None and c[3] is not coherence.lower)):  # (a reset replaces the bounds)
             c = self._kernel_context(data, coherence, joints)
-        _, _, _, _, p, daddr, _, m, n, nj, o_gn, o_lf, size, lanes, distmax, slack = c
+        _, _, _, _, p, daddr, _, _, _, m, n, nj, o_gn, o_lf, size, lanes, distmax, slack = c
         blk, rows = np.empty(size), np.empty(m - nj, dtype=np.int64)  # fresh outputs (a kernel's cost more to return)
         moving = self._any_moving and mocap_lin is not None
         lin, dlanes = self._knolin, 0
