@@ -30,8 +30,8 @@ KERNEL_CONTEXTS = 4
 
 
 def _context_current(c: tuple, coherence: JointCoherence | None) -> bool:
-    """Whether context ``c`` still points at ``coherence``'s arrays (:meth:`JointCoherence.reset` replaces them)."""
-    return coherence is None or (c[3] is coherence.lower and c[7] is coherence.qprev and c[8] is coherence.qstate)
+    """Whether context ``c`` still points at ``coherence``'s bounds (:meth:`JointCoherence.reset` replaces them)."""
+    return coherence is None or c[3] is coherence.lower
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -156,7 +156,7 @@ class NarrowPhase:
         m = n_live + nj
         layout = (m, n, nj, m + m * n, 2 * m + m * n, 3 * m + m * n + 9 * n_live,  # offsets of gn and lf; size
                   self._klanes if joints is not None else 0, distmax, slack)
-        return (data, coherence, joints, lower, p, int(data._address), arrays, qprev, qstate, *layout)
+        return (data, coherence, joints, lower, p, int(data._address), arrays, *layout)
 
     def _near_compiled(self, data: mujoco.MjData, mocap_lin: np.ndarray | None, mocap_ang: np.ndarray | None,
                        witness: bool, coherence: JointCoherence | None, joints: JointLimitBarriers | None
@@ -167,11 +167,11 @@ class NarrowPhase:
         with ``joints``; ``None`` where numpy must compute them, see
         :func:`~isf_robot.arm.kernels.norm_lanes`) and ``dh/dt`` (zero for the joint rows).
         """
-        c = self._kctx  # (the last context used; else the cache's)
+        c = self._kctx
         if (c is None or c[0] is not data or c[1] is not coherence or c[2] is not joints
                 or (coherence is not None and c[3] is not coherence.lower)):  # (a reset replaces the bounds)
             c = self._kernel_context(data, coherence, joints)
-        _, _, _, _, p, daddr, _, _, _, m, n, nj, o_gn, o_lf, size, lanes, distmax, slack = c
+        _, _, _, _, p, daddr, _, m, n, nj, o_gn, o_lf, size, lanes, distmax, slack = c
         blk, rows = np.empty(size), np.empty(m - nj, dtype=np.int64)  # fresh outputs (a kernel's cost more to return)
         moving = self._any_moving and mocap_lin is not None
         lin, dlanes = self._knolin, 0
