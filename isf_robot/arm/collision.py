@@ -163,14 +163,14 @@ class CollisionBarriers(NarrowPhase):
         self._kdot = kernels.dot3_lanes() if self._kernel is not None else 0  # dh/dt in the kernel (0: numpy)
         self._knolin = np.zeros(0)
         self._lin_shape = (model.nmocap, 3)
-        self._kctx: tuple | None = None  # (see NarrowPhase._kernel_context: the last one used, and the cache)
-        self._kctxs: dict[tuple[int, int, int], tuple] = {}
+        self._kctx: tuple | None = None  # (see NarrowPhase._kernel_context)
         self._kjac1 = np.zeros((3, model.nv))
         self._kjac2 = np.zeros((3, model.nv))
         self._knone = (np.zeros(0), np.zeros(0), np.zeros(1, dtype=np.int64), np.zeros((0, 0)),
                        np.zeros(0, dtype=np.int64))  # (no coherence bounds)
         self._kjoints = (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros((0, n)))  # (no joint rows)
         self._maddr = getattr(model, "_address", 0)
+        self._kctxs: dict[tuple[int, int, int], tuple] = {}  # (the cache of NarrowPhase._kernel_context)
 
     @classmethod
     def from_scene(cls, scene: Scene) -> CollisionBarriers:
