@@ -43,14 +43,14 @@ from . import kernels
 from .batch import BarrierBatch
 from .broadphase import BroadPhase, JointCoherence
 from .clearance import Clearance, _ClearanceSearch
-from .narrow import FilterRows, NarrowPhase, NearPairs, _new
+from .narrow import FilterRows, NarrowPhase, NearPairs, TickRows, _norms
 from .pairs import CollisionPairs, collision_pairs
 
 if TYPE_CHECKING:
     from .joint_limits import JointLimitBarriers
     from .scene import Scene
 
-__all__ = ["CollisionBarriers", "FilterRows", "NearPairs"]
+__all__ = ["CollisionBarriers", "FilterRows", "NearPairs", "TickRows"]
 
 _G = mujoco.mjtGeom
 # Type pairs whose penetration depth from mj_geomDistance (MuJoCo's primitive capsule-box
@@ -164,6 +164,8 @@ class CollisionBarriers(NarrowPhase):
         self._knolin = np.zeros(0)
         self._lin_shape = (model.nmocap, 3)
         self._kctx: tuple | None = None  # (see NarrowPhase._kernel_context)
+        self._kout: tuple = (None, None)  # (a context, the output blocks of its layout; NarrowPhase._output_source)
+        self._kblocks: dict = {}
         self._kjac1 = np.zeros((3, model.nv))
         self._kjac2 = np.zeros((3, model.nv))
         self._knone = (np.zeros(0), np.zeros(0), np.zeros(1, dtype=np.int64), np.zeros((0, 0)),
@@ -277,7 +279,7 @@ class CollisionBarriers(NarrowPhase):
 
         """
         if self._kernel is not None:
-            return _new(FilterRows, self._near_compiled(data, mocap_lin, None, witness, coherence, joints))
+            return self._near_compiled(data, mocap_lin, None, witness, coherence, joints)
         near = self._near_numpy(data, mocap_lin, None, witness, coherence)
         jh = joints.values(data)
         jl = jh.tolist()
@@ -291,17 +293,22 @@ class CollisionBarriers(NarrowPhase):
         the joint names). The simulation and the rollout of the predictive off trigger both build
         their rows here. The names tuple of each set of near pairs is built once and shared.
         """
-        cache = self._lie_names
-        if cache[0] is not joints.names:  # (the names of another joint set: start again)
-            cache = self._lie_names = (joints.names, {})
-        key = tuple(rows.near.row_list)
-        names = cache[1].get(key)
-        if names is None:
-            if len(cache[1]) >= 4096:  # (bounded: a long run through many pair sets)
-                cache[1].clear()
-            names = cache[1][key] = tuple(self.pairs.names[i] for i in key) + joints.names
         g, gn = rows.grad, rows.grad_norm
-        return LieData._of(rows.h, rows.lf, g, gn if gn is not None else np.sqrt(np.einsum("ij,ij->i", g, g)), names)
+        return LieData._of(rows.h, rows.lf, g, gn if gn is not None else _norms(g),
+                           self._row_names(rows.near.row_list, joints))
+
+    def lie_rows(self, data: mujoco.MjData, joints: JointLimitBarriers, mocap_lin: np.ndarray | None = None, *,
+                 coherence: JointCoherence | None = None) -> TickRows:
+        """``lie(rows(...))`` with what a control tick's accounting needs of ``rows(...)``, in one pass.
+
+        The same Lie data, bit for bit, and ``near.rows``, ``near.row_list``, ``near.h_min``,
+        ``near.dist_min``, ``joint_min`` of :meth:`rows` (arguments as there, without witness points):
+        the simulation's barrier phase when nothing records the step. The compiled path builds no
+        :class:`NearPairs` (nor its views of ``h``, ``dh/dq``, ``dh/dt``) for it.
+        """
+        if self._kernel is not None:
+            return self._near_compiled(data, mocap_lin, None, False, coherence, joints, True)  # type: ignore[return-value]
+        return self._tick_rows(self.rows(data, joints, mocap_lin, coherence=coherence), joints, True)  # type: ignore[return-value]
 
     def coherence(self) -> JointCoherence | None:
         """Distance bounds for one run's states (:class:`~isf_robot.arm.broadphase.JointCoherence`).

@@ -9,21 +9,40 @@ for bit: numpy around per-pair ``mj_geomDistance``/``mj_jac`` calls, and the com
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, NamedTuple
 
 import mujoco
 import numpy as np
 
+from isf_robot.core import LieData
 from isf_robot.core.exceptions import ShapeError
 
 if TYPE_CHECKING:
     from .broadphase import BroadPhase, JointCoherence
     from .joint_limits import JointLimitBarriers
+    from .pairs import CollisionPairs
 
-__all__ = ["FilterRows", "NarrowPhase", "NearPairs"]
+__all__ = ["FilterRows", "NarrowPhase", "NearPairs", "TickRows"]
 
 _EPS_DIST = 1e-9  # [m] below this |dist| the witness points give no direction
 _new = tuple.__new__  # a NamedTuple from a tuple of its fields (as _make, without the length check)
+_BLOCKS = 64  # output blocks per allocation of the compiled path (see _output_blocks)
+
+
+def _output_blocks(size: int, m: int, n: int, n_live: int) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Fresh outputs of the packed kernel for :data:`_BLOCKS` calls: ``(blk, rows, g)``, each handed out once.
+
+    ``blk``: float64 (size,), the kernel's output block (layout in ``_kernels_jit.near_packed``);
+    ``rows``: int64 (n_live,); ``g``: the (m, n) view of ``blk``'s gradient rows. One allocation and
+    its views for 64 steps cost less than two ``np.empty``, a reshape and three views per step made
+    between the other phases' work; a block is never handed out twice, so every result stays fresh
+    (a result kept alive keeps its allocation alive: 64 blocks, a few 100 kB).
+    """
+    flat = np.empty((_BLOCKS, size))
+    g = flat[:, m: m + m * n].reshape(_BLOCKS, m, n, copy=False)
+    return iter(list(zip(flat, np.empty((_BLOCKS, max(n_live, 1)), dtype=np.int64), g)))
+
 
 KERNEL_CONTEXTS = 4
 """Kernel contexts kept per :class:`NarrowPhase` (the episode's ``MjData`` and a rollout's scratch one, with room)."""
@@ -32,6 +51,11 @@ KERNEL_CONTEXTS = 4
 def _context_current(c: tuple, coherence: JointCoherence | None) -> bool:
     """Whether context ``c`` still points at ``coherence``'s bounds (:meth:`JointCoherence.reset` replaces them)."""
     return coherence is None or c[3] is coherence.lower
+
+
+def _norms(g: np.ndarray) -> np.ndarray:
+    """``|dh/dq|`` of the rows of ``g`` as :meth:`CollisionBarriers.lie` computes them without the kernel's."""
+    return np.sqrt(np.einsum("ij,ij->i", g, g))
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -87,6 +111,27 @@ class FilterRows(NamedTuple):
     lf: np.ndarray | None = None
 
 
+class TickRows(NamedTuple):
+    """The filter's rows at one state and what the tick's accounting needs (:meth:`CollisionBarriers.lie_rows`).
+
+    Attributes:
+        lie: ``lie(rows(...))``: the Lie data of the near pairs, then the joint limits.
+        rows: The near pairs' indices, ascending, shape (j,) int64 (``near.rows``).
+        row_list: The same as a list.
+        h_min: Smallest ``h`` of the near pairs (``inf`` when none is near).
+        dist_min: Their smallest distance [m] (``inf`` when none is near).
+        joint_min: The smallest joint-limit value.
+
+    """
+
+    lie: LieData
+    rows: np.ndarray
+    row_list: list[int]
+    h_min: float
+    dist_min: float
+    joint_min: float
+
+
 class NarrowPhase:
     """Evaluation of the candidate pairs at a state.
 
@@ -101,6 +146,10 @@ class NarrowPhase:
     _none: NearPairs
     _kctx: tuple | None
     _kctxs: dict[tuple[int, int, int], tuple]
+    _kout: tuple
+    _kblocks: dict
+    _lie_names: tuple
+    pairs: CollisionPairs
 
     def _kernel_context(self, data: mujoco.MjData, coherence: JointCoherence | None,
                         joints: JointLimitBarriers | None) -> tuple:
@@ -159,11 +208,14 @@ class NarrowPhase:
         return (data, coherence, joints, lower, p, int(data._address), arrays, *layout)
 
     def _near_compiled(self, data: mujoco.MjData, mocap_lin: np.ndarray | None, mocap_ang: np.ndarray | None,
-                       witness: bool, coherence: JointCoherence | None, joints: JointLimitBarriers | None
-                       ) -> tuple[NearPairs, np.ndarray, np.ndarray, float, np.ndarray | None, np.ndarray]:
+                       witness: bool, coherence: JointCoherence | None, joints: JointLimitBarriers | None,
+                       tick: bool = False) -> FilterRows | TickRows:
         """:meth:`near` by the compiled kernel, with the joint rows of ``joints`` appended (see :meth:`rows`).
 
-        Items after ``near``: ``h``, ``dh/dq``, the smallest joint value, the rows' norms ``|dh/dq|`` (only
+        With ``tick`` (and ``joints``): the :class:`TickRows` of :meth:`lie_rows` instead, made from the
+        same outputs without the :class:`NearPairs` (where the rows are the kernel's alone).
+
+        The fields after ``near``: ``h``, ``dh/dq``, the smallest joint value, the rows' norms ``|dh/dq|`` (only
         with ``joints``; ``None`` where numpy must compute them, see
         :func:`~isf_robot.arm.kernels.norm_lanes`) and ``dh/dt`` (zero for the joint rows).
         """
@@ -172,9 +224,15 @@ class NarrowPhase:
                 or (coherence is not None and c[3] is not coherence.lower)):  # (a reset replaces the bounds)
             c = self._kernel_context(data, coherence, joints)
         _, _, _, _, p, daddr, _, m, n, nj, o_gn, o_lf, size, lanes, distmax, slack = c
-        blk, rows = np.empty(size), np.empty(m - nj, dtype=np.int64)  # fresh outputs (a kernel's cost more to return)
-        moving = self._any_moving and mocap_lin is not None
+        out = self._kout
+        if out[0] is not c:  # (another context: the output blocks of its layout)
+            out = self._output_source(c, m, n, nj, size)
+        try:
+            blk, rows, g2 = next(out[1])  # fresh outputs (arrays a kernel returns cost more)
+        except StopIteration:  # (this allocation's blocks are all handed out)
+            blk, rows, g2 = next(self._output_source(c, m, n, nj, size, True)[1])
         lin, dlanes = self._knolin, 0
+        moving = self._any_moving and mocap_lin is not None
         if moving and self._kdot and mocap_ang is None:  # dh/dt in the kernel (in numpy's order)
             if mocap_lin.shape != self._lin_shape:  # type: ignore[union-attr]
                 raise ShapeError(f"mocap velocities must have shape {self._lin_shape} (rows like data.mocap_pos); "
@@ -187,26 +245,65 @@ class NarrowPhase:
             near = self._near_numpy(data, mocap_lin, mocap_ang, witness, None)
             lf = np.concatenate((near.dhdt, np.zeros(nj)))
             if joints is None:
-                return near, near.h, near.grad, jmin, None, lf
-            return (near, np.concatenate((near.h, blk[j:k])), np.concatenate((near.grad, joints.grad)),
-                    jmin, None, lf)
-        h, g, lf = blk[:k], blk[m: m + k * n].reshape(k, n), blk[o_lf: o_lf + k]
+                return _new(FilterRows, (near, near.h, near.grad, jmin, None, lf))
+            fr = (near, np.concatenate((near.h, blk[j:k])), np.concatenate((near.grad, joints.grad)), jmin, None, lf)
+            return self._tick_rows(_new(FilterRows, fr), joints, tick)
+        h, g, lf = blk[:k], g2[:k], blk[o_lf: o_lf + k]
+        if tick and not (moving and not dlanes):  # (lie_rows: the kernel's rows, without the NearPairs)
+            rows = rows[:j]
+            row_list = rows.tolist()
+            return _new(TickRows, (LieData._of(h, lf, g, blk[o_gn: o_gn + k] if lanes else _norms(g),
+                                               self._row_names(row_list, joints)),  # type: ignore[arg-type]
+                                   rows, row_list, h_min, dist_min, jmin))
         gn = blk[o_gn: o_gn + k] if lanes else None
         if not j:
-            return self._none, h, g, jmin, gn, lf
+            return self._tick_rows(_new(FilterRows, (self._none, h, g, jmin, gn, lf)), joints, tick)
         rows = rows[:j]
-        row_list = rows.tolist()
         if witness or (moving and not dlanes):
             wit = blk[o_lf + m: o_lf + m + 9 * j].reshape(j, 3, 3)  # wit[k]: p1, p2, n
             if moving and not dlanes:
-                dhdt = lf[:j] = self._dhdt(data, row_list, rows, wit[:, 2], wit[:, 1], mocap_lin, mocap_ang)
+                dhdt = lf[:j] = self._dhdt(data, rows.tolist(), rows, wit[:, 2], wit[:, 1], mocap_lin, mocap_ang)
             else:
                 dhdt = lf[:j]
             wit = wit[:, :2] if witness else None
         else:
-            dhdt, wit = lf[:j], None
-        near = _new(NearPairs, (rows, row_list, h[:j], g[:j], dhdt, wit, h_min, dist_min))  # (no __new__ call)
-        return near, h, g, jmin, gn, lf
+            dhdt, wit = blk[o_lf: o_lf + j], None
+        near = _new(NearPairs, (rows, rows.tolist(), blk[:j], g2[:j], dhdt, wit, h_min, dist_min))  # (no __new__ call)
+        return self._tick_rows(_new(FilterRows, (near, h, g, jmin, gn, lf)), joints, tick)
+
+    def _tick_rows(self, rows: FilterRows, joints: JointLimitBarriers | None, tick: bool) -> FilterRows | TickRows:
+        """``rows``, or with ``tick`` its :class:`TickRows` (the general way: as without the kernel)."""
+        if not tick:
+            return rows
+        near = rows.near
+        return TickRows(self.lie(rows, joints), near.rows, near.row_list, near.h_min,  # type: ignore[arg-type]
+                        near.dist_min, rows.joint_min)
+
+    def _row_names(self, row_list: list[int], joints: JointLimitBarriers) -> tuple[str, ...]:
+        """The names of the rows: the near pairs' (``"<geom1>|<geom2>"``), then the joints'; built once per set."""
+        cache = self._lie_names
+        if cache[0] is not joints.names:  # (the names of another joint set: start again)
+            cache = self._lie_names = (joints.names, {})
+        key = tuple(row_list)
+        names = cache[1].get(key)
+        if names is None:
+            if len(cache[1]) >= 4096:  # (bounded: a long run through many pair sets)
+                cache[1].clear()
+            names = cache[1][key] = tuple(self.pairs.names[i] for i in key) + joints.names
+        return names
+
+    def _output_source(self, c: tuple, m: int, n: int, nj: int, size: int, new: bool = False
+                       ) -> tuple[tuple, Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
+        """The output blocks for kernel context ``c`` of that layout (one source per layout, shared by contexts).
+
+        ``new``: a new allocation of blocks for the layout (the current one is used up).
+        """
+        key = (m, n, nj, size)
+        src = None if new else self._kblocks.get(key)
+        if src is None:
+            src = self._kblocks[key] = _output_blocks(size, m, n, m - nj)
+        self._kout = (c, src)
+        return self._kout
 
     def _dhdt(self, data: mujoco.MjData, row_list: list[int], idx: np.ndarray, n: np.ndarray,
               p2: np.ndarray, mocap_lin: np.ndarray | None, mocap_ang: np.ndarray | None) -> np.ndarray:

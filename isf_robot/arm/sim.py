@@ -256,6 +256,7 @@ class _Episode:
         self.dmin = math.inf
         self.recording = bool(sim.observers)
         self.uses_rows = bool(getattr(sim.strategy, "uses_rows", True))
+        self._lean = self.uses_rows and not self.recording  # (barriers: the rows without NearPairs)
         nj = sim.joints.evaluate(data).k
         self._h_far_min = sim.coll.h_far_min
         self.coherence = sim.coll.coherence()  # this run's distance bounds (None: not applicable)
@@ -279,19 +280,22 @@ class _Episode:
         else:
             self.data.mocap_pos[self.mocap_rows] = self.track[i]
 
-    def barriers(self) -> tuple[NearPairs, np.ndarray, LieData | None]:
-        """Barrier values at the tick (and its safety accounting); the rows for the strategy.
-
-        Only the collision pairs within the cut-off are evaluated (every other pair's barrier is
-        ``cutoff - margin``, above the near ones' and never a row of the filter).
-        """
+    def barriers(self) -> tuple[NearPairs | None, np.ndarray | None, LieData | None]:
+        """The tick's rows (the pairs within the cut-off, the joint limits) and its safety accounting."""
         sim = self.sim
-        rows = sim.coll.rows(self.data, sim.joints, self.lin, witness=self.recording, coherence=self.coherence)
-        near = rows.near
-        self.dmin = self.monitor.tick_min(min(near.h_min, self._h_far_min), near.row_list, near.dist_min, near.rows)
-        self.min_joint = min(self.min_joint, rows.joint_min)  # (jmin when smaller)
-        jh = rows.h[len(near.row_list):]
-        return near, jh, sim.coll.lie(rows, sim.joints) if self.uses_rows else None
+        if self._lean:  # (unrecorded: the same rows in one pass, without the NearPairs only a record needs)
+            lie, idx, row_list, h_min, dist_min, jmin = sim.coll.lie_rows(self.data, sim.joints, self.lin,
+                                                                          coherence=self.coherence)
+            near = jh = None
+        else:
+            rows = sim.coll.rows(self.data, sim.joints, self.lin, witness=self.recording, coherence=self.coherence)
+            near = rows.near
+            idx, row_list, h_min, dist_min, jmin = near.rows, near.row_list, near.h_min, near.dist_min, rows.joint_min
+            jh = rows.h[len(row_list):]
+            lie = sim.coll.lie(rows, sim.joints) if self.uses_rows else None
+        self.dmin = self.monitor.tick_min(min(h_min, self._h_far_min), row_list, dist_min, idx)
+        self.min_joint = min(self.min_joint, jmin)  # (jmin when smaller)
+        return near, jh, lie
 
     def nominal(self, t: float) -> np.ndarray:
         """The nominal command at the tick."""
