@@ -18,6 +18,7 @@ after, so a rollout changes nothing in the episode.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import mujoco
@@ -25,10 +26,23 @@ import numpy as np
 
 from isf_robot.core import ConfigError, LieData
 
+from . import kernels
+
 __all__ = ["NominalRollout", "MAX_POINTS"]
 
 MAX_POINTS = 10
 """Default largest number of predicted points per rollout (the integration step grows with the horizon)."""
+
+
+def _euler_kernel() -> Callable[..., Any] | None:
+    """The compiled Euler step (:mod:`isf_robot.arm._rollout_jit`), or ``None`` (no numba, or ``ISF_ROBOT_JIT=0``)."""
+    if not kernels.available():
+        return None
+    try:
+        from ._rollout_jit import euler_step
+    except ImportError:
+        return None
+    return euler_step
 
 
 class NominalRollout:
@@ -60,7 +74,10 @@ class NominalRollout:
         self.horizon = float(horizon)
         self.moving = len(self.scene.config.moving) > 0
         self._data = mujoco.MjData(self.scene.model)
-        self._qadr = np.asarray(self.scene.qpos_adr)
+        self._qadr = np.ascontiguousarray(self.scene.qpos_adr, dtype=np.int64)
+        self._step = _euler_kernel() if getattr(self.scene.model, "_address", 0) else None
+        self._addr = (int(getattr(self.scene.model, "_address", 0)), int(getattr(self._data, "_address", 0)))
+        self._qpos = self._data.qpos  # (a view of the scratch data: the kernel writes through it)
         self.calls = 0
 
     def _rows(self, data: mujoco.MjData, lin: np.ndarray | None) -> LieData:
@@ -78,18 +95,22 @@ class NominalRollout:
         saved = self.nominal.snapshot()
         out: list[tuple[float, LieData, np.ndarray]] = []
         self.calls += 1
+        step, (ma, da), qpos, qadr, dt = self._step, self._addr, self._qpos, self._qadr, self.dt
         try:
             u = np.array(self.nominal(t, x), dtype=float)  # the command now (the controller's next call)
             for j in range(1, self.n + 1):
-                s = j * self.dt
-                q = q + self.dt * u
-                d.qpos[self._qadr] = q
+                s = j * dt
                 lin = None
-                if self.moving:
+                if self.moving:  # (the obstacles' place first: the kinematics below read it)
                     scene.set_moving_obstacles(d, t + s + self.offset)
                     lin = scene.mocap_velocities(t + s + self.offset)[0]
-                mujoco.mj_kinematics(m, d)
-                mujoco.mj_comPos(m, d)
+                if step is not None and u.shape == q.shape and u.ndim == 1:
+                    step(ma, da, q, u, dt, qpos, qadr)  # q + dt u into qpos, then the kinematics, in one call
+                else:
+                    q = q + dt * u
+                    d.qpos[qadr] = q
+                    mujoco.mj_kinematics(m, d)
+                    mujoco.mj_comPos(m, d)
                 u = np.array(self.nominal(t + s, d), dtype=float)
                 out.append((s, self._rows(d, lin), u))
         finally:
