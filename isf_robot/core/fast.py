@@ -22,14 +22,14 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from .class_k import ClassK, Linear
 from .system import LieData
 
-__all__ = ["xi_kernel", "few_kernels", "screen_array", "xi_pass", "NO_SCREEN"]
+__all__ = ["xi_kernel", "few_kernels", "step_kernels", "StepKernels", "screen_array", "xi_pass", "NO_SCREEN"]
 
 _STATE: dict[str, Any] = {}
 _F64 = np.dtype(np.float64)
@@ -68,6 +68,33 @@ def few_kernels() -> tuple[Callable[..., Any], Callable[..., Any]] | None:
                 pass
         _STATE["few_key"], _STATE["few"] = key, kernels
     return _STATE["few"]
+
+
+class StepKernels(NamedTuple):
+    """The screened few-row step's kernels (:mod:`isf_robot.core._step_jit`)."""
+
+    select: Callable[..., Any]
+    lower: Callable[..., Any]
+    finish: Callable[..., Any]
+    hold: Callable[..., Any]
+
+
+def step_kernels() -> StepKernels | None:
+    """The kernels of :mod:`isf_robot.core._step_jit`, or ``None`` (no numba, or ``ISF_ROBOT_JIT=0``).
+
+    Read when a filter is built.
+    """
+    key = os.environ.get("ISF_ROBOT_JIT", "1")
+    if _STATE.get("step_key") != key:
+        kernels = None
+        if not _off():
+            try:
+                from ._step_jit import few_finish, few_lower_candidate, screened_hold, select_rows
+                kernels = StepKernels(select_rows, few_lower_candidate, few_finish, screened_hold)
+            except ImportError:
+                pass
+        _STATE["step_key"], _STATE["step"] = key, kernels
+    return _STATE["step"]
 
 
 def xi_kernel() -> Callable[..., Any] | None:

@@ -19,9 +19,10 @@ import numpy as np
 from .barrier import Barrier, evaluate_barriers
 from .class_k import ClassK, as_class_k
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
-from .fast import screen_array, xi_kernel, xi_pass
+from .fast import screen_array, step_kernels, xi_kernel, xi_pass
 from .filter_short import ShortWays
 from .qp import FilterQP, QPResult
+from .qp_small import FEW_ROWS
 from .qp_solver import QPSolver
 from .step import FilterStep
 from .switches import SwitchCounter
@@ -32,6 +33,8 @@ from .validation import as_vector, check_finite_scalar, check_nonnegative
 __all__ = ["FilterStep", "FallbackFn"]  # (FilterStep: from .step, where it lives)
 
 _F64 = np.dtype(np.float64)
+_BOOL = np.dtype(bool)
+_NONE_B = np.zeros(0, bool)  # the selection kernel's "no promoted rows"
 
 FallbackFn = Callable[[float, "np.ndarray | None", LieData, QPResult], np.ndarray]
 
@@ -97,6 +100,7 @@ class _FilterBase(ShortWays):
         self.fallback = fallback
         self.screen = self._check_screen(screen)
         self._kernel = xi_kernel()  # (ISF_ROBOT_JIT is read when the filter is built)
+        self._steps = step_kernels()
         self.qp_solves = 0
         self._switches = SwitchCounter()
 
@@ -216,15 +220,18 @@ class _FilterBase(ShortWays):
         """
         screen = self.screen if screen is None else screen
         k = xi.shape[0]
+        steps = self._steps
         if screen is not None and k > 1:
             keep = rows = None
             if xs is not None and xs.kept >= 0 and promote is None and not floor > 0:
                 n = xs.kept  # counted by the kernel, with these thresholds
             else:
-                keep = xi < np.maximum(screen, floor) if floor > 0 else xi < screen
-                if promote is not None:
-                    keep |= promote  # a promoted row is never screened out
-                rows = keep.nonzero()[0]
+                rows = self._select(xi, screen, floor, promote)
+                if rows is None:
+                    keep = xi < np.maximum(screen, floor) if floor > 0 else xi < screen
+                    if promote is not None:
+                        keep |= promote  # a promoted row is never screened out
+                    rows = keep.nonzero()[0]
                 n = rows.size
             if n < k:  # (not keep.all())
                 if n <= 1 and self._one_row_ok(lie):
@@ -236,12 +243,19 @@ class _FilterBase(ShortWays):
                     if res is not None:
                         if self._screened_rows_hold(lie, xi, None if xs is None else xs.xi_min, res.u, u_nom, i):
                             return res, (), False, False
-                        first = res.solve_time_s
-                        res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote, lie.names, None)
-                        return replace(res, solve_time_s=res.solve_time_s + first), relaxed, fb, True
-                if keep is None or rows is None:  # (the kernel counted: the rows themselves now)
-                    keep = xi < screen
-                    rows = keep.nonzero()[0]
+                        return self._resolve(t, x, lie, u_nom, promote, res)
+                if n > 1 and steps is not None:
+                    if rows is None:  # (the kernel counted: the rows themselves now)
+                        rows = self._select(xi, screen, floor, promote)
+                    got = None if rows is None else self._few_fast(lie, u_nom, xi, xs, promote, rows, n)
+                    if got is not None:
+                        return (got[0], (), False, False) if got[1] else self._resolve(t, x, lie, u_nom, promote, got[0])
+                if keep is None:  # (the rows were counted or selected by a kernel: the mask now)
+                    keep = xi < screen if rows is None else np.zeros(k, bool)
+                    if rows is None:
+                        rows = keep.nonzero()[0]
+                    else:
+                        keep[rows] = True
                 if n == 0:  # the row of least slack alone (views: no copies)
                     i = int(xi.argmin())
                     rows = np.array([i])
@@ -254,12 +268,32 @@ class _FilterBase(ShortWays):
                 res, relaxed, fb = self._solve_block(t, x, sub, u_nom, None if promote is None else promote[rows],
                                                      lie.names, rows)
                 if not fb and not self._screened_rows_hold_mask(lie, xi, res.u - u_nom, keep):
-                    first = res.solve_time_s
-                    res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote, lie.names, None)
-                    return replace(res, solve_time_s=res.solve_time_s + first), relaxed, fb, True
+                    return self._resolve(t, x, lie, u_nom, promote, res)
                 return res, relaxed, fb, False
+        if steps is not None and 1 < k <= FEW_ROWS:  # every row kept
+            got = self._few_fast(lie, u_nom, xi, xs, promote, np.arange(k), k)
+            if got is not None:
+                return got[0], (), False, False
         res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote, lie.names, None)
         return res, relaxed, fb, False
+
+    def _select(self, xi: np.ndarray, screen: float | np.ndarray, floor: float,
+                promote: np.ndarray | None) -> np.ndarray | None:
+        """The kept rows (``xi < max(screen, floor)``, or promoted), ascending, by the compiled kernel; ``None``: numpy's way."""
+        steps = self._steps
+        k = xi.shape[0]
+        sa = None if steps is None else screen_array(screen, k)
+        if sa is None or sa.shape[0] == 0 or xi.dtype != _F64 or xi.ndim != 1 or not (
+                promote is None or promote.dtype == _BOOL and promote.shape == xi.shape):
+            return None
+        rows = np.empty(k, np.intp)
+        return rows[:steps.select(xi, sa, floor, _NONE_B if promote is None else promote, rows)]
+
+    def _resolve(self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None,
+                 first: QPResult) -> tuple[QPResult, tuple[str, ...], bool, bool]:
+        """A screened row is needed at ``first``'s answer: solve again with every row (``resolved``)."""
+        res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote, lie.names, None)
+        return replace(res, solve_time_s=res.solve_time_s + first.solve_time_s), relaxed, fb, True
 
     def _solve_block(
         self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None,

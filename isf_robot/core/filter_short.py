@@ -4,7 +4,10 @@
 * two to ``FEW_ROWS`` rows without input bounds: the exact few-row solution
   (:func:`~isf_robot.core.qp_small.project_few`) without building the QP object
   (:meth:`ShortWays._solve_few`);
-* the checks that the rows screened out hold at the answer.
+* the checks that the rows screened out hold at the answer;
+* with the compiled kernels (:func:`~isf_robot.core.fast.step_kernels`), the whole screened
+  few-row step: the kept rows, their bounds, the few-row solution and the check of the rows
+  screened out, each a compiled pass around numpy's own products (:meth:`ShortWays._few_fast`).
 
 Each gives the numbers the general way (``build_qp`` + :meth:`QPSolver.solve`) gives, bit for bit
 (``tests/core/test_screening.py``, ``tests/core/test_fast.py``), or ``None`` and the caller
@@ -20,8 +23,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .class_k import CustomClassK, Linear
+from .fast import StepKernels
 from .qp import QPResult
-from .qp_small import FEW_ROWS, project_few
+from .qp_small import FEW_ROWS, REL_TOL, project_few
 from .qp_solver import QPSolver
 from .system import LieData
 
@@ -31,6 +35,9 @@ if TYPE_CHECKING:
 __all__ = ["ShortWays"]
 
 _F64 = np.dtype(np.float64)
+_BOOL = np.dtype(bool)
+_NONE_B = np.zeros(0, bool)  # the kernels' "no promoted rows"
+_NONE_F = np.zeros(0)  # the kernels' "every ramp weight 1" / "alpha(h) made from gain h"
 _ACTIVE = (np.zeros(1, bool), np.ones(1, bool))  # one row's activity, shared (read-only)
 for _a in _ACTIVE:
     _a.flags.writeable = False
@@ -45,6 +52,7 @@ class ShortWays:
     u_min: np.ndarray | None
     u_max: np.ndarray | None
     qp_solves: int
+    _steps: StepKernels | None
 
     def qp_lower(self, lie: LieData, promote: np.ndarray | None = None, b: float = 0.0,
                  ramp: float | np.ndarray = 1.0) -> np.ndarray:
@@ -72,6 +80,79 @@ class ShortWays:
         self.qp_solves += 1
         u, res, rmin = hit
         return QPResult._of(u, "optimal", res <= solver.active_tol, time.perf_counter() - t0, 0, max(0.0, -rmin))
+
+    def _few_fast(self, lie: LieData, u_nom: np.ndarray, xi: np.ndarray, xs: _Xi | None, promote: np.ndarray | None,
+                  rows: np.ndarray, n: int) -> tuple[QPResult, bool] | None:
+        """The kept rows ``rows`` (``n`` of them, 2 to ``FEW_ROWS``, ascending) the compiled way: ``(result, screened rows hold)``.
+
+        The numbers of :meth:`_solve_few` on ``lie`` with those rows taken (``lie`` itself when
+        every row is kept), and of :meth:`_screened_rows_hold_mask` at its answer, bit for bit:
+        the same numpy products (``A u_nom``, ``A A^T``, ``A u``, ``Lg h (u - u_nom)``) and, in
+        the kernels of :mod:`isf_robot.core._step_jit`, the same elementwise operations in the same
+        order. ``None`` when that way does not apply or finds no few-row answer (the caller then
+        goes the general way, which decides).
+        """
+        steps, solver = self._steps, self.solver
+        if not (steps is not None and n <= FEW_ROWS and type(solver) is QPSolver and solver.few_rows
+                and solver.closed_form and solver._few is not None and self.u_min is None and self.u_max is None):
+            return None
+        h, lf, gn, lg = lie.h, lie.lf, lie.grad_norm, lie.lg
+        k = xi.shape[0]
+        if not (h.dtype == _F64 and lf.dtype == _F64 and gn.dtype == _F64 and lg.dtype == _F64
+                and u_nom.dtype == _F64 and xi.dtype == _F64 and lg.ndim == 2 and lg.shape[0] == k
+                and h.shape == lf.shape == gn.shape == xi.shape and u_nom.shape == lg.shape[1:]):
+            return None
+        ramp = getattr(self, "_ramp", 1.0)
+        if type(ramp) is float:  # (one weight for every row)
+            if not ramp >= 1.0:
+                return None
+            ramp = _NONE_F
+        elif not (type(ramp) is np.ndarray and ramp.dtype == _F64 and ramp.shape == xi.shape):
+            return None
+        if promote is None:
+            promote = _NONE_B
+        elif not (promote.dtype == _BOOL and promote.shape == xi.shape):
+            return None
+        alpha = self.alpha
+        gain, av, av_rows = 0.0, _NONE_F, False  # (alpha(h) as qp_lower makes it on the rows it is given)
+        if type(alpha) is Linear:
+            gain = alpha.gain
+        else:
+            if n == k:
+                av = xs.av if xs is not None and xs.av is not None else alpha.vector(h)
+            elif type(alpha) is CustomClassK and xs is not None and xs.av is not None:
+                av = xs.av  # (the same call of alpha on the same floats)
+            else:
+                av, av_rows = alpha.vector(h.take(rows)), True
+            if not (type(av) is np.ndarray and av.dtype == _F64 and av.shape == ((n,) if av_rows else xi.shape)):
+                return None
+        A = lg if n == k else lg.take(rows, 0)
+        t0 = time.perf_counter()
+        Au, G = A.dot(u_nom), A.dot(A.T)  # (numpy's products, as project_few makes them)
+        lb, r, tol, u = np.empty(n), np.empty(n), np.empty(n), np.empty(u_nom.shape[0])
+        code, low = steps.lower(rows, n, h, lf, gn, self.d_bar, gain, av, av_rows, promote, ramp,
+                                getattr(self, "b", 0.0), Au, G, A, u_nom, REL_TOL, lb, r, tol, u)
+        if code == 1:
+            res, active, du = np.empty(n), np.empty(n, bool), np.empty(u.shape[0])
+            ok, low = steps.finish(A.dot(u), lb, u, u_nom, tol, solver.active_tol, res, active, du)
+            if not ok:
+                code = 2  # (the candidate failed its confirmation on the rows: the Python enumeration decides)
+        if code == 2:
+            hit = project_few(A, lb, u_nom)
+            if hit is None:
+                return None
+            u, res, low = hit
+            active, du = res <= solver.active_tol, u - u_nom
+        elif code == 0:
+            u, active, du = u_nom.copy(), r <= solver.active_tol, None
+        elif code != 1:
+            return None
+        self.qp_solves += 1
+        got = QPResult._of(u, "optimal", active, time.perf_counter() - t0, 0, max(0.0, -low))
+        if n == k:
+            return got, True
+        lgdu = lg.dot(u - u_nom if du is None else du)
+        return got, steps.hold(xi, lgdu, rows, n, solver.active_tol)
 
     def _one_row_ok(self, lie: LieData) -> bool:
         """Whether one kept row may go the short way (:meth:`_solve_one`).

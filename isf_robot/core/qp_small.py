@@ -30,13 +30,16 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["project_few", "FEW_ROWS"]
+__all__ = ["project_few", "FEW_ROWS", "REL_TOL"]
 
 _F64 = np.dtype(np.float64)
 _PY = object()  # the compiled path's "decide in Python"
 
 FEW_ROWS = 8
 """Largest number of rows :func:`project_few` enumerates (the pairs grow as k^2)."""
+
+REL_TOL = 1e-12
+""":func:`project_few`'s default ``rel_tol``."""
 
 
 def _holds(res: list[float], tol: list[float]) -> bool:
@@ -46,7 +49,7 @@ def _holds(res: list[float], tol: list[float]) -> bool:
     return True
 
 
-def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float = 1e-12,
+def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float = REL_TOL,
                 kernels: tuple[Callable[..., Any], Callable[..., Any]] | None = None,
                 ) -> tuple[np.ndarray, np.ndarray, float] | None:
     """The solution of ``min |u - u_nom|^2 s.t. A u >= lb`` if at most two rows are active there.

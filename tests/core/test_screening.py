@@ -213,6 +213,7 @@ def test_the_few_row_short_way_equals_the_general_way(alpha, kind) -> None:  # t
         return IntermittentSafetyFilter(alpha, 0.1, 0.05, 0.05, validate=False, blend=0.04, screen=0.3, solver=solver)
 
     short, general = make(), make()
+    short._steps = general._steps = None  # (the compiled way: tests/core/test_fast_step.py)
     general._solve_few = lambda *a: None  # type: ignore[method-assign]
     hits = []
     few = short._solve_few

@@ -1,0 +1,117 @@
+"""The numba kernels of the filters' screened few-row step (imported only when numba is installed).
+
+Module-level functions, so numba's cache (``__pycache__``) serves later processes. Each makes
+the general path's elementwise operations (numpy's, in :meth:`_FilterBase._solve_rows`,
+:meth:`_FilterBase.qp_lower` and :func:`~isf_robot.core.qp_small.project_few`) in their order:
+IEEE float64 operations that numpy and the compiled loop round alike (numba does not contract
+them into fused multiply-adds without ``fastmath``). The products stay numpy's (BLAS) and are
+passed in. :mod:`isf_robot.core.filter_fast` calls them; ``tests/core/test_fast_step.py`` checks
+them against the general path bit for bit.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from ._few_jit import few_candidate, few_confirm
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _npmax(a, b):  # pragma: no cover (compiled)
+    """``np.maximum(a, b)``: NaN if either is NaN, else ``a`` when ``a > b``, else ``b`` (equal: ``b``)."""
+    if a != a:
+        return a
+    if b != b:
+        return b
+    return a if a > b else b
+
+
+@njit(cache=True, nogil=True)
+def select_rows(xi, screen, floor, promote, rows):  # pragma: no cover (compiled)
+    """The kept rows: ``xi < np.maximum(screen, floor)`` (``floor > 0``; else ``xi < screen``), or promoted.
+
+    ``screen``: one threshold for every row or one per row; ``promote``: no entries (none) or one
+    per row. Writes the kept rows' indices, ascending, to ``rows`` and returns their count.
+    """
+    k = xi.shape[0]
+    ns = screen.shape[0]
+    npr = promote.shape[0]
+    up = floor > 0.0
+    n = 0
+    for i in range(k):
+        s = screen[i] if ns > 1 else screen[0]
+        if up:
+            s = _npmax(s, floor)
+        if xi[i] < s or (npr > 0 and promote[i]):
+            rows[n] = i
+            n += 1
+    return n
+
+
+@njit(cache=True, nogil=True)
+def few_lower_candidate(rows, n, h, lf, gn, d_bar, gain, av, av_rows, promote, ramp, b, Au, G, A, u_nom,
+                        rel_tol, lb, r, tol, u):  # pragma: no cover (compiled)
+    """The kept rows' QP bounds (``qp_lower``), ``r = A u_nom - lb`` and the few-row enumeration's first candidate.
+
+    Row ``j`` of the QP is row ``rows[j]`` of the filter's data. ``alpha(h)``: ``gain h`` when
+    ``gain > 0``, else ``av`` (indexed by the QP's row when ``av_rows``, else by the data's).
+    ``promote`` (no entries: none) and ``ramp`` (no entries: 1 for every row) are indexed by the
+    data's row. Writes ``lb`` and ``r`` (length ``n``), then returns
+    :func:`~isf_robot.core._few_jit.few_candidate`'s ``(code, min r)`` (``Au = A u_nom``, ``G = A
+    A^T``: numpy's products).
+    """
+    npr = promote.shape[0]
+    nr = ramp.shape[0]
+    any_p = False
+    all_one = True
+    for j in range(n):
+        i = rows[j]
+        if npr > 0 and promote[i]:
+            any_p = True
+        if nr > 0 and not ramp[i] >= 1.0:
+            all_one = False
+    for j in range(n):
+        i = rows[j]
+        if gain > 0.0:
+            rhs = -(gain * h[i])
+        else:
+            rhs = -(av[j] if av_rows else av[i])
+        if any_p and promote[i]:
+            if all_one:
+                rhs = b
+            else:
+                w = ramp[i]
+                rhs = _npmax(rhs, w * b + (1.0 - w) * rhs)
+        lb[j] = (rhs - lf[i]) + gn[i] * d_bar
+        r[j] = Au[j] - lb[j]
+    return few_candidate(A, lb, u_nom, r, G, rel_tol, tol, u)
+
+
+@njit(cache=True, nogil=True)
+def few_finish(Au, lb, u, u_nom, tol, active_tol, res, active, du):  # pragma: no cover (compiled)
+    """``res = A u - lb``, its confirmation (:func:`~isf_robot.core._few_jit.few_confirm`), ``active = res <= active_tol``, ``du = u - u_nom``.
+
+    Returns ``(ok, min res)``; ``active`` and ``du`` are written only when ``ok``.
+    """
+    for j in range(res.shape[0]):
+        res[j] = Au[j] - lb[j]
+    ok, low = few_confirm(res, u, tol)
+    if ok:
+        for j in range(res.shape[0]):
+            active[j] = res[j] <= active_tol
+        for q in range(u.shape[0]):
+            du[q] = u[q] - u_nom[q]
+    return ok, low
+
+
+@njit(cache=True, nogil=True)
+def screened_hold(xi, lgdu, rows, n, active_tol):  # pragma: no cover (compiled)
+    """Whether every row not in ``rows[:n]`` (ascending) has ``xi + lgdu >= active_tol`` (NaN: no)."""
+    j = 0
+    for i in range(xi.shape[0]):
+        if j < n and rows[j] == i:
+            j += 1
+            continue
+        if not xi[i] + lgdu[i] >= active_tol:
+            return False
+    return True

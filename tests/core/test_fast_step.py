@@ -1,0 +1,160 @@
+"""The screened few-row step's compiled way (ShortWays._few_fast, core/_step_jit.py): the general way's numbers, bit for bit."""
+
+from __future__ import annotations
+
+import collections
+
+import numpy as np
+import pytest
+
+from isf_robot.core import CustomClassK, IntermittentSafetyFilter, LieData, Linear, Power, QPSolver, SafetyFilter
+
+pytest.importorskip("numba")
+
+ALPHAS = [Linear(2.0), Power(3.0, 0.7), CustomClassK(lambda h: h + h ** 3, "cubic")]
+
+
+def _kernels():  # type: ignore[no-untyped-def]
+    from isf_robot.core.fast import step_kernels
+
+    kernels = step_kernels()
+    assert kernels is not None, "numba is installed: the kernels must load"
+    return kernels
+
+
+def test_row_selection_is_numpys_mask() -> None:
+    select = _kernels().select
+    rng = np.random.default_rng(2)
+    for i in range(3000):
+        k = int(rng.integers(1, 30))
+        xi = rng.normal(scale=0.3, size=k)
+        tie = rng.random(k) < 0.4
+        xi[tie] = rng.choice([0.0, -0.0, 0.1, 0.2], tie.sum())  # (ties with the thresholds below)
+        if i % 50 == 0:
+            xi[0] = np.nan
+        screen = rng.choice([0.0, 0.1, 0.3, rng.uniform(-0.2, 0.5)], 1 if i % 2 else k)
+        if i % 40 == 0:
+            screen[-1] = np.nan  # (np.maximum and the comparison: a NaN threshold keeps no row)
+        floor = float(rng.choice([0.0, -0.1, 0.2, 0.0]))
+        promote = rng.random(k) < 0.2 if i % 3 else None
+        thr = np.maximum(screen, floor) if floor > 0 else screen
+        keep = xi < thr
+        if promote is not None:
+            keep |= promote
+        rows = np.empty(k, np.intp)
+        n = select(xi, screen, floor, np.zeros(0, bool) if promote is None else promote, rows)
+        assert rows[:n].tolist() == np.flatnonzero(keep).tolist()
+
+
+def _lie(rng: np.random.Generator, k: int, m: int) -> LieData:
+    lg = rng.normal(size=(k, m)) * 10.0 ** rng.uniform(-1, 1, size=(k, 1))
+    h = rng.uniform(-0.05, 0.5, k)
+    h[rng.random(k) < 0.1] = 0.0  # (signed zeros: -alpha(0))
+    return LieData(h, rng.normal(scale=0.3, size=k), lg, np.linalg.norm(lg, axis=1), tuple(f"b{i}" for i in range(k)))
+
+
+def _make(kind: str, alpha):  # type: ignore[no-untyped-def]
+    solver = QPSolver(few_rows=True)
+    if kind == "cbf":
+        return SafetyFilter(alpha, 0.05, validate=False, solver=solver)
+    return IntermittentSafetyFilter(alpha, 0.1, 0.05, 0.05, validate=False, blend=0.04 if kind == "isf_blend" else 0.0,
+                                    solver=solver)
+
+
+def _step_record(s) -> tuple:  # type: ignore[no-untyped-def]
+    q = s.qp
+    return (s.u.tobytes(), s.on, str(s.event), s.resolved, s.relaxed, s.fallback,
+            None if q is None else (q.status, q.active.tolist(), q.iterations, q.max_violation.hex(), q.relaxed))
+
+
+@pytest.mark.parametrize("alpha", ALPHAS, ids=repr)
+@pytest.mark.parametrize("kind", ["cbf", "isf", "isf_blend"])
+def test_the_compiled_few_row_step_equals_the_short_and_the_general_way(alpha, kind) -> None:  # type: ignore[no-untyped-def]
+    # three copies of one filter on one slowly moving random walk (it switches, promotes and ramps; the
+    # screening thresholds keep 0 to all of 2-12 rows, some of them needed at the answer): the compiled
+    # way, the Python short way (_solve_few) and the general way (build_qp + QPSolver.solve) must give
+    # every step bit for bit (command, mode, event, QP status, activity, max violation, re-solves)
+    fast, short, general = _make(kind, alpha), _make(kind, alpha), _make(kind, alpha)
+    short._steps = general._steps = None
+    general._solve_few = lambda *a: None  # type: ignore[method-assign]
+    assert fast._steps is not None
+    seen: collections.Counter = collections.Counter()
+    few = fast._few_fast
+
+    def spy(lie, u_nom, xi, xs, promote, rows, n):  # type: ignore[no-untyped-def]
+        got = few(lie, u_nom, xi, xs, promote, rows, n)
+        seen["few" if n < xi.shape[0] else "all"] += got is not None
+        seen["held" if got is not None and got[1] else "needed"] += 1
+        return got
+
+    fast._few_fast = spy  # type: ignore[method-assign]
+    rng = np.random.default_rng(17)
+    m = 8
+    lie = _lie(rng, 12, m)
+    for i in range(900):
+        if i % 150 == 0:
+            k = int(rng.integers(2, 13))
+            lie = _lie(rng, k, m)
+        k = lie.k
+        h = np.clip(lie.h + rng.normal(scale=0.02, size=k), -0.05, 0.6)
+        lie = LieData(h, lie.lf + rng.normal(scale=0.05, size=k), lie.lg + rng.normal(scale=0.05, size=(k, m)),
+                      lie.grad_norm, lie.names)
+        u_nom = rng.normal(size=m)
+        screen = float(rng.choice([0.02, 0.3, 1.0, 5.0])) if i % 4 else rng.uniform(0.01, 1.0, k)
+        a, b, c = (f.step_lie(0.01 * i, lie, u_nom, screen=screen) for f in (fast, short, general))
+        assert _step_record(a) == _step_record(b) == _step_record(c), i
+    assert fast.qp_solves == short.qp_solves == general.qp_solves
+    assert seen["few"] > 100 and seen["all"] > 20 and seen["needed"] > 5, seen
+
+
+@pytest.mark.parametrize("alpha", ALPHAS, ids=repr)
+def test_the_kernels_bounds_are_qp_lowers_bit_for_bit(alpha) -> None:  # type: ignore[no-untyped-def]
+    # the kept rows' bounds (robust, promoted at b, or on the hand-over ramp) against the general
+    # way's qp_lower on the rows taken; zeros of both signs everywhere (np.maximum's tie rule)
+    lower = _kernels().lower
+    f = IntermittentSafetyFilter(alpha, 0.1, 0.05, 0.05, validate=False)
+    rng = np.random.default_rng(4)
+    zero = np.array([0.0, -0.0])
+    for i in range(2000):
+        k, m = int(rng.integers(2, 12)), 3
+        lie = _lie(rng, k, m)
+        for arr in (lie.h, lie.lf, lie.grad_norm):
+            pick = rng.random(k) < 0.3
+            arr[pick] = rng.choice(zero, pick.sum())
+        f.d_bar = float(rng.choice([0.0, 0.05]))
+        f.b = float(rng.choice([0.0, -0.0, 0.05]))
+        promote = rng.random(k) < 0.5 if i % 4 else None
+        ramp = rng.choice([0.0, 0.3, 1.0], k) if i % 3 else None
+        rows = np.flatnonzero(rng.random(k) < 0.7)
+        n = rows.size
+        if n == 0:
+            continue
+        sub = LieData(lie.h.take(rows), lie.lf.take(rows), lie.lg.take(rows, 0), lie.grad_norm.take(rows))
+        ref = f.qp_lower(sub, None if promote is None else promote[rows], f.b, 1.0 if ramp is None else ramp[rows])
+        gain = alpha.gain if type(alpha) is Linear else 0.0
+        av = np.zeros(0) if gain else alpha.vector(sub.h)
+        A = sub.lg
+        u_nom = rng.normal(size=m)
+        lb, r, tol, u = np.empty(n), np.empty(n), np.empty(n), np.empty(m)
+        lower(rows, n, lie.h, lie.lf, lie.grad_norm, f.d_bar, gain, av, True, np.zeros(0, bool) if promote is None
+              else promote, np.zeros(0) if ramp is None else ramp, f.b, A.dot(u_nom), A.dot(A.T), A, u_nom, 1e-12, lb, r, tol, u)
+        assert lb.tobytes() == ref.tobytes(), i
+        assert r.tobytes() == (A.dot(u_nom) - ref).tobytes()
+
+
+def test_the_screened_rows_check_is_the_general_ones() -> None:
+    # slack = xi + Lg h du >= active_tol on every row not kept (a tie holds, a NaN does not)
+    hold = _kernels().hold
+    f = SafetyFilter(1.0)
+    tol = f.solver.active_tol
+    rng = np.random.default_rng(5)
+    for i in range(3000):
+        k = int(rng.integers(1, 20))
+        xi = rng.choice([tol, 2 * tol, 0.5 * tol, 0.3, -0.1], k)
+        lgdu = rng.choice([0.0, -0.0, tol, -tol, 1e-3], k)
+        if i % 30 == 0:
+            lgdu[rng.integers(k)] = np.nan
+        keep = rng.random(k) < 0.3
+        rows = np.flatnonzero(keep)
+        lie = LieData(np.zeros(k), np.zeros(k), lgdu[:, None].copy(), np.zeros(k))
+        assert hold(xi, lgdu, rows, rows.size, tol) == f._screened_rows_hold_mask(lie, xi, np.ones(1), keep), i
