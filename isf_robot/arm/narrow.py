@@ -27,21 +27,23 @@ __all__ = ["FilterRows", "NarrowPhase", "NearPairs", "TickRows"]
 
 _EPS_DIST = 1e-9  # [m] below this |dist| the witness points give no direction
 _new = tuple.__new__  # a NamedTuple from a tuple of its fields (as _make, without the length check)
-_BLOCKS = 64  # output blocks per allocation of the compiled path (see _output_blocks)
+_BLOCK_FLOATS = 32768  # the compiled path's outputs are allocated up to this many float64s (256 kB) at a time
 
 
 def _output_blocks(size: int, m: int, n: int, n_live: int) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Fresh outputs of the packed kernel for :data:`_BLOCKS` calls: ``(blk, rows, g)``, each handed out once.
+    """Fresh outputs of the packed kernel for the next calls: ``(blk, rows, g)``, each handed out once.
 
     ``blk``: float64 (size,), the kernel's output block (layout in ``_kernels_jit.near_packed``);
-    ``rows``: int64 (n_live,); ``g``: the (m, n) view of ``blk``'s gradient rows. One allocation and
-    its views for 64 steps cost less than two ``np.empty``, a reshape and three views per step made
-    between the other phases' work; a block is never handed out twice, so every result stays fresh
-    (a result kept alive keeps its allocation alive: 64 blocks, a few 100 kB).
+    ``rows``: int64 (n_live,); ``g``: the (m, n) view of ``blk``'s gradient rows. Up to 64 blocks (at
+    most 256 kB) are allocated at once with their views: cheaper than two ``np.empty``, a reshape and
+    three views per call made between the other phases' work. A block is never handed out twice, so
+    every result stays fresh; a result kept alive keeps its allocation alive (at most 256 kB, or one
+    block where a block is larger).
     """
-    flat = np.empty((_BLOCKS, size))
-    g = flat[:, m: m + m * n].reshape(_BLOCKS, m, n, copy=False)
-    return iter(list(zip(flat, np.empty((_BLOCKS, max(n_live, 1)), dtype=np.int64), g)))
+    count = max(1, min(64, _BLOCK_FLOATS // max(size, 1)))
+    flat = np.empty((count, size))
+    g = flat[:, m: m + m * n].reshape(count, m, n, copy=False)
+    return iter(list(zip(flat, np.empty((count, max(n_live, 1)), dtype=np.int64), g)))
 
 
 KERNEL_CONTEXTS = 4
