@@ -81,7 +81,7 @@ class NominalRollout:
         self.calls = 0
 
     def _rows(self, data: mujoco.MjData, lin: np.ndarray | None) -> LieData:
-        return self.coll.lie(self.coll.rows(data, self.joints, lin), self.joints)  # (as the simulation's rows)
+        return self.coll.lie_rows(data, self.joints, lin)[0]  # (lie(rows(...)) in one pass, as the simulation's rows)
 
     def __call__(self, t: float, x: Any) -> list[tuple[float, LieData, np.ndarray]]:
         """Predicted points ``t + s``, ``s = dt, 2 dt, ..., n dt``, from the state in ``x`` (the episode's MjData)."""
