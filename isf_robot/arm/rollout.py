@@ -12,7 +12,13 @@ Cost per rollout, bounded: ``points`` (default at most 10) evaluations of the no
 of the kinematics and of the barriers on a scratch ``MjData``; the filter runs at most one rollout
 every ``predict_every`` control steps, and only while it is on with every ``Xi_on`` above the margin.
 The nominal controller's own state (goal bookkeeping, rate limit) is saved before and restored
-after, so a rollout changes nothing in the episode.
+after, so a rollout changes nothing in the episode. With numba, each Euler step (``q + dt u`` into
+the scratch ``MjData``, ``mj_kinematics``, ``mj_comPos``) is one compiled call
+(:mod:`isf_robot.arm._rollout_jit`, the numpy step's numbers), and the rows are
+:meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`, the simulation's; the collision kernel
+keeps this scratch ``MjData``'s tables beside the episode's (a lookup per switch). Measured on
+panda_pole (10 points, process time, 2026-11-23): about 200 us per rollout outside the
+loop, most of it the barrier kernel's MuJoCo distance calls and the nominal controller, point by point.
 """
 
 from __future__ import annotations
@@ -81,6 +87,7 @@ class NominalRollout:
         self.calls = 0
 
     def _rows(self, data: mujoco.MjData, lin: np.ndarray | None) -> LieData:
+        """The filter's rows at the state in ``data`` (kinematics done), ``lin``: the mocap velocities or ``None``."""
         return self.coll.lie_rows(data, self.joints, lin)[0]  # (lie(rows(...)) in one pass, as the simulation's rows)
 
     def __call__(self, t: float, x: Any) -> list[tuple[float, LieData, np.ndarray]]:
