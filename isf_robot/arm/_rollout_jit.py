@@ -1,15 +1,24 @@
-"""The numba kernel of the rollout's Euler step (:mod:`isf_robot.arm.rollout`; imported only with numba).
+"""The numba kernels of the predictive off trigger's rollout (:mod:`isf_robot.arm.rollout`; imported only with numba).
 
-A module-level function, so numba's cache (``__pycache__``) serves later processes. MuJoCo's C
+Module-level functions, so numba's cache (``__pycache__``) serves later processes. MuJoCo's C
 functions ``mj_kinematics`` and ``mj_comPos`` are called directly on the raw addresses of the
 ``MjModel``/``MjData`` the bindings hold, as in :mod:`isf_robot.arm._kernels_step`.
+
+:func:`rollout_points` calls the reaching controller's kernel (``_kernels_step.reach``) and the
+collision kernel (``_kernels_jit.near_packed``). numba's cache does not notice a change of a function
+that a cached function calls from another file (a documented limitation), so :func:`guard_cache`
+flushes this module's cached code whenever those files' sources change (a stamp beside the cache).
 """
 
 from __future__ import annotations
 
+import hashlib
+import os
+
 from numba import njit, types
 
-from . import _kernels_jit  # noqa: F401  (importing it loads libmujoco's symbols; ImportError without it)
+from ._kernels_jit import near_packed  # (importing it loads libmujoco's symbols; ImportError without it)
+from ._kernels_step import reach
 
 _ptr = types.intp
 # void mj_kinematics(const mjModel* m, mjData* d)
@@ -26,3 +35,56 @@ def euler_step(ma, da, q, u, dt, qpos, qadr):  # pragma: no cover (compiled)
         qpos[qadr[i]] = q[i]
     kinematics(ma, da)
     com_pos(ma, da)
+
+
+@njit(cache=True, nogil=True)
+def rollout_points(ma, da, q, u0, t, dt, qpos, qadr, rp, nb, outs, n, nv, dof0, site, index, t_prev, a_max, kp,
+                   max_ee, max_js, lam2, pn, blks, rows, res, cutoff, distmax, slack, eps, lanes, lin,
+                   dlanes):  # pragma: no cover (compiled)
+    """Every point of a rollout with the goal ``index`` held: per point ``j`` (time ``t + (j + 1) dt``) the
+    Euler step from the previous command, the reaching controller's command into ``outs[j]`` (``reach``,
+    buffer ``nb``, addresses ``rp``) and the collision kernel's rows into ``blks[j]``/``rows[j]``
+    (``near_packed``, tables ``pn``, no coherence bounds). ``res[j]``: near pairs, h_min, dist_min,
+    joint_min, touching, goal distance. Returns the points done: it stops after a point with touching
+    witness points (which the caller hands to the general path)."""
+    u = u0
+    for j in range(outs.shape[0]):
+        s = (j + 1) * dt
+        tj = t + s
+        euler_step(ma, da, q, u, dt, qpos, qadr)
+        res[j, 5] = reach(ma, da, rp, nb, outs[j], n, nv, dof0, site, index, False, tj, t_prev, True, a_max, kp,
+                          max_ee, max_js, lam2)
+        t_prev = tj
+        u = outs[j]
+        k, h_min, dist_min, jmin, touching = near_packed(ma, da, pn, blks[j], rows[j], False, cutoff, distmax, slack,
+                                                         eps, lanes, lin, dlanes)
+        res[j, 0], res[j, 1], res[j, 2], res[j, 3], res[j, 4] = k, h_min, dist_min, jmin, 1.0 if touching else 0.0
+        if touching:
+            return j + 1
+    return outs.shape[0]
+
+
+def guard_cache() -> None:
+    """Flush :func:`rollout_points`'s cached code when the sources of the kernels it calls have changed."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    digest = hashlib.sha256()
+    for name in ("_kernels_jit.py", "_kernels_step.py", "_rollout_jit.py"):
+        with open(os.path.join(here, name), "rb") as f:
+            digest.update(f.read())
+    stamp = digest.hexdigest()
+    cache = rollout_points._cache  # (numba's FunctionCache of a cache=True dispatcher)
+    path = os.path.join(cache._cache_path, "_rollout_jit.rollout_points.deps")
+    try:
+        with open(path, encoding="ascii") as f:
+            if f.read() == stamp:
+                return
+    except OSError:
+        pass
+    cache.flush()  # (an empty index: compiled anew at the first call, then cached again)
+    tmp = f"{path}.{os.getpid()}.tmp"
+    try:
+        with open(tmp, "w", encoding="ascii") as f:
+            f.write(stamp)
+        os.replace(tmp, path)
+    except OSError:  # (a read-only cache folder: the code is compiled in each process)
+        pass

@@ -68,6 +68,24 @@ class GoalSequence:
         self._arrived = None
         self._started = None
 
+    def steady(self, t_first: float, t_last: float) -> bool:
+        """Whether no :meth:`update` at times in ``[t_first, t_last]`` (in order, whatever the errors) can change :attr:`index`.
+
+        Conservative: ``False`` whenever a change is possible. Before an arrival the index changes only by a
+        timeout (``t - started >= timeout``) or after an arrival at some ``t_a >= t_first`` and its dwell
+        (``t - t_a >= dwell``); after one, when ``t - arrived >= dwell``. A rounded difference grows with
+        its first term and falls with its second, so checking ``t_last`` (and ``t_first`` for ``t_a``)
+        covers every time in between. The predictive off trigger's rollout uses it to run its points with
+        the goal fixed.
+        """
+        if self._done:
+            return True
+        dwell = self.dwell[self.index]
+        if self._arrived is not None:
+            return bool(t_last - self._arrived < dwell)
+        started = t_first if self._started is None else self._started
+        return bool(t_last - started < self.timeout and t_last - t_first < dwell)
+
     def update(self, t: float, error: float) -> None:
         """Advance the sequence given the current goal error at time ``t`` [s]."""
         if self._done:

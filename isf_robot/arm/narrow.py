@@ -158,11 +158,9 @@ class NarrowPhase:
         """The packed kernel's tables for ``data``, ``coherence`` and ``joints``, from a small cache.
 
         Their addresses (``p``), sizes and the layout of the output block (see ``_kernels_jit.near_packed``).
-        A few contexts are kept (:data:`KERNEL_CONTEXTS`), keyed by the identity of the three objects,
-        which each entry holds (so an ``id`` is not reused while its entry lives): the predictive off
-        trigger's rollout evaluates its own scratch ``MjData`` between two steps of the episode's,
-        and switching between them is then a lookup, not two rebuilds of the tables. An entry is
-        rebuilt when ``coherence.reset`` has replaced the bounds' arrays (the kernel writes into them).
+        :data:`KERNEL_CONTEXTS` are kept, keyed by the three objects' ids (each entry holds them): the
+        rollout's scratch ``MjData`` between two steps of the episode's costs a lookup, not two rebuilds.
+        An entry is rebuilt when ``coherence.reset`` has replaced the bounds (the kernel writes into them).
         """
         key = (id(data), id(coherence), id(joints))
         cache = self._kctxs
@@ -173,6 +171,21 @@ class NarrowPhase:
             c = cache[key] = self._build_context(data, coherence, joints)
         self._kctx = c
         return c
+
+    def _block_lie(self, c: tuple, blk: np.ndarray, g: np.ndarray, rows: np.ndarray, j: int,
+                   joints: JointLimitBarriers) -> tuple[LieData, np.ndarray, list[int]]:
+        """Lie data (pairs, then joints), pair indices and list of an output ``blk`` of context ``c`` with ``j`` pairs."""
+        k, o_gn, o_lf, lanes = j + c[9], c[10], c[11], c[13]
+        rows, gk = rows[:j], g[:k]  # (g: blk's (m, n) gradient view)
+        row_list = rows.tolist()
+        return (LieData._of(blk[:k], blk[o_lf: o_lf + k], gk, blk[o_gn: o_gn + k] if lanes else _norms(gk),
+                            self._row_names(row_list, joints)), rows, row_list)
+
+    def _point_outputs(self, c: tuple, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``count`` fresh output blocks of ``c`` in one allocation (a rollout's points): blk, its g views, rows."""
+        m, n, nj, size = c[7], c[8], c[9], c[12]
+        flat = np.empty((count, size))
+        return flat, flat[:, m: m + m * n].reshape(count, m, n), np.empty((count, max(m - nj, 1)), dtype=np.int64)
 
     def _build_context(self, data: mujoco.MjData, coherence: JointCoherence | None,
                        joints: JointLimitBarriers | None) -> tuple:
@@ -252,11 +265,8 @@ class NarrowPhase:
             return self._tick_rows(_new(FilterRows, fr), joints, tick)
         h, g, lf = blk[:k], g2[:k], blk[o_lf: o_lf + k]
         if tick and not (moving and not dlanes):  # (lie_rows: the kernel's rows, without the NearPairs)
-            rows = rows[:j]
-            row_list = rows.tolist()
-            return _new(TickRows, (LieData._of(h, lf, g, blk[o_gn: o_gn + k] if lanes else _norms(g),
-                                               self._row_names(row_list, joints)),  # type: ignore[arg-type]
-                                   rows, row_list, h_min, dist_min, jmin))
+            lie, rows, row_list = self._block_lie(c, blk, g2, rows, j, joints)  # type: ignore[arg-type]
+            return _new(TickRows, (lie, rows, row_list, h_min, dist_min, jmin))
         gn = blk[o_gn: o_gn + k] if lanes else None
         if not j:
             return self._tick_rows(_new(FilterRows, (self._none, h, g, jmin, gn, lf)), joints, tick)

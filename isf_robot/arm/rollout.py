@@ -12,13 +12,16 @@ Cost per rollout, bounded: ``points`` (default at most 10) evaluations of the no
 of the kinematics and of the barriers on a scratch ``MjData``; the filter runs at most one rollout
 every ``predict_every`` control steps, and only while it is on with every ``Xi_on`` above the margin.
 The nominal controller's own state (goal bookkeeping, rate limit) is saved before and restored
-after, so a rollout changes nothing in the episode. With numba, each Euler step (``q + dt u`` into
-the scratch ``MjData``, ``mj_kinematics``, ``mj_comPos``) is one compiled call
-(:mod:`isf_robot.arm._rollout_jit`, the numpy step's numbers), and the rows are
-:meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`, the simulation's; the collision kernel
-keeps this scratch ``MjData``'s tables beside the episode's (a lookup per switch). Measured on
-panda_pole (10 points, process time, 2026-11-23): about 200 us per rollout outside the
-loop, most of it the barrier kernel's MuJoCo distance calls and the nominal controller, point by point.
+after, so a rollout changes nothing in the episode.
+
+With numba (:mod:`isf_robot.arm._rollout_jit`), while the goal cannot change over the horizon
+(:meth:`~isf_robot.arm.goals.GoalSequence.steady`) and the nominal is the :class:`ReachingController`
+with its compiled command, all points are one compiled call (Euler step, kinematics, the controller's
+kernel, the collision kernel), then their Lie data are read from the kernel's output blocks; otherwise
+each point's Euler step and kinematics are one call and its rows
+:meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`. Every path gives the numpy loop's points
+bit for bit. Measured on panda_pole (10 points, process time, 2026-11-23): about 120 us per rollout
+outside the loop in one call (190 us point by point), mostly the collision kernel's distance calls.
 """
 
 from __future__ import annotations
@@ -32,7 +35,8 @@ import numpy as np
 
 from isf_robot.core import ConfigError, LieData
 
-from . import kernels
+from . import kernels, narrow
+from .nominal import ReachingController
 
 __all__ = ["NominalRollout", "MAX_POINTS"]
 
@@ -40,15 +44,22 @@ MAX_POINTS = 10
 """Default largest number of predicted points per rollout (the integration step grows with the horizon)."""
 
 
-def _euler_kernel() -> Callable[..., Any] | None:
-    """The compiled Euler step (:mod:`isf_robot.arm._rollout_jit`), or ``None`` (no numba, or ``ISF_ROBOT_JIT=0``)."""
+_GUARDED: list[bool] = []
+
+
+def _rollout_kernels() -> tuple[Callable[..., Any], Callable[..., Any]] | None:
+    """The compiled Euler step and whole-rollout kernel (:mod:`isf_robot.arm._rollout_jit`), or ``None``
+    (no numba, or ``ISF_ROBOT_JIT=0``). The first call checks the whole-rollout kernel's cache (``guard_cache``)."""
     if not kernels.available():
         return None
     try:
-        from ._rollout_jit import euler_step
+        from ._rollout_jit import euler_step, guard_cache, rollout_points
     except ImportError:
         return None
-    return euler_step
+    if not _GUARDED:
+        guard_cache()
+        _GUARDED.append(True)
+    return euler_step, rollout_points
 
 
 class NominalRollout:
@@ -81,7 +92,11 @@ class NominalRollout:
         self.moving = len(self.scene.config.moving) > 0
         self._data = mujoco.MjData(self.scene.model)
         self._qadr = np.ascontiguousarray(self.scene.qpos_adr, dtype=np.int64)
-        self._step = _euler_kernel() if getattr(self.scene.model, "_address", 0) else None
+        ks = _rollout_kernels() if getattr(self.scene.model, "_address", 0) else None
+        self._step = ks[0] if ks is not None else None
+        reach = (type(nominal) is ReachingController and nominal._reach is not None  # (its compiled command)
+                 and nominal.scene.model is self.scene.model)
+        self._whole = ks[1] if ks is not None and reach and self.coll._kernel is not None and not self.moving else None
         self._addr = (int(getattr(self.scene.model, "_address", 0)), int(getattr(self._data, "_address", 0)))
         self._qpos = self._data.qpos  # (a view of the scratch data: the kernel writes through it)
         self.calls = 0
@@ -89,6 +104,35 @@ class NominalRollout:
     def _rows(self, data: mujoco.MjData, lin: np.ndarray | None) -> LieData:
         """The filter's rows at the state in ``data`` (kinematics done), ``lin``: the mocap velocities or ``None``."""
         return self.coll.lie_rows(data, self.joints, lin)[0]  # (lie(rows(...)) in one pass, as the simulation's rows)
+
+    def _compiled(self, t: float, q: np.ndarray, u: np.ndarray) -> list[tuple[float, LieData, np.ndarray]] | None:
+        """Every point in one compiled call (``_rollout_jit.rollout_points``), the general loop's numbers.
+
+        Taken while the goal index cannot change over the horizon (:meth:`GoalSequence.steady`: the
+        kernel holds it; the goal bookkeeping is put back after the rollout anyway) and the reaching
+        controller's compiled command is bound to the scratch data. ``None``: the general loop runs
+        (the controller's state as before this call, ``q`` unchanged), also after a point whose witness
+        points coincide (the numpy narrow phase's case).
+        """
+        nom, d, coll, joints, dt, n = self.nominal, self._data, self.coll, self.joints, self.dt, self.n
+        rate = nom._rate  # type: ignore[attr-defined]
+        if (rate.t_prev is None or u.shape != q.shape or u.ndim != 1
+                or not nom.goals.steady(t + 1 * dt, t + n * dt) or not nom._bound(d)):  # type: ignore[attr-defined]
+            return None
+        c = coll._kernel_context(d, None, joints)
+        blk, g, rows = coll._point_outputs(c, n)
+        outs, res, mid, q0 = np.empty((n, u.size)), np.empty((n, 6)), nom.snapshot(), q.copy()
+        done = self._whole(*self._addr, q, u, t, dt, self._qpos, self._qadr, nom._ptrs, nom._buf, outs,  # type: ignore[misc, attr-defined]
+                           u.size, nom._jac.shape[1], nom._dof0, nom.scene.ee_site_id, nom.goals.index,  # type: ignore[attr-defined]
+                           rate.t_prev, rate.a_max, nom.kp, nom.max_ee_speed, nom.max_joint_speed, nom._lam2,  # type: ignore[attr-defined]
+                           c[4], blk, rows, res, coll.cutoff, c[14], c[15], narrow._EPS_DIST, c[13], coll._knolin, 0)
+        if done < n or res[n - 1, 4]:  # (touching witness points: the general loop from the start)
+            nom.restore(mid)
+            q[:] = q0
+            return None
+        counts = res[:, 0].tolist()
+        return [((j + 1) * dt, coll._block_lie(c, blk[j], g[j], rows[j], int(counts[j]), joints)[0], outs[j])
+                for j in range(n)]
 
     def __call__(self, t: float, x: Any) -> list[tuple[float, LieData, np.ndarray]]:
         """Predicted points ``t + s``, ``s = dt, 2 dt, ..., n dt``, from the state in ``x`` (the episode's MjData)."""
@@ -105,6 +149,10 @@ class NominalRollout:
         step, (ma, da), qpos, qadr, dt = self._step, self._addr, self._qpos, self._qadr, self.dt
         try:
             u = np.array(self.nominal(t, x), dtype=float)  # the command now (the controller's next call)
+            if self._whole is not None:
+                pts = self._compiled(t, q, u)
+                if pts is not None:
+                    return pts
             for j in range(1, self.n + 1):
                 s = j * dt
                 lin = None

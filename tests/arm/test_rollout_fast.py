@@ -1,8 +1,10 @@
-"""The rollout's compiled Euler step (``isf_robot.arm._rollout_jit``): the numpy step's points, bit for bit.
+"""The rollout's compiled paths (``isf_robot.arm._rollout_jit``): the general loop's points, bit for bit.
 
-``NominalRollout`` advances ``q <- q + dt u``, writes it into its scratch ``MjData`` and runs the
-kinematics in one compiled call where numba is available; the points (rows, names, commands) must
-be those of the numpy step, with static and with moving obstacles. Skipped without numba.
+``NominalRollout`` runs every point in one compiled call while the goal index cannot change over the
+horizon (``GoalSequence.steady``), otherwise it advances each point's Euler step and kinematics in one
+compiled call; either way the points (rows, names, commands) must be those of the numpy loop, with
+static and with moving obstacles, when the goal changes within the horizon, and when witness points
+coincide (the numpy narrow phase's case). Skipped without numba.
 """
 
 from __future__ import annotations
@@ -11,7 +13,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from isf_robot.arm import ArmSimulation, kernels
+from isf_robot.arm import ArmSimulation, kernels, load_scene
+from isf_robot.arm import narrow as narrow_module
 from isf_robot.arm.params import resolve_params
 
 pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba not installed (the fast extra)")
@@ -22,33 +25,86 @@ def _points(roll, t, data):  # type: ignore[no-untyped-def]
             for s, lie, u in roll(t, data)]
 
 
-@pytest.mark.parametrize("name", ["panda_pole", "planar_moving"])
-def test_compiled_euler_step_gives_the_numpy_steps_points(name) -> None:  # type: ignore[no-untyped-def]
-    from isf_robot.arm import load_scene
+def _counted(fn, calls):  # type: ignore[no-untyped-def]
+    return None if fn is None else (lambda *a: calls.append(1) or fn(*a))
 
+
+def _compare(name: str, states: int, monkeypatch=None, seed: int = 3, goals=None):  # type: ignore[no-untyped-def]
+    """Rollouts from random states with each path in turn; returns (points compared, whole-path calls, Euler calls)."""
     scene = load_scene(name)
     params = resolve_params(scene, d_bar=0.05, horizon=0.3, calibrate=False)
-    sim = ArmSimulation(scene, "isf", seed=3, params=params)
+    sim = ArmSimulation(scene, "isf", seed=seed, params=params)
     roll = sim.strategy.predictor.rollout
-    step = roll._step
-    assert step is not None  # numba is here: the compiled step is used
-    calls: list[int] = []
-    counted = lambda *a: calls.append(1) or step(*a)  # noqa: E731
+    whole, step = roll._whole, roll._step
+    assert step is not None and (whole is not None) == (not roll.moving)
+    wc: list[int] = []
+    sc: list[int] = []
     rng = np.random.default_rng(7)
     data = mujoco.MjData(scene.model)
     nom = sim.nominal
     nom.reset()
     near = 0
-    for k in range(12):
+    for k in range(states):
         t = 0.2 + 0.05 * k
         data.qpos[scene.qpos_adr] = sim.setup.q0 + rng.normal(scale=0.4, size=scene.n_joints)
         scene.set_moving_obstacles(data, t + sim.setup.time_offset)
         mujoco.mj_forward(scene.model, data)
+        if goals is not None:
+            goals(nom, data, t)
         nom(t - 0.01, data)  # (a previous command for the rate limit)
-        roll._step = counted
+        roll._whole, roll._step = _counted(whole, wc), _counted(step, sc)
         fast = _points(roll, t, data)
+        roll._whole = None
+        euler = _points(roll, t, data)
         roll._step = None
         slow = _points(roll, t, data)
-        assert fast == slow
+        assert fast == slow and euler == slow
         near += sum(len(p[5]) - scene.n_joints for p in fast)
-    assert len(calls) == 12 * roll.n and near > 0  # every point took the compiled step; pairs were near
+    assert near > 0  # pairs within the cut-off were compared
+    return roll, len(wc), len(sc)
+
+
+@pytest.mark.parametrize("name", ["panda_pole", "planar_moving"])
+def test_compiled_paths_give_the_numpy_loops_points(name) -> None:  # type: ignore[no-untyped-def]
+    roll, whole, euler = _compare(name, 10)
+    if roll.moving:  # (moving obstacles: the per-point path, its Euler step compiled)
+        assert whole == 0 and euler == 2 * 10 * roll.n
+    else:  # the whole rollout in one call at each state, then the Euler-step path once per point
+        assert whole == 10 and euler == 10 * roll.n
+
+
+def test_a_goal_change_within_the_horizon_takes_the_general_loop() -> None:
+    def near_the_goal(nom, data, t):  # type: ignore[no-untyped-def]
+        nom.goals.reset()
+        nom.goals.dwell[:] = 0.05  # (an arrival within the horizon can advance the goal)
+        nom.goal_positions[nom.goals.index] = nom.scene.ee_position(data)  # (arrives at once)
+
+    roll, whole, euler = _compare("panda_pole", 6, goals=near_the_goal)
+    assert whole == 0 and euler == 2 * 6 * roll.n  # never the whole-rollout kernel (goals.steady said no)
+
+
+def test_coinciding_witness_points_fall_back_to_the_general_loop(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    monkeypatch.setattr(narrow_module, "_EPS_DIST", 10.0)  # every near pair counts as touching
+    roll, whole, euler = _compare("panda_pole", 4)
+    assert whole == 4  # the kernel ran, stopped at the first touching point, and the general loop redid the rollout
+
+
+def test_the_cache_guard_flushes_when_the_called_kernels_change(tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.arm import _rollout_jit as rj
+
+    flushed: list[int] = []
+
+    class FakeCache:
+        _cache_path = str(tmp_path)
+
+        def flush(self) -> None:
+            flushed.append(1)
+
+    monkeypatch.setattr(rj.rollout_points, "_cache", FakeCache())
+    rj.guard_cache()  # no stamp yet: flush, then write it
+    rj.guard_cache()  # the same sources: nothing to do
+    assert flushed == [1]
+    stamp = tmp_path / "_rollout_jit.rollout_points.deps"
+    stamp.write_text("an older source")
+    rj.guard_cache()
+    assert flushed == [1, 1] and stamp.read_text() != "an older source"
