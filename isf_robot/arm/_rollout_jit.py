@@ -64,20 +64,29 @@ def rollout_points(ma, da, q, u0, t, dt, qpos, qadr, rp, nb, outs, n, nv, dof0, 
     return outs.shape[0]
 
 
-def guard_cache() -> None:
-    """Flush :func:`rollout_points`'s cached code when the sources of the kernels it calls have changed."""
+def guard_cache() -> bool:
+    """Flush :func:`rollout_points`'s cached code when the sources of the kernels it calls have changed.
+
+    ``False`` when it cannot tell (a source unreadable, or a numba without the cache object this
+    reads): the caller then does not use :func:`rollout_points`.
+    """
     here = os.path.dirname(os.path.abspath(__file__))
     digest = hashlib.sha256()
-    for name in ("_kernels_jit.py", "_kernels_step.py", "_rollout_jit.py"):
-        with open(os.path.join(here, name), "rb") as f:
-            digest.update(f.read())
+    cache = getattr(rollout_points, "_cache", None)  # (numba's FunctionCache of a cache=True dispatcher)
+    if cache is None or not hasattr(cache, "flush") or not isinstance(getattr(cache, "_cache_path", None), str):
+        return False
+    try:
+        for name in ("_kernels_jit.py", "_kernels_step.py", "_rollout_jit.py"):
+            with open(os.path.join(here, name), "rb") as f:
+                digest.update(f.read())
+    except OSError:
+        return False
     stamp = digest.hexdigest()
-    cache = rollout_points._cache  # (numba's FunctionCache of a cache=True dispatcher)
     path = os.path.join(cache._cache_path, "_rollout_jit.rollout_points.deps")
     try:
         with open(path, encoding="ascii") as f:
             if f.read() == stamp:
-                return
+                return True
     except OSError:
         pass
     cache.flush()  # (an empty index: compiled anew at the first call, then cached again)
@@ -88,3 +97,4 @@ def guard_cache() -> None:
         os.replace(tmp, path)
     except OSError:  # (a read-only cache folder: the code is compiled in each process)
         pass
+    return True

@@ -47,9 +47,10 @@ MAX_POINTS = 10
 _GUARDED: list[bool] = []
 
 
-def _rollout_kernels() -> tuple[Callable[..., Any], Callable[..., Any]] | None:
+def _rollout_kernels() -> tuple[Callable[..., Any], Callable[..., Any] | None] | None:
     """The compiled Euler step and whole-rollout kernel (:mod:`isf_robot.arm._rollout_jit`), or ``None``
-    (no numba, or ``ISF_ROBOT_JIT=0``). The first call checks the whole-rollout kernel's cache (``guard_cache``)."""
+    (no numba, or ``ISF_ROBOT_JIT=0``). The first call checks the whole-rollout kernel's cache (``guard_cache``;
+    the kernel is ``None`` where it cannot)."""
     if not kernels.available():
         return None
     try:
@@ -57,9 +58,8 @@ def _rollout_kernels() -> tuple[Callable[..., Any], Callable[..., Any]] | None:
     except ImportError:
         return None
     if not _GUARDED:
-        guard_cache()
-        _GUARDED.append(True)
-    return euler_step, rollout_points
+        _GUARDED.append(guard_cache())
+    return euler_step, rollout_points if _GUARDED[0] else None
 
 
 class NominalRollout:

@@ -101,10 +101,12 @@ def test_the_cache_guard_flushes_when_the_called_kernels_change(tmp_path, monkey
             flushed.append(1)
 
     monkeypatch.setattr(rj.rollout_points, "_cache", FakeCache())
-    rj.guard_cache()  # no stamp yet: flush, then write it
-    rj.guard_cache()  # the same sources: nothing to do
+    assert rj.guard_cache()  # no stamp yet: flush, then write it
+    assert rj.guard_cache()  # the same sources: nothing to do
     assert flushed == [1]
     stamp = tmp_path / "_rollout_jit.rollout_points.deps"
     stamp.write_text("an older source")
-    rj.guard_cache()
+    assert rj.guard_cache()
     assert flushed == [1, 1] and stamp.read_text() != "an older source"
+    monkeypatch.setattr(rj.rollout_points, "_cache", None)  # (a numba without the cache object)
+    assert not rj.guard_cache()
