@@ -11,6 +11,7 @@ them against the general path bit for bit.
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from ._few_jit import few_candidate, few_confirm
@@ -115,3 +116,62 @@ def screened_hold(xi, lgdu, rows, n, active_tol):  # pragma: no cover (compiled)
         if not xi[i] + lgdu[i] >= active_tol:
             return False
     return True
+
+
+@njit(cache=True, nogil=True)
+def on_rows(xi, c, failing, ramp_on, ids, W, inw, rate, screen, mask, weights, rows):  # pragma: no cover (compiled)
+    """The intermittent filter's on step before its QP: the promoted rows, the hand-over ramp and the kept rows.
+
+    ``mask = xi < c`` or ``failing`` (no entries: none). With ``ramp_on``, the hand-over ramp of
+    :meth:`~isf_robot.core.filters.IntermittentSafetyFilter._row_ramp` on per-key state:
+    ``ids[i]`` is row ``i``'s key, ``W``/``inw`` each key's weight and whether it has one; a key
+    is promoted now when its last row is; every other key with a weight moves down by ``rate``
+    (dropped at <= 0), a promoted one up by ``rate`` (at most 1; a new one starts at 0); then
+    ``mask``/``weights`` are the rows whose key has a weight >= 0 (and that weight; 1 elsewhere).
+    With a threshold in ``screen`` (one, or one per row): writes the kept rows (``xi <
+    np.maximum(screen, c)`` for ``c > 0``, or in ``mask``) to ``rows`` and returns their count;
+    -1 without.
+    """
+    k = xi.shape[0]
+    nf = failing.shape[0]
+    for i in range(k):
+        mask[i] = xi[i] < c or (nf > 0 and failing[i])
+    if ramp_on:
+        nid = W.shape[0]
+        cur = np.full(nid, -1, np.int8)  # per key: promoted now (its last row), 0 not, -1 not a row now
+        for i in range(k):
+            cur[ids[i]] = 1 if mask[i] else 0
+        for q in range(nid):
+            if inw[q] and cur[q] != 1:
+                W[q] -= rate
+                if W[q] <= 0.0:
+                    inw[q] = False
+        for q in range(nid):
+            if cur[q] == 1:
+                if inw[q]:
+                    x = W[q] + rate
+                    W[q] = x if x < 1.0 else 1.0  # (= min(1.0, x), NaN included)
+                else:
+                    W[q] = 0.0
+                    inw[q] = True
+        for i in range(k):
+            q = ids[i]
+            if inw[q] and W[q] >= 0.0:
+                mask[i] = True
+                weights[i] = W[q]
+            else:
+                mask[i] = False
+                weights[i] = 1.0
+    ns = screen.shape[0]
+    if ns == 0:
+        return -1
+    up = c > 0.0
+    n = 0
+    for i in range(k):
+        s = screen[i] if ns > 1 else screen[0]
+        if up:
+            s = _npmax(s, c)
+        if xi[i] < s or mask[i]:
+            rows[n] = i
+            n += 1
+    return n

@@ -77,6 +77,7 @@ class StepKernels(NamedTuple):
     lower: Callable[..., Any]
     finish: Callable[..., Any]
     hold: Callable[..., Any]
+    on_rows: Callable[..., Any]
 
 
 def step_kernels() -> StepKernels | None:
@@ -89,8 +90,8 @@ def step_kernels() -> StepKernels | None:
         kernels = None
         if not _off():
             try:
-                from ._step_jit import few_finish, few_lower_candidate, screened_hold, select_rows
-                kernels = StepKernels(select_rows, few_lower_candidate, few_finish, screened_hold)
+                from ._step_jit import few_finish, few_lower_candidate, on_rows, screened_hold, select_rows
+                kernels = StepKernels(select_rows, few_lower_candidate, few_finish, screened_hold, on_rows)
             except ImportError:
                 pass
         _STATE["step_key"], _STATE["step"] = key, kernels

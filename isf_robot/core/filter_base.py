@@ -210,20 +210,23 @@ class _FilterBase(ShortWays):
     def _solve_rows(
         self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, xi: np.ndarray,
         promote: np.ndarray | None, floor: float, screen: float | np.ndarray | None = None,
-        xs: _Xi | None = None,
+        xs: _Xi | None = None, rows: np.ndarray | None = None,
     ) -> tuple[QPResult, tuple[str, ...], bool, bool]:
         """Solve with screening; return ``(result, relaxed names, fallback, resolved)``.
 
         ``xi``: each row's robust slack at ``u_nom`` (``Xi_on``, or the slack at a blended
         target); ``xs``: the step's :meth:`_xi` when ``xi`` is its ``Xi_on`` (its minimum, screening
-        count and ``alpha(h)`` then save array work).
+        count and ``alpha(h)`` then save array work); ``rows``: the kept rows when the caller
+        selected them (ascending: ``xi < max(screen, floor)`` or promoted).
         """
         screen = self.screen if screen is None else screen
         k = xi.shape[0]
         steps = self._steps
         if screen is not None and k > 1:
-            keep = rows = None
-            if xs is not None and xs.kept >= 0 and promote is None and not floor > 0:
+            keep = None
+            if rows is not None:
+                n = rows.size
+            elif xs is not None and xs.kept >= 0 and promote is None and not floor > 0:
                 n = xs.kept  # counted by the kernel, with these thresholds
             else:
                 rows = self._select(xi, screen, floor, promote)

@@ -43,13 +43,17 @@ from .barrier import Barrier
 from .class_k import ClassK
 from .exceptions import ConfigError
 from .filter_base import FallbackFn, FilterStep, _FilterBase
-from .intermittent import FallRateBound, OffPredictor, RolloutFn, blend_weight
+from .fast import NO_SCREEN, screen_array
+from .intermittent import FallRateBound, OffPredictor, Prediction, RolloutFn, blend_weight
+from .on_rows import OnRows
 from .qp_solver import QPSolver
 from .system import ControlAffineSystem, LieData
 from .triggers import OnOffTrigger
 from .validation import check_nonnegative, check_positive
 
 __all__ = ["FilterStep", "SafetyFilter", "IntermittentSafetyFilter"]
+
+_NONE_B = np.zeros(0, bool)
 
 
 class SafetyFilter(_FilterBase):
@@ -214,6 +218,8 @@ class IntermittentSafetyFilter(_FilterBase):
         self._ramp_keys: Sequence[Any] = ()
         self._ramp_unique = True
         self._ramp_base = (np.zeros(0, bool), np.ones(0))
+        self._on_rows = OnRows(self._steps.on_rows) if self._steps is not None else None  # (the compiled way's weights)
+        self._fail_of: tuple[Any, Any, np.ndarray] = (None, None, _NONE_B)
 
     def margin(self) -> float:
         """The off margin now: ``c``, or the one designed for ``min_off``."""
@@ -252,6 +258,8 @@ class IntermittentSafetyFilter(_FilterBase):
             else:
                 self._t_off, self._u_handover = t, self._u_prev
                 self._promotion_w.clear()
+                if self._on_rows is not None:
+                    self._on_rows.clear()
                 self._t_ramp = None
                 bound = self.fall_rate.bound_s(c)
                 if self.predictor is not None:
@@ -278,13 +286,27 @@ class IntermittentSafetyFilter(_FilterBase):
                                                           xs if w == 0.0 else None)
             return self._done(FilterStep._of(t, res.u, u_nom, False, lie.h, xi, event, res, relaxed, fb,
                                              lie.names, resolved, c, bound, ran, held))
-        promote = xi < c
-        if held and pred is not None and pred.failing:  # steer away from the predicted failures
-            promote |= np.fromiter(map(pred.failing.__contains__, lie.names), bool, lie.k)
-        if self.blend > 0:
-            promote, self._ramp = self._row_ramp(t, lie.names, promote)
+        failing = self._failing(pred, lie) if held and pred is not None and pred.failing else None
+        rows = None  # (the kept rows, when the compiled way selected them)
+        if self._steps is None:
+            promote = xi < c
+            if failing is not None:  # steer away from the predicted failures
+                promote |= failing
+            if self.blend > 0:
+                promote, self._ramp = self._row_ramp(t, lie.names, promote)
+        else:  # the same, and the kept rows, in one compiled call (OnRows)
+            rate = None
+            if self.blend > 0:
+                rate = (t - self._t_ramp) / self.blend if self._t_ramp is not None else 0.0
+                self._t_ramp = t
+            scr = self.screen if screen is None else screen
+            sa = screen_array(scr, xi.shape[0]) if scr is not None and xi.shape[0] > 1 else None
+            promote, ramp, rows = self._on_rows(xi, c, _NONE_B if failing is None else failing, rate, lie.names,
+                                                NO_SCREEN if sa is None else sa)
+            if ramp is not None:
+                self._ramp = ramp
         try:
-            res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, promote, c, screen, xs)
+            res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, promote, c, screen, xs, rows)
         finally:
             self._ramp = 1.0
         return self._done(FilterStep._of(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names,
@@ -339,6 +361,12 @@ class IntermittentSafetyFilter(_FilterBase):
                     weights[i] = v
                     mask[i] = True
         return mask, weights
+
+    def _failing(self, pred: Prediction, lie: LieData) -> np.ndarray:
+        """The rows whose names the prediction found failing (kept while the prediction and the names are the same objects)."""
+        if pred is not self._fail_of[0] or lie.names is not self._fail_of[1] or lie.k != self._fail_of[2].shape[0]:
+            self._fail_of = (pred, lie.names, np.fromiter(map(pred.failing.__contains__, lie.names), bool, lie.k))
+        return self._fail_of[2]
 
     def _done(self, step: FilterStep) -> FilterStep:
         self._u_prev = step.u

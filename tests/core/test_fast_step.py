@@ -53,22 +53,33 @@ def _lie(rng: np.random.Generator, k: int, m: int) -> LieData:
     return LieData(h, rng.normal(scale=0.3, size=k), lg, np.linalg.norm(lg, axis=1), tuple(f"b{i}" for i in range(k)))
 
 
+_NOW: dict = {}  # the walk's current step, for the rollout
+
+
+def _rollout(t: float, x) -> list:  # type: ignore[no-untyped-def]
+    """Three predicted points near the current step (the same for every filter at one t), some of them failing."""
+    rng = np.random.default_rng(int(round(t * 1e4)))
+    lie, u = _NOW["lie"], _NOW["u"]
+    return [(0.01 * (j + 1), LieData(lie.h + rng.normal(scale=0.1, size=lie.k), lie.lf - rng.uniform(0.0, 1.0, size=lie.k),
+                                     lie.lg, lie.grad_norm, lie.names), u) for j in range(3)]
+
+
 def _make(kind: str, alpha):  # type: ignore[no-untyped-def]
     solver = QPSolver(few_rows=True)
     if kind == "cbf":
         return SafetyFilter(alpha, 0.05, validate=False, solver=solver)
-    return IntermittentSafetyFilter(alpha, 0.1, 0.05, 0.05, validate=False, blend=0.04 if kind == "isf_blend" else 0.0,
-                                    solver=solver)
+    return IntermittentSafetyFilter(alpha, 0.1, 0.05, 0.05, validate=False, blend=0.0 if kind == "isf" else 0.04,
+                                    solver=solver, rollout=_rollout if kind == "isf_pred" else None, predict_every=3)
 
 
 def _step_record(s) -> tuple:  # type: ignore[no-untyped-def]
     q = s.qp
-    return (s.u.tobytes(), s.on, str(s.event), s.resolved, s.relaxed, s.fallback,
+    return (s.u.tobytes(), s.on, str(s.event), s.resolved, s.relaxed, s.fallback, s.held, s.rollout,
             None if q is None else (q.status, q.active.tolist(), q.iterations, q.max_violation.hex(), q.relaxed))
 
 
 @pytest.mark.parametrize("alpha", ALPHAS, ids=repr)
-@pytest.mark.parametrize("kind", ["cbf", "isf", "isf_blend"])
+@pytest.mark.parametrize("kind", ["cbf", "isf", "isf_blend", "isf_pred"])
 def test_the_compiled_few_row_step_equals_the_short_and_the_general_way(alpha, kind) -> None:  # type: ignore[no-untyped-def]
     # three copies of one filter on one slowly moving random walk (it switches, promotes and ramps; the
     # screening thresholds keep 0 to all of 2-12 rows, some of them needed at the answer): the compiled
@@ -84,7 +95,7 @@ def test_the_compiled_few_row_step_equals_the_short_and_the_general_way(alpha, k
     def spy(lie, u_nom, xi, xs, promote, rows, n):  # type: ignore[no-untyped-def]
         got = few(lie, u_nom, xi, xs, promote, rows, n)
         seen["few" if n < xi.shape[0] else "all"] += got is not None
-        seen["held" if got is not None and got[1] else "needed"] += 1
+        seen["hold" if got is not None and got[1] else "needed"] += 1
         return got
 
     fast._few_fast = spy  # type: ignore[method-assign]
@@ -101,9 +112,12 @@ def test_the_compiled_few_row_step_equals_the_short_and_the_general_way(alpha, k
                       lie.grad_norm, lie.names)
         u_nom = rng.normal(size=m)
         screen = float(rng.choice([0.02, 0.3, 1.0, 5.0])) if i % 4 else rng.uniform(0.01, 1.0, k)
+        _NOW.update(lie=lie, u=u_nom)
         a, b, c = (f.step_lie(0.01 * i, lie, u_nom, screen=screen) for f in (fast, short, general))
         assert _step_record(a) == _step_record(b) == _step_record(c), i
+        seen["held"] += a.held
     assert fast.qp_solves == short.qp_solves == general.qp_solves
+    assert kind != "isf_pred" or seen["held"] > 10, seen  # (held: the predicted failures promoted)
     assert seen["few"] > 100 and seen["all"] > 20 and seen["needed"] > 5, seen
 
 

@@ -274,8 +274,13 @@ def test_row_ramp_equals_the_reference_with_repeated_and_changing_names() -> Non
     f = IntermittentSafetyFilter(1.0, 0.1, 0.05, 0.0, blend=0.02)
     rng = np.random.default_rng(8)
     tables = [("a", "b", "c", "a"), ("a", "b", "c", "a"), ("b", "d"), ("x",) * 3, tuple(f"r{i}" for i in range(9))]
+    from isf_robot.core.fast import step_kernels
+    from isf_robot.core.on_rows import OnRows
+
+    kernels = step_kernels()  # (with numba: the compiled way, OnRows, must give the same masks and weights)
+    compiled = None if kernels is None else OnRows(kernels.on_rows)
     state: dict = {"w": {}, "t": None}
-    t, ramping = 0.0, 0
+    t, t_prev, ramping = 0.0, None, 0
     for step in range(3000):
         names = tables[(step // 40) % len(tables)]
         k = len(names) if step % 13 else len(names) + 1  # sometimes a row count that does not match the names
@@ -286,5 +291,11 @@ def test_row_ramp_equals_the_reference_with_repeated_and_changing_names() -> Non
         mask, weights = f._row_ramp(t, names, promote)
         ref_mask, ref_weights = _ramp_reference(state, t, names, promote, 0.02)
         assert mask.tobytes() == ref_mask.tobytes() and weights.tobytes() == ref_weights.tobytes(), step
+        if compiled is not None:  # (promoted: the failing rows; every Xi_on above c)
+            rate = (t - t_prev) / 0.02 if t_prev is not None else 0.0
+            t_prev = t
+            cm, cw, rows = compiled(np.ones(k), 0.1, promote, rate, names, np.zeros(0))
+            assert cm.tobytes() == ref_mask.tobytes() and cw.tobytes() == ref_weights.tobytes() and rows is None, step
+            assert compiled.weights() == state["w"]
         ramping += int(np.any((weights > 0.0) & (weights < 1.0)))
     assert ramping > 500  # the ramps were exercised, not only 0 and 1
