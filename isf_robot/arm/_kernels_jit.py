@@ -114,7 +114,8 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
     of each near pair whose obstacle is mocap body ``mocap[r] >= 0``, ``v`` its row of ``lin``
     (flat, 3 per mocap body); ``lf`` is left alone otherwise.
 
-    Returns (j, min h, min dist, min joint value, whether some witness points coincide).
+    Returns (j, min h, min dist, min joint value, whether some witness points coincide, the key of the near
+    pairs' set: the sum of ``2**r`` over their live rows ``r`` where there are at most 62 live rows, else -1).
     """
     n_live = live.shape[0]
     cand = np.empty(n_live, np.int64)
@@ -174,8 +175,11 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
     hmin = math.inf
     dmin = math.inf
     touching = False
+    key = 0 if n_live <= 62 else -1  # the set of near pairs, as bits of their live rows (-1: too many rows)
     for k in range(j):
         r = sel[k]
+        if key >= 0:
+            key |= 1 << r
         d = ds[k]
         rows[k] = live[r, 0]
         hk = d - margin[r]
@@ -208,7 +212,7 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
     if lanes != 0:
         for k in range(j + nj):
             gn[k] = row_norm(g, k, lanes)
-    return j, hmin, dmin, jmin, touching
+    return j, hmin, dmin, jmin, touching, key
 
 @njit(cache=True, nogil=True)
 def monitor(ma, da, rows, g1, g2, margin, thresh, bound):  # pragma: no cover (compiled)
@@ -232,8 +236,10 @@ def monitor(ma, da, rows, g1, g2, margin, thresh, bound):  # pragma: no cover (c
 
 
 @njit(cache=True, nogil=True)
-def near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, lanes, lin, dlanes):  # pragma: no cover
-    """:func:`near` with its tables given as the addresses in ``p`` and its outputs in ``blk``.
+def near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, lanes, lin, dlanes):  # pragma: no cover
+    """:func:`near` (and its key of the set of near pairs) with its tables as the addresses in ``p``.
+
+    Its outputs go to ``blk``.
 
     One numba call costs about 0.1 us per 1-D array argument and 0.6 us per 2-D one; :func:`near`'s
     31 arguments cost more than its work. ``blk`` (float64, fresh per call) holds, for
@@ -273,3 +279,11 @@ def near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, lanes, l
     return near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, lever, qadr, cutoff, distmax,
                 slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, lanes, mocap, lin, dlanes, rows, h, g,
                 gn, wit, lf)
+
+
+@njit(cache=True, nogil=True)
+def near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, lanes, lin, dlanes):  # pragma: no cover
+    """:func:`near_packed_key` without the key: (j, min h, min dist, min joint value, touching)."""
+    j, hmin, dmin, jmin, touching, _ = near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, lanes,
+                                                       lin, dlanes)
+    return j, hmin, dmin, jmin, touching

@@ -166,6 +166,7 @@ class CollisionBarriers(NarrowPhase):
         self._kctx: tuple | None = None  # (see NarrowPhase._kernel_context)
         self._kout: tuple = (None, None)  # (a context, the output blocks of its layout; NarrowPhase._output_source)
         self._kblocks: dict = {}
+        self._tick_names: tuple = (None, {})  # (NarrowPhase._tick_key)
         self._kjac1 = np.zeros((3, model.nv))
         self._kjac2 = np.zeros((3, model.nv))
         self._knone = (np.zeros(0), np.zeros(0), np.zeros(1, dtype=np.int64), np.zeros((0, 0)),
@@ -301,7 +302,7 @@ class CollisionBarriers(NarrowPhase):
                  coherence: JointCoherence | None = None) -> TickRows:
         """``lie(rows(...))`` with what a control tick's accounting needs of ``rows(...)``, in one pass.
 
-        The same Lie data, bit for bit, and ``near.rows``, ``near.row_list``, ``near.h_min``,
+        The same Lie data, bit for bit, and ``near.rows``, ``near.row_list`` (as a tuple), ``near.h_min``,
         ``near.dist_min``, ``joint_min`` of :meth:`rows` (arguments as there, without witness points):
         the simulation's barrier phase when nothing records the step. The compiled path builds no
         :class:`NearPairs` (nor its views of ``h``, ``dh/dq``, ``dh/dt``) for it.

@@ -71,7 +71,8 @@ def _build() -> dict[str, Callable[..., Any]] | None:
         from . import _kernels_step as ks
     except ImportError:
         return None
-    return {"near": kj.near, "near_packed": kj.near_packed, "monitor": kj.monitor, "norms": kj.norms, "dots3": kj.dots3,
+    return {"near": kj.near, "near_packed": kj.near_packed, "near_packed_key": kj.near_packed_key,
+            "monitor": kj.monitor, "norms": kj.norms, "dots3": kj.dots3,
             "track_apply": ks.track_apply, "track_step": ks.track_step, "reach": ks.reach,
             "monitor_apply": ks.monitor_apply,
             "blas_orders": ks.blas_orders}
@@ -136,10 +137,11 @@ def available() -> bool:
 def near_kernel(packed: bool = False) -> Callable[..., Any] | None:
     """The compiled narrow phase of :meth:`CollisionBarriers.near` (``None``: use numpy).
 
-    ``packed``: the same with its tables as addresses (``_kernels_jit.near_packed``, cheaper to call).
+    ``packed``: the same with its tables as addresses, returning also the key of the set of near pairs
+    (``_kernels_jit.near_packed_key``, cheaper to call).
     """
     k = _kernels()
-    return None if k is None else k["near_packed" if packed else "near"]
+    return None if k is None else k["near_packed_key" if packed else "near"]
 
 
 def monitor_kernel() -> Callable[..., Any] | None:

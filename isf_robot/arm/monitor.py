@@ -9,6 +9,7 @@ physics steps, ``collisions`` counts the physics steps at which some pair has
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import mujoco
@@ -52,7 +53,7 @@ class SafetyMonitor:
         self.min_h = math.inf
         self.collisions = 0
         self.steps = 0
-        self.rows: list[int] = []
+        self.rows: Sequence[int] = []
 
     def tick(self, h: np.ndarray, rows: np.ndarray, margin: np.ndarray) -> float:
         """Account the tick's barrier values; return the smallest true distance [m] (inf: none).
@@ -67,13 +68,13 @@ class SafetyMonitor:
         dist = float((h[rows] + margin[rows]).min()) if near else math.inf
         return self.tick_min(float(h.min()), near, dist)
 
-    def tick_min(self, h_min: float, rows: list[int], dist_min: float,
+    def tick_min(self, h_min: float, rows: Sequence[int], dist_min: float,
                  rows_array: np.ndarray | None = None) -> float:
         """:meth:`tick` given its minima; returns the smallest barrier value.
 
         The minima: the smallest barrier value over every pair, the pairs
-        within the cut-off and their smallest ``h + margin`` (``inf`` when none); returns that.
-        ``rows_array``: the same rows as an int64 array, if at hand.
+        within the cut-off (a list or tuple, kept until the next tick) and their smallest ``h + margin``
+        (``inf`` when none); returns that. ``rows_array``: the same rows as an int64 array, if at hand.
         """
         self.steps += 1
         self.rows = rows
@@ -134,7 +135,7 @@ class SafetyMonitor:
             self.min_h = step_h
         return step_d
 
-    def _substep_python(self, data: mujoco.MjData, rows: list[int], thresh: float,
+    def _substep_python(self, data: mujoco.MjData, rows: Sequence[int], thresh: float,
                         bound: float) -> tuple[float, float]:
         """The smallest ``h`` and distance of ``rows`` (per-pair calls; :meth:`substep` without the kernel)."""
         m, g1, g2, marg = self.model, self.g1l, self.g2l, self.marginl

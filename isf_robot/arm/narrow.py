@@ -4,19 +4,21 @@
 evaluates the candidate pairs at a state, in two interchangeable ways with the same results bit
 for bit: numpy around per-pair ``mj_geomDistance``/``mj_jac`` calls, and the compiled kernel of
 :mod:`isf_robot.arm.kernels` (one call per state). The formulas are in
-:mod:`isf_robot.arm.collision`.
+:mod:`isf_robot.arm.collision`; the types of the rows in :mod:`isf_robot.arm.rows`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
 from isf_robot.core import LieData
 from isf_robot.core.exceptions import ShapeError
+
+from .rows import FilterRows, NearPairs, TickRows
 
 if TYPE_CHECKING:
     from .broadphase import BroadPhase, JointCoherence
@@ -66,74 +68,6 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[:, i] * b[:, j] - a[:, j] * b[:, i]
 
 
-class NearPairs(NamedTuple):
-    """The collision pairs within the cut-off at one state (:meth:`CollisionBarriers.near`).
-
-    Attributes:
-        rows: Their pair indices, ascending, shape (j,) int64.
-        row_list: The same as a list.
-        h: ``dist - margin``, shape (j,).
-        grad: ``dh/dq``, shape (j, n).
-        dhdt: ``dh/dt``, shape (j,).
-        witness: Witness points (on geom 1, on geom 2) [m], shape (j, 2, 3), when asked for.
-        h_min: Smallest ``h`` (``inf`` when no pair is near).
-        dist_min: Smallest distance [m] (``inf`` when no pair is near).
-
-    """
-
-    rows: np.ndarray
-    row_list: list[int]
-    h: np.ndarray
-    grad: np.ndarray
-    dhdt: np.ndarray
-    witness: np.ndarray | None
-    h_min: float
-    dist_min: float
-
-
-class FilterRows(NamedTuple):
-    """The rows of a filter at one state (:meth:`CollisionBarriers.rows`).
-
-    Attributes:
-        near: The collision pairs within the cut-off.
-        h: Their ``h``, then the joint-limit values, shape (j + l,).
-        grad: Their ``dh/dq``, then the joint-limit rows (``+-e_i``), shape (j + l, n).
-        joint_min: The smallest joint-limit value (``inf`` without joint rows).
-        grad_norm: ``sqrt(einsum("ij,ij->i", grad, grad))``, the same bits, shape (j + l,), or ``None``
-            (not computed: the caller computes it).
-        lf: ``dh/dt`` of every row (the pairs', then zeros for the joint rows), shape (j + l,).
-
-    """
-
-    near: NearPairs
-    h: np.ndarray
-    grad: np.ndarray
-    joint_min: float
-    grad_norm: np.ndarray | None = None
-    lf: np.ndarray | None = None
-
-
-class TickRows(NamedTuple):
-    """The filter's rows at one state and what the tick's accounting needs (:meth:`CollisionBarriers.lie_rows`).
-
-    Attributes:
-        lie: ``lie(rows(...))``: the Lie data of the near pairs, then the joint limits.
-        rows: The near pairs' indices, ascending, shape (j,) int64 (``near.rows``).
-        row_list: The same as a list.
-        h_min: Smallest ``h`` of the near pairs (``inf`` when none is near).
-        dist_min: Their smallest distance [m] (``inf`` when none is near).
-        joint_min: The smallest joint-limit value.
-
-    """
-
-    lie: LieData
-    rows: np.ndarray
-    row_list: list[int]
-    h_min: float
-    dist_min: float
-    joint_min: float
-
-
 class NarrowPhase:
     """Evaluation of the candidate pairs at a state.
 
@@ -151,6 +85,7 @@ class NarrowPhase:
     _kout: tuple
     _kblocks: dict
     _lie_names: tuple
+    _tick_names: tuple
     pairs: CollisionPairs
 
     def _kernel_context(self, data: mujoco.MjData, coherence: JointCoherence | None,
@@ -173,13 +108,20 @@ class NarrowPhase:
         return c
 
     def _block_lie(self, c: tuple, blk: np.ndarray, g: np.ndarray, rows: np.ndarray, j: int,
-                   joints: JointLimitBarriers) -> tuple[LieData, np.ndarray, list[int]]:
-        """Lie data (pairs, then joints), pair indices and list of an output ``blk`` of context ``c`` with ``j`` pairs."""
+                   joints: JointLimitBarriers, key: int = -1) -> tuple[LieData, np.ndarray, tuple[int, ...]]:
+        """Lie data (pairs, then joints), pair indices and tuple of an output ``blk`` of context ``c`` with ``j`` pairs.
+
+        ``key``: the kernel's key of the set of near pairs (``near_packed_key``; -1: none), under which the
+        rows' names and tuple are kept (one lookup instead of a list, a tuple and the names' lookup).
+        """
         k, o_gn, o_lf, lanes = j + c[9], c[10], c[11], c[13]
         rows, gk = rows[:j], g[:k]  # (g: blk's (m, n) gradient view)
-        row_list = rows.tolist()
-        return (LieData._of(blk[:k], blk[o_lf: o_lf + k], gk, blk[o_gn: o_gn + k] if lanes else _norms(gk),
-                            self._row_names(row_list, joints)), rows, row_list)
+        tn = self._tick_names
+        hit = tn[1].get(key) if tn[0] is joints.names else None
+        if hit is None:
+            hit = self._tick_key(key, rows.tolist(), joints)
+        return (LieData._of(blk[:k], blk[o_lf: o_lf + k], gk, blk[o_gn: o_gn + k] if lanes else _norms(gk), hit[0]),
+                rows, hit[1])
 
     def _point_outputs(self, c: tuple, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``count`` fresh output blocks of ``c`` in one allocation (a rollout's points): blk, its g views, rows."""
@@ -253,7 +195,7 @@ class NarrowPhase:
                 raise ShapeError(f"mocap velocities must have shape {self._lin_shape} (rows like data.mocap_pos); "
                                  f"got {mocap_lin.shape}")  # type: ignore[union-attr]
             lin, dlanes = np.ascontiguousarray(mocap_lin, dtype=np.float64).reshape(-1), self._kdot
-        j, h_min, dist_min, jmin, touching = self._kernel(self._maddr, daddr, p, blk, rows, coherence is not None,
+        j, h_min, dist_min, jmin, touching, key = self._kernel(self._maddr, daddr, p, blk, rows, coherence is not None,
                                                           self.cutoff, distmax, slack, _EPS_DIST, lanes, lin, dlanes)
         k = j + nj
         if touching:  # coinciding witness points: the numpy path (the same rows without the bounds)
@@ -265,7 +207,7 @@ class NarrowPhase:
             return self._tick_rows(_new(FilterRows, fr), joints, tick)
         h, g, lf = blk[:k], g2[:k], blk[o_lf: o_lf + k]
         if tick and not (moving and not dlanes):  # (lie_rows: the kernel's rows, without the NearPairs)
-            lie, rows, row_list = self._block_lie(c, blk, g2, rows, j, joints)  # type: ignore[arg-type]
+            lie, rows, row_list = self._block_lie(c, blk, g2, rows, j, joints, key)  # type: ignore[arg-type]
             return _new(TickRows, (lie, rows, row_list, h_min, dist_min, jmin))
         gn = blk[o_gn: o_gn + k] if lanes else None
         if not j:
@@ -288,8 +230,19 @@ class NarrowPhase:
         if not tick:
             return rows
         near = rows.near
-        return TickRows(self.lie(rows, joints), near.rows, near.row_list, near.h_min,  # type: ignore[arg-type]
+        return TickRows(self.lie(rows, joints), near.rows, tuple(near.row_list), near.h_min,  # type: ignore[arg-type]
                         near.dist_min, rows.joint_min)
+
+    def _tick_key(self, key: int, row_list: list[int], joints: JointLimitBarriers
+                  ) -> tuple[tuple[str, ...], tuple[int, ...]]:
+        """The names and the tuple of the rows ``row_list``, kept under the kernel's ``key`` of the set (``>= 0``)."""
+        hit = (self._row_names(row_list, joints), tuple(row_list))
+        if key >= 0:
+            tn = self._tick_names
+            if tn[0] is not joints.names or len(tn[1]) >= 4096:  # (another joint set, or bounded: start again)
+                tn = self._tick_names = (joints.names, {})
+            tn[1][key] = hit
+        return hit
 
     def _row_names(self, row_list: list[int], joints: JointLimitBarriers) -> tuple[str, ...]:
         """The names of the rows: the near pairs' (``"<geom1>|<geom2>"``), then the joints'; built once per set."""

@@ -36,7 +36,7 @@ def _assert_tick_equals_rows(t, r, lie) -> None:  # type: ignore[no-untyped-def]
     for f in ("h", "lf", "lg", "grad_norm"):
         assert _bytes(getattr(t.lie, f)) == _bytes(getattr(lie, f)), f
     assert t.lie.names == lie.names
-    assert t.row_list == r.near.row_list and _bytes(t.rows) == _bytes(r.near.rows)
+    assert type(t.row_list) is tuple and t.row_list == tuple(r.near.row_list) and _bytes(t.rows) == _bytes(r.near.rows)
     assert (t.h_min, t.dist_min, t.joint_min) == (r.near.h_min, r.near.dist_min, r.joint_min)
 
 
@@ -76,6 +76,37 @@ def test_lie_rows_equal_lie_of_rows_at_random_states(rng, name, cutoff, self_col
     assert near > 0
     if cutoff is not None:
         assert empty > 0  # (states with no pair near: the kernel's j = 0 branch)
+    if ways[0]._kernel is not None:  # the names by the kernel's key of the set: only with at most 62 live pairs
+        assert bool(ways[0]._tick_names[1]) == (ways[0].broadphase.live.size <= 62)
+
+
+@needs_kernel
+def test_names_kept_by_the_kernels_key_follow_the_pairs_and_the_joint_set(rng) -> None:  # type: ignore[no-untyped-def]
+    scene = load_scene("panda_pole")
+    cb, slow = _barriers(scene, True), _barriers(scene, False)
+    joints = JointLimitBarriers.from_scene(scene)
+    rng_other = scene.joint_range.copy()
+    rng_other[3:] = (-np.inf, np.inf)  # another joint set: other names, rows for three joints only
+    other = JointLimitBarriers(scene.qpos_adr, rng_other, scene.config.barrier.joint_margin,
+                               [f"other{i}" for i in range(len(scene.qpos_adr))])
+    states = [d.qpos.copy() for d in _random_states(scene, rng, 30)]
+    m, d = scene.model, scene.make_data()
+    for q in states:  # the joint set switching: right names and rows either way
+        d.qpos[:] = q
+        mujoco.mj_forward(m, d)
+        for js in (joints, other, joints):
+            t = cb.lie_rows(d, js)
+            r = slow.rows(d, js)
+            _assert_tick_equals_rows(t, r, slow.lie(r, js))
+            assert t.lie.names[len(t.row_list):] == js.names
+    kept: dict[tuple[int, ...], tuple] = {}
+    for q in states + states:  # one joint set: a set of pairs seen before gives the kept names and tuple
+        d.qpos[:] = q
+        mujoco.mj_forward(m, d)
+        t = cb.lie_rows(d, joints)
+        first = kept.setdefault(t.row_list, (t.lie.names, t.row_list))
+        assert t.lie.names is first[0] and t.row_list is first[1]
+    assert len(kept) < len(states)  # (sets of pairs came back)
 
 
 @needs_kernel
