@@ -205,10 +205,10 @@ class NarrowPhase:
                 return _new(FilterRows, (near, near.h, near.grad, jmin, None, lf))
             fr = (near, np.concatenate((near.h, blk[j:k])), np.concatenate((near.grad, joints.grad)), jmin, None, lf)
             return self._tick_rows(_new(FilterRows, fr), joints, tick)
-        h, g, lf = blk[:k], g2[:k], blk[o_lf: o_lf + k]
         if tick and not (moving and not dlanes):  # (lie_rows: the kernel's rows, without the NearPairs)
             lie, rows, row_list = self._block_lie(c, blk, g2, rows, j, joints, key)  # type: ignore[arg-type]
             return _new(TickRows, (lie, rows, row_list, h_min, dist_min, jmin))
+        h, g, lf = blk[:k], g2[:k], blk[o_lf: o_lf + k]
         gn = blk[o_gn: o_gn + k] if lanes else None
         if not j:
             return self._tick_rows(_new(FilterRows, (self._none, h, g, jmin, gn, lf)), joints, tick)
