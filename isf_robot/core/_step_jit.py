@@ -50,17 +50,19 @@ def select_rows(xi, screen, floor, promote, rows):  # pragma: no cover (compiled
 
 
 @njit(cache=True, nogil=True)
-def few_lower_candidate(rows, n, h, lf, gn, d_bar, gain, av, av_rows, promote, ramp, b, Au, G, A, u_nom,
-                        rel_tol, lb, r, tol, u):  # pragma: no cover (compiled)
+def few_lower_candidate(rows, h, lf, gn, d_bar, gain, av, av_rows, promote, ramp, b, Au, G, A, u_nom,
+                        rel_tol, buf, u):  # pragma: no cover (compiled)
     """The kept rows' QP bounds (``qp_lower``), ``r = A u_nom - lb`` and the few-row enumeration's first candidate.
 
     Row ``j`` of the QP is row ``rows[j]`` of the filter's data. ``alpha(h)``: ``gain h`` when
     ``gain > 0``, else ``av`` (indexed by the QP's row when ``av_rows``, else by the data's).
     ``promote`` (no entries: none) and ``ramp`` (no entries: 1 for every row) are indexed by the
-    data's row. Writes ``lb`` and ``r`` (length ``n``), then returns
-    :func:`~isf_robot.core._few_jit.few_candidate`'s ``(code, min r)`` (``Au = A u_nom``, ``G = A
-    A^T``: numpy's products).
+    data's row. Writes ``lb``, ``r`` and the rows' tolerances to ``buf[0]``, ``buf[1]``, ``buf[2]``
+    (the first ``n`` entries), then returns :func:`~isf_robot.core._few_jit.few_candidate`'s
+    ``(code, min r)`` (``Au = A u_nom``, ``G = A A^T``: numpy's products).
     """
+    n = rows.shape[0]
+    lb, r, tol = buf[0, :n], buf[1, :n], buf[2, :n]
     npr = promote.shape[0]
     nr = ramp.shape[0]
     any_p = False
@@ -89,12 +91,15 @@ def few_lower_candidate(rows, n, h, lf, gn, d_bar, gain, av, av_rows, promote, r
 
 
 @njit(cache=True, nogil=True)
-def few_finish(Au, lb, u, u_nom, tol, active_tol, res, active, du):  # pragma: no cover (compiled)
+def few_finish(Au, u, u_nom, buf, active_tol, active, du):  # pragma: no cover (compiled)
     """``res = A u - lb``, its confirmation (:func:`~isf_robot.core._few_jit.few_confirm`), ``active = res <= active_tol``, ``du = u - u_nom``.
 
-    Returns ``(ok, min res)``; ``active`` and ``du`` are written only when ``ok``.
+    ``lb`` and the tolerances in ``buf[0]`` and ``buf[2]`` (:func:`few_lower_candidate`); ``res`` goes
+    to ``buf[3]``. Returns ``(ok, min res)``; ``active`` and ``du`` are written only when ``ok``.
     """
-    for j in range(res.shape[0]):
+    n = active.shape[0]
+    lb, tol, res = buf[0, :n], buf[2, :n], buf[3, :n]
+    for j in range(n):
         res[j] = Au[j] - lb[j]
     ok, low = few_confirm(res, u, tol)
     if ok:
@@ -175,3 +180,20 @@ def on_rows(xi, c, failing, ramp_on, ids, W, inw, rate, screen, mask, weights, r
             rows[n] = i
             n += 1
     return n
+
+
+@njit(cache=True, nogil=True)
+def step_along(u_nom, s, a, u, du):  # pragma: no cover (compiled)
+    """``u = u_nom + s a`` (numpy's ``u_nom + s * a``: a product, then a sum) and ``du = u - u_nom``."""
+    for q in range(u.shape[0]):
+        u[q] = u_nom[q] + s * a[q]
+        du[q] = u[q] - u_nom[q]
+
+
+@njit(cache=True, nogil=True)
+def one_hold(xi, lgdu, i, active_tol):  # pragma: no cover (compiled)
+    """Whether every row but ``i`` has ``xi + lgdu >= active_tol`` (NaN: no)."""
+    for j in range(xi.shape[0]):
+        if j != i and not xi[j] + lgdu[j] >= active_tol:
+            return False
+    return True

@@ -11,13 +11,14 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def xi_screen(lf, lgu, gn, d_bar, h, gain, av, screen, out):  # pragma: no cover (compiled)
+def xi_screen(lf, lgu, gn, d_bar, h, gain, av, screen, out, rows):  # pragma: no cover (compiled)
     """``out = ((lf + lgu) - gn d_bar) + av`` and, in the same pass, what the filter step reads of it.
 
     ``av``: ``alpha(h)`` per row; with ``gain > 0`` (a linear alpha) ``av_i = gain h_i`` instead
     (the product ``Linear.vector`` makes). Returns ``(sum, min, first index of the min, rows below
     their threshold, first such row)``; ``screen``: no entries (no screening: count -1), one
-    (every row's threshold) or one per row.
+    (every row's threshold) or one per row. The rows below their threshold are written to ``rows``
+    (ascending) as far as it has room.
     """
     k = out.shape[0]
     ns = screen.shape[0]
@@ -35,6 +36,8 @@ def xi_screen(lf, lgu, gn, d_bar, h, gain, av, screen, out):  # pragma: no cover
             arg = i
         if ns:
             if x < (screen[i] if ns > 1 else screen[0]):
+                if kept < rows.shape[0]:
+                    rows[kept] = i
                 kept += 1
                 if first < 0:
                     first = i

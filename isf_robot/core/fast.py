@@ -36,6 +36,7 @@ _F64 = np.dtype(np.float64)
 NO_SCREEN = np.zeros(0)  # the kernel's "no screening"
 _NO_SCREEN = NO_SCREEN
 _NO_AV = np.zeros(0)  # the kernel's "alpha is linear: gain h"
+_NO_ROWS = np.zeros(0, np.intp)  # the kernel's "no screening: no rows to write"
 
 
 def _off() -> bool:
@@ -78,6 +79,8 @@ class StepKernels(NamedTuple):
     finish: Callable[..., Any]
     hold: Callable[..., Any]
     on_rows: Callable[..., Any]
+    step_along: Callable[..., Any]
+    one_hold: Callable[..., Any]
 
 
 def step_kernels() -> StepKernels | None:
@@ -90,8 +93,10 @@ def step_kernels() -> StepKernels | None:
         kernels = None
         if not _off():
             try:
-                from ._step_jit import few_finish, few_lower_candidate, on_rows, screened_hold, select_rows
-                kernels = StepKernels(select_rows, few_lower_candidate, few_finish, screened_hold, on_rows)
+                from ._step_jit import (few_finish, few_lower_candidate, on_rows, one_hold, screened_hold, select_rows,
+                                        step_along)
+                kernels = StepKernels(select_rows, few_lower_candidate, few_finish, screened_hold, on_rows, step_along,
+                                      one_hold)
             except ImportError:
                 pass
         _STATE["step_key"], _STATE["step"] = key, kernels
@@ -128,12 +133,15 @@ def screen_array(screen: float | np.ndarray | None, k: int) -> np.ndarray | None
 
 
 def xi_pass(kernel: Callable[..., Any], lie: LieData, u_nom: np.ndarray, alpha: ClassK, d_bar: float,
-            sa: np.ndarray) -> tuple[np.ndarray, float, float, int, int, int, np.ndarray | None] | None:
+            sa: np.ndarray, rows: np.ndarray | None = None,
+            ) -> tuple[np.ndarray, float, float, int, int, int, np.ndarray | None, np.ndarray] | None:
     """``Xi_on`` of every row in one compiled pass (the kernel of :func:`xi_kernel`), where it takes the inputs.
 
-    Returns ``(xi, sum, min, argmin, kept, first, alpha(h))`` (``alpha(h)`` ``None`` for a
+    Returns ``(xi, sum, min, argmin, kept, first, alpha(h), rows)`` (``alpha(h)`` ``None`` for a
     linear alpha: the kernel made ``gain h`` itself; ``kept``/``first``: the screening count of
-    the thresholds ``sa`` from :func:`screen_array`, -1 with :data:`NO_SCREEN`), or ``None`` when
+    the thresholds ``sa`` from :func:`screen_array`, -1 with :data:`NO_SCREEN`; ``rows[:kept]``:
+    those rows, ascending, with thresholds; written to ``rows`` when given, an intp array of at least
+    as many rows, else to a new array), or ``None`` when
     the inputs are not float64 vectors of one length (the caller then uses
     :func:`~isf_robot.core.triggers.xi_on`, which broadcasts or refuses them as before). The
     caller checks the sum for finiteness.
@@ -146,5 +154,9 @@ def xi_pass(kernel: Callable[..., Any], lie: LieData, u_nom: np.ndarray, alpha: 
             and lgu.dtype == _F64 and (gain or av.shape == k and av.dtype == _F64)):
         return None
     xi = np.empty(k)
-    total, low, arg, kept, first = kernel(lf, lgu, gn, d_bar, h, gain, av, sa, xi)
-    return xi, total, low, arg, kept, first, None if gain else av
+    if not sa.shape[0]:
+        rows = _NO_ROWS
+    elif rows is None or rows.shape[0] < k[0]:
+        rows = np.empty(k, np.intp)
+    total, low, arg, kept, first = kernel(lf, lgu, gn, d_bar, h, gain, av, sa, xi, rows)
+    return xi, total, low, arg, kept, first, None if gain else av, rows

@@ -52,6 +52,7 @@ class _Xi(NamedTuple):
     argmin: int  # first row of least Xi_on (-1: not computed)
     kept: int  # rows with Xi_on below their screening threshold (-1: not counted)
     first: int  # the first of them (-1: none, or not counted)
+    rows: np.ndarray | None  # when counted: those rows, ascending (the first ``kept``; the filter's buffer: this step only)
 
 
 class _FilterBase(ShortWays):
@@ -101,6 +102,9 @@ class _FilterBase(ShortWays):
         self.screen = self._check_screen(screen)
         self._kernel = xi_kernel()  # (ISF_ROBOT_JIT is read when the filter is built)
         self._steps = step_kernels()
+        self._few_buf = np.empty((4, FEW_ROWS))
+        self._du_of: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
+        self._rows_buf = np.empty(32, np.intp)  # (the xi kernel's kept rows)
         self.qp_solves = 0
         self._switches = SwitchCounter()
 
@@ -152,13 +156,15 @@ class _FilterBase(ShortWays):
         kernel = self._kernel
         if kernel is not None:
             sa = screen_array(screen, lie.h.shape[0])
-            got = None if sa is None else xi_pass(kernel, lie, u_nom, self.alpha, self.d_bar, sa)
+            got = None if sa is None else xi_pass(kernel, lie, u_nom, self.alpha, self.d_bar, sa, self._rows_buf)
             if got is not None:
-                xi, total, low, arg, kept, first, av = got
+                xi, total, low, arg, kept, first, av, rows = got
+                if rows.shape[0] > self._rows_buf.shape[0]:  # (kept for the next steps: the rows are read within a step)
+                    self._rows_buf = rows
                 if not math.isfinite(total):
                     raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
                                          f"Xi_on = {xi}, u_nom = {u_nom}")
-                return _tuple_new(_Xi, (u_nom, xi, low, av, arg, kept, first))
+                return _tuple_new(_Xi, (u_nom, xi, low, av, arg, kept, first, rows))
         alpha = self.alpha
         av = alpha.vector(lie.h)
         xi = xi_on(lie, u_nom, self.alpha, self.d_bar, av)
@@ -166,7 +172,7 @@ class _FilterBase(ShortWays):
         if not math.isfinite(sum(xl)):
             raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
                                  f"Xi_on = {xi}, u_nom = {u_nom}")
-        return _tuple_new(_Xi, (u_nom, xi, min(xl) if xl else math.inf, av, -1, -1, -1))
+        return _tuple_new(_Xi, (u_nom, xi, min(xl) if xl else math.inf, av, -1, -1, -1, None))
 
     def build_qp(
         self, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None = None, b: float = 0.0,
@@ -227,7 +233,9 @@ class _FilterBase(ShortWays):
             if rows is not None:
                 n = rows.size
             elif xs is not None and xs.kept >= 0 and promote is None and not floor > 0:
-                n = xs.kept  # counted by the kernel, with these thresholds
+                n = xs.kept  # counted (and listed) by the kernel, with these thresholds
+                if n > 1:
+                    rows = xs.rows[:n]  # type: ignore[index]
             else:
                 rows = self._select(xi, screen, floor, promote)
                 if rows is None:

@@ -53,6 +53,8 @@ class ShortWays:
     u_max: np.ndarray | None
     qp_solves: int
     _steps: StepKernels | None
+    _few_buf: np.ndarray  # (4, FEW_ROWS): the compiled few-row step's scratch
+    _du_of: tuple[np.ndarray | None, np.ndarray | None]  # the last one-row answer and its u - u_nom
 
     def qp_lower(self, lie: LieData, promote: np.ndarray | None = None, b: float = 0.0,
                  ramp: float | np.ndarray = 1.0) -> np.ndarray:
@@ -129,22 +131,22 @@ class ShortWays:
         A = lg if n == k else lg.take(rows, 0)
         t0 = time.perf_counter()
         Au, G = A.dot(u_nom), A.dot(A.T)  # (numpy's products, as project_few makes them)
-        lb, r, tol, u = np.empty(n), np.empty(n), np.empty(n), np.empty(u_nom.shape[0])
-        code, low = steps.lower(rows, n, h, lf, gn, self.d_bar, gain, av, av_rows, promote, ramp,
-                                getattr(self, "b", 0.0), Au, G, A, u_nom, REL_TOL, lb, r, tol, u)
+        buf, u = self._few_buf, np.empty(u_nom.shape[0])  # (buf: lb, r, the rows' tolerances, A u - lb)
+        code, low = steps.lower(rows, h, lf, gn, self.d_bar, gain, av, av_rows, promote, ramp,
+                                getattr(self, "b", 0.0), Au, G, A, u_nom, REL_TOL, buf, u)
         if code == 1:
-            res, active, du = np.empty(n), np.empty(n, bool), np.empty(u.shape[0])
-            ok, low = steps.finish(A.dot(u), lb, u, u_nom, tol, solver.active_tol, res, active, du)
+            active, du = np.empty(n, bool), np.empty(u.shape[0])
+            ok, low = steps.finish(A.dot(u), u, u_nom, buf, solver.active_tol, active, du)
             if not ok:
                 code = 2  # (the candidate failed its confirmation on the rows: the Python enumeration decides)
         if code == 2:
-            hit = project_few(A, lb, u_nom)
+            hit = project_few(A, buf[0, :n].copy(), u_nom)
             if hit is None:
                 return None
             u, res, low = hit
             active, du = res <= solver.active_tol, u - u_nom
         elif code == 0:
-            u, active, du = u_nom.copy(), r <= solver.active_tol, None
+            u, active, du = u_nom.copy(), buf[1, :n] <= solver.active_tol, None
         elif code != 1:
             return None
         self.qp_solves += 1
@@ -204,7 +206,13 @@ class ShortWays:
             if not math.isfinite(float(u.dot(u))):
                 return None
         else:
-            u = u_nom + (gap / aa) * a
+            steps = self._steps
+            if steps is not None and a.dtype == _F64 and u_nom.dtype == _F64 and a.shape == u_nom.shape:
+                u, du = np.empty(u_nom.shape[0]), np.empty(u_nom.shape[0])
+                steps.step_along(u_nom, gap / aa, a, u, du)  # (u and u - u_nom in one pass)
+                self._du_of = (u, du)  # (for the check of the other rows)
+            else:
+                u = u_nom + (gap / aa) * a
             slack = float(a.dot(u)) - lb
             if not (slack >= -solver.feas_tol * max(1.0, abs(lb)) and math.isfinite(float(u.dot(u)))):
                 return None
@@ -226,6 +234,12 @@ class ShortWays:
                 return True
             slack = xi.copy()
         else:
+            steps = self._steps
+            if steps is not None and xi.dtype == _F64 and xi.ndim == 1:
+                got, du = self._du_of
+                lgdu = lie.lg.dot(du if got is u else u - u_nom)
+                if lgdu.shape == xi.shape and lgdu.dtype == _F64:
+                    return steps.one_hold(xi, lgdu, i, tol)
             slack = xi + lie.lg.dot(u - u_nom)
             sl = slack.tolist()
             if math.isfinite(sum(sl)):

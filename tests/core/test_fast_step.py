@@ -129,6 +129,7 @@ def test_the_kernels_bounds_are_qp_lowers_bit_for_bit(alpha) -> None:  # type: i
     f = IntermittentSafetyFilter(alpha, 0.1, 0.05, 0.05, validate=False)
     rng = np.random.default_rng(4)
     zero = np.array([0.0, -0.0])
+    finished = 0
     for i in range(2000):
         k, m = int(rng.integers(2, 12)), 3
         lie = _lie(rng, k, m)
@@ -149,11 +150,21 @@ def test_the_kernels_bounds_are_qp_lowers_bit_for_bit(alpha) -> None:  # type: i
         av = np.zeros(0) if gain else alpha.vector(sub.h)
         A = sub.lg
         u_nom = rng.normal(size=m)
-        lb, r, tol, u = np.empty(n), np.empty(n), np.empty(n), np.empty(m)
-        lower(rows, n, lie.h, lie.lf, lie.grad_norm, f.d_bar, gain, av, True, np.zeros(0, bool) if promote is None
-              else promote, np.zeros(0) if ramp is None else ramp, f.b, A.dot(u_nom), A.dot(A.T), A, u_nom, 1e-12, lb, r, tol, u)
+        buf, u = np.empty((4, n)), np.empty(m)
+        code, _ = lower(rows, lie.h, lie.lf, lie.grad_norm, f.d_bar, gain, av, True, np.zeros(0, bool) if promote is None
+                        else promote, np.zeros(0) if ramp is None else ramp, f.b, A.dot(u_nom), A.dot(A.T), A, u_nom,
+                        1e-12, buf, u)
+        lb, r = buf[0, :n], buf[1, :n]
         assert lb.tobytes() == ref.tobytes(), i
         assert r.tobytes() == (A.dot(u_nom) - ref).tobytes()
+        if code == 1:  # (a candidate: its residuals, activity and step as numpy makes them)
+            active, du = np.zeros(n, bool), np.zeros(m)
+            ok, low = _kernels().finish(A.dot(u), u, u_nom, buf, 1e-6, active, du)
+            res = A.dot(u) - lb
+            assert buf[3, :n].tobytes() == res.tobytes() and (not ok or low == res.min())
+            assert not ok or (active.tolist() == (res <= 1e-6).tolist() and du.tobytes() == (u - u_nom).tobytes())
+            finished += ok
+    assert finished > 200
 
 
 def test_the_screened_rows_check_is_the_general_ones() -> None:
@@ -172,3 +183,27 @@ def test_the_screened_rows_check_is_the_general_ones() -> None:
         rows = np.flatnonzero(keep)
         lie = LieData(np.zeros(k), np.zeros(k), lgdu[:, None].copy(), np.zeros(k))
         assert hold(xi, lgdu, rows, rows.size, tol) == f._screened_rows_hold_mask(lie, xi, np.ones(1), keep), i
+
+
+def test_the_one_row_kernels_are_numpys() -> None:
+    # u = u_nom + s a and u - u_nom (a row of either memory order), and the check of every other row at u
+    kernels = _kernels()
+    rng = np.random.default_rng(6)
+    f = SafetyFilter(1.0)
+    f._steps = None  # (the numpy way of the check)
+    tol = f.solver.active_tol
+    for i in range(2000):
+        m, k = int(rng.integers(1, 9)), int(rng.integers(1, 12))
+        lg = np.asarray(rng.normal(size=(k, m)) * 10.0 ** rng.uniform(-3, 3), order="F" if i % 2 else "C")
+        u_nom, s, row = rng.normal(size=m), float(rng.normal()) * 10.0 ** rng.uniform(-5, 5), int(rng.integers(k))
+        u, du = np.empty(m), np.empty(m)
+        kernels.step_along(u_nom, s, lg[row], u, du)
+        assert u.tobytes() == (u_nom + s * lg[row]).tobytes() and du.tobytes() == (u - u_nom).tobytes(), i
+        xi = rng.choice([tol, 2 * tol, 0.5 * tol, 0.3, -0.1], k)  # (ties at active_tol)
+        if i % 3 == 0:
+            lg[:, :] = 0.0  # (slack = xi exactly)
+        if i % 50 == 0:
+            xi[rng.integers(k)] = np.nan
+        lie = LieData(np.zeros(k), np.zeros(k), lg, np.zeros(k))
+        ref = f._screened_rows_hold(lie, xi, None, u, u_nom, row)
+        assert kernels.one_hold(xi, lie.lg.dot(u - u_nom), row, tol) == ref, i
