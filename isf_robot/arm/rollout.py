@@ -17,7 +17,9 @@ after, so a rollout changes nothing in the episode.
 With numba (:mod:`isf_robot.arm._rollout_jit`), while the goal cannot change over the horizon
 (:meth:`~isf_robot.arm.goals.GoalSequence.steady`) and the nominal is the :class:`ReachingController`
 with its compiled command, all points are one compiled call (Euler step, kinematics, the controller's
-kernel, the collision kernel), then their Lie data are read from the kernel's output blocks; otherwise
+kernel, the collision kernel), and the points are handed over stacked
+(:class:`~isf_robot.core.intermittent.StackedPoints`: the blocks' arrays, each point's Lie data read from
+its block only when asked for, so ``predict`` evaluates every point in one compiled pass); otherwise
 each point's Euler step and kinematics are one call and its rows
 :meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`. Every path gives the numpy loop's points
 bit for bit. Measured on panda_pole (10 points, process time, 2026-11-23): about 120 us per rollout
@@ -27,13 +29,14 @@ outside the loop in one call (190 us point by point), mostly the collision kerne
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import mujoco
 import numpy as np
 
 from isf_robot.core import ConfigError, LieData
+from isf_robot.core.intermittent import StackedPoints
 
 from . import kernels, narrow
 from .nominal import ReachingController
@@ -105,7 +108,7 @@ class NominalRollout:
         """The filter's rows at the state in ``data`` (kinematics done), ``lin``: the mocap velocities or ``None``."""
         return self.coll.lie_rows(data, self.joints, lin)[0]  # (lie(rows(...)) in one pass, as the simulation's rows)
 
-    def _compiled(self, t: float, q: np.ndarray, u: np.ndarray) -> list[tuple[float, LieData, np.ndarray]] | None:
+    def _compiled(self, t: float, q: np.ndarray, u: np.ndarray) -> Sequence[tuple[float, LieData, np.ndarray]] | None:
         """Every point in one compiled call (``_rollout_jit.rollout_points``), the general loop's numbers.
 
         Taken while the goal index cannot change over the horizon (:meth:`GoalSequence.steady`: the
@@ -131,10 +134,20 @@ class NominalRollout:
             q[:] = q0
             return None
         counts = res[:, 0].tolist()
-        return [((j + 1) * dt, coll._block_lie(c, blk[j], g[j], rows[j], int(counts[j]), joints)[0], outs[j])
-                for j in range(n)]
 
-    def __call__(self, t: float, x: Any) -> list[tuple[float, LieData, np.ndarray]]:
+        def point(j: int) -> LieData:  # (point j's Lie data, read from its block as the simulation's tick reads it)
+            return coll._block_lie(c, blk[j], g[j], rows[j], int(counts[j]), joints)[0]
+
+        s = [(j + 1) * dt for j in range(n)]
+        if not c[13]:  # (no gradient norms in the blocks: each point's are made from its gradients)
+            return [(s[j], point(j), outs[j]) for j in range(n)]
+        m, o_gn, o_lf = c[7], c[10], c[11]  # (the block layout _block_lie reads: h, lf and |dh/dq| at these offsets)
+        k = res[:, 0].astype(np.int64) + c[9]  # (pairs, then the joints' rows)
+        lg = [gj[:kj] for gj, kj in zip(g, k.tolist())]
+        return StackedPoints(s, outs, k, blk[:, :m], blk[:, o_lf: o_lf + m], lg, blk[:, o_gn: o_gn + m], point,
+                             lambda j: coll._row_names(rows[j, :int(counts[j])].tolist(), joints))
+
+    def __call__(self, t: float, x: Any) -> Sequence[tuple[float, LieData, np.ndarray]]:
         """Predicted points ``t + s``, ``s = dt, 2 dt, ..., n dt``, from the state in ``x`` (the episode's MjData)."""
         if not isinstance(x, mujoco.MjData):
             raise ConfigError("NominalRollout needs the episode's MjData as the state x of step_lie")

@@ -37,21 +37,26 @@ default, so a filter built without them behaves exactly as before):
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from .class_k import ClassK
-from .exceptions import ConfigError, NonFiniteError
+from .class_k import ClassK, Linear
+from .exceptions import ConfigError, NonFiniteError, ShapeError
 from .fast import NO_SCREEN, xi_kernel, xi_pass
 from .miet import miet_bound
 from .system import LieData
 from .triggers import xi_on
 from .validation import check_nonnegative
 
-__all__ = ["FallRateBound", "OffPredictor", "Prediction", "RolloutFn", "blend_weight"]
+__all__ = ["FallRateBound", "OffPredictor", "Prediction", "RolloutFn", "StackedPoints", "blend_weight"]
+
+_F64 = np.dtype(np.float64)
+_KERNEL: list[Any] = []  # (the stacked kernel, once imported)
+_new, _set = object.__new__, object.__setattr__
+_NO_AV, _NO_AV2 = np.zeros(0), np.zeros((0, 0))  # (the stacked kernel's "no product" and "alpha is linear")
 
 RolloutFn = Callable[[float, Any], Sequence[tuple[float, LieData, np.ndarray]]]
 """``rollout(t, x) -> [(s, lie, u_nom), ...]``: predicted barrier data and nominal command at times
@@ -127,14 +132,130 @@ class Prediction:
     points: int
 
 
+class StackedPoints(Sequence[tuple[float, LieData, np.ndarray]]):
+    """Predicted points whose rows sit in stacked arrays: a :data:`RolloutFn` result a compiled rollout can hand over.
+
+    A sequence of ``(s, lie, u)`` like any rollout's list. Point ``j`` has ``rows[j]`` rows: its
+    barrier data are ``h[j, :rows[j]]``, ``lf[j, :rows[j]]``, ``lg[j]`` and ``grad_norm[j, :rows[j]]``,
+    its command ``u[j]``, its time ``s[j]``. ``point(j)`` builds point
+    ``j``'s :class:`LieData` (on first use; kept): it must hold exactly these numbers -- views of
+    these arrays, so that ``lie.lg.dot(u)`` is the same product -- with the rows' names, which
+    ``names(j)`` gives alone (default: ``point(j).names``). :func:`predict` reads the arrays in one
+    compiled pass and asks for the names only of the points predicted to fail.
+
+    Args:
+        s: Times ahead [s], one per point.
+        u: Commands, shape (n, m), float64.
+        rows: Rows per point, shape (n,), int64, each at most K.
+        h, lf, grad_norm: Shape (n, K), float64.
+        lg: One array per point, shape (rows[j], m), float64.
+        point: ``point(j) -> LieData`` of point ``j``.
+        names: ``names(j)``: the names of point ``j``'s rows, ``point(j).names`` (``None``: read from ``point(j)``).
+
+    """
+
+    __slots__ = ("s", "u", "rows", "h", "lf", "lg", "grad_norm", "_rows", "_point", "_names", "_items")
+
+    def __init__(self, s: Sequence[float], u: np.ndarray, rows: np.ndarray, h: np.ndarray, lf: np.ndarray,
+                 lg: Sequence[np.ndarray], grad_norm: np.ndarray, point: Callable[[int], LieData],
+                 names: Callable[[int], tuple[str, ...]] | None = None) -> None:
+        n, shape, kl = len(s), h.shape, rows.tolist()
+        if not (u.ndim == 2 and u.shape[0] == n and rows.shape == (n,) and h.ndim == 2 and shape[0] == n
+                and lf.shape == shape and grad_norm.shape == shape and rows.dtype == np.int64 and u.dtype == _F64
+                and h.dtype == _F64 and lf.dtype == _F64 and grad_norm.dtype == _F64 and len(lg) == n
+                and (n == 0 or min(kl) >= 0 and max(kl) <= shape[1])):
+            raise ShapeError(f"stacked points: s ({n},), u (n, m), rows (n,) int64 in [0, K], h/lf/grad_norm (n, K) "
+                             f"float64, lg one per point; got u {u.shape}, rows {kl}, h {shape}, lf {lf.shape}, "
+                             f"grad_norm {grad_norm.shape}, {len(lg)} lg")
+        self.s, self.u, self.rows, self.h, self.lf, self.lg, self.grad_norm = list(s), u, rows, h, lf, lg, grad_norm
+        self._rows = kl
+        self._point = point
+        self._names = names
+        self._items: list[tuple[float, LieData, np.ndarray] | None] = [None] * n
+
+    def __len__(self) -> int:
+        return len(self.s)
+
+    def __getitem__(self, j: int) -> Any:  # (an int: the point; a slice: a list of points)
+        if isinstance(j, slice):
+            return [self[i] for i in range(*j.indices(len(self.s)))]
+        item = self._items[j]
+        if item is None:
+            j = range(len(self.s))[j]  # (negative indices; out of range: IndexError)
+            item = self._items[j] = (self.s[j], self._point(j), self.u[j])
+        return item
+
+    def __iter__(self) -> Iterator[tuple[float, LieData, np.ndarray]]:
+        return (self[j] for j in range(len(self.s)))
+
+    def names(self, j: int) -> tuple[str, ...]:
+        """The names of point ``j``'s rows."""
+        if self._items[j] is None and self._names is not None:
+            return self._names(j)
+        return self[j][1].names
+
+
+def _stacked_kernel() -> Callable[..., Any] | None:
+    """``_predict_jit.predict_rows``, or ``None`` without numba (the caller checks that the filter's kernel is on)."""
+    if not _KERNEL:
+        try:
+            from ._predict_jit import predict_rows
+        except ImportError:
+            predict_rows = None
+        _KERNEL.append(predict_rows)
+    return _KERNEL[0]
+
+
+def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Prediction | None:
+    """:func:`predict` of stacked points in one compiled pass, the same numbers (``None``: the loop decides)."""
+    kernel = _stacked_kernel()
+    if kernel is None:
+        return None
+    h, k, kl = points.h, points.rows, points._rows
+    lgu = [a.dot(b) for a, b in zip(points.lg, points.u)]  # each point's own product: its lie.lg.dot(u)
+    lgu = np.concatenate(lgu) if lgu else _NO_AV
+    if lgu.shape != (sum(kl),) or lgu.dtype != _F64:  # (rows that are not the points' own: as xi_pass, the loop)
+        return None
+    gain = alpha.gain if type(alpha) is Linear else 0.0  # (the kernel's gain h, as xi_pass)
+    av = _NO_AV2
+    if not gain:
+        av = np.empty(h.shape)
+        for j, kj in enumerate(kl):
+            av[j, :kj] = alpha.vector(h[j, :kj])  # (the point's h: the same array as its lie.h)
+    xi = np.empty(h.shape)
+    fails = np.empty(h.shape, np.int64)
+    nfail = np.empty(len(kl), np.int64)
+    bad, xi_lo = kernel(points.lf, lgu, points.grad_norm, float(d_bar), h, gain, av, k, xi, fails, nfail)
+    if bad >= 0:
+        raise NonFiniteError(f"predicted Xi_on not finite {points.s[bad]:.3g} s ahead: {xi[bad, :kl[bad]]}")
+    first: float | None = None
+    failing: set[str] = set()
+    for j, c in enumerate(nfail.tolist()):
+        if c:
+            s = points.s[j]
+            first = s if first is None else min(first, s)
+            names = points.names(j)
+            nn = len(names)
+            failing.update([names[i] if i < nn else str(i) for i in fails[j, :c].tolist()])
+    pred = _new(Prediction)  # (a frozen dataclass's __dict__ set whole: its fields, without the field-by-field __init__)
+    _set(pred, "__dict__", {"ok": first is None, "xi_min": xi_lo, "first_fail_s": first, "failing": frozenset(failing),
+                            "points": len(kl)})
+    return pred
+
+
 def predict(points: Sequence[tuple[float, LieData, np.ndarray]], alpha: ClassK, d_bar: float) -> Prediction:
     """Evaluate ``Xi_on`` at every predicted point; see :class:`Prediction`.
 
     Each point's ``Xi_on`` is :func:`~isf_robot.core.triggers.xi_on`, made in one compiled pass
     where the kernel is available (:func:`~isf_robot.core.fast.xi_pass`: the same numbers, as in
-    the filter's own step).
+    the filter's own step); :class:`StackedPoints` in one compiled pass over every point
+    (``_predict_jit.predict_rows``: the same numbers again; this loop is its reference).
     """
     kernel = xi_kernel()
+    if kernel is not None and type(points) is StackedPoints:
+        got = _predict_stacked(points, alpha, d_bar)
+        if got is not None:
+            return got
     xi_lo = math.inf
     first: float | None = None
     failing: set[str] = set()

@@ -1,0 +1,57 @@
+"""The numba kernel of :func:`isf_robot.core.intermittent.predict`'s stacked way (imported only when numba is installed).
+
+A module-level function that calls no compiled function of another file, so numba's cache
+(``__pycache__``) serves later processes and is invalidated by an edit of this file.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def predict_rows(lf, lgu, gn, d_bar, h, gain, av, k, xi, fails, nfail):  # pragma: no cover (compiled)
+    """``Xi_on`` of every predicted point's rows and what :func:`predict` reads of them, point by point.
+
+    Point ``j`` has ``k[j]`` rows in row ``j`` of the 2-D arrays ``lf``, ``gn``, ``h`` and ``av``
+    (``alpha(h)``; with ``gain > 0``, a linear alpha, ``gain h`` instead, the product
+    ``Linear.vector`` makes) and, one point after the other, in ``lgu`` (``Lg h u``, numpy's
+    product per point). ``xi[j, i] = ((lf + lgu) - gn d_bar)
+    + av``: :func:`~isf_robot.core.triggers.xi_on`'s operations in its order, as the filter's
+    kernel ``_xi_jit.xi_screen`` makes them. Per point, in order: the sum of its values in Python's
+    order (a point whose sum is not finite stops the pass: returned as ``bad``), the least value
+    (``<``: the first of equal values), and the rows with ``xi <= 0`` (``fails[j, :nfail[j]]``,
+    ascending). Returns ``(bad, xi_min)``: ``bad`` -1 when every point is finite; ``xi_min`` the
+    least value over the points before ``bad`` that have rows (``inf``: none).
+    """
+    n = k.shape[0]
+    low = math.inf
+    o = 0
+    for j in range(n):
+        kj = k[j]
+        nfail[j] = 0
+        if kj == 0:
+            continue
+        o += kj
+        total = 0.0
+        lo = math.inf
+        for i in range(kj):
+            x = ((lf[j, i] + lgu[o - kj + i]) - gn[j, i] * d_bar) + (gain * h[j, i] if gain > 0.0 else av[j, i])
+            xi[j, i] = x
+            total += x
+            if x < lo:
+                lo = x
+        if not math.isfinite(total):
+            return j, low
+        if lo < low:
+            low = lo
+        if lo <= 0.0:
+            c = 0
+            for i in range(kj):
+                if xi[j, i] <= 0.0:
+                    fails[j, c] = i
+                    c += 1
+            nfail[j] = c
+    return -1, low

@@ -1,0 +1,116 @@
+"""predict() of StackedPoints (one compiled pass over every point): the loop's Prediction, bit for bit.
+
+The loop over ``(s, lie, u)`` (numpy, or the filter's kernel per point) is the reference; the stacked
+way must give the same ``ok``, ``xi_min`` (the same float), ``first_fail_s``, ``failing`` and
+``points``, raise on the same non-finite point, and ask for names only of failing points.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from isf_robot.core import CustomClassK, LieData, Linear, NonFiniteError, Power, ShapeError
+from isf_robot.core import intermittent as im
+from isf_robot.core.intermittent import StackedPoints, predict
+
+pytest.importorskip("numba")
+
+ALPHAS = [Linear(2.0), Power(3.0, 0.7), CustomClassK(lambda h: h + h ** 3, "cubic")]
+
+
+def _stacked(rng: np.random.Generator, n: int, m: int, short_names: bool = False):  # type: ignore[no-untyped-def]
+    """n points with 0..K rows each in stacked arrays (as a compiled rollout lays them out), some rows exactly at Xi = 0."""
+    K = int(rng.integers(1, 30))
+    rows = rng.integers(0, K + 1, size=n).astype(np.int64)
+    h = rng.uniform(-0.05, 0.5, (n, K))
+    lf = rng.normal(scale=0.3, size=(n, K))
+    g = rng.normal(size=(n, K, m)) * 10.0 ** rng.uniform(-2, 2, size=(n, K, 1))
+    gn = np.linalg.norm(g, axis=2)
+    zero = rng.random((n, K)) < 0.1  # rows with Xi_on exactly 0 (signed zeros: h = -0.0 too)
+    h[zero], lf[zero], gn[zero], g[zero] = rng.choice([0.0, -0.0]), 0.0, 0.0, 0.0
+    u = rng.normal(size=(n, m))
+    lg = [g[j, :k] for j, k in enumerate(rows.tolist())]
+    names = [tuple(f"r{j % 3}_{i}" for i in range(max(k - 2, 0) if short_names else k)) for j, k in enumerate(rows.tolist())]
+    asked: list[int] = []
+
+    def point(j: int) -> LieData:
+        k = int(rows[j])
+        return LieData._of(h[j, :k], lf[j, :k], lg[j], gn[j, :k], names[j])
+
+    def name(j: int) -> tuple[str, ...]:
+        asked.append(j)
+        return names[j]
+
+    s = [0.01 * (j + 1) for j in range(n)]
+    return StackedPoints(s, u, rows, h, lf, lg, gn, point, name), asked
+
+
+def _same(a, b) -> bool:  # type: ignore[no-untyped-def]
+    return (a.ok, repr(a.xi_min), a.first_fail_s, a.failing, a.points) == (b.ok, repr(b.xi_min), b.first_fail_s,
+                                                                          b.failing, b.points)
+
+
+@pytest.mark.parametrize("alpha", ALPHAS, ids=repr)
+def test_stacked_points_give_the_loops_prediction(alpha, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    rng = np.random.default_rng(5)
+    taken = []
+    real = im._predict_stacked
+    monkeypatch.setattr(im, "_predict_stacked", lambda *a: taken.append(1) or real(*a))
+    kinds = set()
+    for i in range(300):
+        n, m = int(rng.integers(0, 12)), int(rng.integers(1, 8))
+        pts, asked = _stacked(rng, n, m, short_names=i % 5 == 0)
+        d_bar = float(rng.choice([0.0, 0.05, 3.0]))
+        monkeypatch.setenv("ISF_ROBOT_JIT", "1")
+        got = predict(pts, alpha, d_bar)
+        fails = {j for j, (_, lie, u) in enumerate(zip(pts.s, [pts[j][1] for j in range(n)], pts.u))
+                 if lie.k and float(np.min(lie.lf + lie.lg.dot(u) - lie.grad_norm * d_bar + alpha.vector(lie.h))) <= 0}
+        assert set(asked) <= fails  # names only of points predicted to fail
+        ref_kernel = predict(list(pts), alpha, d_bar)  # the loop, the filter's kernel per point
+        monkeypatch.setenv("ISF_ROBOT_JIT", "0")
+        ref_numpy = predict(list(pts), alpha, d_bar)
+        assert _same(got, ref_kernel) and _same(got, ref_numpy), (got, ref_numpy)
+        kinds.add((got.ok, bool(got.failing), got.xi_min == 0.0, any(str(i) in got.failing for i in range(30))))
+    assert len(taken) == 300  # the stacked way ran every time
+    assert {k[0] for k in kinds} == {True, False} and any(k[2] for k in kinds) and any(k[3] for k in kinds)
+
+
+def test_a_non_finite_point_raises_as_the_loop_does(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    rng = np.random.default_rng(9)
+    for bad in (math.nan, math.inf, 1e308):
+        pts, _ = _stacked(rng, 6, 3)
+        pts.rows[:] = 4
+        pts._rows = pts.rows.tolist()
+        pts.lg[:] = [np.zeros((4, 3))] * 6
+        pts.h[:, :4] = pts.h[:, :4] ** 2 + 1.0  # every point finite and safe ...
+        pts.lf[3, :4] = [bad, bad, 0.0, 0.0]  # ... but point 3 (1e308 twice: a sum that overflows)
+        pts._items[:] = [None] * 6
+        msgs = []
+        for jit in ("1", "0"):
+            monkeypatch.setenv("ISF_ROBOT_JIT", jit)
+            for p in (pts, list(pts)):
+                with pytest.raises(NonFiniteError) as e:
+                    predict(p, Linear(1.0), 0.1)
+                msgs.append(str(e.value))
+        assert len(set(msgs)) == 1 and "0.04 s ahead" in msgs[0]
+
+
+def test_stacked_points_are_a_sequence_of_points_and_check_their_shapes() -> None:
+    rng = np.random.default_rng(2)
+    pts, asked = _stacked(rng, 4, 2)
+    items = list(pts)
+    assert len(pts) == 4 and pts[-1] is items[3] and pts[1:3] == items[1:3] and pts[0][0] == 0.01
+    assert items[2][1].lg is pts.lg[2] and items[2][2] is not None and np.shares_memory(items[2][2], pts.u)
+    with pytest.raises(IndexError):
+        pts[4]
+    assert pts.names(1) == items[1][1].names and asked == []  # (a built point's own names)
+    good = (pts.s, pts.u, pts.rows, pts.h, pts.lf, pts.lg, pts.grad_norm, pts._point)
+    for i, bad in ((1, pts.u[:3]), (2, pts.rows + pts.h.shape[1] + 1), (2, pts.rows.astype(np.int32)), (3, pts.h[:, :-1]),
+                   (4, pts.lf.astype(np.float32)), (5, pts.lg[:3])):
+        args = list(good)
+        args[i] = bad
+        with pytest.raises(ShapeError, match="stacked points"):
+            StackedPoints(*args)
