@@ -10,6 +10,29 @@ import math
 from numba import njit
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _xi_row(lf, lgu, gn, d_bar, h, gain, av, i):  # pragma: no cover (compiled)
+    """Row ``i``'s ``Xi_on``: ``((lf + lgu) - gn d_bar) + alpha(h)`` (``gain h`` when ``gain > 0``, else ``av``)."""
+    return ((lf[i] + lgu[i]) - gn[i] * d_bar) + (gain * h[i] if gain > 0.0 else av[i])
+
+
+@njit(cache=True, nogil=True)
+def xi_plain(lf, lgu, gn, d_bar, h, gain, av, out):  # pragma: no cover (compiled)
+    """:func:`xi_screen` without thresholds (no rows counted or listed): one argument less to pass per step."""
+    k = out.shape[0]
+    total = 0.0
+    low = math.inf
+    arg = 0
+    for i in range(k):
+        x = _xi_row(lf, lgu, gn, d_bar, h, gain, av, i)
+        out[i] = x
+        total += x
+        if x < low:
+            low = x
+            arg = i
+    return total, low, arg
+
+
 @njit(cache=True, nogil=True)
 def xi_screen(lf, lgu, gn, d_bar, h, gain, av, screen, out, rows):  # pragma: no cover (compiled)
     """``out = ((lf + lgu) - gn d_bar) + av`` and, in the same pass, what the filter step reads of it.
@@ -28,7 +51,7 @@ def xi_screen(lf, lgu, gn, d_bar, h, gain, av, screen, out, rows):  # pragma: no
     kept = 0 if ns else -1
     first = -1
     for i in range(k):
-        x = ((lf[i] + lgu[i]) - gn[i] * d_bar) + (gain * h[i] if gain > 0.0 else av[i])
+        x = _xi_row(lf, lgu, gn, d_bar, h, gain, av, i)
         out[i] = x
         total += x
         if x < low:

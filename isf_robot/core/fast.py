@@ -47,9 +47,10 @@ def _build() -> Callable[..., Any] | None:
     if _off():
         return None
     try:
-        from ._xi_jit import xi_screen
+        from ._xi_jit import xi_plain, xi_screen
     except ImportError:
         return None
+    _STATE["plain"] = xi_plain
     return xi_screen
 
 
@@ -154,9 +155,10 @@ def xi_pass(kernel: Callable[..., Any], lie: LieData, u_nom: np.ndarray, alpha: 
             and lgu.dtype == _F64 and (gain or av.shape == k and av.dtype == _F64)):
         return None
     xi = np.empty(k)
-    if not sa.shape[0]:
-        rows = _NO_ROWS
-    elif rows is None or rows.shape[0] < k[0]:
+    if not sa.shape[0]:  # (no thresholds: the plain pass)
+        total, low, arg = _STATE["plain"](lf, lgu, gn, d_bar, h, gain, av, xi)
+        return xi, total, low, arg, -1, -1, None if gain else av, _NO_ROWS
+    if rows is None or rows.shape[0] < k[0]:
         rows = np.empty(k, np.intp)
     total, low, arg, kept, first = kernel(lf, lgu, gn, d_bar, h, gain, av, sa, xi, rows)
     return xi, total, low, arg, kept, first, None if gain else av, rows

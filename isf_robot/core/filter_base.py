@@ -104,7 +104,7 @@ class _FilterBase(ShortWays):
         self._steps = step_kernels()
         self._few_buf = np.empty((4, FEW_ROWS))
         self._du_of: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
-        self._rows_buf = np.empty(32, np.intp)  # (the xi kernel's kept rows)
+        self._rows_buf = np.empty(256, np.intp)  # (the xi kernel's kept rows: read within a step; more rows, a new array)
         self.qp_solves = 0
         self._switches = SwitchCounter()
 
@@ -159,8 +159,6 @@ class _FilterBase(ShortWays):
             got = None if sa is None else xi_pass(kernel, lie, u_nom, self.alpha, self.d_bar, sa, self._rows_buf)
             if got is not None:
                 xi, total, low, arg, kept, first, av, rows = got
-                if rows.shape[0] > self._rows_buf.shape[0]:  # (kept for the next steps: the rows are read within a step)
-                    self._rows_buf = rows
                 if not math.isfinite(total):
                     raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
                                          f"Xi_on = {xi}, u_nom = {u_nom}")

@@ -33,6 +33,8 @@ def _lie(rng: np.random.Generator, k: int, m: int) -> LieData:
 
 @pytest.mark.parametrize("alpha", ALPHAS, ids=repr)
 def test_kernel_makes_xi_on_and_its_reductions_bit_for_bit(alpha) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.core._xi_jit import xi_plain  # (the pass without thresholds)
+
     kernel = _kernel()
     rng = np.random.default_rng(11)
     for _ in range(400):
@@ -51,6 +53,11 @@ def test_kernel_makes_xi_on_and_its_reductions_bit_for_bit(alpha) -> None:  # ty
             assert kept == (below.size if screen.size else -1)
             assert first == (int(below[0]) if screen.size and below.size else -1)
             assert rows[:max(kept, 0)].tolist() == (below.tolist() if screen.size else [])
+            plain = np.empty(k)
+            total, low, arg = xi_plain(lie.lf, lie.lg.dot(u), lie.grad_norm, d_bar, lie.h, gain,
+                                       np.zeros(0) if gain else alpha.vector(lie.h), plain)
+            assert plain.tobytes() == ref.tobytes() and total == sum(ref.tolist()) and low == min(ref.tolist())
+            assert arg == int(ref.argmin())
 
 
 def _run(make, jit: str, monkeypatch: pytest.MonkeyPatch, seed: int) -> list:  # type: ignore[no-untyped-def]
