@@ -155,10 +155,13 @@ def xi_pass(kernel: Callable[..., Any], lie: LieData, u_nom: np.ndarray, alpha: 
             and lgu.dtype == _F64 and (gain or av.shape == k and av.dtype == _F64)):
         return None
     xi = np.empty(k)
-    if not sa.shape[0]:  # (no thresholds: the plain pass)
-        total, low, arg = _STATE["plain"](lf, lgu, gn, d_bar, h, gain, av, xi)
-        return xi, total, low, arg, -1, -1, None if gain else av, _NO_ROWS
-    if rows is None or rows.shape[0] < k[0]:
+    if not sa.shape[0]:  # (no thresholds: the plain pass, built with the kernel)
+        plain = _STATE.get("plain")
+        if plain is not None:
+            total, low, arg = plain(lf, lgu, gn, d_bar, h, gain, av, xi)
+            return xi, total, low, arg, -1, -1, None if gain else av, _NO_ROWS
+        rows = _NO_ROWS
+    elif rows is None or rows.shape[0] < k[0]:
         rows = np.empty(k, np.intp)
     total, low, arg, kept, first = kernel(lf, lgu, gn, d_bar, h, gain, av, sa, xi, rows)
     return xi, total, low, arg, kept, first, None if gain else av, rows
