@@ -144,8 +144,14 @@ class NominalRollout:
         m, o_gn, o_lf = c[7], c[10], c[11]  # (the block layout _block_lie reads: h, lf and |dh/dq| at these offsets)
         k = res[:, 0].astype(np.int64) + c[9]  # (pairs, then the joints' rows)
         lg = [gj[:kj] for gj, kj in zip(g, k.tolist())]
+        pair_names, joint_names, nj = coll.pairs.names, joints.names, len(joints.names)
+
+        def row_names(j: int, idx: list[int]) -> list[str]:  # (point j's names: its pairs', then the joints')
+            cj, rj = int(counts[j]), rows[j]
+            return [pair_names[rj[i]] if i < cj else joint_names[i - cj] if i < cj + nj else str(i) for i in idx]
+
         return StackedPoints(s, outs, k, blk[:, :m], blk[:, o_lf: o_lf + m], lg, blk[:, o_gn: o_gn + m], point,
-                             lambda j: coll._row_names(rows[j, :int(counts[j])].tolist(), joints))
+                             row_names)
 
     def __call__(self, t: float, x: Any) -> Sequence[tuple[float, LieData, np.ndarray]]:
         """Predicted points ``t + s``, ``s = dt, 2 dt, ..., n dt``, from the state in ``x`` (the episode's MjData)."""

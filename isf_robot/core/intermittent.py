@@ -140,8 +140,9 @@ class StackedPoints(Sequence[tuple[float, LieData, np.ndarray]]):
     its command ``u[j]``, its time ``s[j]``. ``point(j)`` builds point
     ``j``'s :class:`LieData` (on first use; kept): it must hold exactly these numbers -- views of
     these arrays, so that ``lie.lg.dot(u)`` is the same product -- with the rows' names, which
-    ``names(j)`` gives alone (default: ``point(j).names``). :func:`predict` reads the arrays in one
-    compiled pass and asks for the names only of the points predicted to fail.
+    ``row_names(j, rows)`` gives alone for some rows (default: read from ``point(j).names``).
+    :func:`predict` reads the arrays in one compiled pass and asks for the names only of the rows
+    predicted to fail.
 
     Args:
         s: Times ahead [s], one per point.
@@ -150,15 +151,16 @@ class StackedPoints(Sequence[tuple[float, LieData, np.ndarray]]):
         h, lf, grad_norm: Shape (n, K), float64.
         lg: One array per point, shape (rows[j], m), float64.
         point: ``point(j) -> LieData`` of point ``j``.
-        names: ``names(j)``: the names of point ``j``'s rows, ``point(j).names`` (``None``: read from ``point(j)``).
+        row_names: ``row_names(j, rows) -> [name, ...]``: the names of those rows of point ``j``, each
+            ``point(j).names[i]`` (``str(i)`` past the end of the names) (``None``: read from ``point(j)``).
 
     """
 
-    __slots__ = ("s", "u", "rows", "h", "lf", "lg", "grad_norm", "_rows", "_point", "_names", "_items")
+    __slots__ = ("s", "u", "rows", "h", "lf", "lg", "grad_norm", "_rows", "_point", "_row_names", "_items")
 
     def __init__(self, s: Sequence[float], u: np.ndarray, rows: np.ndarray, h: np.ndarray, lf: np.ndarray,
                  lg: Sequence[np.ndarray], grad_norm: np.ndarray, point: Callable[[int], LieData],
-                 names: Callable[[int], tuple[str, ...]] | None = None) -> None:
+                 row_names: Callable[[int, list[int]], list[str]] | None = None) -> None:
         n, shape, kl = len(s), h.shape, rows.tolist()
         if not (u.ndim == 2 and u.shape[0] == n and rows.shape == (n,) and h.ndim == 2 and shape[0] == n
                 and lf.shape == shape and grad_norm.shape == shape and rows.dtype == np.int64 and u.dtype == _F64
@@ -170,7 +172,7 @@ class StackedPoints(Sequence[tuple[float, LieData, np.ndarray]]):
         self.s, self.u, self.rows, self.h, self.lf, self.lg, self.grad_norm = list(s), u, rows, h, lf, lg, grad_norm
         self._rows = kl
         self._point = point
-        self._names = names
+        self._row_names = row_names
         self._items: list[tuple[float, LieData, np.ndarray] | None] = [None] * n
 
     def __len__(self) -> int:
@@ -188,11 +190,13 @@ class StackedPoints(Sequence[tuple[float, LieData, np.ndarray]]):
     def __iter__(self) -> Iterator[tuple[float, LieData, np.ndarray]]:
         return (self[j] for j in range(len(self.s)))
 
-    def names(self, j: int) -> tuple[str, ...]:
-        """The names of point ``j``'s rows."""
-        if self._items[j] is None and self._names is not None:
-            return self._names(j)
-        return self[j][1].names
+    def row_names(self, j: int, rows: list[int]) -> list[str]:
+        """The names of ``rows`` of point ``j`` (``str(i)`` for a row past the end of its names)."""
+        if self._items[j] is None and self._row_names is not None:
+            return self._row_names(j, rows)
+        names = self[j][1].names
+        nn = len(names)
+        return [names[i] if i < nn else str(i) for i in rows]
 
 
 def _stacked_kernel() -> Callable[..., Any] | None:
@@ -234,9 +238,7 @@ def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Pred
         if c:
             s = points.s[j]
             first = s if first is None else min(first, s)
-            names = points.names(j)
-            nn = len(names)
-            failing.update([names[i] if i < nn else str(i) for i in fails[j, :c].tolist()])
+            failing.update(points.row_names(j, fails[j, :c].tolist()))
     pred = _new(Prediction)  # (a frozen dataclass's __dict__ set whole: its fields, without the field-by-field __init__)
     _set(pred, "__dict__", {"ok": first is None, "xi_min": xi_lo, "first_fail_s": first, "failing": frozenset(failing),
                             "points": len(kl)})

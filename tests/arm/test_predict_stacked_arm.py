@@ -40,16 +40,16 @@ def test_the_compiled_rollouts_stacked_points_predict_as_the_loop(monkeypatch) -
         nom(t - 0.01, data)  # (a previous command for the rate limit)
         pts = roll(t, data)
         assert type(pts) is StackedPoints and len(pts) == roll.n
-        names = [pts.names(j) for j in range(len(pts))]
+        names = [pts.row_names(j, list(range(int(pts.rows[j]) + 2))) for j in range(len(pts))]  # (before the points are built)
         for j, (s, lie, u) in enumerate(pts):
-            assert lie.names is names[j] and s == (j + 1) * roll.dt
+            assert names[j] == [*lie.names, str(lie.k), str(lie.k + 1)] and s == (j + 1) * roll.dt
             assert _ptr(lie.lg) == _ptr(pts.lg[j]) and _ptr(u) == _ptr(pts.u[j])
             kj = int(pts.rows[j])
             for a, b in ((lie.h, pts.h), (lie.lf, pts.lf), (lie.grad_norm, pts.grad_norm)):
                 assert _ptr(a) == _ptr(b[j, :kj])
         for alpha in (Linear(params.alpha), Power(3.0, 0.7)):
             fresh = StackedPoints(pts.s, pts.u, pts.rows, pts.h, pts.lf, pts.lg, pts.grad_norm, pts._point,
-                                  pts._names)
+                                  pts._row_names)
             monkeypatch.setenv("ISF_ROBOT_JIT", "1")
             got, ref = predict(fresh, alpha, params.d_bar), predict(list(pts), alpha, params.d_bar)
             monkeypatch.setenv("ISF_ROBOT_JIT", "0")

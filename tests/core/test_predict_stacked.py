@@ -40,9 +40,9 @@ def _stacked(rng: np.random.Generator, n: int, m: int, short_names: bool = False
         k = int(rows[j])
         return LieData._of(h[j, :k], lf[j, :k], lg[j], gn[j, :k], names[j])
 
-    def name(j: int) -> tuple[str, ...]:
+    def name(j: int, rows: list[int]) -> list[str]:
         asked.append(j)
-        return names[j]
+        return [names[j][i] if i < len(names[j]) else str(i) for i in rows]
 
     s = [0.01 * (j + 1) for j in range(n)]
     return StackedPoints(s, u, rows, h, lf, lg, gn, point, name), asked
@@ -106,7 +106,7 @@ def test_stacked_points_are_a_sequence_of_points_and_check_their_shapes() -> Non
     assert items[2][1].lg is pts.lg[2] and items[2][2] is not None and np.shares_memory(items[2][2], pts.u)
     with pytest.raises(IndexError):
         pts[4]
-    assert pts.names(1) == items[1][1].names and asked == []  # (a built point's own names)
+    assert pts.row_names(1, [0, 1]) == list(items[1][1].names[:2]) and asked == []  # (a built point's own names)
     good = (pts.s, pts.u, pts.rows, pts.h, pts.lf, pts.lg, pts.grad_norm, pts._point)
     for i, bad in ((1, pts.u[:3]), (2, pts.rows + pts.h.shape[1] + 1), (2, pts.rows.astype(np.int32)), (3, pts.h[:, :-1]),
                    (4, pts.lf.astype(np.float32)), (5, pts.lg[:3])):
