@@ -43,6 +43,7 @@ class OnRows:
         self._names: Any = None  # the names tuple (and row count) _ids was made for
         self._k = -1
         self._ids = _NONE_I
+        self._out: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # per row count: mask, weights, rows
 
     def clear(self) -> None:
         """Drop every weight (the filter switched off)."""
@@ -69,11 +70,16 @@ class OnRows:
                  screen: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """``(promote, ramp weights, kept rows)``: the rows to promote (``xi < c`` or ``failing``, ramped), their
         weights (``None`` without the ramp: ``rate`` ``None``) and the rows kept by ``screen`` (``None``: no
-        thresholds given)."""
+        thresholds given).
+
+        The three arrays are this object's own, rewritten by the next call: they serve one filter step.
+        """
         k = xi.shape[0]
         ramp_on = rate is not None
-        mask, rows = np.empty(k, bool), np.empty(k, np.intp)
-        weights = np.empty(k) if ramp_on else _NONE_F
+        out = self._out.get(k)
+        if out is None:
+            out = self._out[k] = (np.empty(k, bool), np.empty(k), np.empty(k, np.intp))
+        mask, weights, rows = out
         n = self.kernel(xi, c, failing, ramp_on, self._ids_of(names, k) if ramp_on else _NONE_I, self._w, self._inw,
-                        rate if ramp_on else 0.0, screen, mask, weights, rows)
+                        rate if ramp_on else 0.0, screen, mask, weights if ramp_on else _NONE_F, rows)
         return mask, weights if ramp_on else None, None if n < 0 else rows[:n]
