@@ -185,8 +185,9 @@ class MetricsAccumulator:
         self._U: np.ndarray | None = None  # row 0: the command before the batch; rows 1..n: the batch's commands
         self._N: np.ndarray | None = None  # rows 1..n: the nominal commands where they are not the command itself
         self._n = 0  # steps in the batch
+        self._shape: tuple[int, ...] = ()  # the batch's command shape
         self._rix: list[tuple[int, int]] = []  # (batch row, index in _rates) of the steps with u not u_nom
-        self._ev: list[bool] = []  # per batch step: a switch event
+        self._ev: list[int] = []  # batch rows of the steps with a switch event
 
     def add(self, t: float, dt: float, on: bool, u: np.ndarray, u_nom: np.ndarray, solved: bool) -> None:
         """Record one step."""
@@ -208,7 +209,7 @@ class MetricsAccumulator:
             u = np.asarray(u, dtype=float)
         same = u is u_nom
         U = self._U
-        if U is not None and u.shape == U.shape[1:] and (
+        if U is not None and u.shape == self._shape and (
                 same or type(u_nom) is np.ndarray and u_nom.dtype == _F64 and u_nom.shape == u.shape):
             n = self._n = self._n + 1  # (into the batch: the figures when it is made)
             U[n] = u
@@ -216,7 +217,8 @@ class MetricsAccumulator:
                 self._N[n] = u_nom  # type: ignore[index]
                 self._rix.append((n, len(self._rates)))
             self._rates.append(0.0)
-            self._ev.append(step.event is not None)
+            if step.event is not None:
+                self._ev.append(n)
             self._steps.append((step.t, dt, bool(step.on), qp is not None))
             if n == _BATCH:
                 self._flush()
@@ -234,8 +236,9 @@ class MetricsAccumulator:
                 d = u - prev
                 self._jump(float(d.dot(d)), step.event is not None)
             if u.ndim == 1:  # (a new batch after this step)
-                if U is None or U.shape[1:] != u.shape:
+                if U is None or self._shape != u.shape:
                     self._U, self._N = np.empty((_BATCH + 1, u.shape[0])), np.empty((_BATCH + 1, u.shape[0]))
+                    self._shape = u.shape
                 self._U[0] = u  # type: ignore[index]
             else:
                 self._U = self._N = None
@@ -271,10 +274,18 @@ class MetricsAccumulator:
             return
         U, N, rates = self._U, self._N, self._rates
         d = U[1:n + 1] - U[:n]  # type: ignore[index]  # row j: command j + 1 minus command j (elementwise, exact)
-        jump = self._jump
-        for j, ev in enumerate(self._ev):
-            dj = d[j]
-            jump(float(dj.dot(dj)), ev)
+        jumps = [float(dj.dot(dj)) for dj in d]
+        top = self._jump2
+        for v in jumps:  # (as _jump, step by step)
+            if top is None or v > top:
+                top = v
+        self._jump2 = top
+        top = self._switch_jump2
+        for row in self._ev:
+            v = jumps[row - 1]
+            if top is None or v > top:
+                top = v
+        self._switch_jump2 = top
         rix = self._rix
         if rix:
             rows = [row for row, _ in rix]
