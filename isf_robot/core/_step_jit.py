@@ -167,19 +167,9 @@ def on_rows(xi, c, failing, ramp_on, ids, W, inw, rate, screen, mask, weights, r
             else:
                 mask[i] = False
                 weights[i] = 1.0
-    ns = screen.shape[0]
-    if ns == 0:
+    if screen.shape[0] == 0:
         return -1
-    up = c > 0.0
-    n = 0
-    for i in range(k):
-        s = screen[i] if ns > 1 else screen[0]
-        if up:
-            s = _npmax(s, c)
-        if xi[i] < s or mask[i]:
-            rows[n] = i
-            n += 1
-    return n
+    return select_rows(xi, screen, c, mask, rows)
 
 
 @njit(cache=True, nogil=True)

@@ -4,14 +4,26 @@ from __future__ import annotations
 
 import collections
 import math
+import os
 
 import numpy as np
 import pytest
 
-from isf_robot.core import CustomClassK, QPSolver, IntermittentSafetyFilter, LieData, Linear, NonFiniteError, Power, SafetyFilter
+from isf_robot.core import (
+    CustomClassK,
+    IntermittentSafetyFilter,
+    LieData,
+    Linear,
+    NonFiniteError,
+    Power,
+    QPSolver,
+    SafetyFilter,
+)
 from isf_robot.core.triggers import xi_on
 
 pytest.importorskip("numba")
+if os.environ.get("ISF_ROBOT_JIT", "1").strip().lower() in ("0", "false", "no", "off"):
+    pytest.skip("ISF_ROBOT_JIT=0 turns off the compiled kernels these tests compare", allow_module_level=True)
 
 ALPHAS = [Linear(2.0), Power(3.0, 0.7), CustomClassK(lambda h: h + h ** 3, "cubic")]
 
@@ -106,7 +118,7 @@ def test_predict_gives_the_same_prediction_with_and_without_the_kernel(alpha, mo
 
     rng = np.random.default_rng(21)
     cases = []
-    for i in range(200):
+    for _ in range(200):
         m = int(rng.integers(1, 8))
         pts = [(0.01 * (j + 1), _lie(rng, int(rng.integers(0, 12)), m), rng.normal(size=m))
                for j in range(int(rng.integers(0, 6)))]

@@ -8,6 +8,7 @@ way must give the same ``ok``, ``xi_min`` (the same float), ``first_fail_s``, ``
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -17,6 +18,8 @@ from isf_robot.core import intermittent as im
 from isf_robot.core.intermittent import StackedPoints, predict
 
 pytest.importorskip("numba")
+if os.environ.get("ISF_ROBOT_JIT", "1").strip().lower() in ("0", "false", "no", "off"):
+    pytest.skip("ISF_ROBOT_JIT=0 turns off the compiled kernels these tests compare", allow_module_level=True)
 
 ALPHAS = [Linear(2.0), Power(3.0, 0.7), CustomClassK(lambda h: h + h ** 3, "cubic")]
 
