@@ -26,7 +26,8 @@ honest QP cost: every solve of the step with its polish and checks, from
 present, panda_pole with 64 extra far-away spheres is compared to panda_pole itself (broad-phase
 cost, the same step clock): the arm's own cost per step (the step minus one ``mj_step`` of the same
 episode) with and without them, since MuJoCo's own collision of the spheres makes ``mj_step`` itself
-dearer (see :func:`bench_far`).
+dearer (see :func:`bench_far`). panda_pole's isf also runs without its scene's options (the predictive
+off trigger, then the hand-over too), to show what they cost per step (:func:`bench_isf_options`).
 
 Results go to ``BENCHMARKS.md`` between the ``arm-bench`` markers (written atomically), with
 machine and date:
@@ -172,6 +173,25 @@ def bench_backends(args: argparse.Namespace) -> dict:
             for b, rs in runs.items()}
 
 
+ISF_VARIANTS = (("scene's options", {}), ("no predictive off trigger (horizon 0)", {"horizon": 0.0}),
+                ("neither trigger nor hand-over (horizon 0, blend 0)", {"horizon": 0.0, "blend": 0.0}))
+
+
+def bench_isf_options(args: argparse.Namespace) -> list[dict]:
+    """panda_pole's isf with its options (models/panda_pole.toml: the predictive off trigger and the
+    hand-over) and without them, each figure as in :func:`bench_scene`: what the options cost per step."""
+    scene = load_scene("panda_pole")
+    out = []
+    for label, kw in ISF_VARIANTS:
+        params = resolve_params(scene, **kw)
+        runs = [clocked(scene, "isf", params, args.duration, args.period) for _ in range(args.repeats)]
+        us, split, mj = combine([c for c, _ in runs])
+        r = runs[-1][1]
+        out.append({"label": label, "us": us, "mj_us": mj, "ratio": us / mj, "strategy": split["strategy"],
+                    "duty": r.duty_cycle, "switches": r.on_switches})
+    return out
+
+
 def bench_far(args: argparse.Namespace) -> dict | None:
     """panda_pole with 64 far spheres against panda_pole, episode pairs back to back.
 
@@ -212,7 +232,8 @@ def _kernels() -> str:
     return f"compiled (numba {numba.__version__})"
 
 
-def render(scenes: list[dict], backends: dict, far: dict | None, args: argparse.Namespace) -> str:
+def render(scenes: list[dict], backends: dict, far: dict | None, args: argparse.Namespace,
+           options: list[dict] | None = None) -> str:
     now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M")
     load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
     out = [
@@ -252,6 +273,14 @@ def render(scenes: list[dict], backends: dict, far: dict | None, args: argparse.
             "| backend | us/step | QP/step [us] | backend solves [us] |", "|---|---|---|---|"]
     for b, d in backends.items():
         out.append(f"| {b} | {d['us']:.1f} | {d['qp']:.1f} | {d['solver']:.1f} |")
+    if options:
+        out += ["", "The intermittent filter's options on panda_pole (its scene file sets a predictive off trigger, "
+                "`horizon = 0.3` s with a rollout of 10 points at most every 5 steps while it holds, and a hand-over "
+                "`blend = 0.05` s; issue 13): the isf step with and without them, measured as above:", "",
+                "| isf on panda_pole | us/step | mj_step [us] | x mj_step | strategy [us] | duty | on switches |",
+                "|---|---|---|---|---|---|---|"]
+        out += [f"| {o['label']} | {o['us']:.1f} | {o['mj_us']:.2f} | **{o['ratio']:.1f}** | {o['strategy']:.1f} | "
+                f"{o['duty']:.3f} | {o['switches']} |" for o in options]
     if far is not None:
         out += ["", "Broad phase: panda_pole with 64 extra static spheres 3 m from the arm (never within the cut-off), "
                 "cost per control step over panda_pole's (target <= 1.1), in the arm's own cost per step (the step "
@@ -298,7 +327,10 @@ def main(argv: list[str] | None = None) -> int:
     if far is not None:
         print("far spheres: " + "; ".join(f"{s} arm {v['arm']:.2f} x_mj {v['x_mj']:.2f} wall {v['wall']:.2f} "
                                           f"mj_step {v['mj']:.2f}" for s, v in far.items()), file=sys.stderr)
-    section = render(scenes, backends, far, args)
+    options = bench_isf_options(args) if "panda_pole" in args.scenes else []
+    if options:
+        print("isf options: " + "; ".join(f"{o['label']} {o['ratio']:.1f}x" for o in options), file=sys.stderr)
+    section = render(scenes, backends, far, args, options)
     print(section)
     if not args.no_write:
         write_section(ROOT / "BENCHMARKS.md", START, END, section, write_text_atomic)
