@@ -91,6 +91,7 @@ class NominalRollout:
         self.offset = float(sim.setup.time_offset)
         self.dt = max(float(sim.control_period), float(horizon) / int(points))
         self.n = max(1, int(math.ceil(float(horizon) / self.dt - 1e-9)))
+        self._s = tuple((j + 1) * self.dt for j in range(self.n))  # (the points' times ahead, as the loop makes them)
         self.horizon = float(horizon)
         self.moving = len(self.scene.config.moving) > 0
         self._data = mujoco.MjData(self.scene.model)
@@ -138,12 +139,14 @@ class NominalRollout:
         def point(j: int) -> LieData:  # (point j's Lie data, read from its block as the simulation's tick reads it)
             return coll._block_lie(c, blk[j], g[j], rows[j], int(counts[j]), joints)[0]
 
-        s = [(j + 1) * dt for j in range(n)]
+        s = self._s
         if not c[13]:  # (no gradient norms in the blocks: each point's are made from its gradients)
             return [(s[j], point(j), outs[j]) for j in range(n)]
         m, o_gn, o_lf = c[7], c[10], c[11]  # (the block layout _block_lie reads: h, lf and |dh/dq| at these offsets)
-        k = res[:, 0].astype(np.int64) + c[9]  # (pairs, then the joints' rows)
-        lg = [gj[:kj] for gj, kj in zip(g, k.tolist())]
+        nj0 = c[9]
+        kl = [int(cj) + nj0 for cj in counts]  # (pairs, then the joints' rows)
+        k = np.array(kl, dtype=np.int64)
+        lg = [g[j, :kl[j]] for j in range(n)]
         pair_names, joint_names, nj = coll.pairs.names, joints.names, len(joints.names)
 
         def row_names(j: int, idx: list[int]) -> list[str]:  # (point j's names: its pairs', then the joints')
