@@ -19,7 +19,7 @@ import numpy as np
 from .barrier import Barrier, evaluate_barriers
 from .class_k import ClassK, as_class_k
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
-from .fast import screen_array, step_kernels, xi_kernel, xi_pass
+from .fast import NO_SCREEN, screen_array, step_kernels, xi_kernel, xi_pass
 from .filter_short import ShortWays
 from .qp import FilterQP, QPResult
 from .qp_small import FEW_ROWS
@@ -155,7 +155,7 @@ class _FilterBase(ShortWays):
             u_nom = as_vector(u_nom, "nominal command u_nom", lie.m)
         kernel = self._kernel
         if kernel is not None:
-            sa = screen_array(screen, lie.h.shape[0])
+            sa = NO_SCREEN if screen is None else screen_array(screen, lie.h.shape[0])
             got = None if sa is None else xi_pass(kernel, lie, u_nom, self.alpha, self.d_bar, sa, self._rows_buf)
             if got is not None:
                 xi, total, low, arg, kept, first, av, rows = got
