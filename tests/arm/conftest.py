@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -96,3 +97,19 @@ def nominal_rollout() -> Callable[[Scene, float], float]:
         return worst
 
     return run
+
+
+@pytest.fixture(scope="session")
+def random_states() -> Callable[..., Any]:
+    """``random_states(scene, rng, n, spread=0.6)``: one scratch MjData moved to ``n`` random joint states
+    (``spread`` of the way from home to the joint limits), kinematics computed, yielded in turn."""
+
+    def states(scene: Scene, rng: np.random.Generator, n: int, spread: float = 0.6) -> Iterator[mujoco.MjData]:
+        m, d = scene.model, scene.make_data()
+        lo, hi = scene.joint_range[:, 0], scene.joint_range[:, 1]
+        for _ in range(n):
+            d.qpos[scene.qpos_adr] = scene.home + rng.uniform(lo - scene.home, hi - scene.home) * spread
+            mujoco.mj_forward(m, d)
+            yield d
+
+    return states

@@ -53,7 +53,7 @@ def test_alternating_data_reuse_their_contexts_and_give_their_own_rows(rng, monk
     episode, scratch = scene.make_data(), scene.make_data()
     q = scene.home.copy()
     near = 0
-    for k in range(40):
+    for _ in range(40):
         q = np.clip(q + rng.normal(0.0, 0.03, q.size), scene.joint_range[:, 0], scene.joint_range[:, 1])
         d = _state(scene, episode, q)
         _same_rows(fast.rows(d, joints, coherence=coh), slow.rows(d, joints))

@@ -53,23 +53,14 @@ def _pair(scene, self_collision: bool = False) -> tuple[CollisionBarriers, Colli
     return fast, slow
 
 
-def _random_states(scene, rng, n: int, spread: float = 0.6):  # type: ignore[no-untyped-def]
-    m, d = scene.model, scene.make_data()
-    lo, hi = scene.joint_range[:, 0], scene.joint_range[:, 1]
-    for _ in range(n):
-        d.qpos[scene.qpos_adr] = scene.home + rng.uniform(lo - scene.home, hi - scene.home) * spread
-        mujoco.mj_forward(m, d)
-        yield d
-
-
 @pytest.mark.parametrize("name,self_collision", [("panda_pole", False), ("panda_shelf", False),
                                                  ("panda_pole", True)])
-def test_kernel_rows_equal_the_numpy_rows_at_random_states(rng, name, self_collision) -> None:  # type: ignore[no-untyped-def]
+def test_kernel_rows_equal_the_numpy_rows_at_random_states(random_states, rng, name, self_collision) -> None:  # type: ignore[no-untyped-def]
     scene = load_scene(name)
     fast, slow = _pair(scene, self_collision)
     joints = JointLimitBarriers.from_scene(scene)
     seen = selfs = 0
-    for d in _random_states(scene, rng, 60):
+    for d in random_states(scene, rng, 60):
         x, y = fast.near(d, witness=True), slow.near(d, witness=True)
         _assert_same_near(x, y)
         seen += len(x.row_list)
@@ -118,14 +109,14 @@ def test_kernel_rows_equal_along_a_path_with_the_coherence_bounds(rng) -> None: 
     assert skipped > 0  # the bounds did skip far pairs
 
 
-def test_kernel_dhdt_of_mocap_obstacles_equals_numpy(rng) -> None:  # type: ignore[no-untyped-def]
+def test_kernel_dhdt_of_mocap_obstacles_equals_numpy(random_states, rng) -> None:  # type: ignore[no-untyped-def]
     scene = load_scene("panda_moving")
     fast, slow = _pair(scene)
     joints = JointLimitBarriers.from_scene(scene)
     assert fast._kdot == kernels.dot3_lanes()  # dh/dt in the kernel where the order matches numpy's einsum
     lin = rng.normal(0.0, 0.3, (scene.model.nmocap, 3))
     moving = 0
-    for d in _random_states(scene, rng, 60):
+    for d in random_states(scene, rng, 60):
         x, y = fast.near(d, lin, witness=True), slow.near(d, lin, witness=True)
         _assert_same_near(x, y)
         moving += int(np.count_nonzero(x.dhdt))
@@ -149,14 +140,14 @@ def test_dhdt_order_found_for_this_machine_matches_numpy_on_fresh_rows(rng) -> N
     assert not _same(kernels._kernels()["dots3"](a, b, 3 - lanes), want)  # the other order differs
 
 
-def test_coinciding_witness_points_go_to_the_numpy_path(rng, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+def test_coinciding_witness_points_go_to_the_numpy_path(random_states, rng, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     scene = load_scene("panda_pole")
     fast, slow = _pair(scene)
     monkeypatch.setattr(narrow_module, "_EPS_DIST", 10.0)  # every near pair counts as touching
     joints = JointLimitBarriers.from_scene(scene)
     cf = fast.coherence()
     hit = 0
-    for d in _random_states(scene, rng, 20):
+    for d in random_states(scene, rng, 20):
         y = slow.near(d, witness=True)
         _assert_same_near(fast.near(d, witness=True, coherence=cf), y)
         rx = fast.rows(d, joints)
@@ -165,13 +156,13 @@ def test_coinciding_witness_points_go_to_the_numpy_path(rng, monkeypatch) -> Non
     assert hit > 0
 
 
-def test_monitor_substeps_equal_the_per_pair_calls(rng) -> None:  # type: ignore[no-untyped-def]
+def test_monitor_substeps_equal_the_per_pair_calls(random_states, rng) -> None:  # type: ignore[no-untyped-def]
     scene = load_scene("panda_shelf")
     fast, slow = _pair(scene)
     mf, ms = SafetyMonitor(fast), SafetyMonitor(slow)
     assert mf._kernel is not None and ms._kernel is None
     checked = 0
-    for d in _random_states(scene, rng, 40, spread=0.8):
+    for d in random_states(scene, rng, 40, spread=0.8):
         near = slow.near(d)
         for mon, arr in ((mf, near.rows), (ms, None)):
             mon.tick_min(min(near.h_min, slow.h_far_min), near.row_list, near.dist_min, arr)

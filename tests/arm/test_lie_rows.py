@@ -48,23 +48,14 @@ def _barriers(scene, jit: bool, cutoff: float | None = None, self_collision: boo
     return CollisionBarriers(scene.model, pairs, scene.dof_adr, cutoff or bc.cutoff, jit=jit)
 
 
-def _random_states(scene, rng, n: int, spread: float = 0.6):  # type: ignore[no-untyped-def]
-    m, d = scene.model, scene.make_data()
-    lo, hi = scene.joint_range[:, 0], scene.joint_range[:, 1]
-    for _ in range(n):
-        d.qpos[scene.qpos_adr] = scene.home + rng.uniform(lo - scene.home, hi - scene.home) * spread
-        mujoco.mj_forward(m, d)
-        yield d
-
-
 @pytest.mark.parametrize("name,cutoff,self_collision", [("panda_pole", None, False), ("panda_shelf", None, False),
                                                         ("panda_pole", None, True), ("panda_pole", 0.002, False)])
-def test_lie_rows_equal_lie_of_rows_at_random_states(rng, name, cutoff, self_collision) -> None:  # type: ignore[no-untyped-def]
+def test_lie_rows_equal_lie_of_rows_at_random_states(random_states, rng, name, cutoff, self_collision) -> None:  # type: ignore[no-untyped-def]
     scene = load_scene(name)
     joints = JointLimitBarriers.from_scene(scene)
     ways = [_barriers(scene, jit, cutoff, self_collision) for jit in (True, False)]
     near = empty = 0
-    for d in _random_states(scene, rng, 40):
+    for d in random_states(scene, rng, 40):
         want = ways[1].rows(d, joints)
         want_lie = ways[1].lie(want, joints)
         for cb in ways:
@@ -81,7 +72,7 @@ def test_lie_rows_equal_lie_of_rows_at_random_states(rng, name, cutoff, self_col
 
 
 @needs_kernel
-def test_names_kept_by_the_kernels_key_follow_the_pairs_and_the_joint_set(rng) -> None:  # type: ignore[no-untyped-def]
+def test_names_kept_by_the_kernels_key_follow_the_pairs_and_the_joint_set(random_states, rng) -> None:  # type: ignore[no-untyped-def]
     scene = load_scene("panda_pole")
     cb, slow = _barriers(scene, True), _barriers(scene, False)
     joints = JointLimitBarriers.from_scene(scene)
@@ -89,7 +80,7 @@ def test_names_kept_by_the_kernels_key_follow_the_pairs_and_the_joint_set(rng) -
     rng_other[3:] = (-np.inf, np.inf)  # another joint set: other names, rows for three joints only
     other = JointLimitBarriers(scene.qpos_adr, rng_other, scene.config.barrier.joint_margin,
                                [f"other{i}" for i in range(len(scene.qpos_adr))])
-    states = [d.qpos.copy() for d in _random_states(scene, rng, 30)]
+    states = [d.qpos.copy() for d in random_states(scene, rng, 30)]
     m, d = scene.model, scene.make_data()
     for q in states:  # the joint set switching: right names and rows either way
         d.qpos[:] = q
@@ -132,7 +123,7 @@ def test_lie_rows_along_a_path_with_the_coherence_bounds(rng) -> None:  # type: 
 
 @needs_kernel
 @pytest.mark.parametrize("kernel_dhdt", [True, False])
-def test_lie_rows_with_mocap_obstacles(rng, kernel_dhdt) -> None:  # type: ignore[no-untyped-def]
+def test_lie_rows_with_mocap_obstacles(random_states, rng, kernel_dhdt) -> None:  # type: ignore[no-untyped-def]
     scene = load_scene("panda_moving")
     fast, slow = _barriers(scene, True), _barriers(scene, False)
     if not kernel_dhdt:
@@ -142,7 +133,7 @@ def test_lie_rows_with_mocap_obstacles(rng, kernel_dhdt) -> None:  # type: ignor
     joints = JointLimitBarriers.from_scene(scene)
     lin = rng.normal(0.0, 0.3, (scene.model.nmocap, 3))
     moving = 0
-    for d in _random_states(scene, rng, 40):
+    for d in random_states(scene, rng, 40):
         t = fast.lie_rows(d, joints, lin)
         r = slow.rows(d, joints, lin)
         _assert_tick_equals_rows(t, r, slow.lie(r, joints))
@@ -151,14 +142,14 @@ def test_lie_rows_with_mocap_obstacles(rng, kernel_dhdt) -> None:  # type: ignor
 
 
 @needs_kernel
-def test_lie_rows_with_coinciding_witness_points(rng, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+def test_lie_rows_with_coinciding_witness_points(random_states, rng, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     scene = load_scene("panda_pole")
     fast, slow = _barriers(scene, True), _barriers(scene, False)
     monkeypatch.setattr(narrow_module, "_EPS_DIST", 10.0)  # every near pair counts as touching: the numpy path
     joints = JointLimitBarriers.from_scene(scene)
     coh = fast.coherence()
     hit = 0
-    for d in _random_states(scene, rng, 15):
+    for d in random_states(scene, rng, 15):
         t = fast.lie_rows(d, joints, coherence=coh)
         r = slow.rows(d, joints)
         _assert_tick_equals_rows(t, r, slow.lie(r, joints))
@@ -167,13 +158,13 @@ def test_lie_rows_with_coinciding_witness_points(rng, monkeypatch) -> None:  # t
 
 
 @needs_kernel
-def test_compiled_outputs_stay_fresh_over_many_calls(rng) -> None:  # type: ignore[no-untyped-def]
+def test_compiled_outputs_stay_fresh_over_many_calls(random_states, rng) -> None:  # type: ignore[no-untyped-def]
     """Results kept from 150 calls (three allocations of output blocks, each at most 256 kB) are never written again."""
     scene = load_scene("panda_pole")
     cb = _barriers(scene, True)
     joints = JointLimitBarriers.from_scene(scene)
     kept = []
-    for i, d in enumerate(_random_states(scene, rng, 150)):
+    for i, d in enumerate(random_states(scene, rng, 150)):
         t = cb.lie_rows(d, joints) if i % 2 else cb.rows(d, joints)
         arrays = [t.lie.h, t.lie.lf, t.lie.lg, t.lie.grad_norm, t.rows] if i % 2 else \
                  [t.h, t.lf, t.grad, t.near.rows, t.near.h, t.near.grad, t.near.dhdt]

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import collections
 import math
-import os
 
 import numpy as np
 import pytest
@@ -22,8 +21,7 @@ from isf_robot.core import (
 from isf_robot.core.triggers import xi_on
 
 pytest.importorskip("numba")
-if os.environ.get("ISF_ROBOT_JIT", "1").strip().lower() in ("0", "false", "no", "off"):
-    pytest.skip("ISF_ROBOT_JIT=0 turns off the compiled kernels these tests compare", allow_module_level=True)
+pytestmark = pytest.mark.kernels  # (skipped under ISF_ROBOT_JIT=0: tests/conftest.py)
 
 ALPHAS = [Linear(2.0), Power(3.0, 0.7), CustomClassK(lambda h: h + h ** 3, "cubic")]
 

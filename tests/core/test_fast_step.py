@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import collections
-import os
 
 import numpy as np
 import pytest
@@ -11,8 +10,7 @@ import pytest
 from isf_robot.core import CustomClassK, IntermittentSafetyFilter, LieData, Linear, Power, QPSolver, SafetyFilter
 
 pytest.importorskip("numba")
-if os.environ.get("ISF_ROBOT_JIT", "1").strip().lower() in ("0", "false", "no", "off"):
-    pytest.skip("ISF_ROBOT_JIT=0 turns off the compiled kernels these tests compare", allow_module_level=True)
+pytestmark = pytest.mark.kernels  # (skipped under ISF_ROBOT_JIT=0: tests/conftest.py)
 
 ALPHAS = [Linear(2.0), Power(3.0, 0.7), CustomClassK(lambda h: h + h ** 3, "cubic")]
 

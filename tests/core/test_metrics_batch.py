@@ -13,8 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from isf_robot.core import MetricsAccumulator
-from isf_robot.core import metrics
+from isf_robot.core import MetricsAccumulator, metrics
 from isf_robot.core.step import FilterStep
 from isf_robot.core.switches import SwitchEvent
 

@@ -8,7 +8,6 @@ way must give the same ``ok``, ``xi_min`` (the same float), ``first_fail_s``, ``
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 import pytest
@@ -18,8 +17,7 @@ from isf_robot.core import intermittent as im
 from isf_robot.core.intermittent import StackedPoints, predict
 
 pytest.importorskip("numba")
-if os.environ.get("ISF_ROBOT_JIT", "1").strip().lower() in ("0", "false", "no", "off"):
-    pytest.skip("ISF_ROBOT_JIT=0 turns off the compiled kernels these tests compare", allow_module_level=True)
+pytestmark = pytest.mark.kernels  # (skipped under ISF_ROBOT_JIT=0: tests/conftest.py)
 
 ALPHAS = [Linear(2.0), Power(3.0, 0.7), CustomClassK(lambda h: h + h ** 3, "cubic")]
 
