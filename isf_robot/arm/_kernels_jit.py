@@ -49,68 +49,28 @@ i64p = _pointer(ir.IntType(64), types.int64)
 """``i64p(addr)``: the address ``addr`` as an int64 pointer."""
 
 
-@njit(cache=True, nogil=True)
-def row_norm(g, k, lanes):  # pragma: no cover (compiled)
-    """|g[k]| summed the way :func:`norm_lanes` found numpy's einsum does it (``lanes``)."""
-    n = g.shape[1]
-    if lanes == 1:
-        s = 0.0
-        for c in range(n):
-            s += g[k, c] * g[k, c]
-        return np.sqrt(s)
-    if lanes == 2:
-        a0 = 0.0
-        a1 = 0.0
-        for c in range(0, n - 1, 2):
-            a0 += g[k, c] * g[k, c]
-            a1 += g[k, c + 1] * g[k, c + 1]
-        if n % 2:
-            a0 += g[k, n - 1] * g[k, n - 1]
-        return np.sqrt(a0 + a1)
-    width = abs(lanes)
-    acc = np.zeros(width)
-    for c in range(n):
-        acc[c % width] += g[k, c] * g[k, c]
-    if lanes == -4:
-        return np.sqrt((acc[0] + acc[2]) + (acc[1] + acc[3]))
-    s = acc[0]
-    for lane in range(1, width):
-        s += acc[lane]
+@njit(cache=True, nogil=True, inline="always")
+def row_norm(g, k):  # pragma: no cover (compiled)
+    """|g[k]|: the squares added in column order from 0 (:func:`isf_robot.arm.sums.row_norms`)."""
+    s = 0.0
+    for c in range(g.shape[1]):
+        s += g[k, c] * g[k, c]
     return np.sqrt(s)
 
-@njit(cache=True, nogil=True)
-def dot3(a0, a1, a2, b0, b1, b2, lanes):  # pragma: no cover (compiled)
-    """``a . b`` of 3-vectors summed like numpy's ``einsum("ij,ij->i")`` (``lanes``: 1 in order, 2 interleaved)."""
-    if lanes == 2:
-        s0 = 0.0 + a0 * b0
-        s1 = 0.0 + a1 * b1
-        s0 += a2 * b2
-        return s0 + s1
+
+@njit(cache=True, nogil=True, inline="always")
+def dot3(a0, a1, a2, b0, b1, b2):  # pragma: no cover (compiled)
+    """``a . b`` of 3-vectors, ``((0 + a0 b0) + a1 b1) + a2 b2`` (:func:`isf_robot.arm.sums.dots3`)."""
     return ((0.0 + a0 * b0) + a1 * b1) + a2 * b2
 
-
-@njit(cache=True, nogil=True)
-def dots3(a, b, lanes):  # pragma: no cover (compiled)
-    out = np.empty(a.shape[0])
-    for k in range(a.shape[0]):
-        out[k] = dot3(a[k, 0], a[k, 1], a[k, 2], b[k, 0], b[k, 1], b[k, 2], lanes)
-    return out
-
-
-@njit(cache=True, nogil=True)
-def norms(g, lanes):  # pragma: no cover (compiled)
-    out = np.empty(g.shape[0])
-    for k in range(g.shape[0]):
-        out[k] = row_norm(g, k, lanes)
-    return out
 
 @njit(cache=True, nogil=True)
 def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, lever, qadr,
          cutoff, distmax, slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, lanes,
          mocap, lin, dlanes, rows, h, g, gn, wit, lf):  # pragma: no cover (compiled)
-    """Fill rows[:j], h[:j + l], g[:j + l], gn[:j + l] (if lanes) and wit[:j] = (p1, p2, n).
+    """Fill rows[:j], h[:j + l], g[:j + l], gn[:j + l] (if lanes != 0) and wit[:j] = (p1, p2, n).
 
-    With ``dlanes`` (the order of numpy's einsum for 3 products, :func:`dot3`): ``lf[k] = dh/dt = -n^T v``
+    With ``dlanes != 0``: ``lf[k] = dh/dt = -n^T v`` (:func:`dot3`)
     of each near pair whose obstacle is mocap body ``mocap[r] >= 0``, ``v`` its row of ``lin``
     (flat, 3 per mocap body); ``lf`` is left alone otherwise.
 
@@ -199,7 +159,7 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
         wit[k, 2, 0], wit[k, 2, 1], wit[k, 2, 2] = n0, n1, n2
         if dlanes != 0 and mocap[r] >= 0:
             b = 3 * mocap[r]
-            lf[k] = -dot3(n0, n1, n2, lin[b], lin[b + 1], lin[b + 2], dlanes)
+            lf[k] = -dot3(n0, n1, n2, lin[b], lin[b + 1], lin[b + 2])
         jac(ma, da, jac1.ctypes.data, 0, fromto[k].ctypes.data, np.int32(live[r, 3]))
         for c in range(ndof):
             col = dof[c]
@@ -211,7 +171,7 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
                 g[k, c] = g[k, c] - (0.0 + n0 * jac2[0, col] + n1 * jac2[1, col] + n2 * jac2[2, col])
     if lanes != 0:
         for k in range(j + nj):
-            gn[k] = row_norm(g, k, lanes)
+            gn[k] = row_norm(g, k)
     return j, hmin, dmin, jmin, touching, key
 
 @njit(cache=True, nogil=True)

@@ -8,10 +8,9 @@ kernels' own work): the callers keep the arrays alive and never reallocate them 
 :class:`~isf_robot.arm.lowlevel.VelocityTracker` and :class:`~isf_robot.arm.nominal.ReachingController`).
 
 Same answers: each kernel makes the floating-point operations of the numpy code it replaces in the
-same order. Elementwise operations are exact anyway; the three small BLAS products of the reaching
-controller (``err.dot(err)`` of 3, ``J J^T`` of (3, n), ``y J``) and the tracking error's dot product
-of n are summed the way this machine's BLAS does it (:func:`blas_orders`), which
-:func:`isf_robot.arm.kernels.step_kernels` checks against numpy before using them.
+same order. The small products of the reaching controller (``err . err`` of 3, ``J J^T`` of (3, n),
+``y J``) and the tracking error's ``e . e`` are written in one order on both sides (the numpy side in
+:mod:`isf_robot.arm.sums`, no BLAS, no fused multiply-add), so the two agree on every machine.
 """
 
 from __future__ import annotations
@@ -19,9 +18,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from llvmlite import ir
 from numba import carray, njit, types
-from numba.extending import intrinsic
 
 from ._kernels_jit import f64p as _f64p  # (importing it loads libmujoco's symbols; ImportError without it)
 from ._kernels_jit import monitor
@@ -35,19 +32,6 @@ jac_site = types.ExternalFunction("mj_jacSite", types.void(_ptr, _ptr, _ptr, _pt
 chol_factor = types.ExternalFunction("mju_cholFactor", _i32(_ptr, _i32, _f64))
 # void mju_cholSolve(mjtNum* res, const mjtNum* mat, const mjtNum* vec, int n)
 chol_solve = types.ExternalFunction("mju_cholSolve", types.void(_ptr, _ptr, _ptr, _i32))
-
-
-@intrinsic
-def fma(typingctx, a, b, c):  # pragma: no cover (compile time)
-    """``a * b + c`` rounded once (LLVM's ``llvm.fma.f64``: the hardware FMA where there is one)."""
-    sig = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
-        dbl = ir.DoubleType()
-        fn = builder.module.declare_intrinsic("llvm.fma", [dbl], ir.FunctionType(dbl, [dbl, dbl, dbl]))
-        return builder.call(fn, args)
-
-    return sig, codegen
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -65,15 +49,6 @@ def _minimum(a, b):  # pragma: no cover (compiled)
 def _maximum(a, b):  # pragma: no cover (compiled)
     """``np.maximum`` of two floats (NaN propagates; of two equal values, ``b``)."""
     return a if (a > b or a != a) else b
-
-
-@njit(cache=True, nogil=True, inline="always")
-def dot_plain(x, y, n):  # pragma: no cover (compiled)
-    """``x.dot(y)`` of short vectors, summed in order (this BLAS's scalar loop, no FMA)."""
-    s = 0.0
-    for i in range(n):
-        s += x[i] * y[i]
-    return s
 
 
 # -- the tracker (VelocityTracker.apply), its buffer: rows of n, then two of nv, then scalars ----
@@ -111,8 +86,7 @@ def track_apply(ma, da, p, buf, n, nv):  # pragma: no cover (compiled)
 def track_step(ma, da, p, buf, n, nv, cmd, inv_period, feedforward):  # pragma: no cover (compiled)
     """Tracking error of the held command, then set_command(cmd) and apply.
 
-    Returns ``|qd - u_held|`` (the dot product summed in order; the caller uses it only where that is
-    numpy's order, see :func:`isf_robot.arm.kernels.step_kernels`).
+    Returns ``|qd - u_held|`` (the squares added in order from 0, as :func:`isf_robot.arm.sums.sq_sum`).
     """
     qd = _vec(p[1], n)
     s = 0.0
@@ -168,12 +142,12 @@ def reach(ma, da, p, nb, out, n, nv, dof0, site, index, restore, t, t_prev, has_
     gain = kp if speed <= max_ee else max_ee / dist
     v[0], v[1], v[2] = e0 * gain, e1 * gain, e2 * gain
     jac_site(ma, da, jac.ctypes.data, 0, np.int32(site))
-    # J J^T as this BLAS's syrk: each entry one FMA chain in column order, from 0
+    # J J^T (sums.gram): each entry the products added in column order, from the first
     for r in range(3):
         for c in range(r, 3):
-            s = 0.0
-            for k in range(n):
-                s = fma(jac[r * nv + dof0 + k], jac[c * nv + dof0 + k], s)
+            s = jac[r * nv + dof0] * jac[c * nv + dof0]
+            for k in range(1, n):
+                s = s + jac[r * nv + dof0 + k] * jac[c * nv + dof0 + k]
             a[r * 3 + c] = s
             a[c * 3 + r] = s
     for r in range(3):
@@ -181,7 +155,7 @@ def reach(ma, da, p, nb, out, n, nv, dof0, site, index, restore, t, t_prev, has_
             a[r * 3 + c] = a[r * 3 + c] + (lam2 if r == c else 0.0)
     chol_factor(a.ctypes.data, 3, 0.0)
     chol_solve(y.ctypes.data, a.ctypes.data, v.ctypes.data, 3)
-    # u = y J (this BLAS's gemv: ((0 + y0 J0) + y1 J1) + y2 J2), then the speed cap (the whole command scaled)
+    # u = y J (sums.combine3: ((0 + y0 J0) + y1 J1) + y2 J2), then the speed cap (the whole command scaled)
     peak = -1.0
     for k in range(n):
         col = dof0 + k
@@ -214,21 +188,3 @@ def reach(ma, da, p, nb, out, n, nv, dof0, site, index, restore, t, t_prev, has_
     for k in range(n):
         prev[k] = out[k]
     return dist
-
-
-# -- the probes of the BLAS orders ---------------------------------------------------------------
-@njit(cache=True, nogil=True)
-def blas_orders(x, jac, y, dot_out, syrk_out, gemv_out):  # pragma: no cover (compiled)
-    """The kernels' versions of ``x[i].dot(x[i])``, ``J J^T`` and ``y J`` for a batch, to compare with numpy."""
-    for i in range(x.shape[0]):
-        dot_out[i] = dot_plain(x[i], x[i], x.shape[1])
-    n = jac.shape[2]
-    for b in range(jac.shape[0]):
-        for r in range(3):
-            for c in range(3):
-                s = 0.0
-                for k in range(n):
-                    s = fma(jac[b, r, k], jac[b, c, k], s)
-                syrk_out[b, r, c] = s
-        for k in range(n):
-            gemv_out[b, k] = ((0.0 + y[b, 0] * jac[b, 0, k]) + y[b, 1] * jac[b, 1, k]) + y[b, 2] * jac[b, 2, k]

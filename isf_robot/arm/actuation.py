@@ -34,6 +34,7 @@ from isf_robot.core.exceptions import ConfigError
 
 from .lowlevel import VelocityTracker
 from .scene import Scene
+from .sums import sq_sum
 
 __all__ = ["ActuatorInfo", "actuator_info", "Actuation", "ServoTracker", "make_actuation", "tracking_step", "KINDS"]
 
@@ -310,6 +311,6 @@ def tracking_step(tracker: Actuation, dof_adr: np.ndarray) -> Callable[[mujoco.M
         e = data.qvel[dof_adr] - tracker.u
         tracker.set_command(u, period)
         tracker.apply(data)
-        return math.sqrt(float(e.dot(e)))
+        return math.sqrt(sq_sum(e))
 
     return step

@@ -150,7 +150,7 @@ class CollisionBarriers(NarrowPhase):
         # The compiled kernel's tables: one row per live pair (pair, geom1, geom2, body1, body2, self).
         # (the kernels need the raw MjModel/MjData addresses the bindings expose as _address)
         self._kernel = kernels.near_kernel(packed=True) if jit and getattr(model, "_address", 0) else None
-        self._klanes = kernels.norm_lanes(self.dof_adr.size) if self._kernel is not None else 0
+        self._klanes = 1 if self._kernel is not None else 0  # |dh/dq| in the kernel (sums.row_norms' order)
         live = self.broadphase.live
         self._ktab = np.ascontiguousarray(np.stack(
             [live, pairs.geom1[live], pairs.geom2[live], b1arr[live], b2[live], pairs.is_self[live]], axis=1),
@@ -160,7 +160,7 @@ class CollisionBarriers(NarrowPhase):
         self._kfromto = np.zeros((max(live.size, 1), 6))
         self._kdof = np.ascontiguousarray(self.dof_adr, dtype=np.int64)
         self._kmocap = np.ascontiguousarray(self._mocap[live], dtype=np.int64)  # per live pair (-1: not moving)
-        self._kdot = kernels.dot3_lanes() if self._kernel is not None else 0  # dh/dt in the kernel (0: numpy)
+        self._kdot = 1 if self._kernel is not None else 0  # dh/dt in the kernel (sums.dots3's order; 0: numpy)
         self._knolin = np.zeros(0)
         self._lin_shape = (model.nmocap, 3)
         self._kctx: tuple | None = None  # (see NarrowPhase._kernel_context)

@@ -33,6 +33,7 @@ from isf_robot.core.exceptions import ConfigError
 
 from . import kernels
 from .scene import Scene
+from .sums import sq_sum
 
 __all__ = ["VelocityTracker"]
 
@@ -133,7 +134,7 @@ class VelocityTracker:
         own = type(self).apply is VelocityTracker.apply and type(self).set_command is VelocityTracker.set_command
         k = kernels.step_kernels(n) if jit and contiguous and own and getattr(model, "_address", 0) else None
         self._kernels = k
-        self._step = k["track_step"] if k is not None and k["dot"] else None  # (dot: numpy's tracking error)
+        self._step = k["track_step"] if k is not None else None
         self._maddr = int(getattr(model, "_address", 0))
         self._daddr = 0
         self._ptrs = np.zeros(6, dtype=np.int64)
@@ -230,7 +231,7 @@ class VelocityTracker:
                               u if type(u) is np.ndarray else np.asarray(u, float),
                               1.0 / period if ff else 0.0, ff))  # type: ignore[operator]
         e = data.qvel[self._dof] - self.u
-        err = math.sqrt(float(e.dot(e)))
+        err = math.sqrt(sq_sum(e))  # (the kernel's order)
         self.set_command(u, period)
         self.apply(data)
         return err

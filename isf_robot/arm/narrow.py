@@ -19,6 +19,7 @@ from isf_robot.core import LieData
 from isf_robot.core.exceptions import ShapeError
 
 from .rows import FilterRows, NearPairs, TickRows
+from .sums import combine3, dots3, row_norms
 
 if TYPE_CHECKING:
     from .broadphase import BroadPhase, JointCoherence
@@ -59,7 +60,7 @@ def _context_current(c: tuple, coherence: JointCoherence | None) -> bool:
 
 def _norms(g: np.ndarray) -> np.ndarray:
     """``|dh/dq|`` of the rows of ``g`` as :meth:`CollisionBarriers.lie` computes them without the kernel's."""
-    return np.sqrt(np.einsum("ij,ij->i", g, g))
+    return row_norms(g)
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -173,8 +174,7 @@ class NarrowPhase:
         same outputs without the :class:`NearPairs` (where the rows are the kernel's alone).
 
         The fields after ``near``: ``h``, ``dh/dq``, the smallest joint value, the rows' norms ``|dh/dq|`` (only
-        with ``joints``; ``None`` where numpy must compute them, see
-        :func:`~isf_robot.arm.kernels.norm_lanes`) and ``dh/dt`` (zero for the joint rows).
+        with ``joints``, else ``None``) and ``dh/dt`` (zero for the joint rows).
         """
         c = self._kctx
         if (c is None or c[0] is not data or c[1] is not coherence or c[2] is not joints
@@ -190,7 +190,7 @@ class NarrowPhase:
             blk, rows, g2 = next(self._output_source(c, m, n, nj, size, True)[1])
         lin, dlanes = self._knolin, 0
         moving = self._any_moving and mocap_lin is not None
-        if moving and self._kdot and mocap_ang is None:  # dh/dt in the kernel (in numpy's order)
+        if moving and self._kdot and mocap_ang is None:  # dh/dt in the kernel (in sums.dots3's order)
             if mocap_lin.shape != self._lin_shape:  # type: ignore[union-attr]
                 raise ShapeError(f"mocap velocities must have shape {self._lin_shape} (rows like data.mocap_pos); "
                                  f"got {mocap_lin.shape}")  # type: ignore[union-attr]
@@ -289,7 +289,7 @@ class NarrowPhase:
                 if mocap_ang is not None and np.any(mocap_ang):
                     r = p2[moving] - data.xpos[self._obstacle_body[mp]]
                     v = v + _cross(mocap_ang[mi], r)
-                dhdt[moving] = -np.einsum("ij,ij->i", n[moving], v)
+                dhdt[moving] = -dots3(n[moving], v)  # (the kernel's order)
         return dhdt
 
     def _near_numpy(self, data: mujoco.MjData, mocap_lin: np.ndarray | None, mocap_ang: np.ndarray | None,
@@ -336,15 +336,14 @@ class NarrowPhase:
             ti = idx[touching]
             c = data.geom_xpos[self.pairs.geom1[ti]] - data.geom_xpos[self.pairs.geom2[ti]]
             n[touching] = c / np.maximum(np.linalg.norm(c, axis=1, keepdims=True), 1e-12)
-        n_row = n[:, None, :]
-        g = np.matmul(n_row, self._jac1[:j])[:, 0]
+        g = combine3(n, self._jac1[:j])  # n^T J, the kernel's order
         if self._any_self:
             selfs = [r for r, i in enumerate(rows) if self._self[i]]
             if selfs:
                 b2, p2r, j2r = self._b2, self._p2_rows, self._j2_rows
                 for k in selfs:
                     jac(m, data, j2r[k], None, p2r[sel[k]], b2[rows[k]])
-                g[selfs] -= np.matmul(n_row[selfs], self._jac2[selfs])[:, 0]
+                g[selfs] -= combine3(n[selfs], self._jac2[selfs])
         if not self._all_dofs:
             g = g[:, self.dof_adr]
         dhdt = self._dhdt(data, rows, idx, n, fr[:, 3:], mocap_lin, mocap_ang)

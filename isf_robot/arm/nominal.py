@@ -31,6 +31,7 @@ from isf_robot.core.exceptions import ConfigError, ShapeError
 from . import kernels
 from .goals import GoalSequence
 from .scene import Scene
+from .sums import combine3, gram, sq_sum
 
 __all__ = ["NominalController", "GoalSequence", "ReachingController", "JointPDController"]
 
@@ -239,22 +240,22 @@ class ReachingController(NominalController):
             return self._compiled(t)
         index = self.goals.index
         err = self.goal_positions[index] - self.scene.ee_position(data)
-        dist = math.sqrt(float(err.dot(err)))  # (dot: the BLAS product of @, with less overhead)
+        dist = math.sqrt(sq_sum(err))  # (the small products in sums' order: the kernel's, on every machine)
         self.goals.update(t, dist)
         if self.goals.index != index:
             err = self.goal_positions[self.goals.index] - self.scene.ee_position(data)
-            dist = math.sqrt(float(err.dot(err)))
+            dist = math.sqrt(sq_sum(err))
         speed = self.kp * dist
         v = err * (self.kp if speed <= self.max_ee_speed else self.max_ee_speed / dist)
         self.scene.ee_jacobian(data, self._jac)
         jac = self._jac_arm
-        jac[:] = self._jac[:, self._dofs]  # contiguous: the products below take BLAS's short way
+        jac[:] = self._jac[:, self._dofs]
         a = self._a
-        np.dot(jac, jac.T, out=a)  # (the same numbers as matmul, checked, at half its call cost)
+        a[:] = gram(jac)
         a += self._damp
         mujoco.mju_cholFactor(a, 0.0)
         mujoco.mju_cholSolve(self._y, a, v)
-        u = self._y.dot(jac)
+        u = combine3(self._y, jac)
         return self._rate(t, _cap(u, self.max_joint_speed))
 
     def _bound(self, data: mujoco.MjData) -> bool:

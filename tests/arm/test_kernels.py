@@ -21,6 +21,7 @@ from isf_robot.arm.monitor import SafetyMonitor
 from isf_robot.arm.pairs import collision_pairs
 from isf_robot.arm.params import resolve_params
 from isf_robot.arm.sim import ArmSimulation
+from isf_robot.arm.sums import row_norms
 from isf_robot.core.exceptions import ShapeError
 
 pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba not installed (the fast extra)")
@@ -68,26 +69,13 @@ def test_kernel_rows_equal_the_numpy_rows_at_random_states(random_states, rng, n
         rx, ry = fast.rows(d, joints), slow.rows(d, joints)
         _assert_same_near(rx.near, ry.near)
         assert _same(rx.h, ry.h) and _same(rx.grad, ry.grad) and rx.joint_min == ry.joint_min
-        assert ry.grad_norm is None and (rx.grad_norm is not None) == (kernels.norm_lanes(7) != 0)
-        if rx.grad_norm is not None:
-            assert _same(rx.grad_norm, np.sqrt(np.einsum("ij,ij->i", ry.grad, ry.grad)))
+        assert ry.grad_norm is None and rx.grad_norm is not None  # (the kernel's norms; numpy's made later)
+        assert _same(rx.grad_norm, row_norms(ry.grad))
         jh = joints.values(d)
         assert _same(rx.h[len(x.row_list):], jh) and rx.joint_min == min(jh.tolist())
         assert _same(rx.grad[len(x.row_list):], joints.grad)
     assert seen > 100  # the states do bring pairs within the cut-off
     assert selfs > 0 or not self_collision  # the second Jacobian (robot-robot pairs) is exercised
-
-
-@pytest.mark.parametrize("n", [3, 7, 9])
-def test_norm_order_found_for_this_machine_matches_numpy_on_fresh_rows(rng, n) -> None:  # type: ignore[no-untyped-def]
-    lanes = kernels.norm_lanes(n)
-    if lanes == 0:
-        pytest.skip(f"no summation order matches numpy's einsum for rows of {n} here (numpy computes them)")
-    g = rng.normal(size=(3000, n)) * 10.0 ** rng.uniform(-6, 6, size=(3000, n))
-    g[rng.random(g.shape) < 0.3] = -0.0
-    assert _same(kernels._kernels()["norms"](g, lanes), np.sqrt(np.einsum("ij,ij->i", g, g)))
-    other = 1 if lanes != 1 else 2  # another order does differ (so the check above can fail)
-    assert not _same(kernels._kernels()["norms"](g, other), np.sqrt(np.einsum("ij,ij->i", g, g)))
 
 
 def test_kernel_rows_equal_along_a_path_with_the_coherence_bounds(rng) -> None:  # type: ignore[no-untyped-def]
@@ -113,7 +101,7 @@ def test_kernel_dhdt_of_mocap_obstacles_equals_numpy(random_states, rng) -> None
     scene = load_scene("panda_moving")
     fast, slow = _pair(scene)
     joints = JointLimitBarriers.from_scene(scene)
-    assert fast._kdot == kernels.dot3_lanes()  # dh/dt in the kernel where the order matches numpy's einsum
+    assert fast._kdot == 1  # dh/dt in the kernel
     lin = rng.normal(0.0, 0.3, (scene.model.nmocap, 3))
     moving = 0
     for d in random_states(scene, rng, 60):
@@ -127,17 +115,6 @@ def test_kernel_dhdt_of_mocap_obstacles_equals_numpy(random_states, rng) -> None
     assert moving > 0
     with pytest.raises(ShapeError, match="mocap velocities"):
         fast.rows(scene.make_data(), joints, np.zeros((scene.model.nmocap + 1, 3)))
-
-
-def test_dhdt_order_found_for_this_machine_matches_numpy_on_fresh_rows(rng) -> None:  # type: ignore[no-untyped-def]
-    lanes = kernels.dot3_lanes()
-    if lanes == 0:
-        pytest.skip("no summation order matches numpy's einsum for 3 products here (numpy computes dh/dt)")
-    a, b = (rng.normal(size=(3000, 3)) * 10.0 ** rng.uniform(-6, 6, size=(3000, 3)) for _ in range(2))
-    a[rng.random(a.shape) < 0.3] = -0.0
-    want = np.einsum("ij,ij->i", a, b)
-    assert _same(kernels._kernels()["dots3"](a, b, lanes), want)
-    assert not _same(kernels._kernels()["dots3"](a, b, 3 - lanes), want)  # the other order differs
 
 
 def test_coinciding_witness_points_go_to_the_numpy_path(random_states, rng, monkeypatch) -> None:  # type: ignore[no-untyped-def]

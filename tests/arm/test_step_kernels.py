@@ -143,15 +143,3 @@ def test_reaching_kernel_equals_numpy_along_random_motion(rng, kw) -> None:  # t
             slow.restore(snaps[1])
     assert len(seen_goals) > 1 and fast.goals_reached + fast.goals_missed > 1  # goals switched
     assert capped > 0 or limited > 0
-
-
-def test_reaching_kernel_uses_numpy_where_the_blas_order_differs(monkeypatch) -> None:  # type: ignore[no-untyped-def]
-    scene = load_scene("panda_pole")
-    monkeypatch.setitem(kernels._STATE.setdefault("blas", {}), scene.n_joints, (False, False))
-    ctrl = ReachingController(scene)
-    tr = VelocityTracker(scene)
-    assert ctrl._reach is None and tr._kernels is not None and not tr._kernels["dot"]
-    d = scene.make_data()
-    ref = ReachingController(scene, jit=False)
-    for t in (0.0, 0.001, 0.002):
-        assert _same(ctrl(t, d), ref(t, d))

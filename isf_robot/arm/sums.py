@@ -1,0 +1,57 @@
+"""Small sums of products in one written order: the numpy side of the compiled kernels, on every machine.
+
+numpy's BLAS products (``@``, ``dot``) and ``einsum`` add their terms in an order that depends on the
+CPU: OpenBLAS picks its kernels at run time (fused multiply-adds on one machine, plain products on
+another) and einsum's SIMD loop keeps as many partial sums as the vector width. The same run then
+gave other last bits on another machine, and the compiled kernels of :mod:`isf_robot.arm.kernels`
+(which add in one order) agreed with numpy only where a probe found the two orders equal; on an
+Intel Xeon with AVX-512 none did, so the kernels fell back to numpy and their tests failed.
+
+These functions make the small products of the arm's control step (the barrier rows' ``dh/dq``,
+``|dh/dq|`` and ``dh/dt``, the reaching controller's ``J J^T`` and ``y J``, the tracking error) with
+elementwise numpy operations in a written order: each product and each sum is one correctly rounded
+IEEE operation (no fused multiply-add), so the result is the same on every machine. The kernels
+(``_kernels_jit.py``, ``_kernels_step.py``) make the same operations in the same order, and the two
+paths give the same bits everywhere (``tests/arm/test_kernels.py``, ``tests/arm/test_step_kernels.py``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["combine3", "dots3", "gram", "row_norms", "sq_sum"]
+
+
+def sq_sum(e: np.ndarray) -> float:
+    """``e . e`` of a vector: ``((0 + e_0^2) + e_1^2) + ...``, in index order."""
+    s = 0.0
+    for x in e.tolist():
+        s += x * x
+    return s
+
+
+def row_norms(g: np.ndarray) -> np.ndarray:
+    """``|g_i|`` of the rows of a (k, n) array: the squares added in column order, then the square root."""
+    if g.shape[1] == 0:
+        return np.zeros(g.shape[0])
+    return np.sqrt(np.add.accumulate(g * g, axis=1)[:, -1])  # (accumulate: strictly in order)
+
+
+def dots3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a_i . b_i`` of the rows of two (k, 3) arrays: ``((0 + a_0 b_0) + a_1 b_1) + a_2 b_2``."""
+    return ((0.0 + a[:, 0] * b[:, 0]) + a[:, 1] * b[:, 1]) + a[:, 2] * b[:, 2]
+
+
+def combine3(w: np.ndarray, jac: np.ndarray) -> np.ndarray:
+    """``w^T J``: ``((0 + w_0 J_0) + w_1 J_1) + w_2 J_2`` of the rows ``J_r`` of ``jac``.
+
+    ``w`` of shape (..., 3) and ``jac`` of shape (..., 3, m) (a batch: one ``w`` per block), or
+    ``w`` (3,) and ``jac`` (3, m); the result has shape (..., m).
+    """
+    w0, w1, w2 = w[..., 0, None], w[..., 1, None], w[..., 2, None]
+    return ((0.0 + w0 * jac[..., 0, :]) + w1 * jac[..., 1, :]) + w2 * jac[..., 2, :]
+
+
+def gram(jac: np.ndarray) -> np.ndarray:
+    """``J J^T`` of a (r, n) array (n >= 1): entry (a, b) is ``J_a0 J_b0 + J_a1 J_b1 + ...`` added in order."""
+    return np.add.accumulate(jac[:, None, :] * jac[None, :, :], axis=2)[:, :, -1]
