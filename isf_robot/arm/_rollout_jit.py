@@ -39,14 +39,15 @@ def euler_step(ma, da, q, u, dt, qpos, qadr):  # pragma: no cover (compiled)
 
 @njit(cache=True, nogil=True)
 def rollout_points(ma, da, q, u0, t, dt, qpos, qadr, rp, nb, outs, n, nv, dof0, site, index, t_prev, a_max, kp,
-                   max_ee, max_js, lam2, pn, blks, rows, res, cutoff, distmax, slack, eps, lanes, lin,
+                   max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff, distmax, slack, eps, lanes, lin,
                    dlanes):  # pragma: no cover (compiled)
     """Every point of a rollout with the goal ``index`` held: per point ``j`` (time ``t + (j + 1) dt``) the
     Euler step from the previous command, the reaching controller's command into ``outs[j]`` (``reach``,
     buffer ``nb``, addresses ``rp``) and the collision kernel's rows into ``blks[j]``/``rows[j]``
-    (``near_packed``, tables ``pn``, no coherence bounds). ``res[j]``: near pairs, h_min, dist_min,
-    joint_min, touching, goal distance. Returns the points done: it stops after a point with touching
-    witness points (which the caller hands to the general path)."""
+    (``near_packed``, tables ``pn``, no coherence bounds), and each row's key into ``keys[j]`` (a pair's
+    index for the pair rows, ``npairs + i`` for the i-th row after them: the joint rows).
+    ``res[j]``: near pairs, h_min, dist_min, joint_min, touching, goal distance. Returns the points done:
+    it stops after a point with touching witness points (which the caller hands to the general path)."""
     u = u0
     for j in range(outs.shape[0]):
         s = (j + 1) * dt
@@ -59,6 +60,10 @@ def rollout_points(ma, da, q, u0, t, dt, qpos, qadr, rp, nb, outs, n, nv, dof0, 
         k, h_min, dist_min, jmin, touching = near_packed(ma, da, pn, blks[j], rows[j], False, cutoff, distmax, slack,
                                                          eps, lanes, lin, dlanes)
         res[j, 0], res[j, 1], res[j, 2], res[j, 3], res[j, 4] = k, h_min, dist_min, jmin, 1.0 if touching else 0.0
+        for i in range(k):
+            keys[j, i] = rows[j, i]
+        for i in range(keys.shape[1] - k):
+            keys[j, k + i] = npairs + i
         if touching:
             return j + 1
     return outs.shape[0]

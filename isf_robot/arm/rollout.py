@@ -104,6 +104,7 @@ class NominalRollout:
         self._addr = (int(getattr(self.scene.model, "_address", 0)), int(getattr(self._data, "_address", 0)))
         self._qpos = self._data.qpos  # (a view of the scratch data: the kernel writes through it)
         self.calls = 0
+        self._kn: tuple = (None, None, ())
 
     def _rows(self, data: mujoco.MjData, lin: np.ndarray | None) -> LieData:
         """The filter's rows at the state in ``data`` (kinematics done), ``lin``: the mocap velocities or ``None``."""
@@ -125,11 +126,14 @@ class NominalRollout:
             return None
         c = coll._kernel_context(d, None, joints)
         blk, g, rows = coll._point_outputs(c, n)
+        m = c[7]
+        keys = np.empty((n, m), dtype=np.int64)
         outs, res, mid, q0 = np.empty((n, u.size)), np.empty((n, 6)), nom.snapshot(), q.copy()
         done = self._whole(*self._addr, q, u, t, dt, self._qpos, self._qadr, nom._ptrs, nom._buf, outs,  # type: ignore[misc, attr-defined]
                            u.size, nom._jac.shape[1], nom._dof0, nom.scene.ee_site_id, nom.goals.index,  # type: ignore[attr-defined]
                            rate.t_prev, rate.a_max, nom.kp, nom.max_ee_speed, nom.max_joint_speed, nom._lam2,  # type: ignore[attr-defined]
-                           c[4], blk, rows, res, coll.cutoff, c[14], c[15], narrow._EPS_DIST, c[13], coll._knolin, 0)
+                           c[4], blk, rows, keys, len(coll.pairs.names), res, coll.cutoff, c[14], c[15],
+                           narrow._EPS_DIST, c[13], coll._knolin, 0)
         if done < n or res[n - 1, 4]:  # (touching witness points: the general loop from the start)
             nom.restore(mid)
             q[:] = q0
@@ -142,7 +146,7 @@ class NominalRollout:
         s = self._s
         if not c[13]:  # (no gradient norms in the blocks: each point's are made from its gradients)
             return [(s[j], point(j), outs[j]) for j in range(n)]
-        m, o_gn, o_lf = c[7], c[10], c[11]  # (the block layout _block_lie reads: h, lf and |dh/dq| at these offsets)
+        o_gn, o_lf = c[10], c[11]  # (the block layout _block_lie reads: h, lf and |dh/dq| at these offsets)
         nj0 = c[9]
         kl = [int(cj) + nj0 for cj in counts]  # (pairs, then the joints' rows)
         k = np.array(kl, dtype=np.int64)
@@ -154,7 +158,14 @@ class NominalRollout:
             return [pair_names[rj[i]] if i < cj else joint_names[i - cj] if i < cj + nj else str(i) for i in idx]
 
         return StackedPoints(s, outs, k, blk[:, :m], blk[:, o_lf: o_lf + m], lg, blk[:, o_gn: o_gn + m], point,
-                             row_names)
+                             row_names, keys, self._key_names(pair_names, joint_names))
+
+    def _key_names(self, pairs: tuple[str, ...], joints: tuple[str, ...]) -> tuple[str, ...]:
+        """The names of the rows' keys (the pairs', then the joints'), kept while those names are the same objects."""
+        kn = self._kn
+        if kn[0] is not pairs or kn[1] is not joints:
+            kn = self._kn = (pairs, joints, (*pairs, *joints))
+        return kn[2]
 
     def __call__(self, t: float, x: Any) -> Sequence[tuple[float, LieData, np.ndarray]]:
         """Predicted points ``t + s``, ``s = dt, 2 dt, ..., n dt``, from the state in ``x`` (the episode's MjData)."""

@@ -55,3 +55,28 @@ def predict_rows(lf, lgu, gn, d_bar, h, gain, av, k, xi, fails, nfail):  # pragm
                     c += 1
             nfail[j] = c
     return -1, low
+
+
+@njit(cache=True, nogil=True)
+def failing_keys(keys, fails, nfail, seen, out):  # pragma: no cover (compiled)
+    """The keys of the failing rows (``keys[j, fails[j, i]]`` for ``i < nfail[j]``), each once, in order of first sight.
+
+    ``seen``: a False array with one entry per key (left False again); ``out``: room for every failing
+    row. Returns their number, or -1 if a key lies outside ``seen`` (the caller's error).
+    """
+    c = 0
+    nk = seen.shape[0]
+    for j in range(nfail.shape[0]):
+        for i in range(nfail[j]):
+            key = keys[j, fails[j, i]]
+            if key < 0 or key >= nk:
+                for r in range(c):
+                    seen[out[r]] = False
+                return -1
+            if not seen[key]:
+                seen[key] = True
+                out[c] = key
+                c += 1
+    for r in range(c):
+        seen[out[r]] = False
+    return c

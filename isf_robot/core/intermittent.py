@@ -153,22 +153,34 @@ class StackedPoints(Sequence[tuple[float, LieData, np.ndarray]]):
         point: ``point(j) -> LieData`` of point ``j``.
         row_names: ``row_names(j, rows) -> [name, ...]``: the names of those rows of point ``j``, each
             ``point(j).names[i]`` (``str(i)`` past the end of the names) (``None``: read from ``point(j)``).
+        keys, key_names: Optional, together: an int64 array of shape (n, K) with ``key_names[keys[j, i]]``
+            the name of row ``i`` of point ``j`` (for ``i < rows[j]``; the rest is not read). With
+            them :func:`predict` finds the failing rows' names in one compiled pass (each name once)
+            instead of asking ``row_names`` point by point; a key outside ``key_names`` is an error
+            there.
 
     """
 
-    __slots__ = ("s", "u", "rows", "h", "lf", "lg", "grad_norm", "_rows", "_point", "_row_names", "_items")
+    __slots__ = ("s", "u", "rows", "h", "lf", "lg", "grad_norm", "_rows", "_point", "_row_names", "_items", "keys",
+                 "key_names")
 
     def __init__(self, s: Sequence[float], u: np.ndarray, rows: np.ndarray, h: np.ndarray, lf: np.ndarray,
                  lg: Sequence[np.ndarray], grad_norm: np.ndarray, point: Callable[[int], LieData],
-                 row_names: Callable[[int, list[int]], list[str]] | None = None) -> None:
+                 row_names: Callable[[int, list[int]], list[str]] | None = None, keys: np.ndarray | None = None,
+                 key_names: Sequence[str] | None = None) -> None:
         n, shape, kl = len(s), h.shape, rows.tolist()
         if not (u.ndim == 2 and u.shape[0] == n and rows.shape == (n,) and h.ndim == 2 and shape[0] == n
                 and lf.shape == shape and grad_norm.shape == shape and rows.dtype == np.int64 and u.dtype == _F64
                 and h.dtype == _F64 and lf.dtype == _F64 and grad_norm.dtype == _F64 and len(lg) == n
-                and (n == 0 or min(kl) >= 0 and max(kl) <= shape[1])):
+                and (n == 0 or min(kl) >= 0 and max(kl) <= shape[1])
+                and (keys is None) == (key_names is None)
+                and (keys is None or type(keys) is np.ndarray and keys.shape == shape and keys.dtype == np.int64)):
             raise ShapeError(f"stacked points: s ({n},), u (n, m), rows (n,) int64 in [0, K], h/lf/grad_norm (n, K) "
-                             f"float64, lg one per point; got u {u.shape}, rows {kl}, h {shape}, lf {lf.shape}, "
-                             f"grad_norm {grad_norm.shape}, {len(lg)} lg")
+                             f"float64, lg one per point, keys (n, K) int64 with key_names or neither; "
+                             f"got u {u.shape}, "
+                             f"rows {kl}, h {shape}, lf {lf.shape}, grad_norm {grad_norm.shape}, {len(lg)} lg, keys "
+                             f"{None if keys is None else (np.shape(keys), getattr(keys, 'dtype', None))}")
+        self.keys, self.key_names = keys, key_names
         self.s, self.u, self.rows, self.h, self.lf, self.lg, self.grad_norm = list(s), u, rows, h, lf, lg, grad_norm
         self._rows = kl
         self._point = point
@@ -203,11 +215,22 @@ def _stacked_kernel() -> Callable[..., Any] | None:
     """``_predict_jit.predict_rows``, or ``None`` without numba (the caller checks that the filter's kernel is on)."""
     if not _KERNEL:
         try:
-            from ._predict_jit import predict_rows
+            from ._predict_jit import failing_keys, predict_rows
         except ImportError:
-            predict_rows = None
-        _KERNEL.append(predict_rows)
+            predict_rows = failing_keys = None
+        _KERNEL.extend((predict_rows, failing_keys))
     return _KERNEL[0]
+
+
+def _failing_by_keys(points: StackedPoints, fails: np.ndarray, nfail: np.ndarray) -> set[str]:
+    """The failing rows' names through ``points.keys`` (``_predict_jit.failing_keys``: each key once)."""
+    names = points.key_names
+    seen = np.zeros(len(names), dtype=bool)  # type: ignore[arg-type]
+    out = np.empty(fails.size, dtype=np.int64)
+    c = _KERNEL[1](points.keys, fails, nfail, seen, out)
+    if c < 0:
+        raise ShapeError(f"stacked points: a failing row's key lies outside key_names (0..{len(names) - 1})")  # type: ignore[arg-type]
+    return {names[i] for i in out[:c].tolist()}  # type: ignore[index]
 
 
 def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Prediction | None:
@@ -234,11 +257,17 @@ def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Pred
         raise NonFiniteError(f"predicted Xi_on not finite {points.s[bad]:.3g} s ahead: {xi[bad, :kl[bad]]}")
     first: float | None = None
     failing: set[str] = set()
-    for j, c in enumerate(nfail.tolist()):
-        if c:
-            s = points.s[j]
-            first = s if first is None else min(first, s)
-            failing.update(points.row_names(j, fails[j, :c].tolist()))
+    nf = nfail.tolist()
+    if points.keys is not None:
+        times = [s for s, c in zip(points.s, nf) if c]
+        if times:
+            first, failing = min(times), _failing_by_keys(points, fails, nfail)
+    else:
+        for j, c in enumerate(nf):
+            if c:
+                s = points.s[j]
+                first = s if first is None else min(first, s)
+                failing.update(points.row_names(j, fails[j, :c].tolist()))
     pred = _new(Prediction)  # (a frozen dataclass's __dict__ set whole: its fields, without the field-by-field __init__)
     _set(pred, "__dict__", {"ok": first is None, "xi_min": xi_lo, "first_fail_s": first, "failing": frozenset(failing),
                             "points": len(kl)})

@@ -51,7 +51,10 @@ def test_the_compiled_rollouts_stacked_points_predict_as_the_loop(monkeypatch) -
             fresh = StackedPoints(pts.s, pts.u, pts.rows, pts.h, pts.lf, pts.lg, pts.grad_norm, pts._point,
                                   pts._row_names)
             monkeypatch.setenv("ISF_ROBOT_JIT", "1")
+            keyed = StackedPoints(pts.s, pts.u, pts.rows, pts.h, pts.lf, pts.lg, pts.grad_norm, pts._point,
+                                  None, pts.keys, pts.key_names)  # (the failing names by the rows' keys alone)
             got, ref = predict(fresh, alpha, params.d_bar), predict(list(pts), alpha, params.d_bar)
+            assert repr(predict(keyed, alpha, params.d_bar)) == repr(got)
             monkeypatch.setenv("ISF_ROBOT_JIT", "0")
             ref0 = predict(list(pts), alpha, params.d_bar)
             assert repr(got) == repr(ref) == repr(ref0)

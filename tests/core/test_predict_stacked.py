@@ -115,3 +115,57 @@ def test_stacked_points_are_a_sequence_of_points_and_check_their_shapes() -> Non
         args[i] = bad
         with pytest.raises(ShapeError, match="stacked points"):
             StackedPoints(*args)
+
+
+def _with_keys(pts: StackedPoints, rng: np.random.Generator) -> StackedPoints:
+    """The same points with keys: each distinct row name under one shuffled key; columns past a point's rows garbage."""
+    n, K = pts.h.shape
+    per_point = [pts.row_names(j, list(range(int(pts.rows[j])))) for j in range(n)]
+    distinct = sorted({name for names in per_point for name in names})
+    order = rng.permutation(len(distinct)).tolist()
+    key_of = {name: order[i] for i, name in enumerate(distinct)}
+    key_names = [""] * len(distinct)
+    for name, key in key_of.items():
+        key_names[key] = name
+    keys = rng.integers(-5, 10**6, size=(n, K)).astype(np.int64)  # (past a point's rows: never read)
+    for j, names in enumerate(per_point):
+        keys[j, :len(names)] = [key_of[x] for x in names]
+    return StackedPoints(pts.s, pts.u, pts.rows, pts.h, pts.lf, pts.lg, pts.grad_norm, pts._point, None, keys,
+                         tuple(key_names))
+
+
+@pytest.mark.parametrize("alpha", ALPHAS[:2], ids=repr)
+def test_keys_give_the_failing_names_of_the_row_names_way(alpha, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    rng = np.random.default_rng(11)
+    monkeypatch.setenv("ISF_ROBOT_JIT", "1")
+    failing = 0
+    for i in range(200):
+        n, m = int(rng.integers(0, 12)), int(rng.integers(1, 8))
+        pts, _ = _stacked(rng, n, m, short_names=i % 5 == 0)
+        keyed = _with_keys(pts, rng)
+        d_bar = float(rng.choice([0.0, 0.05, 3.0]))
+        got, ref = predict(keyed, alpha, d_bar), predict(list(pts), alpha, d_bar)
+        assert _same(got, ref), (got, ref)
+        failing += len(got.failing) > 1
+    assert failing > 20  # (several names, each once)
+
+
+def test_a_key_outside_the_key_names_is_an_error(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    monkeypatch.setenv("ISF_ROBOT_JIT", "1")
+    rng = np.random.default_rng(3)
+    pts, _ = _stacked(rng, 5, 2)
+    pts.rows[:] = 1
+    pts._rows = pts.rows.tolist()
+    pts.lg[:] = [np.zeros((1, 2))] * 5
+    pts.h[:, 0], pts.lf[:, 0] = -1.0, -1.0  # every point fails its row 0
+    keys = np.zeros(pts.h.shape, np.int64)
+    keys[2, 0] = 7
+    bad = StackedPoints(pts.s, pts.u, pts.rows, pts.h, pts.lf, pts.lg, pts.grad_norm, pts._point, None, keys, ("a", "b"))
+    with pytest.raises(ShapeError, match="outside key_names"):
+        predict(bad, Linear(1.0), 0.0)
+    keys[2, 0] = 1
+    good = StackedPoints(pts.s, pts.u, pts.rows, pts.h, pts.lf, pts.lg, pts.grad_norm, pts._point, None, keys, ("a", "b"))
+    assert predict(good, Linear(1.0), 0.0).failing == {"a", "b"}
+    for args in ((keys, None), (None, ("a", "b")), (keys[:, :0], ("a", "b")), (keys.astype(np.int32), ("a", "b"))):
+        with pytest.raises(ShapeError, match="keys"):
+            StackedPoints(pts.s, pts.u, pts.rows, pts.h, pts.lf, pts.lg, pts.grad_norm, pts._point, None, *args)
