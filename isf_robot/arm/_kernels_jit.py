@@ -51,7 +51,7 @@ i64p = _pointer(ir.IntType(64), types.int64)
 
 @njit(cache=True, nogil=True, inline="always")
 def row_norm(g, k):  # pragma: no cover (compiled)
-    """|g[k]|: the squares added in column order from 0 (:func:`isf_robot.arm.sums.row_norms`)."""
+    """|g[k]|: the squares added in column order from 0 (:func:`isf_robot.core.sums.row_norms`)."""
     s = 0.0
     for c in range(g.shape[1]):
         s += g[k, c] * g[k, c]
@@ -60,7 +60,7 @@ def row_norm(g, k):  # pragma: no cover (compiled)
 
 @njit(cache=True, nogil=True, inline="always")
 def dot3(a0, a1, a2, b0, b1, b2):  # pragma: no cover (compiled)
-    """``a . b`` of 3-vectors, ``((0 + a0 b0) + a1 b1) + a2 b2`` (:func:`isf_robot.arm.sums.dots3`)."""
+    """``a . b`` of 3-vectors, ``((0 + a0 b0) + a1 b1) + a2 b2`` (:func:`isf_robot.core.sums.dots3`)."""
     return ((0.0 + a0 * b0) + a1 * b1) + a2 * b2
 
 

@@ -10,7 +10,7 @@ kernels' own work): the callers keep the arrays alive and never reallocate them 
 Same answers: each kernel makes the floating-point operations of the numpy code it replaces in the
 same order. The small products of the reaching controller (``err . err`` of 3, ``J J^T`` of (3, n),
 ``y J``) and the tracking error's ``e . e`` are written in one order on both sides (the numpy side in
-:mod:`isf_robot.arm.sums`, no BLAS, no fused multiply-add), so the two agree on every machine.
+:mod:`isf_robot.core.sums`, no BLAS, no fused multiply-add), so the two agree on every machine.
 """
 
 from __future__ import annotations
@@ -86,7 +86,7 @@ def track_apply(ma, da, p, buf, n, nv):  # pragma: no cover (compiled)
 def track_step(ma, da, p, buf, n, nv, cmd, inv_period, feedforward):  # pragma: no cover (compiled)
     """Tracking error of the held command, then set_command(cmd) and apply.
 
-    Returns ``|qd - u_held|`` (the squares added in order from 0, as :func:`isf_robot.arm.sums.sq_sum`).
+    Returns ``|qd - u_held|`` (the squares added in order from 0, as :func:`isf_robot.core.sums.sq_sum`).
     """
     qd = _vec(p[1], n)
     s = 0.0

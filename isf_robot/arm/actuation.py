@@ -31,10 +31,10 @@ import mujoco
 import numpy as np
 
 from isf_robot.core.exceptions import ConfigError
+from isf_robot.core.sums import sq_sum
 
 from .lowlevel import VelocityTracker
 from .scene import Scene
-from .sums import sq_sum
 
 __all__ = ["ActuatorInfo", "actuator_info", "Actuation", "ServoTracker", "make_actuation", "tracking_step", "KINDS"]
 

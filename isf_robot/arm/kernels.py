@@ -20,7 +20,7 @@ broad phase and the coherence bounds only choose which pairs reach the narrow ph
 conservative, so the rows are the same whichever way they round.
 Pairs whose witness points coincide (``|dist| < 1e-9``) are left to the numpy path. The row norms
 ``|dh/dq|`` and the mocap obstacles' ``dh/dt`` are added in one written order too (the numpy side in
-:mod:`isf_robot.arm.sums`: numpy's own ``einsum`` and BLAS products add in an order that depends on
+:mod:`isf_robot.core.sums`: numpy's own ``einsum`` and BLAS products add in an order that depends on
 the CPU, so no kernel could follow them on every machine). The kernel takes its tables as one array of their addresses
 (``_kernels_jit.near_packed``): a numba call costs about 0.1 us per 1-D and 0.6 us per 2-D array
 argument, which for 31 arguments was more than the kernel's work.
@@ -29,7 +29,7 @@ The nominal and act phases (:func:`step_kernels`, ``_kernels_step.py``): the tra
 (``mj_mulM``), its ``command`` with the tracking error, a sub-step's safety check fused with ``apply``,
 and the reaching controller's damped least squares (``mj_jacSite``, ``mju_cholFactor``/``Solve``, the
 speed cap and the rate limit), each one call, the same operations in the same order as their numpy
-code (its small products in :mod:`isf_robot.arm.sums`' order).
+code (its small products in :mod:`isf_robot.core.sums`' order).
 
 Without numba, or with ``ISF_ROBOT_JIT=0`` in the environment, :func:`near_kernel` and
 :func:`step_kernels` return ``None`` and the numpy paths run. The first use compiles the kernels (a few

@@ -30,10 +30,10 @@ import mujoco
 import numpy as np
 
 from isf_robot.core.exceptions import ConfigError
+from isf_robot.core.sums import sq_sum
 
 from . import kernels
 from .scene import Scene
-from .sums import sq_sum
 
 __all__ = ["VelocityTracker"]
 

@@ -17,9 +17,9 @@ import numpy as np
 
 from isf_robot.core import LieData
 from isf_robot.core.exceptions import ShapeError
+from isf_robot.core.sums import combine3, dots3, row_norms
 
 from .rows import FilterRows, NearPairs, TickRows
-from .sums import combine3, dots3, row_norms
 
 if TYPE_CHECKING:
     from .broadphase import BroadPhase, JointCoherence

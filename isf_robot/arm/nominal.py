@@ -27,11 +27,11 @@ import mujoco
 import numpy as np
 
 from isf_robot.core.exceptions import ConfigError, ShapeError
+from isf_robot.core.sums import combine3, gram, sq_sum
 
 from . import kernels
 from .goals import GoalSequence
 from .scene import Scene
-from .sums import combine3, gram, sq_sum
 
 __all__ = ["NominalController", "GoalSequence", "ReachingController", "JointPDController"]
 

@@ -3,7 +3,8 @@
 Module-level functions, so numba's cache (``__pycache__``) serves later processes. They make the
 pure-Python path's scalar operations in its order (IEEE float64 operations that Python floats and
 the compiled loop round alike; numba does not contract them into fused multiply-adds without
-``fastmath``); the products ``A u_nom``, ``A A^T`` and ``A u`` stay numpy's (BLAS).
+``fastmath``); the products ``A u_nom``, ``A A^T`` and ``A u`` are passed in, made in
+:mod:`isf_robot.core.sums`' written order.
 """
 
 from __future__ import annotations

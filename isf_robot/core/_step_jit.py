@@ -4,9 +4,11 @@ Module-level functions, so numba's cache (``__pycache__``) serves later processe
 the general path's elementwise operations (numpy's, in :meth:`_FilterBase._solve_rows`,
 :meth:`_FilterBase.qp_lower` and :func:`~isf_robot.core.qp_small.project_few`) in their order:
 IEEE float64 operations that numpy and the compiled loop round alike (numba does not contract
-them into fused multiply-adds without ``fastmath``). The products stay numpy's (BLAS) and are
-passed in. :mod:`isf_robot.core.filter_fast` calls them; ``tests/core/test_fast_step.py`` checks
-them against the general path bit for bit.
+them into fused multiply-adds without ``fastmath``). :func:`few_step` also makes the few-row
+products (``A u_nom``, ``A A^T``, ``A u``, ``Lg h du``) in the written order of
+:mod:`isf_robot.core.sums` (each row's products added in column order, from the first), as the
+general path does. :mod:`isf_robot.core.filter_short` calls them; ``tests/core/test_fast_step.py``
+checks them against the general path bit for bit.
 """
 
 from __future__ import annotations
@@ -59,7 +61,7 @@ def few_lower_candidate(rows, h, lf, gn, d_bar, gain, av, av_rows, promote, ramp
     ``promote`` (no entries: none) and ``ramp`` (no entries: 1 for every row) are indexed by the
     data's row. Writes ``lb``, ``r`` and the rows' tolerances to ``buf[0]``, ``buf[1]``, ``buf[2]``
     (the first ``n`` entries), then returns :func:`~isf_robot.core._few_jit.few_candidate`'s
-    ``(code, min r)`` (``Au = A u_nom``, ``G = A A^T``: numpy's products).
+    ``(code, min r)`` (``Au = A u_nom``, ``G = A A^T``: :mod:`isf_robot.core.sums`' products).
     """
     n = rows.shape[0]
     lb, r, tol = buf[0, :n], buf[1, :n], buf[2, :n]
@@ -187,3 +189,69 @@ def one_hold(xi, lgdu, i, active_tol):  # pragma: no cover (compiled)
         if j != i and not xi[j] + lgdu[j] >= active_tol:
             return False
     return True
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _dot_rows(a, i, b, j, m):  # pragma: no cover (compiled)
+    """Row ``i`` of ``a`` times row ``j`` of ``b`` (m entries), added in order from the first (``sums.matvec``)."""
+    s = a[i, 0] * b[j, 0]
+    for q in range(1, m):
+        s = s + a[i, q] * b[j, q]
+    return s
+
+
+@njit(cache=True, nogil=True)
+def few_step(rows, h, lf, gn, d_bar, gain, av, av_rows, promote, ramp, b, lg, u_nom, rel_tol, buf, u,
+             active_tol, active, du, xi, hold):  # pragma: no cover (compiled)
+    """The screened few-row step in one call: :func:`few_lower_candidate`, :func:`few_finish` and :func:`screened_hold`.
+
+    The QP's rows ``A`` are the rows ``rows`` of ``lg`` (``Lg h``, shape (k, m), m >= 1); its
+    products ``A u_nom``, ``A A^T``, ``A u`` and the rows' ``Lg h du`` are made here in
+    :mod:`isf_robot.core.sums`' order. Returns ``(code, low, held)``: ``code`` 0 every kept row
+    holds at ``u_nom`` (``u`` = ``u_nom``, ``active``, ``du = 0`` written), 1 a confirmed
+    candidate (``u``, ``active``, ``du`` written), 2 the Python enumeration decides (``G`` not
+    finite, or the candidate failed its confirmation; ``buf[0]`` holds ``lb``), < 0 no few-row
+    answer; ``low`` the least residual; ``held`` (codes 0 and 1, with ``hold``) whether every row
+    not in ``rows`` keeps slack ``xi + Lg h du >= active_tol`` (True without ``hold``).
+    """
+    n = rows.shape[0]
+    m = u_nom.shape[0]
+    A = np.empty((n, m))
+    for j in range(n):
+        for q in range(m):
+            A[j, q] = lg[rows[j], q]
+    Au = np.empty(n)
+    G = np.empty((n, n))
+    x = u_nom.reshape(1, m)
+    for j in range(n):
+        Au[j] = _dot_rows(A, j, x, 0, m)
+        for c in range(n):
+            G[j, c] = _dot_rows(A, j, A, c, m)
+    code, low = few_lower_candidate(rows, h, lf, gn, d_bar, gain, av, av_rows, promote, ramp, b, Au, G, A, u_nom,
+                                    rel_tol, buf, u)
+    if code == 0:
+        for q in range(m):
+            u[q] = u_nom[q]
+            du[q] = u[q] - u_nom[q]
+        for j in range(n):
+            active[j] = buf[1, j] <= active_tol
+    elif code == 1:
+        xu = u.reshape(1, m)
+        for j in range(n):
+            Au[j] = _dot_rows(A, j, xu, 0, m)
+        ok, low = few_finish(Au, u, u_nom, buf, active_tol, active, du)
+        if not ok:
+            return 2, low, False
+    else:
+        return code, low, False
+    if not hold:
+        return code, low, True
+    xd = du.reshape(1, m)
+    lgdu = np.zeros(xi.shape[0])
+    j = 0
+    for i in range(xi.shape[0]):
+        if j < n and rows[j] == i:
+            j += 1
+            continue
+        lgdu[i] = _dot_rows(lg, i, xd, 0, m)
+    return code, low, screened_hold(xi, lgdu, rows, n, active_tol)

@@ -76,8 +76,7 @@ class StepKernels(NamedTuple):
     """The screened few-row step's kernels (:mod:`isf_robot.core._step_jit`)."""
 
     select: Callable[..., Any]
-    lower: Callable[..., Any]
-    finish: Callable[..., Any]
+    few_step: Callable[..., Any]
     hold: Callable[..., Any]
     on_rows: Callable[..., Any]
     step_along: Callable[..., Any]
@@ -94,10 +93,8 @@ def step_kernels() -> StepKernels | None:
         kernels = None
         if not _off():
             try:
-                from ._step_jit import (few_finish, few_lower_candidate, on_rows, one_hold, screened_hold, select_rows,
-                                        step_along)
-                kernels = StepKernels(select_rows, few_lower_candidate, few_finish, screened_hold, on_rows, step_along,
-                                      one_hold)
+                from ._step_jit import few_step, on_rows, one_hold, screened_hold, select_rows, step_along
+                kernels = StepKernels(select_rows, few_step, screened_hold, on_rows, step_along, one_hold)
             except ImportError:
                 pass
         _STATE["step_key"], _STATE["step"] = key, kernels

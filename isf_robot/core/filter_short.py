@@ -27,6 +27,7 @@ from .fast import StepKernels
 from .qp import QPResult
 from .qp_small import FEW_ROWS, REL_TOL, project_few
 from .qp_solver import QPSolver
+from .sums import matvec
 from .system import LieData
 
 if TYPE_CHECKING:
@@ -88,11 +89,12 @@ class ShortWays:
         """The kept rows ``rows`` (``n`` of them, 2 to ``FEW_ROWS``, ascending) the compiled way: ``(result, screened rows hold)``.
 
         The numbers of :meth:`_solve_few` on ``lie`` with those rows taken (``lie`` itself when
-        every row is kept), and of :meth:`_screened_rows_hold_mask` at its answer, bit for bit:
-        the same numpy products (``A u_nom``, ``A A^T``, ``A u``, ``Lg h (u - u_nom)``) and, in
-        the kernels of :mod:`isf_robot.core._step_jit`, the same elementwise operations in the same
-        order. ``None`` when that way does not apply or finds no few-row answer (the caller then
-        goes the general way, which decides).
+        every row is kept), and of :meth:`_screened_rows_hold_mask` at its answer, bit for bit, in
+        one call of ``_step_jit.few_step``: the same products (``A u_nom``, ``A A^T``, ``A u``,
+        ``Lg h (u - u_nom)``, all in :mod:`isf_robot.core.sums`' order) and the same elementwise
+        operations in the same order. ``None`` when that way does not apply or finds no few-row
+        answer (the caller then goes the general way, which decides). The QP timer covers the
+        call, the bounds' building included.
         """
         steps, solver = self._steps, self.solver
         if not (steps is not None and n <= FEW_ROWS and type(solver) is QPSolver and solver.few_rows
@@ -128,33 +130,26 @@ class ShortWays:
                 av, av_rows = alpha.vector(h.take(rows)), True
             if not (type(av) is np.ndarray and av.dtype == _F64 and av.shape == ((n,) if av_rows else xi.shape)):
                 return None
-        A = lg if n == k else lg.take(rows, 0)
+        m, tol = u_nom.shape[0], solver.active_tol
+        if m == 0:
+            return None
+        buf = self._few_buf  # (lb, r, the rows' tolerances, A u - lb)
+        u, active, du = np.empty(m), np.empty(n, bool), np.empty(m)
         t0 = time.perf_counter()
-        Au, G = A.dot(u_nom), A.dot(A.T)  # (numpy's products, as project_few makes them)
-        buf, u = self._few_buf, np.empty(u_nom.shape[0])  # (buf: lb, r, the rows' tolerances, A u - lb)
-        code, low = steps.lower(rows, h, lf, gn, self.d_bar, gain, av, av_rows, promote, ramp,
-                                getattr(self, "b", 0.0), Au, G, A, u_nom, REL_TOL, buf, u)
-        if code == 1:
-            active, du = np.empty(n, bool), np.empty(u.shape[0])
-            ok, low = steps.finish(A.dot(u), u, u_nom, buf, solver.active_tol, active, du)
-            if not ok:
-                code = 2  # (the candidate failed its confirmation on the rows: the Python enumeration decides)
-        if code == 2:
-            hit = project_few(A, buf[0, :n].copy(), u_nom)
+        code, low, held = steps.few_step(rows, h, lf, gn, self.d_bar, gain, av, av_rows, promote, ramp,
+                                         getattr(self, "b", 0.0), lg, u_nom, REL_TOL, buf, u, tol, active, du, xi,
+                                         n < k)
+        if code == 2:  # (G not finite, or the candidate failed its confirmation: the Python enumeration decides)
+            hit = project_few(lg if n == k else lg.take(rows, 0), buf[0, :n].copy(), u_nom)
             if hit is None:
                 return None
             u, res, low = hit
-            active, du = res <= solver.active_tol, u - u_nom
-        elif code == 0:
-            u, active, du = u_nom.copy(), buf[1, :n] <= solver.active_tol, None
-        elif code != 1:
+            active, du = res <= tol, u - u_nom
+            held = n == k or steps.hold(xi, matvec(lg, du), rows, n, tol)
+        elif code < 0:
             return None
         self.qp_solves += 1
-        got = QPResult._of(u, "optimal", active, time.perf_counter() - t0, 0, max(0.0, -low))
-        if n == k:
-            return got, True
-        lgdu = lg.dot(u - u_nom if du is None else du)
-        return got, steps.hold(xi, lgdu, rows, n, solver.active_tol)
+        return QPResult._of(u, "optimal", active, time.perf_counter() - t0, 0, max(0.0, -low)), held
 
     def _one_row_ok(self, lie: LieData) -> bool:
         """Whether one kept row may go the short way (:meth:`_solve_one`).
@@ -254,6 +249,6 @@ class ShortWays:
         The slack of row i at u is ``Xi_on,i + Lg h_i (u - u_nom)`` (the robust condition's
         left side minus its right side), so one product covers every row.
         """
-        slack = xi + lie.lg.dot(du)
+        slack = xi + matvec(lie.lg, du)  # (the few-row step's product: sums' order)
         slack[keep] = np.inf
         return bool(slack.min() >= self.solver.active_tol)

@@ -42,8 +42,8 @@ import numpy as np
 from .barrier import Barrier
 from .class_k import ClassK
 from .exceptions import ConfigError
-from .filter_base import FallbackFn, FilterStep, _FilterBase
 from .fast import NO_SCREEN, screen_array
+from .filter_base import FallbackFn, FilterStep, _FilterBase
 from .intermittent import FallRateBound, OffPredictor, Prediction, RolloutFn, blend_weight
 from .on_rows import OnRows
 from .qp_solver import QPSolver

@@ -30,6 +30,8 @@ from typing import Any
 
 import numpy as np
 
+from .sums import gram, matvec
+
 __all__ = ["project_few", "FEW_ROWS", "REL_TOL"]
 
 _F64 = np.dtype(np.float64)
@@ -71,7 +73,7 @@ def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float
             hit = _compiled(A, lb, u_nom, rel_tol, kernels)
             if hit is not _PY:
                 return hit
-    r0 = A.dot(u_nom) - lb
+    r0 = matvec(A, u_nom) - lb
     rl = r0.tolist()
     if not math.isfinite(sum(rl)):
         return None
@@ -80,7 +82,7 @@ def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float
     neg = [i for i in range(k) if rl[i] < -tol[i]]
     if not neg:
         return u_nom.copy(), r0, min(rl)
-    G = A.dot(A.T).tolist()
+    G = gram(A).tolist()
     sqrt = math.sqrt
     viol = sorted((i for i in neg if G[i][i] > 1e-200), key=lambda i: rl[i] / sqrt(G[i][i]))
     rng = range(k)
@@ -131,12 +133,12 @@ def _compiled(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float,
     Python path enumerates again from the start (the same first candidate, then the next ones).
     """
     candidate, confirm = kernels
-    r0 = A.dot(u_nom) - lb
+    r0 = matvec(A, u_nom) - lb
     tol = np.empty(A.shape[0])
     u = np.empty(A.shape[1])
-    code, low = candidate(A, lb, u_nom, r0, A.dot(A.T), rel_tol, tol, u)
+    code, low = candidate(A, lb, u_nom, r0, gram(A), rel_tol, tol, u)
     if code == 1:
-        res = A.dot(u) - lb
+        res = matvec(A, u) - lb
         ok, low = confirm(res, u, tol)
         return (u, res, low) if ok else _PY
     if code == 0:
@@ -150,7 +152,7 @@ def _confirm(A: np.ndarray, lb: np.ndarray, tol: list[float],
 
     To ``tol`` times ``max(1, |u|_inf)``: the rounding of ``A u`` grows with ``u``.
     """
-    res = A.dot(u) - lb
+    res = matvec(A, u) - lb
     rl, ul = res.tolist(), u.tolist()
     if not (math.isfinite(sum(rl)) and math.isfinite(sum(ul))):
         return None

@@ -13,9 +13,9 @@ import pytest
 from isf_robot.arm import ArmSimulation, CollisionBarriers, JointLimitBarriers, ReachingController
 from isf_robot.arm.params import resolve_params
 from isf_robot.arm.rollout import NominalRollout
-from isf_robot.arm.sums import row_norms
 from isf_robot.core import ConfigError, Linear
 from isf_robot.core.intermittent import predict
+from isf_robot.core.sums import row_norms
 
 
 def _state(scene, sim, t: float) -> mujoco.MjData:

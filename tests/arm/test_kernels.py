@@ -21,8 +21,8 @@ from isf_robot.arm.monitor import SafetyMonitor
 from isf_robot.arm.pairs import collision_pairs
 from isf_robot.arm.params import resolve_params
 from isf_robot.arm.sim import ArmSimulation
-from isf_robot.arm.sums import row_norms
 from isf_robot.core.exceptions import ShapeError
+from isf_robot.core.sums import row_norms
 
 pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba not installed (the fast extra)")
 

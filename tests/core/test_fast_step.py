@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from isf_robot.core import CustomClassK, IntermittentSafetyFilter, LieData, Linear, Power, QPSolver, SafetyFilter
+from isf_robot.core.sums import matvec
 
 pytest.importorskip("numba")
 pytestmark = pytest.mark.kernels  # (skipped under ISF_ROBOT_JIT=0: tests/conftest.py)
@@ -124,13 +125,16 @@ def test_the_compiled_few_row_step_equals_the_short_and_the_general_way(alpha, k
 
 @pytest.mark.parametrize("alpha", ALPHAS, ids=repr)
 def test_the_kernels_bounds_are_qp_lowers_bit_for_bit(alpha) -> None:  # type: ignore[no-untyped-def]
-    # the kept rows' bounds (robust, promoted at b, or on the hand-over ramp) against the general
-    # way's qp_lower on the rows taken; zeros of both signs everywhere (np.maximum's tie rule)
-    lower = _kernels().lower
+    # few_step: the kept rows' bounds (robust, promoted at b, or on the hand-over ramp) against the
+    # general way's qp_lower on the rows taken, its products against sums' (zeros of both signs
+    # everywhere: np.maximum's tie rule), its answer's residuals, activity, step and the screened
+    # rows' check against the general way's numpy
+    few_step = _kernels().few_step
     f = IntermittentSafetyFilter(alpha, 0.1, 0.05, 0.05, validate=False)
     rng = np.random.default_rng(4)
     zero = np.array([0.0, -0.0])
-    finished = 0
+    codes = {0: 0, 1: 0}
+    held = 0
     for i in range(2000):
         k, m = int(rng.integers(2, 12)), 3
         lie = _lie(rng, k, m)
@@ -151,21 +155,30 @@ def test_the_kernels_bounds_are_qp_lowers_bit_for_bit(alpha) -> None:  # type: i
         av = np.zeros(0) if gain else alpha.vector(sub.h)
         A = sub.lg
         u_nom = rng.normal(size=m)
-        buf, u = np.empty((4, n)), np.empty(m)
-        code, _ = lower(rows, lie.h, lie.lf, lie.grad_norm, f.d_bar, gain, av, True, np.zeros(0, bool) if promote is None
-                        else promote, np.zeros(0) if ramp is None else ramp, f.b, A.dot(u_nom), A.dot(A.T), A, u_nom,
-                        1e-12, buf, u)
+        xi = rng.normal(scale=0.3, size=k)
+        buf, u, active, du = np.empty((4, n)), np.empty(m), np.zeros(n, bool), np.zeros(m)
+        code, low, ok_rows = few_step(rows, lie.h, lie.lf, lie.grad_norm, f.d_bar, gain, av, True,
+                                      np.zeros(0, bool) if promote is None else promote,
+                                      np.zeros(0) if ramp is None else ramp, f.b, lie.lg, u_nom, 1e-12, buf, u, 1e-6,
+                                      active, du, xi, n < k)
         lb, r = buf[0, :n], buf[1, :n]
         assert lb.tobytes() == ref.tobytes(), i
-        assert r.tobytes() == (A.dot(u_nom) - ref).tobytes()
-        if code == 1:  # (a candidate: its residuals, activity and step as numpy makes them)
-            active, du = np.zeros(n, bool), np.zeros(m)
-            ok, low = _kernels().finish(A.dot(u), u, u_nom, buf, 1e-6, active, du)
-            res = A.dot(u) - lb
-            assert buf[3, :n].tobytes() == res.tobytes() and (not ok or low == res.min())
-            assert not ok or (active.tolist() == (res <= 1e-6).tolist() and du.tobytes() == (u - u_nom).tobytes())
-            finished += ok
-    assert finished > 200
+        assert r.tobytes() == (matvec(A, u_nom) - ref).tobytes()
+        if code in (0, 1):  # (an answer: its residuals, activity, step and the screened rows' check as numpy makes them)
+            res = matvec(A, u) - lb
+            if code == 1:
+                assert buf[3, :n].tobytes() == res.tobytes() and low == res.min()
+            else:
+                assert u.tobytes() == u_nom.tobytes() and low == r.min()
+            assert active.tolist() == ((res if code == 1 else r) <= 1e-6).tolist()
+            assert du.tobytes() == (u - u_nom).tobytes()
+            keep = np.zeros(k, bool)
+            keep[rows] = True
+            slack = xi + matvec(lie.lg, du)
+            assert ok_rows == bool(slack[~keep].min() >= 1e-6 if n < k else True)
+            codes[code] += 1
+            held += ok_rows and n < k
+    assert codes[0] > 50 and codes[1] > 200 and held > 20, (codes, held)
 
 
 def test_the_screened_rows_check_is_the_general_ones() -> None:

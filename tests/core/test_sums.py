@@ -1,4 +1,4 @@
-"""The written orders of :mod:`isf_robot.arm.sums` (the numpy side of the compiled kernels) against plain loops.
+"""The written orders of :mod:`isf_robot.core.sums` (the numpy side of the compiled kernels) against plain loops.
 
 Each function must give, bit for bit, the sum of correctly rounded products added in the order its
 docstring writes, on any machine: the kernels make those operations in that order, and
@@ -13,7 +13,12 @@ import math
 import numpy as np
 import pytest
 
-from isf_robot.arm.sums import combine3, dots3, gram, row_norms, sq_sum
+from isf_robot.core.sums import combine3, dots3, gram, matvec, row_norms, sq_sum
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(20261127)
 
 
 def _draw(rng, *shape):  # type: ignore[no-untyped-def]
@@ -71,6 +76,15 @@ def _loop_from_first(terms: list[float]) -> float:
     for x in terms[1:]:
         s = s + x
     return s
+
+
+@pytest.mark.parametrize("m", [1, 3, 7, 9])
+def test_matvec_adds_each_rows_products_in_order_from_the_first(rng, m) -> None:  # type: ignore[no-untyped-def]
+    a, x = _draw(rng, 300, m), _draw(rng, m)
+    want = [_loop_from_first([r[q] * x.tolist()[q] for q in range(m)]) for r in a.tolist()]
+    got = matvec(a, x)
+    assert _bits(got) == _bits(want) and got.flags.c_contiguous
+    assert matvec(np.zeros((3, 0)), np.zeros(0)).tolist() == [0.0] * 3 and gram(np.zeros((2, 0))).shape == (2, 2)
 
 
 def test_the_order_matters_on_these_draws(rng) -> None:  # type: ignore[no-untyped-def]

@@ -3,23 +3,24 @@
 numpy's BLAS products (``@``, ``dot``) and ``einsum`` add their terms in an order that depends on the
 CPU: OpenBLAS picks its kernels at run time (fused multiply-adds on one machine, plain products on
 another) and einsum's SIMD loop keeps as many partial sums as the vector width. The same run then
-gave other last bits on another machine, and the compiled kernels of :mod:`isf_robot.arm.kernels`
-(which add in one order) agreed with numpy only where a probe found the two orders equal; on an
-Intel Xeon with AVX-512 none did, so the kernels fell back to numpy and their tests failed.
+gave other last bits on another machine, and a compiled kernel (which adds in one order) could agree
+with numpy only where a probe found the two orders equal; on an Intel Xeon with AVX-512 none did.
 
-These functions make the small products of the arm's control step (the barrier rows' ``dh/dq``,
-``|dh/dq|`` and ``dh/dt``, the reaching controller's ``J J^T`` and ``y J``, the tracking error) with
-elementwise numpy operations in a written order: each product and each sum is one correctly rounded
-IEEE operation (no fused multiply-add), so the result is the same on every machine. The kernels
-(``_kernels_jit.py``, ``_kernels_step.py``) make the same operations in the same order, and the two
-paths give the same bits everywhere (``tests/arm/test_kernels.py``, ``tests/arm/test_step_kernels.py``).
+These functions make the small products of a control step with elementwise numpy operations in a
+written order: each product and each sum is one correctly rounded IEEE operation (no fused
+multiply-add), so the result is the same on every machine, and a kernel that makes the same
+operations in the same order gives the same bits. Users: the arm's barrier rows (``dh/dq``,
+``|dh/dq|``, ``dh/dt``), its reaching controller (``J J^T``, ``y J``) and tracking error
+(:mod:`isf_robot.arm.kernels`), and the filters' few-row closed form (``A u``, ``A A^T`` of
+:func:`~isf_robot.core.qp_small.project_few`, the screened rows' ``Lg h du``;
+:mod:`isf_robot.core._step_jit`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["combine3", "dots3", "gram", "row_norms", "sq_sum"]
+__all__ = ["combine3", "dots3", "gram", "matvec", "row_norms", "sq_sum"]
 
 
 def sq_sum(e: np.ndarray) -> float:
@@ -53,5 +54,20 @@ def combine3(w: np.ndarray, jac: np.ndarray) -> np.ndarray:
 
 
 def gram(jac: np.ndarray) -> np.ndarray:
-    """``J J^T`` of a (r, n) array (n >= 1): entry (a, b) is ``J_a0 J_b0 + J_a1 J_b1 + ...`` added in order."""
-    return np.add.accumulate(jac[:, None, :] * jac[None, :, :], axis=2)[:, :, -1]
+    """``J J^T`` of a (r, n) array: entry (a, b) is ``J_a0 J_b0 + J_a1 J_b1 + ...`` added in order, from the first.
+
+    C-contiguous, shape (r, r) (zeros for n = 0).
+    """
+    if jac.shape[1] == 0:
+        return np.zeros((jac.shape[0], jac.shape[0]))
+    return np.add.accumulate(jac[:, None, :] * jac[None, :, :], axis=2)[:, :, -1].copy()
+
+
+def matvec(a: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``A x`` of a (k, m) array and an (m,) vector: each row's products added in column order, from the first.
+
+    C-contiguous, shape (k,) (zeros for m = 0).
+    """
+    if a.shape[1] == 0:
+        return np.zeros(a.shape[0])
+    return np.add.accumulate(a * x, axis=1)[:, -1].copy()
