@@ -226,6 +226,7 @@ class ReachingController(NominalController):
         self._reach = k["reach"] if k is not None else None
         self._maddr, self._daddr = int(getattr(model, "_address", 0)), 0
         self._data: mujoco.MjData | None = None
+        self._binds: dict[int, tuple[mujoco.MjData, int, int]] = {}  # (id -> the data, its address, site_xpos')
         self._goals_seen: np.ndarray | None = None
         self._ptrs = np.zeros(2, dtype=np.int64)  # addresses: the goal positions, data.site_xpos
         self._dof0 = int(dofs[0]) if dofs.size else 0
@@ -260,9 +261,14 @@ class ReachingController(NominalController):
 
     def _bound(self, data: mujoco.MjData) -> bool:
         """Point the compiled command at ``data`` and the goal positions; ``False``: use numpy."""
-        if data is not self._data:
-            self._data, self._daddr = data, int(data._address)
-            self._ptrs[1] = data.site_xpos.ctypes.data
+        if data is not self._data:  # (another MjData: its addresses, kept for the few a run alternates between)
+            hit = self._binds.get(id(data))
+            if hit is None or hit[0] is not data:
+                if len(self._binds) >= 4:
+                    self._binds.clear()
+                hit = self._binds[id(data)] = (data, int(data._address), data.site_xpos.ctypes.data)
+            self._data, self._daddr = data, hit[1]
+            self._ptrs[1] = hit[2]
         g = self.goal_positions
         if g is not self._goals_seen:
             ok = (type(g) is np.ndarray and g.dtype == np.float64 and g.flags.c_contiguous

@@ -104,6 +104,10 @@ class NominalRollout:
         self._addr = (int(getattr(self.scene.model, "_address", 0)), int(getattr(self._data, "_address", 0)))
         self._qpos = self._data.qpos  # (a view of the scratch data: the kernel writes through it)
         self.calls = 0
+        self._nmocap = int(self.scene.model.nmocap)
+        qa = self._qadr
+        contiguous = qa.size and bool((np.diff(qa) == 1).all())
+        self._qsel = slice(int(qa[0]), int(qa[0]) + qa.size) if contiguous else qa  # (a slice: a cheaper copy)
         self._kn: tuple = (None, None, ())
 
     def _rows(self, data: mujoco.MjData, lin: np.ndarray | None) -> LieData:
@@ -128,15 +132,15 @@ class NominalRollout:
         blk, g, rows = coll._point_outputs(c, n)
         m = c[7]
         keys = np.empty((n, m), dtype=np.int64)
-        outs, res, mid, q0 = np.empty((n, u.size)), np.empty((n, 6)), nom.snapshot(), q.copy()
+        outs, res, q0 = np.empty((n, u.size)), np.empty((n, 6)), q.copy()
         done = self._whole(*self._addr, q, u, t, dt, self._qpos, self._qadr, nom._ptrs, nom._buf, outs,  # type: ignore[misc, attr-defined]
                            u.size, nom._jac.shape[1], nom._dof0, nom.scene.ee_site_id, nom.goals.index,  # type: ignore[attr-defined]
                            rate.t_prev, rate.a_max, nom.kp, nom.max_ee_speed, nom.max_joint_speed, nom._lam2,  # type: ignore[attr-defined]
                            c[4], blk, rows, keys, len(coll.pairs.names), res, coll.cutoff, c[14], c[15],
                            narrow._EPS_DIST, c[13], coll._knolin, 0)
         if done < n or res[n - 1, 4]:  # (touching witness points: the general loop from the start)
-            nom.restore(mid)
-            q[:] = q0
+            rate.prev[:] = u  # (the kernel's only change to the controller's state: the rate limit's last command,
+            q[:] = q0  # which after the command now is u; the goal bookkeeping is Python's and untouched)
             return None
         counts = res[:, 0].tolist()
 
@@ -157,8 +161,8 @@ class NominalRollout:
             cj, rj = int(counts[j]), rows[j]
             return [pair_names[rj[i]] if i < cj else joint_names[i - cj] if i < cj + nj else str(i) for i in idx]
 
-        return StackedPoints(s, outs, k, blk[:, :m], blk[:, o_lf: o_lf + m], lg, blk[:, o_gn: o_gn + m], point,
-                             row_names, keys, self._key_names(pair_names, joint_names))
+        return StackedPoints._of(s, outs, k, kl, blk[:, :m], blk[:, o_lf: o_lf + m], lg, blk[:, o_gn: o_gn + m], point,
+                                 row_names, keys, self._key_names(pair_names, joint_names))  # (its layout: unchecked)
 
     def _key_names(self, pairs: tuple[str, ...], joints: tuple[str, ...]) -> tuple[str, ...]:
         """The names of the rows' keys (the pairs', then the joints'), kept while those names are the same objects."""
@@ -173,9 +177,10 @@ class NominalRollout:
             raise ConfigError("NominalRollout needs the episode's MjData as the state x of step_lie")
         m, d, scene = self.scene.model, self._data, self.scene
         d.qpos[:] = x.qpos
-        d.mocap_pos[:] = x.mocap_pos
-        d.mocap_quat[:] = x.mocap_quat
-        q = x.qpos[self._qadr].copy()
+        if self._nmocap:
+            d.mocap_pos[:] = x.mocap_pos
+            d.mocap_quat[:] = x.mocap_quat
+        q = x.qpos[self._qsel].copy()
         saved = self.nominal.snapshot()
         out: list[tuple[float, LieData, np.ndarray]] = []
         self.calls += 1

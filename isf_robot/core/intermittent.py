@@ -187,6 +187,22 @@ class StackedPoints(Sequence[tuple[float, LieData, np.ndarray]]):
         self._row_names = row_names
         self._items: list[tuple[float, LieData, np.ndarray] | None] = [None] * n
 
+    @classmethod
+    def _of(cls, s: Sequence[float], u: np.ndarray, rows: np.ndarray, kl: list[int], h: np.ndarray, lf: np.ndarray,
+            lg: Sequence[np.ndarray], grad_norm: np.ndarray, point: Callable[[int], LieData],
+            row_names: Callable[[int, list[int]], list[str]] | None, keys: np.ndarray | None,
+            key_names: Sequence[str] | None) -> StackedPoints:
+        """The points, unchecked (``kl``: ``rows.tolist()``): for a producer that lays them out as above itself.
+
+        The compiled rollout of :mod:`isf_robot.arm.rollout` builds its arrays to this layout on
+        every call (``tests/arm/test_predict_stacked_arm.py`` checks them against the checked constructor).
+        """
+        self = object.__new__(cls)
+        self.s, self.u, self.rows, self.h, self.lf, self.lg, self.grad_norm = s, u, rows, h, lf, lg, grad_norm
+        self._rows, self._point, self._row_names, self.keys, self.key_names = kl, point, row_names, keys, key_names
+        self._items = [None] * len(s)
+        return self
+
     def __len__(self) -> int:
         return len(self.s)
 

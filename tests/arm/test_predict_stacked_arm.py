@@ -47,6 +47,7 @@ def test_the_compiled_rollouts_stacked_points_predict_as_the_loop(monkeypatch) -
             kj = int(pts.rows[j])
             for a, b in ((lie.h, pts.h), (lie.lf, pts.lf), (lie.grad_norm, pts.grad_norm)):
                 assert _ptr(a) == _ptr(b[j, :kj])
+        assert pts._rows == pts.rows.tolist() and list(pts.s) == [s for s, _, _ in pts]  # (the unchecked build's layout)
         for alpha in (Linear(params.alpha), Power(3.0, 0.7)):
             fresh = StackedPoints(pts.s, pts.u, pts.rows, pts.h, pts.lf, pts.lg, pts.grad_norm, pts._point,
                                   pts._row_names)
