@@ -154,14 +154,13 @@ class NominalRollout:
         nj0 = c[9]
         kl = [int(cj) + nj0 for cj in counts]  # (pairs, then the joints' rows)
         k = np.array(kl, dtype=np.int64)
-        lg = [g[j, :kl[j]] for j in range(n)]
         pair_names, joint_names, nj = coll.pairs.names, joints.names, len(joints.names)
 
         def row_names(j: int, idx: list[int]) -> list[str]:  # (point j's names: its pairs', then the joints')
             cj, rj = int(counts[j]), rows[j]
             return [pair_names[rj[i]] if i < cj else joint_names[i - cj] if i < cj + nj else str(i) for i in idx]
 
-        return StackedPoints._of(s, outs, k, kl, blk[:, :m], blk[:, o_lf: o_lf + m], lg, blk[:, o_gn: o_gn + m], point,
+        return StackedPoints._of(s, outs, k, kl, blk[:, :m], blk[:, o_lf: o_lf + m], g, blk[:, o_gn: o_gn + m], point,
                                  row_names, keys, self._key_names(pair_names, joint_names))  # (its layout: unchecked)
 
     def _key_names(self, pairs: tuple[str, ...], joints: tuple[str, ...]) -> tuple[str, ...]:

@@ -12,33 +12,38 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def predict_rows(lf, lgu, gn, d_bar, h, gain, av, k, xi, fails, nfail):  # pragma: no cover (compiled)
+def predict_rows(lf, lg, u, gn, d_bar, h, gain, av, k, xi, fails, nfail):  # pragma: no cover (compiled)
     """``Xi_on`` of every predicted point's rows and what :func:`predict` reads of them, point by point.
 
     Point ``j`` has ``k[j]`` rows in row ``j`` of the 2-D arrays ``lf``, ``gn``, ``h`` and ``av``
     (``alpha(h)``; with ``gain > 0``, a linear alpha, ``gain h`` instead, the product
-    ``Linear.vector`` makes) and, one point after the other, in ``lgu`` (``Lg h u``, numpy's
-    product per point). ``xi[j, i] = ((lf + lgu) - gn d_bar)
-    + av``: :func:`~isf_robot.core.triggers.xi_on`'s operations in its order, as the filter's
-    kernel ``_xi_jit.xi_screen`` makes them. Per point, in order: the sum of its values in Python's
-    order (a point whose sum is not finite stops the pass: returned as ``bad``), the least value
-    (``<``: the first of equal values), and the rows with ``xi <= 0`` (``fails[j, :nfail[j]]``,
-    ascending). Returns ``(bad, xi_min)``: ``bad`` -1 when every point is finite; ``xi_min`` the
-    least value over the points before ``bad`` that have rows (``inf``: none).
+    ``Linear.vector`` makes) and of the 3-D ``lg`` (``Lg h``, shape (n, K, m)), its command ``u[j]``.
+    ``xi[j, i] = ((lf + lg u) - gn d_bar) + av``: :func:`~isf_robot.core.triggers.xi_on`'s
+    operations in its order (``lg u`` each row's products added in column order from the first, as
+    :func:`isf_robot.core.sums.matvec`), as the filter's kernel ``_xi_jit.xi_screen`` makes them.
+    Per point, in order: the sum of its values in Python's order (a point whose sum is not finite
+    stops the pass: returned as ``bad``), the least value (``<``: the first of equal values), and
+    the rows with ``xi <= 0`` (``fails[j, :nfail[j]]``, ascending). Returns ``(bad, xi_min)``:
+    ``bad`` -1 when every point is finite; ``xi_min`` the least value over the points before
+    ``bad`` that have rows (``inf``: none).
     """
     n = k.shape[0]
+    m = u.shape[1]
     low = math.inf
-    o = 0
     for j in range(n):
         kj = k[j]
         nfail[j] = 0
         if kj == 0:
             continue
-        o += kj
         total = 0.0
         lo = math.inf
         for i in range(kj):
-            x = ((lf[j, i] + lgu[o - kj + i]) - gn[j, i] * d_bar) + (gain * h[j, i] if gain > 0.0 else av[j, i])
+            lgu = 0.0
+            if m > 0:
+                lgu = lg[j, i, 0] * u[j, 0]
+                for q in range(1, m):
+                    lgu = lgu + lg[j, i, q] * u[j, q]
+            x = ((lf[j, i] + lgu) - gn[j, i] * d_bar) + (gain * h[j, i] if gain > 0.0 else av[j, i])
             xi[j, i] = x
             total += x
             if x < lo:

@@ -5,8 +5,9 @@ Why: the robust slack ``Xi_on`` of every row (:func:`~isf_robot.core.triggers.xi
 numpy calls and list passes on a robot's 10-30 rows; their call overhead, not the arithmetic,
 was a third of the standard filter's step. :func:`xi_kernel` does them in one compiled pass.
 
-Same answers: the product ``Lg h u_nom`` stays numpy's (BLAS sums it in its own order, with fused
-multiply-adds), and the kernel then makes exactly the elementwise operations of
+Same answers: the kernel makes the product ``Lg h u_nom`` in :func:`isf_robot.core.sums.matvec`'s
+written order (as :func:`~isf_robot.core.triggers.xi_on` does: the same on every machine, where
+BLAS's order is not) and then exactly the elementwise operations of
 :func:`~isf_robot.core.triggers.xi_on` in its order, ``((lf + lg u) - |dh/dx| d_bar) + alpha(h)``,
 each an IEEE operation that numpy and the compiled loop round alike (numba does not contract
 them into fused multiply-adds without ``fastmath``); the sum runs in Python's order, and the
@@ -144,21 +145,21 @@ def xi_pass(kernel: Callable[..., Any], lie: LieData, u_nom: np.ndarray, alpha: 
     :func:`~isf_robot.core.triggers.xi_on`, which broadcasts or refuses them as before). The
     caller checks the sum for finiteness.
     """
-    h, lf, gn, k = lie.h, lie.lf, lie.grad_norm, lie.h.shape
+    h, lf, gn, lg, k = lie.h, lie.lf, lie.grad_norm, lie.lg, lie.h.shape
     gain = alpha.gain if type(alpha) is Linear and h.dtype == _F64 else 0.0  # (the kernel's gain h)
     av = _NO_AV if gain else alpha.vector(h)
-    lgu = lie.lg.dot(u_nom)  # (dot: the BLAS product of @, as in xi_on)
-    if not (lf.shape == k and gn.shape == k and lgu.shape == k and lf.dtype == _F64 and gn.dtype == _F64
-            and lgu.dtype == _F64 and (gain or av.shape == k and av.dtype == _F64)):
+    if not (lf.shape == k and gn.shape == k and lg.ndim == 2 and lg.shape[0] == k[0] and lf.dtype == _F64
+            and gn.dtype == _F64 and lg.dtype == _F64 and u_nom.dtype == _F64 and u_nom.shape == lg.shape[1:]
+            and (gain or av.shape == k and av.dtype == _F64)):
         return None
     xi = np.empty(k)
     if not sa.shape[0]:  # (no thresholds: the plain pass, built with the kernel)
         plain = _STATE.get("plain")
         if plain is not None:
-            total, low, arg = plain(lf, lgu, gn, d_bar, h, gain, av, xi)
+            total, low, arg = plain(lf, lg, u_nom, gn, d_bar, h, gain, av, xi)
             return xi, total, low, arg, -1, -1, None if gain else av, _NO_ROWS
         rows = _NO_ROWS
     elif rows is None or rows.shape[0] < k[0]:
         rows = np.empty(k, np.intp)
-    total, low, arg, kept, first = kernel(lf, lgu, gn, d_bar, h, gain, av, sa, xi, rows)
+    total, low, arg, kept, first = kernel(lf, lg, u_nom, gn, d_bar, h, gain, av, sa, xi, rows)
     return xi, total, low, arg, kept, first, None if gain else av, rows

@@ -136,10 +136,9 @@ class StackedPoints(Sequence[tuple[float, LieData, np.ndarray]]):
     """Predicted points whose rows sit in stacked arrays: a :data:`RolloutFn` result a compiled rollout can hand over.
 
     A sequence of ``(s, lie, u)`` like any rollout's list. Point ``j`` has ``rows[j]`` rows: its
-    barrier data are ``h[j, :rows[j]]``, ``lf[j, :rows[j]]``, ``lg[j]`` and ``grad_norm[j, :rows[j]]``,
-    its command ``u[j]``, its time ``s[j]``. ``point(j)`` builds point
-    ``j``'s :class:`LieData` (on first use; kept): it must hold exactly these numbers -- views of
-    these arrays, so that ``lie.lg.dot(u)`` is the same product -- with the rows' names, which
+    barrier data are ``h[j, :rows[j]]``, ``lf[j, :rows[j]]``, ``lg[j]`` (its first ``rows[j]`` rows)
+    and ``grad_norm[j, :rows[j]]``, its command ``u[j]``, its time ``s[j]``. ``point(j)`` builds point
+    ``j``'s :class:`LieData` (on first use; kept): it must hold exactly these numbers with the rows' names, which
     ``row_names(j, rows)`` gives alone for some rows (default: read from ``point(j).names``).
     :func:`predict` reads the arrays in one compiled pass and asks for the names only of the rows
     predicted to fail.
@@ -149,7 +148,8 @@ class StackedPoints(Sequence[tuple[float, LieData, np.ndarray]]):
         u: Commands, shape (n, m), float64.
         rows: Rows per point, shape (n,), int64, each at most K.
         h, lf, grad_norm: Shape (n, K), float64.
-        lg: One array per point, shape (rows[j], m), float64.
+        lg: One array per point, shape (rows[j], m), float64; or one float64 array of shape (n, K, m)
+            (point ``j``'s rows ``lg[j, :rows[j]]``: a compiled rollout's block, read as it is).
         point: ``point(j) -> LieData`` of point ``j``.
         row_names: ``row_names(j, rows) -> [name, ...]``: the names of those rows of point ``j``, each
             ``point(j).names[i]`` (``str(i)`` past the end of the names) (``None``: read from ``point(j)``).
@@ -249,15 +249,27 @@ def _failing_by_keys(points: StackedPoints, fails: np.ndarray, nfail: np.ndarray
     return {names[i] for i in out[:c].tolist()}  # type: ignore[index]
 
 
+def _lg_block(lg: Sequence[np.ndarray] | np.ndarray, shape: tuple[int, ...], m: int,
+              kl: list[int]) -> np.ndarray | None:
+    """The points' ``Lg h`` as one float64 (n, K, m) array (``lg`` itself when it is one); ``None``: not their own rows."""
+    if type(lg) is np.ndarray:
+        return lg if lg.dtype == _F64 and lg.shape == (*shape, m) else None
+    if any(type(a) is not np.ndarray or a.shape != (kj, m) or a.dtype != _F64 for a, kj in zip(lg, kl)):
+        return None
+    block = np.zeros((*shape, m))
+    for j, a in enumerate(lg):
+        block[j, :kl[j]] = a
+    return block
+
+
 def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Prediction | None:
     """:func:`predict` of stacked points in one compiled pass, the same numbers (``None``: the loop decides)."""
     kernel = _stacked_kernel()
     if kernel is None:
         return None
-    h, k, kl = points.h, points.rows, points._rows
-    lgu = [a.dot(b) for a, b in zip(points.lg, points.u)]  # each point's own product: its lie.lg.dot(u)
-    lgu = np.concatenate(lgu) if lgu else _NO_AV
-    if lgu.shape != (sum(kl),) or lgu.dtype != _F64:  # (rows that are not the points' own: as xi_pass, the loop)
+    h, k, kl, u = points.h, points.rows, points._rows, points.u
+    lg = _lg_block(points.lg, h.shape, u.shape[1], kl)
+    if lg is None:  # (rows that are not the points' own: as xi_pass, the loop)
         return None
     gain = alpha.gain if type(alpha) is Linear else 0.0  # (the kernel's gain h, as xi_pass)
     av = _NO_AV2
@@ -268,7 +280,7 @@ def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Pred
     xi = np.empty(h.shape)
     fails = np.empty(h.shape, np.int64)
     nfail = np.empty(len(kl), np.int64)
-    bad, xi_lo = kernel(points.lf, lgu, points.grad_norm, float(d_bar), h, gain, av, k, xi, fails, nfail)
+    bad, xi_lo = kernel(points.lf, lg, u, points.grad_norm, float(d_bar), h, gain, av, k, xi, fails, nfail)
     if bad >= 0:
         raise NonFiniteError(f"predicted Xi_on not finite {points.s[bad]:.3g} s ahead: {xi[bad, :kl[bad]]}")
     first: float | None = None

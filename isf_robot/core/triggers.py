@@ -16,6 +16,7 @@ import numpy as np
 
 from .class_k import ClassK
 from .exceptions import ConfigError
+from .sums import matvec
 from .switches import SwitchCounter, SwitchEvent
 from .system import LieData
 from .validation import check_finite_scalar, check_positive
@@ -28,7 +29,9 @@ def xi_on(lie: LieData, u_nom: np.ndarray, alpha: ClassK, d_bar: float,
     """Per-barrier on-trigger values ``Xi_on = Lf h(x, u_nom) - |dh/dx| d_bar + alpha(h)``.
 
     Also the greedy impulsive trigger ``Xi`` (eq. greedy_cond) when ``lg`` is empty / u_nom
-    is the flow's (the input term then vanishes).
+    is the flow's (the input term then vanishes). ``Lg h u_nom`` is :func:`~isf_robot.core.sums.matvec`
+    (each row's products added in a written order: the same bits on every machine, and those of the
+    compiled kernels of :mod:`isf_robot.core.fast`).
 
     Args:
         lie: Lie data at the current state, k barriers.
@@ -43,7 +46,7 @@ def xi_on(lie: LieData, u_nom: np.ndarray, alpha: ClassK, d_bar: float,
     """
     if alpha_h is None:
         alpha_h = alpha.vector(lie.h)
-    return lie.lf + lie.lg.dot(u_nom) - lie.grad_norm * d_bar + alpha_h  # dot: the BLAS product of @
+    return lie.lf + matvec(lie.lg, u_nom) - lie.grad_norm * d_bar + alpha_h  # (Lg h u in sums' written order)
 
 
 def xi_on_scalar(lf: float, lg_u: float, grad_norm: float, h: float, alpha: ClassK, d_bar: float) -> float:

@@ -55,7 +55,7 @@ def test_kernel_makes_xi_on_and_its_reductions_bit_for_bit(alpha) -> None:  # ty
         gain = alpha.gain if isinstance(alpha, Linear) else 0.0  # (linear: the kernel makes gain h itself)
         for screen in (np.zeros(0), np.full(1, 0.1), rng.uniform(-0.5, 1.0, k)):
             out, rows = np.empty(k), np.full(k if screen.size else 0, -1, np.intp)
-            total, low, arg, kept, first = kernel(lie.lf, lie.lg.dot(u), lie.grad_norm, d_bar, lie.h, gain,
+            total, low, arg, kept, first = kernel(lie.lf, lie.lg, u, lie.grad_norm, d_bar, lie.h, gain,
                                                   np.zeros(0) if gain else alpha.vector(lie.h), screen, out, rows)
             assert out.tobytes() == ref.tobytes()  # signed zeros included
             assert total == sum(ref.tolist()) and low == min(ref.tolist()) and arg == int(ref.argmin())
@@ -64,7 +64,7 @@ def test_kernel_makes_xi_on_and_its_reductions_bit_for_bit(alpha) -> None:  # ty
             assert first == (int(below[0]) if screen.size and below.size else -1)
             assert rows[:max(kept, 0)].tolist() == (below.tolist() if screen.size else [])
             plain = np.empty(k)
-            total, low, arg = xi_plain(lie.lf, lie.lg.dot(u), lie.grad_norm, d_bar, lie.h, gain,
+            total, low, arg = xi_plain(lie.lf, lie.lg, u, lie.grad_norm, d_bar, lie.h, gain,
                                        np.zeros(0) if gain else alpha.vector(lie.h), plain)
             assert plain.tobytes() == ref.tobytes() and total == sum(ref.tolist()) and low == min(ref.tolist())
             assert arg == int(ref.argmin())

@@ -15,6 +15,7 @@ import pytest
 from isf_robot.core import CustomClassK, LieData, Linear, NonFiniteError, Power, ShapeError
 from isf_robot.core import intermittent as im
 from isf_robot.core.intermittent import StackedPoints, predict
+from isf_robot.core.triggers import xi_on
 
 pytest.importorskip("numba")
 pytestmark = pytest.mark.kernels  # (skipped under ISF_ROBOT_JIT=0: tests/conftest.py)
@@ -68,7 +69,7 @@ def test_stacked_points_give_the_loops_prediction(alpha, monkeypatch) -> None:  
         monkeypatch.setenv("ISF_ROBOT_JIT", "1")
         got = predict(pts, alpha, d_bar)
         fails = {j for j, (_, lie, u) in enumerate(zip(pts.s, [pts[j][1] for j in range(n)], pts.u))
-                 if lie.k and float(np.min(lie.lf + lie.lg.dot(u) - lie.grad_norm * d_bar + alpha.vector(lie.h))) <= 0}
+                 if lie.k and float(np.min(xi_on(lie, u, alpha, d_bar))) <= 0}
         assert set(asked) <= fails  # names only of points predicted to fail
         ref_kernel = predict(list(pts), alpha, d_bar)  # the loop, the filter's kernel per point
         monkeypatch.setenv("ISF_ROBOT_JIT", "0")
