@@ -99,7 +99,13 @@ class Power(ClassK):
         return self.gain * self.exponent * abs(h) ** (self.exponent - 1.0)
 
     def vector(self, h: np.ndarray) -> np.ndarray:
-        return self.gain * np.sign(h) * np.abs(h) ** self.exponent
+        # Element by element with the scalar formula (libm's pow), not numpy's ``np.abs(h) ** e``:
+        # numpy's power loop is machine dependent (SVML on AVX-512 CPUs, libm elsewhere) and differs
+        # from libm in the last bit for ~5% of inputs there, so the vector and scalar paths
+        # (xi_on vs xi_on_scalar, filter_short's row) would disagree on one machine and not another.
+        g, e, h = self.gain, self.exponent, np.asarray(h, dtype=float)
+        return np.array([math.copysign(g * abs(v) ** e, v) for v in h.ravel().tolist()],
+                        dtype=float).reshape(h.shape)
 
     def __repr__(self) -> str:
         return f"Power(gain={self.gain:g}, exponent={self.exponent:g})"
