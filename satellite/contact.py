@@ -41,6 +41,21 @@ the body; ``stop``: the run ends at the first contact."""
 _POLAR_DEG = 80.0
 
 
+def _lat_lon(p: NDArray[np.float64], r: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Latitude and longitude [rad] of points ``p`` (N, 3) with norms ``r`` (N,), by libm's asin/atan2.
+
+    Element by element on purpose: numpy's ``arcsin``/``arctan2`` loops are machine dependent (SVML on
+    AVX-512 CPUs, libm elsewhere) and round differently in the last bit, which moved the contact
+    samples (``u * uniform(r_env(u), ...)``) off the committed exact-field cache
+    (:mod:`satellite.shape_cache`) on one machine and not another. libm's results are the same on both.
+    """
+    n = len(r)
+    z = np.clip(p[:, 2] / r, -1.0, 1.0).tolist()
+    lat = np.fromiter(map(math.asin, z), dtype=np.float64, count=n)
+    lon = np.fromiter(map(math.atan2, p[:, 1].tolist(), p[:, 0].tolist()), dtype=np.float64, count=n)
+    return lat, lon
+
+
 def ellipsoid_mesh(semi_axes: NDArray[np.float64], n: int = 96) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
     """Vertices on the ellipsoid (a latitude x longitude net, ``n`` x ``2n``) and its triangles."""
     lat = np.linspace(-0.5 * math.pi, 0.5 * math.pi, n + 1)
@@ -80,8 +95,8 @@ class RadiusEnvelope:
         self.n_lat, self.n_lon = int(n_lat), 2 * int(n_lat)
         self.d = math.pi / self.n_lat  # cell size [rad], both ways
         rad = np.linalg.norm(v, axis=1)
-        lat = np.arcsin(np.clip(v[:, 2] / rad, -1.0, 1.0))[f]
-        lon = np.arctan2(v[:, 1], v[:, 0])[f]
+        lat, lon = _lat_lon(v, rad)
+        lat, lon = lat[f], lon[f]
         rel = (lon - lon[:, :1] + math.pi) % (2.0 * math.pi) - math.pi  # longitudes about vertex 0
         lon0 = lon[:, 0] + rel.min(axis=1)
         span = rel.max(axis=1) - rel.min(axis=1)
@@ -138,8 +153,7 @@ class RadiusEnvelope:
         """``r_env`` [m] of directions, shape (N, 3) (need not be unit) -> (N,)."""
         p = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
         r = np.linalg.norm(p, axis=1)
-        lat = np.arcsin(np.clip(p[:, 2] / np.where(r > 0, r, 1.0), -1.0, 1.0))
-        lon = np.arctan2(p[:, 1], p[:, 0])
+        lat, lon = _lat_lon(p, np.where(r > 0, r, 1.0))
         x = np.clip((lat + 0.5 * math.pi) / self.d - 0.5, 0.0, self.n_lat - 1.0)
         y = ((lon + math.pi) / self.d - 0.5) % self.n_lon
         i = np.minimum(np.floor(x).astype(np.intp), self.n_lat - 2) if self.n_lat > 1 else np.zeros(len(x), np.intp)

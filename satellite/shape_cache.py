@@ -15,7 +15,10 @@ at every start. Here:
   (SHA-256) and ``GM``; otherwise evaluated.
 
 Both files are written by ``python -m satellite.shape_cache`` (atomically) from the shape file; a stale
-or missing file only costs the time it saves, never changes a number.
+or missing file only costs the time it saves, never changes a number on the machine that wrote it (on
+another CPU the evaluated exact field can differ from the file in the last bits, ~1e-15 relative: its
+BLAS sums and numpy's arctan2/log loops round per CPU). The sample points themselves are the same on
+every machine (:func:`satellite.contact.contact_samples` takes latitude/longitude from libm).
 """
 
 from __future__ import annotations
