@@ -20,8 +20,12 @@ This controller chooses the impulse by short-horizon shooting in the run's truth
    trigger, eq. trigger:greedy; the crossing is interpolated linearly between steps) or until
    ``horizon_h`` (the prediction is then the horizon).
 4. **Choice**: the largest predicted time; ties (several candidates reach the horizon) go to the
-   smaller ``|dv|``, then to the earlier candidate. Then ``refine`` rounds of the 8 lattice
-   neighbours of the best grid point at a third of the previous spacing.
+   smaller ``|dv|``, counted in steps of ``1e-12 v_c`` (far below any thruster's resolution, far
+   above the ~1e-16 ``v_c`` rounding of ``v+ - v``: two impulses that are both none, e.g. the paper's
+   and the lattice's circular orbit at the band's centre, tie on every machine instead of being
+   ranked by their rounding noise), then to the earlier candidate (the paper's is the first). Then
+   ``refine`` rounds of the 8 lattice neighbours of the best grid point at a third of the previous
+   spacing.
 
 Bounded cost per impulse: at most ``grid^2 + 1 + 8 refine`` predictions of at most
 ``ceil(horizon / step)`` steps of 4 truth evaluations (defaults 7, 24 h, 120 s, 1 round:
@@ -226,7 +230,8 @@ class ShootingController:
         r, rhat, that = plane_basis(x)
         vc = math.sqrt(self.model.mu / r)
         v = x[3:6]
-        self._best: tuple[float, float, int] | None = None  # (predicted, -|dv|, -order)
+        self._best: tuple[float, float, int] | None = None  # (predicted, -|dv| in steps of dv_step, -order)
+        self._dv_step = 1e-12 * vc  # |dv| resolution of the tie-break (module docstring, 4.)
         self._best_dv: NDArray[np.float64] | None = None
         self._best_f: tuple[float, float] | None = None
         self._counts = [0, 0, 0, 0]  # candidates, kept, propagated, rhs evaluations
@@ -272,12 +277,13 @@ class ShootingController:
             return math.nan
         self._counts[1] += 1
         best = self._best
-        if best is not None and best[0] >= self.horizon_s and -mag <= best[1]:
+        dv_key = -float(np.rint(mag / self._dv_step))  # (a float: no overflow for a huge impulse)
+        if best is not None and best[0] >= self.horizon_s and dv_key <= best[1]:
             return math.nan  # cannot beat a horizon-reaching candidate: same time at best, not less dv
         pred, evals = predict_trigger(self.model.truth_rhs, self.trig.xi, t, y, self.horizon_s, self.params.step_s)
         self._counts[2] += 1
         self._counts[3] += evals
-        key = (pred, -mag, -self._counts[0])
+        key = (pred, dv_key, -self._counts[0])
         if best is None or key > best:
             self._best, self._best_dv, self._best_f = key, dv, f
         return pred
