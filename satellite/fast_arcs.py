@@ -18,13 +18,21 @@ leaving the band), the compiled arc stops at the first such point, the exact fie
 there in Python, and the arc is run again with it (the same steps retrace the same points); an arc
 with more than :data:`_MAX_EXACT` such points goes to the Python path. Without numba, or with
 ``ISF_ROBOT_JIT=0`` in the environment, everything runs in Python.
+
+Ctrl-C and SIGTERM are held while numba compiles or runs (:func:`signals_deferred`) and act as soon as
+the call returns: a ``KeyboardInterrupt`` raised inside numba (its compiler's ctypes callbacks, the
+boxing of a compiled call's results, which calls Python) is swallowed there or comes out as a
+``SystemError`` traceback, not as the command's one-line "interrupted".
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
-from collections.abc import Sequence
+import signal
+import threading
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import numpy as np
@@ -32,7 +40,7 @@ from numpy.typing import NDArray
 
 from satellite.events import ArcSolution, Event, IntegrationFailed
 
-__all__ = ["FastArcs", "FastDense", "jit_enabled", "XI", "H", "RDOT", "CONTACT", "XITAU"]
+__all__ = ["FastArcs", "FastDense", "jit_enabled", "signals_deferred", "XI", "H", "RDOT", "CONTACT", "XITAU"]
 
 XI, H, RDOT, CONTACT, XITAU = 0, 1, 2, 3, 4
 """Event kinds (:attr:`satellite.events.Event.code`'s first item; as in :mod:`satellite._jit_parts`)."""
@@ -43,6 +51,32 @@ one exact evaluation, ~10 ms, and a rerun of the compiled arc, which retraces th
 
 _PACKS: dict[int, tuple[Any, ...]] = {}
 _JIT: dict[str, Any] = {}
+
+
+@contextlib.contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM (their Python handlers) for the body; the held ones act when it ends.
+
+    The handlers are swapped for one that only notes the signal, so no exception is raised inside
+    numba's machinery (module docstring); on exit the original handlers are back and called for the
+    noted signals, in order, which raises their ``KeyboardInterrupt``/``Terminated`` here. Signals
+    with no Python handler (ignored, default) and threads other than the main one are left alone.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: list[int] = []
+    saved: dict[int, Any] = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        if callable(signal.getsignal(sig)):
+            saved[sig] = signal.signal(sig, lambda signum, _frame: held.append(signum))
+    try:
+        yield
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+        for sig in dict.fromkeys(held):
+            saved[sig](sig, None)
 
 
 def jit_enabled() -> bool:
@@ -185,7 +219,8 @@ class FastArcs:
         """The compiled arcs of a run, or ``None`` (numba missing or off, or a field without compiled form)."""
         if not jit_enabled():
             return None
-        packed = _pack_field(model.field)
+        with signals_deferred():  # (numba's typed List compiles on first use)
+            packed = _pack_field(model.field)
         return cls(model, trig, contact, packed) if packed is not None else None
 
     def _tau(self, fit: Any) -> NDArray[np.float64] | None:
@@ -242,10 +277,11 @@ class FastArcs:
         self.calls += 1
         xc = np.zeros((1, 6))  # exact accelerations at the arc's points outside the table's radii
         for _ in range(_MAX_EXACT + 1):
-            (status, t_fail, ts, ys, hs, Fs, ev_t, ev_i, ev_y, nfev, scanned) = _JIT["arc"](
-                float(t0), float(t1), np.array(y0, dtype=np.float64), float(rtol), float(atol), float(max_step),
-                float(min_dt), bool(dense), kinds, pars, dirs, terms, rated, self.fp, self.ext, self.box_o,
-                self.box_n, self.coef, xc, self.bp, self.cp, self.env, tp, *self.coefs)
+            with signals_deferred():  # the first call compiles (~13 s without numba's cache)
+                (status, t_fail, ts, ys, hs, Fs, ev_t, ev_i, ev_y, nfev, scanned) = _JIT["arc"](
+                    float(t0), float(t1), np.array(y0, dtype=np.float64), float(rtol), float(atol), float(max_step),
+                    float(min_dt), bool(dense), kinds, pars, dirs, terms, rated, self.fp, self.ext, self.box_o,
+                    self.box_n, self.coef, xc, self.bp, self.cp, self.env, tp, *self.coefs)
             if status != -2 or len(xc) > _MAX_EXACT:
                 break
             p = (float(xc[0, 0]), float(xc[0, 1]), float(xc[0, 2]))

@@ -90,7 +90,45 @@ def test_interrupted_recording_keeps_the_previous_file(tmp_path: Path) -> None:
     assert (tmp_path / "run.rrd.partial").stat().st_size > 0
 
 
-def test_satellite_run_interrupt_is_one_line() -> None:
+@pytest.fixture(scope="module")
+def satellite_compiled() -> None:
+    """numba's cache of the satellite's compiled arcs, filled before a test starts its clock.
+
+    A fresh clone has none: the first arc of a run compiles for ~13 s on one free core (this Intel
+    Xeon; about twice that with two test workers and another load), and a Ctrl-C in that time is
+    held until the compilation ends (satellite.fast_arcs.signals_deferred), so a signal sent "2 s
+    after the recording opened" would wait for the compiler, not test the interrupt of a run. One
+    short run of the same command fills the cache (~1.5 s when it is already there); its bound,
+    600 s, only catches a hang.
+    """
+    done = subprocess.run(SATELLITE + ["run", "--trigger", "greedy", "--hours", "1", "--quiet"], capture_output=True,
+                          text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+
+
+def test_signals_in_compiled_calls_act_when_the_call_returns() -> None:
+    """satellite.fast_arcs.signals_deferred: the handler does not run inside the body, it runs at its end."""
+    from satellite.fast_arcs import signals_deferred
+
+    class Hit(Exception):
+        pass
+
+    def raise_hit(signum: int, frame: object) -> None:
+        raise Hit(signum)
+
+    previous = signal.signal(signal.SIGINT, raise_hit)
+    try:
+        reached = False
+        with pytest.raises(Hit), signals_deferred():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)  # an undeferred handler would have raised by now
+            reached = True
+        assert reached and signal.getsignal(signal.SIGINT) is raise_hit  # the handler is back
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def test_satellite_run_interrupt_is_one_line(satellite_compiled: None) -> None:
     proc = _start(SATELLITE + ["run", "--trigger", "greedy", "--hours", "100000", "--quiet"])
     time.sleep(6.0)  # past the imports: the integration runs (its first progress line is 10000 h away)
     proc.send_signal(signal.SIGINT)
@@ -99,7 +137,7 @@ def test_satellite_run_interrupt_is_one_line() -> None:
     assert "Traceback" not in err and err.strip().splitlines()[-1] == "isf-satellite run: interrupted"
 
 
-def test_interrupted_satellite_recording_keeps_the_previous_file(tmp_path: Path) -> None:
+def test_interrupted_satellite_recording_keeps_the_previous_file(tmp_path: Path, satellite_compiled: None) -> None:
     rrd = tmp_path / "sat.rrd"
     rrd.write_bytes(b"previous recording")
     proc = _start(SATELLITE + ["run", "--trigger", "greedy", "--hours", "100000", "--quiet", "--rrd", str(rrd)])
