@@ -35,7 +35,7 @@ CASES["satellite-surface-12h"] = ["isf-satellite", "run", "--trigger", "greedy",
 # over 200 h the same start perturbed by 1e-13 R gives 90-115 impulses (REPRODUCTION.md, "Golden
 # satellite cases"). Its orbit-dependent fields are compared with these tolerances; every other
 # field (settings, margins, MIET figures, band exits, holds, the case's shape) exactly as the
-# arm cases. The 12 h cases are short enough to be compared to RTOL like the arm cases.
+# arm cases. The 12 h cases keep every field, but their floats to MACHINE_RTOL, not RTOL (below).
 # Spec: ("rel", r): |got - want| <= r |want|; ("range", lo, hi): lo <= got <= hi; ("any",): not compared.
 ANY = ("any",)
 TOLERANCES: dict[str, dict[str, tuple[object, ...]]] = {
@@ -49,6 +49,18 @@ TOLERANCES: dict[str, dict[str, tuple[object, ...]]] = {
         "first_contact_h": ANY, "min_pass_clearance_m": ANY,
     },
 }
+
+# The 12 h satellite cases on another CPU: their Python parts round differently in the last bits (OpenBLAS picks
+# its gemv/dot kernels per CPU, e.g. the table's one-point 16 x 12 product; numpy's float64 transcendental loops
+# are SVML on AVX-512 CPUs, libm elsewhere), and the orbits amplify it. Measured on an Intel Xeon against these
+# AMD-made files: greedy-12h min_h 2.3e-9 relative, surface-12h min_h 1.2e-9 and surface_min_h_m 1.7e-9; both
+# reproduced exactly there with OPENBLAS_CORETYPE=Haswell (the AMD kernels) and, for surface-12h, numpy's
+# AVX-512 loops off too. The same size of change at the start, 41 runs with --radius 2 + k 1e-15 (k = -20..20):
+# greedy-12h (it passes the body's tip, where rounding e-folds every ~2 minutes) moves min_h by up to 5.4e-6,
+# r_max_over_R 3e-7, the rest <= 1.2e-7; surface-12h moves every float by <= 2.4e-9; no count changed. Hence
+# these tolerances (~20x and ~40x that spread), far below a change of behaviour (other impulse counts: compared
+# exactly; another field model: ~1e-5 over 12 h, which surface-12h still catches; another margin: other counts).
+MACHINE_RTOL: dict[str, float] = {"satellite-greedy-12h": 1e-4, "satellite-surface-12h": 1e-7}
 
 # Cases whose arcs run compiled when numba is installed (satellite/fast_arcs.py; generated that way): the
 # Python path (no numba, or ISF_ROBOT_JIT=0) sums in another order and reproduces them to ~2e-8, not 1e-9.

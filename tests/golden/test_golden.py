@@ -2,7 +2,8 @@
 
 Compared field by field: integers, strings, booleans and ``None`` exactly; floats to a relative
 tolerance of ``RTOL`` (the QP backend's answers agree to about 1e-10, far below anything a run
-reports). Machine-dependent fields (wall time, timings, solver microseconds) are not compared.
+reports), the 12 h satellite cases' to ``cases.MACHINE_RTOL`` (another CPU's rounding, amplified by
+the orbit). Machine-dependent fields (wall time, timings, solver microseconds) are not compared.
 Regenerate with ``python tests/golden/generate.py`` only for an intended behaviour change.
 
 Changes so far, each deliberate:
@@ -58,6 +59,11 @@ Changes so far, each deliberate:
   kernel's rounding is fixed for a given code, not across edits of it: regenerate after changing it.)
   ``satellite-surface-12h`` is unchanged (its arcs watch the surface barrier, which has no compiled form:
   they run in Python); ``satellite-greedy`` stays within its tolerances.
+* Another CPU (an Intel Xeon with AVX-512; the files are from AMD EPYC machines): the 12 h satellite cases
+  moved by up to 2.3e-9 relative (OpenBLAS's per-CPU kernels, numpy's SVML loops), past RTOL. Not
+  regenerated (that would move the failure to the other machines): their floats are compared to
+  ``cases.MACHINE_RTOL`` (1e-4 greedy-12h, 1e-7 surface-12h), sized from their measured sensitivity to
+  a 1e-15 change of the start (cases.py); every count and string still exactly, the arm cases to RTOL.
 * Versioned outputs (issue 12, item 3): one new key in every case, ``"schema"``
   (``"isf-robot-run/1"``, ``"isf-satellite-run/1"``), added to the data files by hand (every
   other value untouched, not regenerated).
@@ -86,7 +92,7 @@ import pytest
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from cases import CASES, PYTHON_PATH_RTOL, TOLERANCES, run_case, stable  # noqa: E402
+from cases import CASES, MACHINE_RTOL, PYTHON_PATH_RTOL, TOLERANCES, run_case, stable  # noqa: E402
 
 RTOL = 1e-9
 
@@ -132,11 +138,11 @@ def test_golden_output(name: str) -> None:
     want = stable(json.loads((HERE / "data" / f"{name}.json").read_text()))
     got = stable(run_case(CASES[name]))
     diffs: list[str] = []
-    rtol = RTOL
+    rtol = MACHINE_RTOL.get(name, RTOL)
     if name in PYTHON_PATH_RTOL:
         from satellite.fast_arcs import jit_enabled
 
-        rtol = RTOL if jit_enabled() else PYTHON_PATH_RTOL[name]
+        rtol = rtol if jit_enabled() else max(rtol, PYTHON_PATH_RTOL[name])
     _diff(name, want, got, diffs, TOLERANCES.get(name), rtol=rtol)
     assert not diffs, "golden output changed:\n" + "\n".join(diffs)
 
