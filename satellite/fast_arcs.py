@@ -73,10 +73,10 @@ def signals_deferred() -> Iterator[None]:
     try:
         yield
     finally:
-        for sig, handler in saved.items():
-            signal.signal(sig, handler)
-        for sig in dict.fromkeys(held):
-            saved[sig](sig, None)
+        for num, handler in saved.items():
+            signal.signal(num, handler)
+        for num in dict.fromkeys(held):
+            saved[num](num, None)
 
 
 def jit_enabled() -> bool:
