@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def predict_rows(lf, lg, u, gn, d_bar, h, gain, av, k, xi, fails, nfail):  # pragma: no cover (compiled)
+def predict_rows(lf, lg, u, gn, d_bar, h, gain, av, k, xi, fails, nfail, keys, nkeys, out):  # pragma: no cover
     """``Xi_on`` of every predicted point's rows and what :func:`predict` reads of them, point by point.
 
     Point ``j`` has ``k[j]`` rows in row ``j`` of the 2-D arrays ``lf``, ``gn``, ``h`` and ``av``
@@ -23,9 +24,11 @@ def predict_rows(lf, lg, u, gn, d_bar, h, gain, av, k, xi, fails, nfail):  # pra
     :func:`isf_robot.core.sums.matvec`), as the filter's kernel ``_xi_jit.xi_screen`` makes them.
     Per point, in order: the sum of its values in Python's order (a point whose sum is not finite
     stops the pass: returned as ``bad``), the least value (``<``: the first of equal values), and
-    the rows with ``xi <= 0`` (``fails[j, :nfail[j]]``, ascending). Returns ``(bad, xi_min)``:
+    the rows with ``xi <= 0`` (``fails[j, :nfail[j]]``, ascending). Returns ``(bad, xi_min, c)``:
     ``bad`` -1 when every point is finite; ``xi_min`` the least value over the points before
-    ``bad`` that have rows (``inf``: none).
+    ``bad`` that have rows (``inf``: none); with ``keys`` (shape (n, K); no rows: none) and every
+    point finite, ``c`` failing rows' keys in ``out[:c]`` (:func:`failing_keys`, ``nkeys`` keys;
+    -1: a key outside them), else 0.
     """
     n = k.shape[0]
     m = u.shape[1]
@@ -49,7 +52,7 @@ def predict_rows(lf, lg, u, gn, d_bar, h, gain, av, k, xi, fails, nfail):  # pra
             if x < lo:
                 lo = x
         if not math.isfinite(total):
-            return j, low
+            return j, low, 0
         if lo < low:
             low = lo
         if lo <= 0.0:
@@ -59,7 +62,9 @@ def predict_rows(lf, lg, u, gn, d_bar, h, gain, av, k, xi, fails, nfail):  # pra
                     fails[j, c] = i
                     c += 1
             nfail[j] = c
-    return -1, low
+    if keys.shape[0] == 0:
+        return -1, low, 0
+    return -1, low, failing_keys(keys, fails, nfail, np.zeros(nkeys, np.bool_), out)
 
 
 @njit(cache=True, nogil=True)

@@ -56,7 +56,8 @@ __all__ = ["FallRateBound", "OffPredictor", "Prediction", "RolloutFn", "StackedP
 _F64 = np.dtype(np.float64)
 _KERNEL: list[Any] = []  # (the stacked kernel, once imported)
 _new, _set = object.__new__, object.__setattr__
-_NO_AV, _NO_AV2 = np.zeros(0), np.zeros((0, 0))  # (the stacked kernel's "no product" and "alpha is linear")
+_NO_AV2 = np.zeros((0, 0))  # (the stacked kernel's "alpha is linear")
+_NO_KEYS = np.zeros((0, 0), np.int64)  # (the stacked kernel's "no keys")
 
 RolloutFn = Callable[[float, Any], Sequence[tuple[float, LieData, np.ndarray]]]
 """``rollout(t, x) -> [(s, lie, u_nom), ...]``: predicted barrier data and nominal command at times
@@ -198,7 +199,7 @@ class StackedPoints(Sequence[tuple[float, LieData, np.ndarray]]):
         every call (``tests/arm/test_predict_stacked_arm.py`` checks them against the checked constructor).
         """
         self = object.__new__(cls)
-        self.s, self.u, self.rows, self.h, self.lf, self.lg, self.grad_norm = s, u, rows, h, lf, lg, grad_norm
+        self.s, self.u, self.rows, self.h, self.lf, self.lg, self.grad_norm = s, u, rows, h, lf, lg, grad_norm  # type: ignore[assignment]
         self._rows, self._point, self._row_names, self.keys, self.key_names = kl, point, row_names, keys, key_names
         self._items = [None] * len(s)
         return self
@@ -231,27 +232,16 @@ def _stacked_kernel() -> Callable[..., Any] | None:
     """``_predict_jit.predict_rows``, or ``None`` without numba (the caller checks that the filter's kernel is on)."""
     if not _KERNEL:
         try:
-            from ._predict_jit import failing_keys, predict_rows
+            from ._predict_jit import predict_rows
         except ImportError:
-            predict_rows = failing_keys = None
-        _KERNEL.extend((predict_rows, failing_keys))
+            predict_rows = None
+        _KERNEL.append(predict_rows)
     return _KERNEL[0]
-
-
-def _failing_by_keys(points: StackedPoints, fails: np.ndarray, nfail: np.ndarray) -> set[str]:
-    """The failing rows' names through ``points.keys`` (``_predict_jit.failing_keys``: each key once)."""
-    names = points.key_names
-    seen = np.zeros(len(names), dtype=bool)  # type: ignore[arg-type]
-    out = np.empty(fails.size, dtype=np.int64)
-    c = _KERNEL[1](points.keys, fails, nfail, seen, out)
-    if c < 0:
-        raise ShapeError(f"stacked points: a failing row's key lies outside key_names (0..{len(names) - 1})")  # type: ignore[arg-type]
-    return {names[i] for i in out[:c].tolist()}  # type: ignore[index]
 
 
 def _lg_block(lg: Sequence[np.ndarray] | np.ndarray, shape: tuple[int, ...], m: int,
               kl: list[int]) -> np.ndarray | None:
-    """The points' ``Lg h`` as one float64 (n, K, m) array (``lg`` itself when it is one); ``None``: not their own rows."""
+    """The points' ``Lg h`` as one float64 (n, K, m) array (``lg`` itself when it is one); ``None``: not their rows."""
     if type(lg) is np.ndarray:
         return lg if lg.dtype == _F64 and lg.shape == (*shape, m) else None
     if any(type(a) is not np.ndarray or a.shape != (kj, m) or a.dtype != _F64 for a, kj in zip(lg, kl)):
@@ -280,16 +270,22 @@ def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Pred
     xi = np.empty(h.shape)
     fails = np.empty(h.shape, np.int64)
     nfail = np.empty(len(kl), np.int64)
-    bad, xi_lo = kernel(points.lf, lg, u, points.grad_norm, float(d_bar), h, gain, av, k, xi, fails, nfail)
+    keys, names = points.keys, points.key_names
+    out = np.empty(0 if keys is None else fails.size, np.int64)
+    bad, xi_lo, nk = kernel(points.lf, lg, u, points.grad_norm, float(d_bar), h, gain, av, k, xi, fails, nfail,
+                            _NO_KEYS if keys is None else keys, 0 if names is None else len(names), out)
     if bad >= 0:
         raise NonFiniteError(f"predicted Xi_on not finite {points.s[bad]:.3g} s ahead: {xi[bad, :kl[bad]]}")
     first: float | None = None
     failing: set[str] = set()
     nf = nfail.tolist()
-    if points.keys is not None:
+    if keys is not None:  # (the failing rows' keys, each once: out[:nk])
+        if nk < 0:
+            raise ShapeError(
+                f"stacked points: a failing row's key lies outside key_names (0..{len(names) - 1})")  # type: ignore[arg-type]
         times = [s for s, c in zip(points.s, nf) if c]
         if times:
-            first, failing = min(times), _failing_by_keys(points, fails, nfail)
+            first, failing = min(times), {names[i] for i in out[:nk].tolist()}  # type: ignore[index]
     else:
         for j, c in enumerate(nf):
             if c:
