@@ -174,23 +174,6 @@ def on_rows(xi, c, failing, ramp_on, ids, W, inw, rate, screen, mask, weights, r
     return select_rows(xi, screen, c, mask, rows)
 
 
-@njit(cache=True, nogil=True)
-def step_along(u_nom, s, a, u, du):  # pragma: no cover (compiled)
-    """``u = u_nom + s a`` (numpy's ``u_nom + s * a``: a product, then a sum) and ``du = u - u_nom``."""
-    for q in range(u.shape[0]):
-        u[q] = u_nom[q] + s * a[q]
-        du[q] = u[q] - u_nom[q]
-
-
-@njit(cache=True, nogil=True)
-def one_hold(xi, lgdu, i, active_tol):  # pragma: no cover (compiled)
-    """Whether every row but ``i`` has ``xi + lgdu >= active_tol`` (NaN: no)."""
-    for j in range(xi.shape[0]):
-        if j != i and not xi[j] + lgdu[j] >= active_tol:
-            return False
-    return True
-
-
 @njit(cache=True, nogil=True, inline="always")
 def _dot_rows(a, i, b, j, m):  # pragma: no cover (compiled)
     """Row ``i`` of ``a`` times row ``j`` of ``b`` (m entries), added in order from the first (``sums.matvec``)."""
@@ -255,3 +238,44 @@ def few_step(rows, h, lf, gn, d_bar, gain, av, av_rows, promote, ramp, b, lg, u_
             continue
         lgdu[i] = _dot_rows(lg, i, xd, 0, m)
     return code, low, screened_hold(xi, lgdu, rows, n, active_tol)
+
+
+@njit(cache=True, nogil=True)
+def one_step(i, lb, lg, u_nom, feas_tol, active_tol, xi, u, du):  # pragma: no cover (compiled)
+    """One kept row ``i`` (``lg[i] u >= lb``) in one call: the closed form and the check of every other row.
+
+    :meth:`~isf_robot.core.qp_solver.QPSolver.solve_row`'s operations in its order, the products
+    ``a . a``, ``a . u_nom``, ``a . u``, ``u . u`` and the other rows' ``Lg h (u - u_nom)`` in
+    :mod:`isf_robot.core.sums`' written order. Returns ``(code, slack, held)``: -1 no closed-form
+    answer (``|a|^2`` underflows, the answer violates the row beyond ``feas_tol`` or is not finite:
+    the caller solves the general way); 0 the row holds at ``u_nom`` (the answer is ``u_nom``;
+    ``u``/``du`` not written); 1 ``u = u_nom + (gap / |a|^2) a`` and ``du = u - u_nom`` written.
+    ``slack = a . u - lb``; ``held``: every other row keeps ``xi_j + Lg h_j du >= active_tol``.
+    """
+    m = u_nom.shape[0]
+    x = u_nom.reshape(1, m)
+    aa = _dot_rows(lg, i, lg, i, m) if m else 0.0
+    if not aa > 1e-200:
+        return -1, 0.0, False
+    gap = lb - _dot_rows(lg, i, x, 0, m)
+    if gap <= 0.0:
+        if not np.isfinite(_dot_rows(x, 0, x, 0, m)):
+            return -1, 0.0, False
+        for j in range(xi.shape[0]):  # (du = 0: the other rows' slack is their xi)
+            if j != i and not xi[j] >= active_tol:
+                return 0, -gap, False
+        return 0, -gap, True
+    s = gap / aa
+    for q in range(m):
+        u[q] = u_nom[q] + s * lg[i, q]
+        du[q] = u[q] - u_nom[q]
+    xu = u.reshape(1, m)
+    slack = _dot_rows(lg, i, xu, 0, m) - lb
+    b = abs(lb)
+    if not (slack >= -feas_tol * (b if b > 1.0 else 1.0) and np.isfinite(_dot_rows(xu, 0, xu, 0, m))):
+        return -1, 0.0, False
+    xd = du.reshape(1, m)
+    for j in range(xi.shape[0]):
+        if j != i and not xi[j] + _dot_rows(lg, j, xd, 0, m) >= active_tol:
+            return 1, slack, False
+    return 1, slack, True

@@ -80,8 +80,7 @@ class StepKernels(NamedTuple):
     few_step: Callable[..., Any]
     hold: Callable[..., Any]
     on_rows: Callable[..., Any]
-    step_along: Callable[..., Any]
-    one_hold: Callable[..., Any]
+    one_step: Callable[..., Any]
 
 
 def step_kernels() -> StepKernels | None:
@@ -94,8 +93,8 @@ def step_kernels() -> StepKernels | None:
         kernels = None
         if not _off():
             try:
-                from ._step_jit import few_step, on_rows, one_hold, screened_hold, select_rows, step_along
-                kernels = StepKernels(select_rows, few_step, screened_hold, on_rows, step_along, one_hold)
+                from ._step_jit import few_step, on_rows, one_step, screened_hold, select_rows
+                kernels = StepKernels(select_rows, few_step, screened_hold, on_rows, one_step)
             except ImportError:
                 pass
         _STATE["step_key"], _STATE["step"] = key, kernels

@@ -103,7 +103,6 @@ class _FilterBase(ShortWays):
         self._kernel = xi_kernel()  # (ISF_ROBOT_JIT is read when the filter is built)
         self._steps = step_kernels()
         self._few_buf = np.empty((4, FEW_ROWS))
-        self._du_of: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
         self._rows_buf = np.empty(256, np.intp)  # (the xi kernel's kept rows: read within a step; more rows, a new array)
         self.qp_solves = 0
         self._switches = SwitchCounter()
@@ -248,11 +247,9 @@ class _FilterBase(ShortWays):
                         i = int(rows[0]) if rows is not None else xs.first  # type: ignore[union-attr]
                     else:
                         i = xs.argmin if xs is not None and xs.argmin >= 0 else int(xi.argmin())
-                    res = self._solve_one(lie, u_nom, i, n == 1, xs, promote is not None and bool(promote[i]))
-                    if res is not None:
-                        if self._screened_rows_hold(lie, xi, None if xs is None else xs.xi_min, res.u, u_nom, i):
-                            return res, (), False, False
-                        return self._resolve(t, x, lie, u_nom, promote, res)
+                    one = self._one_row(lie, u_nom, i, xi, xs, promote is not None and bool(promote[i]))
+                    if one is not None:
+                        return (one[0], (), False, False) if one[1] else self._resolve(t, x, lie, u_nom, promote, one[0])
                 if n > 1 and steps is not None:
                     if rows is None:  # (the kernel counted: the rows themselves now)
                         rows = self._select(xi, screen, floor, promote)

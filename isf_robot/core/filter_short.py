@@ -1,6 +1,6 @@
 """The filters' short ways around the general QP (a mixin of :class:`~isf_robot.core.filter_base._FilterBase`).
 
-* one kept row: its closed form on the row's own floats (:meth:`ShortWays._solve_one`);
+* one kept row: its closed form on the row's own floats (:meth:`ShortWays._one_row`);
 * two to ``FEW_ROWS`` rows without input bounds: the exact few-row solution
   (:func:`~isf_robot.core.qp_small.project_few`) without building the QP object
   (:meth:`ShortWays._solve_few`);
@@ -27,7 +27,7 @@ from .fast import StepKernels
 from .qp import QPResult
 from .qp_small import FEW_ROWS, REL_TOL, project_few
 from .qp_solver import QPSolver
-from .sums import matvec
+from .sums import dot, matvec
 from .system import LieData
 
 if TYPE_CHECKING:
@@ -55,7 +55,6 @@ class ShortWays:
     qp_solves: int
     _steps: StepKernels | None
     _few_buf: np.ndarray  # (4, FEW_ROWS): the compiled few-row step's scratch
-    _du_of: tuple[np.ndarray | None, np.ndarray | None]  # the last one-row answer and its u - u_nom
 
     def qp_lower(self, lie: LieData, promote: np.ndarray | None = None, b: float = 0.0,
                  ramp: float | np.ndarray = 1.0) -> np.ndarray:
@@ -152,7 +151,7 @@ class ShortWays:
         return QPResult._of(u, "optimal", active, time.perf_counter() - t0, 0, max(0.0, -low)), held
 
     def _one_row_ok(self, lie: LieData) -> bool:
-        """Whether one kept row may go the short way (:meth:`_solve_one`).
+        """Whether one kept row may go the short way (:meth:`_one_row`).
 
         No input bounds, the closed form enabled, float64 barrier data (the row's bound is then
         the same in floats).
@@ -160,18 +159,19 @@ class ShortWays:
         return (self.u_min is None and self.u_max is None and self.solver.closed_form
                 and lie.h.dtype == _F64 and lie.lf.dtype == _F64 and lie.grad_norm.dtype == _F64)
 
-    def _solve_one(self, lie: LieData, u_nom: np.ndarray, i: int, packed: bool, xs: _Xi | None,
-                   promoted: bool = False) -> QPResult | None:
-        """Row ``i`` alone (robust, or promoted), no bounds: the closed form without building the QP.
+    def _one_row(self, lie: LieData, u_nom: np.ndarray, i: int, xi: np.ndarray, xs: _Xi | None,
+                 promoted: bool = False) -> tuple[QPResult, bool] | None:
+        """Row ``i`` alone (robust, or promoted), no bounds: ``(result, every other row holds at it)``.
 
-        The same numbers as :meth:`build_qp` and :meth:`QPSolver.solve_row` on that row: the bound
-        ``r - Lf h_i + |dh_i/dx| d_bar`` with ``r = -alpha(h_i)``, or the promotion level (``b``, or
-        its ramp ``max(r, w b + (1 - w) r)``), in the same order of operations (IEEE float64
-        arithmetic in floats and in numpy agree), the same products and the same check. ``None``
-        when the closed form fails its check (the caller then solves the general way).
-        ``packed``: the general way would have copied the row (``take``), so a strided row is
-        copied here too (a dot product of a strided row may sum in another order). When the row
-        holds at ``u_nom`` the command is ``u_nom`` itself (not a copy).
+        The closed form without building the QP, with the same numbers as :meth:`build_qp` and
+        :meth:`QPSolver.solve_row` on that row: the bound ``r - Lf h_i + |dh_i/dx| d_bar`` with
+        ``r = -alpha(h_i)``, or the promotion level (``b``, or its ramp ``max(r, w b + (1 - w) r)``),
+        in the same order of operations (IEEE float64 arithmetic in floats and in numpy agree), the
+        same products (:mod:`isf_robot.core.sums`' written order) and the same check; then
+        :meth:`_screened_rows_hold`. With the compiled kernels both in one call
+        (``_step_jit.one_step``). ``None`` when the closed form fails its check (the caller then
+        solves the general way). When the row holds at ``u_nom`` the command is ``u_nom`` itself
+        (not a copy).
         """
         t0 = time.perf_counter()
         alpha = self.alpha
@@ -187,32 +187,33 @@ class ShortWays:
             w = w if type(w) is float else float(w[i])
             rhs = b if w >= 1.0 else max(rhs, w * b + (1.0 - w) * rhs)
         lb = (rhs - lie.lf.item(i)) + lie.grad_norm.item(i) * self.d_bar
-        a = lie.lg[i]
-        if packed and not a.flags.c_contiguous:
-            a = a.copy()
-        aa = float(a.dot(a))  # (dot: the BLAS product of @, with less overhead)
+        solver, steps, lg = self.solver, self._steps, lie.lg
+        if (steps is not None and lg.dtype == _F64 and u_nom.dtype == _F64 and xi.dtype == _F64 and lg.ndim == 2
+                and lg.shape[1:] == u_nom.shape and xi.shape == lg.shape[:1]):
+            u, du = np.empty(u_nom.shape[0]), np.empty(u_nom.shape[0])
+            code, slack, held = steps.one_step(i, lb, lg, u_nom, solver.feas_tol, solver.active_tol, xi, u, du)
+            if code < 0:
+                return None
+            self.qp_solves += 1
+            return QPResult._of(u_nom if code == 0 else u, "closed_form", _ACTIVE[slack <= solver.active_tol],
+                                time.perf_counter() - t0), held
+        a = lg[i]
+        aa = dot(a, a)
         if not aa > 1e-200:  # (|a|^2 underflows: the backend decides)
             return None
-        solver = self.solver
-        au = float(a.dot(u_nom))
-        gap = lb - au
+        gap = lb - dot(a, u_nom)
         if gap <= 0.0:  # u = u_nom: slack = au - lb = -gap exactly (IEEE subtraction is antisymmetric)
             u, slack = u_nom, -gap
-            if not math.isfinite(float(u.dot(u))):
+            if not math.isfinite(dot(u, u)):
                 return None
         else:
-            steps = self._steps
-            if steps is not None and a.dtype == _F64 and u_nom.dtype == _F64 and a.shape == u_nom.shape:
-                u, du = np.empty(u_nom.shape[0]), np.empty(u_nom.shape[0])
-                steps.step_along(u_nom, gap / aa, a, u, du)  # (u and u - u_nom in one pass)
-                self._du_of = (u, du)  # (for the check of the other rows)
-            else:
-                u = u_nom + (gap / aa) * a
-            slack = float(a.dot(u)) - lb
-            if not (slack >= -solver.feas_tol * max(1.0, abs(lb)) and math.isfinite(float(u.dot(u)))):
+            u = u_nom + (gap / aa) * a
+            slack = dot(a, u) - lb
+            if not (slack >= -solver.feas_tol * max(1.0, abs(lb)) and math.isfinite(dot(u, u))):
                 return None
         self.qp_solves += 1
-        return QPResult._of(u, "closed_form", _ACTIVE[slack <= solver.active_tol], time.perf_counter() - t0)
+        res = QPResult._of(u, "closed_form", _ACTIVE[slack <= solver.active_tol], time.perf_counter() - t0)
+        return res, self._screened_rows_hold(lie, xi, None if xs is None else xs.xi_min, u, u_nom, i)
 
     def _screened_rows_hold(self, lie: LieData, xi: np.ndarray, xi_min: float | None, u: np.ndarray,
                             u_nom: np.ndarray, i: int) -> bool:
@@ -229,13 +230,7 @@ class ShortWays:
                 return True
             slack = xi.copy()
         else:
-            steps = self._steps
-            if steps is not None and xi.dtype == _F64 and xi.ndim == 1:
-                got, du = self._du_of
-                lgdu = lie.lg.dot(du if got is u else u - u_nom)
-                if lgdu.shape == xi.shape and lgdu.dtype == _F64:
-                    return steps.one_hold(xi, lgdu, i, tol)
-            slack = xi + lie.lg.dot(u - u_nom)
+            slack = xi + matvec(lie.lg, u - u_nom)
             sl = slack.tolist()
             if math.isfinite(sum(sl)):
                 sl[i] = math.inf

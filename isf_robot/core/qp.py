@@ -24,6 +24,7 @@ from typing import Literal
 import numpy as np
 
 from .exceptions import ShapeError, SolverError
+from .sums import dot
 
 __all__ = ["FilterQP", "QPResult", "build_filter_qp", "project_halfspace"]
 
@@ -190,10 +191,10 @@ def project_halfspace(u_nom: np.ndarray, a: np.ndarray, lb: float) -> np.ndarray
     ``u = u_nom + max(0, lb - a^T u_nom) / |a|^2 * a``. Raises :class:`SolverError` when
     ``a = 0`` and the constraint is violated (no ``u`` can satisfy it).
     """
-    slack = lb - float(a @ u_nom)
+    slack = lb - dot(a, u_nom)  # (sums' written order, as QPSolver.solve_row)
     if slack <= 0.0:
         return u_nom.copy()
-    aa = float(a @ a)
+    aa = dot(a, a)
     if aa == 0.0:
         raise SolverError(f"constraint 0 >= {lb:.6g} cannot be satisfied (Lg h = 0)")
     return u_nom + (slack / aa) * a

@@ -33,6 +33,7 @@ from .exceptions import ConfigError, SolverError
 from .fast import few_kernels
 from .qp import FilterQP, QPResult
 from .qp_small import FEW_ROWS, project_few
+from .sums import dot
 from .validation import check_positive
 
 __all__ = ["QPSolver", "BACKENDS"]
@@ -178,12 +179,12 @@ class QPSolver:
         """
         if t0 is None:
             t0 = time.perf_counter()
-        aa = float(a.dot(a))  # (dot: the BLAS product of @, with less overhead)
+        aa = dot(a, a)  # (the products in sums' written order: the filters' compiled one-row step's)
         if aa > 1e-200:
-            gap = lb - float(a.dot(u_nom))
+            gap = lb - dot(a, u_nom)
             u = u_nom.copy() if gap <= 0.0 else u_nom + (gap / aa) * a
-            slack = float(a.dot(u)) - lb
-            if slack >= -self.feas_tol * max(1.0, abs(lb)) and math.isfinite(float(u.dot(u))):
+            slack = dot(a, u) - lb
+            if slack >= -self.feas_tol * max(1.0, abs(lb)) and math.isfinite(dot(u, u)):
                 return QPResult._of(u, "closed_form", np.array([slack <= self.active_tol]),
                                     time.perf_counter() - t0)
         return None

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["combine3", "dots3", "gram", "matvec", "row_norms", "sq_sum"]
+__all__ = ["combine3", "dot", "dots3", "gram", "matvec", "row_norms", "sq_sum"]
 
 
 def sq_sum(e: np.ndarray) -> float:
@@ -71,3 +71,14 @@ def matvec(a: np.ndarray, x: np.ndarray) -> np.ndarray:
     if a.shape[1] == 0:
         return np.zeros(a.shape[0])
     return np.add.accumulate(a * x, axis=1)[:, -1].copy()
+
+
+def dot(a: np.ndarray, b: np.ndarray) -> float:
+    """``a . b`` of two vectors: the products added in index order, from the first (``matvec``'s order; 0 if empty)."""
+    al, bl = a.tolist(), b.tolist()
+    if not al:
+        return 0.0
+    s = al[0] * bl[0]
+    for i in range(1, len(al)):
+        s += al[i] * bl[i]
+    return s

@@ -199,25 +199,42 @@ def test_the_screened_rows_check_is_the_general_ones() -> None:
         assert hold(xi, lgdu, rows, rows.size, tol) == f._screened_rows_hold_mask(lie, xi, np.ones(1), keep), i
 
 
-def test_the_one_row_kernels_are_numpys() -> None:
-    # u = u_nom + s a and u - u_nom (a row of either memory order), and the check of every other row at u
+def test_the_one_row_step_is_numpys() -> None:
+    # one_step (the closed form of one kept row and the check of every other row) against the numpy way of
+    # _one_row on the same filter: the same answer bit for bit (u_nom itself when the row holds there), the
+    # same activity and check, no answer in the same cases (a zero row, an overflow); rows of either memory order
     kernels = _kernels()
     rng = np.random.default_rng(6)
-    f = SafetyFilter(1.0)
-    f._steps = None  # (the numpy way of the check)
-    tol = f.solver.active_tol
-    for i in range(2000):
+    fast, slow = SafetyFilter(1.0, d_bar=0.05), SafetyFilter(1.0, d_bar=0.05)
+    slow._steps = None
+    fast._steps = kernels
+    tol = fast.solver.active_tol
+    seen = collections.Counter()
+    for i in range(3000):
         m, k = int(rng.integers(1, 9)), int(rng.integers(1, 12))
         lg = np.asarray(rng.normal(size=(k, m)) * 10.0 ** rng.uniform(-3, 3), order="F" if i % 2 else "C")
-        u_nom, s, row = rng.normal(size=m), float(rng.normal()) * 10.0 ** rng.uniform(-5, 5), int(rng.integers(k))
-        u, du = np.empty(m), np.empty(m)
-        kernels.step_along(u_nom, s, lg[row], u, du)
-        assert u.tobytes() == (u_nom + s * lg[row]).tobytes() and du.tobytes() == (u - u_nom).tobytes(), i
-        xi = rng.choice([tol, 2 * tol, 0.5 * tol, 0.3, -0.1], k)  # (ties at active_tol)
+        row = int(rng.integers(k))
         if i % 3 == 0:
-            lg[:, :] = 0.0  # (slack = xi exactly)
+            lg[[j for j in range(k) if j != row], :] = 0.0  # (the other rows' slack = xi exactly)
+        if i % 97 == 0:
+            lg[row] = 0.0  # (no closed form)
+        if i % 89 == 0:
+            lg[row] *= 1e160  # (|u|^2 overflows)
+        h = rng.uniform(-0.2, 0.5, k)
+        with np.errstate(over="ignore"):  # (the overflowing rows)
+            lie = LieData(h, rng.normal(scale=0.5, size=k), lg, np.linalg.norm(lg, axis=1))
+        u_nom = rng.normal(size=m)
+        xi = rng.choice([tol, 2 * tol, 0.5 * tol, 0.3, -0.1], k)  # (ties at active_tol)
         if i % 50 == 0:
             xi[rng.integers(k)] = np.nan
-        lie = LieData(np.zeros(k), np.zeros(k), lg, np.zeros(k))
-        ref = f._screened_rows_hold(lie, xi, None, u, u_nom, row)
-        assert kernels.one_hold(xi, lie.lg.dot(u - u_nom), row, tol) == ref, i
+        with np.errstate(over="ignore", invalid="ignore"):
+            a, b = fast._one_row(lie, u_nom, row, xi, None), slow._one_row(lie, u_nom, row, xi, None)
+        assert (a is None) == (b is None), i
+        if a is None:
+            seen["none"] += 1
+            continue
+        assert a[0].u.tobytes() == b[0].u.tobytes() and a[0].active.tolist() == b[0].active.tolist(), i
+        assert a[1] == b[1] and (a[0].u is u_nom) == (b[0].u is u_nom), i
+        seen["at u_nom" if a[0].u is u_nom else "moved"] += 1
+        seen["held" if a[1] else "not held"] += 1
+    assert min(seen.values()) > 20, seen

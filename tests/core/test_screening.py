@@ -184,7 +184,7 @@ def test_backend_answers_are_judged_by_their_distance_to_the_feasible_set() -> N
 @pytest.mark.parametrize("blend", [0.0, 0.04])
 def test_the_short_way_of_one_kept_row_equals_the_general_way_on_and_off(alpha, blend) -> None:  # type: ignore[no-untyped-def]
     # the intermittent filter's one kept row (robust, or promoted at b or on its hand-over ramp) goes
-    # the short way (_solve_one); the same filter with the short way switched off (the general
+    # the short way (_one_row); the same filter with the short way switched off (the general
     # way: build_qp + QPSolver.solve on the kept rows) must give every step bit for bit
     def make():  # type: ignore[no-untyped-def]
         return IntermittentSafetyFilter(alpha, 0.1, 0.05, 0.05, validate=False, blend=blend, screen=0.15)
@@ -192,8 +192,8 @@ def test_the_short_way_of_one_kept_row_equals_the_general_way_on_and_off(alpha, 
     short, general = make(), make()
     general._one_row_ok = lambda lie: False  # type: ignore[method-assign]
     calls = []
-    one = short._solve_one
-    short._solve_one = lambda *a: calls.append(a[-1]) or one(*a)  # type: ignore[method-assign]
+    one = short._one_row
+    short._one_row = lambda *a: calls.append(a[-1]) or one(*a)  # type: ignore[method-assign]
     _walk_same_steps(short, general, 8)
     assert short.qp_solves == general.qp_solves
     assert calls.count(True) > 20, "promoted rows must go the short way"
