@@ -13,8 +13,8 @@ MuJoCo's C functions ``mj_geomDistance`` and ``mj_jac`` directly: from the ``lib
 
 Same answers: the kernels make the same floating-point operations in the same order as the
 numpy path of :mod:`isf_robot.arm.narrow` (``h = dist - margin``; ``n = (p_1 - p_2) (1/dist)``;
-``dh/dq_c = ((0 + n_0 J_0c) + n_1 J_1c) + n_2 J_2c``, the order of numpy's product of a (1, 3)
-row by a (3, n) block, signed zeros included; the joint rows ``sign q + offset``), so the rows are
+``dh/dq_c = ((0 + n_0 J_0c) + n_1 J_1c) + n_2 J_2c``, the written order of
+:func:`isf_robot.core.sums.combine3`, signed zeros included; the joint rows ``sign q + offset``), so the rows are
 equal bit for bit (``tests/arm/test_kernels.py`` checks it at random states and along runs). The
 broad phase and the coherence bounds only choose which pairs reach the narrow phase; both are
 conservative, so the rows are the same whichever way they round.
