@@ -15,9 +15,9 @@ from __future__ import annotations
 import hashlib
 import os
 
-from numba import njit, types
+from numba import carray, njit, types
 
-from ._kernels_jit import near_packed  # (importing it loads libmujoco's symbols; ImportError without it)
+from ._kernels_jit import f64p, near_packed  # (importing it loads libmujoco's symbols; ImportError without it)
 from ._kernels_step import reach
 
 _ptr = types.intp
@@ -40,25 +40,33 @@ def euler_step(ma, da, q, u, dt, qpos, qadr):  # pragma: no cover (compiled)
 @njit(cache=True, nogil=True)
 def rollout_points(ma, da, q, u0, t, dt, qpos, qadr, rp, nb, outs, n, nv, dof0, site, index, t_prev, a_max, kp,
                    max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff, distmax, slack, eps, lanes, lin,
-                   dlanes):  # pragma: no cover (compiled)
+                   dlanes, mp_addr, nmocap, mids, mpos, lins):  # pragma: no cover (compiled)
     """Every point of a rollout with the goal ``index`` held: per point ``j`` (time ``t + (j + 1) dt``) the
     Euler step from the previous command, the reaching controller's command into ``outs[j]`` (``reach``,
     buffer ``nb``, addresses ``rp``) and the collision kernel's rows into ``blks[j]``/``rows[j]``
     (``near_packed``, tables ``pn``, no coherence bounds), and each row's key into ``keys[j]`` (a pair's
     index for the pair rows, ``npairs + i`` for the i-th row after them: the joint rows).
     ``res[j]``: near pairs, h_min, dist_min, joint_min, touching, goal distance. Returns the points done:
-    it stops after a point with touching witness points (which the caller hands to the general path)."""
+    it stops after a point with touching witness points (which the caller hands to the general path).
+    Moving obstacles: before each point's kinematics, mocap body ``mids[r]`` is put at ``mpos[j, r]``
+    (the scratch data's ``mocap_pos`` at address ``mp_addr``, ``nmocap`` rows), and the collision
+    kernel reads the mocap velocities ``lins[j]`` (no rows: ``lin`` at every point)."""
     u = u0
+    nm = mids.shape[0]
+    mp = carray(f64p(mp_addr), (max(nmocap, 1), 3))
     for j in range(outs.shape[0]):
         s = (j + 1) * dt
         tj = t + s
+        for r in range(nm):  # (the obstacles' place first: the kinematics below read it)
+            for e in range(3):
+                mp[mids[r], e] = mpos[j, r, e]
         euler_step(ma, da, q, u, dt, qpos, qadr)
         res[j, 5] = reach(ma, da, rp, nb, outs[j], n, nv, dof0, site, index, False, tj, t_prev, True, a_max, kp,
                           max_ee, max_js, lam2)
         t_prev = tj
         u = outs[j]
         k, h_min, dist_min, jmin, touching = near_packed(ma, da, pn, blks[j], rows[j], False, cutoff, distmax, slack,
-                                                         eps, lanes, lin, dlanes)
+                                                         eps, lanes, lins[j] if lins.shape[0] else lin, dlanes)
         res[j, 0], res[j, 1], res[j, 2], res[j, 3], res[j, 4] = k, h_min, dist_min, jmin, 1.0 if touching else 0.0
         for i in range(k):
             keys[j, i] = rows[j, i]

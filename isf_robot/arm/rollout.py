@@ -16,8 +16,9 @@ after, so a rollout changes nothing in the episode.
 
 With numba (:mod:`isf_robot.arm._rollout_jit`), while the goal cannot change over the horizon
 (:meth:`~isf_robot.arm.goals.GoalSequence.steady`) and the nominal is the :class:`ReachingController`
-with its compiled command, all points are one compiled call (Euler step, kinematics, the controller's
-kernel, the collision kernel), and the points are handed over stacked
+with its compiled command, all points are one compiled call (the moving obstacles' places, Euler step,
+kinematics, the controller's kernel, the collision kernel with the mocap velocities), and the points are
+handed over stacked
 (:class:`~isf_robot.core.intermittent.StackedPoints`: the blocks' arrays, each point's Lie data read from
 its block only when asked for, so ``predict`` evaluates every point in one compiled pass); otherwise
 each point's Euler step and kinematics are one call and its rows
@@ -40,8 +41,11 @@ from isf_robot.core.intermittent import StackedPoints
 
 from . import kernels, narrow
 from .nominal import ReachingController
+from .paths import path_track
 
 __all__ = ["NominalRollout", "MAX_POINTS"]
+
+_NO_IDS, _NO_POS, _NO_LINS = np.zeros(0, np.int64), np.zeros((0, 0, 3)), np.zeros((0, 0))
 
 MAX_POINTS = 10
 """Default largest number of predicted points per rollout (the integration step grows with the horizon)."""
@@ -100,11 +104,13 @@ class NominalRollout:
         self._step = ks[0] if ks is not None else None
         reach = (type(nominal) is ReachingController and nominal._reach is not None  # (its compiled command)
                  and nominal.scene.model is self.scene.model)
-        self._whole = ks[1] if ks is not None and reach and self.coll._kernel is not None and not self.moving else None
+        self._whole = ks[1] if ks is not None and reach and self.coll._kernel is not None else None
         self._addr = (int(getattr(self.scene.model, "_address", 0)), int(getattr(self._data, "_address", 0)))
         self._qpos = self._data.qpos  # (a view of the scratch data: the kernel writes through it)
         self.calls = 0
         self._nmocap = int(self.scene.model.nmocap)
+        self._mids = np.ascontiguousarray(self.scene.moving_mocap_ids, dtype=np.int64) if self.moving else _NO_IDS
+        self._mp_addr = int(self._data.mocap_pos.ctypes.data)  # (the kernel writes the moving obstacles' places there)
         qa = self._qadr
         contiguous = qa.size and bool((np.diff(qa) == 1).all())
         self._qsel = slice(int(qa[0]), int(qa[0]) + qa.size) if contiguous else qa  # (a slice: a cheaper copy)
@@ -132,12 +138,18 @@ class NominalRollout:
         blk, g, rows = coll._point_outputs(c, n)
         m = c[7]
         keys = np.empty((n, m), dtype=np.int64)
+        mpos, lins, lin, dl = _NO_POS, _NO_LINS, coll._knolin, 0
+        if self.moving:  # (each point's obstacle places and mocap velocities, as the loop sets them)
+            mpos, lins = self._tracks(t)
+            if coll._any_moving:
+                lin, dl = lins[0], coll._kdot
         outs, res, q0 = np.empty((n, u.size)), np.empty((n, 6)), q.copy()
         done = self._whole(*self._addr, q, u, t, dt, self._qpos, self._qadr, nom._ptrs, nom._buf, outs,  # type: ignore[misc, attr-defined]
                            u.size, nom._jac.shape[1], nom._dof0, nom.scene.ee_site_id, nom.goals.index,  # type: ignore[attr-defined]
                            rate.t_prev, rate.a_max, nom.kp, nom.max_ee_speed, nom.max_joint_speed, nom._lam2,  # type: ignore[attr-defined]
                            c[4], blk, rows, keys, len(coll.pairs.names), res, coll.cutoff, c[14], c[15],
-                           narrow._EPS_DIST, c[13], coll._knolin, 0)
+                           narrow._EPS_DIST, c[13], lin, dl, self._mp_addr, self._nmocap, self._mids, mpos,
+                           lins if dl else _NO_LINS)
         if done < n or res[n - 1, 4]:  # (touching witness points: the general loop from the start)
             rate.prev[:] = u  # (the kernel's only change to the controller's state: the rate limit's last command,
             q[:] = q0  # which after the command now is u; the goal bookkeeping is Python's and untouched)
@@ -162,6 +174,21 @@ class NominalRollout:
 
         return StackedPoints._of(s, outs, k, kl, blk[:, :m], blk[:, o_lf: o_lf + m], g, blk[:, o_gn: o_gn + m], point,
                                  row_names, keys, self._key_names(pair_names, joint_names))  # (its layout: unchecked)
+
+    def _tracks(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """The moving obstacles' places (n, p, 3) and every mocap body's velocity (n, nmocap * 3) at the points' times.
+
+        The times ``t + s + offset`` of the loop's points, through :func:`~isf_robot.arm.paths.path_track` (a
+        track's numbers are those of each time alone: ``Scene.set_moving_obstacles``/``mocap_velocities``).
+        """
+        times = np.array([t + s + self.offset for s in self._s])
+        n, nmocap = times.size, self._nmocap
+        mpos, lins = np.empty((n, self._mids.size, 3)), np.zeros((n, nmocap, 3))
+        for r, mv in enumerate(self.scene.config.moving):
+            pos, vel = path_track(mv.path, times)
+            mpos[:, r] = pos
+            lins[:, self._mids[r]] = vel
+        return mpos, lins.reshape(n, nmocap * 3)
 
     def _key_names(self, pairs: tuple[str, ...], joints: tuple[str, ...]) -> tuple[str, ...]:
         """The names of the rows' keys (the pairs', then the joints'), kept while those names are the same objects."""
