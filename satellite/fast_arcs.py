@@ -7,8 +7,10 @@ same algorithm in one compiled call per arc (:mod:`satellite._jit_arc`): scipy's
 control and interpolant, the certified scan with its bisection and Brent's method, the truth
 right-hand side of a tabulated field (the shell B-spline, the fine boxes, Kepler, the spin), and
 the band, apsis, contact and maneuver event functions with their rate bounds, term for term.
-Sums are taken in another order than numpy's BLAS calls, so results agree with the Python path to
-rounding (a chaotic orbit's long-run trajectory diverges from it as from any other rounding).
+The right-hand side is the Python path's bit for bit (the table's one-point sums are in the same written
+order, :func:`isf_robot.core.sums.vecmat`); scipy's DOP853 adds its stages by BLAS (``np.dot``), the kernel in
+one written order, so results agree with the Python path to rounding (a chaotic orbit's long-run trajectory
+diverges from it as from any other rounding). The kernel's order is the same on every CPU, BLAS's is not.
 
 It is used when every event of an arc has a compiled form (:attr:`satellite.events.Event.code`)
 and the field is a :class:`~satellite.gravity_table.GravityTable` whose near-surface correction is

@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from isf_robot.core.sums import vecmat
 from satellite.errors import GravityModelError
 
 __all__ = ["FineBoxes", "build_fine_boxes", "add_fine_level", "STEP_M", "D_FULL_M", "D_ZERO_M"]
@@ -118,7 +119,10 @@ class FineBoxes:
         return len(self._boxes)
 
     def at(self, x: float, y: float, z: float) -> list[float] | None:
-        """Correction [m/s^2] at one point [m] as three floats, or None outside every box."""
+        """Correction [m/s^2] at one point [m] as three floats, or None outside every box.
+
+        The 16 x 12 product in written order (:func:`~isf_robot.core.sums.vecmat`), as the compiled kernel.
+        """
         out = None
         for x0, y0, z0, nx, ny, nz, coef, inv in self._boxes:
             u = (x - x0) * inv
@@ -132,7 +136,7 @@ class FineBoxes:
             c0, c1, c2, c3 = _weights(w - k)
             wxy = np.array([a0 * b0, a0 * b1, a0 * b2, a0 * b3, a1 * b0, a1 * b1, a1 * b2, a1 * b3,
                             a2 * b0, a2 * b1, a2 * b2, a2 * b3, a3 * b0, a3 * b1, a3 * b2, a3 * b3])
-            s = (wxy @ coef[i - 1: i + 3, j - 1: j + 3, 3 * k - 3: 3 * k + 9].reshape(16, 12)).tolist()
+            s = vecmat(wxy, coef[i - 1: i + 3, j - 1: j + 3, 3 * k - 3: 3 * k + 9].reshape(16, 12)).tolist()
             f = [c0 * s[0] + c1 * s[3] + c2 * s[6] + c3 * s[9], c0 * s[1] + c1 * s[4] + c2 * s[7] + c3 * s[10],
                  c0 * s[2] + c1 * s[5] + c2 * s[8] + c3 * s[11]]
             out = f if out is None else [out[0] + f[0], out[1] + f[1], out[2] + f[2]]

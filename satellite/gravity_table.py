@@ -39,6 +39,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from isf_robot.core.files import write_bytes_atomic
+from isf_robot.core.sums import vecmat
 from satellite.errors import GravityModelError
 from satellite.polyhedron import PolyhedronField
 
@@ -160,8 +161,7 @@ class GravityTable:
         self.provenance = dict(provenance or {})
         # radial ghost layers of coefficients on each side: the spline extends two cells below r_lo
         self._ext = np.ascontiguousarray(_pad(prefilter(values, ghosts=_RG), grid.n_lat))
-        n_r, n_la, n_lo, _ = self._ext.shape
-        self._ext3 = self._ext.reshape(n_r, n_la, n_lo * 3)
+        self._ext3 = self._ext.reshape(*self._ext.shape[:2], -1)  # (n_r, n_lat, n_lon 3): one block per slice
         self._r_in, self._r_out = grid.r_lo + grid.dr, grid.r_hi - grid.dr
         self._inv_dr, self._inv_dang = 1.0 / grid.dr, 1.0 / grid.dang
         self.near, self.fine = near, fine
@@ -184,8 +184,8 @@ class GravityTable:
     def acceleration(self, r_body: ArrayLike) -> NDArray[np.float64]:
         """Acceleration [m/s^2] at one body-frame point [m] (shape (3,) or a 3-tuple); (k, 3) goes to the batch path.
 
-        One lookup: the shell B-spline (64 coefficients, weights as Python floats, one 16 x 12
-        product) plus, inside a fine box, the box's B-spline; Kepler added back exactly.
+        One lookup: the shell B-spline (64 coefficients, weights as Python floats, one 16 x 12 product in the
+        compiled kernel's written order, not BLAS's per-CPU one), a fine box's B-spline, Kepler added exactly.
         """
         if type(r_body) is tuple:
             x, y, z = r_body
@@ -210,7 +210,8 @@ class GravityTable:
         c0, c1, c2, c3 = bspline3(w - j)
         wab = np.array([a0 * b0, a0 * b1, a0 * b2, a0 * b3, a1 * b0, a1 * b1, a1 * b2, a1 * b3,
                         a2 * b0, a2 * b1, a2 * b2, a2 * b3, a3 * b0, a3 * b1, a3 * b2, a3 * b3])
-        s = (wab @ self._ext3[k + _RG - 1: k + _RG + 3, i + 1: i + 5, 3 * j + 3: 3 * j + 15].reshape(16, 12)).tolist()
+        blk = self._ext3[k + _RG - 1: k + _RG + 3, i + 1: i + 5, 3 * j + 3: 3 * j + 15].reshape(16, 12)
+        s = vecmat(wab, blk).tolist()
         ax = c0 * s[0] + c1 * s[3] + c2 * s[6] + c3 * s[9]
         ay = c0 * s[1] + c1 * s[4] + c2 * s[7] + c3 * s[10]
         az = c0 * s[2] + c1 * s[5] + c2 * s[8] + c3 * s[11]
@@ -312,8 +313,7 @@ class GravityTable:
             raise GravityModelError(f"{path}: not a gravity table ({exc})") from None
         if meta.get("format") != TABLE_FORMAT:
             raise GravityModelError(f"{path}: format {meta.get('format')!r}, expected {TABLE_FORMAT!r}")
-        gr = meta["grid"]
-        grid = TableGrid(gr["r_lo_m"], gr["r_hi_m"], gr["n_r"], gr["n_lat"])
+        grid = TableGrid(*(meta["grid"][key] for key in ("r_lo_m", "r_hi_m", "n_r", "n_lat")))
         near = None
         if near_arrays:
             from satellite.gravity_near import NearTiles

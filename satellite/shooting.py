@@ -43,6 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from isf_robot.core.sums import norm
 from satellite.errors import SatelliteError
 from satellite.model import OrbitModel
 from satellite.triggers import BandTriggers
@@ -142,16 +143,16 @@ def plane_basis(x: NDArray[np.float64]) -> tuple[float, NDArray[np.float64], NDA
     """
     rv = np.asarray(x[:3], dtype=float)
     vv = np.asarray(x[3:6], dtype=float)
-    r = float(np.linalg.norm(rv))
+    r = norm(rv)
     if not (math.isfinite(r) and r > 0.0):
         raise SatelliteError(f"controller needs a finite non-zero position, got {rv}")
     rhat = rv / r
     k = np.cross(rv, vv)
-    kn = float(np.linalg.norm(k))
-    if not kn > 1e-9 * r * max(float(np.linalg.norm(vv)), 1e-300):
+    kn = norm(k)
+    if not kn > 1e-9 * r * max(norm(vv), 1e-300):
         axis = np.array([0.0, 0.0, 1.0]) if abs(rhat[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
         k = np.cross(rhat, axis)
-        kn = float(np.linalg.norm(k))
+        kn = norm(k)
     return r, rhat, np.cross(k / kn, rhat)
 
 

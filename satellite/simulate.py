@@ -17,9 +17,8 @@ import time
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-import numpy as np
-
 from isf_robot.core import ConfigError, Observer, Observers
+from isf_robot.core.sums import norm
 from satellite.arcs import ArcIntegrator, IntegratorSettings, SatelliteSample, SimulationError, Tracker
 from satellite.contact import CONTACT_MODES, make_contact
 from satellite.controller import ControlParams, make_controller, resolve_control
@@ -270,7 +269,7 @@ def simulate(
         min_h=h_lo,
         r_min_over_R=track.r_min / model.R,
         r_max_over_R=track.r_max / model.R,
-        total_dv=float(sum(float(np.linalg.norm(j.v)) for j in jumps)),
+        total_dv=float(sum(norm(j.v) for j in jumps)),
         min_inter_event_h=float(iet.min()) if iet.size else None,
         mean_inter_event_h=float(iet.mean()) if iet.size else None,
         miet_bound_h=miet.bound_s / 3600.0,

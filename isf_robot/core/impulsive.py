@@ -21,6 +21,7 @@ from .barrier import Barrier
 from .class_k import ClassK, as_class_k
 from .exceptions import ConfigError, PostJumpConditionError
 from .miet import ZenoGuard
+from .sums import dot, norm
 from .triggers import xi_tau
 from .validation import as_vector, check_finite_scalar, check_nonnegative, check_positive
 
@@ -134,14 +135,15 @@ class EventTriggeredImpulsiveController:
     # -- trigger values ------------------------------------------------------------------
     def lie_derivative(self, t: float, x: np.ndarray) -> float:
         """``LF h(x) = dh/dx F(x) + dh/dt`` along the flow model."""
-        return float(self.barrier.gradient(x, t) @ self.flow_model(t, x) + self.barrier.time_derivative(x, t))
+        flow = np.asarray(self.flow_model(t, x), dtype=float)
+        return dot(self.barrier.gradient(x, t), flow) + float(self.barrier.time_derivative(x, t))
 
     def xi(self, t: float, x: np.ndarray, barrier: Barrier | None = None) -> float:
         """Greedy trigger value ``Xi(x)`` (eq. greedy_cond) of ``barrier`` (default the main one); due when ``<= 0``."""
         b = self.barrier if barrier is None else barrier
         grad = b.gradient(x, t)
-        lfh = float(grad @ self.flow_model(t, x)) + b.time_derivative(x, t)
-        return lfh - float(np.linalg.norm(grad)) * self.d_bar + self.alpha(b.value(x, t))
+        lfh = dot(grad, np.asarray(self.flow_model(t, x), dtype=float)) + b.time_derivative(x, t)
+        return lfh - norm(grad) * self.d_bar + self.alpha(b.value(x, t))
 
     # -- the jump ------------------------------------------------------------------------
     def apply_jump(self, t: float, x: np.ndarray, kind: str = "greedy") -> JumpEvent:

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .exceptions import ConfigError, ZenoError
+from .sums import dot, norm
 from .validation import check_nonnegative, check_positive
 
 __all__ = [
@@ -86,8 +87,8 @@ def estimate_miet_constants(
     for x in samples:
         x = np.asarray(x, dtype=float)
         grad = _gradient(xi, x, eps)
-        L = max(L, float(np.linalg.norm(grad)))
-        B = max(B, float(np.linalg.norm(flow(x))))
+        L = max(L, norm(grad))
+        B = max(B, norm(np.asarray(flow(x), dtype=float)))
         count += 1
     if count == 0:
         raise ConfigError("estimate_miet_constants needs at least one sample")
@@ -157,7 +158,7 @@ def estimate_miet_rate(
         x = np.asarray(x, dtype=float)
         grad = _gradient(xi, x, eps)
         gd = grad if disturbed is None else grad[list(disturbed)]
-        rate = max(rate, abs(float(grad @ np.asarray(flow(x), dtype=float))) + float(np.linalg.norm(gd)) * d)
+        rate = max(rate, abs(dot(grad, np.asarray(flow(x), dtype=float))) + norm(gd) * d)
         count += 1
     if count == 0:
         raise ConfigError("estimate_miet_rate needs at least one sample")
