@@ -2,8 +2,8 @@
 
 Compared field by field: integers, strings, booleans and ``None`` exactly; floats to a relative
 tolerance of ``RTOL`` (the QP backend's answers agree to about 1e-10, far below anything a run
-reports), the 12 h satellite cases' to ``cases.MACHINE_RTOL`` (another CPU's rounding, amplified by
-the orbit). Machine-dependent fields (wall time, timings, solver microseconds) are not compared.
+reports), ``satellite-surface-12h``'s to ``cases.MACHINE_RTOL`` (another CPU's rounding in its Python arcs,
+amplified by the orbit). Machine-dependent fields (wall time, timings, solver microseconds) are not compared.
 Regenerate with ``python tests/golden/generate.py`` only for an intended behaviour change.
 
 Changes so far, each deliberate:
@@ -64,6 +64,17 @@ Changes so far, each deliberate:
   regenerated (that would move the failure to the other machines): their floats are compared to
   ``cases.MACHINE_RTOL`` (1e-4 greedy-12h, 1e-7 surface-12h), sized from their measured sensitivity to
   a 1e-15 change of the start (cases.py); every count and string still exactly, the arm cases to RTOL.
+* Written-order products on the satellite's Python side (``isf_robot.core.sums``: ``norm``, ``dot``, ``vecmat``):
+  the controller's plane basis (``|r|``, ``|r x v|``), ``total_dv``'s ``|dv|``, the MIET samples' norms and dots,
+  the impulsive controller's ``Xi``, and the table's and fine boxes' one-point 16 x 12 products, instead of
+  OpenBLAS's dot/gemv, whose kernels (and FMA use) the CPU picks. ``satellite-greedy-12h`` is compared to RTOL
+  again and was **not** regenerated: its written-order numbers are the committed (AMD-made) ones bit for bit, on the
+  Intel Xeon with and without ``OPENBLAS_CORETYPE=Haswell`` and with numpy's AVX-512 loops off (before, native
+  kernels there: min_h 1952.0665872657405 -> 1952.066591716251, r_max_over_R 2.29249616308905 ->
+  2.292496162798911, total_dv 0.13869090662308192 -> 0.13869090662308292, miet_bound_h one ulp). Its Python path
+  (``ISF_ROBOT_JIT=0``) now has the compiled kernel's right-hand side bit for bit; it still differs by <= 3e-8
+  (scipy's DOP853 sums its stages by BLAS). ``satellite-surface-12h`` (Python arcs) moved by <= 3e-9 with the
+  table's new one-point order, inside its 1e-7; not regenerated.
 * Versioned outputs (issue 12, item 3): one new key in every case, ``"schema"``
   (``"isf-robot-run/1"``, ``"isf-satellite-run/1"``), added to the data files by hand (every
   other value untouched, not regenerated).
