@@ -41,16 +41,19 @@ def euler_step(ma, da, q, u, dt, qpos, qadr):  # pragma: no cover (compiled)
 def rollout_points(ma, da, q, u0, t, dt, qpos, qadr, rp, nb, outs, n, nv, dof0, site, index, t_prev, a_max, kp,
                    max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff, distmax, slack, eps, lanes, lin,
                    dlanes, mp_addr, nmocap, mids, mpos, lins):  # pragma: no cover (compiled)
-    """Every point of a rollout with the goal ``index`` held: per point ``j`` (time ``t + (j + 1) dt``) the
-    Euler step from the previous command, the reaching controller's command into ``outs[j]`` (``reach``,
-    buffer ``nb``, addresses ``rp``) and the collision kernel's rows into ``blks[j]``/``rows[j]``
-    (``near_packed``, tables ``pn``, no coherence bounds), and each row's key into ``keys[j]`` (a pair's
-    index for the pair rows, ``npairs + i`` for the i-th row after them: the joint rows).
+    """Every point of a rollout with the goal ``index`` held, in one call.
+
+    Per point ``j`` (time ``t + (j + 1) dt``): the Euler step from the previous command, the reaching
+    controller's command into ``outs[j]`` (``reach``, buffer ``nb``, addresses ``rp``), the collision
+    kernel's rows into ``blks[j]``/``rows[j]`` (``near_packed``, tables ``pn``, no coherence bounds), and
+    each row's key into ``keys[j]`` (a pair's index for the pair rows, ``npairs + i`` for the i-th row
+    after them: the joint rows).
     ``res[j]``: near pairs, h_min, dist_min, joint_min, touching, goal distance. Returns the points done:
     it stops after a point with touching witness points (which the caller hands to the general path).
     Moving obstacles: before each point's kinematics, mocap body ``mids[r]`` is put at ``mpos[j, r]``
     (the scratch data's ``mocap_pos`` at address ``mp_addr``, ``nmocap`` rows), and the collision
-    kernel reads the mocap velocities ``lins[j]`` (no rows: ``lin`` at every point)."""
+    kernel reads the mocap velocities ``lins[j]`` (no rows: ``lin`` at every point).
+    """
     u = u0
     nm = mids.shape[0]
     mp = carray(f64p(mp_addr), (max(nmocap, 1), 3))

@@ -69,7 +69,7 @@ class GoalSequence:
         self._started = None
 
     def steady(self, t_first: float, t_last: float) -> bool:
-        """Whether no :meth:`update` at times in ``[t_first, t_last]`` (in order, whatever the errors) can change :attr:`index`.
+        """Whether no :meth:`update` at times in ``[t_first, t_last]`` (in order, any errors) can change :attr:`index`.
 
         Conservative: ``False`` whenever a change is possible. Before an arrival the index changes only by a
         timeout (``t - started >= timeout``) or after an arrival at some ``t_a >= t_first`` and its dwell

@@ -55,9 +55,11 @@ _GUARDED: list[bool] = []
 
 
 def _rollout_kernels() -> tuple[Callable[..., Any], Callable[..., Any] | None] | None:
-    """The compiled Euler step and whole-rollout kernel (:mod:`isf_robot.arm._rollout_jit`), or ``None``
-    (no numba, or ``ISF_ROBOT_JIT=0``). The first call checks the whole-rollout kernel's cache (``guard_cache``;
-    the kernel is ``None`` where it cannot)."""
+    """The compiled Euler step and whole-rollout kernel (:mod:`isf_robot.arm._rollout_jit`), or ``None``.
+
+    ``None`` without numba, or with ``ISF_ROBOT_JIT=0``. The first call checks the whole-rollout kernel's
+    cache (``guard_cache``; the kernel is ``None`` where it cannot).
+    """
     if not kernels.available():
         return None
     try:

@@ -1,4 +1,4 @@
-"""The numba kernel of :func:`isf_robot.core.intermittent.predict`'s stacked way (imported only when numba is installed).
+"""The numba kernels of :func:`isf_robot.core.intermittent.predict`'s stacked way (imported only with numba).
 
 A module-level function that calls no compiled function of another file, so numba's cache
 (``__pycache__``) serves later processes and is invalidated by an edit of this file.

@@ -94,7 +94,7 @@ def few_lower_candidate(rows, h, lf, gn, d_bar, gain, av, av_rows, promote, ramp
 
 @njit(cache=True, nogil=True)
 def few_finish(Au, u, u_nom, buf, active_tol, active, du):  # pragma: no cover (compiled)
-    """``res = A u - lb``, its confirmation (:func:`~isf_robot.core._few_jit.few_confirm`), ``active = res <= active_tol``, ``du = u - u_nom``.
+    """``res = A u - lb``, its check (``_few_jit.few_confirm``), ``active = res <= active_tol``, ``du = u - u_nom``.
 
     ``lb`` and the tolerances in ``buf[0]`` and ``buf[2]`` (:func:`few_lower_candidate`); ``res`` goes
     to ``buf[3]``. Returns ``(ok, min res)``; ``active`` and ``du`` are written only when ``ok``.

@@ -56,7 +56,7 @@ def _build() -> Callable[..., Any] | None:
 
 
 def few_kernels() -> tuple[Callable[..., Any], Callable[..., Any]] | None:
-    """``(few_candidate, few_confirm)`` of :mod:`isf_robot.core._few_jit`, or ``None`` (no numba, or ``ISF_ROBOT_JIT=0``).
+    """``(few_candidate, few_confirm)`` of :mod:`isf_robot.core._few_jit`, or ``None`` (no numba; ``ISF_ROBOT_JIT=0``).
 
     Read when a :class:`~isf_robot.core.qp_solver.QPSolver` is built.
     """

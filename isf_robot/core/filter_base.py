@@ -52,7 +52,7 @@ class _Xi(NamedTuple):
     argmin: int  # first row of least Xi_on (-1: not computed)
     kept: int  # rows with Xi_on below their screening threshold (-1: not counted)
     first: int  # the first of them (-1: none, or not counted)
-    rows: np.ndarray | None  # when counted: those rows, ascending (the first ``kept``; the filter's buffer: this step only)
+    rows: np.ndarray | None  # when counted: those rows, ascending (the first ``kept``; the filter's buffer, one step)
 
 
 class _FilterBase(ShortWays):
@@ -103,7 +103,7 @@ class _FilterBase(ShortWays):
         self._kernel = xi_kernel()  # (ISF_ROBOT_JIT is read when the filter is built)
         self._steps = step_kernels()
         self._few_buf = np.empty((4, FEW_ROWS))
-        self._rows_buf = np.empty(256, np.intp)  # (the xi kernel's kept rows: read within a step; more rows, a new array)
+        self._rows_buf = np.empty(256, np.intp)  # (the xi kernel's kept rows, read within a step; more: a new array)
         self.qp_solves = 0
         self._switches = SwitchCounter()
 
@@ -249,13 +249,17 @@ class _FilterBase(ShortWays):
                         i = xs.argmin if xs is not None and xs.argmin >= 0 else int(xi.argmin())
                     one = self._one_row(lie, u_nom, i, xi, xs, promote is not None and bool(promote[i]))
                     if one is not None:
-                        return (one[0], (), False, False) if one[1] else self._resolve(t, x, lie, u_nom, promote, one[0])
+                        if one[1]:
+                            return one[0], (), False, False
+                        return self._resolve(t, x, lie, u_nom, promote, one[0])
                 if n > 1 and steps is not None:
                     if rows is None:  # (the kernel counted: the rows themselves now)
                         rows = self._select(xi, screen, floor, promote)
                     got = None if rows is None else self._few_fast(lie, u_nom, xi, xs, promote, rows, n)
                     if got is not None:
-                        return (got[0], (), False, False) if got[1] else self._resolve(t, x, lie, u_nom, promote, got[0])
+                        if got[1]:
+                            return got[0], (), False, False
+                        return self._resolve(t, x, lie, u_nom, promote, got[0])
                 if keep is None:  # (the rows were counted or selected by a kernel: the mask now)
                     keep = xi < screen if rows is None else np.zeros(k, bool)
                     if rows is None:
@@ -285,7 +289,7 @@ class _FilterBase(ShortWays):
 
     def _select(self, xi: np.ndarray, screen: float | np.ndarray, floor: float,
                 promote: np.ndarray | None) -> np.ndarray | None:
-        """The kept rows (``xi < max(screen, floor)``, or promoted), ascending, by the compiled kernel; ``None``: numpy's way."""
+        """The kept rows (``xi < max(screen, floor)``, or promoted), ascending, by the kernel; ``None``: numpy's way."""
         steps = self._steps
         k = xi.shape[0]
         sa = None if steps is None else screen_array(screen, k)

@@ -45,7 +45,7 @@ for _a in _ACTIVE:
 
 
 class ShortWays:
-    """The short ways; the filter provides ``alpha``, ``d_bar``, ``solver``, ``u_min``/``u_max``, ``qp_solves``, ``qp_lower``."""
+    """The short ways; the filter provides ``alpha``, ``d_bar``, ``solver``, ``u_min``/``u_max``, ``qp_solves``."""
 
     alpha: Any
     d_bar: float
@@ -75,7 +75,7 @@ class ShortWays:
                 and self.u_min is None and self.u_max is None):
             return None
         lb = self.qp_lower(lie, promote, b, ramp)
-        t0 = time.perf_counter()  # (solve_time_s: the solve, as QPSolver.solve times it; building the bounds is not in it)
+        t0 = time.perf_counter()  # (solve_time_s: the solve, as QPSolver.solve times it; not the bounds' building)
         hit = project_few(lie.lg, lb, u_nom, kernels=solver._few)
         if hit is None:
             return None
@@ -85,7 +85,7 @@ class ShortWays:
 
     def _few_fast(self, lie: LieData, u_nom: np.ndarray, xi: np.ndarray, xs: _Xi | None, promote: np.ndarray | None,
                   rows: np.ndarray, n: int) -> tuple[QPResult, bool] | None:
-        """The kept rows ``rows`` (``n`` of them, 2 to ``FEW_ROWS``, ascending) the compiled way: ``(result, screened rows hold)``.
+        """The kept rows ``rows`` (``n``: 2 to ``FEW_ROWS``, ascending) the compiled way: ``(result, others hold)``.
 
         The numbers of :meth:`_solve_few` on ``lie`` with those rows taken (``lie`` itself when
         every row is kept), and of :meth:`_screened_rows_hold_mask` at its answer, bit for bit, in

@@ -363,7 +363,7 @@ class IntermittentSafetyFilter(_FilterBase):
         return mask, weights
 
     def _failing(self, pred: Prediction, lie: LieData) -> np.ndarray:
-        """The rows whose names the prediction found failing (kept while the prediction and the names are the same objects)."""
+        """The rows whose names the prediction found failing (kept while the prediction and names are the same)."""
         if pred is not self._fail_of[0] or lie.names is not self._fail_of[1] or lie.k != self._fail_of[2].shape[0]:
             self._fail_of = (pred, lie.names, np.fromiter(map(pred.failing.__contains__, lie.names), bool, lie.k))
         return self._fail_of[2]

@@ -292,7 +292,7 @@ def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Pred
                 s = points.s[j]
                 first = s if first is None else min(first, s)
                 failing.update(points.row_names(j, fails[j, :c].tolist()))
-    pred = _new(Prediction)  # (a frozen dataclass's __dict__ set whole: its fields, without the field-by-field __init__)
+    pred = _new(Prediction)  # (a frozen dataclass's __dict__ set whole, without the field-by-field __init__)
     _set(pred, "__dict__", {"ok": first is None, "xi_min": xi_lo, "first_fail_s": first, "failing": frozenset(failing),
                             "points": len(kl)})
     return pred

@@ -68,9 +68,10 @@ class OnRows:
 
     def __call__(self, xi: np.ndarray, c: float, failing: np.ndarray, rate: float | None, names: tuple[str, ...],
                  screen: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
-        """``(promote, ramp weights, kept rows)``: the rows to promote (``xi < c`` or ``failing``, ramped), their
-        weights (``None`` without the ramp: ``rate`` ``None``) and the rows kept by ``screen`` (``None``: no
-        thresholds given).
+        """``(promote, ramp weights, kept rows)`` of one on step.
+
+        The rows to promote (``xi < c`` or ``failing``, ramped), their weights (``None`` without the
+        ramp: ``rate`` ``None``) and the rows kept by ``screen`` (``None``: no thresholds given).
 
         The three arrays are this object's own, rewritten by the next call: they serve one filter step.
         """
