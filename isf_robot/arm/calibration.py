@@ -36,6 +36,7 @@ import mujoco
 import numpy as np
 
 from isf_robot.core.exceptions import ConfigError
+from isf_robot.core.sums import norm
 
 from .actuation import make_actuation
 from .nominal import ReachingController
@@ -176,7 +177,7 @@ def calibrate_d_bar(
                 u *= vmax / peak
             tracker.set_command(u, per_control * dt)
         e = data.qvel[dofs] - tracker.u
-        errors[i] = float(np.sqrt(e @ e))
+        errors[i] = norm(e)  # (the tracking error as the run measures it: sums' order)
         tracker.apply(data)
         mujoco.mj_step2(model, data)
         sat += tracker.saturated(data)

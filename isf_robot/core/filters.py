@@ -47,6 +47,7 @@ from .filter_base import FallbackFn, FilterStep, _FilterBase
 from .intermittent import FallRateBound, OffPredictor, Prediction, RolloutFn, blend_weight
 from .on_rows import OnRows
 from .qp_solver import QPSolver
+from .sums import matvec
 from .system import ControlAffineSystem, LieData
 from .triggers import OnOffTrigger
 from .validation import check_nonnegative, check_positive
@@ -275,7 +276,7 @@ class IntermittentSafetyFilter(_FilterBase):
                 return FilterStep._of(t, u_nom, u_nom, False, lie.h, xi, event, None, (), False, lie.names, False,
                                       c, bound, ran, held)
             target = u_nom if w == 0.0 else u_nom + w * (self._u_handover - u_nom)
-            slack = xi if w == 0.0 else xi + lie.lg @ (target - u_nom)  # robust slack at the target
+            slack = xi if w == 0.0 else xi + matvec(lie.lg, target - u_nom)  # robust slack at the target
             if w > 0.0 and float(slack.min()) >= 0.0 and self._within_bounds(target):
                 self._u_prev = target
                 return FilterStep._of(t, target, u_nom, False, lie.h, xi, event, None, (), False, lie.names, False,

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from .exceptions import ShapeError
+from .sums import row_sq_sums, sq_sum
 
 __all__ = ["DutyCycleMetrics", "FilterStats", "compute_metrics", "MetricsAccumulator"]
 
@@ -191,8 +192,7 @@ class MetricsAccumulator:
 
     def add(self, t: float, dt: float, on: bool, u: np.ndarray, u_nom: np.ndarray, solved: bool) -> None:
         """Record one step."""
-        d = u - u_nom
-        rate = float(d.dot(d))  # (dot: the BLAS product of @)
+        rate = sq_sum(u - u_nom)  # (sums' written order: the same figure on every machine)
         self._steps.append((t, dt, bool(on), bool(solved)))
         self._rates.append(rate)
         if len(self._steps) >= _CHUNK:
@@ -226,15 +226,13 @@ class MetricsAccumulator:
             self._flush()
             rate = 0.0
             if not same:
-                d = u - u_nom
-                rate = float(d.dot(d))
+                rate = sq_sum(u - u_nom)
             self._steps.append((step.t, dt, bool(step.on), qp is not None))
             self._rates.append(rate)
             prev = self._u_prev
             self._u_prev = u.copy()
             if prev is not None:
-                d = u - prev
-                self._jump(float(d.dot(d)), step.event is not None)
+                self._jump(sq_sum(u - prev), step.event is not None)
             if u.ndim == 1:  # (a new batch after this step)
                 if U is None or self._shape != u.shape:
                     self._U, self._N = np.empty((_BATCH + 1, u.shape[0])), np.empty((_BATCH + 1, u.shape[0]))
@@ -274,7 +272,7 @@ class MetricsAccumulator:
             return
         U, N, rates = self._U, self._N, self._rates
         d = U[1:n + 1] - U[:n]  # type: ignore[index]  # row j: command j + 1 minus command j (elementwise, exact)
-        jumps = [float(dj.dot(dj)) for dj in d]
+        jumps = row_sq_sums(d).tolist()  # (each row's sq_sum, in one pass)
         top = self._jump2
         for v in jumps:  # (as _jump, step by step)
             if top is None or v > top:
@@ -290,9 +288,8 @@ class MetricsAccumulator:
         if rix:
             rows = [row for row, _ in rix]
             r = U[rows] - N[rows]  # type: ignore[index]  # (the steps with u not u_nom: u - u_nom)
-            for j, (_, i) in enumerate(rix):
-                dr = r[j]
-                rates[i] = float(dr.dot(dr))
+            for (_, i), v in zip(rix, row_sq_sums(r).tolist()):
+                rates[i] = v
             rix.clear()
         self._ev.clear()
         U[0] = U[n]  # type: ignore[index]

@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-__all__ = ["combine3", "dot", "dots3", "gram", "matvec", "norm", "row_norms", "sq_sum", "vecmat"]
+__all__ = ["combine3", "dot", "dots3", "gram", "matvec", "norm", "row_norms", "row_sq_sums", "sq_sum", "vecmat"]
 
 
 def sq_sum(e: np.ndarray) -> float:
@@ -40,6 +40,13 @@ def sq_sum(e: np.ndarray) -> float:
 def norm(e: np.ndarray) -> float:
     """``|e|`` of a vector: ``sqrt(sq_sum(e))`` (``np.linalg.norm`` of a vector is BLAS's dot, CPU-dependent)."""
     return math.sqrt(sq_sum(e))
+
+
+def row_sq_sums(g: np.ndarray) -> np.ndarray:
+    """``g_i . g_i`` of the rows of a (k, n) array: the squares added in column order (``sq_sum`` of each row)."""
+    if g.shape[1] == 0:
+        return np.zeros(g.shape[0])
+    return np.add.accumulate(g * g, axis=1)[:, -1].copy()
 
 
 def row_norms(g: np.ndarray) -> np.ndarray:

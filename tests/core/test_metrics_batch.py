@@ -18,6 +18,14 @@ from isf_robot.core.step import FilterStep
 from isf_robot.core.switches import SwitchEvent
 
 
+def _sq(d) -> float:  # type: ignore[no-untyped-def]
+    """|d|^2 as the metrics define it: the squares added in index order from 0 (sums.sq_sum), in plain floats."""
+    s = 0.0
+    for x in d.tolist():
+        s += x * x
+    return s
+
+
 class _Reference:
     """add_step's figures step by step (the accumulator before batching)."""
 
@@ -27,8 +35,7 @@ class _Reference:
         self.jump2 = self.switch_jump2 = None
 
     def add(self, u, u_nom) -> None:  # type: ignore[no-untyped-def]
-        d = u - u_nom
-        self.rates.append(float(d.dot(d)))
+        self.rates.append(_sq(u - u_nom))
 
     def add_step(self, step) -> None:  # type: ignore[no-untyped-def]
         u, u_nom = step.u, step.u_nom
@@ -37,13 +44,11 @@ class _Reference:
         if u is u_nom:
             rate = 0.0
         else:
-            d = u - u_nom
-            rate = float(d.dot(d))
+            rate = _sq(u - u_nom)
         self.rates.append(rate)
         prev, self.u_prev = self.u_prev, u.copy()
         if prev is not None:
-            d = u - prev
-            j = float(d.dot(d))
+            j = _sq(u - prev)
             if self.jump2 is None or j > self.jump2:
                 self.jump2 = j
             if step.event is not None and (self.switch_jump2 is None or j > self.switch_jump2):
