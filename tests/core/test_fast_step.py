@@ -238,3 +238,34 @@ def test_the_one_row_step_is_numpys() -> None:
         seen["at u_nom" if a[0].u is u_nom else "moved"] += 1
         seen["held" if a[1] else "not held"] += 1
     assert min(seen.values()) > 20, seen
+
+
+@pytest.mark.parametrize("kind", ["cbf", "isf"])
+def test_strided_arrays_take_the_compiled_steps_with_numpys_numbers(kind, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    # a caller's u_nom and Lg h may be views with strides (a column of a larger array, Fortran order):
+    # the compiled one-row and few-row steps take them as they are (no reshape of the caller's arrays)
+    # and give the numpy path's numbers
+    def make():  # type: ignore[no-untyped-def]
+        if kind == "cbf":
+            return SafetyFilter(2.0, d_bar=0.05, validate=False, screen=0.3, solver=QPSolver(few_rows=True))
+        return IntermittentSafetyFilter(2.0, 0.1, 0.05, 0.05, validate=False, screen=0.3, solver=QPSolver(few_rows=True))
+
+    fast = make()
+    monkeypatch.setenv("ISF_ROBOT_JIT", "0")
+    slow = make()
+    monkeypatch.delenv("ISF_ROBOT_JIT")
+    assert fast._steps is not None and slow._steps is None
+    rng = np.random.default_rng(8)
+    kinds = collections.Counter()
+    for i in range(600):
+        k, m = int(rng.integers(2, 4)), 3  # (at most 3 rows in R^3: always feasible)
+        lie = _lie(rng, k, m)
+        lg = np.asfortranarray(lie.lg)
+        lie = LieData(lie.h, lie.lf, lg, lie.grad_norm, lie.names)
+        u_nom = rng.normal(size=(m, 3))[:, 1]  # (strided)
+        assert not u_nom.flags.c_contiguous and not lg.flags.c_contiguous
+        a, b = fast.step_lie(0.01 * i, lie, u_nom), slow.step_lie(0.01 * i, lie, u_nom)
+        assert np.asarray(a.u).tobytes() == np.asarray(b.u).tobytes() and a.on == b.on, i
+        if a.qp is not None:
+            kinds[a.qp.status] += 1
+    assert kinds["closed_form"] > 20 and kinds["optimal"] > 20, kinds  # (one-row and few-row steps both ran)
