@@ -66,11 +66,11 @@ def dot3(a0, a1, a2, b0, b1, b2):  # pragma: no cover (compiled)
 
 @njit(cache=True, nogil=True)
 def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, lever, qadr,
-         cutoff, distmax, slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, lanes,
-         mocap, lin, dlanes, rows, h, g, gn, wit, lf):  # pragma: no cover (compiled)
-    """Fill rows[:j], h[:j + l], g[:j + l], gn[:j + l] (if lanes != 0) and wit[:j] = (p1, p2, n).
+         cutoff, distmax, slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, norms_in,
+         mocap, lin, dhdt_in, rows, h, g, gn, wit, lf):  # pragma: no cover (compiled)
+    """Fill rows[:j], h[:j + l], g[:j + l], gn[:j + l] (with ``norms_in``) and wit[:j] = (p1, p2, n).
 
-    With ``dlanes != 0``: ``lf[k] = dh/dt = -n^T v`` (:func:`dot3`)
+    With ``dhdt_in``: ``lf[k] = dh/dt = -n^T v`` (:func:`dot3`)
     of each near pair whose obstacle is mocap body ``mocap[r] >= 0``, ``v`` its row of ``lin``
     (flat, 3 per mocap body); ``lf`` is left alone otherwise.
 
@@ -157,7 +157,7 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
         n1 = (fromto[k, 1] - fromto[k, 4]) * inv
         n2 = (fromto[k, 2] - fromto[k, 5]) * inv
         wit[k, 2, 0], wit[k, 2, 1], wit[k, 2, 2] = n0, n1, n2
-        if dlanes != 0 and mocap[r] >= 0:
+        if dhdt_in != 0 and mocap[r] >= 0:
             b = 3 * mocap[r]
             lf[k] = -dot3(n0, n1, n2, lin[b], lin[b + 1], lin[b + 2])
         jac(ma, da, jac1.ctypes.data, 0, fromto[k].ctypes.data, np.int32(live[r, 3]))
@@ -169,7 +169,7 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
             for c in range(ndof):
                 col = dof[c]
                 g[k, c] = g[k, c] - (0.0 + n0 * jac2[0, col] + n1 * jac2[1, col] + n2 * jac2[2, col])
-    if lanes != 0:
+    if norms_in != 0:
         for k in range(j + nj):
             gn[k] = row_norm(g, k)
     return j, hmin, dmin, jmin, touching, key
@@ -196,7 +196,7 @@ def monitor(ma, da, rows, g1, g2, margin, thresh, bound):  # pragma: no cover (c
 
 
 @njit(cache=True, nogil=True)
-def near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, lanes, lin, dlanes):  # pragma: no cover
+def near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norms_in, lin, dhdt_in):  # pragma: no cover
     """:func:`near` (and its key of the set of near pairs) with its tables as the addresses in ``p``.
 
     Its outputs go to ``blk``.
@@ -204,7 +204,7 @@ def near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, lane
     One numba call costs about 0.1 us per 1-D array argument and 0.6 us per 2-D one; :func:`near`'s
     31 arguments cost more than its work. ``blk`` (float64, fresh per call) holds, for
     ``L = live pairs + joint rows`` and ``n`` dofs: ``h`` (L), ``g`` (L, n), ``gn`` (L), ``lf`` (L,
-    zeroed here: the rows' ``dh/dt``, of moving obstacles filled here with ``dlanes``, else by the caller)
+    zeroed here: the rows' ``dh/dt``, of moving obstacles filled here with ``dhdt_in``, else by the caller)
     and the witness points (live pairs, 3, 3). ``lin``: the mocap bodies' velocities, flat.
     """
     n_live, nj, n, nv = p[P_LIVE], p[P_NJ], p[P_NDOF], p[P_NV]
@@ -237,13 +237,13 @@ def near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, lane
     for i in range(m):
         lf[i] = 0.0
     return near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, lever, qadr, cutoff, distmax,
-                slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, lanes, mocap, lin, dlanes, rows, h, g,
+                slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, norms_in, mocap, lin, dhdt_in, rows, h, g,
                 gn, wit, lf)
 
 
 @njit(cache=True, nogil=True)
-def near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, lanes, lin, dlanes):  # pragma: no cover
+def near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norms_in, lin, dhdt_in):  # pragma: no cover
     """:func:`near_packed_key` without the key: (j, min h, min dist, min joint value, touching)."""
-    j, hmin, dmin, jmin, touching, _ = near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, lanes,
-                                                       lin, dlanes)
+    j, hmin, dmin, jmin, touching, _ = near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norms_in,
+                                                       lin, dhdt_in)
     return j, hmin, dmin, jmin, touching

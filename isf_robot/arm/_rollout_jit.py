@@ -39,8 +39,8 @@ def euler_step(ma, da, q, u, dt, qpos, qadr):  # pragma: no cover (compiled)
 
 @njit(cache=True, nogil=True)
 def rollout_points(ma, da, q, u0, t, dt, qpos, qadr, rp, nb, outs, n, nv, dof0, site, index, t_prev, a_max, kp,
-                   max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff, distmax, slack, eps, lanes, lin,
-                   dlanes, mp_addr, nmocap, mids, mpos, lins):  # pragma: no cover (compiled)
+                   max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff, distmax, slack, eps, norms_in, lin,
+                   dhdt_in, mp_addr, nmocap, mids, mpos, lins):  # pragma: no cover (compiled)
     """Every point of a rollout with the goal ``index`` held, in one call.
 
     Per point ``j`` (time ``t + (j + 1) dt``): the Euler step from the previous command, the reaching
@@ -69,7 +69,7 @@ def rollout_points(ma, da, q, u0, t, dt, qpos, qadr, rp, nb, outs, n, nv, dof0, 
         t_prev = tj
         u = outs[j]
         k, h_min, dist_min, jmin, touching = near_packed(ma, da, pn, blks[j], rows[j], False, cutoff, distmax, slack,
-                                                         eps, lanes, lins[j] if lins.shape[0] else lin, dlanes)
+                                                         eps, norms_in, lins[j] if lins.shape[0] else lin, dhdt_in)
         res[j, 0], res[j, 1], res[j, 2], res[j, 3], res[j, 4] = k, h_min, dist_min, jmin, 1.0 if touching else 0.0
         for i in range(k):
             keys[j, i] = rows[j, i]

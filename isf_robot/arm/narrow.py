@@ -58,11 +58,6 @@ def _context_current(c: tuple, coherence: JointCoherence | None) -> bool:
     return coherence is None or c[3] is coherence.lower
 
 
-def _norms(g: np.ndarray) -> np.ndarray:
-    """``|dh/dq|`` of the rows of ``g`` as :meth:`CollisionBarriers.lie` computes them without the kernel's."""
-    return row_norms(g)
-
-
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise cross product of (k, 3) arrays (cheaper than ``np.cross`` for small k)."""
     i, j = [1, 2, 0], [2, 0, 1]
@@ -115,13 +110,14 @@ class NarrowPhase:
         ``key``: the kernel's key of the set of near pairs (``near_packed_key``; -1: none), under which the
         rows' names and tuple are kept (one lookup instead of a list, a tuple and the names' lookup).
         """
-        k, o_gn, o_lf, lanes = j + c[9], c[10], c[11], c[13]
+        k, o_gn, o_lf, norms_in = j + c[9], c[10], c[11], c[13]
         rows, gk = rows[:j], g[:k]  # (g: blk's (m, n) gradient view)
         tn = self._tick_names
         hit = tn[1].get(key) if tn[0] is joints.names else None
         if hit is None:
             hit = self._tick_key(key, rows.tolist(), joints)
-        return (LieData._of(blk[:k], blk[o_lf: o_lf + k], gk, blk[o_gn: o_gn + k] if lanes else _norms(gk), hit[0]),
+        gn = blk[o_gn: o_gn + k] if norms_in else row_norms(gk)
+        return (LieData._of(blk[:k], blk[o_lf: o_lf + k], gk, gn, hit[0]),
                 rows, hit[1])
 
     def _point_outputs(self, c: tuple, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -162,7 +158,7 @@ class NarrowPhase:
             p[slot] = arr.ctypes.data
         m = n_live + nj
         layout = (m, n, nj, m + m * n, 2 * m + m * n, 3 * m + m * n + 9 * n_live,  # offsets of gn and lf; size
-                  self._klanes if joints is not None else 0, distmax, slack)
+                  self._knorms if joints is not None else 0, distmax, slack)
         return (data, coherence, joints, lower, p, int(data._address), arrays, *layout)
 
     def _near_compiled(self, data: mujoco.MjData, mocap_lin: np.ndarray | None, mocap_ang: np.ndarray | None,
@@ -180,7 +176,7 @@ class NarrowPhase:
         if (c is None or c[0] is not data or c[1] is not coherence or c[2] is not joints
                 or (coherence is not None and c[3] is not coherence.lower)):  # (a reset replaces the bounds)
             c = self._kernel_context(data, coherence, joints)
-        _, _, _, _, p, daddr, _, m, n, nj, o_gn, o_lf, size, lanes, distmax, slack = c
+        _, _, _, _, p, daddr, _, m, n, nj, o_gn, o_lf, size, norms_in, distmax, slack = c
         out = self._kout
         if out[0] is not c:  # (another context: the output blocks of its layout)
             out = self._output_source(c, m, n, nj, size)
@@ -188,15 +184,16 @@ class NarrowPhase:
             blk, rows, g2 = next(out[1])  # fresh outputs (arrays a kernel returns cost more)
         except StopIteration:  # (this allocation's blocks are all handed out)
             blk, rows, g2 = next(self._output_source(c, m, n, nj, size, True)[1])
-        lin, dlanes = self._knolin, 0
+        lin, dhdt_in = self._knolin, 0
         moving = self._any_moving and mocap_lin is not None
-        if moving and self._kdot and mocap_ang is None:  # dh/dt in the kernel (in sums.dots3's order)
+        if moving and self._kdhdt and mocap_ang is None:  # dh/dt in the kernel (in sums.dots3's order)
             if mocap_lin.shape != self._lin_shape:  # type: ignore[union-attr]
                 raise ShapeError(f"mocap velocities must have shape {self._lin_shape} (rows like data.mocap_pos); "
                                  f"got {mocap_lin.shape}")  # type: ignore[union-attr]
-            lin, dlanes = np.ascontiguousarray(mocap_lin, dtype=np.float64).reshape(-1), self._kdot
+            lin, dhdt_in = np.ascontiguousarray(mocap_lin, dtype=np.float64).reshape(-1), self._kdhdt
         j, h_min, dist_min, jmin, touching, key = self._kernel(self._maddr, daddr, p, blk, rows, coherence is not None,
-                                                          self.cutoff, distmax, slack, _EPS_DIST, lanes, lin, dlanes)
+                                                          self.cutoff, distmax, slack, _EPS_DIST, norms_in, lin,
+                                                          dhdt_in)
         k = j + nj
         if touching:  # coinciding witness points: the numpy path (the same rows without the bounds)
             near = self._near_numpy(data, mocap_lin, mocap_ang, witness, None)
@@ -205,17 +202,17 @@ class NarrowPhase:
                 return _new(FilterRows, (near, near.h, near.grad, jmin, None, lf))
             fr = (near, np.concatenate((near.h, blk[j:k])), np.concatenate((near.grad, joints.grad)), jmin, None, lf)
             return self._tick_rows(_new(FilterRows, fr), joints, tick)
-        if tick and not (moving and not dlanes):  # (lie_rows: the kernel's rows, without the NearPairs)
+        if tick and not (moving and not dhdt_in):  # (lie_rows: the kernel's rows, without the NearPairs)
             lie, rows, row_list = self._block_lie(c, blk, g2, rows, j, joints, key)  # type: ignore[arg-type]
             return _new(TickRows, (lie, rows, row_list, h_min, dist_min, jmin))
         h, g, lf = blk[:k], g2[:k], blk[o_lf: o_lf + k]
-        gn = blk[o_gn: o_gn + k] if lanes else None
+        gn = blk[o_gn: o_gn + k] if norms_in else None
         if not j:
             return self._tick_rows(_new(FilterRows, (self._none, h, g, jmin, gn, lf)), joints, tick)
         rows = rows[:j]
-        if witness or (moving and not dlanes):
+        if witness or (moving and not dhdt_in):
             wit = blk[o_lf + m: o_lf + m + 9 * j].reshape(j, 3, 3)  # wit[k]: p1, p2, n
-            if moving and not dlanes:
+            if moving and not dhdt_in:
                 dhdt = lf[:j] = self._dhdt(data, rows.tolist(), rows, wit[:, 2], wit[:, 1], mocap_lin, mocap_ang)
             else:
                 dhdt = lf[:j]

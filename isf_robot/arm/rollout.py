@@ -144,7 +144,7 @@ class NominalRollout:
         if self.moving:  # (each point's obstacle places and mocap velocities, as the loop sets them)
             mpos, lins = self._tracks(t)
             if coll._any_moving:
-                lin, dl = lins[0], coll._kdot
+                lin, dl = lins[0], coll._kdhdt
         outs, res, q0 = np.empty((n, u.size)), np.empty((n, 6)), q.copy()
         done = self._whole(*self._addr, q, u, t, dt, self._qpos, self._qadr, nom._ptrs, nom._buf, outs,  # type: ignore[misc, attr-defined]
                            u.size, nom._jac.shape[1], nom._dof0, nom.scene.ee_site_id, nom.goals.index,  # type: ignore[attr-defined]

@@ -175,26 +175,8 @@ def on_rows(xi, c, failing, ramp_on, ids, W, inw, rate, screen, mask, weights, r
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _dot_rows(a, i, b, j, m):  # pragma: no cover (compiled)
-    """Row ``i`` of ``a`` times row ``j`` of ``b`` (m entries), added in order from the first (``sums.matvec``)."""
-    s = a[i, 0] * b[j, 0]
-    for q in range(1, m):
-        s = s + a[i, q] * b[j, q]
-    return s
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _dot_row_vec(a, i, v, m):  # pragma: no cover (compiled)
-    """Row ``i`` of ``a`` times the vector ``v`` (any memory layout), in ``_dot_rows``' order."""
-    s = a[i, 0] * v[0]
-    for q in range(1, m):
-        s = s + a[i, q] * v[q]
-    return s
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _dot_vec(v, w, m):  # pragma: no cover (compiled)
-    """``v . w`` of two vectors, in ``_dot_rows``' order (``sums.dot``)."""
+def _dot(v, w, m):  # pragma: no cover (compiled)
+    """``v . w`` of two vectors of ``m >= 1`` entries (any layout), added in order from the first (``sums.dot``)."""
     s = v[0] * w[0]
     for q in range(1, m):
         s = s + v[q] * w[q]
@@ -224,9 +206,9 @@ def few_step(rows, h, lf, gn, d_bar, gain, av, av_rows, promote, ramp, b, lg, u_
     Au = np.empty(n)
     G = np.empty((n, n))
     for j in range(n):
-        Au[j] = _dot_row_vec(A, j, u_nom, m)
+        Au[j] = _dot(A[j], u_nom, m)
         for c in range(n):
-            G[j, c] = _dot_rows(A, j, A, c, m)
+            G[j, c] = _dot(A[j], A[c], m)
     code, low = few_lower_candidate(rows, h, lf, gn, d_bar, gain, av, av_rows, promote, ramp, b, Au, G, A, u_nom,
                                     rel_tol, buf, u)
     if code == 0:
@@ -237,7 +219,7 @@ def few_step(rows, h, lf, gn, d_bar, gain, av, av_rows, promote, ramp, b, lg, u_
             active[j] = buf[1, j] <= active_tol
     elif code == 1:
         for j in range(n):
-            Au[j] = _dot_row_vec(A, j, u, m)
+            Au[j] = _dot(A[j], u, m)
         ok, low = few_finish(Au, u, u_nom, buf, active_tol, active, du)
         if not ok:
             return 2, low, False
@@ -251,7 +233,7 @@ def few_step(rows, h, lf, gn, d_bar, gain, av, av_rows, promote, ramp, b, lg, u_
         if j < n and rows[j] == i:
             j += 1
             continue
-        lgdu[i] = _dot_row_vec(lg, i, du, m)
+        lgdu[i] = _dot(lg[i], du, m)
     return code, low, screened_hold(xi, lgdu, rows, n, active_tol)
 
 
@@ -268,12 +250,12 @@ def one_step(i, lb, lg, u_nom, feas_tol, active_tol, xi, u, du):  # pragma: no c
     ``slack = a . u - lb``; ``held``: every other row keeps ``xi_j + Lg h_j du >= active_tol``.
     """
     m = u_nom.shape[0]
-    aa = _dot_rows(lg, i, lg, i, m) if m else 0.0
+    aa = _dot(lg[i], lg[i], m) if m else 0.0
     if not aa > 1e-200:
         return -1, 0.0, False
-    gap = lb - _dot_row_vec(lg, i, u_nom, m)
+    gap = lb - _dot(lg[i], u_nom, m)
     if gap <= 0.0:
-        if not np.isfinite(_dot_vec(u_nom, u_nom, m)):
+        if not np.isfinite(_dot(u_nom, u_nom, m)):
             return -1, 0.0, False
         for j in range(xi.shape[0]):  # (du = 0: the other rows' slack is their xi)
             if j != i and not xi[j] >= active_tol:
@@ -283,11 +265,11 @@ def one_step(i, lb, lg, u_nom, feas_tol, active_tol, xi, u, du):  # pragma: no c
     for q in range(m):
         u[q] = u_nom[q] + s * lg[i, q]
         du[q] = u[q] - u_nom[q]
-    slack = _dot_row_vec(lg, i, u, m) - lb
+    slack = _dot(lg[i], u, m) - lb
     b = abs(lb)
-    if not (slack >= -feas_tol * (b if b > 1.0 else 1.0) and np.isfinite(_dot_vec(u, u, m))):
+    if not (slack >= -feas_tol * (b if b > 1.0 else 1.0) and np.isfinite(_dot(u, u, m))):
         return -1, 0.0, False
     for j in range(xi.shape[0]):
-        if j != i and not xi[j] + _dot_row_vec(lg, j, du, m) >= active_tol:
+        if j != i and not xi[j] + _dot(lg[j], du, m) >= active_tol:
             return 1, slack, False
     return 1, slack, True

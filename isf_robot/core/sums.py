@@ -46,14 +46,12 @@ def row_sq_sums(g: np.ndarray) -> np.ndarray:
     """``g_i . g_i`` of the rows of a (k, n) array: the squares added in column order (``sq_sum`` of each row)."""
     if g.shape[1] == 0:
         return np.zeros(g.shape[0])
-    return np.add.accumulate(g * g, axis=1)[:, -1].copy()
+    return np.add.accumulate(g * g, axis=1)[:, -1].copy()  # (accumulate: strictly in order)
 
 
 def row_norms(g: np.ndarray) -> np.ndarray:
-    """``|g_i|`` of the rows of a (k, n) array: the squares added in column order, then the square root."""
-    if g.shape[1] == 0:
-        return np.zeros(g.shape[0])
-    return np.sqrt(np.add.accumulate(g * g, axis=1)[:, -1])  # (accumulate: strictly in order)
+    """``|g_i|`` of the rows of a (k, n) array: :func:`row_sq_sums`, then the square root."""
+    return np.sqrt(row_sq_sums(g))
 
 
 def dots3(a: np.ndarray, b: np.ndarray) -> np.ndarray:

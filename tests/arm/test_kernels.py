@@ -101,7 +101,7 @@ def test_kernel_dhdt_of_mocap_obstacles_equals_numpy(random_states, rng) -> None
     scene = load_scene("panda_moving")
     fast, slow = _pair(scene)
     joints = JointLimitBarriers.from_scene(scene)
-    assert fast._kdot == 1  # dh/dt in the kernel
+    assert fast._kdhdt == 1  # dh/dt in the kernel
     lin = rng.normal(0.0, 0.3, (scene.model.nmocap, 3))
     moving = 0
     for d in random_states(scene, rng, 60):

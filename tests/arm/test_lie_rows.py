@@ -127,7 +127,7 @@ def test_lie_rows_with_mocap_obstacles(random_states, rng, kernel_dhdt) -> None:
     scene = load_scene("panda_moving")
     fast, slow = _barriers(scene, True), _barriers(scene, False)
     if not kernel_dhdt:
-        fast._kdot = 0  # dh/dt by numpy after the kernel (the path taken with an angular velocity)
+        fast._kdhdt = 0  # dh/dt by numpy after the kernel (the path taken with an angular velocity)
     joints = JointLimitBarriers.from_scene(scene)
     lin = rng.normal(0.0, 0.3, (scene.model.nmocap, 3))
     moving = 0
