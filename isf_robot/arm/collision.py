@@ -233,6 +233,11 @@ class CollisionBarriers(NarrowPhase):
         return BarrierBatch._of(h, grad, dhdt, p.names, active, witness, self._pair_geoms)
 
     @property
+    def h_far(self) -> np.ndarray:
+        """Barrier value of each pair beyond the cut-off, ``cutoff - margin``, shape (k,) (read-only)."""
+        return self._h_far
+
+    @property
     def h_far_min(self) -> float:
         """Smallest barrier value a pair beyond the cut-off can have: ``min(cutoff - margin)``."""
         return self._h_far_min

@@ -23,9 +23,12 @@ If a filter's QP is infeasible even with every promotion relaxed, the arm brakes
 such steps are counted in ``fallbacks`` and never hidden.
 
 Observers (:class:`isf_robot.core.Observer`) receive ``on_start(info)`` (see
-:meth:`ArmSimulation.start_info`, plus ``data``: the live MjData), ``on_step`` with an :class:`ArmStepRecord`,
-``on_event`` per :class:`~isf_robot.core.SwitchEvent` and ``on_finish(summary)``. Records are
-built only when an observer is attached. Timing per phase (``timing=True``) wraps the phases
+:meth:`ArmSimulation.start_info`, plus ``data``: the live MjData), the steps, ``on_event`` per
+:class:`~isf_robot.core.SwitchEvent` and ``on_finish(summary)``. The loop writes each step into a
+:class:`~isf_robot.arm.step_columns.StepColumns` block (only when an observer is attached):
+observers that take blocks (``on_steps``, the Rerun recorder) get the block when it is full and
+at the end; the others get ``on_step`` with an :class:`~isf_robot.arm.records.ArmStepRecord`
+at every step. Timing per phase (``timing=True``) wraps the phases
 with timers; the loop itself has none.
 """
 
@@ -40,6 +43,7 @@ import mujoco
 import numpy as np
 
 from isf_robot.core import ConfigError, LieData, MetricsAccumulator, Observer, Observers, QPSolver, as_class_k
+from isf_robot.core.hooks import takes_blocks
 from isf_robot.core.strategies import make_strategy, strategy_info
 
 from .actuation import Actuation, make_actuation, tracking_step
@@ -50,14 +54,17 @@ from .lowlevel import as_slice
 from .monitor import SafetyMonitor
 from .nominal import NominalController, ReachingController
 from .params import filter_options, resolve_params
-from .records import ArmStepRecord, FilterParams, RunResult
+from .records import FilterParams, RunResult
 from .scene import Scene
+from .step_columns import StepColumns
 from .timing import PhaseTimers
 
 __all__ = ["ArmSimulation", "run_episode"]
 
 PHASES = ("sense", "barriers", "nominal", "strategy", "act")
 MAX_CONTROL_STEPS = 10_000_000
+BLOCK_STEPS = 2048
+"""Steps per block handed to block observers (an observer's ``block_steps`` attribute lowers it)."""
 """Longest run in control steps (the obstacle paths and tracking errors are stored per step)."""
 
 
@@ -198,6 +205,10 @@ class ArmSimulation:
         timers = PhaseTimers(phases) if self.timing else None
         sense, barriers, nominal, strategy, act = (phases[name] for name in PHASES)
         observers, recording = self.observers, bool(self.observers)
+        stepwise = Observers([o for o in observers.items if not takes_blocks(o)])
+        blockwise = Observers([o for o in observers.items if takes_blocks(o)])
+        block = ep.block(min((getattr(o, "block_steps", BLOCK_STEPS) for o in blockwise.items),
+                             default=BLOCK_STEPS)) if recording else None
         if recording:
             observers.on_start({**self.start_info(n_ctrl * T), "data": ep.data})  # live data: a viewer can perturb it
         try:
@@ -208,14 +219,26 @@ class ArmSimulation:
                 u_nom = nominal(t)
                 step = strategy(t, lie, u_nom)
                 act(k, step.u)
-                if recording:
+                if block is not None:
                     if step.event is not None:
                         observers.on_event(step.event)
-                    observers.on_step(ep.record(t, step, near, jh))
+                    ep.write(block, t, step, near, jh)
+                    if stepwise:
+                        stepwise.on_step(block.record(block.size - 1))
+                    if block.full:
+                        blockwise.on_steps(block)
+                        block.clear()
         except BaseException as exc:  # an error or Ctrl-C: observers keep what they have, marked partial
             if recording:
+                if block is not None and len(block) and blockwise:
+                    try:
+                        blockwise.on_steps(block)  # (the steps done so far reach the partial files)
+                    except Exception:  # noqa: BLE001, S110 - the run's own error is the one to report
+                        pass
                 observers.on_abort(exc)
             raise
+        if block is not None and len(block) and blockwise:
+            blockwise.on_steps(block)
         result = ep.finish(time.perf_counter() - wall0, timers.totals if timers else {})
         if recording:
             observers.on_finish(result.as_dict())
@@ -264,6 +287,7 @@ class _Episode:
         self._screen_cache: dict[int, np.ndarray] = {}
         self._step_lie, self._add_step, self._period = sim.strategy.step_lie, self.metrics.add_step, sim.control_period
         self._command = tracking_step(sim.tracker, scene.dof_adr)  # tracking error, set_command and apply in one
+        self._qpos_sel, self._dof_sel = as_slice(np.asarray(scene.qpos_adr)), as_slice(np.asarray(scene.dof_adr))
 
     # -- phases --------------------------------------------------------------------------
     def sense(self, k: int) -> None:
@@ -334,28 +358,20 @@ class _Episode:
             mujoco.mj_step2(model, data)
 
     # -- records and summary ---------------------------------------------------------------
-    def record(self, t: float, step: Any, near: NearPairs, jh: np.ndarray) -> ArmStepRecord:
-        """What observers see of the step just taken."""
-        sim, data, scene = self.sim, self.data, self.sim.scene
-        cb = sim.coll.batch(near)
-        h = np.concatenate((cb.h, jh))
-        order = np.argsort(cb.h)[:3].tolist()
-        act = np.flatnonzero(cb.active)
+    def block(self, capacity: int) -> StepColumns:
+        """An empty block of ``capacity`` steps for this run's observers."""
+        sim = self.sim
+        return StepColumns(capacity, len(sim.scene.qpos_adr), sim.names, sim.coll.pairs.k, self.model.nmocap,
+                           sim.control_period)
+
+    def write(self, block: StepColumns, t: float, step: Any, near: NearPairs, jh: np.ndarray) -> None:
+        """Write the step just taken into the next row of ``block``."""
+        sim, scene = self.sim, self.sim.scene
         nominal = sim.nominal
         gi = nominal.goal_index
-        goal = (nominal.goal_positions[gi].copy() if isinstance(nominal, ReachingController)
-                else np.full(3, np.nan))
-        return ArmStepRecord(
-            t=t, dt=sim.control_period, q=data.qpos[scene.qpos_adr], qd=data.qvel[scene.dof_adr],
-            u=np.array(step.u, dtype=float), u_nom=np.array(step.u_nom, dtype=float), on=bool(step.on),
-            h_min=float(h.min()), xi_min=step.xi_min, dist_min=float(self.dmin),
-            qp_solved=step.qp is not None, h=h, names=sim.names,
-            closest=tuple(cb.names[i] for i in order), witness=cb.witness[act],
-            witness_names=tuple(cb.names[i] for i in act.tolist()),
-            mocap_pos=data.mocap_pos.copy(), mocap_quat=data.mocap_quat.copy(),
-            ee_pos=np.array(scene.ee_position(data)), goal_index=gi, goal_pos=goal,
-            event=step.event, fallback=bool(step.fallback), relaxed=tuple(step.relaxed),
-        )
+        goal = nominal.goal_positions[gi] if isinstance(nominal, ReachingController) else None
+        block.write(t, step, self.data, self._qpos_sel, self._dof_sel, sim.coll.h_far, near, jh, self.dmin,
+                    scene.ee_position(self.data), gi, goal)
 
     def finish(self, wall: float, timings: dict[str, float]) -> RunResult:
         """Account the state after the last step and summarise the run."""

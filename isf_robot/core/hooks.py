@@ -2,9 +2,11 @@
 
 Simulation loops (the arm's, the satellite's, the core demo's) call ``on_start`` once,
 ``on_step`` per control step with their step record, ``on_event`` per switch or jump event,
-and ``on_finish`` with the summary. A run that stops early (an error, Ctrl-C) calls
-``on_abort`` instead of ``on_finish``, so an observer writing a file can leave it marked as
-partial. :class:`Observer` is a no-op base to subclass.
+and ``on_finish`` with the summary. A loop that keeps its steps in columns (the arm's) hands an
+observer that overrides :meth:`Observer.on_steps` whole blocks of steps instead of per-step
+records (:func:`takes_blocks`); every other observer still gets ``on_step`` at every step. A run
+that stops early (an error, Ctrl-C) calls ``on_abort`` instead of ``on_finish`` (after handing
+over the steps done), so an observer writing a file can leave it marked as partial. :class:`Observer` is a no-op base to subclass.
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-__all__ = ["Observer", "Observers"]
+__all__ = ["Observer", "Observers", "takes_blocks"]
 
 
 class Observer:
@@ -24,6 +26,15 @@ class Observer:
     def on_step(self, record: Any) -> None:
         """Called after every control step with the loop's step record."""
 
+    def on_steps(self, block: Any) -> None:
+        """Called with a block of consecutive steps in columns, by loops that keep columns.
+
+        ``len(block)`` rows; ``block.record(i)`` is row ``i`` as the loop's step record. The block's
+        arrays are reused after the call: keep copies, not views. Default: :meth:`on_step` per row.
+        """
+        for i in range(len(block)):
+            self.on_step(block.record(i))
+
     def on_event(self, event: Any) -> None:
         """Called for each switch / jump event."""
 
@@ -32,6 +43,11 @@ class Observer:
 
     def on_abort(self, reason: BaseException) -> None:
         """Called instead of :meth:`on_finish` when the run stops early (error or interrupt)."""
+
+
+def takes_blocks(observer: Observer) -> bool:
+    """Whether ``observer`` overrides :meth:`Observer.on_steps` (it then gets blocks, not per-step records)."""
+    return getattr(type(observer), "on_steps", Observer.on_steps) is not Observer.on_steps
 
 
 class Observers(Observer):
@@ -50,6 +66,10 @@ class Observers(Observer):
     def on_step(self, record: Any) -> None:
         for o in self.items:
             o.on_step(record)
+
+    def on_steps(self, block: Any) -> None:
+        for o in self.items:
+            o.on_steps(block)
 
     def on_event(self, event: Any) -> None:
         for o in self.items:

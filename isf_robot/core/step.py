@@ -82,12 +82,12 @@ class FilterStep:
     @property
     def h_min(self) -> float:
         """Smallest barrier value."""
-        return float(np.min(self.h)) if self.h.size else float("inf")
+        return float(self.h.min()) if self.h.size else float("inf")
 
     @property
     def xi_min(self) -> float:
         """Smallest ``Xi_on``."""
-        return float(np.min(self.xi)) if self.xi.size else float("inf")
+        return float(self.xi.min()) if self.xi.size else float("inf")
 
     @property
     def solved_qp(self) -> bool:

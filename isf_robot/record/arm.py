@@ -27,9 +27,10 @@ the smaller of the tick's collision barriers (``h[:n_collision]``) and ``dist_mi
 step without a step record; when that final check is the run's minimum, it is logged as one
 extra row ``/replay/terminal``.
 
-Cost: the recorder keeps each (frozen) step record and, every ``capacity`` steps, turns the
-block into columns (forward kinematics for the poses included) and sends each entity once,
-so the per-step work is a list append plus a few microseconds at flush time.
+Cost: the arm loop writes each step into a block of columns
+(:class:`~isf_robot.arm.step_columns.StepColumns`, a row of array writes per step) and hands the
+block to :meth:`ArmRecorder.on_steps` every ``capacity`` steps; the recorder derives every entity
+from those arrays (forward kinematics for the poses included) and sends each once.
 """
 
 from __future__ import annotations
@@ -41,31 +42,51 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
+from isf_robot.core.sums import row_sq_sums, sq_sum
+
 from .arm_columns import closest_witness, goal_columns, norm_columns, strip_array, witness_columns
 from .blueprints import arm_blueprint, camera_for
 from .buffer import TIMELINE, Channel
 from .errors import RecordError
 from .mjgeometry import MujocoDrawing
-from .recorder import RerunRecorder, finite_scalars
+from .recorder import RerunRecorder, finite_scalars, value_columns
 from .schema import STEPS, TERMINAL
 
 __all__ = ["ArmRecorder"]
 
 
-class _RecordBatch:
-    """Step records held until a block is full (a custom channel of the column buffer)."""
+class _RecordBlock:
+    """Step records fed one by one (:meth:`ArmRecorder.on_step`) as a block of columns.
 
-    def __init__(self, send: Any) -> None:
-        self.items: list[Any] = []
-        self._send = send
+    The arm loop hands the recorder blocks of columns directly (:meth:`ArmRecorder.on_steps`);
+    this adapter gives records from elsewhere (a replay of kept records, a test) the same shape.
+    """
+
+    def __init__(self, records: list[Any], n_collision: int) -> None:
+        self.size = len(records)
+        self.n_collision = n_collision
+        f8 = np.float64
+
+        def col(name: str, dtype: Any = f8) -> np.ndarray:
+            return np.fromiter((getattr(r, name) for r in records), dtype=dtype, count=self.size)
+
+        def rows(name: str) -> np.ndarray:
+            return np.array([getattr(r, name) for r in records], dtype=f8)
+
+        first = records[0]
+        self.names = tuple(first.names)
+        self.dt = float(first.dt)
+        self.t, self.on, self.qp_solved = col("t"), col("on", np.bool_), col("qp_solved", np.bool_)
+        self.dist_min, self.h_min, self.xi_min = col("dist_min"), col("h_min"), col("xi_min")
+        self.u, self.u_nom, self.h, self.q = rows("u"), rows("u_nom"), rows("h"), rows("q")
+        self.ee_pos, self.goal_pos = rows("ee_pos"), rows("goal_pos")
+        self.mocap_pos, self.mocap_quat = rows("mocap_pos"), rows("mocap_quat")
+        index = {n: j for j, n in enumerate(self.names)}
+        self.near = [np.array([index[n] for n in r.witness_names], dtype=np.int64) for r in records]
+        self.witness = [np.asarray(r.witness, dtype=f8).reshape(-1, 2, 3) for r in records]
 
     def __len__(self) -> int:
-        return len(self.items)
-
-    def flush(self) -> None:
-        if self.items:
-            items, self.items = self.items, []
-            self._send(items)
+        return self.size
 
 
 class ArmRecorder(RerunRecorder):
@@ -113,8 +134,13 @@ class ArmRecorder(RerunRecorder):
         self._trail_tail = np.zeros((0, 3))
         self._names: tuple[str, ...] = ()
         self._qpos_adr: Any = None
-        self._batch = self.buffer.add("/replay/arm_steps", _RecordBatch(self._send_batch))
+        self._records: list[Any] = []
         self._derived = self._derived_entities()
+
+    @property
+    def block_steps(self) -> int:
+        """Steps per block the arm loop hands to :meth:`on_steps` (the buffer's capacity)."""
+        return self.buffer.capacity
 
     def _setup(self, info: Mapping[str, Any]) -> None:
         """Geometry and margins from the run's start info (``model``, ``qpos_adr``, ``pair_margins``)."""
@@ -144,7 +170,7 @@ class ArmRecorder(RerunRecorder):
         return {**super().versions(), "mujoco": str(mujoco.__version__)}
 
     def make_step_channel(self) -> Channel | None:
-        """None: the arm keeps whole step records in a :class:`_RecordBatch` instead."""
+        """None: the arm loop hands whole blocks of columns to :meth:`on_steps` instead."""
         return None
 
     def _derived_entities(self) -> tuple[tuple[str, Any], ...]:
@@ -165,38 +191,37 @@ class ArmRecorder(RerunRecorder):
             ("/world/ee_trail", self._trail_columns),
         )
 
-    def _send_batch(self, recs: list[Any]) -> None:
-        """Turn a block of step records into columns and send every entity (one call each)."""
-        n = len(recs)
-        f8 = np.float64
+    def _send_block(self, b: Any) -> None:
+        """Send every entity of a block of steps in columns (one ``send_columns`` call each).
 
-        def col(name: str, dtype: Any = f8) -> np.ndarray:
-            return np.fromiter((getattr(r, name) for r in recs), dtype=dtype, count=n)
-
-        t = col("t")
-        u = np.array([r.u for r in recs], dtype=f8)
-        u_nom = np.array([r.u_nom for r in recs], dtype=f8)
-        diff = u - u_nom
+        ``b`` is a :class:`~isf_robot.arm.step_columns.StepColumns` of the arm loop (or a
+        :class:`_RecordBlock`): its first ``len(b)`` rows are read where they are.
+        """
+        n = len(b)
+        if n == 0:
+            return
+        t = b.t[:n].copy()
+        u, u_nom = b.u[:n], b.u_nom[:n]
         a = {
-            "t": t, "dt": col("dt"), "on": col("on", np.bool_), "qp_solved": col("qp_solved", np.bool_),
-            # row by row, as the run's metrics accumulator does (d @ d), so the sums match bit for bit
-            "intervention_rate": np.fromiter((float(d @ d) for d in diff), dtype=f8, count=n),
-            "dist_min": col("dist_min"), "h_filter": col("h_min"), "xi": col("xi_min"),
-            "h": np.array([r.h for r in recs], dtype=f8), "u_nom": u_nom, "u": u,
-            "ee": np.array([r.ee_pos for r in recs], dtype=f8), "goal": np.array([r.goal_pos for r in recs], dtype=f8),
+            "t": t, "dt": np.full(n, float(b.dt)), "on": b.on[:n].copy(), "qp_solved": b.qp_solved[:n].copy(),
+            # in the metrics accumulator's written order (sums.sq_sum per row), so the sums match
+            "intervention_rate": row_sq_sums(u - u_nom),
+            "dist_min": b.dist_min[:n], "h_filter": b.h_min[:n], "xi": b.xi_min[:n],
+            "h": b.h[:n], "u_nom": u_nom, "u": u, "ee": b.ee_pos[:n], "goal": b.goal_pos[:n],
         }
+        if not self._names:
+            self._names = tuple(b.names)
         stream = self.stream
         for path, fn in self._derived:
             out = fn(t, a)
             if out is not None and len(out[0]):
                 stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=out[0])], columns=out[1])
-        m = min(self.closest, 3)
         stream.send_columns("/world/witness", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
-                            columns=witness_columns([closest_witness(r, m) for r in recs]))
+                            columns=witness_columns(*closest_witness(b, n, min(self.closest, 3))))
         assert self.drawing is not None
-        self.drawing.send_poses(stream, t, self._qpos_adr, [r.q for r in recs],
-                                [r.mocap_pos for r in recs], [r.mocap_quat for r in recs])
+        self.drawing.send_poses(stream, t, self._qpos_adr, b.q[:n], b.mocap_pos[:n], b.mocap_quat[:n])
         self.drawing.send_tint(stream, t, a["on"])
+        self.steps += n
 
     def _min_barrier(self, a: dict[str, np.ndarray]) -> np.ndarray:
         """Per-step true-geometry minimum of ``dist - margin`` (tick values and physics substeps)."""
@@ -212,8 +237,8 @@ class ArmRecorder(RerunRecorder):
         a["min_barrier"] = mb  # for the derived plots that follow
         if np.any(np.isfinite(mb)):
             self._running_min = min(self._running_min, float(np.nanmin(mb)))
-        return t, rr.AnyValues.columns(t=a["t"], dt=a["dt"], on=a["on"], intervention_rate=a["intervention_rate"],
-                                       qp_solved=a["qp_solved"], min_barrier=mb)
+        return t, value_columns(t=a["t"], dt=a["dt"], on=a["on"], intervention_rate=a["intervention_rate"],
+                                qp_solved=a["qp_solved"], min_barrier=mb)
 
     def _pair_columns(self, t: np.ndarray, a: dict[str, np.ndarray]) -> None:
         """Each pair's barrier at the steps where it is among the closest, a Clear where it stops being.
@@ -226,15 +251,22 @@ class ArmRecorder(RerunRecorder):
         if m <= 0:
             return None
         h = a["h"][:, :nc]
-        idx = np.argsort(h, axis=1)[:, :m]
-        seen = set(np.unique(idx).tolist()) | {j for j, was in self._pair_member.items() if was}
-        for j in sorted(seen):
-            member = np.any(idx == j, axis=1)
-            prev = np.concatenate(([self._pair_member.get(j, False)], member[:-1]))
-            gaps = np.flatnonzero(prev & ~member)
-            self._pair_member[j] = bool(member[-1])
+        n = h.shape[0]
+        member = np.zeros((n, nc), dtype=bool)
+        member[np.arange(n)[:, None], np.argsort(h, axis=1)[:, :m]] = True
+        prev = np.empty_like(member)
+        prev[1:] = member[:-1]
+        prev[0] = False
+        for j, was in self._pair_member.items():
+            prev[0, j] = was
+        gaps_all = prev & ~member
+        seen = np.flatnonzero(member.any(axis=0) | gaps_all.any(axis=0)).tolist()
+        last = member[-1]
+        for j in seen:
+            self._pair_member[j] = bool(last[j])
             path = self._pair_path(j)
-            rows = np.flatnonzero(member)
+            rows = np.flatnonzero(member[:, j])
+            gaps = np.flatnonzero(gaps_all[:, j])
             if rows.size:
                 self.stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=t[rows])],
                                          columns=rr.Scalars.columns(scalars=h[rows, j]))
@@ -272,14 +304,14 @@ class ArmRecorder(RerunRecorder):
         stride = max(1, -(-k // self.TRAIL_POINTS))
         pts = np.concatenate((self._trail_tail, a["ee"]))
         off = len(self._trail_tail)
-        chunks, lengths = [], np.empty(len(t), dtype=np.int64)
-        for i in range(len(t)):
-            j = off + i
-            seg = pts[max(0, j - k + 1):j + 1][::-1][::stride][::-1]
-            chunks.append(seg)
-            lengths[i] = len(seg)
+        # step i's strip: the points j, j - stride, j - 2 stride, ... >= max(0, j - k + 1) (j = off + i), in order
+        j = off + np.arange(len(t))
+        lengths = (j - np.maximum(0, j - k + 1)) // stride + 1
+        start = np.cumsum(lengths) - lengths
+        pos = np.arange(int(lengths.sum())) - np.repeat(start, lengths)  # position within its strip
+        idx = np.repeat(j, lengths) - (np.repeat(lengths, lengths) - 1 - pos) * stride
         self._trail_tail = pts[-(k - 1):].copy()
-        strips = strip_array(np.concatenate(chunks), lengths)
+        strips = strip_array(pts[idx], lengths)
         return t, rr.LineStrips3D.columns(strips=strips).partition([1] * len(t))
 
     # -- static --------------------------------------------------------------------------
@@ -327,29 +359,50 @@ class ArmRecorder(RerunRecorder):
                                          else None, c=self.c), make_active=True, make_default=True)
 
     # -- per step ------------------------------------------------------------------------
+    def on_steps(self, block: Any) -> None:
+        """Send a block of the arm loop's steps (:class:`~isf_robot.arm.step_columns.StepColumns`)."""
+        self._flush_records()
+        self._send_block(block)
+
     def on_step(self, record: Any) -> None:
-        """Keep the step record (frozen, arrays owned by it); every ``capacity`` records are sent."""
-        items = self._batch.items
-        if not self._names:
-            self._names = tuple(record.names)
-        items.append(record)
-        self.steps += 1
-        if len(items) >= self.buffer.capacity:
-            self._batch.flush()
+        """Keep a step record (for callers without blocks); every ``capacity`` records are sent."""
+        self._records.append(record)
+        if len(self._records) >= self.buffer.capacity:
+            self._flush_records()
+
+    def _flush_records(self) -> None:
+        if self._records:
+            records, self._records = self._records, []
+            self._send_block(_RecordBlock(records, self._n_collision))
+
+    def on_finish(self, summary: Mapping[str, Any]) -> None:
+        """Send the records still kept, then finish (see :meth:`RerunRecorder.on_finish`)."""
+        self._flush_records()
+        super().on_finish(summary)
+
+    def close(self, *, complete: bool = True) -> None:
+        """Send the records still kept, then close (see :meth:`RerunRecorder.close`)."""
+        if not self.closed:
+            try:
+                self._flush_records()
+            except Exception:
+                if complete:
+                    raise
+        super().close(complete=complete)
 
     def replay_row(self, record: Any) -> tuple[float, float, bool, float, bool, float]:
         """``(t, dt, on, |u - u_nom|^2, qp_solved, true-geometry min barrier)`` of one record.
 
         (The recorder computes the same values in batch at each flush; this is the reference.)
         """
-        d = record.u - record.u_nom
+        d = np.asarray(record.u, dtype=float) - np.asarray(record.u_nom, dtype=float)
         nc = self._n_collision
         tick = float(record.h[:nc].min()) if nc else math.inf
         dist = float(record.dist_min)
         hmin = min(tick, dist - self._margin) if math.isfinite(dist) else tick
         if not math.isfinite(hmin):
             hmin = math.nan
-        return (float(record.t), float(record.dt), bool(record.on), float(d @ d), bool(record.qp_solved), hmin)
+        return (float(record.t), float(record.dt), bool(record.on), sq_sum(d), bool(record.qp_solved), hmin)
 
     def describe_event(self, event: Any) -> str:
         """``t = 1.234 s: filter on (#3, Xi_on = -0.001) after 0.82 s off``."""

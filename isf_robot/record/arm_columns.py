@@ -25,30 +25,49 @@ def strip_array(points: np.ndarray, lengths: np.ndarray) -> Any:
     return pa.ListArray.from_arrays(pa.array(offsets), inner, type=dtype)
 
 
-def witness_columns(rows: list[np.ndarray]) -> Any:
-    """Segments (on geom 1, on geom 2) of each row; segments with NaN points are dropped.
+def witness_columns(segs: np.ndarray, lengths: np.ndarray) -> Any:
+    """Line-strip columns of witness segments: row ``i`` holds ``lengths[i]`` consecutive segments.
 
-    The Arrow array is built here in one go (Rerun's own conversion loops over strips in Python).
+    ``segs``: (on geom 1, on geom 2) points [m], shape (s, 2, 3), rows one after another; segments
+    with NaN points are dropped. The Arrow array is built here in one go (Rerun's own conversion
+    loops over strips in Python).
     """
-    segs = np.concatenate([np.asarray(w, dtype=np.float64).reshape(-1, 2, 3) for w in rows])
+    segs = np.asarray(segs, dtype=np.float64).reshape(-1, 2, 3)
+    lengths = np.asarray(lengths, dtype=np.int64)
     ok = np.all(np.isfinite(segs), axis=(1, 2))
-    lengths = np.fromiter((len(w) for w in rows), dtype=np.int64, count=len(rows))
     if not ok.all():
-        row_of = np.repeat(np.arange(len(rows)), lengths)
-        lengths = np.bincount(row_of[ok], minlength=len(rows))
+        row_of = np.repeat(np.arange(len(lengths)), lengths)
+        lengths = np.bincount(row_of[ok], minlength=len(lengths))
         segs = segs[ok]
     strips = strip_array(segs.reshape(-1, 3), np.full(len(segs), 2))
     return rr.LineStrips3D.columns(strips=strips).partition(lengths.tolist())
 
 
-def closest_witness(record: Any, m: int) -> np.ndarray:
-    """Witness segments of the record's pairs that are among its ``m`` closest."""
-    w = record.witness
-    if not len(w) or m <= 0:
-        return np.zeros((0, 2, 3))
-    keep = set(record.closest[:m])
-    mask = [n in keep for n in record.witness_names]
-    return w[np.asarray(mask, dtype=bool)] if not all(mask) else w
+def closest_witness(block: Any, n: int, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """The witness segments of each row's pairs that are among its ``m`` closest, for :func:`witness_columns`.
+
+    ``block.h[:, :block.n_collision]`` ranks the pairs (the smallest ``h`` first, as the step
+    record's ``closest``); ``block.near[i]`` and ``block.witness[i]`` are row ``i``'s pairs within
+    the cut-off and their segments, shape (a, 2, 3).
+
+    Returns:
+        ``(segments, lengths)``: shape (s, 2, 3) and (n,), row after row.
+
+    """
+    nc = block.n_collision
+    if m <= 0 or nc == 0 or n == 0:
+        return np.zeros((0, 2, 3)), np.zeros(n, dtype=np.int64)
+    counts = np.fromiter((len(w) for w in block.witness[:n]), dtype=np.int64, count=n)
+    if not counts.any():
+        return np.zeros((0, 2, 3)), counts
+    segs = np.concatenate([w for w in block.witness[:n] if len(w)]).reshape(-1, 2, 3)
+    pair = np.concatenate([p for p, c in zip(block.near[:n], counts.tolist()) if c])
+    row = np.repeat(np.arange(n), counts)
+    closest = np.argsort(block.h[:n, :nc], axis=1)[:, :m]
+    member = np.zeros((n, nc), dtype=bool)
+    member[np.arange(n)[:, None], closest] = True
+    keep = member[row, pair]
+    return segs[keep], np.bincount(row[keep], minlength=n)
 
 
 def goal_columns(t: np.ndarray, a: dict[str, np.ndarray]) -> tuple[np.ndarray, Any] | None:

@@ -219,6 +219,11 @@ class PerRunRecorder(Observer):
         if self._current is not None:
             self._current.on_step(record)
 
+    def on_steps(self, block: Any) -> None:
+        """Forward to the current run's recorder."""
+        if self._current is not None:
+            self._current.on_steps(block)
+
     def on_event(self, event: Any) -> None:
         """Forward to the current run's recorder."""
         if self._current is not None:

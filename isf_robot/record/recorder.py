@@ -31,7 +31,22 @@ from .buffer import Channel, ColumnBuffer
 from .errors import RecordError, defer_error
 from .stream import close_stream
 
-__all__ = ["RerunRecorder", "to_jsonable", "finite_scalars"]
+__all__ = ["RerunRecorder", "to_jsonable", "finite_scalars", "value_columns"]
+
+
+def value_columns(**fields: np.ndarray) -> Any:
+    """``rr.AnyValues.columns`` of 1-D numeric or bool arrays, one value per row.
+
+    The same columns as ``rr.AnyValues.columns(**fields)`` (a list of one value per row), built as
+    Arrow list arrays in one go: Rerun's own conversion makes a Python list per value.
+    """
+    import pyarrow as pa
+
+    out = {}
+    for name, values in fields.items():
+        v = np.ascontiguousarray(values).reshape(-1)
+        out[name] = pa.ListArray.from_arrays(pa.array(np.arange(v.size + 1, dtype=np.int32)), pa.array(v))
+    return rr.AnyValues.columns(**out)
 
 
 
@@ -109,7 +124,7 @@ class RerunRecorder(Observer):
             "intervention_rate": ((), np.float64), "qp_solved": ((), np.bool_),
             "min_barrier": ((), np.float64),
         }
-        return self.buffer.channel(schema.STEPS, fields, lambda **a: rr.AnyValues.columns(**a),
+        return self.buffer.channel(schema.STEPS, fields, value_columns,
                                    derived=self.step_plots())
 
     @staticmethod
