@@ -9,7 +9,8 @@ Each check returns :class:`Finding` s whose message names the cause and says wha
 * ``joint-speed``: ``[gains] max_joint_speed`` above what a joint's actuator limit and damping
   allow, ``(F - |gravity at home|) / damping`` per joint;
 * ``saturation``: arm actuators at their limit in the calibration (a fraction of its steps);
-* ``d-bar``: a calibrated ``d_bar`` large relative to ``max_joint_speed``;
+* ``d-bar``: a calibrated ``d_bar`` large relative to ``max_joint_speed``; the message names the
+  arm's joint friction (``dof_frictionloss``) and armature with their values when it has any;
 * ``servo-chatter``: a force-limited servo whose damping ``kv`` is too stiff for the timestep
   (``kv dt / M_ii > 2``): once the force limit clips it, the step is explicit in it and the
   joint chatters at the limit;
@@ -293,19 +294,38 @@ def check_calibration(scene: Scene, cal: Calibration, d_bar: float | None = None
             f"({per} of {cal.samples} physics steps): d_bar then measures the actuators' limits, not "
             "the tracking. Lower [gains] max_joint_speed (and max_joint_acc), or give the actuators "
             "the robot's real limits (forcerange / ctrlrange)"))
-    return out + _d_bar(scene, cal.d_bar if d_bar is None else d_bar)
+    return out + _d_bar(scene, cal.d_bar if d_bar is None else d_bar, cal.friction_fed_forward)
 
 
-def _d_bar(scene: Scene, d: float) -> list[Finding]:
+def _per_joint(scene: Scene, values: np.ndarray, unit: str) -> str:
+    return ", ".join(f"{j} {v:.3g}" for j, v in zip(scene.joint_names, values) if v > 0) + f" {unit}"
+
+
+def _d_bar(scene: Scene, d: float, friction_fed_forward: bool = True) -> list[Finding]:
     vmax = scene.config.gains.max_joint_speed
     if d <= D_BAR_RATIO * vmax:
         return []
+    model = scene.model
+    fric = model.dof_frictionloss[scene.dof_adr]
+    arm = model.dof_armature[scene.dof_adr]
+    causes = ("Usual causes: actuator saturation, contact at home, max_joint_speed above what the joints "
+              "allow, low tracking gains")
+    if np.any(fric > 0):
+        how = ("the low-level tracker feeds it forward (f tanh(u / v_s)); what is left is friction the "
+                "model's soft friction constraint adds beyond it" if friction_fed_forward else
+                "it was not fed forward in this calibration: calibrate with the tracker's friction "
+                "compensation on (the default)")
+        causes = (f"This arm has joint friction (dof_frictionloss: {_per_joint(scene, fric, 'N m')}): each "
+                  f"command lags by the friction torque over the tracking gain; {how}. Other causes: "
+                  "actuator saturation, contact at home, max_joint_speed above what the joints allow, low "
+                  "tracking gains")
+    if np.any(arm > 0):
+        causes += f"; armature (dof_armature: {_per_joint(scene, arm, 'kg m^2')}) slows the joints it is added to"
     return [Finding(
         "d-bar",
         f"d_bar = {d:.3g} rad/s is {d / vmax:.0%} of max_joint_speed = {vmax:g} rad/s: the robust "
         "term |dh/dq| d_bar makes the filter brake far from obstacles and the arm reaches few goals. "
-        "Usual causes: actuator saturation, contact at home, max_joint_speed above what the joints "
-        "allow, low tracking gains; fix the cause rather than d_bar (well-tracked arms here calibrate "
+        f"{causes}; fix the cause rather than d_bar (well-tracked arms here calibrate "
         f"to under {D_BAR_RATIO / 2:.0%} of max_joint_speed)")]
 
 
