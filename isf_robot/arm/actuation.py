@@ -36,7 +36,8 @@ from isf_robot.core.sums import sq_sum
 from .lowlevel import VelocityTracker, friction_feedforward
 from .scene import Scene
 
-__all__ = ["ActuatorInfo", "actuator_info", "Actuation", "ServoTracker", "make_actuation", "tracking_step", "KINDS"]
+__all__ = ["ActuatorInfo", "actuator_info", "Actuation", "ServoTracker", "make_actuation", "tracking_step", "KINDS",
+           "speed_bound"]
 
 KINDS = ("torque", "position", "velocity")
 """Actuator kinds the adapters support."""
@@ -130,6 +131,30 @@ def actuator_info(model: mujoco.MjModel, actuator: int, joint_name: str = "") ->
     if kind == "torque" and model.actuator_ctrllimited[a]:
         limit = min(limit, float(np.max(np.abs(model.actuator_ctrlrange[a]))) * abs(g * gear))
     return ActuatorInfo(a, kind, gear, kp, kv, limit)
+
+
+def speed_bound(info: ActuatorInfo | None, force_limit: float, damping: float, gravity: float) -> tuple[float, str]:
+    """The joint speed an actuator allows [rad/s or m/s], and the rule that gave it.
+
+    * joint damping ``b > 0``: the steady speed ``(F - |g|) / b`` at which the damping takes the
+      force ``F`` the actuator has left after gravity ``|g|`` at home (rule ``"damping"``);
+    * a position or velocity servo on a joint without damping: nothing in the model bounds the
+      steady speed (the tracker's velocity lead cancels the servo's own damping ``kv``), so the
+      bound is the largest velocity step the servo answers within its force range,
+      ``(F - |g|) / (gear^2 kv)``: a start or a stop from a faster command (a safety filter brakes
+      in one control step) saturates it (rule ``"servo kv"``);
+    * otherwise ``inf`` (rule ``"none"``).
+
+    ``F = inf`` gives ``inf``; an actuator that cannot hold gravity gives 0.
+    """
+    left = max(force_limit - abs(gravity), 0.0)
+    if not math.isfinite(force_limit):
+        return math.inf, "none"
+    if damping > 0:
+        return left / damping, "damping"
+    if info is not None and info.kind in ("position", "velocity") and info.kv > 0:
+        return left / (info.gear ** 2 * info.kv), "servo kv"
+    return math.inf, "none"
 
 
 def arm_actuators(scene: Scene) -> list[ActuatorInfo]:

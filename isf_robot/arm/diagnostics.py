@@ -35,7 +35,7 @@ from .records import FilterParams
 from .scene import Scene
 from .selection import geom_label, subtree_bodies
 
-__all__ = ["Finding", "check_scene", "check_calibration", "run_findings", "joint_speed_limits",
+__all__ = ["Finding", "check_scene", "check_calibration", "run_findings", "joint_speed_limits", "speed_bounds", "goal_name",
            "SATURATION_LIMIT", "D_BAR_RATIO", "CCD_TOLERANCE"]
 
 SATURATION_LIMIT = 0.01
@@ -129,6 +129,28 @@ def joint_speed_limits(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     with np.errstate(divide="ignore", invalid="ignore"):
         v = np.where((damping > 0) & np.isfinite(F), np.maximum(F - grav, 0.0) / damping, np.inf)
     return v, grav
+
+
+def speed_bounds(scene: Scene) -> tuple[np.ndarray, list[str]]:
+    """Per arm joint, the speed its actuator allows and the rule (:func:`~isf_robot.arm.actuation.speed_bound`).
+
+    Unlike :func:`joint_speed_limits` (the damping's steady speed, which the ``joint-speed`` check holds
+    ``max_joint_speed`` to), a servo on an undamped joint gets the largest velocity step it answers within
+    its force range: what ``isf-robot init`` bases its suggestion on.
+    """
+    from .actuation import speed_bound
+
+    _, grav = joint_speed_limits(scene)
+    out, rules = np.full(scene.n_joints, np.inf), []
+    for i, a in enumerate(scene.actuator_ids):
+        try:
+            info = actuator_info(scene.model, int(a)) if a >= 0 else None
+        except ValueError:
+            info = None
+        out[i], rule = speed_bound(info, float(scene.torque_limit[i]), float(scene.model.dof_damping[scene.dof_adr[i]]),
+                                   float(grav[i]))
+        rules.append(rule)
+    return out, rules
 
 
 def _speed(scene: Scene) -> list[Finding]:
@@ -232,33 +254,45 @@ def _goals(scene: Scene, iterations: int = 300) -> list[Finding]:
     tol = scene.config.task.tolerance
     lo, hi = scene.joint_range[:, 0], scene.joint_range[:, 1]
     jac = np.zeros((3, model.nv))
+    ee_home = pts[-1]
     for i, goal in enumerate(scene.goal_positions):
+        name = goal_name(scene, i)
         dist = float(np.linalg.norm(goal - pts[0]))
+        from_home = float(np.linalg.norm(goal - ee_home))
         if hinge and dist > reach + tol:
             out.append(Finding(
                 "goal-reach",
-                f"goal {i} at {np.round(goal, 3).tolist()} is {dist:.3f} m from the first joint's axis "
+                f"{name} at {np.round(goal, 3).tolist()} is {dist:.3f} m from the first joint's axis "
                 f"({np.round(pts[0], 3).tolist()}); the arm reaches at most {reach:.3f} m: move the goal"))
             continue
         q = scene.home.copy()
+        closest = from_home
         for _ in range(iterations):
             data.qpos[scene.qpos_adr] = q
             mujoco.mj_kinematics(model, data)
             mujoco.mj_comPos(model, data)
             err = goal - scene.ee_position(data)
-            if float(np.linalg.norm(err)) < 0.2 * tol:
+            closest = min(closest, float(np.linalg.norm(err)))
+            if closest < 0.2 * tol:
                 break
             scene.ee_jacobian(data, jac)
             J = jac[:, scene.dof_adr]
             q = np.clip(q + J.T @ np.linalg.solve(J @ J.T + 1e-4 * np.eye(3), err), lo, hi)
-        miss = float(np.linalg.norm(goal - scene.ee_position(data)))
-        if miss > tol:
+        if closest > tol:
             out.append(Finding(
                 "goal-reach",
-                f"goal {i} at {np.round(goal, 3).tolist()} is not reached by inverse kinematics from "
-                f"home within the joint limits (closest {miss:.3f} m, tolerance {tol:g} m; obstacles "
-                "ignored): move the goal or check the joint ranges"))
+                f"{name} at {np.round(goal, 3).tolist()} is not reached by inverse kinematics from home within "
+                f"the joint limits (obstacles ignored): the end effector came no closer than {closest:.3f} m "
+                f"(it starts {from_home:.3f} m away at home; tolerance {tol:g} m): move the goal or check the "
+                "joint ranges"))
     return out
+
+
+def goal_name(scene: Scene, i: int) -> str:
+    """How messages name goal ``i`` (from 0): ``goal 2 ('goal_b')`` from 1, with its site when it has one."""
+    goals = scene.config.task.goals
+    site = goals[i].site if i < len(goals) else None
+    return f"goal {i + 1}" + (f" ({site!r})" if site else "")
 
 
 def _ancestors(model: mujoco.MjModel, b: int) -> list[int]:
