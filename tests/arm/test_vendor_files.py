@@ -272,3 +272,66 @@ def test_init_and_check_from_the_command_line(tmp_path: Path, capsys) -> None:  
     assert main(["check", "--model", str(xml), "--config", str(tmp_path / "vendor.toml"), "--no-calibration"]) == 0
     out = capsys.readouterr().out
     assert "pan 0.375 (servo kv)" in out
+
+
+def test_the_guides_ur5e_figures_are_the_models() -> None:
+    """Every UR5e figure of the five-minute guide (models/README.md), checked against the model it names."""
+    from isf_robot.arm import load_scene
+    from isf_robot.arm.diagnostics import speed_bounds
+    from isf_robot.paths import models_dir
+
+    guide = " ".join((models_dir() / "README.md").read_text().split())
+    sc = load_scene("ur5e_pole")
+    model = sc.model
+    # the Menagerie facts, as the shipped arm has them
+    assert 'the base turned by `quat="0 0 0 -1"` (at home the arm points to +y)' in guide
+    np.testing.assert_allclose(model.body("base").quat, [0, 0, 0, -1])
+    m = re.search(r"servos kp (\d+) / kv (\d+) with `forcerange` \+-(\d+) N m on the shoulder and elbow \(class `size3`\) "
+                  r"and kp (\d+) / kv (\d+) with \+-(\d+) N m on the wrists \(`size1`\), armature ([0-9.]+), no joint damping",
+                  guide)
+    assert m, "the guide's servo sentence changed: update this test with it"
+    kp3, kv3, f3, kp1, kv1, f1, arm = (float(x) for x in m.groups())
+    assert (kp3, kv3, f3, kp1, kv1, f1, arm) == (2000, 400, 150, 500, 100, 28, 0.1)  # Menagerie's ur5e.xml
+    for a, (kp, kv, f) in enumerate([(kp3, kv3, f3)] * 3 + [(kp1, kv1, f1)] * 3):
+        assert model.actuator_gainprm[a, 0] == kp and list(model.actuator_biasprm[a, :3]) == [0, -kp, -kv]
+        assert list(model.actuator_forcerange[a]) == [-f, f]
+    np.testing.assert_array_equal(model.dof_damping[sc.dof_adr], 0.0)
+    np.testing.assert_array_equal(model.dof_armature[sc.dof_adr], arm)
+    assert sc.config.robot.ee_site == "attachment_site"
+    assert model.site_bodyid[model.site("attachment_site").id] == model.body("wrist_3_link").id
+    data = sc.make_data(0.0)
+    mujoco.mj_forward(model, data)
+    ee = sc.ee_position(data)
+    m = re.search(r"`attachment_site` is at \((-?[0-9.]+), (-?[0-9.]+), (-?[0-9.]+)\) m", guide)
+    assert m and np.allclose([float(x) for x in m.groups()], ee, atol=0.005)
+    # the wrapper's obstacles and goals (the guide's example and ur5e_pole.xml) are in front of the arm
+    block = guide.split("Wrap, do not edit.")[1].split("```")[1]
+    points = [np.array([float(x) for x in p.split()]) for p in re.findall(r'(?:pos|fromto)="([^"]+)"', block)]
+    assert len(points) == 4
+    front = ee[:2] / np.linalg.norm(ee[:2])
+    for p in points:
+        assert float(p[:2] @ front) > 0.2, p
+    for g in sc.obstacle_geom_ids:
+        assert float(data.geom_xpos[g][:2] @ front) > 0.2
+    assert all(float(p[:2] @ front) > 0.2 for p in sc.goal_positions)
+    # init's speed bounds and the max_joint_speed it writes
+    m = re.search(r"that is ([0-9.]+) rad/s for the shoulder pan \((\d+) / (\d+)\), ([0-9.]+) for the shoulder lift and "
+                  r"elbow, ([0-9.]+) for wrist 1 and ([0-9.]+) for wrists 2-3 \((\d+) / (\d+)\), so `init` writes "
+                  r"`max_joint_speed = ([0-9.]+)`", guide)
+    assert m, "the guide's speed sentence changed: update this test with it"
+    v, rules = speed_bounds(sc)
+    assert rules == ["servo kv"] * 6
+    quoted = [float(m.group(i)) for i in (1, 4, 4, 5, 6, 6)]
+    np.testing.assert_allclose(v, quoted, atol=0.0005)
+    assert float(m.group(2)) / float(m.group(3)) == pytest.approx(v[0])
+    assert float(m.group(7)) / float(m.group(8)) == pytest.approx(v[4])
+    assert tomllib.loads(starter_toml(models_dir() / "ur5e_pole.xml"))["gains"]["max_joint_speed"] == float(m.group(9))
+    # the shipped scene's speed and its calibration
+    m = re.search(r"`ur5e_pole` runs at `max_joint_speed = ([0-9.]+)` with no actuator saturation in the calibration "
+                  r"and `d_bar` = ([0-9.]+) rad/s \((\d+)% of it\)", guide)
+    assert m
+    assert sc.config.gains.max_joint_speed == float(m.group(1))
+    cal = calibrate_d_bar(sc)
+    assert max(cal.saturation) == 0.0
+    assert round(cal.d_bar, 3) == float(m.group(2))
+    assert round(100 * cal.d_bar / sc.config.gains.max_joint_speed) == int(m.group(3))
