@@ -35,8 +35,8 @@ from .records import FilterParams
 from .scene import Scene
 from .selection import geom_label, subtree_bodies
 
-__all__ = ["Finding", "check_scene", "check_calibration", "run_findings", "joint_speed_limits", "speed_bounds", "goal_name",
-           "SATURATION_LIMIT", "D_BAR_RATIO", "CCD_TOLERANCE"]
+__all__ = ["Finding", "check_scene", "check_calibration", "run_findings", "joint_speed_limits", "speed_bounds",
+           "goal_name", "SATURATION_LIMIT", "D_BAR_RATIO", "CCD_TOLERANCE"]
 
 SATURATION_LIMIT = 0.01
 """Largest fraction of calibration steps an arm actuator may spend at its limit unreported."""

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import re
-import tomllib
 from pathlib import Path
 
 import pytest
+import tomllib
 
 from isf_robot.core.extras import EXTRAS, install_hint
 from isf_robot.core.parallel import RAY_MISSING
