@@ -250,6 +250,11 @@ def test_joint_friction_is_compensated_and_named() -> None:
     msg = found[0].message
     assert "joint friction (dof_frictionloss: j1 3, j2 3, j3 3, j4 1 N m)" in msg and "not fed forward" in msg
     assert "armature (dof_armature: j1 0.05, j2 0.05, j3 0.05, j4 0.05 kg m^2)" in msg
+    # a run uses the same compensation (the numpy tracker: the compiled one has no friction term)
+    from isf_robot.arm import run_episode
+
+    res = run_episode(sc, "nominal", duration=3.0, d_bar=comp.d_bar)
+    assert res.goals_reached == 2 and res.tracking_error_q99 < comp.d_bar
 
 
 def test_servo_friction_is_compensated(tmp_path: Path) -> None:
