@@ -84,11 +84,12 @@ def _cmd_check(args: argparse.Namespace) -> int:
           f"{len(scene.robot_geom_ids)} robot geoms, {len(scene.obstacle_geom_ids)} obstacle geoms")
     kinds = _kinds(scene)
     print(f"  actuators: {', '.join(f'{j} {k}' for j, k in zip(scene.joint_names, kinds))}")
-    why = {"damping": "", "servo kv": " (servo kv)", "none": ""}
-    print("  max speed the actuators allow [rad/s]: "
+    why = {"damping": " (damping)", "servo kv": " (servo kv)", "none": ""}
+    print("  joint speed bounds [rad/s]: "
           + ", ".join(f"{j} {x:.3g}{why[r]}" for j, x, r in zip(scene.joint_names, v, rules))
-          + f" (max_joint_speed = {scene.config.gains.max_joint_speed:g}; (F - gravity) / damping, or for a "
-            "servo without damping (F - gravity) / kv, the largest velocity step it answers unsaturated)")
+          + f" (max_joint_speed = {scene.config.gains.max_joint_speed:g}; damping: (F - gravity) / damping, the "
+            "steady speed, checked; servo kv: (F - gravity) / kv on an undamped joint, the largest velocity step "
+            "the servo answers unsaturated, init's conservative suggestion)")
     if not args.no_calibration:
         cal = calibrate_d_bar(scene)
         print(f"  calibrated d_bar = {cal.d_bar:.4g} rad/s ({cal.samples} physics steps; "
