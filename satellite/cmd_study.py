@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from isf_robot.core import ConfigError
+from isf_robot.core.extras import install_hint
 from isf_robot.core.parallel import BACKENDS, MAX_JOBS, Interrupted, check_backend
 from isf_robot.core.report import with_schema
 from satellite.fields import DEFAULT_GRAVITY, GRAVITY_MODELS, load_field
@@ -63,7 +64,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--jobs", type=int, default=1, metavar="K",
                    help="worker processes, or Ray tasks in flight (default 1)")
     p.add_argument("--backend", default="processes", metavar="{" + ",".join(BACKENDS) + "}",
-                   help="processes (default) or ray (optional extra: pip install 'isf-robot[ray]')")
+                   help=f"processes (default) or ray (the optional 'ray' extra: {install_hint('ray')})")
     p.add_argument("--address", default=None, metavar="ADDR",
                    help="with --backend ray: cluster to join ('auto' or HOST:PORT; default a local instance)")
     p.add_argument("--out", metavar="FILE.json",

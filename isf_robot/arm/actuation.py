@@ -33,10 +33,11 @@ import numpy as np
 from isf_robot.core.exceptions import ConfigError
 from isf_robot.core.sums import sq_sum
 
-from .lowlevel import VelocityTracker
+from .lowlevel import VelocityTracker, friction_feedforward
 from .scene import Scene
 
-__all__ = ["ActuatorInfo", "actuator_info", "Actuation", "ServoTracker", "make_actuation", "tracking_step", "KINDS"]
+__all__ = ["ActuatorInfo", "actuator_info", "Actuation", "ServoTracker", "make_actuation", "tracking_step", "KINDS",
+           "speed_bound"]
 
 KINDS = ("torque", "position", "velocity")
 """Actuator kinds the adapters support."""
@@ -132,6 +133,30 @@ def actuator_info(model: mujoco.MjModel, actuator: int, joint_name: str = "") ->
     return ActuatorInfo(a, kind, gear, kp, kv, limit)
 
 
+def speed_bound(info: ActuatorInfo | None, force_limit: float, damping: float, gravity: float) -> tuple[float, str]:
+    """The joint speed an actuator allows [rad/s or m/s], and the rule that gave it.
+
+    * joint damping ``b > 0``: the steady speed ``(F - |g|) / b`` at which the damping takes the
+      force ``F`` the actuator has left after gravity ``|g|`` at home (rule ``"damping"``);
+    * a position or velocity servo on a joint without damping: nothing in the model bounds the
+      steady speed (the tracker's velocity lead cancels the servo's own damping ``kv``), so the
+      bound is the largest velocity step the servo answers within its force range,
+      ``(F - |g|) / (gear^2 kv)``: a start or a stop from a faster command (a safety filter brakes
+      in one control step) saturates it (rule ``"servo kv"``);
+    * otherwise ``inf`` (rule ``"none"``).
+
+    ``F = inf`` gives ``inf``; an actuator that cannot hold gravity gives 0.
+    """
+    left = max(force_limit - abs(gravity), 0.0)
+    if not math.isfinite(force_limit):
+        return math.inf, "none"
+    if damping > 0:
+        return left / damping, "damping"
+    if info is not None and info.kind in ("position", "velocity") and info.kv > 0:
+        return left / (info.gear ** 2 * info.kv), "servo kv"
+    return math.inf, "none"
+
+
 def arm_actuators(scene: Scene) -> list[ActuatorInfo]:
     """The actuator of every arm joint, classified, in joint order.
 
@@ -157,7 +182,9 @@ class ServoTracker:
         target =  clip(q_ref + lead u + tau_ff / (g^2 kp), joint range)
         ctrl   =  clip(g target, ctrlrange)                        lead = (g^2 kv + b) / (g^2 kp)
 
-    The lead is a velocity feedforward through the target: at ``q = q_ref`` and
+    ``tau_ff`` also carries the model's known joint friction, ``f tanh(u / v_s)``
+    (:func:`~isf_robot.arm.lowlevel.friction_feedforward`, ``f`` = ``dof_frictionloss``). The lead is
+    a velocity feedforward through the target: at ``q = q_ref`` and
     ``q_dot = u`` the servo's torque ``g kp (ctrl - g q) - g^2 kv q_dot`` then equals the joint
     damping ``b u``, so a constant command is followed without the lag ``lead u`` a plain
     integrated target would have. ``tau_ff`` feeds the torque the motion needs through the
@@ -168,18 +195,20 @@ class ServoTracker:
     PD loop on the remaining velocity error (stiffness ``g^2 kp``, damping ``g^2 kv + b``).
     The clip keeps a blocked arm from winding the target up.
 
-    Velocity servo: ``ctrl = clip(g u, ctrlrange)``.
+    Velocity servo: ``ctrl = clip(g (u + tau_f / (g^2 kv)), ctrlrange)``, ``tau_f`` the friction
+    feed-forward (0 without friction).
 
     Args:
         scene: The scene.
         infos: The arm actuators (:func:`arm_actuators`), position or velocity servos only.
         max_ref_error: Clip on ``q_ref - q`` [rad].
         feedforward: Use the lead and ``tau_ff`` (``False``: a plain integrated target).
+        friction: Feed the model's joint friction forward (independent of ``feedforward``).
 
     """
 
     def __init__(self, scene: Scene, infos: Sequence[ActuatorInfo], *, max_ref_error: float = 0.05,
-                 feedforward: bool = True) -> None:
+                 feedforward: bool = True, friction: bool = True) -> None:
         model = scene.model
         if any(i.kind not in ("position", "velocity") for i in infos):
             raise ConfigError("ServoTracker drives position and velocity servos only")
@@ -203,6 +232,11 @@ class ServoTracker:
         self.lead = lead if self.feedforward else np.zeros(self.n)
         with np.errstate(divide="ignore"):
             self._inv_k = np.where(self._pos & self.feedforward, 1.0 / (gear ** 2 * kp), 0.0)
+            # friction enters the position target through 1 / (g^2 kp), the velocity target through 1 / (g^2 kv)
+            self._inv_f = np.where(self._pos, 1.0 / (gear ** 2 * kp), 1.0 / (gear ** 2 * kv))
+        fric = model.dof_frictionloss[self._dof].astype(float)
+        self.friction = fric if friction else np.zeros(self.n)
+        self._fric = bool(friction and np.any(fric > 0))
         self._mdiag = (model.M_rowadr + model.M_rownnz - 1)[self._dof]
         self.a_ff = np.zeros(self.n)
         rng = scene.joint_range
@@ -243,8 +277,12 @@ class ServoTracker:
         err = np.clip(self.q_ref + self.u * self._dt - q, -self.max_ref_error, self.max_ref_error)
         self.q_ref[:] = q + err
         tau = data.M[self._mdiag] * self.a_ff + data.qfrc_bias[self._dof]
-        target = np.clip(self.q_ref + self.lead * self.u + tau * self._inv_k, self._qlo, self._qhi)
-        ctrl = np.where(self._pos, target, self.u) * self._gear
+        shift = tau * self._inv_k
+        if self._fric:
+            shift += friction_feedforward(self.friction, self.u) * self._inv_f
+        target = np.clip(self.q_ref + self.lead * self.u + np.where(self._pos, shift, 0.0), self._qlo, self._qhi)
+        vel = self.u + np.where(self._pos, 0.0, shift) if self._fric else self.u
+        ctrl = np.where(self._pos, target, vel) * self._gear
         data.ctrl[self._act] = np.clip(ctrl, self._clo, self._chi)
 
     def saturated(self, data: mujoco.MjData) -> np.ndarray:

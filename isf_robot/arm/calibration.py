@@ -61,6 +61,7 @@ class Calibration:
         saturation: Per arm joint, the fraction of physics steps its actuator was at its
             torque/force limit.
         joint_names: The arm joints, in the order of ``saturation``.
+        friction_fed_forward: Whether the tracker fed the model's joint friction forward.
 
     """
 
@@ -74,6 +75,7 @@ class Calibration:
     samples: int
     saturation: tuple[float, ...] = ()
     joint_names: tuple[str, ...] = ()
+    friction_fed_forward: bool = True
 
     def as_dict(self) -> dict[str, Any]:
         """Plain dict (JSON-ready)."""
@@ -111,6 +113,7 @@ def calibrate_d_bar(
     switch_period: float = 0.2,
     seed: int = 0,
     use_cache: bool = True,
+    friction: bool = True,
 ) -> Calibration:
     """Measure the tracking-error bound ``d_bar`` of a scene (see the module docstring).
 
@@ -123,6 +126,8 @@ def calibrate_d_bar(
         switch_period: Time between random offset changes [s], > 0.
         seed: Seed of the random offsets.
         use_cache: Reuse an earlier result for the same scene files and parameters.
+        friction: The tracker feeds the model's joint friction forward, as in a run
+            (:mod:`isf_robot.arm.lowlevel`); ``False`` measures the arm without it.
 
     Returns:
         The :class:`Calibration`.
@@ -136,7 +141,7 @@ def calibrate_d_bar(
         raise ConfigError(f"calibration safety factor must be >= 1, got {factor}")
     if not switch_period > 0 or excitation < 0:
         raise ConfigError("switch_period must be > 0 [s] and excitation >= 0")
-    params = (duration, quantile, factor, excitation, switch_period, seed)
+    params = (duration, quantile, factor, excitation, switch_period, seed, friction)
     key = _key(scene, params)
     use_cache = use_cache and scene.xml_path is not None  # a scene built in memory has no file to key on
     if use_cache and key in _CACHE:
@@ -149,7 +154,7 @@ def calibrate_d_bar(
     free = dataclasses.replace(scene, model=model)
     data = free.make_data(0.0)
     nominal = ReachingController(free)
-    tracker = make_actuation(free)
+    tracker = make_actuation(free, friction=friction)
     tracker.reset(data)
     rng = np.random.default_rng(seed)
     dt = float(model.opt.timestep)
@@ -185,7 +190,8 @@ def calibrate_d_bar(
     cal = Calibration(d_bar=factor * qv, quantile=quantile, quantile_value=qv,
                       max_error=float(errors.max()), median_error=float(np.median(errors)),
                       factor=factor, duration_s=n_steps * dt, samples=n_steps,
-                      saturation=tuple(float(x) for x in sat / n_steps), joint_names=scene.joint_names)
+                      saturation=tuple(float(x) for x in sat / n_steps), joint_names=scene.joint_names,
+                      friction_fed_forward=bool(friction))
     if use_cache:
         _CACHE[key] = cal
     return cal

@@ -7,7 +7,7 @@ This module is the public face of three smaller ones, and every name stays impor
 * :mod:`.paths`: obstacle paths of ``[[moving]]`` (:class:`CirclePath`, :class:`LinearBouncePath`).
 
 The schema is documented in ``models/README.md``. Parsing checks types, shapes and signs and
-rejects unknown keys (the message lists the valid ones); names of joints, geoms, sites and
+rejects unknown keys and tables (the message lists the valid ones and the closest); names of joints, geoms, sites and
 bodies are resolved against the MuJoCo model later, in :mod:`isf_robot.arm.scene`.
 """
 

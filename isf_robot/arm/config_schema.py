@@ -148,11 +148,14 @@ class GainsConfig:
         dls_damping: Damping of the damped-least-squares inverse [m].
         max_ee_speed: Cap on the commanded end-effector speed [m/s].
         max_joint_speed: Cap on the commanded joint speeds [rad/s].
+        max_joint_acc: Cap on the change of the nominal command [rad/s^2].
         joint_kp: Joint-space proportional gain of the joint PD nominal [1/s].
         tracking_kp: Low-level tracking gain per joint (or one for all); its unit depends on the
             low-level controller that reads it.
         tracking_kd: Low-level damping gain per joint (or one for all).
-        extra: Any further numeric entries of the ``[gains]`` table, by key (read-only).
+        goal_timeout: A goal not reached within this time is given up [s].
+        extra: The numeric entries of the ``[gains.extra]`` table, by key (read-only): numbers for
+            the user's own controllers, which the checks cannot know.
 
     """
 
@@ -160,9 +163,11 @@ class GainsConfig:
     dls_damping: float = 0.05
     max_ee_speed: float = 0.5
     max_joint_speed: float = 2.0
+    max_joint_acc: float = 10.0
     joint_kp: float = 2.0
     tracking_kp: tuple[float, ...] = (100.0,)
     tracking_kd: tuple[float, ...] = (20.0,)
+    goal_timeout: float = 4.0
     extra: Mapping[str, float | tuple[float, ...]] = field(default_factory=dict)
 
 

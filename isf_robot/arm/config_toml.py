@@ -6,9 +6,10 @@ ones and names the file and the table); the schema is documented in ``models/REA
 
 from __future__ import annotations
 
+import difflib
 import math
 import sys
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -35,20 +36,55 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
-__all__ = ["parse_config", "load_config"]
+__all__ = ["parse_config", "load_config", "unknown_message", "TABLES", "SECTION_KEYS"]
+
+SECTION_KEYS: dict[str, tuple[str, ...]] = {
+    "scene": ("name", "description", "model"),
+    "robot": ("joints", "ee_site", "ee_body", "ee_offset", "geoms", "bodies", "subtree", "geom_group", "home",
+              "self_collision"),
+    "obstacles": ("geoms", "bodies", "subtree", "geom_group"),
+    "task": ("goals", "loop", "tolerance", "duration"),
+    "task.goals": ("site", "pos", "dwell"),
+    "barrier": ("margin", "self_margin", "joint_margin", "cutoff"),
+    "gains": ("task_kp", "dls_damping", "max_ee_speed", "max_joint_speed", "max_joint_acc", "joint_kp",
+              "tracking_kp", "tracking_kd", "goal_timeout", "extra"),
+    "filter": ("alpha", "c", "b", "d_bar", "min_off", "blend", "horizon", "c_pred"),
+    "control": ("period",),
+    "moving.circle": ("body", "type", "center", "radius", "period", "normal", "phase"),
+    "moving.linear_bounce": ("body", "type", "start", "end", "speed", "phase"),
+}
+"""The keys each table of a scene's TOML file may have (``models/README.md`` documents them)."""
+TABLES = ("scene", "robot", "obstacles", "task", "barrier", "gains", "filter", "control", "moving")
+"""The top-level tables, in the order the schema lists them (``moving`` is an array of tables)."""
+_ARRAY_TABLES = ("moving",)
 
 
 class _Reader:
     """Typed access to one TOML table, with errors naming the file and the key."""
 
-    def __init__(self, table: Mapping[str, Any], where: str, origin: str) -> None:
+    def __init__(self, table: Mapping[str, Any], where: str, origin: str,
+                 keys: Sequence[str] | None = None, label: str | None = None) -> None:
         self.table = table
         self.where = where
         self.origin = origin
+        self.label = label if label is not None else f"[{where}]"
         self.used: set[str] = set()
+        if keys is not None:
+            self.only(keys)
+
+    def only(self, keys: Sequence[str]) -> None:
+        """Raise on the first key of the table that is not in ``keys`` (before any value is read)."""
+        for key, value in self.table.items():
+            if key not in keys:
+                if not self.where and not isinstance(value, (Mapping, list)):
+                    raise ConfigError(f"{self.origin}: {key!r} = {value!r} outside any table; a scene file's "
+                                      f"top level holds only the tables {', '.join(map(_table_name, keys))}")
+                raise ConfigError(f"{self.origin}: {unknown_message(key, keys, self.label if self.where else '')}")
 
     def _err(self, key: str, msg: str) -> ConfigError:
-        return ConfigError(f"{self.origin}: [{self.where}] {key}: {msg}")
+        if not self.where:
+            return ConfigError(f"{self.origin}: table [{key}]: {msg}")
+        return ConfigError(f"{self.origin}: {self.label} {key}: {msg}")
 
     def has(self, key: str) -> bool:
         return key in self.table
@@ -108,36 +144,58 @@ class _Reader:
             raise self._err(key, f"names repeat: {v!r}")
         return tuple(v)
 
-    def sub(self, key: str, required: bool = False) -> _Reader:
+    def sub(self, key: str, keys: Sequence[str] | None, required: bool = False) -> _Reader:
         v = self.raw(key, ... if required else {})
         if not isinstance(v, Mapping):
             raise self._err(key, "expected a table")
-        return _Reader(v, f"{self.where}.{key}" if self.where else key, self.origin)
+        return _Reader(v, f"{self.where}.{key}" if self.where else key, self.origin, keys)
 
     def finish(self) -> None:
-        unknown = sorted(set(self.table) - self.used)
-        if unknown:
-            raise ConfigError(
-                f"{self.origin}: unknown key(s) {unknown} in [{self.where or 'top level'}]; "
-                f"valid keys: {sorted(self.used)}"
-            )
+        """Raise on a key of the table that no reader asked for (every section also checks on entry)."""
+        self.only(sorted(self.used))
+
+
+def unknown_message(key: str, valid: Sequence[str], where: str = "") -> str:
+    """``unknown key 'k' in [where]; valid keys: ...; did you mean 'x'?`` (tables at the top level).
+
+    Args:
+        key: The unknown key.
+        valid: The keys (at the top level: the tables) allowed there.
+        where: The table as the file writes it (``"[gains]"``); ``""`` for the top level, whose
+            keys are tables.
+
+    """
+    close = difflib.get_close_matches(key, list(valid), n=1, cutoff=0.6)
+    if not where:
+        tables = ", ".join(_table_name(k) for k in valid)
+        hint = f"; did you mean {_table_name(close[0])}?" if close else ""
+        return f"unknown table [{key}]; valid: {tables}{hint}"
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    return f"unknown key {key!r} in {where}; valid keys: {', '.join(valid)}{hint}"
+
+
+def _table_name(key: str) -> str:
+    return f"[[{key}]]" if key in _ARRAY_TABLES else f"[{key}]"
 
 
 def _goal(tab: Any, origin: str, i: int) -> Goal:
+    label = f"[[task.goals]] goal {i + 1}"
     if not isinstance(tab, Mapping):
-        raise ConfigError(f"{origin}: [[task.goals]] entry {i} must be a table")
-    r = _Reader(tab, f"task.goals[{i}]", origin)
+        raise ConfigError(f"{origin}: {label} must be a table")
+    r = _Reader(tab, "task.goals", origin, SECTION_KEYS["task.goals"], label=label)
     site = r.string("site", None)
     pos = r.numbers("pos", None, length=3)
     dwell = r.number("dwell", 0.0, nonneg=True)
     r.finish()
     if (site is None) == (pos is None):
-        raise ConfigError(f"{origin}: [task.goals[{i}]] give exactly one of 'pos' or 'site'")
+        raise ConfigError(f"{origin}: {label}: give exactly one of 'pos' or 'site'")
     return Goal(position=pos if pos is not None else (math.nan,) * 3, dwell=dwell, site=site)
 
 
 def _path(r: _Reader) -> ObstaclePath:
     kind = r.string("type")
+    if kind in ("circle", "linear_bounce"):
+        r.only(SECTION_KEYS[f"moving.{kind}"])
     if kind == "circle":
         normal = np.asarray(r.numbers("normal", (0.0, 0.0, 1.0), length=3))
         if np.linalg.norm(normal) < 1e-9:
@@ -197,15 +255,15 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
         ConfigError: A key is missing, unknown or has the wrong type or value.
 
     """
-    top = _Reader(data, "", origin)
+    top = _Reader(data, "", origin, TABLES)
 
-    s = top.sub("scene", required=True)
+    s = top.sub("scene", SECTION_KEYS["scene"], required=True)
     name = s.string("name", default_name if default_name is not None else ...)
     description = s.string("description", "")
     model = s.string("model", f"{name}.xml")
     s.finish()
 
-    r = top.sub("robot", required=True)
+    r = top.sub("robot", SECTION_KEYS["robot"], required=True)
     joints = r.strings("joints", ())
     robot = RobotConfig(
         joints=joints,
@@ -227,14 +285,14 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
         raise ConfigError(f"{origin}: [robot] give the robot's geoms: 'geoms', 'bodies' and/or 'subtree'")
     r.finish()
 
-    o = top.sub("obstacles", required=True)
+    o = top.sub("obstacles", SECTION_KEYS["obstacles"], required=True)
     obstacles = ObstacleConfig(geoms=o.strings("geoms", ()), bodies=o.strings("bodies", ()),
                                subtree=o.string("subtree", None), geom_group=_group(o))
     if not (obstacles.geoms or obstacles.bodies or obstacles.subtree or obstacles.geom_group is not None):
         raise ConfigError(f"{origin}: [obstacles] give 'geoms', 'bodies', 'subtree' and/or 'geom_group'")
     o.finish()
 
-    t = top.sub("task", required=True)
+    t = top.sub("task", SECTION_KEYS["task"], required=True)
     goals_raw = t.raw("goals")
     if not isinstance(goals_raw, list) or not goals_raw:
         raise ConfigError(f"{origin}: [task] goals: expected a non-empty array of tables")
@@ -246,7 +304,7 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
     )
     t.finish()
 
-    b = top.sub("barrier")
+    b = top.sub("barrier", SECTION_KEYS["barrier"])
     d = BarrierConfig()
     barrier = BarrierConfig(
         margin=b.number("margin", d.margin, nonneg=True),
@@ -256,20 +314,20 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
     )
     b.finish()
 
-    g = top.sub("gains")
+    g = top.sub("gains", SECTION_KEYS["gains"])
     dg = GainsConfig()
-    known = {"task_kp", "dls_damping", "max_ee_speed", "max_joint_speed", "joint_kp",
-             "tracking_kp", "tracking_kd"}
-    extra = {k: g.numbers(k) if isinstance(v, list) else g.number(k)
-             for k, v in g.table.items() if k not in known}
+    x = g.sub("extra", None)  # the user's own entries: any key, numbers only
+    extra = {k: x.numbers(k) if isinstance(v, list) else x.number(k) for k, v in x.table.items()}
     gains = GainsConfig(
         task_kp=g.number("task_kp", dg.task_kp, positive=True),
         dls_damping=g.number("dls_damping", dg.dls_damping, nonneg=True),
         max_ee_speed=g.number("max_ee_speed", dg.max_ee_speed, positive=True),
         max_joint_speed=g.number("max_joint_speed", dg.max_joint_speed, positive=True),
+        max_joint_acc=g.number("max_joint_acc", dg.max_joint_acc, positive=True),
         joint_kp=g.number("joint_kp", dg.joint_kp, positive=True),
         tracking_kp=g.numbers("tracking_kp", dg.tracking_kp),
         tracking_kd=g.numbers("tracking_kd", dg.tracking_kd),
+        goal_timeout=g.number("goal_timeout", dg.goal_timeout, positive=True),
         extra=MappingProxyType(extra),
     )
     for key in ("tracking_kp", "tracking_kd"):
@@ -278,7 +336,7 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
             raise ConfigError(f"{origin}: [gains] {key}: expected 1 or {len(joints)} numbers, got {n}")
     g.finish()
 
-    f = top.sub("filter")
+    f = top.sub("filter", SECTION_KEYS["filter"])
     df = FilterConfig()
     filt = FilterConfig(
         alpha=f.number("alpha", df.alpha, positive=True),
@@ -292,7 +350,7 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
     )
     f.finish()
 
-    c = top.sub("control")
+    c = top.sub("control", SECTION_KEYS["control"])
     control = ControlConfig(period=c.number("period", ControlConfig().period, positive=True))
     c.finish()
 
@@ -302,8 +360,8 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
     moving = []
     for i, m in enumerate(moving_raw):
         if not isinstance(m, Mapping):
-            raise ConfigError(f"{origin}: [[moving]] entry {i} must be a table")
-        mr = _Reader(m, f"moving[{i}]", origin)
+            raise ConfigError(f"{origin}: [[moving]] entry {i + 1} must be a table")
+        mr = _Reader(m, "moving", origin, label=f"[[moving]] entry {i + 1}")
         moving.append(MovingObstacle(body=mr.string("body"), path=_path(mr)))
         mr.finish()
     top.finish()

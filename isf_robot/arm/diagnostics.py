@@ -9,7 +9,8 @@ Each check returns :class:`Finding` s whose message names the cause and says wha
 * ``joint-speed``: ``[gains] max_joint_speed`` above what a joint's actuator limit and damping
   allow, ``(F - |gravity at home|) / damping`` per joint;
 * ``saturation``: arm actuators at their limit in the calibration (a fraction of its steps);
-* ``d-bar``: a calibrated ``d_bar`` large relative to ``max_joint_speed``;
+* ``d-bar``: a calibrated ``d_bar`` large relative to ``max_joint_speed``; the message names the
+  arm's joint friction (``dof_frictionloss``) and armature with their values when it has any;
 * ``servo-chatter``: a force-limited servo whose damping ``kv`` is too stiff for the timestep
   (``kv dt / M_ii > 2``): once the force limit clips it, the step is explicit in it and the
   joint chatters at the limit;
@@ -34,8 +35,8 @@ from .records import FilterParams
 from .scene import Scene
 from .selection import geom_label, subtree_bodies
 
-__all__ = ["Finding", "check_scene", "check_calibration", "run_findings", "joint_speed_limits",
-           "SATURATION_LIMIT", "D_BAR_RATIO", "CCD_TOLERANCE"]
+__all__ = ["Finding", "check_scene", "check_calibration", "run_findings", "joint_speed_limits", "speed_bounds",
+           "goal_name", "SATURATION_LIMIT", "D_BAR_RATIO", "CCD_TOLERANCE"]
 
 SATURATION_LIMIT = 0.01
 """Largest fraction of calibration steps an arm actuator may spend at its limit unreported."""
@@ -128,6 +129,28 @@ def joint_speed_limits(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     with np.errstate(divide="ignore", invalid="ignore"):
         v = np.where((damping > 0) & np.isfinite(F), np.maximum(F - grav, 0.0) / damping, np.inf)
     return v, grav
+
+
+def speed_bounds(scene: Scene) -> tuple[np.ndarray, list[str]]:
+    """Per arm joint, the speed its actuator allows and the rule (:func:`~isf_robot.arm.actuation.speed_bound`).
+
+    Unlike :func:`joint_speed_limits` (the damping's steady speed, which the ``joint-speed`` check holds
+    ``max_joint_speed`` to), a servo on an undamped joint gets the largest velocity step it answers within
+    its force range: what ``isf-robot init`` bases its suggestion on.
+    """
+    from .actuation import speed_bound
+
+    _, grav = joint_speed_limits(scene)
+    out, rules = np.full(scene.n_joints, np.inf), []
+    for i, a in enumerate(scene.actuator_ids):
+        try:
+            info = actuator_info(scene.model, int(a)) if a >= 0 else None
+        except ValueError:
+            info = None
+        out[i], rule = speed_bound(info, float(scene.torque_limit[i]), float(scene.model.dof_damping[scene.dof_adr[i]]),
+                                   float(grav[i]))
+        rules.append(rule)
+    return out, rules
 
 
 def _speed(scene: Scene) -> list[Finding]:
@@ -231,33 +254,45 @@ def _goals(scene: Scene, iterations: int = 300) -> list[Finding]:
     tol = scene.config.task.tolerance
     lo, hi = scene.joint_range[:, 0], scene.joint_range[:, 1]
     jac = np.zeros((3, model.nv))
+    ee_home = pts[-1]
     for i, goal in enumerate(scene.goal_positions):
+        name = goal_name(scene, i)
         dist = float(np.linalg.norm(goal - pts[0]))
+        from_home = float(np.linalg.norm(goal - ee_home))
         if hinge and dist > reach + tol:
             out.append(Finding(
                 "goal-reach",
-                f"goal {i} at {np.round(goal, 3).tolist()} is {dist:.3f} m from the first joint's axis "
+                f"{name} at {np.round(goal, 3).tolist()} is {dist:.3f} m from the first joint's axis "
                 f"({np.round(pts[0], 3).tolist()}); the arm reaches at most {reach:.3f} m: move the goal"))
             continue
         q = scene.home.copy()
+        closest = from_home
         for _ in range(iterations):
             data.qpos[scene.qpos_adr] = q
             mujoco.mj_kinematics(model, data)
             mujoco.mj_comPos(model, data)
             err = goal - scene.ee_position(data)
-            if float(np.linalg.norm(err)) < 0.2 * tol:
+            closest = min(closest, float(np.linalg.norm(err)))
+            if closest < 0.2 * tol:
                 break
             scene.ee_jacobian(data, jac)
             J = jac[:, scene.dof_adr]
             q = np.clip(q + J.T @ np.linalg.solve(J @ J.T + 1e-4 * np.eye(3), err), lo, hi)
-        miss = float(np.linalg.norm(goal - scene.ee_position(data)))
-        if miss > tol:
+        if closest > tol:
             out.append(Finding(
                 "goal-reach",
-                f"goal {i} at {np.round(goal, 3).tolist()} is not reached by inverse kinematics from "
-                f"home within the joint limits (closest {miss:.3f} m, tolerance {tol:g} m; obstacles "
-                "ignored): move the goal or check the joint ranges"))
+                f"{name} at {np.round(goal, 3).tolist()} is not reached by inverse kinematics from home within "
+                f"the joint limits (obstacles ignored): the end effector came no closer than {closest:.3f} m "
+                f"(it starts {from_home:.3f} m away at home; tolerance {tol:g} m): move the goal or check the "
+                "joint ranges"))
     return out
+
+
+def goal_name(scene: Scene, i: int) -> str:
+    """How messages name goal ``i`` (from 0): ``goal 2 ('goal_b')`` from 1, with its site when it has one."""
+    goals = scene.config.task.goals
+    site = goals[i].site if i < len(goals) else None
+    return f"goal {i + 1}" + (f" ({site!r})" if site else "")
 
 
 def _ancestors(model: mujoco.MjModel, b: int) -> list[int]:
@@ -293,19 +328,38 @@ def check_calibration(scene: Scene, cal: Calibration, d_bar: float | None = None
             f"({per} of {cal.samples} physics steps): d_bar then measures the actuators' limits, not "
             "the tracking. Lower [gains] max_joint_speed (and max_joint_acc), or give the actuators "
             "the robot's real limits (forcerange / ctrlrange)"))
-    return out + _d_bar(scene, cal.d_bar if d_bar is None else d_bar)
+    return out + _d_bar(scene, cal.d_bar if d_bar is None else d_bar, cal.friction_fed_forward)
 
 
-def _d_bar(scene: Scene, d: float) -> list[Finding]:
+def _per_joint(scene: Scene, values: np.ndarray, unit: str) -> str:
+    return ", ".join(f"{j} {v:.3g}" for j, v in zip(scene.joint_names, values) if v > 0) + f" {unit}"
+
+
+def _d_bar(scene: Scene, d: float, friction_fed_forward: bool = True) -> list[Finding]:
     vmax = scene.config.gains.max_joint_speed
     if d <= D_BAR_RATIO * vmax:
         return []
+    model = scene.model
+    fric = model.dof_frictionloss[scene.dof_adr]
+    arm = model.dof_armature[scene.dof_adr]
+    causes = ("Usual causes: actuator saturation, contact at home, max_joint_speed above what the joints "
+              "allow, low tracking gains")
+    if np.any(fric > 0):
+        how = ("the low-level tracker feeds it forward (f tanh(u / v_s)); what is left is friction the "
+                "model's soft friction constraint adds beyond it" if friction_fed_forward else
+                "it was not fed forward in this calibration: calibrate with the tracker's friction "
+                "compensation on (the default)")
+        causes = (f"This arm has joint friction (dof_frictionloss: {_per_joint(scene, fric, 'N m')}): each "
+                  f"command lags by the friction torque over the tracking gain; {how}. Other causes: "
+                  "actuator saturation, contact at home, max_joint_speed above what the joints allow, low "
+                  "tracking gains")
+    if np.any(arm > 0):
+        causes += f"; armature (dof_armature: {_per_joint(scene, arm, 'kg m^2')}) slows the joints it is added to"
     return [Finding(
         "d-bar",
         f"d_bar = {d:.3g} rad/s is {d / vmax:.0%} of max_joint_speed = {vmax:g} rad/s: the robust "
         "term |dh/dq| d_bar makes the filter brake far from obstacles and the arm reaches few goals. "
-        "Usual causes: actuator saturation, contact at home, max_joint_speed above what the joints "
-        "allow, low tracking gains; fix the cause rather than d_bar (well-tracked arms here calibrate "
+        f"{causes}; fix the cause rather than d_bar (well-tracked arms here calibrate "
         f"to under {D_BAR_RATIO / 2:.0%} of max_joint_speed)")]
 
 

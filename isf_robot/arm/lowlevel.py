@@ -6,7 +6,7 @@ actuator torques at every physics step (computed torque on a velocity reference)
 
     q_ref <- q_ref + u dt                                  (integrated reference [rad])
     a     =  a_ff + kd (u - q_dot) + kp clip(q_ref - q, +-e_max)   (desired acc. [rad/s^2])
-    tau   =  M(q) a + c(q, q_dot) - f_passive(q, q_dot)    (torque [Nm])
+    tau   =  M(q) a + c(q, q_dot) - f_passive(q, q_dot) + f_fric tanh(u / v_s)   (torque [Nm])
     ctrl  =  clip(tau / gear, ctrlrange)
 
 ``M a`` uses the mass matrix through ``mj_mulM``; ``c`` is ``qfrc_bias`` (Coriolis,
@@ -19,6 +19,15 @@ one period of lag instead of a lag of ``u_dot / kd``. The integrated reference r
 steady-state drift of a pure velocity loop; its error is clipped so that a blocked arm (in contact) does not wind it up.
 The remaining velocity error ``q_dot - u`` is the disturbance ``d`` of the reduced-order
 model (its bound is measured by :mod:`isf_robot.arm.calibration`).
+
+Joint friction: MuJoCo's ``frictionloss`` (``dof_frictionloss``, a dry friction torque up to
+``f_fric`` against the motion, solved as a constraint, so absent from ``qfrc_passive``) is
+known from the model and fed forward in the direction of the commanded velocity,
+``f_fric tanh(u / v_s)`` (:func:`friction_feedforward`; ``v_s`` = :data:`FRICTION_SMOOTHING`):
+the full friction torque once ``|u| >> v_s``, smoothly through zero, so a command at rest asks
+for no torque and the friction holds the joint. Without it a joint with friction lags every
+command by the friction torque over the tracking gain, and the calibrated ``d_bar`` measures
+the friction instead of the tracking.
 """
 
 from __future__ import annotations
@@ -35,7 +44,18 @@ from isf_robot.core.sums import sq_sum
 from . import kernels
 from .scene import Scene
 
-__all__ = ["VelocityTracker"]
+__all__ = ["VelocityTracker", "friction_feedforward", "FRICTION_SMOOTHING"]
+
+FRICTION_SMOOTHING = 0.02
+"""``v_s`` [rad/s or m/s]: the joint friction feed-forward is ``f tanh(u / v_s)`` (76% of ``f`` at ``|u| = v_s``)."""
+
+
+def friction_feedforward(frictionloss: np.ndarray, u: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """``frictionloss * tanh(u / FRICTION_SMOOTHING)``: the known joint friction in the direction of ``u``."""
+    out = np.multiply(u, 1.0 / FRICTION_SMOOTHING, out=out)
+    np.tanh(out, out=out)
+    out *= frictionloss
+    return out
 
 
 def _per_joint(v: Sequence[float] | np.ndarray | float, n: int, label: str) -> np.ndarray:
@@ -67,6 +87,9 @@ class VelocityTracker:
             :meth:`set_command`).
         jit: Use the compiled :meth:`apply` of :mod:`isf_robot.arm.kernels` when it is available
             (the same numbers, bit for bit; ``False``: always numpy).
+        friction: Feed the model's joint friction (``dof_frictionloss``) forward (module
+            docstring); an arm without friction is unaffected. With friction it is compensated
+            on the numpy path (the compiled kernel has no friction term).
 
     Raises:
         ConfigError: An arm joint has no actuator, or its actuator is not a plain motor
@@ -83,6 +106,7 @@ class VelocityTracker:
         max_ref_error: float = 0.05,
         feedforward: bool = True,
         jit: bool = True,
+        friction: bool = True,
     ) -> None:
         model = scene.model
         n = scene.n_joints
@@ -122,6 +146,10 @@ class VelocityTracker:
         self._tau_full = buf[9 * n + nv: 9 * n + 2 * nv]
         self.feedforward = bool(feedforward)
         self._tmp = np.zeros(n)
+        fric = model.dof_frictionloss[np.asarray(scene.dof_adr)].astype(float)
+        self.friction = fric if friction else np.zeros(n)
+        self._fric = bool(friction and np.any(fric > 0))
+        self._ftmp = np.zeros(n)
         self._inv_gain[:] = 1.0 / self._gain
         self._dt = float(model.opt.timestep)
         buf[9 * n + 2 * nv] = self._dt
@@ -132,6 +160,7 @@ class VelocityTracker:
         # class's own control law (a subclass that overrides apply or set_command keeps its own).
         contiguous = all(type(x) is slice for x in (self._act, self._dof, self._qadr))
         own = type(self).apply is VelocityTracker.apply and type(self).set_command is VelocityTracker.set_command
+        jit = jit and not self._fric
         k = kernels.step_kernels(n) if jit and contiguous and own and getattr(model, "_address", 0) else None
         self._kernels = k
         self._step = k["track_step"] if k is not None else None
@@ -272,6 +301,8 @@ class VelocityTracker:
         tau_full = self._tau_full
         tau_full += bias
         tau_full -= passive
+        if self._fric:
+            tau += friction_feedforward(self.friction, u, self._ftmp)
         np.multiply(tau, self._inv_gain, out=ctrl)
         np.minimum(ctrl, self._hi, out=ctrl)
         np.maximum(ctrl, self._lo, out=ctrl)
@@ -301,6 +332,8 @@ class VelocityTracker:
         tau += data.qfrc_bias
         tau -= data.qfrc_passive
         np.multiply(tau[dof], self._inv_gain, out=tmp)
+        if self._fric:
+            tmp += friction_feedforward(self.friction, u, self._ftmp) * self._inv_gain
         np.minimum(tmp, self._hi, out=tmp)
         np.maximum(tmp, self._lo, out=tmp)
         data.ctrl[self._act] = tmp

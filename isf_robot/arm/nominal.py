@@ -138,8 +138,7 @@ class _RateLimit:
 def _max_acc(scene: Scene, value: float | None) -> float:
     if value is not None:
         return float(value)
-    extra = scene.config.gains.extra.get("max_joint_acc", 10.0)
-    return float(extra if not isinstance(extra, tuple) else min(extra))
+    return float(scene.config.gains.max_joint_acc)
 
 
 class ReachingController(NominalController):
@@ -192,8 +191,7 @@ class ReachingController(NominalController):
         if dwell is None and g.shape[0] != scene.goal_dwell.shape[0]:
             dw = np.zeros(g.shape[0])
         if timeout is None:
-            extra = gains.extra.get("goal_timeout", 4.0)
-            timeout = float(extra if not isinstance(extra, tuple) else extra[0])
+            timeout = gains.goal_timeout
         self.goals = GoalSequence(g.shape[0], dw, task.tolerance if tolerance is None else tolerance,
                                   task.loop if loop is None else loop, timeout)
         self.kp = float(gains.task_kp if kp is None else kp)

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from isf_robot.core import ConfigError, Observer
+from isf_robot.core.extras import install_hint
 from isf_robot.core.files import check_output_path, commit_partial, partial_path
 
 __all__ = ["VideoRecorder", "select_gl", "RenderUnavailableError", "FORMATS", "ON_RGBA", "workspace",
@@ -139,7 +140,7 @@ class VideoRecorder(Observer):
             try:
                 import imageio.v2  # noqa: F401
             except ImportError:
-                raise ConfigError("writing .mp4 needs the 'video' extra (pip install 'isf-robot[video]'); "
+                raise ConfigError(f"writing .mp4 needs the 'video' extra ({install_hint('video')}); "
                                   ".gif and .png need nothing more") from None
         self.fps, self.width, self.height, self.speed, self.at = float(fps), int(width), int(height), float(speed), at
         self.frames: list[np.ndarray] = []

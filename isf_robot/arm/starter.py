@@ -1,17 +1,29 @@
 """A starter scene config for a model: what ``isf-robot init --model ARM.xml`` prints.
 
-It reads the model and writes a TOML file (schema: ``models/README.md``) with the arm's joints
-(each with its actuator kind, gains, torque limit, damping and range as a comment), its
-colliding geoms by body (selected with ``subtree`` and, when they share one group,
-``geom_group``), the keyframes found (``home = "home"`` when there is one), the end effector
-(a site on the last link, else that link as ``ee_body``), and a suggested ``max_joint_speed``
-from the actuator limits and joint damping. Obstacles and goals are left to the user, marked
-TODO (a goal at the end effector's home position keeps the file loadable).
+It reads the model and writes a TOML file (schema: ``models/README.md``) with
+
+* the arm's joints, each with its actuator kind, gains, torque limit, damping, friction, range
+  and the speed it allows as a comment (:func:`~isf_robot.arm.actuation.speed_bound`: the
+  damping's steady speed, or for a servo on an undamped joint the largest velocity step it
+  answers within its force range, ``(F - |gravity|) / kv``);
+* its colliding geoms by body (selected with ``subtree`` and, when they share one group,
+  ``geom_group``);
+* the home: the ``home`` keyframe (else the first named one, else ``qpos0``); a home with an arm
+  joint outside its range is flagged and replaced by the nearest pose inside the ranges;
+* the end effector: a tool site on the last link (``attachment_site``, ``tcp``, ``tool``,
+  ``flange``, ``gripper``, ``ee``, ``end_effector``, ...) before any other site and never an
+  axis marker (``ee_x``, ``x_axis``, ...) when another site is there, else that link as
+  ``ee_body``;
+* the colliding geoms off the arm as obstacles; colliding planes (a floor) are left out and named;
+* the ``goal_*`` sites as goals (else one placeholder goal at the end effector's home position,
+  which keeps the file loadable);
+* ``max_joint_speed`` = 80% of the slowest joint's speed (at most 2 rad/s).
 """
 
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import mujoco
@@ -19,7 +31,7 @@ import numpy as np
 
 from isf_robot.core.exceptions import ConfigError, IsfError
 
-from .actuation import actuator_info
+from .actuation import ActuatorInfo, actuator_info, speed_bound
 from .selection import actuated_joints, geom_label, subtree_bodies
 
 __all__ = ["starter_toml"]
@@ -65,40 +77,53 @@ def starter_toml(xml_path: str | Path) -> str:
                           "actuator per arm joint")
     jid = [int(model.joint(j).id) for j in joints]
     dofs = model.jnt_dofadr[jid]
+    qadr = model.jnt_qposadr[jid]
     keys = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, k) or "" for k in range(model.nkey)]
     named = [k for k in keys if k]
     home_key = "home" if "home" in named else (named[0] if named else None)
     data = mujoco.MjData(model)
     if home_key is not None:
         data.qpos[:] = model.key_qpos[keys.index(home_key)]
+    limited = model.jnt_limited[jid].astype(bool)
+    lo = np.where(limited, model.jnt_range[jid, 0], -np.inf)
+    hi = np.where(limited, model.jnt_range[jid, 1], np.inf)
+    q_home = data.qpos[qadr].copy()
+    outside = [i for i in range(len(jid)) if not lo[i] <= q_home[i] <= hi[i]]
+    q_valid = np.clip(q_home, lo, hi)
+    data.qpos[qadr] = q_valid
     mujoco.mj_forward(model, data)
     grav = np.abs(data.qfrc_bias[dofs])
 
     lines = [f"# Starter scene config for {xml.name}, written by `isf-robot init` (schema: models/README.md).",
-             "# Add your obstacles and goals (TODO below), then check it:",
+             "# Check the TODOs below, then:",
              f"#   isf-robot check --model {xml.name} --config {xml.stem}.toml",
              "", "[scene]", f"name = {_q(xml.stem)}",
              f"description = {_q(f'{xml.stem}: starter config (edit me)')}", f"model = {_q(xml.name)}",
              "", "[robot]", "# Arm joints: the hinge/slide joints the actuators drive, in actuator order",
              "# (leave 'joints' out to get exactly these):"]
-    speeds = []
-    for j, d, g in zip(joints, dofs, grav):
+    speeds, rules = [], []
+    for j, d, g, lo_j, hi_j in zip(joints, dofs, grav, lo, hi):
         a = next(a for a in range(model.nu)
                  if int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT)
                  and int(model.actuator_trnid[a, 0]) == int(model.joint(j).id))
         damping = float(model.dof_damping[d])
+        info: ActuatorInfo | None
         try:
             info = actuator_info(model, a, j)
             kind = {"torque": "torque motor", "position": f"position servo kp {info.kp:g} kv {info.kv:g}",
                     "velocity": f"velocity servo kv {info.kv:g}"}[info.kind]
             limit = info.force_limit
         except IsfError as exc:
-            kind, limit = f"UNSUPPORTED ({exc})", np.inf
-        v = (max(limit - g, 0.0) / damping) if damping > 0 and np.isfinite(limit) else np.inf
+            info, kind, limit = None, f"UNSUPPORTED ({exc})", np.inf
+        v, rule = speed_bound(info, limit, damping, float(g))
         speeds.append(v)
-        rng = model.jnt_range[model.joint(j).id] if model.jnt_limited[model.joint(j).id] else (-np.inf, np.inf)
+        rules.append(rule)
+        how = {"damping": "(limit - gravity) / damping", "servo kv": "(limit - gravity) / kv",
+               "none": "nothing in the model bounds it"}[rule]
+        fric = float(model.dof_frictionloss[d])
         lines.append(f"#   {j}: {kind}, limit {_num(limit)} N m, damping {damping:g} N m s/rad, "
-                     f"range [{_num(rng[0])}, {_num(rng[1])}], max speed {_num(v)} rad/s")
+                     + (f"friction {fric:g} N m (fed forward), " if fric > 0 else "")
+                     + f"range [{_num(lo_j)}, {_num(hi_j)}], max speed {_num(v)} rad/s ({how})")
     lines.append(f"joints = [{', '.join(_q(j) for j in joints)}]")
 
     root = _root(model, int(model.jnt_bodyid[jid[0]]))
@@ -116,27 +141,43 @@ def starter_toml(xml_path: str | Path) -> str:
     lines.append(f"subtree = {_q(_body(model, root))}")
     if len(groups) == 1 and groups[0] != 0:
         lines.append(f"geom_group = {groups[0]}")
-    if home_key is not None:
+    source = f"keyframe {home_key!r}" if home_key is not None else "qpos0 (the model has no named keyframe)"
+    if outside:
+        what = ", ".join(f"{joints[i]} {q_home[i]:.4g} outside [{_num(lo[i])}, {_num(hi[i])}]" for i in outside)
+        lines += [f"# TODO: the home from {source} has arm joints outside their range ({what});",
+                  "# the nearest pose inside the ranges (those joints clipped to their limits):",
+                  f"home = [{', '.join(f'{x:.6g}' for x in q_valid)}]"]
+    elif home_key is not None:
         lines.append(f"home = {_q(home_key)}  # keyframes: {', '.join(named)}")
     else:
         lines.append("# home: no named keyframe; give home = [...] (default: qpos0)")
     last = max((int(model.jnt_bodyid[j]) for j in jid), key=lambda b: len(_chain(model, b)))
     tip = subtree_bodies(model, last)
     last = max(tip, key=lambda b: len(_chain(model, b)))  # the deepest body: the hand, the flange
-    sites = [s for s in range(model.nsite) if int(model.site_bodyid[s]) in tip
-             and mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s)]
-    if sites:
-        s = sites[-1]
-        lines.append(f"ee_site = {_q(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s))}")
+    site = _ee_site(model, tip)
+    if site is not None:
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, site)
+        others = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) for s in _named_sites(model, tip)
+                  if s != site]
+        lines.append(f"ee_site = {_q(name)}" + (f"  # other sites on the last links: {', '.join(others)}"
+                                                  if others else ""))
     else:
-        lines += [f"ee_body = {_q(_body(model, last))}  # no site on the last link: its frame origin ...",
+        lines += [f"ee_body = {_q(_body(model, last))}  # no tool site on the last link: its frame origin ...",
                   "ee_offset = [0.0, 0.0, 0.0]  # ... plus this offset [m] in its frame: TODO the tool centre"]
     lines.append("self_collision = false")
 
-    other = [g for g in range(model.ngeom) if (model.geom_contype[g] or model.geom_conaffinity[g])
-             and g not in colliding and int(model.geom_type[g]) != int(mujoco.mjtGeom.mjGEOM_PLANE)
-             and (model.body_weldid[model.geom_bodyid[g]] == 0 or model.body_mocapid[model.geom_bodyid[g]] >= 0)]
+    off_arm = [g for g in range(model.ngeom) if (model.geom_contype[g] or model.geom_conaffinity[g])
+               and g not in colliding
+               and (model.body_weldid[model.geom_bodyid[g]] == 0 or model.body_mocapid[model.geom_bodyid[g]] >= 0)]
+    planes = [g for g in off_arm if int(model.geom_type[g]) == int(mujoco.mjtGeom.mjGEOM_PLANE)]
+    other = [g for g in off_arm if g not in planes]
     lines += ["", "[obstacles]"]
+    if planes:
+        lines += [f"# Left out: the colliding plane(s) {', '.join(_q(geom_label(model, g)) for g in planes)}. MuJoCo "
+                  "simulates their contacts but the",
+                  "# filter does not guard them (a plane has no bounding sphere for the broad phase): keep the "
+                  "goals above",
+                  "# them, or add a thin box-shaped convex mesh under the arm's reach as an obstacle."]
     if other:
         lines.append(f"geoms = [{', '.join(_q(geom_label(model, g)) for g in other)}]  # colliding geoms off the arm")
     else:
@@ -144,19 +185,66 @@ def starter_toml(xml_path: str | Path) -> str:
                   "# (e.g. in a body \"obstacles\"), point [scene] model at that file, and select them:",
                   "bodies = [\"obstacles\"]"]
 
-    ee = data.site_xpos[sites[-1]] if sites else data.xpos[last]
-    lines += ["", "[task]", "duration = 10.0", "loop = true", "tolerance = 0.02",
-              "# TODO: the goals, in order (a site name or a world position [m]); this one is the",
-              "# end effector at home:", "[[task.goals]]",
-              f"pos = [{', '.join(f'{x:.4f}' for x in ee)}]", "dwell = 0.5"]
-    vmin = float(np.min(speeds))
+    lines += ["", "[task]", "duration = 10.0", "loop = true", "tolerance = 0.02"]
+    goal_sites = sorted((n for s in range(model.nsite) if int(model.site_bodyid[s]) not in bodies
+                         and re.match(r"goal(_|\d|$)", n := mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or "",
+                                      re.IGNORECASE)),
+                        key=lambda n: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", n.lower())])
+    if goal_sites:
+        lines.append(f"# the model's goal sites, in name order ({len(goal_sites)}):")
+        for n in goal_sites:
+            lines += ["[[task.goals]]", f"site = {_q(n)}", "dwell = 0.5"]
+    else:
+        ee = data.site_xpos[site] if site is not None else data.xpos[last]
+        lines += ["# TODO: the goals, in order (a site name or a world position [m]); this one is the",
+                  "# end effector at home (sites named goal_* are picked up by init):", "[[task.goals]]",
+                  f"pos = [{', '.join(f'{x:.4f}' for x in ee)}]", "dwell = 0.5"]
+    finite = [(v, r) for v, r in zip(speeds, rules) if np.isfinite(v)]
+    vmin = min((v for v, _ in finite), default=np.inf)
     suggest = min(DEFAULT_MAX_JOINT_SPEED, 0.8 * vmin)
-    lines += ["", "[gains]",
-              f"# 80% of the slowest joint's (torque limit - gravity at home) / damping = {_num(vmin)} rad/s"
-              if np.isfinite(vmin) else "# no joint damping/torque limit bounds the speed: the default",
-              f"max_joint_speed = {suggest:.2g}", "max_ee_speed = 0.4", "",
+    if finite:
+        rule = {r for v, r in finite if v == vmin}.pop()
+        why = {"damping": "(torque limit - gravity at home) / damping",
+               "servo kv": "(force limit - gravity at home) / servo kv: the largest velocity step the servo "
+                           "answers unsaturated"}[rule]
+        comment = f"# 80% of the slowest joint's {why} = {_num(vmin)} rad/s (at most {DEFAULT_MAX_JOINT_SPEED:g})"
+    else:
+        comment = "# no joint damping, servo kv or torque limit bounds the speed: the default"
+    lines += ["", "[gains]", comment, f"max_joint_speed = {suggest:.2g}", "max_ee_speed = 0.4", "",
               "[control]", f"period = {2 * model.opt.timestep:g}  # [s] a whole multiple of the timestep", ""]
     return "\n".join(lines)
+
+
+_TOOL_WORDS = ("attachment", "tcp", "tool", "flange", "end_effector", "endeffector", "eef", "ee", "gripper",
+               "grasp", "pinch", "hand", "tip")
+"""Words of a site name that mark a tool point, best first."""
+
+
+def _is_axis_marker(name: str) -> bool:
+    """``ee_x``, ``ee_y``, ``x_axis``, ``axis_z``, ``site_y``: a site that marks a frame axis."""
+    words = [w for w in re.split(r"[^a-z0-9]+", name.lower()) if w]
+    return "axis" in words or any(w in ("x", "y", "z") for w in words) or bool(re.search(r"(^|_)axis", name.lower()))
+
+
+def _named_sites(model: mujoco.MjModel, bodies: list[int]) -> list[int]:
+    return [s for s in range(model.nsite) if int(model.site_bodyid[s]) in bodies
+            and mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s)]
+
+
+def _ee_site(model: mujoco.MjModel, tip: list[int]) -> int | None:
+    """The end-effector site among the named sites of the last links (module docstring), or ``None``."""
+    sites = [s for s in _named_sites(model, tip)
+             if not _is_axis_marker(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s))]
+    if not sites:
+        return None
+
+    def rank(s: int) -> tuple[int, int, int]:
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s).lower()
+        words = [w for w in re.split(r"[^a-z0-9]+", name) if w]
+        hit = [i for i, t in enumerate(_TOOL_WORDS) if t in words or (len(t) > 3 and t in name)]
+        return (-(min(hit) if hit else len(_TOOL_WORDS)), len(_chain(model, int(model.site_bodyid[s]))), s)
+
+    return max(sites, key=rank)
 
 
 def _chain(model: mujoco.MjModel, b: int) -> list[int]:

@@ -75,18 +75,21 @@ def _cmd_init(args: argparse.Namespace) -> int:
 
 def _cmd_check(args: argparse.Namespace) -> int:
     from isf_robot.arm.calibration import calibrate_d_bar
-    from isf_robot.arm.diagnostics import check_calibration, check_scene, joint_speed_limits
+    from isf_robot.arm.diagnostics import check_calibration, check_scene, speed_bounds
 
     scene = _spec(args).load()
     findings = check_scene(scene)
-    v, _ = joint_speed_limits(scene)
+    v, rules = speed_bounds(scene)
     print(f"scene {scene.name}: {scene.n_joints} joints {list(scene.joint_names)}, "
           f"{len(scene.robot_geom_ids)} robot geoms, {len(scene.obstacle_geom_ids)} obstacle geoms")
     kinds = _kinds(scene)
     print(f"  actuators: {', '.join(f'{j} {k}' for j, k in zip(scene.joint_names, kinds))}")
-    print("  max speed the actuators allow [rad/s]: "
-          + ", ".join(f"{j} {x:.3g}" for j, x in zip(scene.joint_names, v))
-          + f" (max_joint_speed = {scene.config.gains.max_joint_speed:g})")
+    why = {"damping": " (damping)", "servo kv": " (servo kv)", "none": ""}
+    print("  joint speed bounds [rad/s]: "
+          + ", ".join(f"{j} {x:.3g}{why[r]}" for j, x, r in zip(scene.joint_names, v, rules))
+          + f" (max_joint_speed = {scene.config.gains.max_joint_speed:g}; damping: (F - gravity) / damping, the "
+            "steady speed, checked; servo kv: (F - gravity) / kv on an undamped joint, the largest velocity step "
+            "the servo answers unsaturated, init's conservative suggestion)")
     if not args.no_calibration:
         cal = calibrate_d_bar(scene)
         print(f"  calibrated d_bar = {cal.d_bar:.4g} rad/s ({cal.samples} physics steps; "

@@ -17,6 +17,7 @@ import sys
 from typing import Any
 
 from isf_robot.core.exceptions import ConfigError
+from isf_robot.core.extras import install_hint
 from isf_robot.core.parallel import BACKENDS, check_backend
 from isf_robot.core.report import with_schema
 from isf_robot.core.strategies import strategy_names
@@ -47,7 +48,7 @@ def register(subparsers: Any) -> None:
                         "(default 1)")
     p.add_argument("--backend", choices=BACKENDS, default="processes",
                    help="where episodes run: local worker processes (default) or Ray (the ray extra: "
-                        "pip install 'isf-robot[ray]'); the numbers are the same on both")
+                        f"{install_hint('ray')}); the numbers are the same on both")
     p.add_argument("--address", default=None, metavar="ADDR",
                    help="Ray cluster to join ('auto' or HOST:PORT; every node needs isf-robot installed); "
                         "default with --backend ray: start a local Ray with --jobs CPUs")

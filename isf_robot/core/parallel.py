@@ -31,6 +31,7 @@ from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
 from .exceptions import ConfigError, IsfError
+from .extras import install_hint
 
 __all__ = ["Interrupted", "Terminated", "run_tasks", "MAX_JOBS", "BACKENDS", "check_backend"]
 
@@ -43,7 +44,7 @@ MAX_JOBS = 256
 BACKENDS: tuple[str, ...] = ("processes", "ray")
 """Where :func:`run_tasks` runs the tasks (``--backend`` of the commands that use it)."""
 
-RAY_MISSING = "the ray backend needs Ray: pip install 'isf-robot[ray]' (or use --backend processes)"
+RAY_MISSING = f"the ray backend needs Ray: {install_hint('ray')}; or use --backend processes"
 
 
 class Terminated(KeyboardInterrupt):

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from isf_robot.core import ConfigError
+from isf_robot.core.extras import install_hint
 from isf_robot.core.files import check_output_path, write_bytes_atomic
 
 __all__ = ["PlotsUnavailableError", "require_matplotlib", "new_figure", "save_figure", "check_figure_path", "FORMATS"]
@@ -28,7 +29,7 @@ def require_matplotlib() -> Any:
         import matplotlib
     except ImportError:
         raise PlotsUnavailableError(
-            "plots need matplotlib, the 'plots' extra: pip install 'isf-robot[plots]'") from None
+            f"plots need matplotlib, the 'plots' extra: {install_hint('plots')}") from None
     return matplotlib
 
 

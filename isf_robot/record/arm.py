@@ -326,7 +326,7 @@ class ArmRecorder(RerunRecorder):
         goals = np.asarray(goals if goals is not None else np.zeros((0, 3)), dtype=float).reshape(-1, 3)
         if goals.size:
             rec.log("/world/goals", rr.Points3D(goals, radii=0.015, colors=[[60, 200, 90]],
-                                                labels=[f"goal {i}" for i in range(len(goals))]), static=True)
+                                                labels=[f"goal {i + 1}" for i in range(len(goals))]), static=True)
         rec.log("/world/goal", rr.Points3D.from_fields(radii=[0.025], colors=[[40, 240, 80]]), static=True)
         rec.log("/world/ee", rr.Points3D.from_fields(radii=[0.012], colors=[[240, 240, 240]]), static=True)
         rec.log("/world/ee_trail", rr.LineStrips3D.from_fields(radii=[0.004], colors=[[90, 170, 255]]),

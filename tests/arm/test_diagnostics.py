@@ -16,6 +16,9 @@ from isf_robot.paths import models_dir
 
 ARMS = {"panda_servo": "panda_servo_arm.xml", "ur5e_pole": "ur5e_arm.xml"}
 BASE = '<geom class="collision" fromto="-0.05 0 0.06 0 0 0.06" size="0.07"/>'
+# Menagerie's earlier UR5e revision: <position> servos without kv and joint damping 200 (shoulder, elbow) / 15 (wrists)
+DAMPED = ('armature="0.1"/>', 'armature="0.1" damping="200"/>')
+DAMPED_WRISTS = ('<default class="size1">\n', '<default class="size1">\n        <joint damping="15"/>\n')
 TALL_BASE = '<geom class="collision" fromto="-0.04 0 0.05 -0.04 0 0.16" size="0.1"/>'
 
 
@@ -67,7 +70,10 @@ def test_base_overlapping_link1_at_home_is_named(tmp_path) -> None:  # type: ign
 
 def test_ur5e_damping_against_the_default_joint_speed(tmp_path) -> None:  # type: ignore[no-untyped-def]
     # crippling case 2: damping 200 N m s/rad and 150 N m, but the default max_joint_speed 2.0
-    xml, toml = variant(tmp_path, "ur5e_pole", toml=("max_joint_speed = 0.5\n", ""))
+    xml, toml = variant(tmp_path, "ur5e_pole", toml=("max_joint_speed = 0.5\n", ""), arm=DAMPED)
+    arm = tmp_path / ARMS["ur5e_pole"]
+    assert DAMPED_WRISTS[0] in arm.read_text()
+    arm.write_text(arm.read_text().replace(*DAMPED_WRISTS))
     sc = load_scene_from_files(xml, toml)
     assert sc.config.gains.max_joint_speed == 2.0
     v, grav = joint_speed_limits(sc)
@@ -80,7 +86,7 @@ def test_ur5e_damping_against_the_default_joint_speed(tmp_path) -> None:  # type
     msg = found[0].message
     assert "max_joint_speed = 2 rad/s" in msg and "shoulder_pan_joint: 0.75 rad/s" in msg
     assert f"max_joint_speed = {0.8 * v.min():.2g}" in msg
-    assert check_scene(load_scene("ur5e_pole")) == []  # the shipped scene sets 0.5
+    assert check_scene(load_scene("ur5e_pole")) == []  # the shipped arm has no joint damping and sets 0.5
 
 
 def test_pair_accuracy_servo_chatter_and_reach(tmp_path) -> None:  # type: ignore[no-untyped-def]
@@ -96,7 +102,7 @@ def test_pair_accuracy_servo_chatter_and_reach(tmp_path) -> None:  # type: ignor
     assert codes(found) == ["capsule-box", "ccd-tolerance", "goal-reach"]
     assert "upper_arm_link[1]|boxes[0]" in found[0].message
     assert "wrist_3_link[1]" in found[1].message and 'ccd_tolerance="1e-10"' in found[1].message
-    assert "goal 2 at [2.0, 0.0, 0.3]" in found[2].message and "reaches at most" in found[2].message
+    assert "goal 3 ('far') at [2.0, 0.0, 0.3]" in found[2].message and "reaches at most" in found[2].message
     # a stiff force-limited servo at a coarse timestep
     (tmp_path / "coarse").mkdir()
     xml2, toml2 = variant(tmp_path / "coarse", "panda_servo", xml=('timestep="0.001"', 'timestep="0.002"'))
@@ -132,9 +138,15 @@ def test_init_writes_a_loadable_starter(tmp_path, capsys) -> None:  # type: igno
     cfg = tomllib.loads(text)
     rob = cfg["robot"]
     assert rob["subtree"] == "base" and rob["geom_group"] == 3 and rob["home"] == "home"
-    assert rob["ee_body"] == "wrist_3_link" and len(rob["joints"]) == 6
-    assert "shoulder_pan_joint: position servo kp 3500 kv 0, limit 150 N m, damping 200" in text
-    assert cfg["gains"]["max_joint_speed"] == pytest.approx(0.8 * 0.656, abs=0.01)
+    assert rob["ee_site"] == "attachment_site" and len(rob["joints"]) == 6
+    assert "shoulder_pan_joint: position servo kp 2000 kv 400, limit 150 N m, damping 0" in text
+    assert "max speed 0.375 rad/s ((limit - gravity) / kv)" in text  # 150 N m / 400 N m s/rad
+    sc = load_scene("ur5e_pole")
+    v, grav = joint_speed_limits(sc)
+    assert np.all(np.isinf(v))  # no joint damping: nothing bounds the steady speed
+    kv = np.array([400.0] * 3 + [100.0] * 3)
+    F = np.array([150.0] * 3 + [28.0] * 3)
+    assert cfg["gains"]["max_joint_speed"] == float(f"{0.8 * np.min((F - grav) / kv):.2g}") == 0.21
     # with the obstacles of a wrapper, the starter loads as it is
     out = tmp_path / "start.toml"
     (tmp_path / "ur5e_arm.xml").write_text((models_dir() / "ur5e_arm.xml").read_text())
@@ -152,7 +164,7 @@ def test_init_writes_a_loadable_starter(tmp_path, capsys) -> None:  # type: igno
 
 
 def test_check_and_run_warn(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
-    xml, toml = variant(tmp_path, "ur5e_pole", toml=("max_joint_speed = 0.5\n", ""))
+    xml, toml = variant(tmp_path, "ur5e_pole", toml=("max_joint_speed = 0.5\n", ""), arm=DAMPED)
     rc = main(["check", "--model", str(xml), "--config", str(toml), "--no-calibration", "--strict"])
     out = capsys.readouterr().out
     assert rc == 1 and "warning [joint-speed]" in out and "shoulder_pan_joint position" in out

@@ -268,7 +268,17 @@ def test_unknown_names_list_the_valid_ones(tmp_path: Path, old: str, new: str, k
         ('geoms = ["arm"]', 'geoms = ["arm", "wall"]', "robot and as obstacle"),
         ("goals = [{pos = [0.3, 0.3, 0.0], dwell = 0.2}]", "goals = []", "non-empty"),
         ("dwell = 0.2", "dwell = 0.2, site = 'tip'", "exactly one"),
-        ("[scene]", "[scenery]\n[scene]", "unknown key"),
+        ("[scene]", "[scenery]\n[scene]", r"unknown table \[scenery\]; valid: \[scene\], .*did you mean \[scene\]\?"),
+        ("[control]", "[gains]\nmax_joint_sped = 0.5\n[control]",
+         r"unknown key 'max_joint_sped' in \[gains\]; valid keys: task_kp, .*; did you mean 'max_joint_speed'\?"),
+        ("[obstacles]", "[obstacle]",
+         r"unknown table \[obstacle\]; valid: .*\[obstacles\].*; did you mean \[obstacles\]\?$"),
+        ("[control]", "[gains]\nnull_kp = 0.5\n[control]", r"unknown key 'null_kp' in \[gains\]; valid keys: .*extra$"),
+        ("[task]", "[task]\nduraton = 3.0", r"unknown key 'duraton' in \[task\].*did you mean 'duration'"),
+        ("dwell = 0.2", "dwel = 0.2", r"unknown key 'dwel' in \[\[task.goals\]\] goal 1; valid keys: site, pos, dwell"),
+        ("speed = 0.1", "sped = 0.1", r"unknown key 'sped' in \[\[moving\]\] entry 1; valid keys: body, type, start, end"),
+        ("period = 0.004", "period = 0.004\nperiod_s = 1", r"unknown key 'period_s' in \[control\]"),
+        ("[scene]", "colour = 'red'\n[scene]", r"'colour' = 'red' outside any table"),
     ],
 )
 def test_bad_config_values(tmp_path: Path, old: str, new: str, match: str) -> None:
@@ -279,7 +289,7 @@ def test_bad_config_values(tmp_path: Path, old: str, new: str, match: str) -> No
 
 def test_missing_required_section(tmp_path: Path) -> None:
     toml = TINY_TOML.replace('[obstacles]\ngeoms = ["wall", "stat_geom", "ghost_geom"]\n', "")
-    with pytest.raises(ConfigError, match=r"obstacles.*missing"):
+    with pytest.raises(ConfigError, match=r"table \[obstacles\]: missing \(required\)"):
         load_config(write(tmp_path, toml=toml)[1])
 
 
@@ -289,10 +299,44 @@ def test_config_without_scene_name_uses_file_stem(tmp_path: Path) -> None:
 
 
 def test_extra_gains_are_kept(tmp_path: Path) -> None:
-    toml = TINY_TOML.replace("[control]", "[gains]\ntask_kp = 3.0\nnull_kp = 0.5\nw = [1.0]\n[control]")
+    toml = TINY_TOML.replace("[control]", "[gains]\ntask_kp = 3.0\nmax_joint_acc = 4.0\ngoal_timeout = 2.5\n"
+                                          "[gains.extra]\nnull_kp = 0.5\nw = [1.0]\n[control]")
     cfg = load_config(write(tmp_path, toml=toml)[1])
-    assert cfg.gains.task_kp == 3.0
+    assert (cfg.gains.task_kp, cfg.gains.max_joint_acc, cfg.gains.goal_timeout) == (3.0, 4.0, 2.5)
     assert cfg.gains.extra == {"null_kp": 0.5, "w": (1.0,)}
+    bad = toml.replace("null_kp = 0.5", "null_kp = 'high'")
+    with pytest.raises(ConfigError, match=r"\[gains.extra\] null_kp: expected a finite number"):
+        load_config(write(tmp_path, toml=bad)[1])
+
+
+def test_every_documented_key_is_accepted_and_only_those() -> None:
+    """The schema block of models/README.md and the reader's key lists say the same."""
+    import re
+
+    from isf_robot.arm.config_toml import SECTION_KEYS, TABLES
+
+    text = (models_dir() / "README.md").read_text()
+    block = text.split("## Config schema")[1].split("```toml")[1].split("```")[0]
+    documented: dict[str, set[str]] = {}
+    table = ""
+    for line in block.splitlines():
+        m = re.match(r"^\[\[?([a-z_.]+)\]\]?", line)
+        if m:
+            table = m.group(1)
+            continue
+        k = re.match(r"^#? ?([a-z_]+) = ", line)
+        if k and table:
+            documented.setdefault(table, set()).add(k.group(1))
+    assert set(documented) == {*TABLES, "task.goals", "gains.extra"}
+    for t in TABLES:
+        valid = set(SECTION_KEYS[t]) if t != "moving" else set(SECTION_KEYS["moving.circle"]) | set(
+            SECTION_KEYS["moving.linear_bounce"])
+        if t == "task":
+            valid -= {"goals"}  # written as [[task.goals]] tables
+        if t == "gains":
+            valid -= {"extra"}  # written as the [gains.extra] table
+        assert documented[t] == valid, t
+    assert documented["task.goals"] == set(SECTION_KEYS["task.goals"])
 
 
 def test_unlimited_joint_and_no_actuator(tmp_path: Path) -> None:
