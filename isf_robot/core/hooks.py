@@ -6,7 +6,8 @@ and ``on_finish`` with the summary. A loop that keeps its steps in columns (the 
 observer that overrides :meth:`Observer.on_steps` whole blocks of steps instead of per-step
 records (:func:`takes_blocks`); every other observer still gets ``on_step`` at every step. A run
 that stops early (an error, Ctrl-C) calls ``on_abort`` instead of ``on_finish`` (after handing
-over the steps done), so an observer writing a file can leave it marked as partial. :class:`Observer` is a no-op base to subclass.
+over the steps done), so an observer writing a file can leave it marked as partial.
+:class:`Observer` is a no-op base to subclass.
 """
 
 from __future__ import annotations
