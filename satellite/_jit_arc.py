@@ -28,7 +28,10 @@ import math
 import numpy as np
 from numba import njit
 
+from isf_robot.core.jit import watch_compiles
 from satellite._jit_parts import brent, g_event, g_rate, interp, rhs
+
+watch_compiles()  # (a command's one-line notice when a kernel is compiled: isf_robot.core.jit)
 
 _MAX_GRID = 256
 _STACK = 1024

@@ -28,6 +28,10 @@ import math
 import numpy as np
 from numba import njit
 
+from isf_robot.core.jit import watch_compiles
+
+watch_compiles()  # (a command's one-line notice when a kernel is compiled: isf_robot.core.jit)
+
 # event kinds
 XI, H, RDOT, CONTACT, XITAU = 0, 1, 2, 3, 4
 

@@ -14,7 +14,11 @@ from llvmlite import ir
 from numba import carray, njit, types
 from numba.extending import intrinsic
 
+from isf_robot.core.jit import watch_compiles
+
 from .kernels import _library
+
+watch_compiles()  # (a command's one-line notice when a kernel is compiled: isf_robot.core.jit)
 
 _PATH = _library()
 if _PATH is None:  # (kernels._build treats this as "numba missing")

@@ -20,8 +20,12 @@ import math
 import numpy as np
 from numba import carray, njit, types
 
+from isf_robot.core.jit import watch_compiles
+
 from ._kernels_jit import f64p as _f64p  # (importing it loads libmujoco's symbols; ImportError without it)
 from ._kernels_jit import monitor
+
+watch_compiles()  # (a command's one-line notice when a kernel is compiled: isf_robot.core.jit)
 
 _ptr, _i32, _f64 = types.intp, types.int32, types.float64
 # void mj_mulM(const mjModel* m, const mjData* d, mjtNum* res, const mjtNum* vec)

@@ -17,8 +17,12 @@ import os
 
 from numba import carray, njit, types
 
+from isf_robot.core.jit import watch_compiles
+
 from ._kernels_jit import f64p, near_packed  # (importing it loads libmujoco's symbols; ImportError without it)
 from ._kernels_step import reach
+
+watch_compiles()  # (a command's one-line notice when a kernel is compiled: isf_robot.core.jit)
 
 _ptr = types.intp
 # void mj_kinematics(const mjModel* m, mjData* d)

@@ -14,6 +14,10 @@ import math
 import numpy as np
 from numba import njit
 
+from .jit import watch_compiles
+
+watch_compiles()  # (a command's one-line notice when a kernel is compiled: isf_robot.core.jit)
+
 
 @njit(cache=True, nogil=True)
 def few_candidate(A, lb, u_nom, r, G, rel_tol, tol, u):  # pragma: no cover (compiled)

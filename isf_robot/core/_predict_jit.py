@@ -11,6 +11,10 @@ import math
 import numpy as np
 from numba import njit
 
+from .jit import watch_compiles
+
+watch_compiles()  # (a command's one-line notice when a kernel is compiled: isf_robot.core.jit)
+
 
 @njit(cache=True, nogil=True)
 def predict_rows(lf, lg, u, gn, d_bar, h, gain, av, k, xi, fails, nfail, keys, nkeys, out):  # pragma: no cover

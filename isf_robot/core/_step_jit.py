@@ -17,6 +17,9 @@ import numpy as np
 from numba import njit
 
 from ._few_jit import few_candidate, few_confirm
+from .jit import watch_compiles
+
+watch_compiles()  # (a command's one-line notice when a kernel is compiled: isf_robot.core.jit)
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -11,6 +11,10 @@ import math
 
 from numba import njit
 
+from .jit import watch_compiles
+
+watch_compiles()  # (a command's one-line notice when a kernel is compiled: isf_robot.core.jit)
+
 
 @njit(cache=True, nogil=True, inline="always")
 def row_times(a, i, u):  # pragma: no cover (compiled)

@@ -1,0 +1,102 @@
+"""Whether the compiled kernels run, and a one-line notice on stderr when they are compiled.
+
+The kernels (the arm's step, the filters' few-row step, the satellite's arcs) are numba functions
+cached on disk (``cache=True``): the first run on a machine compiles them (some 10-30 s of CPU in
+all), later runs load them. ``ISF_ROBOT_JIT=0`` runs the plain numpy paths instead (the same
+formulas; see the kernels' modules for the tolerance they agree to).
+
+The command-line tools call :func:`announce_compiles` once: the first kernel that a command (or any
+of its worker processes) actually compiles, rather than loads from the cache, prints one line on
+stderr, so a slow first run says why. Library users see nothing unless they call it too.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+from typing import Any, TextIO
+
+__all__ = ["JIT_ENV", "NOTICE_ENV", "jit_enabled", "announce_compiles", "watch_compiles", "end_notice", "COMPILE_NOTICE"]
+
+JIT_ENV = "ISF_ROBOT_JIT"
+"""Environment variable: ``0`` (or ``false``, ``no``, ``off``) turns the compiled kernels off."""
+
+NOTICE_ENV = "ISF_ROBOT_COMPILE_NOTICE"
+"""Environment variable naming the marker file of a command's compile notice (set by :func:`announce_compiles`)."""
+
+COMPILE_NOTICE = ("compiling the fast kernels for this machine, once (about 10-30 s in all; later runs load "
+                  "them from numba's cache; ISF_ROBOT_JIT=0 runs without them)")
+"""The notice (after the program's name)."""
+
+_PACKAGES = ("isf_robot.", "satellite.")
+_STATE: dict[str, Any] = {}
+
+
+def jit_enabled() -> bool:
+    """Whether the compiled kernels may be used (``ISF_ROBOT_JIT`` is not ``0``/``false``/``no``/``off``).
+
+    Whether numba is importable is each kernel module's own question (it falls back to numpy).
+    """
+    return os.environ.get(JIT_ENV, "1").strip().lower() not in ("0", "false", "no", "off")
+
+
+def announce_compiles(prog: str, stream: TextIO | None = None) -> str:
+    """Make the first kernel compile of this command print one line on ``stream`` (stderr).
+
+    Sets :data:`NOTICE_ENV` to a fresh marker path, which worker processes inherit: whichever process
+    compiles first creates the marker and prints; the others stay quiet. Returns the marker path
+    (remove it when the command ends: :func:`end_notice`).
+    """
+    marker = os.path.join(tempfile.gettempdir(), f"{prog}-compile-notice-{os.getpid()}")
+    os.environ[NOTICE_ENV] = marker
+    _STATE["stream"] = stream
+    watch_compiles()
+    return marker
+
+
+def end_notice(marker: str) -> None:
+    """Remove a command's marker (see :func:`announce_compiles`)."""
+    try:
+        os.unlink(marker)
+    except OSError:
+        pass
+
+
+def watch_compiles() -> None:
+    """Listen for numba compiles of this package's kernels (once per process; only when a notice is asked for).
+
+    Called by the kernel modules before their first use; a no-op without :data:`NOTICE_ENV` or numba.
+    """
+    if "listener" in _STATE or not os.environ.get(NOTICE_ENV):
+        return
+    try:
+        from numba.core import event
+    except ImportError:
+        return
+
+    class _FirstCompile(event.Listener):  # type: ignore[misc]
+        def on_start(self, ev: Any) -> None:
+            if _STATE.get("printed"):
+                return
+            func = getattr(ev.data.get("dispatcher"), "py_func", None)
+            if not str(getattr(func, "__module__", "")).startswith(_PACKAGES):
+                return
+            _STATE["printed"] = True
+            marker = os.environ.get(NOTICE_ENV)
+            if not marker:
+                return
+            try:
+                os.close(os.open(marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+            except OSError:  # another process of this command printed it
+                return
+            out = _STATE.get("stream") or sys.stderr
+            prog = os.path.basename(marker).split("-compile-notice-")[0] or "isf-robot"
+            print(f"{prog}: {COMPILE_NOTICE}", file=out, flush=True)
+
+        def on_end(self, ev: Any) -> None:
+            pass
+
+    listener = _FirstCompile()
+    event.register("numba:compile", listener)
+    _STATE["listener"] = listener
