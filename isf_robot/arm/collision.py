@@ -305,17 +305,18 @@ class CollisionBarriers(NarrowPhase):
                            self._row_names(rows.near.row_list, joints))
 
     def lie_rows(self, data: mujoco.MjData, joints: JointLimitBarriers, mocap_lin: np.ndarray | None = None, *,
-                 coherence: JointCoherence | None = None) -> TickRows:
+                 coherence: JointCoherence | None = None, witness: bool = False) -> TickRows:
         """``lie(rows(...))`` with what a control tick's accounting needs of ``rows(...)``, in one pass.
 
         The same Lie data, bit for bit, and ``near.rows``, ``near.row_list`` (as a tuple), ``near.h_min``,
-        ``near.dist_min``, ``joint_min`` of :meth:`rows` (arguments as there, without witness points):
-        the simulation's barrier phase when nothing records the step. The compiled path builds no
+        ``near.dist_min``, ``joint_min`` of :meth:`rows` (arguments as there; the near pairs' witness
+        points with ``witness``): the simulation's barrier phase. The compiled path builds no
         :class:`NearPairs` (nor its views of ``h``, ``dh/dq``, ``dh/dt``) for it.
         """
         if self._kernel is not None:
-            return self._near_compiled(data, mocap_lin, None, False, coherence, joints, True)  # type: ignore[return-value]
-        return self._tick_rows(self.rows(data, joints, mocap_lin, coherence=coherence), joints, True)  # type: ignore[return-value]
+            return self._near_compiled(data, mocap_lin, None, witness, coherence, joints, True)  # type: ignore[return-value]
+        return self._tick_rows(self.rows(data, joints, mocap_lin, witness=witness, coherence=coherence),  # type: ignore[return-value]
+                               joints, True)
 
     def coherence(self) -> JointCoherence | None:
         """Distance bounds for one run's states (:class:`~isf_robot.arm.broadphase.JointCoherence`).

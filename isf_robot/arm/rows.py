@@ -73,6 +73,8 @@ class TickRows(NamedTuple):
         h_min: Smallest ``h`` of the near pairs (``inf`` when none is near).
         dist_min: Their smallest distance [m] (``inf`` when none is near).
         joint_min: The smallest joint-limit value.
+        witness: The near pairs' witness points (on geom 1, on geom 2) [m], shape (j, 2, 3), when asked
+            for (``lie_rows(..., witness=True)``), else ``None``.
 
     """
 
@@ -82,3 +84,4 @@ class TickRows(NamedTuple):
     h_min: float
     dist_min: float
     joint_min: float
+    witness: np.ndarray | None

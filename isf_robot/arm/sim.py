@@ -48,7 +48,6 @@ from isf_robot.core.strategies import make_strategy, strategy_info
 
 from .actuation import Actuation, make_actuation, tracking_step
 from .barriers import CollisionBarriers, JointLimitBarriers
-from .collision import NearPairs
 from .episode import EpisodeSetup, check_control_period, episode_setup, path_track
 from .lowlevel import as_slice
 from .monitor import SafetyMonitor
@@ -56,7 +55,7 @@ from .nominal import NominalController, ReachingController
 from .params import filter_options, resolve_params
 from .records import FilterParams, RunResult
 from .scene import Scene
-from .step_columns import StepColumns
+from .step_columns import StepColumns, TickValues
 from .timing import PhaseTimers
 
 __all__ = ["ArmSimulation", "run_episode"]
@@ -215,29 +214,32 @@ class ArmSimulation:
             for k in range(n_ctrl):
                 t = k * T
                 sense(k)
-                near, jh, lie = barriers()
+                values, lie = barriers()
                 u_nom = nominal(t)
                 step = strategy(t, lie, u_nom)
                 act(k, step.u)
                 if block is not None:
                     if step.event is not None:
                         observers.on_event(step.event)
-                    ep.write(block, t, step, near, jh)
+                    ep.write(block, t, step, values)
                     if stepwise:
                         stepwise.on_step(block.record(block.size - 1))
                     if block.full:
+                        block.seal()
                         blockwise.on_steps(block)
                         block.clear()
         except BaseException as exc:  # an error or Ctrl-C: observers keep what they have, marked partial
             if recording:
                 if block is not None and len(block) and blockwise:
                     try:
+                        block.seal()
                         blockwise.on_steps(block)  # (the steps done so far reach the partial files)
                     except Exception:  # noqa: BLE001, S110 - the run's own error is the one to report
                         pass
                 observers.on_abort(exc)
             raise
         if block is not None and len(block) and blockwise:
+            block.seal()
             blockwise.on_steps(block)
         result = ep.finish(time.perf_counter() - wall0, timers.totals if timers else {})
         if recording:
@@ -279,7 +281,6 @@ class _Episode:
         self.dmin = math.inf
         self.recording = bool(sim.observers)
         self.uses_rows = bool(getattr(sim.strategy, "uses_rows", True))
-        self._lean = self.uses_rows and not self.recording  # (barriers: the rows without NearPairs)
         nj = sim.joints.evaluate(data).k
         self._h_far_min = sim.coll.h_far_min
         self.coherence = sim.coll.coherence()  # this run's distance bounds (None: not applicable)
@@ -304,22 +305,27 @@ class _Episode:
         else:
             self.data.mocap_pos[self.mocap_rows] = self.track[i]
 
-    def barriers(self) -> tuple[NearPairs | None, np.ndarray | None, LieData | None]:
-        """The tick's rows (the pairs within the cut-off, the joint limits) and its safety accounting."""
+    def barriers(self) -> tuple[TickValues | None, LieData | None]:
+        """The tick's rows (the pairs within the cut-off, the joint limits) and its safety accounting.
+
+        Returns the tick's barrier values for a record (``None`` when nothing records) and the Lie
+        data (``None`` for a strategy without rows).
+        """
         sim = self.sim
-        if self._lean:  # (unrecorded: the same rows in one pass, without the NearPairs only a record needs)
-            lie, idx, row_list, h_min, dist_min, jmin = sim.coll.lie_rows(self.data, sim.joints, self.lin,
-                                                                          coherence=self.coherence)
-            near = jh = None
+        if self.uses_rows:  # (the rows in one pass, without the NearPairs; witness points only for a record)
+            lie, idx, row_list, h_min, dist_min, jmin, wit = sim.coll.lie_rows(
+                self.data, sim.joints, self.lin, coherence=self.coherence, witness=self.recording)
+            j = len(row_list)
+            values = TickValues(idx, lie.h[:j], wit, lie.h[j:]) if self.recording else None
         else:
             rows = sim.coll.rows(self.data, sim.joints, self.lin, witness=self.recording, coherence=self.coherence)
             near = rows.near
             idx, row_list, h_min, dist_min, jmin = near.rows, near.row_list, near.h_min, near.dist_min, rows.joint_min
-            jh = rows.h[len(row_list):]
-            lie = sim.coll.lie(rows, sim.joints) if self.uses_rows else None
+            values = TickValues(idx, near.h, near.witness, rows.h[len(row_list):]) if self.recording else None
+            lie = None
         self.dmin = self.monitor.tick_min(min(h_min, self._h_far_min), row_list, dist_min, idx)
         self.min_joint = min(self.min_joint, jmin)  # (jmin when smaller)
-        return near, jh, lie
+        return values, lie
 
     def nominal(self, t: float) -> np.ndarray:
         """The nominal command at the tick."""
@@ -362,15 +368,15 @@ class _Episode:
         """An empty block of ``capacity`` steps for this run's observers."""
         sim = self.sim
         return StepColumns(capacity, len(sim.scene.qpos_adr), sim.names, sim.coll.pairs.k, self.model.nmocap,
-                           sim.control_period)
+                           sim.control_period, sim.coll.h_far)
 
-    def write(self, block: StepColumns, t: float, step: Any, near: NearPairs, jh: np.ndarray) -> None:
+    def write(self, block: StepColumns, t: float, step: Any, values: TickValues) -> None:
         """Write the step just taken into the next row of ``block``."""
         sim, scene = self.sim, self.sim.scene
         nominal = sim.nominal
         gi = nominal.goal_index
         goal = nominal.goal_positions[gi] if isinstance(nominal, ReachingController) else None
-        block.write(t, step, self.data, self._qpos_sel, self._dof_sel, sim.coll.h_far, near, jh, self.dmin,
+        block.write(t, step, self.data, self._qpos_sel, self._dof_sel, values, self.dmin,
                     scene.ee_position(self.data), gi, goal)
 
     def finish(self, wall: float, timings: dict[str, float]) -> RunResult:

@@ -15,17 +15,37 @@ Shapes: ``n`` arm joints, ``k`` barriers (the collision pairs first, then the jo
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from .records import ArmStepRecord
 
-__all__ = ["StepColumns"]
+__all__ = ["StepColumns", "TickValues"]
+
+
+class TickValues(NamedTuple):
+    """The barrier values of one control tick that a step's record keeps (made fresh at every tick).
+
+    Attributes:
+        rows: Indices of the collision pairs within the cut-off, ascending, shape (j,) int64.
+        h: Their barrier values ``dist - margin``, shape (j,).
+        witness: Their witness points (on the robot geom, on the other) [m], shape (j, 2, 3), or ``None``.
+        joint_h: The joint-limit barrier values, shape (k - k_c,).
+
+    """
+
+    rows: np.ndarray
+    h: np.ndarray
+    witness: np.ndarray | None
+    joint_h: np.ndarray
 
 
 class StepColumns:
-    """A block of consecutive control steps, one row per step (arrays of capacity ``C``).
+    """A block of consecutive control steps, one row per step (capacity ``C``).
+
+    The loop calls :meth:`write` per step and :meth:`seal` before handing the block on; after
+    :meth:`seal` the attributes below hold the block's first ``len(block)`` rows.
 
     Attributes:
         t: Time at the start of each step [s], shape (C,).
@@ -35,6 +55,7 @@ class StepColumns:
         xi_min: Smallest ``Xi_on`` the filter saw (inf for ``nominal``), shape (C,).
         dist_min: Smallest true signed distance [m] over the step's physics steps, shape (C,).
         h: Every barrier value, shape (C, k) (pairs beyond the cut-off: ``cutoff - margin``).
+        h_min: Smallest barrier value of each row, shape (C,).
         ee_pos, goal_pos: End effector and goal pursued [m], shape (C, 3) (goal NaN without one).
         goal_index: Goal pursued, shape (C,) int.
         mocap_pos, mocap_quat: Mocap poses [m], (w, x, y, z), shape (C, m, 3) and (C, m, 4).
@@ -45,113 +66,139 @@ class StepColumns:
         names: Barrier names, length k.
         n_collision: ``k_c``.
 
+    Cost: a step's vectors that live in MuJoCo's data or may be reused by their owner (``q``,
+    ``qd``, ``u``, ``u_nom``, the end effector, the goal, mocap poses) are copied into their row;
+    its scalars go to lists, and the arrays the loop makes fresh at every step (``Xi_on``, the
+    near pairs' ``h``, indices and witness points, the joint rows' ``h``) are kept by reference.
+    :meth:`seal` turns lists and references into the block's arrays in one pass. A step inside a
+    control loop costs far more per NumPy call than the same call in a tight loop, so the
+    per-step part makes as few as it can.
+
     """
 
     def __init__(self, capacity: int, n: int, names: tuple[str, ...], n_collision: int, nmocap: int,
-                 dt: float) -> None:
+                 dt: float, h_far: np.ndarray | None = None) -> None:
         c, k = int(capacity), len(names)
         if c < 1:
             raise ValueError(f"capacity must be >= 1, got {capacity}")
         self.capacity, self.names, self.n_collision, self.dt = c, tuple(names), int(n_collision), float(dt)
+        self.h_far = (np.full(self.n_collision, np.inf) if h_far is None
+                      else np.asarray(h_far, dtype=float).reshape(self.n_collision))
         self.size = 0
-        self.t = np.zeros(c)
         self.q, self.qd, self.u, self.u_nom = (np.zeros((c, n)) for _ in range(4))
-        self.on, self.qp_solved, self.fallback = (np.zeros(c, dtype=bool) for _ in range(3))
-        self.xi_min, self.dist_min = np.zeros(c), np.zeros(c)
-        self.h = np.zeros((c, k))
         self.ee_pos, self.goal_pos = np.zeros((c, 3)), np.zeros((c, 3))
-        self.goal_index = np.zeros(c, dtype=np.int64)
         self.mocap_pos, self.mocap_quat = np.zeros((c, nmocap, 3)), np.zeros((c, nmocap, 4))
-        self.near: list[np.ndarray] = [np.zeros(0, dtype=np.int64)] * c
-        self.witness: list[np.ndarray] = [np.zeros((0, 2, 3))] * c
-        self.relaxed: list[tuple[str, ...]] = [()] * c
-        self.events: list[Any] = [None] * c
+        self._moving = nmocap > 0
+        self.t, self.on, self.qp_solved, self.fallback = np.zeros(c), *(np.zeros(c, dtype=bool) for _ in range(3))
+        self.xi_min, self.dist_min, self.h_min = np.zeros(c), np.zeros(c), np.zeros(c)
+        self.goal_index = np.zeros(c, dtype=np.int64)
+        self.h = np.zeros((c, k))
+        self._scalars: list[tuple[float, bool, bool, bool, float, int]] = []
+        self._xi: list[np.ndarray] = []
+        self._near_h: list[np.ndarray] = []
+        self._jh: list[np.ndarray] = []
+        self.near: list[np.ndarray] = []
+        self.witness: list[np.ndarray] = []
+        self.relaxed: list[tuple[str, ...]] = []
+        self.events: list[Any] = []
+        self.sealed = 0
 
     def __len__(self) -> int:
         return self.size
 
     @property
     def full(self) -> bool:
-        """Whether every row is written (the loop then hands the block on and clears it)."""
+        """Whether every row is written (the loop then seals it, hands it on and clears it)."""
         return self.size >= self.capacity
 
     def clear(self) -> None:
         """Start the next block (the arrays are reused: observers must not keep views past ``on_steps``)."""
-        self.size = 0
+        self.size = self.sealed = 0
+        for rows in (self._scalars, self._xi, self._near_h, self._jh, self.near, self.witness, self.relaxed,
+                     self.events):
+            rows.clear()
 
-    @property
-    def h_min(self) -> np.ndarray:
-        """Smallest barrier value of each row, shape (size,)."""
-        n = self.size
-        return self.h[:n].min(axis=1) if self.h.shape[1] else np.full(n, math.inf)
-
-    def write(self, t: float, step: Any, data: Any, qpos_adr: Any, dof_adr: Any, h_far: np.ndarray,
-              near: Any, jh: np.ndarray, dist_min: float, ee_pos: np.ndarray, goal_index: int,
-              goal_pos: np.ndarray | None) -> None:
+    def write(self, t: float, step: Any, data: Any, qpos_adr: Any, dof_adr: Any, values: TickValues,
+              dist_min: float, ee_pos: np.ndarray, goal_index: int, goal_pos: np.ndarray | None) -> None:
         """Write one control step into the next row.
 
         Args:
             t: Time at the start of the step [s].
-            step: The strategy's step (``u``, ``u_nom``, ``on``, ``xi_min``, ``qp``, ``fallback``,
+            step: The strategy's step (``u``, ``u_nom``, ``on``, ``xi``, ``qp``, ``fallback``,
                 ``relaxed``, ``event``).
             data: The MuJoCo data after the step.
             qpos_adr: Addresses of the arm's joints in ``qpos`` (a slice where they are consecutive).
             dof_adr: Addresses of the arm's joints in ``qvel`` (likewise).
-            h_far: Barrier value of each collision pair beyond the cut-off, shape (k_c,).
-            near: The pairs within the cut-off (``rows``, ``h``, ``witness``).
-            jh: Joint-limit barrier values, shape (k - k_c,).
+            values: The tick's barrier values (made for this step: kept by reference).
             dist_min: Smallest true signed distance over the step's physics steps [m].
             ee_pos: End-effector position [m], shape (3,).
             goal_index: Goal pursued.
             goal_pos: Its position [m], or ``None`` (no goal: NaN).
 
         """
-        i, nc = self.size, self.n_collision
-        self.t[i] = t
+        i = self.size
+        if i >= self.capacity:
+            raise IndexError(f"the block is full ({self.capacity} steps)")
         self.q[i] = data.qpos[qpos_adr]
         self.qd[i] = data.qvel[dof_adr]
         self.u[i] = step.u
         self.u_nom[i] = step.u_nom
-        self.on[i] = step.on
-        self.qp_solved[i] = step.qp is not None
-        self.fallback[i] = step.fallback
-        xi = step.xi
-        self.xi_min[i] = xi.min() if xi.size else math.inf
-        self.dist_min[i] = dist_min
-        row = self.h[i]
-        row[:nc] = h_far
-        rows = near.rows
-        if rows.size:
-            row[rows] = near.h
-        row[nc:] = jh
         self.ee_pos[i] = ee_pos
-        self.goal_index[i] = goal_index
-        if goal_pos is None:
-            self.goal_pos[i] = math.nan
-        else:
-            self.goal_pos[i] = goal_pos
-        if self.mocap_pos.shape[1]:
+        self.goal_pos[i] = math.nan if goal_pos is None else goal_pos
+        if self._moving:
             self.mocap_pos[i] = data.mocap_pos
             self.mocap_quat[i] = data.mocap_quat
-        self.near[i] = rows
-        self.witness[i] = near.witness if near.witness is not None else np.zeros((0, 2, 3))
-        self.relaxed[i] = tuple(step.relaxed)
-        self.events[i] = step.event
+        self._scalars.append((t, step.on, step.qp is not None, step.fallback, dist_min, goal_index))
+        self._xi.append(step.xi)
+        rows, h, w, jh = values
+        self._near_h.append(h)
+        self._jh.append(jh)
+        self.near.append(rows)
+        self.witness.append(w if w is not None else _NO_WITNESS)
+        self.relaxed.append(tuple(step.relaxed))
+        self.events.append(step.event)
         self.size = i + 1
 
+    def seal(self) -> None:
+        """Fill the block's arrays from the rows written since the last :meth:`seal` (or :meth:`clear`)."""
+        a, b = self.sealed, self.size
+        if b <= a:
+            return
+        t, on, qp, fallback, dist, goal = zip(*self._scalars[a:b])
+        self.t[a:b], self.on[a:b], self.qp_solved[a:b] = t, on, qp
+        self.fallback[a:b], self.dist_min[a:b], self.goal_index[a:b] = fallback, dist, goal
+        xi = self._xi[a:b]
+        sizes = np.fromiter((x.size for x in xi), dtype=np.int64, count=b - a)
+        mins = np.full(b - a, math.inf)
+        if sizes.any():
+            flat = np.concatenate(xi)
+            nz = np.flatnonzero(sizes)
+            mins[nz] = np.minimum.reduceat(flat, (np.cumsum(sizes) - sizes)[nz])
+        self.xi_min[a:b] = mins
+        nc = self.n_collision
+        h = self.h[a:b]
+        h[:, :nc] = self.h_far
+        for r, (rows, nh) in enumerate(zip(self.near[a:b], self._near_h[a:b])):
+            if rows.size:
+                h[r, rows] = nh
+        if h.shape[1] > nc:
+            h[:, nc:] = self._jh[a:b]
+        self.h_min[a:b] = h.min(axis=1) if h.shape[1] else math.inf
+        self.sealed = b
+
     def closest(self, i: int, m: int = 3) -> np.ndarray:
-        """Indices of the (up to) ``m`` collision pairs with the smallest ``h`` at row ``i``, closest first."""
+        """Indices of the (up to) ``m`` collision pairs with the smallest ``h`` at (sealed) row ``i``, closest first."""
         return np.argsort(self.h[i, :self.n_collision])[:m]
 
     def record(self, i: int) -> ArmStepRecord:
         """Row ``i`` as a step record (copies: the record owns its arrays)."""
         if not 0 <= i < self.size:
             raise IndexError(f"row {i} of a block of {self.size} step(s)")
+        self.seal()
         names = self.names
         return ArmStepRecord(
             t=float(self.t[i]), dt=self.dt, q=self.q[i].copy(), qd=self.qd[i].copy(), u=self.u[i].copy(),
-            u_nom=self.u_nom[i].copy(), on=bool(self.on[i]),
-            h_min=float(self.h[i].min()) if self.h.shape[1] else math.inf,
+            u_nom=self.u_nom[i].copy(), on=bool(self.on[i]), h_min=float(self.h_min[i]),
             xi_min=float(self.xi_min[i]), dist_min=float(self.dist_min[i]), qp_solved=bool(self.qp_solved[i]),
             h=self.h[i].copy(), names=names, closest=tuple(names[j] for j in self.closest(i).tolist()),
             witness=np.array(self.witness[i]), witness_names=tuple(names[j] for j in self.near[i].tolist()),
@@ -159,3 +206,7 @@ class StepColumns:
             ee_pos=self.ee_pos[i].copy(), goal_index=int(self.goal_index[i]), goal_pos=self.goal_pos[i].copy(),
             event=self.events[i], fallback=bool(self.fallback[i]), relaxed=self.relaxed[i],
         )
+
+
+_NO_WITNESS = np.zeros((0, 2, 3))
+_NO_WITNESS.flags.writeable = False
