@@ -300,7 +300,8 @@ def main() -> None:
     args = p.parse_args()
     reps = 1 if args.quick else args.repeats
     short = 5.0 if args.quick else 60.0
-    cases = ["arm:panda_pole:isf:10", f"arm:panda_pole:isf:{short:g}", f"arm:panda_pole:cbf:{short:g}", f"arm:panda_pole:nominal:{short:g}",
+    cases = ["arm:panda_pole:isf:10", f"arm:panda_pole:isf:{short:g}", f"arm:panda_pole:cbf:{short:g}",
+             f"arm:panda_pole:nominal:{short:g}",
              f"arm:planar_moving:isf:{short:g}"]
     long_cases = [] if args.no_long else [f"arm:panda_moving:isf:{60.0 if args.quick else 600.0:g}",
                                           f"satellite:greedy:{240.0 if args.quick else 2400.0:g}"]

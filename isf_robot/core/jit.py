@@ -17,7 +17,8 @@ import sys
 import tempfile
 from typing import Any, TextIO
 
-__all__ = ["JIT_ENV", "NOTICE_ENV", "jit_enabled", "announce_compiles", "watch_compiles", "end_notice", "COMPILE_NOTICE"]
+__all__ = ["JIT_ENV", "NOTICE_ENV", "COMPILE_NOTICE", "jit_enabled", "announce_compiles", "watch_compiles",
+           "end_notice"]
 
 JIT_ENV = "ISF_ROBOT_JIT"
 """Environment variable: ``0`` (or ``false``, ``no``, ``off``) turns the compiled kernels off."""
