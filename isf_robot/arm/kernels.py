@@ -1,4 +1,4 @@
-"""Compiled kernels of the arm's control step (optional: needs ``numba``, the ``fast`` extra).
+"""Compiled kernels of the arm's control step (needs ``numba``, a dependency; without it the numpy paths run).
 
 Why: a control step evaluates about ten collision pairs. Each pair is one ``mj_geomDistance``
 and one ``mj_jac`` (a fraction of a microsecond in C), but from Python each call, and each small
@@ -45,6 +45,8 @@ from typing import Any
 
 import mujoco
 
+from isf_robot.core.jit import jit_enabled
+
 __all__ = ["available", "monitor_kernel", "near_kernel", "step_kernels"]
 
 _STATE: dict[str, Any] = {}
@@ -62,7 +64,7 @@ def _library() -> str | None:
 
 def _build() -> dict[str, Callable[..., Any]] | None:
     """Compile (or load from the cache) the kernels; ``None`` when numba or libmujoco is missing."""
-    if os.environ.get("ISF_ROBOT_JIT", "1").strip().lower() in ("0", "false", "no", "off"):
+    if not jit_enabled():
         return None
     try:
         from . import _kernels_jit as kj

@@ -1,4 +1,4 @@
-"""The filter step's compiled kernel (optional: needs ``numba``, the ``fast`` extra).
+"""The filter step's compiled kernel (needs ``numba``, a dependency; without it the numpy paths run).
 
 Why: the robust slack ``Xi_on`` of every row (:func:`~isf_robot.core.triggers.xi_on`), its sum
 (the finiteness check), its minimum and where it is, and the screening count, are about ten
@@ -28,6 +28,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .class_k import ClassK, Linear
+from .jit import jit_enabled
 from .system import LieData
 
 __all__ = ["xi_kernel", "few_kernels", "step_kernels", "StepKernels", "screen_array", "xi_pass", "NO_SCREEN"]
@@ -41,7 +42,7 @@ _NO_ROWS = np.zeros(0, np.intp)  # the kernel's "no screening: no rows to write"
 
 
 def _off() -> bool:
-    return os.environ.get("ISF_ROBOT_JIT", "1").strip().lower() in ("0", "false", "no", "off")
+    return not jit_enabled()
 
 
 def _build() -> Callable[..., Any] | None:
