@@ -110,7 +110,8 @@ def report(times: dict[str, list[float]], suite: tuple[float, str] | None, load0
         "| command | cold cache [s] | warm cache [s] | without kernels (`ISF_ROBOT_JIT=0`) [s] |",
         "|---|---|---|---|",
         f"| `isf-robot demo` | {med('demo cold')} | {med('demo warm')} | {med('demo plain')} |",
-        f"| `isf-robot run --scene panda_pole --filter isf --duration 10` | {med('run cold')} | {med('run warm')} | - |",
+        f"| `isf-robot run --scene panda_pole --filter isf --duration 10` | {med('run cold')} | {med('run warm')} "
+        "| - |",
         "",
         f"The compile notice was printed by {int(sum(times['demo cold notice']) + sum(times['run cold notice']))} "
         f"of {len(times['demo cold']) + len(times['run cold'])} cold runs and by none of the warm ones.",
