@@ -36,9 +36,9 @@ def test_a_table_file_of_another_body_loads_without_an_exact_field(tmp_path) -> 
         load_field(str(tmp_path / "missing.npz"))
 
 
-def test_committed_table_is_within_one_percent_of_the_exact_field(itokawa_obj) -> None:  # type: ignore[no-untyped-def]
+def test_committed_table_is_within_one_percent_of_the_exact_field() -> None:
     """Random band points outside the body, half of them near the long axis where the surface reaches in."""
-    exact = exact_itokawa(itokawa_obj)
+    exact = exact_itokawa()  # the shipped shape
     table = load_field("table")
     rng = np.random.default_rng(7)
     u = rng.normal(size=(60, 3))
@@ -59,11 +59,11 @@ def test_committed_table_is_within_one_percent_of_the_exact_field(itokawa_obj) -
     assert err8.max() > 0.05
 
 
-def test_committed_table_is_within_one_percent_of_the_exact_field_near_the_surface(itokawa_obj) -> None:  # type: ignore[no-untyped-def]
+def test_committed_table_is_within_one_percent_of_the_exact_field_near_the_surface() -> None:
     """Points outside the body within 10 m of the long-axis tips (where the fine boxes answer), some within 1 m."""
     from satellite.closest import ClosestPoints
 
-    exact = exact_itokawa(itokawa_obj)
+    exact = exact_itokawa()  # the shipped shape
     table = load_field("table")
     v = exact.field.vertices
     tips = v[np.linalg.norm(v, axis=1) > 1.7 * table.r_ref_m]
