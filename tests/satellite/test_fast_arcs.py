@@ -146,11 +146,17 @@ def test_a_dip_between_step_points_is_found(setup) -> None:  # type: ignore[no-u
     assert got.scan_points > 0
 
 
-def test_arcs_outside_the_table_fall_back(setup) -> None:  # type: ignore[no-untyped-def]
+def test_arcs_outside_the_table_stay_compiled(setup) -> None:  # type: ignore[no-untyped-def]
     model, trig, watch, fast = setup
     y0 = _state(model, 2.35, 1.3, 0.2)  # leaves the band outward, then the table's radii
     evs = _events(trig, watch)[1:]
-    assert fast.integrate(0.0, 20 * 3600.0, y0, evs, dense=True, scan=True, **KW) is None
+    t1 = 3 * 3600.0
+    got = fast.integrate(0.0, t1, y0, evs, dense=True, scan=True, **KW)
+    ref = integrate(model.truth_rhs, 0.0, t1, y0, evs, dense=True, **KW)  # the same continuation, in Python
+    assert got is not None and got.status == ref.status == 0
+    assert np.linalg.norm(got.y[:3], axis=0).max() > 1.2 * model.field.grid.r_hi  # beyond the end nodes
+    tt = np.linspace(0.0, t1, 31)
+    assert (np.abs(got.sol(tt) - ref.sol(tt))[:3] <= 1e-5).all()
     assert fast.integrate(5.0, 5.0, y0, evs, dense=True, scan=True, **KW) is None  # empty arc: Python's rules
     uncoded = [event(trig.h, False, -1.0)]
     assert fast.integrate(0.0, 100.0, y0, uncoded, dense=True, scan=True, **KW) is None
@@ -226,10 +232,12 @@ def test_alpha_x100_run_is_fast_and_counts_as_with_the_exact_field() -> None:
     init = InitialOrbit(seed=0)
     simulate("greedy", 0.5, initial=init, model=OrbitModel(table))  # compiled once (numba's cache), not timed
     t0 = time.perf_counter()
-    fast = simulate("greedy", 24.0, initial=init, model=OrbitModel(table), control=ControlParams(alpha_gain=gain))
+    fast = simulate("greedy", 24.0, initial=init, model=OrbitModel(table), control=ControlParams(alpha_gain=gain),
+                    contact="count")
     wall = time.perf_counter() - t0
     ref_field = _ExactOutside(table)
-    ref = simulate("greedy", 24.0, initial=init, model=OrbitModel(ref_field), control=ControlParams(alpha_gain=gain))
+    ref = simulate("greedy", 24.0, initial=init, model=OrbitModel(ref_field), control=ControlParams(alpha_gain=gain),
+                   contact="count")
     assert ref_field.outside > 0  # the run's stage points did leave the radii
     a, b = fast.summary(), ref.summary()
     assert a["triggers"] == b["triggers"] > 3 and a["kinds"] == b["kinds"]
