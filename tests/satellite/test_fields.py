@@ -84,3 +84,23 @@ def test_committed_table_is_within_one_percent_of_the_exact_field_near_the_surfa
     shell = GravityTable(table.grid, table.values, table.r_ref_m, table.gm)  # the shell spline alone fails here
     err_shell = np.linalg.norm(shell.acceleration_batch(p) - a, axis=1) / nonkep
     assert err_shell.max() > 0.03
+
+
+def test_polyhedron_with_a_users_shape(helpers, tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """``--gravity polyhedron --shape FILE``: the exact field of that file (GM and R of the Itokawa series)."""
+    import json
+
+    from satellite.cli import main
+
+    v, f = helpers.box_mesh(200.0, 150.0, 120.0)
+    path = helpers.write_obj(tmp_path / "box.obj", v, f)
+    field = load_field("polyhedron", shape=path, units="m")
+    assert field.field.faces.shape == (12, 3) and field.gm == load_field("sh8").gm
+    assert load_field("polyhedron").field.faces.shape == (49152, 3)  # without --shape: the shipped shape
+    p = np.array([[400.0, 0.0, 0.0]])
+    assert not np.allclose(field.acceleration_batch(p), load_field("polyhedron").acceleration_batch(p), rtol=1e-3)
+    code = main(["run", "--gravity", "polyhedron", "--shape", str(path), "--shape-units", "m", "--hours", "0.05",
+                 "--contact", "off", "--json", "--quiet"])
+    assert code == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["simulated_h"] == pytest.approx(0.05) and out["settings"]["gravity_model"] == "polyhedron"
