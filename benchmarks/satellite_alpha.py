@@ -84,7 +84,7 @@ def bench(repeats: int, hours: float) -> str:
         "| median wall | median CPU | all repeats wall/CPU [s] | result |",
         "|---|---|---|---|---|---|",
     ]
-    for scale, args, walls, cpus, res in rows:
+    for scale, _, walls, cpus, res in rows:
         lines.append(
             f"| x{scale} | G = {scale * base:.4g} 1/s | **{statistics.median(walls):.2f} s** | "
             f"**{statistics.median(cpus):.2f} s** | {', '.join(f'{w:.1f}/{c:.1f}' for w, c in zip(walls, cpus))} | "

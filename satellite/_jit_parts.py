@@ -11,8 +11,8 @@ arguments. Module-level functions, so numba's cache (``__pycache__``) serves lat
 Packed parameters (float arrays, filled by :mod:`satellite.fast_arcs`):
 
 * ``fp`` (field): body phase, spin rate, disturbance scale, GM, r_lo, 1/dr, 1/dang, r_in,
-  r_out, n_r, r_hi, number of boxes; ``ext`` the table's padded coefficients; per box ``box_o`` its corner and 1/step, ``box_n``
-  its node counts, ``coef[b]`` its coefficients (a typed list of flat C-order arrays).
+  r_out, n_r, r_hi, number of boxes; ``ext`` the table's padded coefficients; per box ``box_o``
+  its corner and 1/step, ``box_n`` its node counts, ``coef[b]`` its coefficients (a typed list of flat C-order arrays).
 * ``bp`` (band): r_centre, h_max, d_bar, accel bound A, r_inner, r_outer, half width,
   alpha gain, alpha slope bound.
 * ``cp`` (contact): body phase, spin rate, cell size, n_lat, n_lon, max radius, min radius,

@@ -216,7 +216,8 @@ def run(args: argparse.Namespace) -> int:
     surface = shape = None
     if (args.shape and not args.surface_check and args.contact == "off" and not args.surface_barrier
             and args.gravity != "polyhedron"):
-        raise ConfigError("--shape needs --surface-check, --contact count|stop, --surface-barrier or --gravity polyhedron")
+        raise ConfigError("--shape needs --surface-check, --contact count|stop, --surface-barrier or "
+                          "--gravity polyhedron")
     if args.surface_check and not (math.isfinite(args.surface_step) and args.surface_step > 0):
         raise ConfigError(f"--surface-step must be a positive number of seconds, got {args.surface_step:g}")
     if not args.surface_barrier and (args.surface_clearance != 0.0 or args.surface_c is not None):
@@ -247,7 +248,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--min-interval must be a number of seconds >= 0, got {args.min_interval:g}")
     if args.period_h is not None and not (math.isfinite(args.period_h) and args.period_h > 0):
         raise ConfigError(f"--period-h must be a positive number of hours, got {args.period_h:g}")
-    model = OrbitModel(load_field(args.gravity, args.shape, args.shape_units), spin=not args.no_spin, disturbance_scale=args.disturbance_scale)
+    model = OrbitModel(load_field(args.gravity, args.shape, args.shape_units), spin=not args.no_spin,
+                       disturbance_scale=args.disturbance_scale)
     initial = InitialOrbit(radius_over_R=args.radius, inclination_deg=args.inclination, seed=args.seed)
     control = control_from_args(args)
     from satellite.controller import resolve_control

@@ -1,4 +1,4 @@
-"""The default shape as shipped, and start-up caches: the checked mesh and the exact field at the contact watch's samples.
+"""The default shape as shipped, and start-up caches: its checked mesh, the exact field at the contact samples.
 
 The default shape of every run is the Gaskell Itokawa model (``itokawa_low.obj``, 49,152 faces,
 24,578 vertices; provenance in the gravity table's meta, ``GravityTable.load(...).provenance``),
@@ -76,7 +76,8 @@ def _shipped() -> tuple[Any, str, str]:
                 f = np.array(data["faces"], dtype=np.intp)
                 sha, units = str(data["sha256"]), str(data["units"])
         except (OSError, KeyError, ValueError) as exc:
-            raise MeshError(f"the shipped shape {MESH_FILE} is missing or unreadable ({exc}); reinstall isf-robot")
+            raise MeshError(f"the shipped shape {MESH_FILE} is missing or unreadable ({exc}); "
+                            "reinstall isf-robot") from None
         v.setflags(write=False)
         f.setflags(write=False)
         got = _MEMO[_SHIPPED] = (TriangleMesh(v, f), sha, units)
@@ -99,7 +100,7 @@ def shipped_sha256() -> str:
 
 
 def lookup(path: str | Path, units: str) -> Any:
-    """The mesh of an OBJ file read before in this process, or the shipped mesh for the same file; ``None`` otherwise."""
+    """The mesh of an OBJ file read before in this process, or the shipped mesh for the same file, else ``None``."""
     p = Path(path)
     try:
         key = (*_stat_key(p), units)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from satellite.errors import GravityModelError
 from satellite import gravity_table
+from satellite.errors import GravityModelError
 from satellite.gravity_table import GravityTable, TableGrid, bspline3, build_table, dbspline3, shell_continued
 from satellite.polyhedron import PolyhedronField
 
