@@ -5,7 +5,8 @@
   corrected within 35 m of the surface by fine Cartesian B-spline boxes (4 m nodes,
   :mod:`satellite.gravity_fine`, built from exact sums of the nearby faces,
   :mod:`satellite.gravity_near`); committed as ``satellite/data/itokawa_polyhedron_table.npz``
-  (derived from the shape file, shipped as its checked mesh; provenance inside: ``GravityTable.load(...).provenance``).
+  (derived from the shape file, which ships as its checked mesh; provenance inside:
+  ``GravityTable.load(...).provenance``).
   Valid everywhere in the band; its measured error is in REPRODUCTION.md. Outside the table's
   radii (1.5625 R .. 2.4375 R: only DOP853's stage and trial points, or a trajectory past a
   reported band exit) its shell part is continued radially

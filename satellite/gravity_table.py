@@ -13,13 +13,12 @@ Catmull-Rom) made DOP853 at rtol 1e-10 take 6x more steps than the degree-8 seri
 derivative jumping at every cell face; with the B-spline it takes about 1.2x. The Kepler part is added
 back exactly. Outside ``[r_lo + dr, r_hi - dr]`` (the table's radii) the shell part is the same
 spline out to the end nodes and continued radially beyond them (:func:`shell_continued`, value- and
-slope-matched), then the fine boxes and Kepler as inside. The interpolant is continuous except exactly at the
-poles, where its value depends on the
-longitude of approach by at most about twice the interpolation error. Within a few tens of metres
-of the surface the shell's cells are too coarse: fine Cartesian B-spline boxes correct it there
-(:mod:`satellite.gravity_fine`, also C2), built from the exact near-surface tile sums of
-:mod:`satellite.gravity_near` (which the table applies itself, at 0.2-0.7 ms a call, only when it
-has no boxes).
+slope-matched), then the fine boxes and Kepler as inside. The interpolant is continuous except
+exactly at the poles, where its value depends on the longitude of approach by at most about twice
+the interpolation error. Within a few tens of metres of the surface the shell's cells are too
+coarse: fine Cartesian B-spline boxes correct it there (:mod:`satellite.gravity_fine`, also C2),
+built from the exact near-surface tile sums of :mod:`satellite.gravity_near` (which the table
+applies itself, at 0.2-0.7 ms a call, only when it has no boxes).
 
 The grid is generated once (the polyhedron costs a few ms per node: about 23 min for the default
 grid on 2 cores) by ``isf-satellite gravity --table`` and written as ``.npz`` with its provenance;
