@@ -16,9 +16,8 @@ control's constants (safety 0.9, factors 0.2..10, error exponent -1/8) are the o
 ``DOP853`` uses, so that both paths take the same steps; the loops here are written for this project.
 
 :func:`arc` returns a status: 0 reached the end, 1 stopped by a terminal event, -1 the step
-size underflowed (at the time returned in ``out_t``), -2 a right-hand side outside the table's
-radii at a point not in ``xc`` (written to ``xc[0]``: the caller adds its exact acceleration and runs
-the arc again), -3 a scan overflowed its fixed buffers (the caller integrates the arc in Python).
+size underflowed (at the time returned in ``out_t``), -3 a scan overflowed its fixed buffers (the
+caller integrates the arc in Python).
 """
 
 from __future__ import annotations
@@ -57,12 +56,11 @@ def _stage(K, s, A, h, y, out):  # pragma: no cover (compiled)
 
 
 @njit(cache=True, nogil=True)
-def _dense(K, A, C, D, t_old, h, y_old, y_new, f_new, F, tmp, fp, ext, box_o, box_n, coef, xc):  # pragma: no cover
-    """The step's interpolant coefficients ``F`` (7, 6) (3 extra evaluations); False outside the table."""
+def _dense(K, A, C, D, t_old, h, y_old, y_new, f_new, F, tmp, fp, ext, box_o, box_n, coef):  # pragma: no cover
+    """The step's interpolant coefficients ``F`` (7, 6) (3 extra evaluations)."""
     for s in range(13, 16):
         _stage(K, s, A, h, y_old, tmp)
-        if not rhs(t_old + C[s] * h, tmp, K[s], fp, ext, box_o, box_n, coef, xc):
-            return False
+        rhs(t_old + C[s] * h, tmp, K[s], fp, ext, box_o, box_n, coef)
     for c in range(6):
         dy = y_new[c] - y_old[c]
         F[0, c] = dy
@@ -73,7 +71,6 @@ def _dense(K, A, C, D, t_old, h, y_old, y_new, f_new, F, tmp, fp, ext, box_o, bo
             for m in range(16):
                 acc += D[r, m] * K[m, c]
             F[3 + r, c] = h * acc
-    return True
 
 
 @njit(cache=True, nogil=True)
@@ -165,7 +162,7 @@ def _scan(kind, par, dirn, has_rate, first_only, a, b, ga, gb, ya, yb, h, F, min
 
 @njit(cache=True, nogil=True)
 def arc(t0, t1, y0, rtol, atol, max_step, min_dt, keep_dense, kinds, pars, dirs, terms, rated,
-        fp, ext, box_o, box_n, coef, xc, bp, cp, env, tp, A, B, C, E3, E5, D):  # pragma: no cover (compiled)
+        fp, ext, box_o, box_n, coef, bp, cp, env, tp, A, B, C, E3, E5, D):  # pragma: no cover (compiled)
     """Integrate one arc (see the module docstring).
 
     Returns ``(status, out_t, ts, ys, hs, Fs, ev_t, ev_i, ev_y, nfev, scan_points)``: step points
@@ -195,8 +192,7 @@ def arc(t0, t1, y0, rtol, atol, max_step, min_dt, keep_dense, kinds, pars, dirs,
     nfev = 0
     scan = 0
     empty = (np.empty(0), np.empty(0), np.empty((0, 6)), np.empty(0), np.empty((0, 7, 6)))
-    if not rhs(t0, y, f, fp, ext, box_o, box_n, coef, xc):
-        return -2, t0, empty[0], empty[2], empty[0], empty[4], empty[0], empty[1], empty[2], nfev, scan
+    rhs(t0, y, f, fp, ext, box_o, box_n, coef)
     nfev += 1
     # initial step (scipy's select_initial_step, error estimator order 7)
     interval = abs(t1 - t0)
@@ -208,8 +204,7 @@ def arc(t0, t1, y0, rtol, atol, max_step, min_dt, keep_dense, kinds, pars, dirs,
     h0 = min(h0, interval)
     for c in range(6):
         tmp[c] = y[c] + h0 * f[c]
-    if not rhs(t0 + h0, tmp, f_new, fp, ext, box_o, box_n, coef, xc):
-        return -2, t0, empty[0], empty[2], empty[0], empty[4], empty[0], empty[1], empty[2], nfev, scan
+    rhs(t0 + h0, tmp, f_new, fp, ext, box_o, box_n, coef)
     nfev += 1
     for c in range(6):
         err[c] = f_new[c] - f[c]
@@ -251,16 +246,14 @@ def arc(t0, t1, y0, rtol, atol, max_step, min_dt, keep_dense, kinds, pars, dirs,
             K[0] = f
             for s in range(1, 12):
                 _stage(K, s, A, h, y, tmp)
-                if not rhs(t + C[s] * h, tmp, K[s], fp, ext, box_o, box_n, coef, xc):
-                    return -2, t, empty[0], empty[2], empty[0], empty[4], empty[0], empty[1], empty[2], nfev, scan
+                rhs(t + C[s] * h, tmp, K[s], fp, ext, box_o, box_n, coef)
             nfev += 11
             for c in range(6):
                 acc = 0.0
                 for m in range(12):
                     acc += K[m, c] * B[m]
                 y_new[c] = y[c] + h * acc
-            if not rhs(t + h, y_new, f_new, fp, ext, box_o, box_n, coef, xc):
-                return -2, t, empty[0], empty[2], empty[0], empty[4], empty[0], empty[1], empty[2], nfev, scan
+            rhs(t + h, y_new, f_new, fp, ext, box_o, box_n, coef)
             nfev += 1
             K[12] = f_new
             e5 = 0.0
@@ -298,8 +291,7 @@ def arc(t0, t1, y0, rtol, atol, max_step, min_dt, keep_dense, kinds, pars, dirs,
         finished = t_new - t1 >= 0
         have_F = False
         if keep_dense:
-            if not _dense(K, A, C, D, t_old, h, y, y_new, f_new, F, tmp, fp, ext, box_o, box_n, coef, xc):
-                return -2, t, empty[0], empty[2], empty[0], empty[4], empty[0], empty[1], empty[2], nfev, scan
+            _dense(K, A, C, D, t_old, h, y, y_new, f_new, F, tmp, fp, ext, box_o, box_n, coef)
             nfev += 3
             have_F = True
         # -- the scan (satellite.events.integrate) ------------------------------------------
@@ -314,8 +306,7 @@ def arc(t0, t1, y0, rtol, atol, max_step, min_dt, keep_dense, kinds, pars, dirs,
                 if not needs:
                     continue
                 if not have_F:
-                    if not _dense(K, A, C, D, t_old, h, y, y_new, f_new, F, tmp, fp, ext, box_o, box_n, coef, xc):
-                        return -2, t, empty[0], empty[2], empty[0], empty[4], empty[0], empty[1], empty[2], nfev, scan
+                    _dense(K, A, C, D, t_old, h, y, y_new, f_new, F, tmp, fp, ext, box_o, box_n, coef)
                     nfev += 3
                     have_F = True
                 nb, ev = _scan(kinds[e], pars[e], dirs[e], rated[e], terms[e], t_old, t_new, g[e], g_new[e], y,

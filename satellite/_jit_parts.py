@@ -11,8 +11,8 @@ arguments. Module-level functions, so numba's cache (``__pycache__``) serves lat
 Packed parameters (float arrays, filled by :mod:`satellite.fast_arcs`):
 
 * ``fp`` (field): body phase, spin rate, disturbance scale, GM, r_lo, 1/dr, 1/dang, r_in,
-  r_out, n_r, (unused), number of boxes; per box ``box_o`` its corner and 1/step, ``box_n``
-  its node counts, ``coef[b]`` its coefficients (a typed list of flat C-order arrays).
+  r_out, n_r, r_hi, number of boxes; ``ext`` the table's padded coefficients; per box ``box_o``
+  its corner and 1/step, ``box_n`` its node counts, ``coef[b]`` its coefficients (a typed list of flat C-order arrays).
 * ``bp`` (band): r_centre, h_max, d_bar, accel bound A, r_inner, r_outer, half width,
   alpha gain, alpha slope bound.
 * ``cp`` (contact): body phase, spin rate, cell size, n_lat, n_lon, max radius, min radius,
@@ -27,6 +27,14 @@ import math
 
 import numpy as np
 from numba import njit
+from numba.extending import register_jitable
+
+from satellite.gravity_table import bspline3, dbspline3, shell_continued
+
+# the table's continuation beyond its radii: the plain functions of satellite.gravity_table, compiled here
+# (numba's cache keys rhs on this file only: after editing them, clear satellite/__pycache__/*.nb*)
+for _plain in (bspline3, dbspline3, shell_continued):
+    register_jitable(_plain)
 
 from isf_robot.core.jit import watch_compiles
 
@@ -47,12 +55,12 @@ def _w(t):  # pragma: no cover (compiled)
 
 
 @njit(cache=True, nogil=True)
-def rhs(t, y, out, fp, ext, box_o, box_n, coef, xc):  # pragma: no cover (compiled)
+def rhs(t, y, out, fp, ext, box_o, box_n, coef):  # pragma: no cover (compiled)
     """Truth flow at ``(t, y)`` into ``out``.
 
-    Outside the table's radii the field is the exact one: looked up in ``xc`` (rows 1.. hold body-frame
-    points and their exact accelerations, filled by the caller); a point not there is written to row 0
-    and False is returned (the caller evaluates it and runs the arc again, which retraces the same points).
+    Within the table's radii the table (:func:`_table`); outside them the table's radial continuation
+    (:func:`satellite.gravity_table.shell_continued`, the same function as the Python path's), the fine
+    boxes and Kepler.
     """
     px, py, pz = y[0], y[1], y[2]
     th = fp[0] + fp[1] * t
@@ -66,15 +74,15 @@ def rhs(t, y, out, fp, ext, box_o, box_n, coef, xc):  # pragma: no cover (compil
     if fp[7] <= r <= fp[8]:
         bx, by, bz = _table(x, yy, z, r2, r, fp, ext, box_o, box_n, coef)
     else:
-        hit = -1
-        for q in range(1, xc.shape[0]):
-            if xc[q, 0] == x and xc[q, 1] == yy and xc[q, 2] == z:
-                hit = q
-                break
-        if hit < 0:
-            xc[0, 0], xc[0, 1], xc[0, 2] = x, yy, z
-            return False
-        bx, by, bz = xc[hit, 3], xc[hit, 4], xc[hit, 5]
+        ax, ay, az = shell_continued(x, yy, z, ext, fp[4], fp[10], fp[5], fp[6], int(fp[9]))
+        fx, fy, fz = _boxes(x, yy, z, fp, box_o, box_n, coef)
+        ax += fx
+        ay += fy
+        az += fz
+        kep = -fp[3] / (r2 * r)
+        bx = ax + kep * x
+        by = ay + kep * yy
+        bz = az + kep * z
     kd = fp[2]
     if kd != 1.0:
         pr2 = px * px + py * py + pz * pz
@@ -86,7 +94,6 @@ def rhs(t, y, out, fp, ext, box_o, box_n, coef, xc):  # pragma: no cover (compil
     out[3] = c * bx - s * by
     out[4] = s * bx + c * by
     out[5] = bz
-    return True
 
 
 @njit(cache=True, nogil=True)
@@ -118,6 +125,20 @@ def _table(x, yy, z, r2, r, fp, ext, box_o, box_n, coef):  # pragma: no cover (c
         ax += wc[cc] * sx
         ay += wc[cc] * sy
         az += wc[cc] * sz
+    fx, fy, fz = _boxes(x, yy, z, fp, box_o, box_n, coef)
+    ax += fx
+    ay += fy
+    az += fz
+    kep = -fp[3] / (r2 * r)
+    bx = ax + kep * x
+    by = ay + kep * yy
+    bz = az + kep * z
+    return bx, by, bz
+
+
+@njit(cache=True, nogil=True)
+def _boxes(x, yy, z, fp, box_o, box_n, coef):  # pragma: no cover (compiled)
+    """The fine boxes' correction (the sum over the boxes holding the point; zeros outside them)."""
     fx = 0.0
     fy = 0.0
     fz = 0.0
@@ -154,14 +175,7 @@ def _table(x, yy, z, r2, r, fp, ext, box_o, box_n, coef):  # pragma: no cover (c
         fx += gx
         fy += gy
         fz += gz
-    ax += fx
-    ay += fy
-    az += fz
-    kep = -fp[3] / (r2 * r)
-    bx = ax + kep * x
-    by = ay + kep * yy
-    bz = az + kep * z
-    return bx, by, bz
+    return fx, fy, fz
 
 
 @njit(cache=True, nogil=True)

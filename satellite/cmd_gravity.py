@@ -141,7 +141,8 @@ def run(args: argparse.Namespace) -> int:
     """Execute ``isf-satellite gravity`` with parsed arguments; return the exit status."""
     shape = Path(args.shape)
     if not shape.is_file():
-        raise FileNotFoundError(f"shape file not found: {shape}")
+        raise FileNotFoundError(f"shape file not found: {shape} (--shape takes an OBJ triangle mesh, e.g. Gaskell's "
+                                "itokawa_low.obj)")
     if not args.mass > 0.0 or args.mass == float("inf"):
         raise GravityModelError(f"--mass must be a positive number of kg, got {args.mass:g}")
     if args.table:

@@ -152,8 +152,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--no-event-scan", action="store_true",
                    help="see events at integrator step points only (solve_ivp's rule; can miss crossings)")
     p.add_argument("--shape", metavar="PATH.obj",
-                   help="shape file for --contact and --surface-check (default ../shared/data/itokawa/itokawa_low.obj "
-                        "next to the repository if present, else the 535 x 294 x 209 m ellipsoid)")
+                   help="shape file for --contact, --surface-check, --surface-barrier and --gravity polyhedron "
+                        "(default: the shipped Gaskell Itokawa mesh, itokawa_low.obj)")
     p.add_argument("--shape-units", choices=("km", "m"), default="km", help="length unit of --shape (default km)")
     p.add_argument("--surface-step", type=float, default=10.0, metavar="S",
                    help="sampling interval of --surface-check in seconds (default 10)")
@@ -214,8 +214,10 @@ def run(args: argparse.Namespace) -> int:
     if not math.isfinite(args.hours) or args.hours <= 0:
         raise ConfigError(f"--hours must be a finite number > 0, got {args.hours:g}")
     surface = shape = None
-    if args.shape and not args.surface_check and args.contact == "off" and not args.surface_barrier:
-        raise ConfigError("--shape needs --surface-check or --contact count|stop")
+    if (args.shape and not args.surface_check and args.contact == "off" and not args.surface_barrier
+            and args.gravity != "polyhedron"):
+        raise ConfigError("--shape needs --surface-check, --contact count|stop, --surface-barrier or "
+                          "--gravity polyhedron")
     if args.surface_check and not (math.isfinite(args.surface_step) and args.surface_step > 0):
         raise ConfigError(f"--surface-step must be a positive number of seconds, got {args.surface_step:g}")
     if not args.surface_barrier and (args.surface_clearance != 0.0 or args.surface_c is not None):
@@ -246,7 +248,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--min-interval must be a number of seconds >= 0, got {args.min_interval:g}")
     if args.period_h is not None and not (math.isfinite(args.period_h) and args.period_h > 0):
         raise ConfigError(f"--period-h must be a positive number of hours, got {args.period_h:g}")
-    model = OrbitModel(load_field(args.gravity), spin=not args.no_spin, disturbance_scale=args.disturbance_scale)
+    model = OrbitModel(load_field(args.gravity, args.shape, args.shape_units), spin=not args.no_spin,
+                       disturbance_scale=args.disturbance_scale)
     initial = InitialOrbit(radius_over_R=args.radius, inclination_deg=args.inclination, seed=args.seed)
     control = control_from_args(args)
     from satellite.controller import resolve_control

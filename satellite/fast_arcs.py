@@ -14,12 +14,11 @@ diverges from it as from any other rounding). The kernel's order is the same on 
 
 It is used when every event of an arc has a compiled form (:attr:`satellite.events.Event.code`)
 and the field is a :class:`~satellite.gravity_table.GravityTable` whose near-surface correction is
-its fine boxes (or none); otherwise the arc is integrated in Python. Where the table falls back to
-the exact field (outside its radii: DOP853's stage points of a step near the band's edges, an orbit
-leaving the band), the compiled arc stops at the first such point, the exact field is evaluated
-there in Python, and the arc is run again with it (the same steps retrace the same points); an arc
-with more than :data:`_MAX_EXACT` such points goes to the Python path. Without numba, or with
-``ISF_ROBOT_JIT=0`` in the environment, everything runs in Python.
+its fine boxes (or none); otherwise the arc is integrated in Python. Outside the table's radii
+(DOP853's stage and trial points of a step near the band's edges, an orbit past a band exit) both
+paths use the table's radial continuation, one function compiled here
+(:func:`satellite.gravity_table.shell_continued`), so an arc never leaves the compiled call for the
+exact field. Without numba, or with ``ISF_ROBOT_JIT=0`` in the environment, everything runs in Python.
 
 Ctrl-C and SIGTERM are held while numba compiles or runs (:func:`signals_deferred`) and act as soon as
 the call returns: a ``KeyboardInterrupt`` raised inside numba (its compiler's ctypes callbacks, the
@@ -46,10 +45,6 @@ __all__ = ["FastArcs", "FastDense", "jit_enabled", "signals_deferred", "XI", "H"
 
 XI, H, RDOT, CONTACT, XITAU = 0, 1, 2, 3, 4
 """Event kinds (:attr:`satellite.events.Event.code`'s first item; as in :mod:`satellite._jit_parts`)."""
-
-_MAX_EXACT = 48
-"""Points outside the table's radii an arc may visit before it is handed to the Python path (each costs
-one exact evaluation, ~10 ms, and a rerun of the compiled arc, which retraces the same points)."""
 
 _PACKS: dict[int, tuple[Any, ...]] = {}
 _JIT: dict[str, Any] = {}
@@ -147,7 +142,7 @@ def _pack_field(field: Any) -> tuple[Any, ...] | None:
     if not boxes:
         coef.append(np.zeros(1))
     g = field.grid
-    base = [field.gm, g.r_lo, field._inv_dr, field._inv_dang, field._r_in, field._r_out, g.n_r, 0.0, len(boxes)]
+    base = [field.gm, g.r_lo, field._inv_dr, field._inv_dang, field._r_in, field._r_out, g.n_r, g.r_hi, len(boxes)]
     _PACKS[key] = (field, base, ext, box_o, box_n, coef)
     return base, ext, box_o, box_n, coef
 
@@ -211,10 +206,8 @@ class FastArcs:
         self.coefs = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in (dc.A, dc.B, dc.C, dc.E3, dc.E5, dc.D))
         self._tp: dict[int, tuple[Any, NDArray[np.float64]]] = {}
         self._no_tau = np.array([0.0, 0.0, 1.0, 0.0])
-        self.field = model.field
         self.calls = 0
         self.fallbacks = 0
-        self.exact_points = 0
 
     @classmethod
     def make(cls, model: Any, trig: Any, contact: Any) -> FastArcs | None:
@@ -248,8 +241,7 @@ class FastArcs:
         """One arc as :func:`satellite.events.integrate` (``scan``: use the events' rate bounds).
 
         Returns ``None`` when the arc needs the Python path (an event without compiled form, an
-        empty or backward arc, more than :data:`_MAX_EXACT` points outside the table's radii, a scan
-        buffer overflow).
+        empty or backward arc, a scan buffer overflow).
 
         Raises:
             IntegrationFailed: The step size underflowed.
@@ -277,21 +269,11 @@ class FastArcs:
         terms = np.array([e.terminal for e in events], dtype=np.bool_)
         rated = np.array([scan and e.rate is not None for e in events], dtype=np.bool_)
         self.calls += 1
-        xc = np.zeros((1, 6))  # exact accelerations at the arc's points outside the table's radii
-        for _ in range(_MAX_EXACT + 1):
-            with signals_deferred():  # the first call compiles (~13 s without numba's cache)
-                (status, t_fail, ts, ys, hs, Fs, ev_t, ev_i, ev_y, nfev, scanned) = _JIT["arc"](
-                    float(t0), float(t1), np.array(y0, dtype=np.float64), float(rtol), float(atol), float(max_step),
-                    float(min_dt), bool(dense), kinds, pars, dirs, terms, rated, self.fp, self.ext, self.box_o,
-                    self.box_n, self.coef, xc, self.bp, self.cp, self.env, tp, *self.coefs)
-            if status != -2 or len(xc) > _MAX_EXACT:
-                break
-            p = (float(xc[0, 0]), float(xc[0, 1]), float(xc[0, 2]))
-            acc = np.asarray(self.field.acceleration(p), dtype=np.float64).reshape(3)  # the table's exact fallback
-            if not np.isfinite(acc).all():
-                break
-            xc = np.vstack([xc, [*p, *acc.tolist()]])
-            self.exact_points += 1
+        with signals_deferred():  # the first call compiles (~13 s without numba's cache)
+            (status, t_fail, ts, ys, hs, Fs, ev_t, ev_i, ev_y, nfev, scanned) = _JIT["arc"](
+                float(t0), float(t1), np.array(y0, dtype=np.float64), float(rtol), float(atol), float(max_step),
+                float(min_dt), bool(dense), kinds, pars, dirs, terms, rated, self.fp, self.ext, self.box_o,
+                self.box_n, self.coef, self.bp, self.cp, self.env, tp, *self.coefs)
         if status == -1:
             raise IntegrationFailed(float(t_fail), "Required step size is less than spacing between numbers.")
         if status < 0:

@@ -5,16 +5,20 @@
   corrected within 35 m of the surface by fine Cartesian B-spline boxes (4 m nodes,
   :mod:`satellite.gravity_fine`, built from exact sums of the nearby faces,
   :mod:`satellite.gravity_near`); committed as ``satellite/data/itokawa_polyhedron_table.npz``
-  (derived from the shape file, provenance inside: ``GravityTable.load(...).provenance``).
+  (derived from the shape file, which ships as its checked mesh; provenance inside:
+  ``GravityTable.load(...).provenance``).
   Valid everywhere in the band; its measured error is in REPRODUCTION.md. Outside the table's
-  radii (1.5625 R .. 2.4375 R) the exact field answers (needs the shape file; slow).
+  radii (1.5625 R .. 2.4375 R: only DOP853's stage and trial points, or a trajectory past a
+  reported band exit) its shell part is continued radially
+  (:func:`satellite.gravity_table.shell_continued`); the exact field behind it (of the shipped
+  shape, :func:`exact_itokawa`) answers the contact watch's samples there.
 * ``sh8``: the paper's degree-8 spherical harmonics (``satellite/data/itokawa_degree8.json``);
   the series diverges inside the Brillouin sphere (1.925 R), i.e. in the band's inner part.
-* ``polyhedron``: the exact field evaluated at every step (:mod:`satellite.polyhedron`; needs
-  the shape file; some ms per evaluation, for checks, not for long runs).
+* ``polyhedron``: the exact field evaluated at every step (:mod:`satellite.polyhedron`, of the
+  shipped shape or of ``--shape FILE``; some ms per evaluation, for checks, not for long runs).
 * a path ending in ``.json``: a spherical-harmonic table written by ``isf-satellite gravity``;
   a path ending in ``.npz``: a table written by ``isf-satellite gravity --table`` (of any body:
-  no exact field behind it, so a point outside its radii is an error).
+  no exact field behind it; outside its radii the continuation answers everything).
 
 All share the interface :class:`satellite.model.OrbitModel` uses: ``r_ref_m``, ``gm``,
 ``acceleration(p)`` (one body-frame point) and ``acceleration_batch(P)``, plus ``model_name``.
@@ -68,16 +72,30 @@ class ExactField:
         return self.field.acceleration(r_body)
 
 
-def exact_itokawa(shape: str | Path | None = None) -> ExactField | None:
-    """The exact field of the Itokawa shape file (``GM`` and ``R`` of the degree-8 table), or ``None``."""
-    from satellite.mesh import read_obj
-    from satellite.mesh_surface import default_shape_path
+def exact_itokawa(shape: str | Path | None = None, units: str = "km") -> ExactField:
+    """The exact field of the Itokawa shape (``GM`` and ``R`` of the degree-8 table).
 
-    path = Path(shape) if shape is not None else default_shape_path()
-    if not path.is_file():
-        return None
+    Args:
+        shape: An OBJ file; ``None`` for the shipped shape (:func:`satellite.shape_cache.shipped_mesh`).
+        units: Length unit of ``shape``.
+
+    Raises:
+        GravityModelError: ``shape`` does not exist.
+        MeshError: ``shape`` is not a closed, oriented triangle mesh.
+
+    """
+    from satellite.mesh import read_obj
+    from satellite.shape_cache import shipped_mesh
+
+    if shape is None:
+        mesh = shipped_mesh()
+    else:
+        if not Path(shape).is_file():
+            raise GravityModelError(f"shape file not found: {shape} (an OBJ triangle mesh; without --shape the "
+                                    "shipped Itokawa shape is used)")
+        mesh = read_obj(shape, units=units)
     sh = load_default_field()
-    return ExactField(PolyhedronField.from_mesh(read_obj(path, units="km"), sh.gm), sh.r_ref_m)
+    return ExactField(PolyhedronField.from_mesh(mesh, sh.gm), sh.r_ref_m)
 
 
 def model_name(field: Any) -> str:
@@ -87,8 +105,13 @@ def model_name(field: Any) -> str:
     return str(getattr(field, "model_name", type(field).__name__))
 
 
-def load_field(name: str = DEFAULT_GRAVITY) -> Any:
+def load_field(name: str = DEFAULT_GRAVITY, shape: str | Path | None = None, units: str = "km") -> Any:
     """The gravity model called ``name`` (see the module docstring).
+
+    Args:
+        name: A name of :data:`GRAVITY_MODELS` or a ``.json``/``.npz`` file.
+        shape: For ``polyhedron``: an OBJ file instead of the shipped shape (ignored by the others).
+        units: Length unit of ``shape``.
 
     Raises:
         GravityModelError: Unknown name, missing shape file (``polyhedron``), unreadable table.
@@ -99,10 +122,7 @@ def load_field(name: str = DEFAULT_GRAVITY) -> Any:
     if name == "table":
         return _committed_table()
     if name == "polyhedron":
-        exact = exact_itokawa()
-        if exact is None:
-            raise GravityModelError("--gravity polyhedron needs the shape file ../shared/data/itokawa/itokawa_low.obj")
-        return exact
+        return exact_itokawa(shape, units)
     if name.endswith(".json"):
         return GravityField.from_json(name)
     if name.endswith(".npz"):
@@ -114,7 +134,7 @@ def load_field(name: str = DEFAULT_GRAVITY) -> Any:
 
 
 class _LazyExact:
-    """The exact field, read on first use (the table only needs it outside its radii)."""
+    """The exact field of the shipped shape, read on first use (the contact watch's samples below the table's radii)."""
 
     def __init__(self) -> None:
         self._field: ExactField | None = None
@@ -122,9 +142,6 @@ class _LazyExact:
     def acceleration(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
         if self._field is None:
             self._field = exact_itokawa()
-            if self._field is None:
-                raise GravityModelError("a point left the gravity table's radii and the shape file for the exact "
-                                        "field is absent")
         return self._field.field.acceleration(p)
 
 

@@ -341,13 +341,12 @@ def add_fine_boxes(table: Any, field: Any, surface: Any, *, step: float = STEP_M
         out[ok] = table.acceleration_batch(p[ok]) if table.near is not None else exact(p[ok])
         return out
 
-    saved_exact, saved_fine = table.exact, table.fine
-    table.exact, table.fine = field, None
+    saved_fine, table.fine = table.fine, None
     try:
         fine = build_fine_boxes(table, source, surface.vertices, surface.faces, lambda p: surface.query(p)[0],
                                 field.g_rho, step=step, log=log)
     finally:
-        table.exact, table.fine = saved_exact, saved_fine
+        table.fine = saved_fine
     table.fine = fine
     return table
 

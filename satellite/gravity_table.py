@@ -11,13 +11,14 @@ every great circle through both poles, which is periodic, along longitude, perio
 radius with extrapolated ghost nodes beyond the ends). C2 matters: a C1 interpolant (e.g.
 Catmull-Rom) made DOP853 at rtol 1e-10 take 6x more steps than the degree-8 series, its second
 derivative jumping at every cell face; with the B-spline it takes about 1.2x. The Kepler part is added
-back exactly. Outside ``[r_lo + dr, r_hi - dr]`` the exact field is evaluated (slow, correct).
-The interpolant is continuous except exactly at the poles, where its value depends on the
-longitude of approach by at most about twice the interpolation error. Within a few tens of metres
-of the surface the shell's cells are too coarse: fine Cartesian B-spline boxes correct it there
-(:mod:`satellite.gravity_fine`, also C2), built from the exact near-surface tile sums of
-:mod:`satellite.gravity_near` (which the table applies itself, at 0.2-0.7 ms a call, only when it
-has no boxes).
+back exactly. Outside ``[r_lo + dr, r_hi - dr]`` (the table's radii) the shell part is the same
+spline out to the end nodes and continued radially beyond them (:func:`shell_continued`, value- and
+slope-matched), then the fine boxes and Kepler as inside. The interpolant is continuous except
+exactly at the poles, where its value depends on the longitude of approach by at most about twice
+the interpolation error. Within a few tens of metres of the surface the shell's cells are too
+coarse: fine Cartesian B-spline boxes correct it there (:mod:`satellite.gravity_fine`, also C2),
+built from the exact near-surface tile sums of :mod:`satellite.gravity_near` (which the table
+applies itself, at 0.2-0.7 ms a call, only when it has no boxes).
 
 The grid is generated once (the polyhedron costs a few ms per node: about 23 min for the default
 grid on 2 cores) by ``isf-satellite gravity --table`` and written as ``.npz`` with its provenance;
@@ -43,7 +44,7 @@ from isf_robot.core.sums import vecmat
 from satellite.errors import GravityModelError
 from satellite.polyhedron import PolyhedronField
 
-__all__ = ["GravityTable", "TableGrid", "build_table", "bspline3", "prefilter"]
+__all__ = ["GravityTable", "TableGrid", "build_table", "bspline3", "dbspline3", "shell_continued", "prefilter"]
 
 TABLE_FORMAT = "isf-satellite-gravity-table/2"
 """/2: cubic B-spline through the node values (/1 was Catmull-Rom and is refused: rebuild it)."""
@@ -61,6 +62,77 @@ def bspline3(t: Any) -> tuple[Any, Any, Any, Any]:
     u = 1.0 - t
     return (u * u * u / 6.0, (3.0 * t3 - 6.0 * t2 + 4.0) / 6.0, (-3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0) / 6.0,
             t3 / 6.0)
+
+
+def dbspline3(t: Any) -> tuple[Any, Any, Any, Any]:
+    """Derivatives with respect to ``t`` of :func:`bspline3`'s weights (they sum to 0)."""
+    t2 = t * t
+    u = 1.0 - t
+    return -0.5 * u * u, 1.5 * t2 - 2.0 * t, -1.5 * t2 + t + 0.5, 0.5 * t2
+
+
+def shell_continued(x: float, y: float, z: float, ext: NDArray[np.float64], r_lo: float, r_hi: float, inv_dr: float,
+                    inv_dang: float, n_r: int) -> tuple[float, float, float]:
+    """The table's shell part (non-Kepler, [m/s^2]) at a body-frame point [m] outside its radii, continued.
+
+    Between the table's end nodes ``r_lo`` and ``r_hi`` (its radii leave out one cell at each end)
+    it is the shell B-spline itself, through the node values as inside. Beyond them, with ``r_b``
+    the nearer end node and ``S``, ``S' = dS/dr`` the spline and its radial derivative at ``r_b``
+    in the point's direction, each component is continued radially as
+
+        ``f(r) = (r_b / r)^4 [S + (r - r_b) (S' + 4 S / r_b)]``,
+
+    which equals ``S`` with slope ``S'`` at ``r_b`` (C1 there; the second derivative jumps) and
+    decays like the field's leading non-Kepler (quadrupole) term, ``r^-4``, with a linear correction.
+    The caller adds the fine boxes (Cartesian, built across ``r_in`` down to ~1.39 R) and the Kepler
+    part, as inside the radii. One function for both paths: called as is by :class:`GravityTable` and
+    compiled by :mod:`satellite._jit_parts` (``register_jitable``), ``ext`` being the table's padded
+    coefficients (``GravityTable._ext``).
+
+    Why it is sound: a run's accepted trajectory stays in the band, ``[1.6 R, 2.4 R]``, inside the
+    table's radii ``[1.5625 R, 2.4375 R]``; only DOP853's stage and trial points of steps near the
+    band's edges reach outside (``r/R`` 1.47-2.56 at ``--alpha-gain`` x100), within ~0.12 R, where
+    this answers to a fraction of a per cent of the non-Kepler part (measured against the exact
+    field outside the body: REPRODUCTION.md, "The table outside its radii"), and the step's
+    accepted point is back in the band. An accepted point outside the radii lies past a band exit,
+    which the run reports (``none`` and ``periodic`` stop at the first exit, ``greedy`` and
+    ``maneuver`` count ``band_exits``); beyond it the field is this continuation, not the exact
+    field. The contact watch's sample points below the radii use the exact field
+    (:func:`satellite.shape_cache.exact_samples`).
+    """
+    r = math.sqrt(x * x + y * y + z * z)
+    rb = min(max(r, r_lo), r_hi)
+    u = (rb - r_lo) * inv_dr
+    k = min(int(u), n_r - 2)
+    v = (math.asin(z / r) + 0.5 * math.pi) * inv_dang - 0.5
+    i = math.floor(v)
+    w = (math.atan2(y, x) + math.pi) * inv_dang - 0.5
+    j = math.floor(w)
+    wa = bspline3(u - k)
+    da = dbspline3(u - k)
+    wb = bspline3(v - i)
+    wc = bspline3(w - j)
+    sx = sy = sz = dx = dy = dz = 0.0
+    for aa in range(4):
+        for bb in range(4):
+            for cc in range(4):
+                e = ext[k + _RG - 1 + aa, i + 1 + bb, j + 1 + cc]
+                wv = wa[aa] * wb[bb] * wc[cc]
+                wd = da[aa] * wb[bb] * wc[cc] * inv_dr
+                sx += wv * e[0]
+                sy += wv * e[1]
+                sz += wv * e[2]
+                dx += wd * e[0]
+                dy += wd * e[1]
+                dz += wd * e[2]
+    if r == rb:
+        return sx, sy, sz
+    q = rb / r
+    q2 = q * q
+    q4 = q2 * q2  # (r_b / r)^4: the quadrupole's decay
+    lin = r - rb
+    return (q4 * (sx + lin * (dx + 4.0 * sx / rb)), q4 * (sy + lin * (dy + 4.0 * sy / rb)),
+            q4 * (sz + lin * (dz + 4.0 * sz / rb)))
 
 
 def prefilter(values: NDArray[np.float64], ghosts: int = 0) -> NDArray[np.float64]:
@@ -138,8 +210,9 @@ class GravityTable:
         values: Non-Kepler acceleration [m/s^2] at the nodes, shape (n_r, n_lat, n_lon, 3).
         r_ref_m: Reference radius R [m] (as the degree-8 table's, for the band).
         gm: ``GM`` [m^3/s^2].
-        exact: The exact field (anything with ``acceleration((N, 3))``), used outside the table's
-            radii (``None``: an error there).
+        exact: The exact field (anything with ``acceleration((N, 3))``) the table was built from, or
+            ``None``; the contact watch's samples outside the radii use it
+            (:func:`satellite.shape_cache.exact_samples`); the table itself answers everywhere.
         provenance: Where the table came from (stored with it).
         near: Exact near-surface tiles (:mod:`satellite.gravity_near`), used when there are no
             ``fine`` boxes (and to build them).
@@ -177,7 +250,7 @@ class GravityTable:
 
     @property
     def fast_radii(self) -> tuple[float, float]:
-        """Radii [m] between which the table answers (outside: the exact field, slow)."""
+        """Radii [m] between which the table answers directly (outside: :func:`shell_continued`)."""
         return self._r_in, self._r_out
 
     # -- evaluation ---------------------------------------------------------------------------
@@ -197,7 +270,7 @@ class GravityTable:
         r2 = x * x + y * y + z * z
         r = math.sqrt(r2)
         if not self._r_in <= r <= self._r_out:
-            return self._exact(np.array([[x, y, z]], dtype=np.float64))[0]
+            return self._continued(x, y, z, r2, r)
         g = self.grid
         u = (r - g.r_lo) * self._inv_dr
         k = min(int(u), g.n_r - 3)
@@ -260,8 +333,9 @@ class GravityTable:
         r = np.linalg.norm(p, axis=1)
         out = np.empty_like(p)
         ok = (r >= self._r_in) & (r <= self._r_out)
-        if (~ok).any():
-            out[~ok] = self._exact(p[~ok])
+        for n in np.flatnonzero(~ok).tolist():
+            x, y, z = p[n].tolist()
+            out[n] = self._continued(x, y, z, x * x + y * y + z * z, math.sqrt(x * x + y * y + z * z))
         q, rq = p[ok], r[ok]
         acc = self.spline_batch(q)
         if self.fine is not None:
@@ -280,11 +354,16 @@ class GravityTable:
         out[ok] = acc - self.gm * q / (rq**3)[:, None]
         return out
 
-    def _exact(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
-        if self.exact is None:
-            raise GravityModelError(
-                f"point(s) outside the table's radii [{self._r_in:.4g}, {self._r_out:.4g}] m and no exact field")
-        return self.exact.acceleration(p)
+    def _continued(self, x: float, y: float, z: float, r2: float, r: float) -> NDArray[np.float64]:
+        """Acceleration [m/s^2] at one point outside the radii: :func:`shell_continued`, the fine boxes, Kepler."""
+        g = self.grid
+        ax, ay, az = shell_continued(x, y, z, self._ext, g.r_lo, g.r_hi, self._inv_dr, self._inv_dang, g.n_r)
+        if self.fine is not None:
+            f = self.fine.at(x, y, z)
+            if f is not None:
+                ax, ay, az = ax + f[0], ay + f[1], az + f[2]
+        kep = -self.gm / (r2 * r)
+        return np.array([ax + kep * x, ay + kep * y, az + kep * z])
 
     # -- files -------------------------------------------------------------------------------
     def save(self, path: str | Path) -> None:

@@ -9,8 +9,8 @@ the first or beyond the last crossing; points in between (concavities) get the g
 winding number (sum of the faces' solid angles, Van Oosterom and Strackee 1983). Clearance is
 the radial clearance (see :mod:`satellite.shapes`).
 
-:func:`load_surface` picks the shape of the surface check (the Gaskell file next to the
-repository, else the ellipsoid); :func:`body_mesh_info` gives observers the body's triangles.
+:func:`load_surface` picks the shape of the surface check (the shipped Gaskell mesh, or a user's
+OBJ file); :func:`body_mesh_info` gives observers the body's triangles.
 """
 
 from __future__ import annotations
@@ -26,15 +26,17 @@ from isf_robot.core import ConfigError
 from isf_robot.paths import shared_data_dir
 from satellite.errors import MeshError
 from satellite.mesh import TriangleMesh, read_obj
-from satellite.shapes import EllipsoidSurface, SurfaceModel, winding_numbers
+from satellite.shapes import SurfaceModel, winding_numbers
 
 __all__ = ["MeshSurface", "default_shape_path", "load_surface", "body_mesh_info"]
 
 
 def default_shape_path() -> Path:
-    """Return ``<shared data>/itokawa/itokawa_low.obj`` (which may not exist).
+    """Return ``<shared data>/itokawa/itokawa_low.obj``, the raw default shape (which may not exist).
 
-    The shared data folder is ``$ISF_ROBOT_DATA`` or ``../shared/data`` beside the checkout (see
+    Only regenerating the shipped files reads it (:mod:`satellite.shape_cache`, ``isf-satellite gravity
+    --table``); runs use the shipped mesh (:func:`satellite.shape_cache.shipped_mesh`). The shared data
+    folder is ``$ISF_ROBOT_DATA`` or ``../shared/data`` beside the checkout (see
     :func:`isf_robot.paths.shared_data_dir`).
     """
     return shared_data_dir() / "itokawa" / "itokawa_low.obj"
@@ -225,32 +227,30 @@ class MeshSurface(SurfaceModel):
 
 
 def load_surface(shape: str | Path | None = None, units: str = "km") -> SurfaceModel:
-    """Shape model for the surface check.
+    """Shape model for the surface check and the contact watch.
 
     Args:
-        shape: OBJ file; ``None`` for the default ``../shared/data/itokawa/itokawa_low.obj``
-            next to the repository, or the published-dimension ellipsoid when that is absent.
+        shape: OBJ file; ``None`` for the default shape, the shipped Gaskell mesh
+            (:func:`satellite.shape_cache.shipped_mesh`).
         units: Length unit of the OBJ file (``"km"`` for the Gaskell model).
 
     Returns:
-        A :class:`MeshSurface` (centred at the mesh's centre of mass) or the
-        :meth:`EllipsoidSurface.itokawa` fallback.
+        A :class:`MeshSurface` centred at the mesh's centre of mass.
 
     Raises:
         FileNotFoundError: An explicit ``shape`` file does not exist.
-        MeshError: The file is not a closed, oriented triangle mesh.
+        MeshError: The file is not a closed, oriented triangle mesh (or the shipped mesh is missing).
 
     """
     if shape is None:
-        path = default_shape_path()
-        if not path.is_file():
-            return EllipsoidSurface.itokawa()
-        return MeshSurface.from_obj(path, units=units, name=f"mesh {path.name} (Gaskell, centre of mass)")
+        from satellite.shape_cache import SHAPE_NAME, shipped_mesh
+
+        return MeshSurface(shipped_mesh(), name=f"mesh {SHAPE_NAME} (Gaskell, centre of mass)")
     path = Path(shape)
     if not path.is_file():
-        raise FileNotFoundError(f"shape file not found: {path}")
+        raise FileNotFoundError(f"shape file not found: {path} (an OBJ triangle mesh; without --shape the shipped "
+                                "Itokawa shape is used)")
     return MeshSurface.from_obj(path, units=units)
-
 
 
 def body_mesh_info(surface: SurfaceModel | None = None) -> dict[str, Any] | None:
@@ -258,26 +258,25 @@ def body_mesh_info(surface: SurfaceModel | None = None) -> dict[str, Any] | None
 
     Args:
         surface: The run's surface-check shape; when it is a :class:`MeshSurface` its (already
-            recentred) triangles are used, else the default shape file is read if present.
+            recentred) triangles are used, else the shipped default shape's.
 
     Returns:
         ``{"vertices": (N, 3) float64 [m] relative to the centre of mass (the gravity model's
-        origin, body axes), "faces": (M, 3) int64 (outward), "name": str}``, or ``None`` when no
-        mesh is available (no shape file, or an unreadable one): observers then draw the
-        published-dimension ellipsoid.
+        origin, body axes), "faces": (M, 3) int64 (outward), "name": str}``, or ``None`` when the
+        shipped mesh is unreadable (a broken install): observers then draw the published-dimension
+        ellipsoid.
 
     """
     if isinstance(surface, MeshSurface):
         return {"vertices": surface.vertices, "faces": surface.faces.astype(np.int64), "name": surface.name}
-    path = default_shape_path()
-    if not path.is_file():
-        return None
+    from satellite.shape_cache import SHAPE_NAME, shipped_mesh
+
     try:
-        mesh = read_obj(path, units="km")
-    except (OSError, MeshError):
+        mesh = shipped_mesh()
+    except MeshError:
         return None
     return {
         "vertices": np.asarray(mesh.vertices - mesh.centre_of_mass, dtype=np.float64),
         "faces": np.asarray(mesh.faces, dtype=np.int64),
-        "name": path.name,
+        "name": SHAPE_NAME,
     }

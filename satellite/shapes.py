@@ -5,8 +5,8 @@ mesh's axes, metres; see :mod:`satellite.gravity`):
 
 * :class:`satellite.mesh_surface.MeshSurface`: a closed triangle mesh (the Gaskell shape model),
   exact inside/outside (see that module).
-* :class:`EllipsoidSurface`: the fallback without a shape file, the triaxial ellipsoid of the
-  published dimensions 535 x 294 x 209 m (Fujiwara et al. 2006), axes along body x, y, z.
+* :class:`EllipsoidSurface`: a simple stand-in for the shape (runs use the shipped mesh), the triaxial
+  ellipsoid of the published dimensions 535 x 294 x 209 m (Fujiwara et al. 2006), axes along body x, y, z.
 
 Clearance is the **radial clearance**: the distance from the point to the nearest surface
 crossing along the line through the centre of mass and the point, positive outside and negative
@@ -126,7 +126,7 @@ class EllipsoidSurface(SurfaceModel):
         """The ellipsoid of Itokawa's published dimensions 535 x 294 x 209 m (Fujiwara et al. 2006)."""
         return cls(
             np.asarray(ITOKAWA_DIMENSIONS_M) / 2.0,
-            name="ellipsoid 535 x 294 x 209 m (Fujiwara et al. 2006; no shape file)",
+            name="ellipsoid 535 x 294 x 209 m (Fujiwara et al. 2006)",
         )
 
     def surface_radius(self, directions: ArrayLike) -> NDArray[np.float64]:

@@ -6,8 +6,8 @@ the sampled MIET figures, observers, the optional surface check), calls its trig
 :class:`RunResult`. The arcs themselves are integrated by :class:`satellite.arcs.ArcIntegrator`.
 
 Observers get, in ``on_start(info)``, the run's settings plus what a viewer needs to draw it
-(see :func:`start_info`): band limits, body spin, and the body's triangles (``body_mesh``) when
-a shape file is available.
+(see :func:`start_info`): band limits, body spin, and the body's triangles (``body_mesh``: the
+surface check's mesh, else the shipped shape).
 """
 
 from __future__ import annotations
@@ -144,7 +144,7 @@ def simulate(
             (:class:`satellite.surface.SurfaceCheck`); the report lands in ``RunResult.surface``.
         surface_step_s: Sampling interval of the surface check [s], > 0.
         body_mesh: Put the body's triangles in the start info (the surface check's mesh, else
-            the default shape file, read once per run); default (``None``) only when observers
+            the shipped shape, read once per process); default (``None``) only when observers
             are attached. Never changes the trajectory.
         contact: Surface contact in the dynamics (:mod:`satellite.contact`): ``"off"`` (the
             paper), ``"count"`` (contacts counted, the trajectory unchanged) or ``"stop"`` (the run
@@ -160,7 +160,7 @@ def simulate(
             ``tau_p``).
         surface_barrier: Add the surface-clearance barrier (:mod:`satellite.surface_barrier`;
             ``greedy`` and ``maneuver``): ``h_s`` = distance outside a smooth envelope of the shape (the
-            contact shape, else ``surface``, else the default shape file) minus
+            contact shape, else ``surface``, else the shipped shape) minus
             ``surface_clearance_m``; its trigger ``Xi_s`` fires impulses (``surface`` ones for
             ``greedy``) and every impulse keeps both post-jump conditions. Reported in ``RunResult.surface_barrier``.
         surface_clearance_m: Clearance above the envelope [m], >= 0.

@@ -30,15 +30,16 @@ def test_a_table_file_of_another_body_loads_without_an_exact_field(tmp_path) -> 
     table = load_field(str(tmp_path / "t.npz"))
     p = np.array([12.0, 3.0, 4.0])
     np.testing.assert_allclose(table.acceleration(p), -1.5 * p / np.linalg.norm(p) ** 3, rtol=1e-12)  # Kepler + 0
-    with pytest.raises(GravityModelError, match="outside the table"):
-        table.acceleration(np.array([30.0, 0.0, 0.0]))
+    assert table.exact is None
+    far = np.array([30.0, 0.0, 0.0])  # outside its radii: its continuation (of a zero table: Kepler alone)
+    np.testing.assert_allclose(table.acceleration(far), -1.5 * far / np.linalg.norm(far) ** 3, rtol=1e-12)
     with pytest.raises(GravityModelError, match="not found"):
         load_field(str(tmp_path / "missing.npz"))
 
 
-def test_committed_table_is_within_one_percent_of_the_exact_field(itokawa_obj) -> None:  # type: ignore[no-untyped-def]
+def test_committed_table_is_within_one_percent_of_the_exact_field() -> None:
     """Random band points outside the body, half of them near the long axis where the surface reaches in."""
-    exact = exact_itokawa(itokawa_obj)
+    exact = exact_itokawa()  # the shipped shape
     table = load_field("table")
     rng = np.random.default_rng(7)
     u = rng.normal(size=(60, 3))
@@ -59,11 +60,11 @@ def test_committed_table_is_within_one_percent_of_the_exact_field(itokawa_obj) -
     assert err8.max() > 0.05
 
 
-def test_committed_table_is_within_one_percent_of_the_exact_field_near_the_surface(itokawa_obj) -> None:  # type: ignore[no-untyped-def]
+def test_committed_table_is_within_one_percent_of_the_exact_field_near_the_surface() -> None:
     """Points outside the body within 10 m of the long-axis tips (where the fine boxes answer), some within 1 m."""
     from satellite.closest import ClosestPoints
 
-    exact = exact_itokawa(itokawa_obj)
+    exact = exact_itokawa()  # the shipped shape
     table = load_field("table")
     v = exact.field.vertices
     tips = v[np.linalg.norm(v, axis=1) > 1.7 * table.r_ref_m]
@@ -83,3 +84,23 @@ def test_committed_table_is_within_one_percent_of_the_exact_field_near_the_surfa
     shell = GravityTable(table.grid, table.values, table.r_ref_m, table.gm)  # the shell spline alone fails here
     err_shell = np.linalg.norm(shell.acceleration_batch(p) - a, axis=1) / nonkep
     assert err_shell.max() > 0.03
+
+
+def test_polyhedron_with_a_users_shape(helpers, tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """``--gravity polyhedron --shape FILE``: the exact field of that file (GM and R of the Itokawa series)."""
+    import json
+
+    from satellite.cli import main
+
+    v, f = helpers.box_mesh(200.0, 150.0, 120.0)
+    path = helpers.write_obj(tmp_path / "box.obj", v, f)
+    field = load_field("polyhedron", shape=path, units="m")
+    assert field.field.faces.shape == (12, 3) and field.gm == load_field("sh8").gm
+    assert load_field("polyhedron").field.faces.shape == (49152, 3)  # without --shape: the shipped shape
+    p = np.array([[400.0, 0.0, 0.0]])
+    assert not np.allclose(field.acceleration_batch(p), load_field("polyhedron").acceleration_batch(p), rtol=1e-3)
+    code = main(["run", "--gravity", "polyhedron", "--shape", str(path), "--shape-units", "m", "--hours", "0.05",
+                 "--contact", "off", "--json", "--quiet"])
+    assert code == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["simulated_h"] == pytest.approx(0.05) and out["settings"]["gravity_model"] == "polyhedron"

@@ -16,7 +16,8 @@ from satellite.gravity import (
     polyhedron_harmonics,
     solid_harmonics,
 )
-from satellite.mesh import TriangleMesh, read_obj
+from satellite.mesh import TriangleMesh
+from satellite.shape_cache import shipped_mesh
 
 RNG_SEED = 20260101
 
@@ -151,8 +152,8 @@ def test_committed_table_loads_with_provenance():
     assert "isf-satellite gravity" in prov["generator"] and prov["date"]
 
 
-def test_regeneration_equals_committed_table(itokawa_obj):
-    mesh = read_obj(itokawa_obj)
+def test_regeneration_equals_committed_table():
+    mesh = shipped_mesh()  # the checked mesh of itokawa_low.obj (test_shape_cache: the same arrays as the file's)
     fresh = GravityField.from_mesh(mesh, 8)
     committed = load_default_field()
     assert fresh.r_ref_m == pytest.approx(committed.r_ref_m, rel=1e-13)

@@ -6,6 +6,7 @@ import pytest
 from isf_robot.core.exceptions import ConfigError
 from satellite.errors import MeshError
 from satellite.mesh import TriangleMesh, check_closed_oriented, read_obj
+from satellite.shape_cache import shipped_mesh
 
 
 def test_unit_cube_volume_is_one(helpers):
@@ -154,8 +155,8 @@ def test_read_obj_errors(tmp_path, helpers):
         read_obj(opened)
 
 
-def test_itokawa_mesh_facts(itokawa_obj):
-    mesh = read_obj(itokawa_obj)
+def test_itokawa_mesh_facts():
+    mesh = shipped_mesh()
     assert mesh.vertices.shape == (24578, 3)
     assert mesh.faces.shape == (49152, 3)
     assert mesh.volume == pytest.approx(1.77856e7, rel=1e-5)

@@ -1,4 +1,8 @@
-"""Start-up caches of the default shape (satellite/shape_cache.py): the same numbers as without them."""
+"""The shipped default shape and start-up caches (satellite/shape_cache.py): the same numbers as without them.
+
+Only the first test reads the raw shape file (it checks the shipped mesh against it) and skips without it;
+the others run on the shipped files alone.
+"""
 
 from __future__ import annotations
 
@@ -7,21 +11,20 @@ import pytest
 
 from satellite import shape_cache
 from satellite.contact import contact_samples, make_contact
-from satellite.fields import load_field
+from satellite.fields import ExactField, _LazyExact, exact_itokawa, load_field
 from satellite.mesh import parse_obj, read_obj
-from satellite.mesh_surface import default_shape_path, load_surface
+from satellite.mesh_surface import load_surface
 from satellite.model import OrbitModel
 
-pytestmark = pytest.mark.skipif(not default_shape_path().is_file(), reason="the shape file is not available")
 
-
-def test_cached_mesh_is_the_parsed_mesh(tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
-    path = default_shape_path()
+def test_cached_mesh_is_the_parsed_mesh(itokawa_obj, tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    path = itokawa_obj
     monkeypatch.setattr(shape_cache, "_MEMO", {})
     got = read_obj(path)  # from the committed arrays
     want = parse_obj(path)
     assert np.array_equal(got.vertices, want.vertices) and np.array_equal(got.faces, want.faces)
     assert got.faces.dtype == want.faces.dtype and not got.vertices.flags.writeable
+    assert got is shape_cache.shipped_mesh() and shape_cache.shipped_sha256() == shape_cache._sha256(path)
     assert read_obj(path) is got  # read once per process
     # another file (here the same shape with one vertex moved) is parsed, never answered from the cache
     text = path.read_text().splitlines()
@@ -57,3 +60,51 @@ def test_contact_bound_does_not_depend_on_the_cache(monkeypatch) -> None:  # typ
     # per CPU, and numpy's arctan2/log loops) round differently in the last bits (AMD file vs Intel:
     # 1.6060173367940555e-4 vs ...568, 8e-16 relative), hence rtol 1e-12, the bound of the check above
     assert make_contact(model, shape).accel_bound == pytest.approx(cached, rel=1e-12, abs=0.0)
+
+
+def test_runs_need_no_raw_shape_file(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """Without the shared data folder every default-shape consumer answers from the shipped mesh."""
+    monkeypatch.setenv("ISF_ROBOT_DATA", "/nonexistent")
+    mesh = shape_cache.shipped_mesh()
+    assert mesh.faces.shape == (49152, 3) and mesh.vertices.shape == (24578, 3)
+    exact = exact_itokawa()
+    assert isinstance(exact, ExactField) and np.array_equal(exact.field.faces, mesh.faces)
+    poly = load_field("polyhedron")
+    p = np.array([[300.0, 20.0, -10.0]])
+    np.testing.assert_array_equal(poly.acceleration_batch(p), exact.acceleration_batch(p))
+    table = load_field("table")
+    assert isinstance(table.exact, _LazyExact)
+    q = np.array([[0.0, 0.0, 200.0], [150.0, 150.0, 0.0]])  # below the table's radii
+    np.testing.assert_array_equal(shape_cache.exact_samples(table, q), exact.acceleration_batch(q))
+
+
+def test_samples_file_is_checked_against_the_shipped_mesh(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    model = OrbitModel(load_field("table"))
+    _, slow = contact_samples(model, load_surface())
+    with np.load(shape_cache.SAMPLES_FILE) as data:
+        stored = np.array(data["acc"])
+    np.testing.assert_array_equal(shape_cache.exact_samples(model.field, slow), stored)
+    calls = []
+    real = _LazyExact.acceleration
+
+    def counted(self, pts):  # type: ignore[no-untyped-def]
+        calls.append(len(pts))
+        return real(self, pts)
+
+    monkeypatch.setattr(_LazyExact, "acceleration", counted)
+    np.testing.assert_array_equal(shape_cache.exact_samples(model.field, slow), stored)
+    assert calls == []  # answered by the file
+    monkeypatch.setattr(shape_cache, "shipped_sha256", lambda: "0" * 64)  # another shape: evaluated
+    fresh = shape_cache.exact_samples(model.field, slow[:4])
+    assert calls == [4]
+    np.testing.assert_allclose(fresh, stored[:4], rtol=1e-12)
+
+
+def test_missing_shape_file_is_one_clear_line(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from satellite.errors import GravityModelError
+
+    missing = tmp_path / "nope.obj"
+    with pytest.raises(FileNotFoundError, match=r"shape file not found: .*nope\.obj \(an OBJ triangle mesh"):
+        load_surface(missing)
+    with pytest.raises(GravityModelError, match=r"shape file not found: .*nope\.obj"):
+        load_field("polyhedron", shape=missing)

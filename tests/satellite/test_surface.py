@@ -113,10 +113,19 @@ def test_nonconvex_body_with_several_crossings(origin: tuple[float, ...] | None)
         assert not inside[0] and 0 < clear[0] < np.linalg.norm(q)
 
 
-def test_ellipsoid_fallback_matches_analytic(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_default_shape_is_the_shipped_mesh_without_the_raw_file(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(mesh_surface_mod, "default_shape_path", lambda: Path("/nonexistent/itokawa.obj"))
-    ell = load_surface(None)
-    assert isinstance(ell, EllipsoidSurface) and "ellipsoid 535 x 294 x 209 m" in ell.name
+    monkeypatch.setenv("ISF_ROBOT_DATA", "/nonexistent")
+    body = load_surface(None)
+    assert isinstance(body, MeshSurface) and body.faces.shape == (49152, 3) and "itokawa_low.obj" in body.name
+    info = mesh_surface_mod.body_mesh_info(None)
+    assert info is not None and np.array_equal(info["faces"], body.faces) and info["name"] == "itokawa_low.obj"
+    np.testing.assert_array_equal(info["vertices"], body.vertices)
+
+
+def test_ellipsoid_matches_analytic() -> None:
+    ell = EllipsoidSurface.itokawa()
+    assert "ellipsoid 535 x 294 x 209 m" in ell.name
     a = np.array([267.5, 147.0, 104.5])
     assert ell.max_radius == 267.5
     p = random_points(4000, 300.0, seed=4)
@@ -193,7 +202,7 @@ def test_cli_surface_check_with_shape_file(
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [
-        (["run", "--contact", "off", "--shape", "x.obj"], "--shape needs --surface-check or --contact"),
+        (["run", "--contact", "off", "--shape", "x.obj"], "--shape needs --surface-check, --contact count|stop"),
         (["run", "--surface-check", "--shape", "/nonexistent/shape.obj"], "not found"),
         (["run", "--surface-check", "--surface-step", "0"], "--surface-step"),
     ],
@@ -204,8 +213,8 @@ def test_cli_surface_errors(argv: list[str], needle: str, capsys: pytest.Capture
     assert needle in err and err.count("\n") == 1
 
 
-def test_itokawa_mesh(itokawa_obj: Path) -> None:
-    body = load_surface(itokawa_obj)
+def test_itokawa_mesh() -> None:
+    body = load_surface(None)  # the shipped mesh
     assert isinstance(body, MeshSurface) and body.origin_inside
     assert body.max_radius == pytest.approx(311.7, abs=0.05)
     assert np.allclose(body.origin_in_mesh, [0.358, 0.035, -0.107], atol=1e-3)
