@@ -29,16 +29,15 @@ import numpy as np
 from numba import njit
 from numba.extending import register_jitable
 
+from isf_robot.core.jit import watch_compiles
 from satellite.gravity_table import bspline3, dbspline3, shell_continued
+
+watch_compiles()  # (a command's one-line notice when a kernel is compiled: isf_robot.core.jit)
 
 # the table's continuation beyond its radii: the plain functions of satellite.gravity_table, compiled here
 # (numba's cache keys rhs on this file only: after editing them, clear satellite/__pycache__/*.nb*)
 for _plain in (bspline3, dbspline3, shell_continued):
     register_jitable(_plain)
-
-from isf_robot.core.jit import watch_compiles
-
-watch_compiles()  # (a command's one-line notice when a kernel is compiled: isf_robot.core.jit)
 
 # event kinds
 XI, H, RDOT, CONTACT, XITAU = 0, 1, 2, 3, 4

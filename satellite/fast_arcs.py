@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 import signal
 import threading
 from collections.abc import Iterator, Sequence
@@ -39,6 +38,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from isf_robot.core.jit import jit_enabled as core_jit_enabled
 from satellite.events import ArcSolution, Event, IntegrationFailed
 
 __all__ = ["FastArcs", "FastDense", "jit_enabled", "signals_deferred", "XI", "H", "RDOT", "CONTACT", "XITAU"]
@@ -78,7 +78,7 @@ def signals_deferred() -> Iterator[None]:
 
 def jit_enabled() -> bool:
     """Whether compiled arcs can be used (numba importable, ``ISF_ROBOT_JIT`` not ``0``)."""
-    if os.environ.get("ISF_ROBOT_JIT", "1") == "0":
+    if not core_jit_enabled():
         return False
     if "arc" not in _JIT:
         try:

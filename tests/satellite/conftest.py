@@ -218,3 +218,10 @@ def itokawa_obj() -> Path:
     if not path.is_file():
         pytest.skip(f"raw shape file absent: {path} (only regenerating and checking the shipped files need it)")
     return path
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Mark the tests that read the raw shape file ``shape_file`` (``.ci/run`` runs them beside ../shared)."""
+    for item in items:
+        if "itokawa_obj" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.shape_file)
