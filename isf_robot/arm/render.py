@@ -2,9 +2,24 @@
 
 :class:`VideoRecorder` is an observer of :class:`~isf_robot.arm.ArmSimulation`: at the video's
 frame times it poses a copy of the run's model at the step record's ``q`` and mocap poses,
-renders it with MuJoCo's offscreen :class:`mujoco.Renderer` (the robot and obstacle geoms drawn
-whatever their group; the robot orange while the filter is on) and draws a banner with the time
-and the mode. The camera looks at the robot's workspace (its base and the reach of its geoms).
+renders it with MuJoCo's offscreen :class:`mujoco.Renderer` and draws a banner with the time
+and the mode. The robot is orange while the filter is on.
+
+What is drawn (:func:`drawing_model`, on a copy of the model used for drawing only; the
+simulated model is never changed):
+
+* visual geoms (``contype = conaffinity = 0``) as the model draws them; a collision geom is
+  hidden when its body (not the world) has visual geoms, so a vendor's collision meshes or
+  primitives (Menagerie: group 3, or group 0) do not speckle the visual meshes; a body with
+  only collision geoms keeps them. ``show_collision`` draws them all;
+* MuJoCo's default geom groups (0, 1, 2) and every group of the robot's and obstacles' drawn geoms;
+* a sky: a gradient skybox texture is added (through :class:`mujoco.MjSpec`, from the model's
+  file) when the model has none.
+
+The camera (:class:`View`): a named camera of the model, or a free camera whose lookat and
+distance fit the bounding box of the arm (its drawn geoms at the first frame's pose), the
+obstacles and the goals (:func:`fit_camera`); azimuth, elevation, distance and lookat can
+each be given.
 
 Writers: ``.gif`` with Pillow (a dependency of rerun-sdk), ``.mp4`` with imageio and its
 ffmpeg (the ``video`` extra), ``.png`` one frame (Pillow). Files are written as
@@ -24,6 +39,7 @@ import os
 import subprocess
 import sys
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -32,8 +48,8 @@ import numpy as np
 from isf_robot.core import ConfigError, Observer
 from isf_robot.core.files import check_output_path, commit_partial, partial_path
 
-__all__ = ["VideoRecorder", "select_gl", "RenderUnavailableError", "FORMATS", "ON_RGBA", "workspace",
-           "frame_workspace"]
+__all__ = ["VideoRecorder", "View", "select_gl", "RenderUnavailableError", "FORMATS", "ON_RGBA", "frame_workspace",
+           "fit_camera", "framed_box", "drawing_model", "hidden_collision_geoms", "camera_id", "parse_lookat"]
 
 FORMATS = (".gif", ".mp4", ".png")
 ON_RGBA = (1.0, 0.55, 0.0, 1.0)
@@ -85,26 +101,263 @@ def select_gl(backends: Sequence[str] = GL_BACKENDS) -> str:
     raise RenderUnavailableError(f"offscreen rendering is not available ({'; '.join(reasons)}); {hint}")
 
 
-def workspace(model: Any, robot: np.ndarray, others: np.ndarray) -> tuple[np.ndarray, float]:
-    """Centre (the robot's base) and radius [m] of the robot and obstacle geoms at the reference pose."""
+SKY_TOP = (0.42, 0.62, 0.85)
+"""Colour of the added sky at the zenith (a gradient to :data:`SKY_BOTTOM` at the horizon and below)."""
+SKY_BOTTOM = (0.93, 0.95, 0.98)
+DEFAULT_AZIMUTH = 140.0
+"""Free camera: from the front-left [deg] (MuJoCo's azimuth)."""
+DEFAULT_ELEVATION = -22.0
+"""Free camera: slightly above [deg] (negative looks down)."""
+FIT_MARGIN = 0.06
+"""Fraction of the image's half-width and half-height left free around the framed box."""
+
+
+@dataclass(frozen=True)
+class View:
+    """The camera of a picture: a named camera of the model, or a free camera (each value optional).
+
+    Unset free-camera values are defaults (azimuth :data:`DEFAULT_AZIMUTH`, elevation
+    :data:`DEFAULT_ELEVATION`) or fitted (:func:`fit_camera`: lookat and distance framing the arm,
+    the obstacles and the goals).
+    """
+
+    camera: str | None = None
+    azimuth: float | None = None
+    elevation: float | None = None
+    distance: float | None = None
+    lookat: tuple[float, float, float] | None = None
+
+    def __post_init__(self) -> None:
+        free = {"azimuth": self.azimuth, "elevation": self.elevation, "distance": self.distance,
+                "lookat": self.lookat}
+        given = [k for k, v in free.items() if v is not None]
+        if self.camera is not None and given:
+            raise ConfigError(f"--camera {self.camera!r} is a camera of the model; it takes no "
+                              f"{', '.join('--' + k for k in given)} (those set the free camera)")
+        for k in ("azimuth", "elevation", "distance"):
+            v = free[k]
+            if v is not None and not math.isfinite(float(v)):
+                raise ConfigError(f"--{k} must be a finite number, got {v!r}")
+        if self.elevation is not None and not -90.0 <= float(self.elevation) <= 90.0:
+            raise ConfigError(f"--elevation must be in [-90, 90] degrees (negative looks down), got {self.elevation}")
+        if self.distance is not None and not float(self.distance) > 0:
+            raise ConfigError(f"--distance must be a positive number of metres, got {self.distance}")
+        if self.lookat is not None and (len(self.lookat) != 3 or not all(math.isfinite(float(x)) for x in self.lookat)):
+            raise ConfigError(f"--lookat must be three finite numbers X,Y,Z [m], got {self.lookat!r}")
+
+
+def parse_lookat(text: str) -> tuple[float, float, float]:
+    """``"X,Y,Z"`` -> three floats; a :class:`ConfigError` naming the valid form otherwise."""
+    parts = [t.strip() for t in str(text).split(",")]
+    try:
+        xyz = tuple(float(t) for t in parts)
+    except ValueError:
+        xyz = ()
+    if len(xyz) != 3 or not all(math.isfinite(x) for x in xyz):
+        raise ConfigError(f"--lookat {text!r}: expected three numbers X,Y,Z in metres, e.g. --lookat 0.4,0,0.3")
+    return (xyz[0], xyz[1], xyz[2])
+
+
+def camera_id(model: Any, name: str) -> int:
+    """Id of the model's camera ``name``; a :class:`ConfigError` listing the valid names otherwise."""
     import mujoco
 
-    d = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, d)
-    roots = sorted({int(model.body_rootid[int(model.geom_bodyid[g])]) for g in robot} - {0})
-    ids = np.concatenate((robot, others)).astype(int)
-    centre = np.mean([d.xpos[b] for b in roots], axis=0) if roots else d.geom_xpos[ids].mean(axis=0)
-    radius = max([float(np.linalg.norm(d.geom_xpos[g] - centre)) + float(model.geom_rbound[g]) for g in ids
-                  if int(model.geom_type[g]) != mujoco.mjtGeom.mjGEOM_PLANE] or [0.5])
-    return centre, radius
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_CAMERA, i) or "" for i in range(model.ncam)]
+    if name in names and name:
+        return names.index(name)
+    valid = [n for n in names if n]
+    if not valid:
+        raise ConfigError(f"--camera {name!r}: the model has no named camera; use the free camera's "
+                          "--azimuth, --elevation, --distance, --lookat")
+    raise ConfigError(f"--camera {name!r}: no such camera in the model; valid: {', '.join(valid)}")
 
 
-def frame_workspace(cam: Any, model: Any, robot: np.ndarray, others: np.ndarray) -> None:
-    """Point a free camera (:class:`mujoco.MjvCamera`) at the workspace, from the front-left, slightly above."""
-    centre, radius = workspace(model, robot, others)
-    cam.lookat[:] = centre + np.array([0.0, 0.0, radius / 3.0])
-    cam.distance = 1.9 * radius
-    cam.azimuth, cam.elevation = 140.0, -22.0
+def _is_visual(model: Any, g: int) -> bool:
+    return int(model.geom_contype[g]) == 0 and int(model.geom_conaffinity[g]) == 0
+
+
+def hidden_collision_geoms(model: Any) -> np.ndarray:
+    """Collision geoms whose body (not the world) also has visual geoms (``contype = conaffinity = 0``)."""
+    import mujoco
+
+    ids = np.arange(model.ngeom)
+    body = np.asarray(model.geom_bodyid)
+    visual = (np.asarray(model.geom_contype) == 0) & (np.asarray(model.geom_conaffinity) == 0)
+    visual &= np.asarray(model.geom_type) != mujoco.mjtGeom.mjGEOM_PLANE
+    with_visual = set(body[visual].tolist()) - {0}
+    return ids[~visual & np.isin(body, list(with_visual)) & (np.asarray(model.geom_contype) | np.asarray(
+        model.geom_conaffinity) != 0)]
+
+
+def _has_sky(model: Any) -> bool:
+    import mujoco
+
+    return bool(np.any(np.asarray(model.tex_type) == mujoco.mjtTexture.mjTEXTURE_SKYBOX))
+
+
+def _with_sky(model: Any, path: str | Path | None) -> Any:
+    """A copy of ``model`` with a gradient skybox, compiled again from its file; ``None`` when that is not the same model."""
+    import mujoco
+
+    if path is None or not Path(path).is_file():
+        return None
+    try:
+        spec = mujoco.MjSpec.from_file(str(path))
+        spec.add_texture(name="isf_robot_render_sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+                         builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, rgb1=list(SKY_TOP), rgb2=list(SKY_BOTTOM),
+                         width=256, height=256)
+        sky = spec.compile()
+    except Exception:  # a file MuJoCo's spec reader takes differently: no sky rather than no picture
+        return None
+    same = all(getattr(sky, k) == getattr(model, k) for k in ("nq", "nbody", "ngeom", "nsite", "nmocap", "ncam",
+                                                                 "nmat"))
+    if not same or not (np.allclose(sky.geom_size, model.geom_size) and np.allclose(sky.body_pos, model.body_pos)):
+        return None
+    for key in ("geom_rgba", "geom_group", "geom_matid", "site_rgba", "site_group", "mat_rgba"):
+        getattr(sky, key)[:] = getattr(model, key)
+    return sky
+
+
+def drawing_model(model: Any, robot: np.ndarray, others: np.ndarray, *, show_collision: bool = False,
+                  model_path: str | Path | None = None, sky: bool = True) -> tuple[Any, Any]:
+    """A copy of ``model`` for drawing and the :class:`mujoco.MjvOption` to draw it with.
+
+    Collision geoms of bodies that have visual geoms get alpha 0 (MuJoCo skips them) unless
+    ``show_collision``; a gradient skybox is added when the model has none and its file is given.
+    The geom groups drawn are MuJoCo's default ones and every group of the robot's and the
+    obstacles' bodies' drawn geoms.
+    """
+    import mujoco
+
+    m = (_with_sky(model, model_path) if sky and not _has_sky(model) else None) or copy.deepcopy(model)
+    if not show_collision:
+        hide = hidden_collision_geoms(m)
+        m.geom_rgba[hide, 3] = 0.0
+        m.geom_matid[hide] = -1
+    option = mujoco.MjvOption()
+    ids = np.concatenate((np.asarray(robot, dtype=int), np.asarray(others, dtype=int)))
+    for g in drawn(m, ids):
+        option.geomgroup[int(m.geom_group[g])] = 1
+    return m, option
+
+
+def drawn(model: Any, geoms: np.ndarray) -> np.ndarray:
+    """The geoms among ``geoms`` and the other geoms of their bodies (not the world) that are drawn (alpha > 0)."""
+    geoms = np.asarray(geoms, dtype=int)
+    bodies = set(np.asarray(model.geom_bodyid)[geoms].tolist()) - {0}
+    out = [g for g in range(model.ngeom) if (g in set(geoms.tolist()) or int(model.geom_bodyid[g]) in bodies)
+           and float(model.geom_rgba[g, 3]) > 0]
+    return np.asarray(out, dtype=int)
+
+
+def robot_drawn_geoms(model: Any, robot: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """The geoms that show the robot: every drawn geom of the robot's subtrees (not the obstacles')."""
+    robot = np.asarray(robot, dtype=int)
+    if robot.size == 0:
+        return robot
+    roots = set(np.asarray(model.body_rootid)[np.asarray(model.geom_bodyid)[robot]].tolist()) - {0}
+    obstacle_bodies = set(np.asarray(model.geom_bodyid)[np.asarray(others, dtype=int)].tolist())
+    out = [g for g in range(model.ngeom)
+           if int(model.body_rootid[int(model.geom_bodyid[g])]) in roots
+           and int(model.geom_bodyid[g]) not in obstacle_bodies and float(model.geom_rgba[g, 3]) > 0]
+    return np.union1d(np.asarray(out, dtype=int), robot[np.asarray(model.geom_rgba)[robot, 3] > 0])
+
+
+def framed_box(model: Any, data: Any, geoms: Sequence[int],
+               goals: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Corners (low, high) [m] of the box holding ``geoms`` at the data's pose and the goal points.
+
+    A geom counts with the corners of its bounding box (MuJoCo's ``geom_aabb``, turned with the
+    geom); planes do not count.
+    """
+    import mujoco
+
+    plane = mujoco.mjtGeom.mjGEOM_PLANE
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    points: list[np.ndarray] = []
+    for g in np.asarray(geoms, dtype=int).reshape(-1):
+        if int(model.geom_type[g]) == plane:
+            continue
+        centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
+        local = centre + signs * half
+        points.append(data.geom_xpos[g] + local @ data.geom_xmat[g].reshape(3, 3).T)
+    if goals is not None and np.size(goals):
+        points.append(np.asarray(goals, dtype=float).reshape(-1, 3))
+    if not points:
+        return np.full(3, -0.5), np.full(3, 0.5)
+    pts = np.concatenate(points)
+    return pts.min(axis=0), pts.max(axis=0)
+
+
+def _axes(azimuth: float, elevation: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Forward, up and right unit vectors of MuJoCo's free camera."""
+    az, el = math.radians(azimuth), math.radians(elevation)
+    fwd = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+    up = np.array([-math.sin(el) * math.cos(az), -math.sin(el) * math.sin(az), math.cos(el)])
+    return fwd, up, np.cross(fwd, up)
+
+
+def fit_camera(low: np.ndarray, high: np.ndarray, *, fovy: float, aspect: float,
+               azimuth: float = DEFAULT_AZIMUTH, elevation: float = DEFAULT_ELEVATION,
+               lookat: Sequence[float] | None = None, distance: float | None = None,
+               margin: float = FIT_MARGIN, top: float = 0.0) -> tuple[np.ndarray, float]:
+    """Lookat and distance of a free camera that shows the whole box (corners ``low``, ``high``).
+
+    Each corner ``p`` at offset ``v = p - lookat`` lies at depth ``distance + v.forward``; it is
+    inside the image when ``|v.right| <= tan(fovx/2) (1 - margin) depth`` and likewise upwards
+    (where the top ``top`` fraction of the image's height is kept free, for the banner). The
+    smallest such distance is taken, the lookat moved to centre the box's picture in the free
+    part, and the distance fitted again. A given ``lookat`` or ``distance`` is kept as given.
+    """
+    fwd, up, right = _axes(azimuth, elevation)
+    ty = math.tan(math.radians(fovy) / 2.0) * (1.0 - margin)
+    tx = math.tan(math.radians(fovy) / 2.0) * aspect * (1.0 - margin)
+    w_top = 1.0 - 2.0 * float(top) / (1.0 - margin)  # highest usable y / (ty depth); the lowest is -1
+    corners = np.array([[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1]) for z in (low[2], high[2])])
+    centre = 0.5 * (np.asarray(low) + np.asarray(high)) if lookat is None else np.asarray(lookat, dtype=float)
+    d = 1.0
+    for _ in range(6):
+        v = corners - centre
+        f, x, y = v @ fwd, v @ right, v @ up
+        if distance is not None:
+            d = float(distance)
+        else:
+            need_y = np.where(y > 0, y / (ty * w_top), -y / ty)
+            d = max(float(np.max(np.abs(x) / tx - f)), float(np.max(need_y - f)), 0.05)
+        if lookat is not None:
+            break
+        depth = np.maximum(d + f, 1e-6)
+        u, w = x / (tx * depth), y / (ty * depth)  # -1..1 across the usable image
+        du, dw = 0.5 * (u.max() + u.min()), 0.5 * (w.max() + w.min()) - 0.5 * (w_top - 1.0)
+        if abs(du) < 1e-4 and abs(dw) < 1e-4:
+            break
+        centre = centre + du * tx * d * right + dw * ty * d * up
+    return centre, d
+
+
+def frame_workspace(cam: Any, model: Any, robot: np.ndarray, others: np.ndarray, *,
+                    goals: np.ndarray | None = None, aspect: float = 4.0 / 3.0, view: View | None = None,
+                    data: Any = None, top: float = 0.0) -> None:
+    """Point a free camera (:class:`mujoco.MjvCamera`) at the arm, the obstacles and the goals.
+
+    The arm and obstacles are taken at ``data``'s pose (default: the model's reference pose).
+    """
+    import mujoco
+
+    if data is None:
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)
+    view = view or View()
+    low, high = framed_box(model, data, np.concatenate((np.asarray(robot, dtype=int), np.asarray(others, dtype=int))),
+                           goals)
+    az = DEFAULT_AZIMUTH if view.azimuth is None else float(view.azimuth)
+    el = DEFAULT_ELEVATION if view.elevation is None else float(view.elevation)
+    lookat, dist = fit_camera(low, high, fovy=float(model.vis.global_.fovy), aspect=aspect, azimuth=az,
+                              elevation=el, lookat=view.lookat, distance=view.distance, top=top)
+    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+    cam.lookat[:] = lookat
+    cam.distance = dist
+    cam.azimuth, cam.elevation = az, el
 
 
 class VideoRecorder(Observer):
@@ -118,6 +371,10 @@ class VideoRecorder(Observer):
         speed: Simulated seconds per second of video.
         at: ``.png`` only: the time [s] of the frame (default: the first step with the filter
             on, else the last step).
+        view: The camera (default: the free camera framing the arm, obstacles and goals).
+        show_collision: Draw the collision geoms that visual geoms of their body would show instead.
+        sky: Add a gradient sky when the model has none (needs the model's file, ``model_path``
+            of the start info).
 
     Raises:
         ConfigError: Unknown format, bad sizes, or an unwritable path (before any rendering).
@@ -125,7 +382,8 @@ class VideoRecorder(Observer):
     """
 
     def __init__(self, path: str | Path, *, fps: float = 20.0, width: int = 480, height: int = 360,
-                 speed: float = 1.0, at: float | None = None) -> None:
+                 speed: float = 1.0, at: float | None = None, view: View | None = None,
+                 show_collision: bool = False, sky: bool = True) -> None:
         self.path = check_output_path(path, "video file")
         self.format = self.path.suffix.lower()
         if self.format not in FORMATS:
@@ -142,6 +400,8 @@ class VideoRecorder(Observer):
                 raise ConfigError("writing .mp4 needs the 'video' extra (pip install 'isf-robot[video]'); "
                                   ".gif and .png need nothing more") from None
         self.fps, self.width, self.height, self.speed, self.at = float(fps), int(width), int(height), float(speed), at
+        self.view = view or View()
+        self.show_collision, self.sky = bool(show_collision), bool(sky)
         self.frames: list[np.ndarray] = []
         self.frame_times: list[float] = []
         self.render_s = 0.0
@@ -158,16 +418,17 @@ class VideoRecorder(Observer):
         model = info.get("model")
         if model is None or info.get("qpos_adr") is None:
             raise ConfigError("VideoRecorder needs the arm loop's start info (model, qpos_adr)")
-        self.model = m = copy.deepcopy(model)
-        self.data = mujoco.MjData(m)
-        self.qpos_adr = np.asarray(info["qpos_adr"], dtype=int)
         robot = np.asarray(info.get("robot_geom_ids", ()), dtype=int)
         others = np.asarray(info.get("obstacle_geom_ids", ()), dtype=int)
-        self.robot = robot
-        self.robot_rgba = m.geom_rgba[robot].copy()
-        self.option = mujoco.MjvOption()
-        for g in np.concatenate((robot, others)):
-            self.option.geomgroup[int(m.geom_group[g])] = 1
+        cam_id = camera_id(model, self.view.camera) if self.view.camera is not None else -1
+        m, self.option = drawing_model(model, robot, others, show_collision=self.show_collision,
+                                       model_path=info.get("model_path"), sky=self.sky)
+        self.model = m
+        self.data = mujoco.MjData(m)
+        self.qpos_adr = np.asarray(info["qpos_adr"], dtype=int)
+        self.robot = robot_drawn_geoms(m, robot, others)
+        self.robot_rgba = m.geom_rgba[self.robot].copy()
+        self.robot_matid = m.geom_matid[self.robot].copy()
         m.vis.headlight.ambient[:] = np.maximum(m.vis.headlight.ambient, 0.35)
         m.vis.global_.offwidth = max(int(m.vis.global_.offwidth), self.width)
         m.vis.global_.offheight = max(int(m.vis.global_.offheight), self.height)
@@ -178,9 +439,13 @@ class VideoRecorder(Observer):
                 f"MuJoCo cannot render offscreen with MUJOCO_GL={os.environ.get('MUJOCO_GL', '(unset)')}: "
                 f"{' '.join(str(exc).split())}; set MUJOCO_GL=egl (or osmesa) before starting") from None
         cam = mujoco.MjvCamera()
-        cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-        frame_workspace(cam, m, robot, others)
+        if cam_id >= 0:
+            cam.type, cam.fixedcamid = mujoco.mjtCamera.mjCAMERA_FIXED, cam_id
         self.camera = cam
+        self._framed = cam_id >= 0  # the free camera is fitted at the first frame's pose
+        goals = info.get("goals")
+        self._goals = None if goals is None else np.asarray(goals, dtype=float).reshape(-1, 3)
+        self._frame_geoms = np.union1d(self.robot, drawn(m, others))
         scene_flags = self.renderer.scene.flags
         scene_flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0  # several times faster on a CPU renderer
         scene_flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
@@ -260,7 +525,17 @@ class VideoRecorder(Observer):
             d.mocap_pos[:] = record.mocap_pos
             d.mocap_quat[:] = record.mocap_quat
         mujoco.mj_kinematics(m, d)
-        m.geom_rgba[self.robot] = ON_RGBA if record.on else self.robot_rgba
+        if not self._framed:
+            frame_workspace(self.camera, m, self._frame_geoms, np.zeros(0, dtype=int), goals=self._goals,
+                            aspect=self.width / self.height, view=self.view, data=d,
+                            top=self._banner_height() / self.height)
+            self._framed = True
+        if record.on:
+            m.geom_rgba[self.robot] = ON_RGBA
+            m.geom_matid[self.robot] = -1  # a material's colour would win over the geom's
+        else:
+            m.geom_rgba[self.robot] = self.robot_rgba
+            m.geom_matid[self.robot] = self.robot_matid
         self.renderer.update_scene(d, camera=self.camera, scene_option=self.option)
         frame = np.array(self.renderer.render(), copy=True)
         self._banner(frame, float(record.t), bool(record.on))
@@ -268,11 +543,14 @@ class VideoRecorder(Observer):
         self.frame_times.append(float(record.t))
         return frame
 
+    def _banner_height(self) -> int:
+        return max(14, self.height // 16)
+
     def _banner(self, frame: np.ndarray, t: float, on: bool) -> None:
         """A strip at the top: orange 'filter ON' or grey 'filter off', the time and the run."""
         from PIL import Image, ImageDraw
 
-        h = max(14, self.height // 16)
+        h = self._banner_height()
         frame[:h] = (230, 120, 0) if on else (60, 60, 60)
         img = Image.fromarray(frame[:h])
         draw = ImageDraw.Draw(img)
