@@ -17,7 +17,7 @@ simulated model is never changed):
   file) when the model has none.
 
 The camera (:class:`View`): a named camera of the model, or a free camera whose lookat and
-distance fit the bounding box of the arm (its drawn geoms at the first frame's pose), the
+distance fit the arm (the bounding boxes of its drawn geoms at the first frame's pose), the
 obstacles and the goals (:func:`fit_camera`); azimuth, elevation, distance and lookat can
 each be given.
 
@@ -49,7 +49,7 @@ from isf_robot.core import ConfigError, Observer
 from isf_robot.core.files import check_output_path, commit_partial, partial_path
 
 __all__ = ["VideoRecorder", "View", "select_gl", "RenderUnavailableError", "FORMATS", "ON_RGBA", "frame_workspace",
-           "fit_camera", "framed_box", "drawing_model", "hidden_collision_geoms", "camera_id", "parse_lookat"]
+           "fit_camera", "framed_points", "drawing_model", "hidden_collision_geoms", "camera_id", "parse_lookat"]
 
 FORMATS = (".gif", ".mp4", ".png")
 ON_RGBA = (1.0, 0.55, 0.0, 1.0)
@@ -108,6 +108,8 @@ DEFAULT_AZIMUTH = 140.0
 """Free camera: from the front-left [deg] (MuJoCo's azimuth)."""
 DEFAULT_ELEVATION = -22.0
 """Free camera: slightly above [deg] (negative looks down)."""
+GOAL_ROOM = 0.04
+"""Half-side [m] of the cube about a goal that the picture shows (room for the goal's marker)."""
 FIT_MARGIN = 0.06
 """Fraction of the image's half-width and half-height left free around the framed box."""
 
@@ -263,30 +265,27 @@ def robot_drawn_geoms(model: Any, robot: np.ndarray, others: np.ndarray) -> np.n
     return np.union1d(np.asarray(out, dtype=int), robot[np.asarray(model.geom_rgba)[robot, 3] > 0])
 
 
-def framed_box(model: Any, data: Any, geoms: Sequence[int],
-               goals: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Corners (low, high) [m] of the box holding ``geoms`` at the data's pose and the goal points.
+def framed_points(model: Any, data: Any, geoms: Sequence[int], goals: np.ndarray | None = None) -> np.ndarray:
+    """Points [m] a picture must show, shape (n, 3): the corners of each geom's bounding box at the data's pose, and
+    of a cube of half-side :data:`GOAL_ROOM` about each goal.
 
-    A geom counts with the corners of its bounding box (MuJoCo's ``geom_aabb``, turned with the
-    geom); planes do not count.
+    A geom's box is MuJoCo's ``geom_aabb`` (in the geom's frame, turned with it); planes do not count.
     """
     import mujoco
 
     plane = mujoco.mjtGeom.mjGEOM_PLANE
     signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
-    points: list[np.ndarray] = []
+    points: list[np.ndarray] = [np.zeros((0, 3))]
     for g in np.asarray(geoms, dtype=int).reshape(-1):
         if int(model.geom_type[g]) == plane:
             continue
-        centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
-        local = centre + signs * half
+        local = model.geom_aabb[g, :3] + signs * model.geom_aabb[g, 3:]
         points.append(data.geom_xpos[g] + local @ data.geom_xmat[g].reshape(3, 3).T)
-    if goals is not None and np.size(goals):
-        points.append(np.asarray(goals, dtype=float).reshape(-1, 3))
-    if not points:
-        return np.full(3, -0.5), np.full(3, 0.5)
+    if goals is not None and np.size(goals):  # a goal with room for its marker around it
+        goals = np.asarray(goals, dtype=float).reshape(-1, 3)
+        points.append((goals[:, None, :] + GOAL_ROOM * signs[None, :, :]).reshape(-1, 3))
     pts = np.concatenate(points)
-    return pts.min(axis=0), pts.max(axis=0)
+    return pts if len(pts) else np.array([[-0.5, -0.5, -0.5], [0.5, 0.5, 0.5]])
 
 
 def _axes(azimuth: float, elevation: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -297,24 +296,24 @@ def _axes(azimuth: float, elevation: float) -> tuple[np.ndarray, np.ndarray, np.
     return fwd, up, np.cross(fwd, up)
 
 
-def fit_camera(low: np.ndarray, high: np.ndarray, *, fovy: float, aspect: float,
+def fit_camera(points: np.ndarray, *, fovy: float, aspect: float,
                azimuth: float = DEFAULT_AZIMUTH, elevation: float = DEFAULT_ELEVATION,
                lookat: Sequence[float] | None = None, distance: float | None = None,
                margin: float = FIT_MARGIN, top: float = 0.0) -> tuple[np.ndarray, float]:
-    """Lookat and distance of a free camera that shows the whole box (corners ``low``, ``high``).
+    """Lookat and distance of a free camera that shows every point of ``points`` (shape (n, 3)).
 
-    Each corner ``p`` at offset ``v = p - lookat`` lies at depth ``distance + v.forward``; it is
+    Each point ``p`` at offset ``v = p - lookat`` lies at depth ``distance + v.forward``; it is
     inside the image when ``|v.right| <= tan(fovx/2) (1 - margin) depth`` and likewise upwards
     (where the top ``top`` fraction of the image's height is kept free, for the banner). The
-    smallest such distance is taken, the lookat moved to centre the box's picture in the free
+    smallest such distance is taken, the lookat moved to centre the points' picture in the free
     part, and the distance fitted again. A given ``lookat`` or ``distance`` is kept as given.
     """
     fwd, up, right = _axes(azimuth, elevation)
     ty = math.tan(math.radians(fovy) / 2.0) * (1.0 - margin)
     tx = math.tan(math.radians(fovy) / 2.0) * aspect * (1.0 - margin)
     w_top = 1.0 - 2.0 * float(top) / (1.0 - margin)  # highest usable y / (ty depth); the lowest is -1
-    corners = np.array([[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1]) for z in (low[2], high[2])])
-    centre = 0.5 * (np.asarray(low) + np.asarray(high)) if lookat is None else np.asarray(lookat, dtype=float)
+    corners = np.asarray(points, dtype=float).reshape(-1, 3)
+    centre = 0.5 * (corners.min(axis=0) + corners.max(axis=0)) if lookat is None else np.asarray(lookat, dtype=float)
     d = 1.0
     for _ in range(6):
         v = corners - centre
@@ -348,11 +347,11 @@ def frame_workspace(cam: Any, model: Any, robot: np.ndarray, others: np.ndarray,
         data = mujoco.MjData(model)
         mujoco.mj_kinematics(model, data)
     view = view or View()
-    low, high = framed_box(model, data, np.concatenate((np.asarray(robot, dtype=int), np.asarray(others, dtype=int))),
+    points = framed_points(model, data, np.concatenate((np.asarray(robot, dtype=int), np.asarray(others, dtype=int))),
                            goals)
     az = DEFAULT_AZIMUTH if view.azimuth is None else float(view.azimuth)
     el = DEFAULT_ELEVATION if view.elevation is None else float(view.elevation)
-    lookat, dist = fit_camera(low, high, fovy=float(model.vis.global_.fovy), aspect=aspect, azimuth=az,
+    lookat, dist = fit_camera(points, fovy=float(model.vis.global_.fovy), aspect=aspect, azimuth=az,
                               elevation=el, lookat=view.lookat, distance=view.distance, top=top)
     cam.type = mujoco.mjtCamera.mjCAMERA_FREE
     cam.lookat[:] = lookat
@@ -525,6 +524,7 @@ class VideoRecorder(Observer):
             d.mocap_pos[:] = record.mocap_pos
             d.mocap_quat[:] = record.mocap_quat
         mujoco.mj_kinematics(m, d)
+        mujoco.mj_camlight(m, d)  # cameras and lights follow their bodies
         if not self._framed:
             frame_workspace(self.camera, m, self._frame_geoms, np.zeros(0, dtype=int), goals=self._goals,
                             aspect=self.width / self.height, view=self.view, data=d,
