@@ -5,21 +5,10 @@ frame times it poses a copy of the run's model at the step record's ``q`` and mo
 renders it with MuJoCo's offscreen :class:`mujoco.Renderer` and draws a banner with the time
 and the mode. The robot is orange while the filter is on.
 
-What is drawn (:func:`drawing_model`, on a copy of the model used for drawing only; the
-simulated model is never changed):
-
-* visual geoms (``contype = conaffinity = 0``) as the model draws them; a collision geom is
-  hidden when its body (not the world) has visual geoms, so a vendor's collision meshes or
-  primitives (Menagerie: group 3, or group 0) do not speckle the visual meshes; a body with
-  only collision geoms keeps them. ``show_collision`` draws them all;
-* MuJoCo's default geom groups (0, 1, 2) and every group of the robot's and obstacles' drawn geoms;
-* a sky: a gradient skybox texture is added (through :class:`mujoco.MjSpec`, from the model's
-  file) when the model has none.
-
-The camera (:class:`View`): a named camera of the model, or a free camera whose lookat and
-distance fit the arm (the bounding boxes of its drawn geoms at the first frame's pose), the
-obstacles and the goals (:func:`fit_camera`); azimuth, elevation, distance and lookat can
-each be given.
+What is drawn: visual geoms, not the collision geoms they cover, and a sky
+(:mod:`isf_robot.arm.drawing`, on a copy of the model used for drawing only). The camera: a
+named camera of the model or a free camera framing the arm, the obstacles and the goals
+(:mod:`isf_robot.arm.camera`).
 
 Writers: ``.gif`` with Pillow (a dependency of rerun-sdk), ``.mp4`` with imageio and its
 ffmpeg (the ``video`` extra), ``.png`` one frame (Pillow). Files are written as
@@ -33,13 +22,11 @@ user set, else tries EGL, then OSMesa, each in a short subprocess, and raises
 
 from __future__ import annotations
 
-import copy
 import math
 import os
 import subprocess
 import sys
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -48,8 +35,10 @@ import numpy as np
 from isf_robot.core import ConfigError, Observer
 from isf_robot.core.files import check_output_path, commit_partial, partial_path
 
-__all__ = ["VideoRecorder", "View", "select_gl", "RenderUnavailableError", "FORMATS", "ON_RGBA", "frame_workspace",
-           "fit_camera", "framed_points", "drawing_model", "hidden_collision_geoms", "camera_id", "parse_lookat"]
+from .camera import View, camera_id, frame_workspace
+from .drawing import drawing_model, drawn, robot_drawn_geoms
+
+__all__ = ["VideoRecorder", "View", "select_gl", "RenderUnavailableError", "FORMATS", "ON_RGBA", "frame_workspace"]
 
 FORMATS = (".gif", ".mp4", ".png")
 ON_RGBA = (1.0, 0.55, 0.0, 1.0)
@@ -99,264 +88,6 @@ def select_gl(backends: Sequence[str] = GL_BACKENDS) -> str:
     hint = ("unset MUJOCO_GL to try EGL and OSMesa" if chosen else
             "install EGL (Debian: libegl1) or OSMesa (libosmesa6), or run where a GPU driver is present")
     raise RenderUnavailableError(f"offscreen rendering is not available ({'; '.join(reasons)}); {hint}")
-
-
-SKY_TOP = (0.42, 0.62, 0.85)
-"""Colour of the added sky at the zenith (a gradient to :data:`SKY_BOTTOM` at the horizon and below)."""
-SKY_BOTTOM = (0.93, 0.95, 0.98)
-DEFAULT_AZIMUTH = 140.0
-"""Free camera: from the front-left [deg] (MuJoCo's azimuth)."""
-DEFAULT_ELEVATION = -22.0
-"""Free camera: slightly above [deg] (negative looks down)."""
-GOAL_ROOM = 0.04
-"""Half-side [m] of the cube about a goal that the picture shows (room for the goal's marker)."""
-FIT_MARGIN = 0.06
-"""Fraction of the image's half-width and half-height left free around the framed box."""
-
-
-@dataclass(frozen=True)
-class View:
-    """The camera of a picture: a named camera of the model, or a free camera (each value optional).
-
-    Unset free-camera values are defaults (azimuth :data:`DEFAULT_AZIMUTH`, elevation
-    :data:`DEFAULT_ELEVATION`) or fitted (:func:`fit_camera`: lookat and distance framing the arm,
-    the obstacles and the goals).
-    """
-
-    camera: str | None = None
-    azimuth: float | None = None
-    elevation: float | None = None
-    distance: float | None = None
-    lookat: tuple[float, float, float] | None = None
-
-    def __post_init__(self) -> None:
-        free = {"azimuth": self.azimuth, "elevation": self.elevation, "distance": self.distance,
-                "lookat": self.lookat}
-        given = [k for k, v in free.items() if v is not None]
-        if self.camera is not None and given:
-            raise ConfigError(f"--camera {self.camera!r} is a camera of the model; it takes no "
-                              f"{', '.join('--' + k for k in given)} (those set the free camera)")
-        for k in ("azimuth", "elevation", "distance"):
-            v = free[k]
-            if v is not None and not math.isfinite(float(v)):
-                raise ConfigError(f"--{k} must be a finite number, got {v!r}")
-        if self.elevation is not None and not -90.0 <= float(self.elevation) <= 90.0:
-            raise ConfigError(f"--elevation must be in [-90, 90] degrees (negative looks down), got {self.elevation}")
-        if self.distance is not None and not float(self.distance) > 0:
-            raise ConfigError(f"--distance must be a positive number of metres, got {self.distance}")
-        if self.lookat is not None and (len(self.lookat) != 3 or not all(math.isfinite(float(x)) for x in self.lookat)):
-            raise ConfigError(f"--lookat must be three finite numbers X,Y,Z [m], got {self.lookat!r}")
-
-
-def parse_lookat(text: str) -> tuple[float, float, float]:
-    """``"X,Y,Z"`` -> three floats; a :class:`ConfigError` naming the valid form otherwise."""
-    parts = [t.strip() for t in str(text).split(",")]
-    try:
-        xyz = tuple(float(t) for t in parts)
-    except ValueError:
-        xyz = ()
-    if len(xyz) != 3 or not all(math.isfinite(x) for x in xyz):
-        raise ConfigError(f"--lookat {text!r}: expected three numbers X,Y,Z in metres, e.g. --lookat 0.4,0,0.3")
-    return (xyz[0], xyz[1], xyz[2])
-
-
-def camera_id(model: Any, name: str) -> int:
-    """Id of the model's camera ``name``; a :class:`ConfigError` listing the valid names otherwise."""
-    import mujoco
-
-    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_CAMERA, i) or "" for i in range(model.ncam)]
-    if name in names and name:
-        return names.index(name)
-    valid = [n for n in names if n]
-    if not valid:
-        raise ConfigError(f"--camera {name!r}: the model has no named camera; use the free camera's "
-                          "--azimuth, --elevation, --distance, --lookat")
-    raise ConfigError(f"--camera {name!r}: no such camera in the model; valid: {', '.join(valid)}")
-
-
-def _is_visual(model: Any, g: int) -> bool:
-    return int(model.geom_contype[g]) == 0 and int(model.geom_conaffinity[g]) == 0
-
-
-def hidden_collision_geoms(model: Any) -> np.ndarray:
-    """Collision geoms whose body (not the world) also has visual geoms (``contype = conaffinity = 0``)."""
-    import mujoco
-
-    ids = np.arange(model.ngeom)
-    body = np.asarray(model.geom_bodyid)
-    visual = (np.asarray(model.geom_contype) == 0) & (np.asarray(model.geom_conaffinity) == 0)
-    visual &= np.asarray(model.geom_type) != mujoco.mjtGeom.mjGEOM_PLANE
-    with_visual = set(body[visual].tolist()) - {0}
-    return ids[~visual & np.isin(body, list(with_visual)) & (np.asarray(model.geom_contype) | np.asarray(
-        model.geom_conaffinity) != 0)]
-
-
-def _has_sky(model: Any) -> bool:
-    import mujoco
-
-    return bool(np.any(np.asarray(model.tex_type) == mujoco.mjtTexture.mjTEXTURE_SKYBOX))
-
-
-def _with_sky(model: Any, path: str | Path | None) -> Any:
-    """A copy of ``model`` with a gradient skybox, compiled again from its file; ``None`` when that is not the same model."""
-    import mujoco
-
-    if path is None or not Path(path).is_file():
-        return None
-    try:
-        spec = mujoco.MjSpec.from_file(str(path))
-        spec.add_texture(name="isf_robot_render_sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
-                         builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, rgb1=list(SKY_TOP), rgb2=list(SKY_BOTTOM),
-                         width=256, height=256)
-        sky = spec.compile()
-    except Exception:  # a file MuJoCo's spec reader takes differently: no sky rather than no picture
-        return None
-    same = all(getattr(sky, k) == getattr(model, k) for k in ("nq", "nbody", "ngeom", "nsite", "nmocap", "ncam",
-                                                                 "nmat"))
-    if not same or not (np.allclose(sky.geom_size, model.geom_size) and np.allclose(sky.body_pos, model.body_pos)):
-        return None
-    for key in ("geom_rgba", "geom_group", "geom_matid", "site_rgba", "site_group", "mat_rgba"):
-        getattr(sky, key)[:] = getattr(model, key)
-    return sky
-
-
-def drawing_model(model: Any, robot: np.ndarray, others: np.ndarray, *, show_collision: bool = False,
-                  model_path: str | Path | None = None, sky: bool = True) -> tuple[Any, Any]:
-    """A copy of ``model`` for drawing and the :class:`mujoco.MjvOption` to draw it with.
-
-    Collision geoms of bodies that have visual geoms get alpha 0 (MuJoCo skips them) unless
-    ``show_collision``; a gradient skybox is added when the model has none and its file is given.
-    The geom groups drawn are MuJoCo's default ones and every group of the robot's and the
-    obstacles' bodies' drawn geoms.
-    """
-    import mujoco
-
-    m = (_with_sky(model, model_path) if sky and not _has_sky(model) else None) or copy.deepcopy(model)
-    if not show_collision:
-        hide = hidden_collision_geoms(m)
-        m.geom_rgba[hide, 3] = 0.0
-        m.geom_matid[hide] = -1
-    option = mujoco.MjvOption()
-    ids = np.concatenate((np.asarray(robot, dtype=int), np.asarray(others, dtype=int)))
-    for g in drawn(m, ids):
-        option.geomgroup[int(m.geom_group[g])] = 1
-    return m, option
-
-
-def drawn(model: Any, geoms: np.ndarray) -> np.ndarray:
-    """The geoms among ``geoms`` and the other geoms of their bodies (not the world) that are drawn (alpha > 0)."""
-    geoms = np.asarray(geoms, dtype=int)
-    bodies = set(np.asarray(model.geom_bodyid)[geoms].tolist()) - {0}
-    out = [g for g in range(model.ngeom) if (g in set(geoms.tolist()) or int(model.geom_bodyid[g]) in bodies)
-           and float(model.geom_rgba[g, 3]) > 0]
-    return np.asarray(out, dtype=int)
-
-
-def robot_drawn_geoms(model: Any, robot: np.ndarray, others: np.ndarray) -> np.ndarray:
-    """The geoms that show the robot: every drawn geom of the robot's subtrees (not the obstacles')."""
-    robot = np.asarray(robot, dtype=int)
-    if robot.size == 0:
-        return robot
-    roots = set(np.asarray(model.body_rootid)[np.asarray(model.geom_bodyid)[robot]].tolist()) - {0}
-    obstacle_bodies = set(np.asarray(model.geom_bodyid)[np.asarray(others, dtype=int)].tolist())
-    out = [g for g in range(model.ngeom)
-           if int(model.body_rootid[int(model.geom_bodyid[g])]) in roots
-           and int(model.geom_bodyid[g]) not in obstacle_bodies and float(model.geom_rgba[g, 3]) > 0]
-    return np.union1d(np.asarray(out, dtype=int), robot[np.asarray(model.geom_rgba)[robot, 3] > 0])
-
-
-def framed_points(model: Any, data: Any, geoms: Sequence[int], goals: np.ndarray | None = None) -> np.ndarray:
-    """Points [m] a picture must show, shape (n, 3): the corners of each geom's bounding box at the data's pose, and
-    of a cube of half-side :data:`GOAL_ROOM` about each goal.
-
-    A geom's box is MuJoCo's ``geom_aabb`` (in the geom's frame, turned with it); planes do not count.
-    """
-    import mujoco
-
-    plane = mujoco.mjtGeom.mjGEOM_PLANE
-    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
-    points: list[np.ndarray] = [np.zeros((0, 3))]
-    for g in np.asarray(geoms, dtype=int).reshape(-1):
-        if int(model.geom_type[g]) == plane:
-            continue
-        local = model.geom_aabb[g, :3] + signs * model.geom_aabb[g, 3:]
-        points.append(data.geom_xpos[g] + local @ data.geom_xmat[g].reshape(3, 3).T)
-    if goals is not None and np.size(goals):  # a goal with room for its marker around it
-        goals = np.asarray(goals, dtype=float).reshape(-1, 3)
-        points.append((goals[:, None, :] + GOAL_ROOM * signs[None, :, :]).reshape(-1, 3))
-    pts = np.concatenate(points)
-    return pts if len(pts) else np.array([[-0.5, -0.5, -0.5], [0.5, 0.5, 0.5]])
-
-
-def _axes(azimuth: float, elevation: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Forward, up and right unit vectors of MuJoCo's free camera."""
-    az, el = math.radians(azimuth), math.radians(elevation)
-    fwd = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
-    up = np.array([-math.sin(el) * math.cos(az), -math.sin(el) * math.sin(az), math.cos(el)])
-    return fwd, up, np.cross(fwd, up)
-
-
-def fit_camera(points: np.ndarray, *, fovy: float, aspect: float,
-               azimuth: float = DEFAULT_AZIMUTH, elevation: float = DEFAULT_ELEVATION,
-               lookat: Sequence[float] | None = None, distance: float | None = None,
-               margin: float = FIT_MARGIN, top: float = 0.0) -> tuple[np.ndarray, float]:
-    """Lookat and distance of a free camera that shows every point of ``points`` (shape (n, 3)).
-
-    Each point ``p`` at offset ``v = p - lookat`` lies at depth ``distance + v.forward``; it is
-    inside the image when ``|v.right| <= tan(fovx/2) (1 - margin) depth`` and likewise upwards
-    (where the top ``top`` fraction of the image's height is kept free, for the banner). The
-    smallest such distance is taken, the lookat moved to centre the points' picture in the free
-    part, and the distance fitted again. A given ``lookat`` or ``distance`` is kept as given.
-    """
-    fwd, up, right = _axes(azimuth, elevation)
-    ty = math.tan(math.radians(fovy) / 2.0) * (1.0 - margin)
-    tx = math.tan(math.radians(fovy) / 2.0) * aspect * (1.0 - margin)
-    w_top = 1.0 - 2.0 * float(top) / (1.0 - margin)  # highest usable y / (ty depth); the lowest is -1
-    corners = np.asarray(points, dtype=float).reshape(-1, 3)
-    centre = 0.5 * (corners.min(axis=0) + corners.max(axis=0)) if lookat is None else np.asarray(lookat, dtype=float)
-    d = 1.0
-    for _ in range(6):
-        v = corners - centre
-        f, x, y = v @ fwd, v @ right, v @ up
-        if distance is not None:
-            d = float(distance)
-        else:
-            need_y = np.where(y > 0, y / (ty * w_top), -y / ty)
-            d = max(float(np.max(np.abs(x) / tx - f)), float(np.max(need_y - f)), 0.05)
-        if lookat is not None:
-            break
-        depth = np.maximum(d + f, 1e-6)
-        u, w = x / (tx * depth), y / (ty * depth)  # -1..1 across the usable image
-        du, dw = 0.5 * (u.max() + u.min()), 0.5 * (w.max() + w.min()) - 0.5 * (w_top - 1.0)
-        if abs(du) < 1e-4 and abs(dw) < 1e-4:
-            break
-        centre = centre + du * tx * d * right + dw * ty * d * up
-    return centre, d
-
-
-def frame_workspace(cam: Any, model: Any, robot: np.ndarray, others: np.ndarray, *,
-                    goals: np.ndarray | None = None, aspect: float = 4.0 / 3.0, view: View | None = None,
-                    data: Any = None, top: float = 0.0) -> None:
-    """Point a free camera (:class:`mujoco.MjvCamera`) at the arm, the obstacles and the goals.
-
-    The arm and obstacles are taken at ``data``'s pose (default: the model's reference pose).
-    """
-    import mujoco
-
-    if data is None:
-        data = mujoco.MjData(model)
-        mujoco.mj_kinematics(model, data)
-    view = view or View()
-    points = framed_points(model, data, np.concatenate((np.asarray(robot, dtype=int), np.asarray(others, dtype=int))),
-                           goals)
-    az = DEFAULT_AZIMUTH if view.azimuth is None else float(view.azimuth)
-    el = DEFAULT_ELEVATION if view.elevation is None else float(view.elevation)
-    lookat, dist = fit_camera(points, fovy=float(model.vis.global_.fovy), aspect=aspect, azimuth=az,
-                              elevation=el, lookat=view.lookat, distance=view.distance, top=top)
-    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-    cam.lookat[:] = lookat
-    cam.distance = dist
-    cam.azimuth, cam.elevation = az, el
 
 
 class VideoRecorder(Observer):

@@ -32,7 +32,8 @@ import numpy as np
 
 from isf_robot.core import ConfigError, IsfError, Observer
 
-from .render import ON_RGBA, frame_workspace
+from .camera import frame_workspace
+from .render import ON_RGBA
 
 __all__ = ["LiveViewer", "ViewerUnavailableError", "ViewerClosedError", "check_display"]
 

@@ -64,7 +64,8 @@ def handle(args: argparse.Namespace) -> int:
     from isf_robot.cli.arm import _check_seed, _params, _spec
 
     _check_seed(args)
-    from isf_robot.arm.render import View, VideoRecorder, camera_id, parse_lookat
+    from isf_robot.arm.camera import View, camera_id, parse_lookat
+    from isf_robot.arm.render import VideoRecorder
 
     view = View(camera=args.camera, azimuth=args.azimuth, elevation=args.elevation, distance=args.distance,
                 lookat=None if args.lookat is None else parse_lookat(args.lookat))  # bad values fail first

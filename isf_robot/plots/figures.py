@@ -117,7 +117,9 @@ def _bars(ax: Any, bars: Sequence[StrategyBars], name: str, title: str) -> None:
     top, bottom = max(0.0, float(np.max(np.maximum(high, mean)))), min(0.0, float(np.min(np.minimum(low, mean))))
     span = (top - bottom) or max(abs(top), abs(bottom), 1.0)
     room = 0.3 * span  # a label is ~11 pt of an axes of ~150 pt
-    ax.set_ylim(bottom - (room if np.any(mean < 0) else 0.05 * span), top + (room if np.any(mean >= 0) else 0.05 * span))
+    below = room if np.any(mean < 0) else 0.05 * span
+    above = room if np.any(mean >= 0) else 0.05 * span
+    ax.set_ylim(bottom - below, top + above)
 
 
 def compare_figure(runs: Sequence[RunSeries], bars: Sequence[StrategyBars], title: str = "") -> Any:

@@ -304,7 +304,7 @@ def test_fitted_free_camera_shows_every_corner_of_the_box(azimuth: float, elevat
     """The fitted lookat and distance, given to MuJoCo's own camera, put every corner inside the frustum, tightly."""
     import mujoco
 
-    from isf_robot.arm.render import fit_camera
+    from isf_robot.arm.camera import fit_camera
 
     m = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='0.1'/></worldbody></mujoco>")
     d = mujoco.MjData(m)
