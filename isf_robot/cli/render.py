@@ -42,8 +42,8 @@ def register(sub: Any) -> None:
     p.add_argument("--height", type=int, default=360, help="frame height [px] (default 360)")
     p.add_argument("--at", type=float, default=None, metavar="S",
                    help=".png: time of the frame [s] (default: the first step with the filter on)")
-    g = p.add_argument_group("camera and drawing (default: a free camera framing the arm's reach, the obstacles "
-                             "and the goals, from the front-left and above)")
+    g = p.add_argument_group("camera and drawing (default: a free camera framing the arm at the first frame, the "
+                             "obstacles and the goals, from the front-left and above)")
     g.add_argument("--camera", metavar="NAME", default=None,
                    help="a named camera of the model instead of the free camera")
     g.add_argument("--azimuth", type=float, default=None, metavar="DEG",
@@ -53,7 +53,7 @@ def register(sub: Any) -> None:
     g.add_argument("--distance", type=float, default=None, metavar="M",
                    help="free camera's distance from the lookat point [m] (default: fitted)")
     g.add_argument("--lookat", default=None, metavar="X,Y,Z",
-                   help="point the free camera looks at [m] (default: the framed box's centre)")
+                   help="point the free camera looks at [m] (default: fitted with the distance)")
     g.add_argument("--show-collision", action="store_true",
                    help="also draw the collision geoms of bodies that have visual geoms (hidden by default)")
     p.set_defaults(handler=handle)

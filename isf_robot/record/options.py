@@ -147,7 +147,7 @@ def _serve_options(args: argparse.Namespace, serve_web: bool) -> dict[str, Any]:
     given = {k: getattr(args, k, None) for k in ("bind", "web_port", "grpc_port")}
     named = [f"--{k.replace('_', '-')}" for k, v in given.items() if v is not None]
     if named and not serve_web:
-        raise RecordError(f"{', '.join(named)} set(s) where --serve-web listens; add --serve-web")
+        raise RecordError(f"{', '.join(named)}: only for --serve-web (where it listens); add --serve-web")
     for key in ("web_port", "grpc_port"):
         v = given[key]
         if v is not None and not 1 <= int(v) <= 65535:
