@@ -172,10 +172,15 @@ class Comparison:
         """``{"scene", "episodes", "seeds", "partial", "results": {strategy: {key: mean, ..., "episodes": [...]}}}``.
 
         ``partial`` is true when the comparison was interrupted: the means are over the episodes
-        that finished (``count`` per key, ``episodes`` lists them).
+        that finished (``count`` per key, ``episodes`` lists them; ``finished`` counts them per
+        strategy, of ``episodes``).
         """
         return json_safe({"scene": self.scene, "episodes": self.episodes, "seeds": list(self.seeds),
-                          "partial": self.partial, "results": self.results})
+                          "partial": self.partial, "finished": self.finished(), "results": self.results})
+
+    def finished(self) -> dict[str, int]:
+        """Episodes that finished, per strategy (``episodes`` each unless ``partial``)."""
+        return {s: len(res.get("episodes", ())) for s, res in self.results.items()}
 
 
 ProgressFn = Callable[[int, int, EpisodeTask, Mapping[str, Any]], None]
@@ -282,13 +287,19 @@ _COLUMNS: tuple[tuple[str, str, str], ...] = (
 def format_table(comp: Comparison) -> str:
     """Plain-text table, one row per strategy: mean ± standard deviation over episodes.
 
+    An interrupted comparison's title says how many episodes finished per strategy.
+
     ``-`` marks a mean over no episode (e.g. no complete off period in any run).
     """
     rows = []
     for strategy, res in comp.results.items():
         std = res.get("std", {})
         rows.append([strategy] + [mean_std_cell(res.get(k), std.get(k), f) for k, _, f in _COLUMNS])
-    title = (("PARTIAL (interrupted; means over the finished episodes) " if comp.partial else "")
-             + f"scene {comp.scene}: {comp.episodes} episode(s) per strategy, seeds "
-             f"{comp.seeds[0]}..{comp.seeds[-1]} (mean ± std)")
+    if comp.partial:
+        done = ", ".join(f"{s}: {n} of {comp.episodes} episodes finished" for s, n in comp.finished().items())
+        title = (f"PARTIAL (interrupted; means over the finished episodes) scene {comp.scene}, seeds "
+                 f"{comp.seeds[0]}..{comp.seeds[-1]} (mean ± std); {done}")
+    else:
+        title = (f"scene {comp.scene}: {comp.episodes} episode(s) per strategy, seeds "
+                 f"{comp.seeds[0]}..{comp.seeds[-1]} (mean ± std)")
     return _table(["strategy"] + [h for _, h, _ in _COLUMNS], rows, title=title)

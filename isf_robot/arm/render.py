@@ -2,9 +2,13 @@
 
 :class:`VideoRecorder` is an observer of :class:`~isf_robot.arm.ArmSimulation`: at the video's
 frame times it poses a copy of the run's model at the step record's ``q`` and mocap poses,
-renders it with MuJoCo's offscreen :class:`mujoco.Renderer` (the robot and obstacle geoms drawn
-whatever their group; the robot orange while the filter is on) and draws a banner with the time
-and the mode. The camera looks at the robot's workspace (its base and the reach of its geoms).
+renders it with MuJoCo's offscreen :class:`mujoco.Renderer` and draws a banner with the time
+and the mode. The robot is orange while the filter is on.
+
+What is drawn: visual geoms, not the collision geoms they cover, and a sky
+(:mod:`isf_robot.arm.drawing`, on a copy of the model used for drawing only). The camera: a
+named camera of the model or a free camera framing the arm, the obstacles and the goals
+(:mod:`isf_robot.arm.camera`).
 
 Writers: ``.gif`` with Pillow (a dependency of rerun-sdk), ``.mp4`` with imageio and its
 ffmpeg (the ``video`` extra), ``.png`` one frame (Pillow). Files are written as
@@ -18,7 +22,6 @@ user set, else tries EGL, then OSMesa, each in a short subprocess, and raises
 
 from __future__ import annotations
 
-import copy
 import math
 import os
 import subprocess
@@ -33,8 +36,10 @@ from isf_robot.core import ConfigError, Observer
 from isf_robot.core.extras import install_hint
 from isf_robot.core.files import check_output_path, commit_partial, partial_path
 
-__all__ = ["VideoRecorder", "select_gl", "RenderUnavailableError", "FORMATS", "ON_RGBA", "workspace",
-           "frame_workspace"]
+from .camera import View, camera_id, frame_workspace
+from .drawing import drawing_model, drawn, robot_drawn_geoms
+
+__all__ = ["VideoRecorder", "View", "select_gl", "RenderUnavailableError", "FORMATS", "ON_RGBA", "frame_workspace"]
 
 FORMATS = (".gif", ".mp4", ".png")
 ON_RGBA = (1.0, 0.55, 0.0, 1.0)
@@ -86,28 +91,6 @@ def select_gl(backends: Sequence[str] = GL_BACKENDS) -> str:
     raise RenderUnavailableError(f"offscreen rendering is not available ({'; '.join(reasons)}); {hint}")
 
 
-def workspace(model: Any, robot: np.ndarray, others: np.ndarray) -> tuple[np.ndarray, float]:
-    """Centre (the robot's base) and radius [m] of the robot and obstacle geoms at the reference pose."""
-    import mujoco
-
-    d = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, d)
-    roots = sorted({int(model.body_rootid[int(model.geom_bodyid[g])]) for g in robot} - {0})
-    ids = np.concatenate((robot, others)).astype(int)
-    centre = np.mean([d.xpos[b] for b in roots], axis=0) if roots else d.geom_xpos[ids].mean(axis=0)
-    radius = max([float(np.linalg.norm(d.geom_xpos[g] - centre)) + float(model.geom_rbound[g]) for g in ids
-                  if int(model.geom_type[g]) != mujoco.mjtGeom.mjGEOM_PLANE] or [0.5])
-    return centre, radius
-
-
-def frame_workspace(cam: Any, model: Any, robot: np.ndarray, others: np.ndarray) -> None:
-    """Point a free camera (:class:`mujoco.MjvCamera`) at the workspace, from the front-left, slightly above."""
-    centre, radius = workspace(model, robot, others)
-    cam.lookat[:] = centre + np.array([0.0, 0.0, radius / 3.0])
-    cam.distance = 1.9 * radius
-    cam.azimuth, cam.elevation = 140.0, -22.0
-
-
 class VideoRecorder(Observer):
     """Render an arm run offscreen into a video (``.gif``/``.mp4``) or one frame (``.png``).
 
@@ -119,6 +102,10 @@ class VideoRecorder(Observer):
         speed: Simulated seconds per second of video.
         at: ``.png`` only: the time [s] of the frame (default: the first step with the filter
             on, else the last step).
+        view: The camera (default: the free camera framing the arm, obstacles and goals).
+        show_collision: Draw the collision geoms that visual geoms of their body would show instead.
+        sky: Add a gradient sky when the model has none (needs the model's file, ``model_path``
+            of the start info).
 
     Raises:
         ConfigError: Unknown format, bad sizes, or an unwritable path (before any rendering).
@@ -126,7 +113,8 @@ class VideoRecorder(Observer):
     """
 
     def __init__(self, path: str | Path, *, fps: float = 20.0, width: int = 480, height: int = 360,
-                 speed: float = 1.0, at: float | None = None) -> None:
+                 speed: float = 1.0, at: float | None = None, view: View | None = None,
+                 show_collision: bool = False, sky: bool = True) -> None:
         self.path = check_output_path(path, "video file")
         self.format = self.path.suffix.lower()
         if self.format not in FORMATS:
@@ -143,6 +131,8 @@ class VideoRecorder(Observer):
                 raise ConfigError(f"writing .mp4 needs the 'video' extra ({install_hint('video')}); "
                                   ".gif and .png need nothing more") from None
         self.fps, self.width, self.height, self.speed, self.at = float(fps), int(width), int(height), float(speed), at
+        self.view = view or View()
+        self.show_collision, self.sky = bool(show_collision), bool(sky)
         self.frames: list[np.ndarray] = []
         self.frame_times: list[float] = []
         self.render_s = 0.0
@@ -159,16 +149,17 @@ class VideoRecorder(Observer):
         model = info.get("model")
         if model is None or info.get("qpos_adr") is None:
             raise ConfigError("VideoRecorder needs the arm loop's start info (model, qpos_adr)")
-        self.model = m = copy.deepcopy(model)
-        self.data = mujoco.MjData(m)
-        self.qpos_adr = np.asarray(info["qpos_adr"], dtype=int)
         robot = np.asarray(info.get("robot_geom_ids", ()), dtype=int)
         others = np.asarray(info.get("obstacle_geom_ids", ()), dtype=int)
-        self.robot = robot
-        self.robot_rgba = m.geom_rgba[robot].copy()
-        self.option = mujoco.MjvOption()
-        for g in np.concatenate((robot, others)):
-            self.option.geomgroup[int(m.geom_group[g])] = 1
+        cam_id = camera_id(model, self.view.camera) if self.view.camera is not None else -1
+        m, self.option = drawing_model(model, robot, others, show_collision=self.show_collision,
+                                       model_path=info.get("model_path"), sky=self.sky)
+        self.model = m
+        self.data = mujoco.MjData(m)
+        self.qpos_adr = np.asarray(info["qpos_adr"], dtype=int)
+        self.robot = robot_drawn_geoms(m, robot, others)
+        self.robot_rgba = m.geom_rgba[self.robot].copy()
+        self.robot_matid = m.geom_matid[self.robot].copy()
         m.vis.headlight.ambient[:] = np.maximum(m.vis.headlight.ambient, 0.35)
         m.vis.global_.offwidth = max(int(m.vis.global_.offwidth), self.width)
         m.vis.global_.offheight = max(int(m.vis.global_.offheight), self.height)
@@ -179,9 +170,13 @@ class VideoRecorder(Observer):
                 f"MuJoCo cannot render offscreen with MUJOCO_GL={os.environ.get('MUJOCO_GL', '(unset)')}: "
                 f"{' '.join(str(exc).split())}; set MUJOCO_GL=egl (or osmesa) before starting") from None
         cam = mujoco.MjvCamera()
-        cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-        frame_workspace(cam, m, robot, others)
+        if cam_id >= 0:
+            cam.type, cam.fixedcamid = mujoco.mjtCamera.mjCAMERA_FIXED, cam_id
         self.camera = cam
+        self._framed = cam_id >= 0  # the free camera is fitted at the first frame's pose
+        goals = info.get("goals")
+        self._goals = None if goals is None else np.asarray(goals, dtype=float).reshape(-1, 3)
+        self._frame_geoms = np.union1d(self.robot, drawn(m, others))
         scene_flags = self.renderer.scene.flags
         scene_flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0  # several times faster on a CPU renderer
         scene_flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
@@ -261,7 +256,18 @@ class VideoRecorder(Observer):
             d.mocap_pos[:] = record.mocap_pos
             d.mocap_quat[:] = record.mocap_quat
         mujoco.mj_kinematics(m, d)
-        m.geom_rgba[self.robot] = ON_RGBA if record.on else self.robot_rgba
+        mujoco.mj_camlight(m, d)  # cameras and lights follow their bodies
+        if not self._framed:
+            frame_workspace(self.camera, m, self._frame_geoms, np.zeros(0, dtype=int), goals=self._goals,
+                            aspect=self.width / self.height, view=self.view, data=d,
+                            top=self._banner_height() / self.height)
+            self._framed = True
+        if record.on:
+            m.geom_rgba[self.robot] = ON_RGBA
+            m.geom_matid[self.robot] = -1  # a material's colour would win over the geom's
+        else:
+            m.geom_rgba[self.robot] = self.robot_rgba
+            m.geom_matid[self.robot] = self.robot_matid
         self.renderer.update_scene(d, camera=self.camera, scene_option=self.option)
         frame = np.array(self.renderer.render(), copy=True)
         self._banner(frame, float(record.t), bool(record.on))
@@ -269,11 +275,14 @@ class VideoRecorder(Observer):
         self.frame_times.append(float(record.t))
         return frame
 
+    def _banner_height(self) -> int:
+        return max(14, self.height // 16)
+
     def _banner(self, frame: np.ndarray, t: float, on: bool) -> None:
         """A strip at the top: orange 'filter ON' or grey 'filter off', the time and the run."""
         from PIL import Image, ImageDraw
 
-        h = max(14, self.height // 16)
+        h = self._banner_height()
         frame[:h] = (230, 120, 0) if on else (60, 60, 60)
         img = Image.fromarray(frame[:h])
         draw = ImageDraw.Draw(img)

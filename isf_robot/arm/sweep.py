@@ -279,7 +279,8 @@ def _summary(names: list[tuple[str, int]], points: Sequence[SweepPoint], seeds: 
                                for k in ("duty_cycle", "on_switches", "intervention")}
                 r["vs_cbf"]["goals_diff"] = (None if r["goals_reached"] is None or cbf["goals_reached"] is None
                                              else r["goals_reached"] - cbf["goals_reached"])
-        scenes.append({"scene": name, "goals": n_goals, "goals_time_k": goal_k, "points": rows})
+        scenes.append({"scene": name, "goals": n_goals, "goals_time_k": goal_k, "n_points": len(points),
+                       "points": rows})
     return json_safe({"partial": partial, "seeds": seeds, "objectives": [k for k, _ in OBJECTIVES],
                       "scenes": scenes})
 
@@ -303,12 +304,21 @@ def format_sweep(sweep: Mapping[str, Any]) -> str:
         for r in sc["points"]:
             ratio = r.get("vs_cbf") or {}
             rows.append([("* " if r["pareto"] else "  ") + r["label"]]
+                        + ([f"{r['episodes']}/{len(sweep['seeds'])}"] if sweep["partial"] else [])
                         + [_cell(r.get(k), f) for k, _, f in _COLUMNS]
                         + [_cell(ratio.get(k), ".2f") for k in ("duty_cycle", "on_switches", "intervention")]
                         + ["yes" if r["d_bar_covered_all"] else "no"])
-        title = (("PARTIAL (interrupted) " if sweep["partial"] else "") + f"scene {sc['scene']}: "
-                 f"{len(sweep['seeds'])} seed(s) per point, means (min off: shortest over episodes; "
-                 f"t goals: time of goal {sc.get('goals_time_k', '-')} of {sc.get('goals', '-')} [s]; * Pareto front)")
-        out.append(format_table(["point"] + [h for _, h, _ in _COLUMNS]
+        n_seeds = len(sweep["seeds"])
+        if sweep["partial"]:
+            done = sum(int(r["episodes"]) for r in sc["points"])
+            total = n_seeds * int(sc.get("n_points", len(sc["points"])))
+            head = (f"PARTIAL (interrupted) scene {sc['scene']}: {done} of {total} episodes finished "
+                    f"({len(sc['points'])} of {sc.get('n_points', len(sc['points']))} points have one; "
+                    f"'runs': the point's finished episodes of {n_seeds}), means over them")
+        else:
+            head = f"scene {sc['scene']}: {n_seeds} seed(s) per point, means"
+        title = (head + f" (min off: shortest over episodes; t goals: time of goal {sc.get('goals_time_k', '-')} of "
+                 f"{sc.get('goals', '-')} [s]; * Pareto front)")
+        out.append(format_table(["point"] + (["runs"] if sweep["partial"] else []) + [h for _, h, _ in _COLUMNS]
                                 + ["duty/cbf", "sw/cbf", "int/cbf", "d_bar ok"], rows, title=title))
     return "\n\n".join(out)

@@ -32,7 +32,8 @@ import numpy as np
 
 from isf_robot.core import ConfigError, IsfError, Observer
 
-from .render import ON_RGBA, frame_workspace
+from .camera import frame_workspace
+from .render import ON_RGBA
 
 __all__ = ["LiveViewer", "ViewerUnavailableError", "ViewerClosedError", "check_display"]
 
@@ -121,7 +122,9 @@ class LiveViewer(Observer):
             for g in groups:
                 if 0 <= g < len(self.handle.opt.geomgroup):
                     self.handle.opt.geomgroup[g] = 1
-            frame_workspace(self.handle.cam, model, robot, others)  # the camera of `isf-robot render`
+            goals = info.get("goals")
+            frame_workspace(self.handle.cam, model, robot, others, data=data,  # the camera of `isf-robot render`
+                            goals=None if goals is None else np.asarray(goals, dtype=float))
         self._title = f"{info.get('scene', '')} {info.get('strategy', '')} seed {info.get('seed', '')}"
         self._t0_wall, self._t0_sim = self._clock(), 0.0
 

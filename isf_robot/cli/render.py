@@ -27,7 +27,9 @@ def register(sub: Any) -> None:
     p = sub.add_parser(
         "render", help="render an arm run offscreen to a GIF, MP4 or PNG",
         description="Simulate one episode (as `isf-robot run`) and render it offscreen with MuJoCo: "
-                    "a .gif or .mp4 video, or one .png frame. The robot is orange while the filter is on.")
+                    "a .gif or .mp4 video, or one .png frame. The robot is orange while the filter is on. "
+                    "Visual geoms are drawn; collision geoms of bodies that have visual geoms are hidden "
+                    "(--show-collision draws them); a sky is added when the model has none.")
     _add_scene_args(p)
     p.add_argument("--filter", choices=strategy_names(), default="isf", help="strategy (default isf)")
     p.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
@@ -40,6 +42,20 @@ def register(sub: Any) -> None:
     p.add_argument("--height", type=int, default=360, help="frame height [px] (default 360)")
     p.add_argument("--at", type=float, default=None, metavar="S",
                    help=".png: time of the frame [s] (default: the first step with the filter on)")
+    g = p.add_argument_group("camera and drawing (default: a free camera framing the arm at the first frame, the "
+                             "obstacles and the goals, from the front-left and above)")
+    g.add_argument("--camera", metavar="NAME", default=None,
+                   help="a named camera of the model instead of the free camera")
+    g.add_argument("--azimuth", type=float, default=None, metavar="DEG",
+                   help="free camera's azimuth [deg] (default 140)")
+    g.add_argument("--elevation", type=float, default=None, metavar="DEG",
+                   help="free camera's elevation [deg], negative looks down (default -22)")
+    g.add_argument("--distance", type=float, default=None, metavar="M",
+                   help="free camera's distance from the lookat point [m] (default: fitted)")
+    g.add_argument("--lookat", default=None, metavar="X,Y,Z",
+                   help="point the free camera looks at [m] (default: fitted with the distance)")
+    g.add_argument("--show-collision", action="store_true",
+                   help="also draw the collision geoms of bodies that have visual geoms (hidden by default)")
     p.set_defaults(handler=handle)
 
 
@@ -48,16 +64,22 @@ def handle(args: argparse.Namespace) -> int:
     from isf_robot.cli.arm import _check_seed, _params, _spec
 
     _check_seed(args)
+    from isf_robot.arm.camera import View, camera_id, parse_lookat
+    from isf_robot.arm.render import VideoRecorder
+
+    view = View(camera=args.camera, azimuth=args.azimuth, elevation=args.elevation, distance=args.distance,
+                lookat=None if args.lookat is None else parse_lookat(args.lookat))  # bad values fail first
     if "mujoco" not in sys.modules:  # MuJoCo reads MUJOCO_GL once, when first imported
         from isf_robot.arm.render import select_gl
 
         select_gl()
-    from isf_robot.arm.render import VideoRecorder
     from isf_robot.arm.sim import ArmSimulation
 
     video = VideoRecorder(args.output, fps=args.fps, width=args.width, height=args.height, speed=args.speed,
-                          at=args.at)
+                          at=args.at, view=view, show_collision=args.show_collision)
     scene = _spec(args).load()
+    if view.camera is not None:
+        camera_id(scene.model, view.camera)  # an unknown name fails before the episode runs
     sim = ArmSimulation(scene, args.filter, seed=args.seed, observers=[video], **_params(args, scene))
     wall = time.perf_counter()
     res = sim.run(args.duration)

@@ -88,21 +88,38 @@ def run_figure(run: RunSeries) -> Any:
     return fig
 
 
+LABEL_PAD_PT = 3.0
+"""Gap [pt] between a bar's value label and the end of its whisker (or of the bar without one)."""
+
+
 def _bars(ax: Any, bars: Sequence[StrategyBars], name: str, title: str) -> None:
+    """Bars of the mean, whiskers of the range, the mean's value written beyond the whisker's cap.
+
+    A label sits above the cap (the largest value) of a bar with a mean >= 0, below the lowest
+    value of a bar with a negative mean, :data:`LABEL_PAD_PT` away; the y range leaves room for it.
+    """
     x = np.arange(len(bars))
-    vals = [getattr(b, name) for b in bars]
+    vals = [np.asarray(getattr(b, name), dtype=float) for b in bars]
     mean = np.array([float(np.mean(v)) for v in vals])
-    err = np.array([[m - float(np.min(v)), float(np.max(v)) - m] for m, v in zip(mean, vals)]).T
+    low = np.array([float(np.min(v)) for v in vals])
+    high = np.array([float(np.max(v)) for v in vals])
+    err = np.vstack((mean - low, high - mean))
     ax.bar(x, mean, color=[strategy_color(b.strategy) for b in bars], yerr=err if np.any(err) else None,
            capsize=4, width=0.6)
-    for xi, m in zip(x, mean):
-        ax.annotate(f"{m:.3g}", (xi, m), ha="center", va="bottom" if m >= 0 else "top", fontsize=8,
-                    xytext=(0, 2 if m >= 0 else -2), textcoords="offset points")
+    for xi, m, lo, hi in zip(x, mean, low, high):
+        up = m >= 0
+        ax.annotate(f"{m:.3g}", (xi, max(hi, m) if up else min(lo, m)), ha="center", va="bottom" if up else "top",
+                    fontsize=8, xytext=(0, LABEL_PAD_PT if up else -LABEL_PAD_PT), textcoords="offset points")
     ax.set_xticks(x, [b.strategy for b in bars])
     ax.set_title(title, fontsize=9)
     ax.axhline(0.0, color="k", lw=0.6)
     ax.grid(axis="y", alpha=0.3)
-    ax.margins(y=0.15)
+    top, bottom = max(0.0, float(np.max(np.maximum(high, mean)))), min(0.0, float(np.min(np.minimum(low, mean))))
+    span = (top - bottom) or max(abs(top), abs(bottom), 1.0)
+    room = 0.3 * span  # a label is ~11 pt of an axes of ~150 pt
+    below = room if np.any(mean < 0) else 0.05 * span
+    above = room if np.any(mean >= 0) else 0.05 * span
+    ax.set_ylim(bottom - below, top + above)
 
 
 def compare_figure(runs: Sequence[RunSeries], bars: Sequence[StrategyBars], title: str = "") -> Any:

@@ -73,7 +73,15 @@ def add_recording_args(parser: argparse.ArgumentParser, *, per_run: bool = False
     if not per_run:
         group.add_argument("--serve-web", action="store_true",
                            help=f"serve Rerun's web viewer from this process (page on port {WEB_PORT}, data on "
-                                f"{GRPC_PORT}; the address is printed); after the run it keeps serving until Ctrl-C")
+                                f"{GRPC_PORT}, on 127.0.0.1 unless --bind; the address is printed); after the run "
+                                "it keeps serving until Ctrl-C")
+        group.add_argument("--bind", metavar="ADDR", default=None,
+                           help="--serve-web: the address to listen on (default 127.0.0.1, this machine only; "
+                                "0.0.0.0 exposes the run to every machine that can reach this one)")
+        group.add_argument("--web-port", metavar="PORT", type=int, default=None,
+                           help=f"--serve-web: port of the web viewer's page (default {WEB_PORT})")
+        group.add_argument("--grpc-port", metavar="PORT", type=int, default=None,
+                           help=f"--serve-web: port of the recording's gRPC server (default {GRPC_PORT})")
     parser.set_defaults(rrd_per_run=per_run)
 
 
@@ -115,6 +123,7 @@ def make_observer(args: argparse.Namespace, kind: str, *, name: str | None = Non
     spawn = bool(getattr(args, "spawn", False))
     connect = getattr(args, "connect", None)
     serve_web = bool(getattr(args, "serve_web", False))
+    serving = _serve_options(args, serve_web)
     if rrd is None and not spawn and connect is None and not serve_web:
         return None
     if kind not in APPLICATION_IDS:
@@ -128,11 +137,32 @@ def make_observer(args: argparse.Namespace, kind: str, *, name: str | None = Non
             recording_path(Path(rrd), "check")  # a directory, not a .rrd file
         return PerRunRecorder(None if rrd is None else Path(rrd), kind, spawn=spawn, connect=connect)
     return open_recorder(kind, None if rrd is None else Path(rrd), spawn=spawn, name=name, connect=connect,
-                         serve_web=serve_web, **context)
+                         serve_web=serve_web, serving=serving, **context)
+
+
+def _serve_options(args: argparse.Namespace, serve_web: bool) -> dict[str, Any]:
+    """``bind``, ``web_port``, ``grpc_port`` of ``--serve-web``, checked; they need ``--serve-web``."""
+    from .serve import DEFAULT_BIND, check_bind
+
+    given = {k: getattr(args, k, None) for k in ("bind", "web_port", "grpc_port")}
+    named = [f"--{k.replace('_', '-')}" for k, v in given.items() if v is not None]
+    if named and not serve_web:
+        raise RecordError(f"{', '.join(named)}: only for --serve-web (where it listens); add --serve-web")
+    for key in ("web_port", "grpc_port"):
+        v = given[key]
+        if v is not None and not 1 <= int(v) <= 65535:
+            raise RecordError(f"--{key.replace('_', '-')} must be a TCP port, 1..65535, got {v}")
+    web = WEB_PORT if given["web_port"] is None else int(given["web_port"])
+    grpc = GRPC_PORT if given["grpc_port"] is None else int(given["grpc_port"])
+    if serve_web and web == grpc:
+        raise RecordError(f"--web-port and --grpc-port must differ, both are {web}")
+    return {"bind": check_bind(DEFAULT_BIND if given["bind"] is None else given["bind"]), "web_port": web,
+            "grpc_port": grpc}
 
 
 def open_recorder(kind: str, path: Path | None, *, spawn: bool = False, name: str | None = None,
-                  connect: str | None = None, serve_web: bool = False, **context: Any) -> Observer:
+                  connect: str | None = None, serve_web: bool = False, serving: dict[str, Any] | None = None,
+                  **context: Any) -> Observer:
     """Open a stream (file and/or viewer) and the recorder of ``kind`` on it.
 
     Args:
@@ -142,6 +172,7 @@ def open_recorder(kind: str, path: Path | None, *, spawn: bool = False, name: st
         name: Recording name shown by the viewer.
         connect: Stream to the viewer at this URL too.
         serve_web: Serve the web viewer from this process too (see :func:`~isf_robot.record.stream.open_stream`).
+        serving: ``bind``, ``web_port``, ``grpc_port`` of ``serve_web`` (default: 127.0.0.1, 9090, 9876).
         **context: Recorder arguments (see :func:`make_observer`).
 
     """
@@ -149,7 +180,7 @@ def open_recorder(kind: str, path: Path | None, *, spawn: bool = False, name: st
     from .stream import open_stream
 
     stream = open_stream(APPLICATION_IDS[kind], rrd_path=path, spawn=spawn, recording_name=name,
-                         blueprint=blueprint_for(kind), connect=connect, serve_web=serve_web)
+                         blueprint=blueprint_for(kind), connect=connect, serve_web=serve_web, **(serving or {}))
     if kind == "arm":
         from .arm import ArmRecorder
 

@@ -3,7 +3,8 @@
 :func:`open_stream` makes a :class:`rerun.RecordingStream` that writes to a ``.rrd`` file,
 streams to a freshly spawned viewer (``--spawn``), to a viewer already running at an address
 (``--connect [URL]``), and/or serves Rerun's web viewer from this process (``--serve-web``:
-a gRPC server plus the web viewer's page; after the run the command keeps serving until
+a gRPC server plus the web viewer's page, both on 127.0.0.1 unless ``--bind ADDR`` says
+otherwise, :mod:`isf_robot.record.serve`; after the run the command keeps serving until
 Ctrl-C, :func:`wait_while_serving`, as Rerun's own examples do). :func:`find_viewer` checks
 beforehand that a viewer can start, so ``--spawn`` fails with one clear message instead of
 hanging or crashing in a headless session.
@@ -16,8 +17,8 @@ interruption under ``<name>.partial``.
 
 from __future__ import annotations
 
+import ipaddress
 import os
-import shutil
 import sys
 import time
 import uuid
@@ -33,6 +34,7 @@ from isf_robot.core.files import check_output_path, commit_partial, partial_path
 
 from .errors import RecordError, ViewerUnavailableError
 from .options import DEFAULT_CONNECT, GRPC_PORT, WEB_PORT
+from .serve import DEFAULT_BIND, WebViewerServer, check_bind, check_port_free, connect_host, rerun_executable
 
 __all__ = ["find_viewer", "open_stream", "close_stream", "stream_path", "wait_while_serving", "DEFAULT_CONNECT",
            "GRPC_PORT", "WEB_PORT"]
@@ -40,7 +42,7 @@ __all__ = ["find_viewer", "open_stream", "close_stream", "stream_path", "wait_wh
 # id(stream) -> the .rrd path its .partial file is renamed to when the stream is closed
 _TARGETS: dict[int, Path] = {}
 # streams serving the web viewer, kept open after their run until the command ends (see wait_while_serving)
-_SERVING: list[tuple[rr.RecordingStream, str]] = []
+_SERVING: list[tuple[rr.RecordingStream, str, WebViewerServer]] = []
 
 
 def find_viewer() -> Path:
@@ -54,9 +56,8 @@ def find_viewer() -> Path:
             or, on Linux, neither ``DISPLAY`` nor ``WAYLAND_DISPLAY`` is set.
 
     """
-    found = shutil.which("rerun")
-    exe = Path(found) if found else Path(sys.executable).parent / ("rerun.exe" if os.name == "nt" else "rerun")
-    if not exe.is_file():
+    exe = rerun_executable()
+    if exe is None:
         raise ViewerUnavailableError(
             "--spawn needs the Rerun viewer, but no 'rerun' executable was found on PATH or beside "
             f"{sys.executable}; install rerun-sdk's viewer, or save with --rrd PATH and open the file later"
@@ -81,6 +82,7 @@ def open_stream(
     serve_web: bool = False,
     grpc_port: int = GRPC_PORT,
     web_port: int = WEB_PORT,
+    bind: str = DEFAULT_BIND,
 ) -> rr.RecordingStream:
     """Create an explicit recording stream with its sinks.
 
@@ -94,9 +96,11 @@ def open_stream(
         blueprint: Default blueprint sent with the recording.
         connect: Also stream to the viewer listening at this URL (``rerun+http://HOST:PORT/proxy``).
         serve_web: Also serve the recording over gRPC (port ``grpc_port``) with Rerun's web
-            viewer (port ``web_port``); its address is printed on stderr.
+            viewer (port ``web_port``, :class:`~isf_robot.record.serve.WebViewerServer`), both
+            listening on ``bind``; the page's address is printed on stderr.
         grpc_port: See ``serve_web`` (default :data:`GRPC_PORT`).
         web_port: See ``serve_web`` (default :data:`WEB_PORT`).
+        bind: See ``serve_web`` (default :data:`~isf_robot.record.serve.DEFAULT_BIND`, this machine only).
 
     Returns:
         The stream. Close it with :func:`close_stream` so the file gets its footer.
@@ -139,21 +143,27 @@ def open_stream(
     if serve_web:
         if _SERVING:
             raise RecordError("--serve-web serves one recording per process; use --connect for several runs")
+        bind = check_bind(bind)
+        check_port_free(bind, int(grpc_port), "the recording (gRPC)")
         try:
-            sinks.append(rr.GrpcServerSink(port=int(grpc_port)))
+            sinks.append(rr.GrpcServerSink(bind_ip=bind, port=int(grpc_port)))
         except Exception as exc:  # the port is taken
-            raise RecordError(f"--serve-web cannot serve on port {grpc_port}: {' '.join(str(exc).split())}") from None
+            raise RecordError(f"--serve-web cannot serve on {bind} port {grpc_port}: "
+                              f"{' '.join(str(exc).split())}") from None
     rec.set_sinks(*sinks, default_blueprint=blueprint)
     if serve_web:
-        url = f"rerun+http://127.0.0.1:{int(grpc_port)}/proxy"
+        host = connect_host(bind)
+        url = f"rerun+http://{host}:{int(grpc_port)}/proxy"
         try:
-            rr.serve_web_viewer(web_port=int(web_port), open_browser=False, connect_to=url)
-        except Exception as exc:
-            raise RecordError(f"--serve-web cannot serve the web viewer on port {web_port}: "
-                              f"{' '.join(str(exc).split())}") from None
-        page = f"http://127.0.0.1:{int(web_port)}/?url={quote(url, safe='')}"
-        _SERVING.append((rec, page))
-        print(f"Rerun web viewer: {page}", file=sys.stderr, flush=True)
+            web = WebViewerServer(bind, int(web_port), url)
+        except RecordError:
+            rec.disconnect()  # the gRPC server stops with its sinks
+            raise
+        page = f"http://{host}:{int(web_port)}/?url={quote(url, safe='')}"
+        _SERVING.append((rec, page, web))
+        where = ("every interface: from another machine put this machine's address in place of 127.0.0.1"
+                 if ipaddress.ip_address(bind).is_unspecified else f"{bind} only")
+        print(f"Rerun web viewer: {page} (listening on {where})", file=sys.stderr, flush=True)
     if recording_name:
         rec.send_recording_name(recording_name)
     return rec
@@ -181,7 +191,7 @@ def close_stream(rec: rr.RecordingStream, *, complete: bool = True) -> Path | No
 
     """
     path = _TARGETS.pop(id(rec), None)
-    serving = any(r is rec for r, _ in _SERVING)
+    serving = any(r is rec for r, _, _ in _SERVING)
     try:
         rec.flush()
         if not serving:  # a served stream stays up for the web viewer until wait_while_serving ends
@@ -218,7 +228,7 @@ def wait_while_serving(sleep: Callable[[float], None] = time.sleep) -> bool:
     """
     if not _SERVING:
         return False
-    pages = ", ".join(page for _, page in _SERVING)
+    pages = ", ".join(page for _, page, _ in _SERVING)
     print(f"serving the recording to the web viewer at {pages}; press Ctrl-C to stop", file=sys.stderr, flush=True)
     try:
         while True:
@@ -227,7 +237,8 @@ def wait_while_serving(sleep: Callable[[float], None] = time.sleep) -> bool:
         pass
     finally:
         while _SERVING:
-            rec, _ = _SERVING.pop()
+            rec, _, web = _SERVING.pop()
+            web.stop()
             try:
                 rec.flush()
                 rec.disconnect()

@@ -78,8 +78,10 @@ def test_paced_to_real_time_and_shows_every_robot_group() -> None:
     h = handles[0]
     groups = {int(scene.model.geom_group[g]) for g in scene.robot_geom_ids}
     assert 3 in groups and all(h.opt.geomgroup[g] == 1 for g in groups)
-    base = np.asarray(scene.model.body_pos[scene.model.body_rootid[scene.model.geom_bodyid[scene.robot_geom_ids[0]]]])
-    assert np.linalg.norm(h.cam.lookat[:2] - base[:2]) < 0.05 and 1.0 < h.cam.distance < 4.0  # on the arm
+    # the camera of `isf-robot render`: looking into the box of the arm, the obstacles and the goals, from 1-4 m
+    box = np.vstack([scene.goal_positions, scene.model.body_pos[scene.model.body_rootid[scene.model.geom_bodyid[scene.robot_geom_ids]]]])
+    assert np.all(box.min(axis=0) - 0.3 <= h.cam.lookat) and np.all(h.cam.lookat <= box.max(axis=0) + 0.3)
+    assert 1.0 < h.cam.distance < 4.0
     # 1 s simulated at 2x real time: the wall clock advanced by ~0.5 s (the last step starts 1 period early)
     assert clock.now - 100.0 == pytest.approx(0.5 - 0.002 / 2.0, abs=1e-9)
     # at most 60 updates a second of wall time, and the window saw the run's data advance
