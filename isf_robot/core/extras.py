@@ -9,7 +9,7 @@ from __future__ import annotations
 
 __all__ = ["EXTRAS", "install_hint"]
 
-EXTRAS = ("fast", "plots", "ray", "video", "test", "dev")
+EXTRAS = ("plots", "ray", "video", "test", "dev")
 """The optional extras of the ``isf-robot`` distribution."""
 
 

@@ -6,7 +6,11 @@ import re
 from pathlib import Path
 
 import pytest
-import tomllib
+
+try:
+    import tomllib
+except ImportError:  # Python 3.10
+    import tomli as tomllib
 
 from isf_robot.core.extras import EXTRAS, install_hint
 from isf_robot.core.parallel import RAY_MISSING
@@ -18,7 +22,7 @@ def test_extras_are_the_distributions() -> None:
     meta = tomllib.loads((ROOT / "pyproject.toml").read_text())
     assert set(EXTRAS) == set(meta["project"]["optional-dependencies"])
     assert install_hint("plots") == "pip install 'isf-robot[plots]' (or pip install '.[plots]' from a checkout)"
-    with pytest.raises(ValueError, match="unknown extra 'plot'; valid: fast, plots"):
+    with pytest.raises(ValueError, match="unknown extra 'plot'; valid: plots, ray"):
         install_hint("plot")
 
 
