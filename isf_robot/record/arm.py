@@ -96,7 +96,9 @@ class ArmRecorder(RerunRecorder):
         stream: The recording stream.
         closest: How many collision pairs (those with the smallest h at each step) get their
             own barrier series and witness segments.
-        capacity: Step records kept before a block is converted and sent.
+        capacity: Steps per block the arm loop hands over (:attr:`block_steps`);
+            :func:`~isf_robot.record.options.open_recorder` takes :attr:`FILE_CAPACITY` for a file
+            alone, :attr:`LIVE_CAPACITY` when a viewer watches live.
         close_on_finish: Close the stream in ``on_finish``.
         trail_s: Length of the end effector's trail [s] (0: none).
 
@@ -105,6 +107,10 @@ class ArmRecorder(RerunRecorder):
     kind = "arm"
     CONTEXT_KEYS = ("closest", "capacity", "trail_s")
     INFO_OBJECTS = ("model", "data")
+    FILE_CAPACITY = 8192
+    """Steps per block when the recording goes to a file only (each block costs ~7 ms of sends, whatever its size)."""
+    LIVE_CAPACITY = 512
+    """Steps per block when a viewer watches live (about a second of a 500 Hz run between updates)."""
     TRAIL_POINTS = 25
     """Most points per trail strip (the trail is subsampled to this)."""
 

@@ -184,7 +184,11 @@ def open_recorder(kind: str, path: Path | None, *, spawn: bool = False, name: st
     if kind == "arm":
         from .arm import ArmRecorder
 
-        return ArmRecorder(stream, **_pick(context, ArmRecorder.CONTEXT_KEYS))
+        arm = _pick(context, ArmRecorder.CONTEXT_KEYS)
+        if "capacity" not in arm:  # (a file alone: long blocks, fewer sends; a live viewer: an update every ~1 s)
+            live = spawn or connect is not None or serve_web
+            arm["capacity"] = ArmRecorder.LIVE_CAPACITY if live else ArmRecorder.FILE_CAPACITY
+        return ArmRecorder(stream, **arm)
     if kind == "satellite":
         from .satellite import SatelliteRecorder
 
