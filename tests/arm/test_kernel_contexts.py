@@ -16,7 +16,7 @@ import pytest
 from isf_robot.arm import CollisionBarriers, JointLimitBarriers, kernels, load_scene
 from isf_robot.arm import narrow as narrow_module
 
-pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba not installed (the fast extra)")
+pytestmark = pytest.mark.skipif(not kernels.available(), reason="compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
 
 
 def _same_rows(x, y) -> None:  # type: ignore[no-untyped-def]

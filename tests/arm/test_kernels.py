@@ -24,7 +24,7 @@ from isf_robot.arm.sim import ArmSimulation
 from isf_robot.core.exceptions import ShapeError
 from isf_robot.core.sums import row_norms
 
-pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba not installed (the fast extra)")
+pytestmark = pytest.mark.skipif(not kernels.available(), reason="compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
 
 
 def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:

@@ -23,7 +23,7 @@ from isf_robot.arm.params import resolve_params
 from isf_robot.arm.sim import ArmSimulation
 from isf_robot.core import Observer
 
-needs_kernel = pytest.mark.skipif(not kernels.available(), reason="numba not installed (the fast extra)")
+needs_kernel = pytest.mark.skipif(not kernels.available(), reason="compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
 
 
 def _bytes(a: np.ndarray) -> tuple[tuple[int, ...], str, bytes]:

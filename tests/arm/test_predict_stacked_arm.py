@@ -16,7 +16,7 @@ from isf_robot.arm.params import resolve_params
 from isf_robot.core import Linear, Power
 from isf_robot.core.intermittent import StackedPoints, predict
 
-pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba not installed (the fast extra)")
+pytestmark = pytest.mark.skipif(not kernels.available(), reason="compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
 
 
 def _ptr(a: np.ndarray) -> tuple:

@@ -17,7 +17,7 @@ from isf_robot.arm import ArmSimulation, kernels, load_scene
 from isf_robot.arm import narrow as narrow_module
 from isf_robot.arm.params import resolve_params
 
-pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba not installed (the fast extra)")
+pytestmark = pytest.mark.skipif(not kernels.available(), reason="compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
 
 
 def _points(roll, t, data):  # type: ignore[no-untyped-def]

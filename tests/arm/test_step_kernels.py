@@ -18,7 +18,7 @@ from isf_robot.arm.lowlevel import VelocityTracker
 from isf_robot.arm.monitor import SafetyMonitor
 from isf_robot.arm.nominal import ReachingController
 
-pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba not installed (the fast extra)")
+pytestmark = pytest.mark.skipif(not kernels.available(), reason="compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
 
 
 def _same(a: np.ndarray, b: np.ndarray) -> bool:
