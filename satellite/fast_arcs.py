@@ -1,4 +1,4 @@
-"""Compiled arcs (optional: needs ``numba``, the ``fast`` extra): the same integration, ~20x cheaper.
+"""Compiled arcs (numba, a dependency; ``ISF_ROBOT_JIT=0`` runs Python): the same integration, ~20x cheaper.
 
 :func:`satellite.events.integrate` drives scipy's ``DOP853`` step by step from Python and scans
 each step for events; at ~1 ms a step (about 13 right-hand-side calls of ~15 us, the step's
