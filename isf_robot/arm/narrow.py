@@ -204,7 +204,7 @@ class NarrowPhase:
             return self._tick_rows(_new(FilterRows, fr), joints, tick)
         if tick and not (moving and not dhdt_in):  # (lie_rows: the kernel's rows, without the NearPairs)
             lie, rows, row_list = self._block_lie(c, blk, g2, rows, j, joints, key)  # type: ignore[arg-type]
-            wit = blk[o_lf + m: o_lf + m + 9 * j].reshape(j, 3, 3)[:, :2] if witness else None  # (p1, p2; not n)
+            wit = blk[o_lf + m: o_lf + m + 9 * j].reshape(j, 3, 3) if witness else None  # (p1, p2, n per pair)
             return _new(TickRows, (lie, rows, row_list, h_min, dist_min, jmin, wit))
         h, g, lf = blk[:k], g2[:k], blk[o_lf: o_lf + k]
         gn = blk[o_gn: o_gn + k] if norms_in else None

@@ -73,8 +73,9 @@ class TickRows(NamedTuple):
         h_min: Smallest ``h`` of the near pairs (``inf`` when none is near).
         dist_min: Their smallest distance [m] (``inf`` when none is near).
         joint_min: The smallest joint-limit value.
-        witness: The near pairs' witness points (on geom 1, on geom 2) [m], shape (j, 2, 3), when asked
-            for (``lie_rows(..., witness=True)``), else ``None``.
+        witness: The near pairs' witness points when asked for (``lie_rows(..., witness=True)``), else
+            ``None``: ``witness[:, 0]`` on geom 1, ``witness[:, 1]`` on geom 2 [m]; shape (j, 3, 3) from
+            the compiled kernel (its third row the unit normal), (j, 2, 3) otherwise.
 
     """
 

@@ -315,13 +315,12 @@ class _Episode:
         if self.uses_rows:  # (the rows in one pass, without the NearPairs; witness points only for a record)
             lie, idx, row_list, h_min, dist_min, jmin, wit = sim.coll.lie_rows(
                 self.data, sim.joints, self.lin, coherence=self.coherence, witness=self.recording)
-            j = len(row_list)
-            values = TickValues(idx, lie.h[:j], wit, lie.h[j:]) if self.recording else None
+            values = TickValues(idx, lie.h, wit) if self.recording else None
         else:
             rows = sim.coll.rows(self.data, sim.joints, self.lin, witness=self.recording, coherence=self.coherence)
             near = rows.near
             idx, row_list, h_min, dist_min, jmin = near.rows, near.row_list, near.h_min, near.dist_min, rows.joint_min
-            values = TickValues(idx, near.h, near.witness, rows.h[len(row_list):]) if self.recording else None
+            values = TickValues(idx, rows.h, near.witness) if self.recording else None
             lie = None
         self.dmin = self.monitor.tick_min(min(h_min, self._h_far_min), row_list, dist_min, idx)
         self.min_joint = min(self.min_joint, jmin)  # (jmin when smaller)
@@ -367,17 +366,15 @@ class _Episode:
     def block(self, capacity: int) -> StepColumns:
         """An empty block of ``capacity`` steps for this run's observers."""
         sim = self.sim
+        goals = sim.nominal.goal_positions if isinstance(sim.nominal, ReachingController) else None
         return StepColumns(capacity, len(sim.scene.qpos_adr), sim.names, sim.coll.pairs.k, self.model.nmocap,
-                           sim.control_period, sim.coll.h_far)
+                           sim.control_period, sim.coll.h_far, goals)
 
     def write(self, block: StepColumns, t: float, step: Any, values: TickValues) -> None:
         """Write the step just taken into the next row of ``block``."""
         sim, scene = self.sim, self.sim.scene
-        nominal = sim.nominal
-        gi = nominal.goal_index
-        goal = nominal.goal_positions[gi] if isinstance(nominal, ReachingController) else None
         block.write(t, step, self.data, self._qpos_sel, self._dof_sel, values, self.dmin,
-                    scene.ee_position(self.data), gi, goal)
+                    scene.ee_position(self.data), sim.nominal.goal_index)
 
     def finish(self, wall: float, timings: dict[str, float]) -> RunResult:
         """Account the state after the last step and summarise the run."""

@@ -29,16 +29,15 @@ class TickValues(NamedTuple):
 
     Attributes:
         rows: Indices of the collision pairs within the cut-off, ascending, shape (j,) int64.
-        h: Their barrier values ``dist - margin``, shape (j,).
-        witness: Their witness points (on the robot geom, on the other) [m], shape (j, 2, 3), or ``None``.
-        joint_h: The joint-limit barrier values, shape (k - k_c,).
+        h: The tick's barrier values: those pairs' ``dist - margin``, then the joint limits', shape (j + k - k_c,).
+        witness: The pairs' witness points, ``witness[:, 0]`` on the robot geom and ``witness[:, 1]`` on
+            the other [m], shape (j, 2 or more, 3), or ``None``.
 
     """
 
     rows: np.ndarray
     h: np.ndarray
     witness: np.ndarray | None
-    joint_h: np.ndarray
 
 
 class StepColumns:
@@ -77,7 +76,7 @@ class StepColumns:
     """
 
     def __init__(self, capacity: int, n: int, names: tuple[str, ...], n_collision: int, nmocap: int,
-                 dt: float, h_far: np.ndarray | None = None) -> None:
+                 dt: float, h_far: np.ndarray | None = None, goals: np.ndarray | None = None) -> None:
         c, k = int(capacity), len(names)
         if c < 1:
             raise ValueError(f"capacity must be >= 1, got {capacity}")
@@ -89,14 +88,15 @@ class StepColumns:
         self.ee_pos, self.goal_pos = np.zeros((c, 3)), np.zeros((c, 3))
         self.mocap_pos, self.mocap_quat = np.zeros((c, nmocap, 3)), np.zeros((c, nmocap, 4))
         self._moving = nmocap > 0
+        self._goals = None if goals is None else np.asarray(goals, dtype=float).reshape(-1, 3).copy()
         self.t, self.on, self.qp_solved, self.fallback = np.zeros(c), *(np.zeros(c, dtype=bool) for _ in range(3))
         self.xi_min, self.dist_min, self.h_min = np.zeros(c), np.zeros(c), np.zeros(c)
         self.goal_index = np.zeros(c, dtype=np.int64)
         self.h = np.zeros((c, k))
         self._scalars: list[tuple[float, bool, bool, bool, float, int]] = []
         self._xi: list[np.ndarray] = []
-        self._near_h: list[np.ndarray] = []
-        self._jh: list[np.ndarray] = []
+        self._tick_h: list[np.ndarray] = []
+        self._witness: list[np.ndarray | None] = []
         self.near: list[np.ndarray] = []
         self.witness: list[np.ndarray] = []
         self.relaxed: list[tuple[str, ...]] = []
@@ -114,12 +114,12 @@ class StepColumns:
     def clear(self) -> None:
         """Start the next block (the arrays are reused: observers must not keep views past ``on_steps``)."""
         self.size = self.sealed = 0
-        for rows in (self._scalars, self._xi, self._near_h, self._jh, self.near, self.witness, self.relaxed,
+        for rows in (self._scalars, self._xi, self._tick_h, self._witness, self.near, self.witness, self.relaxed,
                      self.events):
             rows.clear()
 
     def write(self, t: float, step: Any, data: Any, qpos_adr: Any, dof_adr: Any, values: TickValues,
-              dist_min: float, ee_pos: np.ndarray, goal_index: int, goal_pos: np.ndarray | None) -> None:
+              dist_min: float, ee_pos: np.ndarray, goal_index: int) -> None:
         """Write one control step into the next row.
 
         Args:
@@ -132,8 +132,7 @@ class StepColumns:
             values: The tick's barrier values (made for this step: kept by reference).
             dist_min: Smallest true signed distance over the step's physics steps [m].
             ee_pos: End-effector position [m], shape (3,).
-            goal_index: Goal pursued.
-            goal_pos: Its position [m], or ``None`` (no goal: NaN).
+            goal_index: Goal pursued (its position: the block's goal table, NaN without one).
 
         """
         i = self.size
@@ -144,17 +143,15 @@ class StepColumns:
         self.u[i] = step.u
         self.u_nom[i] = step.u_nom
         self.ee_pos[i] = ee_pos
-        self.goal_pos[i] = math.nan if goal_pos is None else goal_pos
         if self._moving:
             self.mocap_pos[i] = data.mocap_pos
             self.mocap_quat[i] = data.mocap_quat
         self._scalars.append((t, step.on, step.qp is not None, step.fallback, dist_min, goal_index))
         self._xi.append(step.xi)
-        rows, h, w, jh = values
-        self._near_h.append(h)
-        self._jh.append(jh)
+        rows, h, w = values
+        self._tick_h.append(h)
         self.near.append(rows)
-        self.witness.append(w if w is not None else _NO_WITNESS)
+        self._witness.append(w)
         self.relaxed.append(tuple(step.relaxed))
         self.events.append(step.event)
         self.size = i + 1
@@ -178,11 +175,19 @@ class StepColumns:
         nc = self.n_collision
         h = self.h[a:b]
         h[:, :nc] = self.h_far
-        for r, (rows, nh) in enumerate(zip(self.near[a:b], self._near_h[a:b])):
-            if rows.size:
-                h[r, rows] = nh
+        rows, tick_h = self.near[a:b], self._tick_h[a:b]
+        counts = np.fromiter((r.size for r in rows), dtype=np.int64, count=b - a)
+        if counts.any():  # (every row's near pairs in one scatter)
+            h[np.repeat(np.arange(b - a), counts), np.concatenate(rows)] = np.concatenate(
+                [th[:c] for th, c in zip(tick_h, counts.tolist())])
         if h.shape[1] > nc:
-            h[:, nc:] = self._jh[a:b]
+            h[:, nc:] = [th[c:] for th, c in zip(tick_h, counts.tolist())]
+        self.witness[a:b] = [_NO_WITNESS if w is None else w[:, :2] for w in self._witness[a:b]]
+        goals, gi = self._goals, self.goal_index[a:b]
+        ok = (gi >= 0) & (gi < (0 if goals is None else len(goals)))
+        self.goal_pos[a:b] = math.nan
+        if goals is not None and ok.any():
+            self.goal_pos[a:b][ok] = goals[gi[ok]]
         self.h_min[a:b] = h.min(axis=1) if h.shape[1] else math.inf
         self.sealed = b
 
