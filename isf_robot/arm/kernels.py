@@ -45,9 +45,10 @@ from typing import Any
 
 import mujoco
 
+from isf_robot.core.jit import compiled_here as jit_compiled_here
 from isf_robot.core.jit import jit_enabled
 
-__all__ = ["available", "monitor_kernel", "near_kernel", "step_kernels"]
+__all__ = ["available", "compiled_here", "monitor_kernel", "near_kernel", "step_kernels"]
 
 _STATE: dict[str, Any] = {}
 
@@ -82,6 +83,23 @@ def _kernels() -> dict[str, Callable[..., Any]] | None:
     if _STATE.get("key") != key:
         _STATE["key"], _STATE["kernels"] = key, _build()
     return _STATE["kernels"]
+
+
+def compiled_here() -> bool:
+    """Whether numba's cache already holds this machine's code of every kernel of an arm run.
+
+    ``False`` before the first run after an install (which compiles them); ``True`` when the kernels
+    are off or absent (nothing to compile).
+    """
+    if _kernels() is None:
+        return True
+    try:
+        from isf_robot.core import _few_jit, _predict_jit, _step_jit, _xi_jit
+
+        from . import _kernels_jit, _kernels_step, _rollout_jit
+    except ImportError:
+        return True
+    return jit_compiled_here((_kernels_jit, _kernels_step, _rollout_jit, _xi_jit, _few_jit, _step_jit, _predict_jit))
 
 
 def available() -> bool:

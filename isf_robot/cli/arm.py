@@ -285,10 +285,20 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+DEMO_PLAIN_NOTICE = ("the fast kernels are not compiled for this machine yet, so this demo runs the plain NumPy "
+                     "path (the same numbers); the first `isf-robot run` or `compare` compiles them once (about "
+                     "15-30 s), and every later run, this demo included, uses them")
+
+
 @_keep_partial
 def _cmd_demo(args: argparse.Namespace) -> int:
+    from isf_robot.arm import kernels
     from isf_robot.arm.compare import SceneSpec, compare_strategies, format_table
+    from isf_robot.core.jit import JIT_ENV
 
+    if not kernels.compiled_here():  # (a first run after an install: the demo does not wait for the compiler)
+        os.environ[JIT_ENV] = "0"  # (this process and its workers)
+        print(f"isf-robot demo: {DEMO_PLAIN_NOTICE}", file=sys.stderr)
     jobs = args.jobs if args.jobs is not None else max(1, min(2, os.cpu_count() or 1))
     comp = compare_strategies(SceneSpec(name=args.scene), args.episodes, duration=args.duration,
                               jobs=jobs, progress=_progress(False))

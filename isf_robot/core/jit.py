@@ -15,10 +15,12 @@ from __future__ import annotations
 import os
 import sys
 import tempfile
+from collections.abc import Sequence
+from types import ModuleType
 from typing import Any, TextIO
 
 __all__ = ["JIT_ENV", "NOTICE_ENV", "COMPILE_NOTICE", "jit_enabled", "announce_compiles", "watch_compiles",
-           "end_notice"]
+           "end_notice", "compiled_here"]
 
 JIT_ENV = "ISF_ROBOT_JIT"
 """Environment variable: ``0`` (or ``false``, ``no``, ``off``) turns the compiled kernels off."""
@@ -101,3 +103,31 @@ def watch_compiles() -> None:
     listener = _FirstCompile()
     event.register("numba:compile", listener)
     _STATE["listener"] = listener
+
+
+def compiled_here(modules: Sequence[ModuleType]) -> bool:
+    """Whether numba's cache holds this machine's code of every kernel of ``modules``.
+
+    A kernel is a cached numba function of the module that is not inlined into its callers; it is
+    held when its cache index (fresh for its source) has an entry for this machine's code
+    generation. ``True`` when that cannot be told (a numba without these internals): the kernels
+    then compile on first use, as they would anyway.
+    """
+    try:
+        from numba.core.registry import CPUDispatcher
+
+        for module in modules:
+            for obj in vars(module).values():
+                if not isinstance(obj, CPUDispatcher) or obj.__module__ != module.__name__:
+                    continue
+                if obj.targetoptions.get("inline", "never") != "never":
+                    continue
+                index_file = getattr(getattr(obj, "_cache", None), "_cache_file", None)
+                if index_file is None:
+                    continue
+                here = obj.targetctx.codegen().magic_tuple()
+                if not any(key[1] == here for key in index_file._load_index()):
+                    return False
+    except Exception:  # noqa: BLE001 - numba's internals moved: say "held", the kernels compile when used
+        return True
+    return True
