@@ -262,8 +262,9 @@ def report(results: list[dict[str, Any]], long_results: list[dict[str, Any]], co
             f"{r['off']['rss_end_mb']:.0f} / {r['rrd']['rss_end_mb']:.0f} | {growth:+.1f} |")
     lines += [
         "",
-        "Per-step values are kept in blocks of 2048 steps (preallocated arrays the arm loop writes into "
-        "and the recorder reads) and sent with `send_columns` when a block is full, and the "
+        "Per-step values are kept in blocks of steps (8192 for a file alone, 512 with a live viewer; "
+        "preallocated arrays the arm loop writes into and the recorder reads) and sent with `send_columns` "
+        "when a block is full, and the "
         "file sink writes as it goes, so the recorder's buffers do not grow with the run. "
         "What does grow, slowly, is the chunk index Rerun's `FileSink` keeps "
         "for the `.rrd` footer (one entry per chunk, about 25 chunks per 2048 steps): about 7 MB per "
