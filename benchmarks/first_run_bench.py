@@ -57,17 +57,16 @@ def command_times(repeats: int, work: Path) -> dict[str, list[float]]:
     }
     out: dict[str, list[float]] = {}
     for rep in range(repeats):
-        for name, cmd in cmds.items():
-            cache = work / f"numba-{name}-{rep}"
-            env = {**base, "NUMBA_CACHE_DIR": str(cache)}
-            cold, err = timed(cmd, env, work)
-            out.setdefault(f"{name} cold", []).append(cold)
-            out.setdefault(f"{name} cold compiled", []).append(float("compiling the fast kernels" in err))
-            out.setdefault(f"{name} cold plain", []).append(float("runs the plain NumPy path" in err))
-            warm, _ = timed(cmd, env, work)
-            out.setdefault(f"{name} warm", []).append(warm)
-            print(f"  {name}: cold {cold:.1f} s, warm {warm:.1f} s", file=sys.stderr, flush=True)
-            shutil.rmtree(cache, ignore_errors=True)
+        cache = work / f"numba-{rep}"
+        env = {**base, "NUMBA_CACHE_DIR": str(cache)}
+        # a fresh install: the demo first (it does not compile), then the first run (it compiles), then both again
+        for key, name in (("demo cold", "demo"), ("run cold", "run"), ("run warm", "run"), ("demo warm", "demo")):
+            wall, err = timed(cmds[name], env, work)
+            out.setdefault(key, []).append(wall)
+            out.setdefault(f"{key} compiled", []).append(float("compiling the fast kernels" in err))
+            out.setdefault(f"{key} plain", []).append(float("runs the plain NumPy path" in err))
+            print(f"  {key}: {wall:.1f} s", file=sys.stderr, flush=True)
+        shutil.rmtree(cache, ignore_errors=True)
         plain, _ = timed(cmds["demo"], {**base, "ISF_ROBOT_JIT": "0"}, work)
         out.setdefault("demo plain", []).append(plain)
         print(f"  demo without kernels: {plain:.1f} s", file=sys.stderr, flush=True)
@@ -106,8 +105,9 @@ def report(times: dict[str, list[float]], suite: tuple[float, str] | None, load0
         f"{load0[0]:.2f} / {load[0]:.2f}.",
         "Whole commands (interpreter, imports, run), median of "
         f"{len(times['demo cold'])}; *cold*: numba's cache empty (the first run after an install), *warm*: every "
-        "later run. With a cold cache `run` compiles the kernels (and says so on stderr); the demo does not wait "
-        "for the compiler: it runs the plain NumPy path (and says so).",
+        "later run. Order per repeat, one cache: demo, run, run, demo. With a cold cache `run` compiles the "
+        "kernels (and says so on stderr); the demo does not wait for the compiler: it runs the plain NumPy path "
+        "(and says so).",
         "",
         "| command | cold cache [s] | warm cache [s] | without kernels (`ISF_ROBOT_JIT=0`) [s] |",
         "|---|---|---|---|",
@@ -115,10 +115,10 @@ def report(times: dict[str, list[float]], suite: tuple[float, str] | None, load0
         f"| `isf-robot run --scene panda_pole --filter isf --duration 10` | {med('run cold')} | {med('run warm')} "
         "| - |",
         "",
-        f"Cold runs that compiled (notice on stderr): run {int(sum(times['run cold compiled']))} of "
-        f"{len(times['run cold'])}, demo {int(sum(times['demo cold compiled']))} of {len(times['demo cold'])}; "
-        f"cold demos on the plain path (notice on stderr): {int(sum(times['demo cold plain']))} of "
-        f"{len(times['demo cold'])}.",
+        f"Notices on stderr: cold runs that compiled {int(sum(times['run cold compiled']))} of "
+        f"{len(times['run cold'])}, cold demos on the plain path {int(sum(times['demo cold plain']))} of "
+        f"{len(times['demo cold'])}; warm commands with either notice "
+        f"{int(sum(times['run warm compiled']) + sum(times['demo warm compiled']) + sum(times['demo warm plain']))}.",
     ]
     if suite is not None:
         lines += ["", f"`pytest -q -n 2` in a user's clone (no `../shared`, cold kernel cache): **{suite[0] / 60:.1f} "
