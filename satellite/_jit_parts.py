@@ -71,17 +71,17 @@ def rhs(t, y, out, fp, ext, box_o, box_n, coef):  # pragma: no cover (compiled)
     r2 = x * x + yy * yy + z * z
     r = math.sqrt(r2)
     if fp[7] <= r <= fp[8]:
-        bx, by, bz = _table(x, yy, z, r2, r, fp, ext, box_o, box_n, coef)
+        ax, ay, az = _shell(x, yy, z, r, fp, ext)
     else:
         ax, ay, az = shell_continued(x, yy, z, ext, fp[4], fp[10], fp[5], fp[6], int(fp[9]))
-        fx, fy, fz = _boxes(x, yy, z, fp, box_o, box_n, coef)
-        ax += fx
-        ay += fy
-        az += fz
-        kep = -fp[3] / (r2 * r)
-        bx = ax + kep * x
-        by = ay + kep * yy
-        bz = az + kep * z
+    fx, fy, fz = _boxes(x, yy, z, fp, box_o, box_n, coef)
+    ax += fx
+    ay += fy
+    az += fz
+    kep = -fp[3] / (r2 * r)
+    bx = ax + kep * x
+    by = ay + kep * yy
+    bz = az + kep * z
     kd = fp[2]
     if kd != 1.0:
         pr2 = px * px + py * py + pz * pz
@@ -96,8 +96,8 @@ def rhs(t, y, out, fp, ext, box_o, box_n, coef):  # pragma: no cover (compiled)
 
 
 @njit(cache=True, nogil=True)
-def _table(x, yy, z, r2, r, fp, ext, box_o, box_n, coef):  # pragma: no cover (compiled)
-    """The table's acceleration (shell B-spline + fine boxes + Kepler) at a body-frame point within its radii."""
+def _shell(x, yy, z, r, fp, ext):  # pragma: no cover (compiled)
+    """The table's shell B-spline (the non-Kepler part before the fine boxes) at a body-frame point within its radii."""
     u = (r - fp[4]) * fp[5]
     k = min(int(u), int(fp[9]) - 3)
     v = (math.asin(z / r) + 0.5 * math.pi) * fp[6] - 0.5
@@ -124,15 +124,7 @@ def _table(x, yy, z, r2, r, fp, ext, box_o, box_n, coef):  # pragma: no cover (c
         ax += wc[cc] * sx
         ay += wc[cc] * sy
         az += wc[cc] * sz
-    fx, fy, fz = _boxes(x, yy, z, fp, box_o, box_n, coef)
-    ax += fx
-    ay += fy
-    az += fz
-    kep = -fp[3] / (r2 * r)
-    bx = ax + kep * x
-    by = ay + kep * yy
-    bz = az + kep * z
-    return bx, by, bz
+    return ax, ay, az
 
 
 @njit(cache=True, nogil=True)
