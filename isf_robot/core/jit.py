@@ -1,7 +1,7 @@
 """Whether the compiled kernels run, and a one-line notice on stderr when they are compiled.
 
 The kernels (the arm's step, the filters' few-row step, the satellite's arcs) are numba functions
-cached on disk (``cache=True``): the first run on a machine compiles them (some 10-30 s of CPU in
+cached on disk (``cache=True``): the first run on a machine compiles them (some 15-30 s of CPU in
 all), later runs load them. ``ISF_ROBOT_JIT=0`` runs the plain numpy paths instead (the same
 formulas; see the kernels' modules for the tolerance they agree to).
 
@@ -28,7 +28,7 @@ JIT_ENV = "ISF_ROBOT_JIT"
 NOTICE_ENV = "ISF_ROBOT_COMPILE_NOTICE"
 """Environment variable naming the marker file of a command's compile notice (set by :func:`announce_compiles`)."""
 
-COMPILE_NOTICE = ("compiling the fast kernels for this machine, once (about 10-30 s in all; later runs load "
+COMPILE_NOTICE = ("compiling the fast kernels for this machine, once (about 15-30 s in all; later runs load "
                   "them from numba's cache; ISF_ROBOT_JIT=0 runs without them)")
 """The notice (after the program's name)."""
 
