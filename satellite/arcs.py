@@ -122,6 +122,8 @@ class Tracker:
         surface_h: ``h_s`` of the surface barrier at many states, ``(t (k,), y (6, k)) -> (k,)``, or
             ``None`` (no surface barrier).
         surface_h_min: Smallest ``h_s`` at step points and located events [m].
+        xi_tau_min: Smallest ``Xi_tau`` where the maneuver trigger evaluates it: at each gate and at
+            the step points and located events of the arcs after it (``inf`` before any).
 
     """
 
@@ -141,6 +143,11 @@ class Tracker:
         self.min_pass_clearance = math.inf
         self.surface_h: Callable[[Any, NDArray[np.float64]], NDArray[np.float64]] | None = None
         self.surface_h_min = math.inf
+        self.xi_tau_min = math.inf
+
+    def note_xi_tau(self, value: float) -> None:
+        """Account for one value of ``Xi_tau`` (the maneuver trigger's test at a gate)."""
+        self.xi_tau_min = min(self.xi_tau_min, float(value))
 
     def radius(self, y: NDArray[np.float64]) -> None:
         """Account for one state ``y``, shape (6,)."""
@@ -149,7 +156,7 @@ class Tracker:
         self.r_max = max(self.r_max, r)
 
     def arc(self, sol: Any, phase: str, xi_tau: EventFn | None) -> None:
-        """Account for one ``solve_ivp`` solution: extremes, evaluations, samples."""
+        """Account for one ``solve_ivp`` solution: extremes, evaluations, ``Xi_tau``'s minimum, samples."""
         self.nfev += int(sol.nfev)
         self.scan_points += int(getattr(sol, "scan_points", 0))
         ys = sol.y
@@ -164,6 +171,12 @@ class Tracker:
             for te, evs in zip(sol.t_events, sol.y_events):
                 if len(te):
                     self.surface_h_min = min(self.surface_h_min, float(self.surface_h(te, evs.T).min()))
+        if xi_tau is not None:  # the maneuver trigger's smallest value at step points and events
+            for k, t in enumerate(sol.t):
+                self.note_xi_tau(xi_tau(float(t), ys[:, k]))
+            for te, evs in zip(sol.t_events, sol.y_events):
+                for t, y in zip(te, evs):
+                    self.note_xi_tau(xi_tau(float(t), y))
         if not self.obs:
             return
         for k, t in enumerate(sol.t):

@@ -171,6 +171,9 @@ def format_text(res: RunResult) -> str:
         f"trigger            {res.trigger}",
         f"hours              {res.hours:g} (simulated {res.simulated_h:.4g})",
         f"triggers           {res.triggers} {res.kinds if res.kinds else ''}".rstrip(),
+        f"min Xi_tau         {f(res.min_xi_tau, '.4g')} "
+        + ("(a tau impulse needs Xi_tau <= 0, i.e. dtau_p/dt <= -1)" if res.trigger is Trigger.MANEUVER
+           else "(evaluated by the maneuver trigger only)"),
         f"min_h              {res.min_h:.6g} m^2",
         f"r range            [{res.r_min_over_R:.4f}, {res.r_max_over_R:.4f}] R",
         f"total_dv           {res.total_dv:.6g} m/s",

@@ -263,7 +263,9 @@ class Maneuver(TriggerPolicy):
             if t >= t_end:
                 return t, y, True
             t = gate
-        if self.xi_tau(t, y) <= 0.0:
+        at_gate = self.xi_tau(t, y)
+        self.arc.track.note_xi_tau(at_gate)
+        if at_gate <= 0.0:
             return t, self._jump(t, y, "tau"), False
         evs = [self.xi_ev, self.xi_tau_ev, *fire[1:], self.apsis_ev]  # Xi, Xi_tau, (Xi_s)
         sol = self.arc(t, t_end, y, evs, "second-gated", self.xi_tau)

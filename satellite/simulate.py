@@ -288,6 +288,7 @@ def simulate(
         contact=contact_report(contact, watch, track, arcs.stopped),
         shooting=shooting_report(sfilter.nominal if sfilter is not None else ctrl.controller),
         surface_barrier=surface_barrier_report(sfilter, track, policy.surface_fires),
+        min_xi_tau=track.xi_tau_min if math.isfinite(track.xi_tau_min) else None,
     )
     obs.on_finish(result.summary())
     return result

@@ -33,6 +33,11 @@ class RunResult:
         simulated_h: Duration actually simulated [h] (shorter for ``none`` leaving the band).
         triggers: Number of impulses.
         kinds: Impulse counts by kind (``greedy``, ``safe``, ``tau``, ``periodic``).
+        min_xi_tau: Smallest maneuver trigger value ``Xi_tau = (1 + dtau_p/dt) / 2`` over the run where
+            the trigger evaluates it (at each gate, and at the step points and located events of the
+            arcs after it; between them the event scan watches it), ``None`` for the other triggers
+            (and a maneuver run that reached no gate). A ``tau`` impulse fires only where ``Xi_tau <= 0``,
+            i.e. ``dtau_p/dt <= -1``: a minimum above 0 means no ``tau`` impulse could fire.
         min_h: Smallest barrier value over the trajectory [m^2].
         r_min_over_R: Smallest radius [R].
         r_max_over_R: Largest radius [R].
@@ -95,11 +100,12 @@ class RunResult:
     min_interval_overrides: int = 0
     shooting: dict[str, Any] | None = None
     surface_barrier: dict[str, Any] | None = None
+    min_xi_tau: float | None = None
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary (everything but the event list; the surface keys when checked)."""
         keys = (
-            "trigger", "hours", "simulated_h", "triggers", "kinds", "min_h", "r_min_over_R",
+            "trigger", "hours", "simulated_h", "triggers", "kinds", "min_xi_tau", "min_h", "r_min_over_R",
             "r_max_over_R", "total_dv", "min_inter_event_h", "mean_inter_event_h", "miet_bound_h",
             "miet_estimate_h", "min_interval_s", "min_interval_binds", "min_interval_overrides",
             "left_band_h", "band_exits", "wall_s", "seed", "nfev", "settings",

@@ -136,8 +136,8 @@ def run_one(task: StudyTask) -> dict[str, Any]:
         surface_barrier=st.surface_barrier and cfg.trigger in SURFACE_BARRIER_TRIGGERS,
     )
     s = res.summary()
-    keys = ("triggers", "kinds", "min_h", "surface_min_h_m", "surface_impulses", "r_min_over_R", "r_max_over_R",
-            "total_dv", "min_inter_event_h",
+    keys = ("triggers", "kinds", "min_xi_tau", "min_h", "surface_min_h_m", "surface_impulses", "r_min_over_R",
+            "r_max_over_R", "total_dv", "min_inter_event_h",
             "mean_inter_event_h", "miet_bound_h", "left_band_h", "band_exits", "simulated_h", "wall_s", "nfev",
             "surface_contacts", "min_pass_clearance_m")
     out: dict[str, Any] = {"config": cfg.label, "seed": task.seed, "inclination_deg": task.inclination_deg}

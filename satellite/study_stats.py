@@ -82,6 +82,7 @@ def summarize_config(runs: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
         "surface_min_h_m": min((r["surface_min_h_m"] for r in runs if r.get("surface_min_h_m") is not None),
                                default=None),
         "tau_impulses": sum(r["kinds"].get("tau", 0) for r in runs),
+        "min_xi_tau": min((r["min_xi_tau"] for r in runs if r.get("min_xi_tau") is not None), default=None),
         "min_inter_event_h": min((r["min_inter_event_h"] for r in runs if r["min_inter_event_h"] is not None),
                                  default=None),
         "wall_s": sum(r["wall_s"] for r in runs),

@@ -88,6 +88,11 @@ Changes so far, each deliberate:
   nominal and cbf cases are unchanged.
 * Time to complete the goals (issue 13): one new key in every arm case, ``goal_times_s`` (the time
   of each goal arrival), added by a script that checked every other value unchanged.
+* The maneuver trigger's smallest ``Xi_tau`` (issue 24, item 4): one new key in every satellite case,
+  ``min_xi_tau`` (``null``: greedy runs do not evaluate it). ``satellite-greedy`` and ``satellite-greedy-12h``
+  regenerated (``python tests/golden/generate.py satellite-greedy satellite-greedy-12h``; a JSON diff showed the
+  new key and ``wall_s`` only); ``satellite-surface-12h``'s regeneration also moved its floats by <= 1e-9 (its
+  Python arcs' rounding, inside ``MACHINE_RTOL``), so the key was added to the committed file by a script instead.
 """
 
 from __future__ import annotations

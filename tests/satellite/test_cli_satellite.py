@@ -29,6 +29,7 @@ def test_run_json_is_pure(capsys: pytest.CaptureFixture[str]) -> None:
     doc = json.loads(out)
     assert KEYS <= set(doc)
     assert doc["trigger"] == "greedy" and doc["hours"] == 24.0
+    assert doc["min_xi_tau"] is None  # evaluated by the maneuver trigger only
     assert "%" in err  # progress goes to stderr
 
 
@@ -47,6 +48,8 @@ def test_tau_file_and_maneuver_run(tau_file: Path, capsys: pytest.CaptureFixture
     assert main(["run", "--trigger", "maneuver", "--tau", str(tau_file), "--hours", "48", "--json", "--quiet"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["trigger"] == "maneuver" and out["min_h"] >= -1e-6
+    low = out["min_xi_tau"]  # a tau impulse needs Xi_tau <= 0
+    assert isinstance(low, float) and (low <= 1e-6 if out["kinds"].get("tau", 0) else low > 0.0)
 
 
 @pytest.mark.parametrize(

@@ -70,6 +70,7 @@ def test_greedy_keeps_h_nonnegative_and_events_are_exact(model: OrbitModel) -> N
     ts = [s.t for s in rec.samples]
     assert ts == sorted(ts) and ts[-1] > 230 * 3600
     assert all(s.h >= -H_TOL and math.isnan(s.xi_tau) for s in rec.samples)
+    assert res.min_xi_tau is None and res.summary()["min_xi_tau"] is None  # the greedy trigger never evaluates it
     assert res.min_inter_event_h is not None and res.min_inter_event_h >= res.miet_bound_h
 
 
@@ -77,6 +78,12 @@ def test_maneuver_with_fitted_tau_keeps_h_nonnegative(quick_fit: TauFit) -> None
     res = simulate("maneuver", 240.0, initial=InitialOrbit(seed=2), tau=quick_fit)
     assert res.min_h >= -H_TOL
     assert res.triggers > 0 and res.kinds.get("greedy", 0) >= res.kinds.get("safe", 0) + res.kinds.get("tau", 0)
+    # a tau impulse fires only where Xi_tau <= 0: at its located zero (or at a gate where it is already <= 0)
+    assert res.min_xi_tau is not None
+    if res.kinds.get("tau", 0):
+        assert res.min_xi_tau <= 1e-6
+    else:
+        assert res.min_xi_tau > 0.0
 
 
 def test_maneuver_tau_branch_respects_gate(model: OrbitModel) -> None:
@@ -93,6 +100,21 @@ def test_maneuver_tau_branch_respects_gate(model: OrbitModel) -> None:
             assert second.t >= first.t + steep.tau_p(first.h_after) - 1e-6
     gated = [s for s in rec.samples if s.phase == "second-gated"]
     assert gated and all(s.xi_tau > -1e-9 for s in gated)
+    # the reported minimum: no larger than any sample's, and <= 0 since tau impulses fired
+    assert res.min_xi_tau is not None and res.min_xi_tau <= min(s.xi_tau for s in gated)
+    assert res.min_xi_tau <= 1e-6
+
+
+def test_maneuver_reports_xi_tau_minimum_and_the_tau_condition(model: OrbitModel) -> None:
+    # a flat tau_p: tau_p' = 0, so Xi_tau = (1 + tau_p' LF h) / 2 = 0.5 wherever the trigger evaluates it
+    flat = TauFit([3 * 3600.0], model.h_max)
+    res = simulate("maneuver", 48.0, initial=InitialOrbit(seed=2), tau=flat)
+    assert res.kinds.get("safe", 0) > 0 and "tau" not in res.kinds  # second impulses happen, none by Xi_tau
+    assert res.min_xi_tau == 0.5 and res.summary()["min_xi_tau"] == 0.5
+    from satellite.cmd_run import format_text
+
+    line = next(x for x in format_text(res).splitlines() if x.startswith("min Xi_tau"))
+    assert line.split()[2] == "0.5" and "dtau_p/dt <= -1" in line
 
 
 def test_run_input_errors(quick_fit: TauFit) -> None:

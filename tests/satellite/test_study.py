@@ -82,6 +82,7 @@ def test_configurations_fly_the_same_starts_and_workers_do_not_change_numbers(tm
     for r in one["runs"]:  # every configuration starts each (seed, inclination) from the same state
         x0.setdefault((r["seed"], r["inclination_deg"]), set()).add((tuple(r["x0"]), r["body_phase_rad"]))
         assert r["min_h"] > 0 and r["completed"]
+        assert r["config"] == "maneuver/kepler" or r["min_xi_tau"] is None  # the maneuver trigger's only
     assert all(len(v) == 1 for v in x0.values()) and len({next(iter(v)) for v in x0.values()}) == 3
     labels = [c["label"] for c in one["configs"]]
     assert labels == ["greedy/kepler", "maneuver/kepler", "periodic 0.5h/kepler"]
@@ -89,6 +90,8 @@ def test_configurations_fly_the_same_starts_and_workers_do_not_change_numbers(tm
     assert all(c["n"] == 3 for c in one["comparisons"])
     periodic = one["configs"][2]["summary"]
     assert periodic["triggers"]["mean"] == 2.0  # at 0.5 h and 1 h of 1.5 h
+    gated = [r["min_xi_tau"] for r in one["runs"] if r["config"] == "maneuver/kepler" and r["min_xi_tau"] is not None]
+    assert one["configs"][1]["summary"]["min_xi_tau"] == min(gated, default=None) and periodic["min_xi_tau"] is None
 
 
 def test_the_surface_barrier_option_reaches_the_runs_and_keeps_its_barrier_nonnegative(tmp_path: Path) -> None:
