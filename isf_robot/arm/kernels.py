@@ -85,20 +85,20 @@ def _kernels() -> dict[str, Callable[..., Any]] | None:
     return _STATE["kernels"]
 
 
-def compiled_here() -> bool:
-    """Whether numba's cache already holds this machine's code of every kernel of an arm run.
+def compiled_here() -> tuple[int, int]:
+    """How many kernels of an arm run numba's cache already holds for this machine: ``(held, kernels)``.
 
-    ``False`` before the first run after an install (which compiles them); ``True`` when the kernels
-    are off or absent (nothing to compile).
+    ``(0, n)`` before the first run after an install (which compiles them); ``(0, 0)`` when the
+    kernels are off or absent, or the cache cannot be read.
     """
     if _kernels() is None:
-        return True
+        return 0, 0
     try:
         from isf_robot.core import _few_jit, _predict_jit, _step_jit, _xi_jit
 
         from . import _kernels_jit, _kernels_step, _rollout_jit
     except ImportError:
-        return True
+        return 0, 0
     return jit_compiled_here((_kernels_jit, _kernels_step, _rollout_jit, _xi_jit, _few_jit, _step_jit, _predict_jit))
 
 

@@ -296,7 +296,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from isf_robot.arm.compare import SceneSpec, compare_strategies, format_table
     from isf_robot.core.jit import JIT_ENV
 
-    if not kernels.compiled_here():  # (a first run after an install: the demo does not wait for the compiler)
+    held, count = kernels.compiled_here()
+    if count and not held:  # (the first command after an install: the demo does not wait for the compiler)
         os.environ[JIT_ENV] = "0"  # (this process and its workers)
         print(f"isf-robot demo: {DEMO_PLAIN_NOTICE}", file=sys.stderr)
     jobs = args.jobs if args.jobs is not None else max(1, min(2, os.cpu_count() or 1))

@@ -22,7 +22,7 @@ from .class_k import ClassK, as_class_k
 from .exceptions import ConfigError, PostJumpConditionError
 from .miet import ZenoGuard
 from .sums import dot, norm
-from .triggers import xi_tau
+from .triggers import xi_on_scalar, xi_tau
 from .validation import as_vector, check_finite_scalar, check_nonnegative, check_positive
 
 __all__ = ["JumpEvent", "EventTriggeredImpulsiveController", "ManeuverScheduler"]
@@ -143,7 +143,7 @@ class EventTriggeredImpulsiveController:
         b = self.barrier if barrier is None else barrier
         grad = b.gradient(x, t)
         lfh = dot(grad, np.asarray(self.flow_model(t, x), dtype=float)) + b.time_derivative(x, t)
-        return lfh - norm(grad) * self.d_bar + self.alpha(b.value(x, t))
+        return xi_on_scalar(lfh, 0.0, norm(grad), b.value(x, t), self.alpha, self.d_bar)
 
     # -- the jump ------------------------------------------------------------------------
     def apply_jump(self, t: float, x: np.ndarray, kind: str = "greedy") -> JumpEvent:

@@ -105,14 +105,14 @@ def watch_compiles() -> None:
     _STATE["listener"] = listener
 
 
-def compiled_here(modules: Sequence[ModuleType]) -> bool:
-    """Whether numba's cache holds this machine's code of every kernel of ``modules``.
+def compiled_here(modules: Sequence[ModuleType]) -> tuple[int, int]:
+    """How many kernels of ``modules`` numba's cache holds for this machine: ``(held, kernels)``.
 
     A kernel is a cached numba function of the module that is not inlined into its callers; it is
     held when its cache index (fresh for its source) has an entry for this machine's code
-    generation. ``True`` when that cannot be told (a numba without these internals): the kernels
-    then compile on first use, as they would anyway.
+    generation. ``(0, 0)`` when that cannot be told (a numba without these internals).
     """
+    held = total = 0
     try:
         from numba.core.registry import CPUDispatcher
 
@@ -126,8 +126,8 @@ def compiled_here(modules: Sequence[ModuleType]) -> bool:
                 if index_file is None:
                     continue
                 here = obj.targetctx.codegen().magic_tuple()
-                if not any(key[1] == here for key in index_file._load_index()):
-                    return False
-    except Exception:  # noqa: BLE001 - numba's internals moved: say "held", the kernels compile when used
-        return True
-    return True
+                total += 1
+                held += any(key[1] == here for key in index_file._load_index())
+    except Exception:  # noqa: BLE001 - numba's internals moved: nothing can be said
+        return 0, 0
+    return held, total

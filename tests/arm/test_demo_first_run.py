@@ -15,24 +15,39 @@ from isf_robot.core.jit import COMPILE_NOTICE
 
 pytestmark = pytest.mark.skipif(not kernels.available(), reason="compiled kernels off (ISF_ROBOT_JIT=0)")
 
-
-def test_after_a_run_the_kernels_are_held_by_the_cache() -> None:
-    from isf_robot.arm import ArmSimulation, load_scene
-
-    scene = load_scene("panda_pole")
-    for strategy in ("cbf", "isf"):  # (every kernel of an arm run: compiled, or loaded, here)
-        ArmSimulation(scene, strategy, seed=0, d_bar=0.05).run(0.3)
-    assert kernels.compiled_here()
+DEMO = ["demo", "--episodes", "1", "--duration", "0.3", "--jobs", "1", "--json"]
 
 
-def test_a_cold_cache_makes_the_demo_run_the_plain_path_without_compiling(tmp_path) -> None:  # type: ignore[no-untyped-def]
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "empty"), "ISF_ROBOT_JIT": "1"}
-    cmd = [sys.executable, "-m", "isf_robot.cli", "demo", "--episodes", "1", "--duration", "0.3", "--jobs", "1",
-           "--json"]
-    out = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+def _cli(args: list[str], env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+    out = subprocess.run([sys.executable, "-m", "isf_robot.cli", *args], env=env, capture_output=True, text=True,
+                         timeout=300)
     assert out.returncode == 0, out.stderr
-    assert DEMO_PLAIN_NOTICE in out.stderr
-    assert COMPILE_NOTICE not in out.stderr  # (nothing compiled: the plain path ran)
-    assert not list((tmp_path / "empty").rglob("*.nbi"))
-    result = json.loads(out.stdout)
-    assert set(result["results"]) >= {"nominal", "cbf", "isf"}
+    return out
+
+
+def _held(env: dict[str, str]) -> tuple[int, int]:
+    code = "from isf_robot.arm import kernels; print(*kernels.compiled_here())"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300, check=True)
+    held, count = map(int, out.stdout.split())
+    return held, count
+
+
+def test_the_demo_runs_the_plain_path_until_a_run_has_compiled_the_kernels(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "ISF_ROBOT_JIT": "1"}
+    held, count = _held(env)
+    assert count >= 10 and held == 0  # (a fresh install: nothing compiled)
+
+    cold = _cli(DEMO, env)
+    assert DEMO_PLAIN_NOTICE in cold.stderr
+    assert COMPILE_NOTICE not in cold.stderr  # (nothing compiled: the plain path ran)
+    assert _held(env) == (0, count)
+    assert set(json.loads(cold.stdout)["results"]) >= {"nominal", "cbf", "isf"}
+
+    run = _cli(["run", "--scene", "panda_pole", "--filter", "isf", "--duration", "0.3", "--d-bar", "0.05"], env)
+    assert COMPILE_NOTICE in run.stderr
+    held, _ = _held(env)
+    assert 0 < held <= count
+
+    warm = _cli(DEMO, env)  # (the kernels an isf run did not need compile now, with the notice)
+    assert DEMO_PLAIN_NOTICE not in warm.stderr
+    assert json.loads(warm.stdout)["results"].keys() == json.loads(cold.stdout)["results"].keys()
