@@ -117,8 +117,10 @@ def report(times: dict[str, list[float]], suite: tuple[float, str] | None, load0
         "",
         f"Notices on stderr: cold runs that compiled {int(sum(times['run cold compiled']))} of "
         f"{len(times['run cold'])}, cold demos on the plain path {int(sum(times['demo cold plain']))} of "
-        f"{len(times['demo cold'])}; warm commands with either notice "
-        f"{int(sum(times['run warm compiled']) + sum(times['demo warm compiled']) + sum(times['demo warm plain']))}.",
+        f"{len(times['demo cold'])}; warm demos that compiled the kernels the run before did not need "
+        f"{int(sum(times['demo warm compiled']))} of {len(times['demo warm'])}, warm commands on the plain path "
+        f"{int(sum(times['demo warm plain']) + sum(times['run warm plain']))}, warm runs that compiled "
+        f"{int(sum(times['run warm compiled']))}.",
     ]
     if suite is not None:
         lines += ["", f"`pytest -q -n 2` in a user's clone (no `../shared`, cold kernel cache): **{suite[0] / 60:.1f} "
