@@ -33,6 +33,7 @@ import numpy as np
 from isf_robot.core import ConfigError, IsfError, Observer
 
 from .camera import frame_workspace
+from .drawing import hidden_collision_geoms, robot_drawn_geoms
 from .render import ON_RGBA
 
 __all__ = ["LiveViewer", "ViewerUnavailableError", "ViewerClosedError", "check_display"]
@@ -65,23 +66,28 @@ class LiveViewer(Observer):
 
     Args:
         speed: Simulated seconds per second of wall time (1: real time).
+        show_collision: Also draw the collision geoms of bodies that have visual geoms (hidden by
+            default, as in ``isf-robot render``; the model's colours come back when the window closes).
         launch: Replaces :func:`mujoco.viewer.launch_passive` (tests).
         clock: Replaces :func:`time.monotonic` (tests).
         sleep: Replaces :func:`time.sleep` (tests).
 
     """
 
-    def __init__(self, speed: float = 1.0, *, launch: Callable[..., Any] | None = None,
+    def __init__(self, speed: float = 1.0, *, show_collision: bool = False, launch: Callable[..., Any] | None = None,
                  clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep) -> None:
         if not (math.isfinite(speed) and speed > 0):
             raise ConfigError(f"viewer speed must be a positive number (1 = real time), got {speed}")
         self.speed = float(speed)
+        self.show_collision = bool(show_collision)
         self._launch, self._clock, self._sleep = launch, clock, sleep
         self.handle: Any = None
         self._threads: list[threading.Thread] = []
         self._model: Any = None
         self._robot = np.zeros(0, dtype=int)
         self._rgba = np.zeros((0, 4))
+        self._hidden = np.zeros(0, dtype=int)
+        self._hidden_rgba = np.zeros((0, 4))
         self._on = False
         self.paused = False
         self.syncs = 0
@@ -115,10 +121,15 @@ class LiveViewer(Observer):
         self._threads = [t for t in threading.enumerate() if t not in before]  # the viewer's window thread
         robot, others = (np.asarray(info.get(key, ()), dtype=int).reshape(-1)
                          for key in ("robot_geom_ids", "obstacle_geom_ids"))
-        groups = {int(model.geom_group[g]) for g in np.concatenate((robot, others))}
-        self._model, self._robot, self._on = model, robot, False
-        self._rgba = np.array(model.geom_rgba[robot], copy=True)  # restored when the window closes
+        # as `isf-robot render`: the visual geoms, not the collision geoms of bodies that have visual ones
+        hidden = np.zeros(0, dtype=int) if self.show_collision else hidden_collision_geoms(model)
+        shown = np.setdiff1d(robot_drawn_geoms(model, robot, others), hidden)
+        groups = {int(model.geom_group[g]) for g in np.concatenate((shown, np.setdiff1d(others, hidden)))}
+        self._model, self._robot, self._on = model, shown, False
+        self._rgba = np.array(model.geom_rgba[shown], copy=True)  # restored when the window closes
+        self._hidden, self._hidden_rgba = hidden, np.array(model.geom_rgba[hidden], copy=True)
         with self.handle.lock():
+            model.geom_rgba[hidden, 3] = 0.0  # (drawing only: no physics reads geom_rgba)
             for g in groups:
                 if 0 <= g < len(self.handle.opt.geomgroup):
                     self.handle.opt.geomgroup[g] = 1
@@ -179,6 +190,9 @@ class LiveViewer(Observer):
             return
         if self._on:  # the model is the scene's: leave its colours as they were
             self._tint(False)
+        if self._hidden.size:
+            with h.lock():
+                self._model.geom_rgba[self._hidden] = self._hidden_rgba
         self.handle = None
         h.close()
         for t in self._threads:  # let the window thread tear GLFW down before the interpreter exits

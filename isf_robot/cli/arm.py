@@ -125,6 +125,9 @@ def register(subparsers: Any) -> None:
                         "a body, closing the window stops the run; needs a display)")
     p.add_argument("--view-speed", type=float, default=1.0, metavar="X",
                    help="with --view: simulated seconds per wall-clock second (default 1)")
+    p.add_argument("--view-collision", action="store_true",
+                   help="with --view: also draw the collision geoms of bodies that have visual geoms (hidden by "
+                        "default, as in `isf-robot render`)")
     p.add_argument("--video", type=Path, default=None, metavar="PATH",
                    help="also render the run offscreen to PATH: .gif, .mp4 (the 'video' extra) or .png (one frame); "
                         "as `isf-robot render`, which has the frame size and rate options")
@@ -195,7 +198,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         from isf_robot.arm.viewer import LiveViewer, check_display
 
         check_display()
-        observers.append(LiveViewer(speed=args.view_speed))
+        observers.append(LiveViewer(speed=args.view_speed, show_collision=args.view_collision))
     if any(o is not None for o in observers):
         from isf_robot.core.hooks import Observers
 

@@ -155,3 +155,32 @@ def test_real_viewer_under_xvfb() -> None:
                           capture_output=True, text=True, env=env, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "duty cycle" in proc.stdout
+
+
+def test_a_vendor_arm_shows_its_visual_geoms_and_gets_its_colours_back(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.arm.scene import load_scene_from_files
+
+    from .test_render import VENDOR_TOML, VENDOR_XML
+
+    (tmp_path / "arm.xml").write_text(VENDOR_XML)
+    (tmp_path / "arm.toml").write_text(VENDOR_TOML)
+    scene = load_scene_from_files(tmp_path / "arm.xml", tmp_path / "arm.toml")
+    m = scene.model
+    rgba0 = np.array(m.geom_rgba, copy=True)
+    capsules = [g for g in range(m.ngeom) if m.geom_type[g] == 3]  # the links' collision capsules
+    hand = m.geom("hand").id  # a body with only a collision geom: drawn
+    seen: list[np.ndarray] = []
+
+    def launch(mm: Any, d: Any, **kw: Any) -> FakeHandle:
+        h = FakeHandle(mm, d, kw["key_callback"], on_sync=lambda hh: seen.append(np.array(mm.geom_rgba, copy=True)))
+        return h
+
+    clock = FakeClock()
+    _run(scene, LiveViewer(speed=50.0, launch=launch, clock=clock, sleep=clock.sleep), 0.2)
+    assert seen and capsules
+    assert all(r[capsules, 3].max() == 0.0 and r[hand, 3] > 0 for r in seen)  # hidden while shown, the hand drawn
+    assert np.array_equal(m.geom_rgba, rgba0)  # the model's colours back when the window closed
+    clock = FakeClock()
+    seen.clear()
+    _run(scene, LiveViewer(speed=50.0, show_collision=True, launch=launch, clock=clock, sleep=clock.sleep), 0.2)
+    assert seen and all(r[capsules, 3].min() > 0 for r in seen)
