@@ -16,11 +16,11 @@ from numba.extending import intrinsic
 
 from isf_robot.core.jit import watch_compiles
 
-from .kernels import _library
+from .libmujoco import library_path
 
 watch_compiles()  # (a command's one-line notice when a kernel is compiled: isf_robot.core.jit)
 
-_PATH = _library()
+_PATH = library_path()
 if _PATH is None:  # (kernels._build treats this as "numba missing")
     raise ImportError("the mujoco package's libmujoco was not found")
 llvm.load_library_permanently(_PATH)

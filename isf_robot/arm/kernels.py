@@ -38,12 +38,9 @@ seconds; cached in ``__pycache__`` for later processes).
 
 from __future__ import annotations
 
-import glob
 import os
 from collections.abc import Callable
 from typing import Any
-
-import mujoco
 
 from isf_robot.core.jit import compiled_here as jit_compiled_here
 from isf_robot.core.jit import jit_enabled
@@ -51,16 +48,6 @@ from isf_robot.core.jit import jit_enabled
 __all__ = ["available", "compiled_here", "monitor_kernel", "near_kernel", "step_kernels"]
 
 _STATE: dict[str, Any] = {}
-
-
-def _library() -> str | None:
-    """Path of the MuJoCo shared library the ``mujoco`` package loads (``None``: not found)."""
-    folder = os.path.dirname(mujoco.__file__)
-    for pattern in ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll"):
-        found = sorted(glob.glob(os.path.join(folder, pattern)))
-        if found:
-            return found[0]
-    return None
 
 
 def _build() -> dict[str, Callable[..., Any]] | None:

@@ -300,12 +300,21 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from isf_robot.core.jit import JIT_ENV
 
     held, count = kernels.compiled_here()
-    if count and not held:  # (the first command after an install: the demo does not wait for the compiler)
-        os.environ[JIT_ENV] = "0"  # (this process and its workers)
+    plain = bool(count) and not held  # (the first command after an install: the demo does not wait for the compiler)
+    if plain:
         print(f"isf-robot demo: {DEMO_PLAIN_NOTICE}", file=sys.stderr)
     jobs = args.jobs if args.jobs is not None else max(1, min(2, os.cpu_count() or 1))
-    comp = compare_strategies(SceneSpec(name=args.scene), args.episodes, duration=args.duration,
-                              jobs=jobs, progress=_progress(False))
+    before = os.environ.get(JIT_ENV)
+    if plain:
+        os.environ[JIT_ENV] = "0"  # (this process and the workers it starts; put back after the comparison)
+    try:
+        comp = compare_strategies(SceneSpec(name=args.scene), args.episodes, duration=args.duration,
+                                  jobs=jobs, progress=_progress(False))
+    finally:
+        if plain and before is None:
+            os.environ.pop(JIT_ENV, None)
+        elif plain and before is not None:
+            os.environ[JIT_ENV] = before
     if args.json:
         print(json.dumps(with_schema("isf-robot-compare", comp.as_dict())))
         return 0

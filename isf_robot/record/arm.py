@@ -55,40 +55,6 @@ from .schema import STEPS, TERMINAL
 __all__ = ["ArmRecorder"]
 
 
-class _RecordBlock:
-    """Step records fed one by one (:meth:`ArmRecorder.on_step`) as a block of columns.
-
-    The arm loop hands the recorder blocks of columns directly (:meth:`ArmRecorder.on_steps`);
-    this adapter gives records from elsewhere (a replay of kept records, a test) the same shape.
-    """
-
-    def __init__(self, records: list[Any], n_collision: int) -> None:
-        self.size = len(records)
-        self.n_collision = n_collision
-        f8 = np.float64
-
-        def col(name: str, dtype: Any = f8) -> np.ndarray:
-            return np.fromiter((getattr(r, name) for r in records), dtype=dtype, count=self.size)
-
-        def rows(name: str) -> np.ndarray:
-            return np.array([getattr(r, name) for r in records], dtype=f8)
-
-        first = records[0]
-        self.names = tuple(first.names)
-        self.dt = float(first.dt)
-        self.t, self.on, self.qp_solved = col("t"), col("on", np.bool_), col("qp_solved", np.bool_)
-        self.dist_min, self.h_min, self.xi_min = col("dist_min"), col("h_min"), col("xi_min")
-        self.u, self.u_nom, self.h, self.q = rows("u"), rows("u_nom"), rows("h"), rows("q")
-        self.ee_pos, self.goal_pos = rows("ee_pos"), rows("goal_pos")
-        self.mocap_pos, self.mocap_quat = rows("mocap_pos"), rows("mocap_quat")
-        index = {n: j for j, n in enumerate(self.names)}
-        self.near = [np.array([index[n] for n in r.witness_names], dtype=np.int64) for r in records]
-        self.witness = [np.asarray(r.witness, dtype=f8).reshape(-1, 2, 3) for r in records]
-
-    def __len__(self) -> int:
-        return self.size
-
-
 class ArmRecorder(RerunRecorder):
     """Observer of the arm loop: scene, barriers, triggers, mode, commands, witness segments.
 
@@ -140,7 +106,6 @@ class ArmRecorder(RerunRecorder):
         self._trail_tail = np.zeros((0, 3))
         self._names: tuple[str, ...] = ()
         self._qpos_adr: Any = None
-        self._records: list[Any] = []
         self._derived = self._derived_entities()
 
     @property
@@ -200,8 +165,8 @@ class ArmRecorder(RerunRecorder):
     def _send_block(self, b: Any) -> None:
         """Send every entity of a block of steps in columns (one ``send_columns`` call each).
 
-        ``b`` is a :class:`~isf_robot.arm.step_columns.StepColumns` of the arm loop (or a
-        :class:`_RecordBlock`): its first ``len(b)`` rows are read where they are.
+        ``b`` is a :class:`~isf_robot.arm.step_columns.StepColumns` of the arm loop: its first
+        ``len(b)`` rows are read where they are.
         """
         n = len(b)
         if n == 0:
@@ -367,34 +332,12 @@ class ArmRecorder(RerunRecorder):
     # -- per step ------------------------------------------------------------------------
     def on_steps(self, block: Any) -> None:
         """Send a block of the arm loop's steps (:class:`~isf_robot.arm.step_columns.StepColumns`)."""
-        self._flush_records()
         self._send_block(block)
 
     def on_step(self, record: Any) -> None:
-        """Keep a step record (for callers without blocks); every ``capacity`` records are sent."""
-        self._records.append(record)
-        if len(self._records) >= self.buffer.capacity:
-            self._flush_records()
-
-    def _flush_records(self) -> None:
-        if self._records:
-            records, self._records = self._records, []
-            self._send_block(_RecordBlock(records, self._n_collision))
-
-    def on_finish(self, summary: Mapping[str, Any]) -> None:
-        """Send the records still kept, then finish (see :meth:`RerunRecorder.on_finish`)."""
-        self._flush_records()
-        super().on_finish(summary)
-
-    def close(self, *, complete: bool = True) -> None:
-        """Send the records still kept, then close (see :meth:`RerunRecorder.close`)."""
-        if not self.closed:
-            try:
-                self._flush_records()
-            except Exception:
-                if complete:
-                    raise
-        super().close(complete=complete)
+        """Not taken: the arm loop hands this recorder whole blocks of steps (:meth:`on_steps`)."""
+        raise RecordError("ArmRecorder takes the arm loop's blocks of steps (on_steps), not single step records; "
+                          "attach it to ArmSimulation(observers=[...])")
 
     def replay_row(self, record: Any) -> tuple[float, float, bool, float, bool, float]:
         """``(t, dt, on, |u - u_nom|^2, qp_solved, true-geometry min barrier)`` of one record.

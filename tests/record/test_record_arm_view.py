@@ -171,3 +171,14 @@ def test_xi_plot_opens_on_its_thresholds(arm_run) -> None:  # type: ignore[no-un
     c = float(arm_run.collector.info["c"])
     assert ranges and np.allclose(np.asarray(ranges[-1], dtype=float).reshape(2), [-2 * c, 6 * c])
     assert xi_range(float("nan")) is None and xi_range(0.0) is None
+
+
+def test_the_arm_recorder_takes_blocks_not_single_records(arm_run, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.record import ArmRecorder, open_stream
+    from isf_robot.record.errors import RecordError
+
+    rec = ArmRecorder(open_stream("isf_robot_arm", rrd_path=tmp_path / "x.rrd"))
+    rec.on_start(arm_run.collector.info)
+    with pytest.raises(RecordError, match="blocks of steps"):
+        rec.on_step(arm_run.collector.steps[0])
+    rec.on_abort(RuntimeError("test"))
