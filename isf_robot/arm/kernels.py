@@ -42,6 +42,7 @@ import os
 from collections.abc import Callable
 from typing import Any
 
+from isf_robot.core.filter_base import core_kernels
 from isf_robot.core.jit import compiled_here as jit_compiled_here
 from isf_robot.core.jit import jit_enabled
 
@@ -81,12 +82,10 @@ def compiled_here() -> tuple[int, int]:
     if _kernels() is None:
         return 0, 0
     try:
-        from isf_robot.core import _few_jit, _predict_jit, _step_jit, _xi_jit
-
         from . import _kernels_jit, _kernels_step, _rollout_jit
     except ImportError:
         return 0, 0
-    return jit_compiled_here((_kernels_jit, _kernels_step, _rollout_jit, _xi_jit, _few_jit, _step_jit, _predict_jit))
+    return jit_compiled_here((_kernels_jit, _kernels_step, _rollout_jit, *core_kernels()))
 
 
 def available() -> bool:

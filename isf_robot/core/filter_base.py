@@ -1,45 +1,87 @@
-"""What both safety filters share: the QP machinery (rows, screening, re-solve); the step result is in :mod:`.step`.
+"""What both safety filters share: ``Xi_on`` of every row, the filter QP with screening, its solve paths, the policy.
 
-The filters' semantics (when they are on, which rows they solve) are in
-:mod:`isf_robot.core.filters`; this module holds the parts they have in common: evaluating the
-Lie data, building and solving the QP with row screening and the re-solve check, and the
-infeasibility policy.
+The filters' semantics (when they are on, which rows they promote) are in
+:mod:`isf_robot.core.filters`. A filter step here:
+
+1. ``Xi_on`` of every row (:func:`~isf_robot.core.robust.xi_pass`), checked finite;
+2. the rows kept by screening (:mod:`isf_robot.core.screening`) and their bounds
+   (:func:`~isf_robot.core.robust.row_bounds`: robust, promoted or ramped);
+3. one of three solve paths: the closed form for one row or for a few rows without input bounds
+   (:mod:`isf_robot.core.projection`), else the QP (:class:`~isf_robot.core.qp_solver.QPSolver`);
+   promotions relaxed to the robust condition when the promoted QP is infeasible;
+4. the rows screened out checked at the answer (solved again with every row when one binds);
+5. the infeasibility policy.
+
+Each pass is one plain function, compiled by numba where it runs
+(:func:`~isf_robot.core.jit.compiled`; ``ISF_ROBOT_JIT=0`` runs it as written, read when the
+filter is built).
 """
 
 from __future__ import annotations
 
 import math
+import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import replace
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
+from . import projection, robust, screening
 from .barrier import Barrier, evaluate_barriers
-from .class_k import ClassK, as_class_k
+from .class_k import ClassK, Linear, as_class_k
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
-from .fast import NO_SCREEN, screen_array, step_kernels, xi_kernel, xi_pass
-from .filter_short import ShortWays
+from .handover import promote_rows
+from .jit import compiled, jit_enabled
+from .projection import FEW_ROWS
 from .qp import FilterQP, QPResult
-from .qp_small import FEW_ROWS
 from .qp_solver import QPSolver
 from .step import FilterStep
 from .switches import SwitchCounter
 from .system import ControlAffineSystem, LieData, lie_data
-from .triggers import xi_on
 from .validation import as_vector, check_finite_scalar, check_nonnegative
 
 __all__ = ["FilterStep", "FallbackFn"]  # (FilterStep: from .step, where it lives)
 
-_F64 = np.dtype(np.float64)
-_BOOL = np.dtype(bool)
-_NONE_B = np.zeros(0, bool)  # the selection kernel's "no promoted rows"
-
 FallbackFn = Callable[[float, "np.ndarray | None", LieData, QPResult], np.ndarray]
 
+_F64 = np.dtype(np.float64)
+_NONE_B = np.zeros(0, bool)  # "no promoted rows"
+_NONE_F = np.zeros(0)  # "no thresholds" / "every ramp weight 1"
 _KINDS = ("robust", "promote")  # a row's kind by its promotion flag
-_tuple_new = tuple.__new__  # (builds a _Xi without its generated __new__: 0.8 against 1.5 us)
+_ACTIVE = (np.zeros(1, bool), np.ones(1, bool))  # one row's activity, shared (read-only)
+for _a in _ACTIVE:
+    _a.flags.writeable = False
+_tuple_new = tuple.__new__  # (builds a _Xi without its generated __new__)
+
+
+class Passes(NamedTuple):
+    """The step's passes: each a function of :mod:`.robust`, :mod:`.screening`, :mod:`.handover`, compiled or not."""
+
+    xi_pass: Callable[..., Any]
+    row_bounds: Callable[..., Any]
+    kept_rows: Callable[..., Any]
+    others_hold: Callable[..., Any]
+    promote_rows: Callable[..., Any]
+
+    @classmethod
+    def build(cls, compile_them: bool = True) -> Passes:
+        """The passes compiled (where ``ISF_ROBOT_JIT`` allows; ``compile_them=False``: as written)."""
+        c = compiled if compile_them else (lambda f: f)
+        return cls(c(robust.xi_pass), c(robust.row_bounds), c(screening.kept_rows), c(screening.others_hold),
+                   c(promote_rows))
+
+
+def core_kernels() -> list[Any]:
+    """The core's compiled functions (the filter step's passes, the closed forms, the prediction pass).
+
+    For :func:`~isf_robot.core.jit.compiled_here`; empty when the kernels are off.
+    """
+    if not jit_enabled():
+        return []
+    return [*Passes.build(), compiled(projection.project_row), compiled(projection.project_few),
+            compiled(robust.predict_pass)]
 
 
 class _Xi(NamedTuple):
@@ -48,14 +90,12 @@ class _Xi(NamedTuple):
     u_nom: np.ndarray
     xi: np.ndarray
     xi_min: float
-    av: np.ndarray | None  # alpha(h) per row (None: a linear alpha, gain h_i where needed)
-    argmin: int  # first row of least Xi_on (-1: not computed)
-    kept: int  # rows with Xi_on below their screening threshold (-1: not counted)
-    first: int  # the first of them (-1: none, or not counted)
-    rows: np.ndarray | None  # when counted: those rows, ascending (the first ``kept``; the filter's buffer, one step)
+    av: np.ndarray  # alpha(h) per row
+    argmin: int  # first row of least Xi_on
+    rows: np.ndarray | None  # with screening thresholds: the rows below theirs, ascending (the filter's buffer)
 
 
-class _FilterBase(ShortWays):
+class _FilterBase:
     uses_rows = True
     intermittent = False
 
@@ -89,9 +129,9 @@ class _FilterBase(ShortWays):
             if np.any(self.u_min > self.u_max):
                 raise ConfigError(f"u_min must be <= u_max elementwise, got {self.u_min} and {self.u_max}")
         if system is not None:
-            for name, b in (("u_min", self.u_min), ("u_max", self.u_max)):
-                if b is not None and b.shape != (system.m,):
-                    raise ShapeError(f"{name} must have shape ({system.m},), got {b.shape}")
+            for name, bd in (("u_min", self.u_min), ("u_max", self.u_max)):
+                if bd is not None and bd.shape != (system.m,):
+                    raise ShapeError(f"{name} must have shape ({system.m},), got {bd.shape}")
         self.solver = solver if solver is not None else QPSolver()
         if on_infeasible not in ("raise", "fallback"):
             raise ConfigError(f"on_infeasible must be 'raise' or 'fallback', got {on_infeasible!r}")
@@ -100,10 +140,11 @@ class _FilterBase(ShortWays):
             raise ConfigError("fallback must be callable fallback(t, x, lie, qp_result) -> u")
         self.fallback = fallback
         self.screen = self._check_screen(screen)
-        self._kernel = xi_kernel()  # (ISF_ROBOT_JIT is read when the filter is built)
-        self._steps = step_kernels()
-        self._few_buf = np.empty((4, FEW_ROWS))
-        self._rows_buf = np.empty(256, np.intp)  # (the xi kernel's kept rows, read within a step; more: a new array)
+        self._passes = Passes.build()  # (ISF_ROBOT_JIT is read when the filter is built)
+        self._plain = Passes.build(False)  # (inputs the compiled passes do not take: other dtypes, no inputs)
+        self._rows_buf = np.empty(256, np.intp)
+        self._screens: dict[Any, np.ndarray] = {}
+        self._all: dict[int, np.ndarray] = {}
         self.qp_solves = 0
         self._switches = SwitchCounter()
 
@@ -111,10 +152,22 @@ class _FilterBase(ShortWays):
         if screen is None:
             return None
         arr = np.asarray(screen, dtype=float)
-        if np.any(~(arr > self.solver.active_tol)):
-            raise ConfigError(f"screen thresholds must be > the solver's active_tol "
-                              f"({self.solver.active_tol:g}) (or inf), got {screen}")
+        if arr.ndim > 1 or np.any(~(arr > self.solver.active_tol)):
+            raise ConfigError(f"screen thresholds must be one number or one per row, each > the solver's "
+                              f"active_tol ({self.solver.active_tol:g}) (or inf), got {screen}")
         return float(arr) if arr.ndim == 0 else arr
+
+    def _screen_array(self, screen: float | np.ndarray, k: int) -> np.ndarray:
+        """Thresholds as the passes take them: one for every row, or one per row of ``k``."""
+        key = screen if type(screen) is float else id(screen)
+        sa = self._screens.get(key)
+        if sa is None or (type(screen) is not float and sa.base is not screen and sa is not screen):
+            sa = np.asarray(screen, dtype=float).reshape(-1)
+            if type(screen) is float or len(self._screens) < 8:
+                self._screens[key] = sa
+        if sa.shape[0] not in (1, k):
+            raise ShapeError(f"screen thresholds: one, or one per row ({k}); got {sa.shape[0]}")
+        return sa
 
     # -- inputs --------------------------------------------------------------------------
     def lie(self, t: float, x: np.ndarray) -> LieData:
@@ -141,59 +194,72 @@ class _FilterBase(ShortWays):
         return not ((self.u_min is not None and bool(np.any(u < self.u_min)))
                     or (self.u_max is not None and bool(np.any(u > self.u_max))))
 
+    def _passes_for(self, lie: LieData, u_nom: np.ndarray) -> Passes:
+        """The compiled passes for float64 data with inputs; the plain ones otherwise (numpy decides)."""
+        lg = lie.lg
+        if (lg.dtype == _F64 and u_nom.dtype == _F64 and lie.h.dtype == _F64 and lie.lf.dtype == _F64
+                and lie.grad_norm.dtype == _F64 and lg.ndim == 2 and u_nom.shape[0] > 0
+                and lg.flags.c_contiguous):
+            return self._passes
+        return self._plain
+
     def _xi(self, t: float, lie: LieData, u_nom: np.ndarray, screen: float | np.ndarray | None = None) -> _Xi:
-        """Checked inputs, ``Xi_on`` per row, its minimum and ``alpha(h)``; with ``screen``, the screening count.
+        """Checked inputs, ``Xi_on`` per row, its minimum and ``alpha(h)``; with ``screen``, the rows below it.
 
         A non-finite input raises NonFiniteError (a finite ``Xi_on`` also means finite ``Lg h`` and
-        ``u_nom``). The compiled kernel (:mod:`isf_robot.core.fast`) makes the same numbers in one
-        pass for float64 vectors of one length; otherwise numpy (check and minimum on a list: a sum
-        of NaN or inf is not finite, the minimum of finite floats is exact).
+        ``u_nom``).
         """
         if self.validate:
             lie.validate()
             u_nom = as_vector(u_nom, "nominal command u_nom", lie.m)
-        kernel = self._kernel
-        if kernel is not None:
-            sa = NO_SCREEN if screen is None else screen_array(screen, lie.h.shape[0])
-            got = None if sa is None else xi_pass(kernel, lie, u_nom, self.alpha, self.d_bar, sa, self._rows_buf)
-            if got is not None:
-                xi, total, low, arg, kept, first, av, rows = got
-                if not math.isfinite(total):
-                    raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
-                                         f"Xi_on = {xi}, u_nom = {u_nom}")
-                return _tuple_new(_Xi, (u_nom, xi, low, av, arg, kept, first, rows))
+        h = lie.h
+        k = h.shape[0]
+        if k == 0:
+            return _tuple_new(_Xi, (u_nom, np.zeros(0), math.inf, np.zeros(0), -1, None))
         alpha = self.alpha
-        av = alpha.vector(lie.h)
-        xi = xi_on(lie, u_nom, self.alpha, self.d_bar, av)
-        xl = xi.tolist()
-        if not math.isfinite(sum(xl)):
+        gain = alpha.gain if type(alpha) is Linear else 0.0
+        av = np.empty(k) if gain > 0.0 else np.asarray(alpha.vector(h), dtype=float)
+        sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
+        rows = self._rows_buf
+        if rows.shape[0] < k:
+            rows = self._rows_buf = np.empty(2 * k, np.intp)
+        xi = np.empty(k)
+        total, low, arg, kept = self._passes_for(lie, u_nom).xi_pass(
+            lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, sa, xi, rows)
+        if not math.isfinite(total):
             raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
                                  f"Xi_on = {xi}, u_nom = {u_nom}")
-        return _tuple_new(_Xi, (u_nom, xi, min(xl) if xl else math.inf, av, -1, -1, -1, None))
+        return _tuple_new(_Xi, (u_nom, xi, float(low), av, int(arg), None if kept < 0 else rows[:kept]))
 
-    def build_qp(
-        self, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None = None, b: float = 0.0,
-        ramp: float | np.ndarray = 1.0,
-    ) -> FilterQP:
-        """Build the filter QP: robust rows, or promoting rows where ``promote`` is True (see :meth:`qp_lower`)."""
-        kinds: tuple[str, ...] = ()  # empty: every row robust
-        if promote is not None and promote.any():
-            kinds = tuple(map(_KINDS.__getitem__, promote.tolist()))
-        return FilterQP._of(u_nom, lie.lg, self.qp_lower(lie, promote, b, ramp), self.u_min, self.u_max,
-                            kinds, lie.names)
-
+    # -- the QP's rows -------------------------------------------------------------------
     def qp_lower(self, lie: LieData, promote: np.ndarray | None = None, b: float = 0.0,
                  ramp: float | np.ndarray = 1.0) -> np.ndarray:
         """The QP's lower bounds ``lb`` (rows ``Lg h u >= lb``): robust, or promoting where ``promote`` is True.
 
         ``ramp`` in [0, 1) (a number, or one per row) lowers the promotion level to ``max(-alpha(h), ramp b + (1 - ramp)
-        (-alpha(h)))`` (the smooth hand-over after an on switch; never below the robust condition).
+        (-alpha(h)))`` (the hand-over after an on switch; never below the robust condition).
         """
-        rhs = -self.alpha.vector(lie.h)
+        k = lie.h.shape[0]
+        ramp_arr = _NONE_F if np.all(np.asarray(ramp) >= 1.0) else np.broadcast_to(
+            np.asarray(ramp, dtype=float), (k,)).copy()
+        return self._plain.row_bounds(self._all_rows(k), lie.lf, lie.grad_norm, self.d_bar,
+                                      np.asarray(self.alpha.vector(lie.h), dtype=float),
+                                      _NONE_B if promote is None else promote, ramp_arr, b)
+
+    def build_qp(self, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None = None, b: float = 0.0,
+                 ramp: float | np.ndarray = 1.0) -> FilterQP:
+        """Build the filter QP: robust rows, or promoting rows where ``promote`` is True (see :meth:`qp_lower`)."""
+        kinds: tuple[str, ...] = ()
         if promote is not None and promote.any():
-            level = b if np.all(np.asarray(ramp) >= 1.0) else np.maximum(rhs, ramp * b + (1.0 - ramp) * rhs)
-            rhs = np.where(promote, level, rhs)
-        return rhs - lie.lf + lie.grad_norm * self.d_bar
+            kinds = tuple(map(_KINDS.__getitem__, promote.tolist()))
+        return FilterQP._of(u_nom, lie.lg, self.qp_lower(lie, promote, b, ramp), self.u_min, self.u_max,
+                            kinds, lie.names)
+
+    def _all_rows(self, k: int) -> np.ndarray:
+        rows = self._all.get(k)
+        if rows is None:
+            rows = self._all[k] = np.arange(k, dtype=np.intp)
+        return rows
 
     # -- solving -------------------------------------------------------------------------
     def _solve(self, qp: FilterQP) -> QPResult:
@@ -211,129 +277,107 @@ class _FilterBase(ShortWays):
             return QPResult(u, "solver_failed", np.ones(qp.k, bool), 0.0, 0, viol)
 
     def _solve_rows(
-        self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, xi: np.ndarray,
-        promote: np.ndarray | None, floor: float, screen: float | np.ndarray | None = None,
-        xs: _Xi | None = None, rows: np.ndarray | None = None,
+        self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, xi: np.ndarray, av: np.ndarray,
+        promote: np.ndarray | None, ramp: np.ndarray, b: float, floor: float,
+        screen: float | np.ndarray | None = None, xs: _Xi | None = None,
     ) -> tuple[QPResult, tuple[str, ...], bool, bool]:
         """Solve with screening; return ``(result, relaxed names, fallback, resolved)``.
 
-        ``xi``: each row's robust slack at ``u_nom`` (``Xi_on``, or the slack at a blended
-        target); ``xs``: the step's :meth:`_xi` when ``xi`` is its ``Xi_on`` (its minimum, screening
-        count and ``alpha(h)`` then save array work); ``rows``: the kept rows when the caller
-        selected them (ascending: ``xi < max(screen, floor)`` or promoted).
+        ``xi``: each row's robust slack at ``u_nom`` (``Xi_on``, or the slack at a blended target);
+        ``xs``: the step's :meth:`_xi` when ``xi`` is its ``Xi_on`` (its rows below the thresholds
+        then serve); ``floor``: the thresholds are at least this (the off margin); promoted rows
+        are always kept.
         """
-        screen = self.screen if screen is None else screen
         k = xi.shape[0]
-        steps = self._steps
+        passes = self._passes_for(lie, u_nom)
+        if screen is None:
+            screen = self.screen
         if screen is not None and k > 1:
-            keep = None
-            if rows is not None:
-                n = rows.size
-            elif xs is not None and xs.kept >= 0 and promote is None and not floor > 0:
-                n = xs.kept  # counted (and listed) by the kernel, with these thresholds
-                if n > 1:
-                    rows = xs.rows[:n]  # type: ignore[index]
+            if xs is not None and xs.rows is not None and promote is None and not floor > 0.0:
+                rows = xs.rows
             else:
-                rows = self._select(xi, screen, floor, promote)
-                if rows is None:
-                    keep = xi < np.maximum(screen, floor) if floor > 0 else xi < screen
-                    if promote is not None:
-                        keep |= promote  # a promoted row is never screened out
-                    rows = keep.nonzero()[0]
-                n = rows.size
-            if n < k:  # (not keep.all())
-                if n <= 1 and self._one_row_ok(lie):
-                    if n == 1:
-                        i = int(rows[0]) if rows is not None else xs.first  # type: ignore[union-attr]
-                    else:
-                        i = xs.argmin if xs is not None and xs.argmin >= 0 else int(xi.argmin())
-                    one = self._one_row(lie, u_nom, i, xi, xs, promote is not None and bool(promote[i]))
-                    if one is not None:
-                        if one[1]:
-                            return one[0], (), False, False
-                        return self._resolve(t, x, lie, u_nom, promote, one[0])
-                if n > 1 and steps is not None:
-                    if rows is None:  # (the kernel counted: the rows themselves now)
-                        rows = self._select(xi, screen, floor, promote)
-                    got = None if rows is None else self._few_fast(lie, u_nom, xi, xs, promote, rows, n)
-                    if got is not None:
-                        if got[1]:
-                            return got[0], (), False, False
-                        return self._resolve(t, x, lie, u_nom, promote, got[0])
-                if keep is None:  # (the rows were counted or selected by a kernel: the mask now)
-                    keep = xi < screen if rows is None else np.zeros(k, bool)
-                    if rows is None:
-                        rows = keep.nonzero()[0]
-                    else:
-                        keep[rows] = True
-                if n == 0:  # the row of least slack alone (views: no copies)
-                    i = int(xi.argmin())
-                    rows = np.array([i])
-                    keep[i] = True
-                    one = slice(i, i + 1)
-                    sub = LieData._of(lie.h[one], lie.lf[one], lie.lg[one], lie.grad_norm[one])
+                buf = self._rows_buf
+                n = passes.kept_rows(xi, self._screen_array(screen, k), floor,
+                                     _NONE_B if promote is None else promote, buf)
+                rows = buf[:n]
+            if rows.shape[0] < k:
+                if rows.shape[0] == 0:  # the row of least slack alone
+                    rows = np.array([xs.argmin if xs is not None else int(np.argmin(xi))], np.intp)
                 else:
-                    sub = LieData._of(lie.h.take(rows), lie.lf.take(rows), lie.lg.take(rows, 0),
-                                      lie.grad_norm.take(rows))
-                res, relaxed, fb = self._solve_block(t, x, sub, u_nom, None if promote is None else promote[rows],
-                                                     lie.names, rows)
-                if not fb and not self._screened_rows_hold_mask(lie, xi, res.u - u_nom, keep):
-                    return self._resolve(t, x, lie, u_nom, promote, res)
-                return res, relaxed, fb, False
-        if steps is not None and 1 < k <= FEW_ROWS:  # every row kept
-            got = self._few_fast(lie, u_nom, xi, xs, promote, np.arange(k), k)
-            if got is not None:
-                return got[0], (), False, False
-        res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote, lie.names, None)
+                    rows = rows.copy()  # (the buffer serves the next pass)
+                first, relaxed, fb = self._solve_block(t, x, lie, u_nom, av, promote, ramp, b, rows, passes)
+                if fb or passes.others_hold(xi, lie.lg, first.u - u_nom, rows, self.solver.active_tol):
+                    return first, relaxed, fb, False
+                res, relaxed, fb = self._solve_block(t, x, lie, u_nom, av, promote, ramp, b, None, passes)
+                return replace(res, solve_time_s=res.solve_time_s + first.solve_time_s), relaxed, fb, True
+        res, relaxed, fb = self._solve_block(t, x, lie, u_nom, av, promote, ramp, b, None, passes)
         return res, relaxed, fb, False
 
-    def _select(self, xi: np.ndarray, screen: float | np.ndarray, floor: float,
-                promote: np.ndarray | None) -> np.ndarray | None:
-        """The kept rows (``xi < max(screen, floor)``, or promoted), ascending, by the kernel; ``None``: numpy's way."""
-        steps = self._steps
-        k = xi.shape[0]
-        sa = None if steps is None else screen_array(screen, k)
-        if sa is None or sa.shape[0] == 0 or xi.dtype != _F64 or xi.ndim != 1 or not (
-                promote is None or promote.dtype == _BOOL and promote.shape == xi.shape):
-            return None
-        rows = np.empty(k, np.intp)
-        return rows[:steps.select(xi, sa, floor, _NONE_B if promote is None else promote, rows)]
-
-    def _resolve(self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None,
-                 first: QPResult) -> tuple[QPResult, tuple[str, ...], bool, bool]:
-        """A screened row is needed at ``first``'s answer: solve again with every row (``resolved``)."""
-        res, relaxed, fb = self._solve_block(t, x, lie, u_nom, promote, lie.names, None)
-        return replace(res, solve_time_s=res.solve_time_s + first.solve_time_s), relaxed, fb, True
-
     def _solve_block(
-        self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, promote: np.ndarray | None,
-        names: tuple[str, ...], rows: np.ndarray | None,
+        self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, av: np.ndarray,
+        promote: np.ndarray | None, ramp: np.ndarray, b: float, rows: np.ndarray | None, passes: Passes,
     ) -> tuple[QPResult, tuple[str, ...], bool]:
-        """One QP (promoting where asked, relaxed to robust if infeasible); the policy if still infeasible.
+        """The rows ``rows`` of ``lie`` (``None``: all), promoting where asked; relaxed to robust if infeasible.
 
-        ``rows`` maps the rows of ``lie`` to ``names`` (``None``: the same rows).
+        The closed forms first (one row; a few rows with the solver's ``few_rows``), then the QP; the
+        infeasibility policy when the robust QP is infeasible too.
         """
-        b = getattr(self, "b", 0.0)
-        ramp = getattr(self, "_ramp", 1.0)
-        if rows is not None and type(ramp) is not float and np.ndim(ramp):
-            ramp = ramp[rows]
-        res = self._solve_few(lie, u_nom, promote, b, ramp)  # (None: the QP the general way)
+        k = lie.h.shape[0]
+        idx = self._all_rows(k) if rows is None else rows
+        prom = _NONE_B if promote is None else promote
+        lb = passes.row_bounds(idx, lie.lf, lie.grad_norm, self.d_bar, av, prom, ramp, b)
+        A = lie.lg if rows is None else lie.lg.take(rows, 0)
+        res = self._closed_form(A, lb, u_nom)
         if res is not None:
             return res, (), False
-        qp = self.build_qp(lie, u_nom, promote, b, ramp)
+        names = lie.names
+        if rows is not None and names:
+            nn = len(names)
+            names = tuple(names[i] if i < nn else str(i) for i in rows.tolist())
+        promoted = promote is not None and bool(prom[idx].any())
+        kinds = tuple(map(_KINDS.__getitem__, prom[idx].tolist())) if promoted else ()
+        qp = FilterQP._of(u_nom, A, lb, self.u_min, self.u_max, kinds, names)
         res = self._solve(qp)
         relaxed: tuple[str, ...] = ()
-        if not res.ok and promote is not None and promote.any():
-            local = np.flatnonzero(promote)
-            relaxed_idx = tuple(int(i) for i in (local if rows is None else rows[local]))
-            relaxed = tuple(names[i] if i < len(names) else str(i) for i in relaxed_idx)
-            qp = self.build_qp(lie, u_nom)
-            first = res.solve_time_s
+        if not res.ok and promoted:
+            local = np.flatnonzero(prom[idx])
+            relaxed_idx = tuple(int(i) for i in idx[local])
+            nn = len(lie.names)
+            relaxed = tuple(lie.names[i] if i < nn else str(i) for i in relaxed_idx)
+            lb = passes.row_bounds(idx, lie.lf, lie.grad_norm, self.d_bar, av, _NONE_B, _NONE_F, b)
+            qp = FilterQP._of(u_nom, A, lb, self.u_min, self.u_max, (), names)
+            spent = res.solve_time_s
             res = self._solve(qp)
-            res = replace(res, solve_time_s=res.solve_time_s + first, relaxed=relaxed_idx)
+            res = replace(res, solve_time_s=res.solve_time_s + spent, relaxed=relaxed_idx)
         if res.ok:
             return res, relaxed, False
         return self._infeasible(t, x, lie, qp, res), relaxed, True
+
+    def _closed_form(self, A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray) -> QPResult | None:
+        """One row, or 2 to ``FEW_ROWS`` rows with the solver's ``few_rows``, without input bounds: the checked
+        closed form (:mod:`.projection`), or ``None`` (the QP decides)."""
+        solver = self.solver
+        n = lb.shape[0]
+        if self.u_min is not None or self.u_max is not None or not solver.closed_form:
+            return None
+        if n == 1:
+            t0 = time.perf_counter()
+            u = np.empty(u_nom.shape[0])
+            code, slack = solver.project_row(A[0], float(lb[0]), u_nom, solver.feas_tol, u)
+            if code < 0:
+                return None
+            self.qp_solves += 1
+            return QPResult._of(u_nom if code == 0 else u, "closed_form", _ACTIVE[int(slack <= solver.active_tol)],
+                                time.perf_counter() - t0)
+        if 1 < n <= FEW_ROWS and solver.few_rows:
+            t0 = time.perf_counter()
+            hit = solver.solve_few(A, lb, u_nom)
+            if hit is None:
+                return None
+            self.qp_solves += 1
+            u, res, low = hit
+            return QPResult._of(u, "optimal", res <= solver.active_tol, time.perf_counter() - t0, 0, max(0.0, -low))
+        return None
 
     def _infeasible(self, t: float, x: np.ndarray | None, lie: LieData, qp: FilterQP, res: QPResult) -> QPResult:
         if self.on_infeasible == "raise":
@@ -349,3 +393,4 @@ class _FilterBase(ShortWays):
             f"(violation {qp.max_violation(u):.3g})", IsfWarning, stacklevel=4,
         )
         return QPResult(u, "fallback", res.active, res.solve_time_s, res.iterations, qp.max_violation(u), res.relaxed)
+

@@ -14,7 +14,7 @@ Infeasibility policy (``on_infeasible``):
   ``fallback=True``, the QP status is ``"fallback"``, and an :class:`IsfWarning` is issued. A
   fallback is never presented as a safe answer.
 
-Several barriers in the intermittent filter (DESIGN.md, section 2): the filter turns on when
+Several barriers in the intermittent filter (paper, Section V): the filter turns on when
 any ``Xi_on,i <= 0`` and off when every ``Xi_on,i >= c``. While on, each barrier with
 ``Xi_on,i < c`` gets the safety-promoting row ``Lf h_i - |dh_i/dx| d_bar >= b`` (eq. filter_inc)
 and every other barrier keeps the robust barrier condition (eq. barr_cond), so no barrier is
@@ -42,12 +42,10 @@ import numpy as np
 from .barrier import Barrier
 from .class_k import ClassK
 from .exceptions import ConfigError
-from .fast import NO_SCREEN, screen_array
 from .filter_base import FallbackFn, FilterStep, _FilterBase
-from .intermittent import FallRateBound, OffPredictor, Prediction, RolloutFn, blend_weight
-from .on_rows import OnRows
+from .handover import PromotionRamp, blend_weight
+from .intermittent import FallRateBound, OffPredictor, Prediction, RolloutFn
 from .qp_solver import QPSolver
-from .sums import matvec
 from .system import ControlAffineSystem, LieData
 from .triggers import OnOffTrigger
 from .validation import check_nonnegative, check_positive
@@ -55,6 +53,7 @@ from .validation import check_nonnegative, check_positive
 __all__ = ["FilterStep", "SafetyFilter", "IntermittentSafetyFilter"]
 
 _NONE_B = np.zeros(0, bool)
+_NONE_F = np.zeros(0)
 
 
 class SafetyFilter(_FilterBase):
@@ -100,7 +99,7 @@ class SafetyFilter(_FilterBase):
         screen = self.screen if screen is None else screen
         xs = self._xi(t, lie, u_nom, screen)
         u_nom, xi = xs.u_nom, xs.xi
-        res, _, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, None, 0.0, screen, xs)
+        res, _, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, xs.av, None, _NONE_F, 0.0, 0.0, screen, xs)
         active = res.active
         on = fb or (bool(active[0]) if active.size == 1 else bool(active.any()))
         sw = self._switches
@@ -211,15 +210,8 @@ class IntermittentSafetyFilter(_FilterBase):
         self._t_off: float | None = None
         self._u_prev: np.ndarray | None = None
         self._u_handover: np.ndarray | None = None
-        self._ramp: float | np.ndarray = 1.0
-        self._promotion_w: dict[Any, float] = {}  # promotion weights of the hand-over
         self._t_ramp: float | None = None
-        self._ramp_names: Any = None  # the names tuple _ramp_rows was built for
-        self._ramp_rows: dict[Any, list[int]] = {}
-        self._ramp_keys: Sequence[Any] = ()
-        self._ramp_unique = True
-        self._ramp_base = (np.zeros(0, bool), np.ones(0))
-        self._on_rows = OnRows(self._steps.on_rows) if self._steps is not None else None  # (the compiled way's weights)
+        self._ramp = PromotionRamp(self._passes.promote_rows)  # the hand-over's per-row weights
         self._fail_of: tuple[Any, Any, np.ndarray] = (None, None, _NONE_B)
 
     def margin(self) -> float:
@@ -258,9 +250,7 @@ class IntermittentSafetyFilter(_FilterBase):
                 self._t_on = t
             else:
                 self._t_off, self._u_handover = t, self._u_prev
-                self._promotion_w.clear()
-                if self._on_rows is not None:
-                    self._on_rows.clear()
+                self._ramp.clear()
                 self._t_ramp = None
                 bound = self.fall_rate.bound_s(c)
                 if self.predictor is not None:
@@ -276,92 +266,27 @@ class IntermittentSafetyFilter(_FilterBase):
                 return FilterStep._of(t, u_nom, u_nom, False, lie.h, xi, event, None, (), False, lie.names, False,
                                       c, bound, ran, held)
             target = u_nom if w == 0.0 else u_nom + w * (self._u_handover - u_nom)
-            slack = xi if w == 0.0 else xi + matvec(lie.lg, target - u_nom)  # robust slack at the target
+            slack = xi if w == 0.0 else xi + lie.lg @ (target - u_nom)  # robust slack at the target
             if w > 0.0 and float(slack.min()) >= 0.0 and self._within_bounds(target):
                 self._u_prev = target
                 return FilterStep._of(t, target, u_nom, False, lie.h, xi, event, None, (), False, lie.names, False,
                                       c, bound, ran, held)
             # off, but the target breaks the input bounds or (blending) a robust condition: the
             # command closest to it within them that keeps every robust condition; the mode stays off
-            res, relaxed, fb, resolved = self._solve_rows(t, x, lie, target, slack, None, 0.0, screen,
-                                                          xs if w == 0.0 else None)
+            res, relaxed, fb, resolved = self._solve_rows(t, x, lie, target, slack, xs.av, None, _NONE_F, 0.0, 0.0,
+                                                          screen, xs if w == 0.0 else None)
             return self._done(FilterStep._of(t, res.u, u_nom, False, lie.h, xi, event, res, relaxed, fb,
                                              lie.names, resolved, c, bound, ran, held))
         failing = self._failing(pred, lie) if held and pred is not None and pred.failing else None
-        rows = None  # (the kept rows, when the compiled way selected them)
-        if self._steps is None:
-            promote = xi < c
-            if failing is not None:  # steer away from the predicted failures
-                promote |= failing
-            if self.blend > 0:
-                promote, self._ramp = self._row_ramp(t, lie.names, promote)
-        else:  # the same, and the kept rows, in one compiled call (OnRows)
-            rate = None
-            if self.blend > 0:
-                rate = (t - self._t_ramp) / self.blend if self._t_ramp is not None else 0.0
-                self._t_ramp = t
-            scr = self.screen if screen is None else screen
-            sa = screen_array(scr, xi.shape[0]) if scr is not None and xi.shape[0] > 1 else None
-            promote, ramp, rows = self._on_rows(xi, c, _NONE_B if failing is None else failing, rate, lie.names,
-                                                NO_SCREEN if sa is None else sa)
-            if ramp is not None:
-                self._ramp = ramp
-        try:
-            res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, promote, c, screen, xs, rows)
-        finally:
-            self._ramp = 1.0
+        rate = None
+        if self.blend > 0:
+            rate = (t - self._t_ramp) / self.blend if self._t_ramp is not None else 0.0
+            self._t_ramp = t
+        promote, ramp = self._ramp(xi, c, _NONE_B if failing is None else failing, rate, lie.names)
+        res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, xs.av, promote, ramp, self.b, c,
+                                                      screen, xs)
         return self._done(FilterStep._of(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names,
                                          resolved, c, bound, ran, held))
-
-    def _row_ramp(self, t: float, names: tuple[str, ...], promote: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Per row, a promotion weight ``w`` in [0, 1] that moves at most ``dt / blend`` per step.
-
-        A row entering the promotion set starts at ``w = 0`` (the robust condition) and ramps up
-        while promoted; a row leaving it ramps down to 0 instead of dropping at once, so neither
-        changes the command by a step. Returns the rows to treat as promoted (promoted now, or
-        still ramping down) and their weights (1 elsewhere).
-        """
-        w = self._promotion_w  # key -> weight
-        k = promote.size
-        if names is not self._ramp_names or len(self._ramp_keys) != k:  # (each name's rows, built once per names)
-            keys: Sequence[Any] = names if len(names) == k else range(k)
-            rows: dict[Any, list[int]] = {}
-            for i, n in enumerate(keys):
-                rows.setdefault(n, []).append(i)
-            self._ramp_names, self._ramp_rows, self._ramp_keys = names, rows, keys
-            self._ramp_unique = len(rows) == k
-            self._ramp_base = (np.zeros(k, bool), np.ones(k))  # (copied, never handed out)
-        rows, keys = self._ramp_rows, self._ramp_keys  # (a repeated name: its last row is "now")
-        rate = (t - self._t_ramp) / self.blend if self._t_ramp is not None else 0.0
-        self._t_ramp = t
-        pl = promote.tolist()
-        for n in list(w):
-            r = rows.get(n)
-            if r is None or not pl[r[-1]]:
-                w[n] -= rate
-                if w[n] <= 0.0:
-                    del w[n]
-        promoted = promote.nonzero()[0].tolist()
-        if self._ramp_unique:  # (each promoted row its own key, promoted now)
-            for i in promoted:
-                n = keys[i]
-                w[n] = min(1.0, w[n] + rate) if n in w else 0.0
-        else:
-            for n in {keys[i] for i in promoted}:  # the promoted keys (each once)
-                if pl[rows[n][-1]]:
-                    w[n] = min(1.0, w[n] + rate) if n in w else 0.0
-        mask, weights = self._ramp_base
-        if not w:
-            return mask.copy(), weights.copy()
-        weights = weights.copy()
-        mask = mask.copy()
-        for n, v in w.items():
-            r = rows.get(n)
-            if r is not None and v >= 0.0:  # (a weight below 0 or NaN: as a row not in w)
-                for i in r:
-                    weights[i] = v
-                    mask[i] = True
-        return mask, weights
 
     def _failing(self, pred: Prediction, lie: LieData) -> np.ndarray:
         """The rows whose names the prediction found failing (kept while the prediction and names are the same)."""

@@ -16,7 +16,7 @@ default, so a filter built without them behaves exactly as before):
 * **A predictive off trigger** (:class:`OffPredictor`). When the off condition holds, the filter
   asks a rollout callback for the nominal controller rolled forward on the reduced model
   ``q_dot = u_nom(q)`` over a horizon, computes ``Xi_on`` at the predicted points with its own
-  ``alpha`` and ``d_bar`` (:func:`~isf_robot.core.triggers.xi_on`: the formula lives once), and
+  ``alpha`` and ``d_bar`` (:func:`~isf_robot.core.robust.robust_slack`: the formula lives once), and
   turns off only if every predicted ``Xi_on > 0``. Rows predicted to fail are promoted while the
   filter stays on, steering toward states with a longer off time. The prediction only *delays*
   switching off at ``c``; with ``c_pred < c`` (the filter's option) it may also switch off *early*, at
@@ -26,7 +26,7 @@ default, so a filter built without them behaves exactly as before):
   binds, so Theorem 1 is untouched (``c_pred > 0`` keeps the hysteresis; the off period's length now
   rests on the prediction, and the measured off periods are reported). The
   rollout runs at most once every ``every`` control steps (its cost per step is bounded).
-* **A smooth hand-over** (:func:`blend_weight`). For ``blend`` seconds after an off switch the
+* **A smooth hand-over** (:mod:`isf_robot.core.handover`). For ``blend`` seconds after an off switch the
   command moves linearly from the last filtered command to the nominal one, projected onto the
   robust barrier conditions (the standard filter's QP with the blended target), so the only step
   in the command is the one safety requires; for ``blend`` seconds after an on switch the
@@ -43,21 +43,18 @@ from typing import Any
 
 import numpy as np
 
-from .class_k import ClassK, Linear
+from .class_k import ClassK
 from .exceptions import ConfigError, NonFiniteError, ShapeError
-from .fast import NO_SCREEN, xi_kernel, xi_pass
+from .jit import compiled
 from .miet import miet_bound
+from .robust import predict_pass, robust_slack
 from .system import LieData
-from .triggers import xi_on
 from .validation import check_nonnegative
 
-__all__ = ["FallRateBound", "OffPredictor", "Prediction", "RolloutFn", "StackedPoints", "blend_weight"]
+__all__ = ["FallRateBound", "OffPredictor", "Prediction", "RolloutFn", "StackedPoints"]
 
 _F64 = np.dtype(np.float64)
-_KERNEL: list[Any] = []  # (the stacked kernel, once imported)
 _new, _set = object.__new__, object.__setattr__
-_NO_AV2 = np.zeros((0, 0))  # (the stacked kernel's "alpha is linear")
-_NO_KEYS = np.zeros((0, 0), np.int64)  # (the stacked kernel's "no keys")
 
 RolloutFn = Callable[[float, Any], Sequence[tuple[float, LieData, np.ndarray]]]
 """``rollout(t, x) -> [(s, lie, u_nom), ...]``: predicted barrier data and nominal command at times
@@ -228,110 +225,77 @@ class StackedPoints(Sequence[tuple[float, LieData, np.ndarray]]):
         return [names[i] if i < nn else str(i) for i in rows]
 
 
-def _stacked_kernel() -> Callable[..., Any] | None:
-    """``_predict_jit.predict_rows``, or ``None`` without numba (the caller checks that the filter's kernel is on)."""
-    if not _KERNEL:
-        try:
-            from ._predict_jit import predict_rows
-        except ImportError:
-            predict_rows = None
-        _KERNEL.append(predict_rows)
-    return _KERNEL[0]
-
-
-def _lg_block(lg: Sequence[np.ndarray] | np.ndarray, shape: tuple[int, ...], m: int,
-              kl: list[int]) -> np.ndarray | None:
-    """The points' ``Lg h`` as one float64 (n, K, m) array (``lg`` itself when it is one); ``None``: not their rows."""
-    if type(lg) is np.ndarray:
-        return lg if lg.dtype == _F64 and lg.shape == (*shape, m) else None
-    if any(type(a) is not np.ndarray or a.shape != (kj, m) or a.dtype != _F64 for a, kj in zip(lg, kl)):
-        return None
+def _lg_block(lg: Sequence[np.ndarray] | np.ndarray, shape: tuple[int, ...], m: int, kl: list[int]) -> np.ndarray:
+    """The points' ``Lg h`` as one float64 (n, K, m) array (``lg`` itself when it is one)."""
+    if type(lg) is np.ndarray and lg.dtype == _F64 and lg.shape == (*shape, m) and lg.flags.c_contiguous:
+        return lg
     block = np.zeros((*shape, m))
     for j, a in enumerate(lg):
-        block[j, :kl[j]] = a
+        block[j, :kl[j]] = np.asarray(a, dtype=float)[:kl[j]]
     return block
 
 
-def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Prediction | None:
-    """:func:`predict` of stacked points in one compiled pass, the same numbers (``None``: the loop decides)."""
-    kernel = _stacked_kernel()
-    if kernel is None:
-        return None
+def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Prediction:
+    """:func:`predict` of stacked points in one pass (:func:`~isf_robot.core.robust.predict_pass`)."""
     h, k, kl, u = points.h, points.rows, points._rows, points.u
-    lg = _lg_block(points.lg, h.shape, u.shape[1], kl)
-    if lg is None:  # (rows that are not the points' own: as xi_pass, the loop)
-        return None
-    gain = alpha.gain if type(alpha) is Linear else 0.0  # (the kernel's gain h, as xi_pass)
-    av = _NO_AV2
-    if not gain:
-        av = np.empty(h.shape)
-        for j, kj in enumerate(kl):
-            av[j, :kj] = alpha.vector(h[j, :kj])  # (the point's h: the same array as its lie.h)
+    m = u.shape[1]
+    lg = _lg_block(points.lg, h.shape, m, kl)
+    av = np.zeros(h.shape)
+    for j, kj in enumerate(kl):
+        av[j, :kj] = alpha.vector(h[j, :kj])  # (the point's h: the same array as its lie.h)
     xi = np.empty(h.shape)
     fails = np.empty(h.shape, np.int64)
     nfail = np.empty(len(kl), np.int64)
-    keys, names = points.keys, points.key_names
-    out = np.empty(0 if keys is None else fails.size, np.int64)
-    bad, xi_lo, nk = kernel(points.lf, lg, u, points.grad_norm, float(d_bar), h, gain, av, k, xi, fails, nfail,
-                            _NO_KEYS if keys is None else keys, 0 if names is None else len(names), out)
+    run = compiled(predict_pass) if m > 0 else predict_pass
+    bad, xi_lo = run(points.lf, lg, np.ascontiguousarray(u), points.grad_norm, float(d_bar), av, k, xi, fails, nfail)
     if bad >= 0:
         raise NonFiniteError(f"predicted Xi_on not finite {points.s[bad]:.3g} s ahead: {xi[bad, :kl[bad]]}")
     first: float | None = None
     failing: set[str] = set()
-    nf = nfail.tolist()
-    if keys is not None:  # (the failing rows' keys, each once: out[:nk])
-        if nk < 0:
-            raise ShapeError(
-                f"stacked points: a failing row's key lies outside key_names (0..{len(names) - 1})")  # type: ignore[arg-type]
-        times = [s for s, c in zip(points.s, nf) if c]
-        if times:
-            first, failing = min(times), {names[i] for i in out[:nk].tolist()}  # type: ignore[index]
-    else:
-        for j, c in enumerate(nf):
-            if c:
-                s = points.s[j]
-                first = s if first is None else min(first, s)
-                failing.update(points.row_names(j, fails[j, :c].tolist()))
+    keys, names = points.keys, points.key_names
+    for j, c in enumerate(nfail.tolist()):
+        if not c:
+            continue
+        s = points.s[j]
+        first = s if first is None else min(first, s)
+        if keys is not None:
+            got = keys[j, fails[j, :c]].tolist()
+            if min(got) < 0 or max(got) >= len(names):  # type: ignore[arg-type]
+                raise ShapeError(f"stacked points: a failing row's key lies outside key_names "
+                                 f"(0..{len(names) - 1})")  # type: ignore[arg-type]
+            failing.update(names[i] for i in got)  # type: ignore[index]
+        else:
+            failing.update(points.row_names(j, fails[j, :c].tolist()))
     pred = _new(Prediction)  # (a frozen dataclass's __dict__ set whole, without the field-by-field __init__)
-    _set(pred, "__dict__", {"ok": first is None, "xi_min": xi_lo, "first_fail_s": first, "failing": frozenset(failing),
-                            "points": len(kl)})
+    _set(pred, "__dict__", {"ok": first is None, "xi_min": float(xi_lo), "first_fail_s": first,
+                            "failing": frozenset(failing), "points": len(kl)})
     return pred
 
 
 def predict(points: Sequence[tuple[float, LieData, np.ndarray]], alpha: ClassK, d_bar: float) -> Prediction:
     """Evaluate ``Xi_on`` at every predicted point; see :class:`Prediction`.
 
-    Each point's ``Xi_on`` is :func:`~isf_robot.core.triggers.xi_on`, made in one compiled pass
-    where the kernel is available (:func:`~isf_robot.core.fast.xi_pass`: the same numbers, as in
-    the filter's own step); :class:`StackedPoints` in one compiled pass over every point
-    (``_predict_jit.predict_rows``: the same numbers again; this loop is its reference).
+    Each point's ``Xi_on`` is :func:`~isf_robot.core.robust.robust_slack` under its command;
+    :class:`StackedPoints` go in one pass over every point (compiled where the kernels run).
     """
-    kernel = xi_kernel()
-    if kernel is not None and type(points) is StackedPoints:
-        got = _predict_stacked(points, alpha, d_bar)
-        if got is not None:
-            return got
+    if type(points) is StackedPoints:
+        return _predict_stacked(points, alpha, d_bar)
     xi_lo = math.inf
     first: float | None = None
     failing: set[str] = set()
     for s, lie, u in points:
-        u = np.asarray(u, dtype=float)
-        got = None if kernel is None else xi_pass(kernel, lie, u, alpha, d_bar, NO_SCREEN)
-        if got is not None:
-            xi, total, lo = got[0], got[1], got[2]
-        else:
-            xi = xi_on(lie, u, alpha, d_bar)
-            xl = xi.tolist()
-            total, lo = sum(xl), min(xl, default=math.inf)
-        if xi.size == 0:
+        if lie.h.size == 0:
             continue
-        if not math.isfinite(total):
+        xi = robust_slack(lie.lf, lie.lg @ np.asarray(u, dtype=float), lie.grad_norm, d_bar, alpha.vector(lie.h))
+        xl = xi.tolist()
+        if not math.isfinite(sum(xl)):
             raise NonFiniteError(f"predicted Xi_on not finite {s:.3g} s ahead: {xi}")
+        lo = min(xl)
         xi_lo = min(xi_lo, lo)
         if lo <= 0.0:
             first = s if first is None else min(first, s)
             names, nn = lie.names, len(lie.names)
-            failing.update([names[i] if i < nn else str(i) for i, v in enumerate(xi.tolist()) if v <= 0.0])
+            failing.update([names[i] if i < nn else str(i) for i, v in enumerate(xl) if v <= 0.0])
     return Prediction(first is None, xi_lo, first, frozenset(failing), len(points))
 
 
@@ -378,10 +342,3 @@ class OffPredictor:
         self._since = 1
         self.rollouts += 1
         return self.last, True
-
-
-def blend_weight(t: float, t_switch: float | None, blend: float) -> float:
-    """Weight of the pre-switch command ``1 - (t - t_switch) / blend`` in [0, 1] (0 without a blend)."""
-    if blend <= 0.0 or t_switch is None:
-        return 0.0
-    return min(1.0, max(0.0, 1.0 - (t - t_switch) / blend))

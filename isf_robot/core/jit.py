@@ -20,7 +20,7 @@ from types import ModuleType
 from typing import Any, TextIO
 
 __all__ = ["JIT_ENV", "NOTICE_ENV", "COMPILE_NOTICE", "jit_enabled", "announce_compiles", "watch_compiles",
-           "end_notice", "compiled_here"]
+           "end_notice", "compiled_here", "formula", "compiled"]
 
 JIT_ENV = "ISF_ROBOT_JIT"
 """Environment variable: ``0`` (or ``false``, ``no``, ``off``) turns the compiled kernels off."""
@@ -105,29 +105,79 @@ def watch_compiles() -> None:
     _STATE["listener"] = listener
 
 
-def compiled_here(modules: Sequence[ModuleType]) -> tuple[int, int]:
-    """How many kernels of ``modules`` numba's cache holds for this machine: ``(held, kernels)``.
+def compiled_here(modules: Sequence[Any]) -> tuple[int, int]:
+    """How many kernels numba's cache holds for this machine: ``(held, kernels)``.
 
-    A kernel is a cached numba function of the module that is not inlined into its callers; it is
-    held when its cache index (fresh for its source) has an entry for this machine's code
-    generation. ``(0, 0)`` when that cannot be told (a numba without these internals).
+    ``modules``: modules (their module-level numba functions count) or compiled functions
+    themselves (:func:`compiled`). A kernel is a cached numba function that is not inlined into its
+    callers; it is held when its cache index (fresh for its source) has an entry for this machine's
+    code generation. ``(0, 0)`` when that cannot be told (a numba without these internals).
     """
     held = total = 0
     try:
         from numba.core.registry import CPUDispatcher
 
+        found = []
         for module in modules:
-            for obj in vars(module).values():
-                if not isinstance(obj, CPUDispatcher) or obj.__module__ != module.__name__:
-                    continue
-                if obj.targetoptions.get("inline", "never") != "never":
-                    continue
-                index_file = getattr(getattr(obj, "_cache", None), "_cache_file", None)
-                if index_file is None:
-                    continue
-                here = obj.targetctx.codegen().magic_tuple()
-                total += 1
-                held += any(key[1] == here for key in index_file._load_index())
+            if isinstance(module, ModuleType):
+                found += [obj for obj in vars(module).values()
+                          if isinstance(obj, CPUDispatcher) and obj.__module__ == module.__name__]
+            elif isinstance(module, CPUDispatcher):
+                found.append(module)
+        for obj in found:
+            if obj.targetoptions.get("inline", "never") != "never":
+                continue
+            index_file = getattr(getattr(obj, "_cache", None), "_cache_file", None)
+            if index_file is None:
+                continue
+            here = obj.targetctx.codegen().magic_tuple()
+            total += 1
+            held += any(key[1] == here for key in index_file._load_index())
     except Exception:  # noqa: BLE001 - numba's internals moved: nothing can be said
         return 0, 0
     return held, total
+
+
+def formula(fn: Any) -> Any:
+    """Mark a plain function as callable from compiled code; returns ``fn`` itself, unchanged.
+
+    Python callers run ``fn`` as written (on floats or on numpy arrays alike); a function compiled
+    with :func:`compiled` that calls it compiles this same source into itself (numba's
+    ``register_jitable``, applied when the first kernel is compiled: importing the core does not
+    import numba).
+    """
+    _FORMULAS.append(fn)
+    return fn
+
+
+def compiled(fn: Any) -> Any:
+    """``fn`` compiled by numba (cached on disk, made once per process), or ``fn`` itself.
+
+    ``fn`` itself when ``ISF_ROBOT_JIT`` turns the kernels off or numba is missing (read at each call:
+    a filter reads it when it is built). ``fn`` must be a module-level function whose compiled
+    callees are :func:`formula` functions of its own module (numba's cache then follows edits of
+    that one file). Creating it compiles nothing: the first call with new argument types does.
+    """
+    if not jit_enabled():
+        return fn
+    got = _COMPILED.get(fn)
+    if got is None:
+        try:
+            from numba import njit
+        except ImportError:
+            return fn
+        watch_compiles()
+        _register_formulas()
+        got = _COMPILED[fn] = njit(cache=True, nogil=True)(fn)
+    return got
+
+
+def _register_formulas() -> None:
+    from numba.extending import register_jitable
+
+    while _FORMULAS:
+        register_jitable(_FORMULAS.pop())
+
+
+_COMPILED: dict[Any, Any] = {}
+_FORMULAS: list[Any] = []

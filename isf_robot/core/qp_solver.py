@@ -30,10 +30,9 @@ from typing import Any
 import numpy as np
 
 from .exceptions import ConfigError, SolverError
-from .fast import few_kernels
+from .jit import compiled
+from .projection import FEW_ROWS, REL_TOL, project_few, project_row
 from .qp import FilterQP, QPResult
-from .qp_small import FEW_ROWS, project_few
-from .sums import dot
 from .validation import check_positive
 
 __all__ = ["QPSolver", "BACKENDS"]
@@ -102,7 +101,8 @@ class QPSolver:
         self.backend = backend
         self.polish = bool(polish)
         self.few_rows = bool(few_rows)
-        self._few = few_kernels() if self.few_rows else None  # (ISF_ROBOT_JIT is read here)
+        self.project_row = compiled(project_row)  # (ISF_ROBOT_JIT is read here)
+        self._project_few = compiled(project_few)
         self._cache: dict[tuple[int, int, bool], _Workspace] = {}
         self._eye: dict[int, np.ndarray] = {}
         self._upper: dict[int, np.ndarray] = {}
@@ -135,7 +135,7 @@ class QPSolver:
                 return res
             # an answer that fails the check goes to the backend
         elif self.few_rows and 1 < k <= FEW_ROWS and not box and self.closed_form:
-            hit = project_few(qp.A, qp.lb, qp.u_nom, kernels=self._few)
+            hit = self.solve_few(qp.A, qp.lb, qp.u_nom)
             if hit is not None:  # the exact solution, checked on every row (one or two rows active)
                 u, res, rmin = hit
                 return QPResult._of(u, "optimal", res <= self.active_tol, time.perf_counter() - t0, 0,
@@ -172,22 +172,32 @@ class QPSolver:
     def solve_row(self, u_nom: np.ndarray, a: np.ndarray, lb: float, t0: float | None = None) -> QPResult | None:
         """The closed form of one row ``a u >= lb`` without bounds, checked; ``None`` when it fails.
 
-        :func:`~isf_robot.core.qp.project_halfspace` inlined (the same operations; ``|a|^2 >
-        1e-200`` also means ``a != 0``). ``None`` (a row so small that ``|a|^2`` underflows, or an
-        answer violating the row beyond ``feas_tol``, or not finite) sends the problem to the
-        backend. ``t0``: the ``perf_counter`` time the caller's solve began (default: now).
+        :func:`~isf_robot.core.projection.project_row`: ``None`` (a row so small that ``|a|^2``
+        underflows, or an answer violating the row beyond ``feas_tol``, or not finite) sends the
+        problem to the backend. ``t0``: the ``perf_counter`` time the caller's solve began (default: now).
         """
         if t0 is None:
             t0 = time.perf_counter()
-        aa = dot(a, a)  # (the products in sums' written order: the filters' compiled one-row step's)
-        if aa > 1e-200:
-            gap = lb - dot(a, u_nom)
-            u = u_nom.copy() if gap <= 0.0 else u_nom + (gap / aa) * a
-            slack = dot(a, u) - lb
-            if slack >= -self.feas_tol * max(1.0, abs(lb)) and math.isfinite(dot(u, u)):
-                return QPResult._of(u, "closed_form", np.array([slack <= self.active_tol]),
-                                    time.perf_counter() - t0)
-        return None
+        u = np.empty(u_nom.shape[0])
+        code, slack = self.project_row(np.ascontiguousarray(a, dtype=float), float(lb), u_nom, self.feas_tol, u)
+        if code < 0:
+            return None
+        return QPResult._of(u_nom.copy() if code == 0 else u, "closed_form", np.array([slack <= self.active_tol]),
+                            time.perf_counter() - t0)
+
+    def solve_few(self, A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
+        """2 to ``FEW_ROWS`` rows without bounds when one or two are active: ``(u, A u - lb, min)``, or ``None``.
+
+        :func:`~isf_robot.core.projection.project_few`, every row checked; ``None``: the backend decides.
+        """
+        k, m = A.shape
+        u, res = np.empty(m), np.empty(k)
+        few = self._project_few if (A.dtype == np.float64 and lb.dtype == np.float64 and u_nom.dtype == np.float64
+                                    and m > 0) else project_few
+        code, low = few(np.ascontiguousarray(A), lb, u_nom, REL_TOL, u, res)
+        if code < 0:
+            return None
+        return u, res, float(low)
 
     @staticmethod
     def _distance_violation(qp: FilterQP, u: np.ndarray, res: np.ndarray, rmin: float | None = None) -> float:

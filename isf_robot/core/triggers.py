@@ -16,7 +16,7 @@ import numpy as np
 
 from .class_k import ClassK
 from .exceptions import ConfigError
-from .sums import matvec
+from .robust import robust_slack
 from .switches import SwitchCounter, SwitchEvent
 from .system import LieData
 from .validation import check_finite_scalar, check_positive
@@ -28,10 +28,8 @@ def xi_on(lie: LieData, u_nom: np.ndarray, alpha: ClassK, d_bar: float,
           alpha_h: np.ndarray | None = None) -> np.ndarray:
     """Per-barrier on-trigger values ``Xi_on = Lf h(x, u_nom) - |dh/dx| d_bar + alpha(h)``.
 
-    Also the greedy impulsive trigger ``Xi`` (eq. greedy_cond) when ``lg`` is empty / u_nom
-    is the flow's (the input term then vanishes). ``Lg h u_nom`` is :func:`~isf_robot.core.sums.matvec`
-    (each row's products added in a written order: the same bits on every machine, and those of the
-    compiled kernels of :mod:`isf_robot.core.fast`).
+    :func:`~isf_robot.core.robust.robust_slack` of every row under ``u_nom``; also the greedy
+    impulsive trigger ``Xi`` (eq. greedy_cond) when ``lg`` is empty / ``u_nom`` is the flow's.
 
     Args:
         lie: Lie data at the current state, k barriers.
@@ -46,17 +44,16 @@ def xi_on(lie: LieData, u_nom: np.ndarray, alpha: ClassK, d_bar: float,
     """
     if alpha_h is None:
         alpha_h = alpha.vector(lie.h)
-    return lie.lf + matvec(lie.lg, u_nom) - lie.grad_norm * d_bar + alpha_h  # (Lg h u in sums' written order)
+    lg = lie.lg
+    lg_u = lg @ u_nom if lg.shape[1] else np.zeros(lg.shape[0])
+    return robust_slack(lie.lf, lg_u, lie.grad_norm, d_bar, alpha_h)
 
 
 def xi_on_scalar(lf: float, lg_u: float, grad_norm: float, h: float, alpha: ClassK, d_bar: float) -> float:
-    """One barrier's ``Xi_on = Lf h(x, u_nom) - |dh/dx| d_bar + alpha(h)`` in plain floats.
+    """One barrier's ``Xi_on`` in plain floats (:func:`~isf_robot.core.robust.robust_slack` of one row).
 
-    The same formula, term for term and in the same order of operations, as :func:`xi_on` for
-    row ``i`` of its Lie data (``lf = lie.lf[i]``, ``lg_u = (lie.lg @ u_nom)[i]``, ...), without
-    array work: about 0.3 us instead of ~20 us, for callers that evaluate it inside an
-    integrator's event function. With ``lg_u = 0`` it is the greedy impulsive trigger ``Xi``
-    (eq. greedy_cond).
+    For callers that evaluate it inside an integrator's event function (about 0.3 us instead of
+    ~20 us of array work). With ``lg_u = 0`` it is the greedy impulsive trigger ``Xi``.
 
     Args:
         lf: Drift term ``dh/dx f0(x) + dh/dt`` [units of h per s].
@@ -70,7 +67,7 @@ def xi_on_scalar(lf: float, lg_u: float, grad_norm: float, h: float, alpha: Clas
         The trigger value [units of h per s].
 
     """
-    return lf + lg_u - grad_norm * d_bar + alpha(h)
+    return robust_slack(lf, lg_u, grad_norm, d_bar, alpha(h))
 
 
 def xi_tau(dtau_dh: float, lf_h: float) -> float:

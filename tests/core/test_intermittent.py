@@ -271,14 +271,12 @@ def _ramp_reference(state: dict, t: float, names: tuple, promote: np.ndarray, bl
 
 
 def test_row_ramp_equals_the_reference_with_repeated_and_changing_names() -> None:
-    f = IntermittentSafetyFilter(1.0, 0.1, 0.05, 0.0, blend=0.02)
     rng = np.random.default_rng(8)
     tables = [("a", "b", "c", "a"), ("a", "b", "c", "a"), ("b", "d"), ("x",) * 3, tuple(f"r{i}" for i in range(9))]
-    from isf_robot.core.fast import step_kernels
-    from isf_robot.core.on_rows import OnRows
+    from isf_robot.core.handover import PromotionRamp, promote_rows
+    from isf_robot.core.jit import compiled
 
-    kernels = step_kernels()  # (with numba: the compiled way, OnRows, must give the same masks and weights)
-    compiled = None if kernels is None else OnRows(kernels.on_rows)
+    ways = [PromotionRamp(promote_rows), PromotionRamp(compiled(promote_rows))]  # (as written; compiled)
     state: dict = {"w": {}, "t": None}
     t, t_prev, ramping = 0.0, None, 0
     for step in range(3000):
@@ -288,14 +286,13 @@ def test_row_ramp_equals_the_reference_with_repeated_and_changing_names() -> Non
             names = tuple(list(names))  # (an equal tuple, another object now and then)
         promote = rng.random(k) < 0.3
         t += 0.001 if step % 97 else -0.0005  # time going back once in a while
-        mask, weights = f._row_ramp(t, names, promote)
         ref_mask, ref_weights = _ramp_reference(state, t, names, promote, 0.02)
-        assert mask.tobytes() == ref_mask.tobytes() and weights.tobytes() == ref_weights.tobytes(), step
-        if compiled is not None:  # (promoted: the failing rows; every Xi_on above c)
-            rate = (t - t_prev) / 0.02 if t_prev is not None else 0.0
-            t_prev = t
-            cm, cw, rows = compiled(np.ones(k), 0.1, promote, rate, names, np.zeros(0))
-            assert cm.tobytes() == ref_mask.tobytes() and cw.tobytes() == ref_weights.tobytes() and rows is None, step
-            assert compiled.weights() == state["w"]
+        rate = (t - t_prev) / 0.02 if t_prev is not None else 0.0
+        t_prev = t
+        for way in ways:  # (promoted: the failing rows; every Xi_on above c)
+            mask, weights = way(np.ones(k), 0.1, promote, rate, names)
+            assert mask.tolist() == ref_mask.tolist(), step
+            np.testing.assert_allclose(weights, ref_weights, rtol=0, atol=1e-12, err_msg=str(step))
+            assert way.weights().keys() == state["w"].keys()
         ramping += int(np.any((weights > 0.0) & (weights < 1.0)))
     assert ramping > 500  # the ramps were exercised, not only 0 and 1

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from isf_robot.core import ClassK, CustomClassK, LieData, Linear, Power, xi_on
-from isf_robot.core.sums import matvec
 from isf_robot.core.triggers import xi_on_scalar
 
 ALPHAS: list[ClassK] = [
@@ -39,7 +38,7 @@ def test_scalar_equals_vector_row_by_row(alpha: ClassK, d_bar: float) -> None:
         lie = random_lie(rng, 40, m)
         u = rng.normal(size=m) * 10.0 ** rng.uniform(-3, 3)
         vec = xi_on(lie, u, alpha, d_bar)
-        lg_u = matvec(lie.lg, u)  # (xi_on's product, in sums' written order)
+        lg_u = lie.lg @ u  # (xi_on's product)
         scalar = np.array([
             xi_on_scalar(float(lie.lf[i]), float(lg_u[i]), float(lie.grad_norm[i]), float(lie.h[i]), alpha, d_bar)
             for i in range(lie.k)

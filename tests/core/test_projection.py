@@ -1,4 +1,5 @@
-"""The exact solution of small QPs without bounds (one or two active rows) against known answers and the backends."""
+"""The closed forms of the filter QP without bounds (one row; a few rows with one or two active) against known
+answers, the KKT conditions and the backends; each as written and compiled."""
 
 from __future__ import annotations
 
@@ -6,8 +7,35 @@ import numpy as np
 import pytest
 
 from isf_robot.core import FilterQP, QPSolver
-from isf_robot.core.qp_small import FEW_ROWS, project_few
-from isf_robot.core.sums import matvec
+from isf_robot.core import projection
+from isf_robot.core.jit import compiled
+from isf_robot.core.projection import FEW_ROWS, REL_TOL
+
+
+@pytest.fixture(params=["plain", "compiled"], autouse=True)
+def way(request):  # type: ignore[no-untyped-def]
+    """Every test runs on the functions as written and as compiled (numba; the same source)."""
+    _WAY[0] = request.param
+    yield request.param
+
+
+_WAY = ["plain"]
+
+
+def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray):  # type: ignore[no-untyped-def]
+    """``(u, A u - lb, min)`` or ``None`` (no closed-form answer)."""
+    fn = projection.project_few if _WAY[0] == "plain" else compiled(projection.project_few)
+    u, res = np.empty(A.shape[1]), np.empty(A.shape[0])
+    code, low = fn(np.ascontiguousarray(A, dtype=float), np.asarray(lb, dtype=float),
+                   np.asarray(u_nom, dtype=float), REL_TOL, u, res)
+    return None if code < 0 else (u, res, low)
+
+
+def project_row(a: np.ndarray, lb: float, u_nom: np.ndarray, feas_tol: float = 1e-7):  # type: ignore[no-untyped-def]
+    fn = projection.project_row if _WAY[0] == "plain" else compiled(projection.project_row)
+    u = np.empty(u_nom.shape[0])
+    code, slack = fn(a, lb, u_nom, feas_tol, u)
+    return code, (u_nom if code == 0 else u), slack
 
 
 def _kkt(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, u: np.ndarray) -> None:
@@ -36,6 +64,14 @@ def test_known_answers() -> None:
     u, res, rmin = project_few(A, np.array([1.0, 1.0]), u_nom)  # nothing active: u_nom itself (a copy)
     np.testing.assert_array_equal(u, u_nom)
     assert u is not u_nom and rmin == 2.0
+    # one row: x + y >= 2 from (0, 0) -> (1, 1); already held -> u_nom; a zero row -> no answer
+    code, u, slack = project_row(np.array([1.0, 1.0]), 2.0, np.zeros(2))
+    assert code == 1 and slack == pytest.approx(0.0, abs=1e-15)
+    np.testing.assert_allclose(u, [1.0, 1.0], atol=1e-15)
+    code, u, slack = project_row(np.array([1.0, 1.0]), -1.0, np.array([0.5, 0.0]))
+    assert code == 0 and slack == 1.5
+    assert project_row(np.zeros(2), 1.0, np.zeros(2))[0] == -1
+    assert project_row(np.array([1.0, 0.0]), 1.0, np.array([np.inf, 0.0]))[0] == -1
     # x + y >= 2 and x - y >= 0 from (0, 1): the corner (1, 1), multipliers 0.5 and 0.5 (KKT by hand)
     A2 = np.array([[1.0, 1.0], [1.0, -1.0]])
     u, _, _ = project_few(A2, np.array([2.0, 0.0]), np.array([0.0, 1.0]))
@@ -75,14 +111,14 @@ def test_random_two_row_problems_agree_with_the_backends(backend: str) -> None:
         assert hit is not None
         u, res, rmin = hit
         _kkt(A, lb, u_nom, u)
-        np.testing.assert_array_equal(res, matvec(A, u) - lb)  # (the closed form's product: sums' order)
+        np.testing.assert_allclose(res, A @ u - lb, rtol=0, atol=1e-12 * max(1.0, np.abs(lb).max()))
         assert rmin == res.min()
         kinds[int((res <= 1e-9 * max(1.0, np.abs(lb).max())).sum())] += 1
         r = ref.solve(FilterQP(u_nom, A, lb))
         np.testing.assert_allclose(u, r.u, rtol=0, atol=1e-8 * max(1.0, np.abs(r.u).max()))
         mine = ours.solve(FilterQP(u_nom, A, lb))
         assert mine.status == "optimal" and mine.iterations == 0
-        np.testing.assert_array_equal(mine.u, u)
+        np.testing.assert_allclose(mine.u, u, rtol=1e-12, atol=1e-12)
     assert ours.solves == 0 and min(kinds.values()) > 8  # no backend call; every active-set size seen
 
 

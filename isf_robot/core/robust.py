@@ -1,0 +1,127 @@
+"""The robust barrier condition and its promoted form: each formula once (paper, eqs. barr_cond, filter_inc,
+trigger:filter_on, greedy_cond).
+
+For a barrier ``h`` with Lie data ``Lf h`` (drift, ``dh/dt`` included), ``Lg h`` and ``|dh/dx|``:
+
+* the robust slack under a command ``u`` is ``Xi = Lf h + Lg h u - |dh/dx| d_bar + alpha(h)``
+  (:func:`robust_slack`): the on trigger's value ``Xi_on`` at ``u = u_nom``, the greedy impulsive
+  trigger ``Xi`` with ``Lg h u = 0``;
+* a filter row asks ``Lf h + Lg h u - |dh/dx| d_bar >= level``, i.e. ``Lg h u >= lb`` with
+  ``lb = level - Lf h + |dh/dx| d_bar`` (:func:`row_lower`); the robust condition has
+  ``level = -alpha(h)``, a promoted row ``level = b`` (the safety-promoting filter; never below the
+  robust level), and during the hand-over a promoted row ramps from the robust level to ``b``
+  (:func:`promotion_level`).
+
+The formulas are plain functions of floats that also take numpy arrays (elementwise); marked with
+:func:`~isf_robot.core.jit.formula`, the compiled passes below compile these same functions into
+themselves. The passes (:func:`xi_pass`, :func:`row_bounds`, :func:`predict_pass`) are written in
+numpy's array style, so each runs as it is in Python and, through
+:func:`~isf_robot.core.jit.compiled`, as one compiled call; the two agree to rounding (the order of
+the sums in ``Lg h u`` may differ: about 1e-15 relative).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .jit import formula
+
+__all__ = ["robust_slack", "row_lower", "promotion_level", "xi_pass", "row_bounds", "predict_pass"]
+
+
+@formula
+def robust_slack(lf, lg_u, grad_norm, d_bar, alpha_h):  # noqa: ANN001, ANN201 (floats or arrays)
+    """``Xi = Lf h + Lg h u - |dh/dx| d_bar + alpha(h)``: the robust condition's slack under ``u`` [h/s].
+
+    ``lg_u``: ``Lg h u`` (0 for an impulsive flow: the greedy trigger). Floats or arrays (elementwise).
+    """
+    return ((lf + lg_u) - grad_norm * d_bar) + alpha_h
+
+
+@formula
+def row_lower(level, lf, grad_norm, d_bar):  # noqa: ANN001, ANN201
+    """The bound ``lb`` of the filter row ``Lg h u >= lb`` that asks ``Lf h + Lg h u - |dh/dx| d_bar >= level``.
+
+    ``level = -alpha(h)``: the robust condition (then ``Xi = Lg h u - lb``); ``level = b``: promoted.
+    """
+    return (level - lf) + grad_norm * d_bar
+
+
+@formula
+def promotion_level(alpha_h: float, b: float, w: float) -> float:
+    """A promoted row's level ``max(-alpha(h), w b + (1 - w)(-alpha(h)))``: ``b`` once fully promoted (``w = 1``).
+
+    ``w`` in [0, 1] is the row's hand-over weight (1 without a hand-over). The level never drops
+    below the robust condition's ``-alpha(h)``: where ``h < 0`` makes ``-alpha(h) > b``, the robust
+    condition is the stronger one and stays in force.
+    """
+    r = -alpha_h
+    x = w * b + (1.0 - w) * r
+    return x if x > r else r
+
+
+def xi_pass(lf: np.ndarray, lg: np.ndarray, u: np.ndarray, grad_norm: np.ndarray, d_bar: float, h: np.ndarray,
+            gain: float, av: np.ndarray, screen: np.ndarray, xi: np.ndarray, rows: np.ndarray) -> tuple:
+    """Every row's ``Xi`` under ``u`` (written to ``xi``) and what a filter step reads of it, in one pass.
+
+    ``alpha(h)``: ``av``; with ``gain > 0`` (a linear class-K function) ``gain h``, written to ``av``
+    first. ``screen``: no thresholds (no entries), one for every row, or one per row. Returns ``(sum,
+    min, argmin, kept)``: with thresholds, the ``kept`` rows with ``xi`` below theirs are written to
+    ``rows`` (ascending); -1 without. At least one row.
+    """
+    if gain > 0.0:
+        av[:] = gain * h
+    xi[:] = robust_slack(lf, lg @ u, grad_norm, d_bar, av)
+    arg = np.argmin(xi)
+    kept = -1
+    if screen.shape[0]:
+        below = np.flatnonzero(xi < screen)
+        kept = below.shape[0]
+        rows[:kept] = below
+    return np.sum(xi), xi[arg], arg, kept
+
+
+def row_bounds(rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: float, alpha_h: np.ndarray,
+               promote: np.ndarray, ramp: np.ndarray, b: float) -> np.ndarray:
+    """The bounds ``lb`` of the filter rows ``rows`` (robust, or promoted where ``promote``; ramped by ``ramp``).
+
+    ``promote``/``ramp``: no entries (none promoted / every weight 1) or one per row of the data.
+    """
+    level = -alpha_h[rows]
+    if promote.shape[0]:
+        for j in range(rows.shape[0]):
+            i = rows[j]
+            if promote[i]:
+                level[j] = promotion_level(alpha_h[i], b, ramp[i] if ramp.shape[0] else 1.0)
+    return row_lower(level, lf[rows], grad_norm[rows], d_bar)
+
+
+def predict_pass(lf: np.ndarray, lg: np.ndarray, u: np.ndarray, grad_norm: np.ndarray, d_bar: float,
+                 alpha_h: np.ndarray, k: np.ndarray, xi: np.ndarray, fails: np.ndarray,
+                 nfail: np.ndarray) -> tuple:
+    """``Xi_on`` at every predicted point, stacked: point ``j``'s ``k[j]`` rows in row ``j`` of the (n, K) arrays.
+
+    ``lg`` (n, K, m), ``u`` (n, m). Writes ``xi``, and each point's rows with ``Xi_on <= 0`` to
+    ``fails[j, :nfail[j]]`` (ascending). Returns ``(bad, xi_min)``: ``bad`` the first point whose
+    values are not finite (-1: none; the pass stops there), ``xi_min`` the least value before it.
+    """
+    low = math.inf
+    for j in range(k.shape[0]):
+        kj = k[j]
+        nfail[j] = 0
+        if kj == 0:
+            continue
+        x = robust_slack(lf[j, :kj], lg[j, :kj] @ u[j], grad_norm[j, :kj], d_bar, alpha_h[j, :kj])
+        xi[j, :kj] = x
+        if not math.isfinite(np.sum(x)):
+            return j, low
+        lo = np.min(x)
+        if lo < low:
+            low = lo
+        if lo <= 0.0:
+            bad = np.flatnonzero(x <= 0.0)
+            nfail[j] = bad.shape[0]
+            fails[j, :bad.shape[0]] = bad
+    return -1, low

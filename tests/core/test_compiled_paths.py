@@ -1,0 +1,144 @@
+"""One source, two ways to run it: the filter step's passes as written (numpy) and compiled (numba) agree.
+
+Stated tolerance: 1e-12 relative on every float a pass returns (the compiled ``Lg h u`` may add its
+products in another order than numpy's BLAS), the same integers and masks; whole filters give the
+same modes and switch events and commands to 1e-9. Also the formulas' own identities (known answers).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from isf_robot.core import IntermittentSafetyFilter, LieData, Power, QPSolver, SafetyFilter
+from isf_robot.core import handover, robust, screening
+from isf_robot.core.jit import compiled
+
+pytestmark = pytest.mark.kernels  # (skipped under ISF_ROBOT_JIT=0: tests/conftest.py)
+
+REL = 1e-12
+
+
+def _close(a, b) -> None:  # type: ignore[no-untyped-def]
+    np.testing.assert_allclose(a, b, rtol=REL, atol=REL)
+
+
+def _data(rng: np.random.Generator, k: int, m: int):  # type: ignore[no-untyped-def]
+    lg = rng.normal(size=(k, m))
+    return (rng.normal(size=k), lg, rng.normal(size=m), np.linalg.norm(lg, axis=1), rng.uniform(-0.1, 1.0, k))
+
+
+def test_robust_slack_row_lower_and_promotion_level_known_answers() -> None:
+    # Xi = Lf h + Lg h u - |dh/dx| d_bar + alpha(h): each term with its sign
+    assert robust.robust_slack(1.0, 0.0, 0.0, 5.0, 0.0) == 1.0
+    assert robust.robust_slack(0.0, 2.0, 0.0, 5.0, 0.0) == 2.0
+    assert robust.robust_slack(0.0, 0.0, 2.0, 0.5, 0.0) == -1.0
+    assert robust.robust_slack(0.0, 0.0, 0.0, 0.5, 3.0) == 3.0
+    # the row Lg h u >= lb at the robust level is Xi >= 0: Xi = Lg h u - lb
+    rng = np.random.default_rng(1)
+    lf, lg, u, gn, h = _data(rng, 20, 4)
+    av = 2.0 * h
+    xi = robust.robust_slack(lf, lg @ u, gn, 0.3, av)
+    lb = robust.row_lower(-av, lf, gn, 0.3)
+    _close(xi, lg @ u - lb)
+    # promoted: b at w = 1 (never below -alpha(h)), the robust level at w = 0, monotone in between
+    assert robust.promotion_level(0.2, 0.05, 1.0) == 0.05
+    assert robust.promotion_level(-0.2, 0.05, 1.0) == 0.2  # h < 0: the robust condition is stronger
+    assert robust.promotion_level(0.2, 0.05, 0.0) == -0.2
+    levels = [robust.promotion_level(0.2, 0.05, w) for w in np.linspace(0.0, 1.0, 11)]
+    assert levels == sorted(levels) and levels[5] == pytest.approx(0.5 * 0.05 - 0.5 * 0.2)
+
+
+@pytest.mark.parametrize("gain", [0.0, 2.0])
+def test_xi_pass_compiled_as_written(gain: float) -> None:
+    rng = np.random.default_rng(2)
+    fast = compiled(robust.xi_pass)
+    for _ in range(200):
+        k, m = int(rng.integers(1, 40)), int(rng.integers(1, 8))
+        lf, lg, u, gn, h = _data(rng, k, m)
+        screen = [np.zeros(0), np.full(1, 0.5), rng.uniform(0.1, 2.0, k)][int(rng.integers(0, 3))]
+        outs = []
+        for fn in (robust.xi_pass, fast):
+            av = np.empty(k) if gain else np.tanh(h)
+            xi, rows = np.empty(k), np.empty(k, np.intp)
+            total, low, arg, kept = fn(lf, lg, u, gn, 0.1, h, gain, av, screen, xi, rows)
+            outs.append((xi, av, total, low, int(arg), kept, rows[:max(kept, 0)].tolist()))
+        (xa, aa, ta, la, ia, ka, ra), (xb, ab, tb, lb, ib, kb, rb) = outs
+        _close(xa, xb)
+        _close(aa, ab)
+        assert ta == pytest.approx(tb, rel=REL, abs=REL) and la == pytest.approx(lb, rel=REL, abs=REL)
+        assert xa[ib] == pytest.approx(xa.min(), rel=REL, abs=REL) and ka == kb
+        if np.all(np.abs(xa[:, None] - screen[None, :]) > 1e-9):  # (no row on a threshold)
+            assert ra == rb
+
+
+def test_bounds_screening_and_hand_over_compiled_as_written() -> None:
+    rng = np.random.default_rng(3)
+    bounds, kept, hold, promote = (compiled(f) for f in (robust.row_bounds, screening.kept_rows,
+                                                         screening.others_hold, handover.promote_rows))
+    none_b, none_f = np.zeros(0, bool), np.zeros(0)
+    for _ in range(300):
+        k, m = int(rng.integers(2, 30)), int(rng.integers(1, 7))
+        lf, lg, u, gn, h = _data(rng, k, m)
+        av, xi = np.tanh(h), rng.normal(size=k)
+        rows = np.flatnonzero(rng.random(k) < 0.5)
+        prom = rng.random(k) < 0.4 if rng.random() < 0.7 else none_b
+        ramp = rng.uniform(0.0, 1.0, k) if rng.random() < 0.5 else none_f
+        _close(robust.row_bounds(rows, lf, gn, 0.2, av, prom, ramp, 0.05),
+               bounds(rows, lf, gn, 0.2, av, prom, ramp, 0.05))
+        screen = np.full(1, 0.3) if rng.random() < 0.5 else rng.uniform(0.1, 1.0, k)
+        ra, rb = np.empty(k, np.intp), np.empty(k, np.intp)
+        na = screening.kept_rows(xi, screen, 0.1, prom, ra)
+        assert na == kept(xi, screen, 0.1, prom, rb) and ra[:na].tolist() == rb[:na].tolist()
+        du = rng.normal(size=m) * 0.01
+        assert screening.others_hold(xi, lg, du, ra[:na], 1e-6) == hold(xi, lg, du, ra[:na], 1e-6)
+        ids = rng.integers(0, 5, k).astype(np.intp)
+        states = [(rng.uniform(-0.2, 1.0, 8), rng.random(8) < 0.5)]
+        states.append((states[0][0].copy(), states[0][1].copy()))
+        results = []
+        for fn, (w, inw) in zip((handover.promote_rows, promote), states):
+            mask, weights = np.empty(k, bool), np.empty(k)
+            fn(xi, 0.2, none_b, True, ids, w, inw, 0.3, mask, weights)
+            results.append((mask.tolist(), weights.copy(), w, inw.tolist()))
+        assert results[0][0] == results[1][0] and results[0][3] == results[1][3]
+        _close(results[0][1], results[1][1])
+        _close(results[0][2], results[1][2])
+
+
+def _walk(make, seed: int):  # type: ignore[no-untyped-def]
+    rng = np.random.default_rng(seed)
+    k, m = 7, 6
+    lg = rng.normal(size=(k, m))
+    lie = LieData(rng.uniform(0.0, 0.5, k), rng.normal(scale=0.2, size=k), lg, np.linalg.norm(lg, axis=1),
+                  tuple(f"b{i}" for i in range(k)))
+    f = make()
+    out = []
+    for i in range(500):
+        h = np.clip(lie.h + rng.normal(scale=0.02, size=k), 0.0, 0.6)
+        lie = LieData(h, lie.lf + rng.normal(scale=0.05, size=k), lie.lg + rng.normal(scale=0.05, size=(k, m)),
+                      lie.grad_norm, lie.names)
+        s = f.step_lie(0.01 * i, lie, rng.normal(size=m))
+        out.append((s.u.copy(), s.on, str(s.event), s.qp is None))
+    return out
+
+
+@pytest.mark.parametrize("kind", ["cbf", "isf", "isf-blend"])
+def test_filters_compiled_and_as_written_give_the_same_steps(kind: str, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    def make():  # type: ignore[no-untyped-def]
+        solver = QPSolver(few_rows=True)
+        if kind == "cbf":
+            return SafetyFilter(Power(3.0, 0.7), 0.05, screen=0.3, solver=solver)
+        return IntermittentSafetyFilter(2.0, 0.1, 0.05, 0.05, screen=0.3, solver=solver,
+                                        blend=0.04 if kind == "isf-blend" else 0.0)
+
+    fast = _walk(make, 4)
+    monkeypatch.setenv("ISF_ROBOT_JIT", "0")
+    plain = _walk(make, 4)
+    switches = 0
+    for (ua, oa, ea, na), (ub, ob, eb, nb) in zip(fast, plain):
+        np.testing.assert_allclose(ua, ub, rtol=1e-9, atol=1e-9)
+        assert (oa, ea, na) == (ob, eb, nb)
+        switches += ea != "None"
+    assert switches > 5 and not math.isnan(switches)
