@@ -7,7 +7,8 @@ The filters' semantics (when they are on, which rows they promote) are in
 2. the rows kept by screening (:mod:`isf_robot.core.screening`) and their bounds
    (:func:`~isf_robot.core.robust.row_bounds`: robust, promoted or ramped);
 3. one of three solve paths: the closed form for one row or for a few rows without input bounds
-   (:mod:`isf_robot.core.projection`), else the QP (:class:`~isf_robot.core.qp_solver.QPSolver`);
+   (:mod:`isf_robot.core.projection`, with the bounds and step 4 in one call:
+   :mod:`isf_robot.core.closed_step`), else the QP (:class:`~isf_robot.core.qp_solver.QPSolver`);
    promotions relaxed to the robust condition when the promoted QP is infeasible;
 4. the rows screened out checked at the answer (solved again with every row when one binds);
 5. the infeasibility policy.
@@ -32,6 +33,7 @@ from . import projection, robust, screening
 from .barrier import Barrier, evaluate_barriers
 from .class_k import ClassK, Linear, as_class_k
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
+from .closed_step import closed_step
 from .handover import promote_rows
 from .jit import compiled, jit_enabled
 from .projection import FEW_ROWS
@@ -64,13 +66,14 @@ class Passes(NamedTuple):
     kept_rows: Callable[..., Any]
     others_hold: Callable[..., Any]
     promote_rows: Callable[..., Any]
+    closed_step: Callable[..., Any]
 
     @classmethod
     def build(cls, compile_them: bool = True) -> Passes:
         """The passes compiled (where ``ISF_ROBOT_JIT`` allows; ``compile_them=False``: as written)."""
         c = compiled if compile_them else (lambda f: f)
         return cls(c(robust.xi_pass), c(robust.row_bounds), c(screening.kept_rows), c(screening.others_hold),
-                   c(promote_rows))
+                   c(promote_rows), c(closed_step))
 
 
 def core_kernels() -> list[Any]:
@@ -93,6 +96,7 @@ class _Xi(NamedTuple):
     av: np.ndarray  # alpha(h) per row
     argmin: int  # first row of least Xi_on
     rows: np.ndarray | None  # with screening thresholds: the rows below theirs, ascending (the filter's buffer)
+    passes: Passes  # the passes these inputs take (compiled, or as written)
 
 
 class _FilterBase:
@@ -143,7 +147,8 @@ class _FilterBase:
         self._passes = Passes.build()  # (ISF_ROBOT_JIT is read when the filter is built)
         self._plain = Passes.build(False)  # (inputs the compiled passes do not take: other dtypes, no inputs)
         self._rows_buf = np.empty(256, np.intp)
-        self._screens: dict[Any, np.ndarray] = {}
+        self._res_buf = np.empty(FEW_ROWS)
+        self._screens: dict[float, np.ndarray] = {}
         self._all: dict[int, np.ndarray] = {}
         self.qp_solves = 0
         self._switches = SwitchCounter()
@@ -159,13 +164,15 @@ class _FilterBase:
 
     def _screen_array(self, screen: float | np.ndarray, k: int) -> np.ndarray:
         """Thresholds as the passes take them: one for every row, or one per row of ``k``."""
-        key = screen if type(screen) is float else id(screen)
-        sa = self._screens.get(key)
-        if sa is None or (type(screen) is not float and sa.base is not screen and sa is not screen):
+        if type(screen) is np.ndarray and screen.dtype is _F64 and screen.ndim == 1:
+            sa = screen
+        elif type(screen) is float:
+            sa = self._screens.get(screen)
+            if sa is None:
+                sa = self._screens[screen] = np.full(1, screen)
+        else:
             sa = np.asarray(screen, dtype=float).reshape(-1)
-            if type(screen) is float or len(self._screens) < 8:
-                self._screens[key] = sa
-        if sa.shape[0] not in (1, k):
+        if sa.shape[0] != k and sa.shape[0] != 1:
             raise ShapeError(f"screen thresholds: one, or one per row ({k}); got {sa.shape[0]}")
         return sa
 
@@ -197,9 +204,9 @@ class _FilterBase:
     def _passes_for(self, lie: LieData, u_nom: np.ndarray) -> Passes:
         """The compiled passes for float64 data with inputs; the plain ones otherwise (numpy decides)."""
         lg = lie.lg
-        if (lg.dtype == _F64 and u_nom.dtype == _F64 and lie.h.dtype == _F64 and lie.lf.dtype == _F64
-                and lie.grad_norm.dtype == _F64 and lg.ndim == 2 and u_nom.shape[0] > 0
-                and lg.flags.c_contiguous):
+        f64 = _F64
+        if (lg.dtype is f64 and u_nom.dtype is f64 and lie.h.dtype is f64 and lie.lf.dtype is f64
+                and lie.grad_norm.dtype is f64 and lg.ndim == 2 and u_nom.shape[0] and lg.flags.c_contiguous):
             return self._passes
         return self._plain
 
@@ -215,7 +222,7 @@ class _FilterBase:
         h = lie.h
         k = h.shape[0]
         if k == 0:
-            return _tuple_new(_Xi, (u_nom, np.zeros(0), math.inf, np.zeros(0), -1, None))
+            return _tuple_new(_Xi, (u_nom, np.zeros(0), math.inf, np.zeros(0), -1, None, self._plain))
         alpha = self.alpha
         gain = alpha.gain if type(alpha) is Linear else 0.0
         av = np.empty(k) if gain > 0.0 else np.asarray(alpha.vector(h), dtype=float)
@@ -224,12 +231,13 @@ class _FilterBase:
         if rows.shape[0] < k:
             rows = self._rows_buf = np.empty(2 * k, np.intp)
         xi = np.empty(k)
-        total, low, arg, kept = self._passes_for(lie, u_nom).xi_pass(
-            lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, sa, xi, rows)
+        passes = self._passes_for(lie, u_nom)
+        total, low, arg, kept = passes.xi_pass(lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, sa, xi,
+                                               rows)
         if not math.isfinite(total):
             raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
                                  f"Xi_on = {xi}, u_nom = {u_nom}")
-        return _tuple_new(_Xi, (u_nom, xi, float(low), av, int(arg), None if kept < 0 else rows[:kept]))
+        return _tuple_new(_Xi, (u_nom, xi, float(low), av, int(arg), None if kept < 0 else rows[:kept], passes))
 
     # -- the QP's rows -------------------------------------------------------------------
     def qp_lower(self, lie: LieData, promote: np.ndarray | None = None, b: float = 0.0,
@@ -289,9 +297,10 @@ class _FilterBase:
         are always kept.
         """
         k = xi.shape[0]
-        passes = self._passes_for(lie, u_nom)
+        passes = xs.passes if xs is not None else self._passes_for(lie, u_nom)
         if screen is None:
             screen = self.screen
+        rows = None
         if screen is not None and k > 1:
             if xs is not None and xs.rows is not None and promote is None and not floor > 0.0:
                 rows = xs.rows
@@ -300,18 +309,49 @@ class _FilterBase:
                 n = passes.kept_rows(xi, self._screen_array(screen, k), floor,
                                      _NONE_B if promote is None else promote, buf)
                 rows = buf[:n]
-            if rows.shape[0] < k:
-                if rows.shape[0] == 0:  # the row of least slack alone
-                    rows = np.array([xs.argmin if xs is not None else int(np.argmin(xi))], np.intp)
-                else:
-                    rows = rows.copy()  # (the buffer serves the next pass)
-                first, relaxed, fb = self._solve_block(t, x, lie, u_nom, av, promote, ramp, b, rows, passes)
-                if fb or passes.others_hold(xi, lie.lg, first.u - u_nom, rows, self.solver.active_tol):
-                    return first, relaxed, fb, False
-                res, relaxed, fb = self._solve_block(t, x, lie, u_nom, av, promote, ramp, b, None, passes)
-                return replace(res, solve_time_s=res.solve_time_s + first.solve_time_s), relaxed, fb, True
+            if rows.shape[0] == k:
+                rows = None
+            elif rows.shape[0] == 0:  # the row of least slack alone
+                rows = np.array([xs.argmin if xs is not None else int(np.argmin(xi))], np.intp)
+        short = self._closed(lie, u_nom, xi, av, promote, ramp, b, rows, passes)
+        if short is not None and short[1]:
+            return short[0], (), False, False
+        if short is not None:  # a screened row binds at the closed form's answer
+            first: QPResult | None = short[0]
+        else:
+            first, relaxed, fb = self._solve_block(t, x, lie, u_nom, av, promote, ramp, b, rows, passes)
+            if rows is None or fb or passes.others_hold(xi, lie.lg, first.u - u_nom, rows, self.solver.active_tol):
+                return first, relaxed, fb, False
         res, relaxed, fb = self._solve_block(t, x, lie, u_nom, av, promote, ramp, b, None, passes)
-        return res, relaxed, fb, False
+        return replace(res, solve_time_s=res.solve_time_s + first.solve_time_s), relaxed, fb, True
+
+    def _closed(self, lie: LieData, u_nom: np.ndarray, xi: np.ndarray, av: np.ndarray, promote: np.ndarray | None,
+                ramp: np.ndarray, b: float, rows: np.ndarray | None,
+                passes: Passes) -> tuple[QPResult, bool] | None:
+        """The kept rows by their closed form (:func:`~isf_robot.core.closed_step.closed_step`): ``(result,
+        every other row holds)``, or ``None`` (input bounds, the closed forms off, too many rows, no answer)."""
+        solver = self.solver
+        if self.u_min is not None or self.u_max is not None or not solver.closed_form:
+            return None
+        k = xi.shape[0]
+        idx = self._all_rows(k) if rows is None else rows
+        n = idx.shape[0]
+        few = solver.few_rows and n <= FEW_ROWS
+        if n == 0 or (n > 1 and not few):
+            return None
+        u, res = np.empty(u_nom.shape[0]), self._res_buf
+        t0 = time.perf_counter()
+        code, low, held = passes.closed_step(idx, lie.lf, lie.grad_norm, self.d_bar, av,
+                                             _NONE_B if promote is None else promote, ramp, b, lie.lg, u_nom, xi,
+                                             solver.feas_tol, solver.active_tol, few, u, res)
+        if code < 0:
+            return None
+        self.qp_solves += 1
+        if n == 1:
+            return QPResult._of(u_nom if code == 0 else u, "closed_form", _ACTIVE[int(low <= solver.active_tol)],
+                                time.perf_counter() - t0), bool(held)
+        return QPResult._of(u, "optimal", res[:n] <= solver.active_tol, time.perf_counter() - t0, 0,
+                            max(0.0, -float(low))), bool(held)
 
     def _solve_block(
         self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, av: np.ndarray,
@@ -327,9 +367,6 @@ class _FilterBase:
         prom = _NONE_B if promote is None else promote
         lb = passes.row_bounds(idx, lie.lf, lie.grad_norm, self.d_bar, av, prom, ramp, b)
         A = lie.lg if rows is None else lie.lg.take(rows, 0)
-        res = self._closed_form(A, lb, u_nom)
-        if res is not None:
-            return res, (), False
         names = lie.names
         if rows is not None and names:
             nn = len(names)
@@ -352,32 +389,6 @@ class _FilterBase:
         if res.ok:
             return res, relaxed, False
         return self._infeasible(t, x, lie, qp, res), relaxed, True
-
-    def _closed_form(self, A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray) -> QPResult | None:
-        """One row, or 2 to ``FEW_ROWS`` rows with the solver's ``few_rows``, without input bounds: the checked
-        closed form (:mod:`.projection`), or ``None`` (the QP decides)."""
-        solver = self.solver
-        n = lb.shape[0]
-        if self.u_min is not None or self.u_max is not None or not solver.closed_form:
-            return None
-        if n == 1:
-            t0 = time.perf_counter()
-            u = np.empty(u_nom.shape[0])
-            code, slack = solver.project_row(A[0], float(lb[0]), u_nom, solver.feas_tol, u)
-            if code < 0:
-                return None
-            self.qp_solves += 1
-            return QPResult._of(u_nom if code == 0 else u, "closed_form", _ACTIVE[int(slack <= solver.active_tol)],
-                                time.perf_counter() - t0)
-        if 1 < n <= FEW_ROWS and solver.few_rows:
-            t0 = time.perf_counter()
-            hit = solver.solve_few(A, lb, u_nom)
-            if hit is None:
-                return None
-            self.qp_solves += 1
-            u, res, low = hit
-            return QPResult._of(u, "optimal", res <= solver.active_tol, time.perf_counter() - t0, 0, max(0.0, -low))
-        return None
 
     def _infeasible(self, t: float, x: np.ndarray | None, lie: LieData, qp: FilterQP, res: QPResult) -> QPResult:
         if self.on_infeasible == "raise":

@@ -169,7 +169,28 @@ def compiled(fn: Any) -> Any:
         watch_compiles()
         _register_formulas()
         got = _COMPILED[fn] = njit(cache=True, nogil=True)(fn)
+        _stamp_with_its_folder(got, fn)
     return got
+
+
+def _stamp_with_its_folder(dispatcher: Any, fn: Any) -> None:
+    """Key the kernel's disk cache on every source file of its folder, not only its own.
+
+    numba checks only the file of the compiled function before it loads a cached kernel; the
+    :func:`formula` functions compiled into it live in other files of the same package, and an edit
+    of one of them must not load a stale kernel. (numba's cache internals; left as they are if
+    they moved.)
+    """
+    folder = os.path.dirname(fn.__code__.co_filename)
+    try:
+        files = sorted(f for f in os.listdir(folder) if f.endswith(".py"))
+        stamp = tuple((f, os.stat(os.path.join(folder, f)).st_mtime, os.stat(os.path.join(folder, f)).st_size)
+                      for f in files)
+        cache_file = dispatcher._cache._cache_file
+        if hasattr(cache_file, "_source_stamp"):
+            cache_file._source_stamp = stamp
+    except (AttributeError, OSError):
+        pass
 
 
 def _register_formulas() -> None:

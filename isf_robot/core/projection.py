@@ -38,6 +38,7 @@ REL_TOL = 1e-12
 """:func:`project_few`'s ``rel_tol``."""
 
 
+@formula
 def project_row(a: np.ndarray, lb: float, u_nom: np.ndarray, feas_tol: float, u: np.ndarray) -> tuple:
     """``min |u - u_nom|^2  s.t.  a u >= lb``, checked: ``(code, slack)``.
 
@@ -61,6 +62,7 @@ def project_row(a: np.ndarray, lb: float, u_nom: np.ndarray, feas_tol: float, u:
     return 1, slack
 
 
+@formula
 def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float, u: np.ndarray,
                 res: np.ndarray) -> tuple:
     """``min |u - u_nom|^2  s.t.  A u >= lb`` when at most two rows are active there: ``(code, min residual)``.

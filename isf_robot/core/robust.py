@@ -28,7 +28,7 @@ import numpy as np
 
 from .jit import formula
 
-__all__ = ["robust_slack", "row_lower", "promotion_level", "xi_pass", "row_bounds", "predict_pass"]
+__all__ = ["robust_slack", "row_lower", "promotion_level", "xi_pass", "row_bound", "row_bounds", "predict_pass"]
 
 
 @formula
@@ -83,19 +83,27 @@ def xi_pass(lf: np.ndarray, lg: np.ndarray, u: np.ndarray, grad_norm: np.ndarray
     return np.sum(xi), xi[arg], arg, kept
 
 
-def row_bounds(rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: float, alpha_h: np.ndarray,
-               promote: np.ndarray, ramp: np.ndarray, b: float) -> np.ndarray:
-    """The bounds ``lb`` of the filter rows ``rows`` (robust, or promoted where ``promote``; ramped by ``ramp``).
+@formula
+def row_bound(i: int, lf: np.ndarray, grad_norm: np.ndarray, d_bar: float, alpha_h: np.ndarray,
+              promote: np.ndarray, ramp: np.ndarray, b: float) -> float:
+    """The bound ``lb`` of filter row ``i``: robust, or promoted where ``promote[i]`` (ramped by ``ramp[i]``).
 
     ``promote``/``ramp``: no entries (none promoted / every weight 1) or one per row of the data.
     """
-    level = -alpha_h[rows]
-    if promote.shape[0]:
-        for j in range(rows.shape[0]):
-            i = rows[j]
-            if promote[i]:
-                level[j] = promotion_level(alpha_h[i], b, ramp[i] if ramp.shape[0] else 1.0)
-    return row_lower(level, lf[rows], grad_norm[rows], d_bar)
+    level = -alpha_h[i]
+    if promote.shape[0] and promote[i]:
+        level = promotion_level(alpha_h[i], b, ramp[i] if ramp.shape[0] else 1.0)
+    return row_lower(level, lf[i], grad_norm[i], d_bar)
+
+
+@formula
+def row_bounds(rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: float, alpha_h: np.ndarray,
+               promote: np.ndarray, ramp: np.ndarray, b: float) -> np.ndarray:
+    """:func:`row_bound` of each row of ``rows``."""
+    lb = np.empty(rows.shape[0])
+    for j in range(rows.shape[0]):
+        lb[j] = row_bound(rows[j], lf, grad_norm, d_bar, alpha_h, promote, ramp, b)
+    return lb
 
 
 def predict_pass(lf: np.ndarray, lg: np.ndarray, u: np.ndarray, grad_norm: np.ndarray, d_bar: float,

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .jit import formula
+
 __all__ = ["kept_rows", "others_hold"]
 
 
@@ -33,6 +35,7 @@ def kept_rows(xi: np.ndarray, screen: np.ndarray, floor: float, promote: np.ndar
     return got.shape[0]
 
 
+@formula
 def others_hold(xi: np.ndarray, lg: np.ndarray, du: np.ndarray, rows: np.ndarray, active_tol: float) -> bool:
     """Whether every row not in ``rows`` keeps robust slack ``xi + Lg h du >= active_tol`` (NaN: no)."""
     slack = xi + lg @ du

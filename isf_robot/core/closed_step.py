@@ -1,0 +1,51 @@
+"""A filter solve without the QP backend: the kept rows' bounds, their closed form, the check of the other rows.
+
+One call for what most control steps of a robot need (the rows that can bind are one or a few, no
+input bounds): :func:`~isf_robot.core.robust.row_bounds` of the kept rows,
+:func:`~isf_robot.core.projection.project_row` (one row) or
+:func:`~isf_robot.core.projection.project_few` (2 to ``FEW_ROWS`` rows), and
+:func:`~isf_robot.core.screening.others_hold` on the rows screened out. The same functions the
+general path calls one by one, composed: compiled as one call (:func:`~isf_robot.core.jit.compiled`)
+it saves their separate calls' overhead; as written it runs them in numpy.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .projection import FEW_ROWS, REL_TOL, project_few, project_row
+from .robust import row_bound, row_bounds
+from .screening import others_hold
+
+__all__ = ["closed_step"]
+
+
+def closed_step(rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: float, alpha_h: np.ndarray,
+                promote: np.ndarray, ramp: np.ndarray, b: float, lg: np.ndarray, u_nom: np.ndarray, xi: np.ndarray,
+                feas_tol: float, active_tol: float, few: bool, u: np.ndarray, res: np.ndarray) -> tuple:
+    """The filter QP on the rows ``rows`` (ascending) by its closed form: ``(code, least slack, others hold)``.
+
+    ``code`` 0: the rows hold at ``u_nom`` (the answer is ``u_nom``); 1: the answer is in ``u``;
+    -1: no closed-form answer (the QP decides); -2: not a closed-form problem (more than one row
+    without ``few``, or more than ``FEW_ROWS``). ``res[:n]``: the rows' slacks ``A u - lb`` (one row:
+    ``res[0]``). ``others hold``: every row not in ``rows`` keeps ``xi + Lg h (u - u_nom) >=
+    active_tol`` (true when every row is kept).
+    """
+    n = rows.shape[0]
+    if n == 0 or (n > 1 and not few) or n > FEW_ROWS:
+        return -2, 0.0, False
+    if n == 1:
+        i = rows[0]
+        code, low = project_row(lg[i], row_bound(i, lf, grad_norm, d_bar, alpha_h, promote, ramp, b), u_nom,
+                                feas_tol, u)
+        res[0] = low
+    else:
+        code, low = project_few(lg[rows], row_bounds(rows, lf, grad_norm, d_bar, alpha_h, promote, ramp, b), u_nom,
+                                REL_TOL, u, res[:n])
+    if code < 0:
+        return code, 0.0, False
+    if n == xi.shape[0]:
+        return code, low, True
+    if code == 0:
+        return code, low, others_hold(xi, lg, np.zeros(u_nom.shape[0]), rows, active_tol)
+    return code, low, others_hold(xi, lg, u - u_nom, rows, active_tol)
