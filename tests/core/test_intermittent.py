@@ -296,3 +296,23 @@ def test_row_ramp_equals_the_reference_with_repeated_and_changing_names() -> Non
             assert way.weights().keys() == state["w"].keys()
         ramping += int(np.any((weights > 0.0) & (weights < 1.0)))
     assert ramping > 500  # the ramps were exercised, not only 0 and 1
+
+
+def test_reset_returns_every_filter_to_off_and_forgets_its_history() -> None:
+    # the hysteresis itself must be reset: a filter that was on starts the next episode off, and its next
+    # step with Xi_on between 0 and c stays off (it would stay on if the on mode survived reset)
+    from isf_robot.core import LieData, SafetyFilter
+
+    lie_bad = LieData(np.array([0.01]), np.array([-5.0]), np.array([[1.0]]), np.array([1.0]), ("a",))
+    lie_mid = LieData(np.array([0.5]), np.array([-0.45]), np.array([[1.0]]), np.array([1.0]), ("a",))
+    f = IntermittentSafetyFilter(1.0, 0.2, 0.05, 0.0)
+    assert f.step_lie(0.0, lie_bad, np.zeros(1)).on
+    assert f.step_lie(0.01, lie_mid, np.zeros(1)).on  # Xi_on = 0.05 < c: stays on
+    f.reset(0.0)
+    assert not f.on and f.trigger.n_on == 0 and f.qp_solves == 0
+    s = f.step_lie(0.0, lie_mid, np.zeros(1))
+    assert not s.on and s.event is None and s.qp is None
+    cbf = SafetyFilter(1.0, 0.0)
+    assert cbf.step_lie(0.0, lie_bad, np.zeros(1)).on
+    cbf.reset()
+    assert not cbf.on and cbf.qp_solves == 0

@@ -95,3 +95,19 @@ def test_steps_packed_into_arrays_read_back_the_same(monkeypatch):
     for name, col in whole.arrays().items():
         assert np.array_equal(packed.arrays()[name], col) and packed.arrays()[name].dtype == col.dtype, name
     assert packed.result() == whole.result()
+
+
+def test_duty_cycle_is_time_on_over_time_not_steps_on_over_steps():
+    # steps of unequal length: on for one 3 s step, off for three 1 s steps: on 3 s of 6 s (a count of steps
+    # would say 1 of 4); the intervention integrates over time as well
+    t = np.array([0.0, 3.0, 4.0, 5.0])
+    dt = np.array([3.0, 1.0, 1.0, 1.0])
+    on = np.array([True, False, False, False])
+    m = compute_metrics(t, dt, on, np.where(on, 2.0, 0.0), on)
+    assert m.duration_s == 6.0
+    assert m.duty_cycle == pytest.approx(0.5)
+    assert m.intervention == pytest.approx(2.0 * 3.0)
+    acc = MetricsAccumulator()  # the in-loop accumulator integrates the same way
+    for ti, di, oi in zip(t, dt, on):
+        acc.add(float(ti), float(di), bool(oi), np.full(2, 1.0) if oi else np.zeros(2), np.zeros(2), bool(oi))
+    assert acc.result().duty_cycle == pytest.approx(0.5)
