@@ -33,11 +33,19 @@ from isf_robot.core.exceptions import ConfigError
 from isf_robot.core.files import check_output_path, commit_partial, partial_path
 
 from .errors import RecordError, ViewerUnavailableError
-from .options import DEFAULT_CONNECT, GRPC_PORT, WEB_PORT
-from .serve import DEFAULT_BIND, WebViewerServer, check_bind, check_port_free, connect_host, rerun_executable
+from .serve import (
+    DEFAULT_BIND,
+    DEFAULT_CONNECT,
+    GRPC_PORT,
+    WEB_PORT,
+    WebViewerServer,
+    check_bind,
+    check_port_free,
+    connect_host,
+    rerun_executable,
+)
 
-__all__ = ["find_viewer", "open_stream", "close_stream", "stream_path", "wait_while_serving", "DEFAULT_CONNECT",
-           "GRPC_PORT", "WEB_PORT"]
+__all__ = ["find_viewer", "open_stream", "close_stream", "stream_path", "wait_while_serving"]
 
 # id(stream) -> the .rrd path its .partial file is renamed to when the stream is closed
 _TARGETS: dict[int, Path] = {}
