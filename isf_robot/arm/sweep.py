@@ -39,6 +39,7 @@ from isf_robot.core.strategies import strategy_info
 from .compare import EpisodeTask, SceneSpec, json_safe, run_task
 from .params import resolve_params
 from .records import FilterParams
+from .sim import ArmSimulation
 
 __all__ = ["SweepPoint", "SweepTask", "grid_points", "random_points", "run_sweep", "summarize_point",
            "pareto_front", "goals_time", "format_sweep", "PARAMETERS", "OBJECTIVES", "MAX_SWEEP_EPISODES"]
@@ -230,8 +231,6 @@ def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: S
     if n > MAX_SWEEP_EPISODES:
         raise ConfigError(f"{n} episodes asked for; at most {MAX_SWEEP_EPISODES} per sweep")
     check_backend(backend, address)  # a missing Ray extra is said before any episode runs
-    from .sim import ArmSimulation
-
     tasks: list[SweepTask] = []
     names: list[tuple[str, int]] = []
     for i, spec in enumerate(specs):

@@ -76,12 +76,14 @@ def _intermittent_kwargs(args: argparse.Namespace) -> dict[str, Any]:
 
 def _params(args: argparse.Namespace, scene: Any) -> dict[str, Any]:
     """ArmSimulation keyword arguments from the flags, the filter parameters resolved once."""
+    from isf_robot.arm.calibration_loop import loop_params
     from isf_robot.arm.diagnostics import run_findings
     from isf_robot.arm.params import resolve_params
 
-    in_loop = args.filter if getattr(args, "d_bar_in_loop", False) else None
-    out: dict[str, Any] = {"params": resolve_params(
-        scene, args.alpha, args.c, args.b, args.d_bar, in_loop=in_loop, **_intermittent_kwargs(args))}
+    params = resolve_params(scene, args.alpha, args.c, args.b, args.d_bar, **_intermittent_kwargs(args))
+    if getattr(args, "d_bar_in_loop", False):
+        params = loop_params(scene, args.filter, params)
+    out: dict[str, Any] = {"params": params}
     for f in run_findings(scene, out["params"]):  # what `isf-robot check` reports, before the run
         print(f"warning [{f.code}]: {f.message}", file=sys.stderr)
     if getattr(args, "control_period", None) is not None:

@@ -16,6 +16,7 @@ import json
 import sys
 from typing import Any
 
+from isf_robot.cli.plot import sweep_figure
 from isf_robot.core.exceptions import ConfigError
 from isf_robot.core.extras import install_hint
 from isf_robot.core.parallel import BACKENDS, check_backend
@@ -105,7 +106,6 @@ def _emit(args: argparse.Namespace, sweep: dict[str, Any]) -> None:
         write_text_atomic(args.output, json.dumps(doc, indent=1) + "\n")
         print(f"sweep written to {args.output}", file=sys.stderr)
     if args.plot:
-        from isf_robot.cli.plot import sweep_figure
         from isf_robot.plots import save_figure
 
         fig, what = sweep_figure(doc)
