@@ -3,7 +3,7 @@
 A sweep is a list of :class:`SweepPoint` (a strategy and the filter parameters it overrides), run
 on every scene and seed. Every point of a scene runs on the same seeds (same initial configuration,
 goal jitter and obstacle phase per seed) with the same ``d_bar`` (resolved once per scene: flag,
-config or the tracking calibration). Episodes run through :func:`isf_robot.core.parallel.run_tasks`
+config or the tracking calibration). Episodes run through :func:`isf_robot.support.parallel.run_tasks`
 (local processes or Ray; Ctrl-C keeps what finished) and every result is a plain JSON-ready dict, so the
 same seeds give the same numbers whatever the number of workers.
 
@@ -32,9 +32,9 @@ from typing import Any
 import numpy as np
 
 from isf_robot.core import ConfigError
-from isf_robot.core.parallel import MAX_JOBS, Interrupted, check_backend, run_tasks
-from isf_robot.core.report import format_table
 from isf_robot.core.strategies import strategy_info
+from isf_robot.support.parallel import MAX_JOBS, Interrupted, check_backend, run_tasks
+from isf_robot.support.report import format_table
 
 from .compare import EpisodeTask, SceneSpec, json_safe, run_task
 from .params import resolve_params
@@ -213,7 +213,7 @@ def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: S
               address: str | None = None) -> dict[str, Any]:
     """Run every point on every scene and seed; return the JSON-ready sweep (see :func:`_summary`).
 
-    ``backend``/``address``: where the episodes run (:func:`isf_robot.core.parallel.run_tasks`:
+    ``backend``/``address``: where the episodes run (:func:`isf_robot.support.parallel.run_tasks`:
     local processes, or Ray); the numbers do not depend on it nor on ``jobs``.
 
     Raises:

@@ -17,9 +17,9 @@ from pathlib import Path
 from typing import Any
 
 from isf_robot.core.exceptions import ConfigError
-from isf_robot.core.report import format_value, to_jsonable, with_schema
 from isf_robot.core.strategies import strategy_info, strategy_names
 from isf_robot.record.options import add_recording_args, make_observer
+from isf_robot.support.report import format_value, to_jsonable, with_schema
 
 __all__ = ["register", "DEMO_SCENE"]
 
@@ -255,7 +255,7 @@ def _keep_partial(fn: Any) -> Any:
     """On Ctrl-C / SIGTERM, print the episodes that finished (marked partial), then re-raise."""
     import functools
 
-    from isf_robot.core.parallel import Interrupted
+    from isf_robot.support.parallel import Interrupted
 
     @functools.wraps(fn)
     def wrapper(args: argparse.Namespace) -> int:

@@ -58,7 +58,7 @@ def print_findings(findings: Any, file: Any = None) -> None:
 def _cmd_init(args: argparse.Namespace) -> int:
     from isf_robot.arm.starter import starter_toml
     from isf_robot.core.exceptions import ConfigError
-    from isf_robot.core.files import check_output_path, write_text_atomic
+    from isf_robot.support.files import check_output_path, write_text_atomic
 
     if args.output:
         out = check_output_path(args.output, "--output")

@@ -26,7 +26,7 @@ import rerun as rr
 
 from isf_robot import __version__
 from isf_robot.core.hooks import Observer
-from isf_robot.core.report import to_jsonable
+from isf_robot.support.report import to_jsonable
 
 from . import schema
 from .buffer import Channel, ColumnBuffer

@@ -10,7 +10,7 @@ beforehand that a viewer can start, so ``--spawn`` fails with one clear message 
 hanging or crashing in a headless session.
 
 A recording file is written as ``<name>.partial`` and renamed to ``<name>`` by
-:func:`close_stream` once the run has finished (:mod:`isf_robot.core.files`): a bad parameter,
+:func:`close_stream` once the run has finished (:mod:`isf_robot.support.files`): a bad parameter,
 a crash or Ctrl-C leaves an existing recording as it was, and what was recorded before the
 interruption under ``<name>.partial``.
 """
@@ -30,7 +30,7 @@ from urllib.parse import quote
 import rerun as rr
 
 from isf_robot.core.exceptions import ConfigError
-from isf_robot.core.files import check_output_path, commit_partial, partial_path
+from isf_robot.support.files import check_output_path, commit_partial, partial_path
 
 from .errors import RecordError, ViewerUnavailableError
 from .serve import (
