@@ -10,6 +10,7 @@ With ``--json`` stdout holds exactly one JSON object; progress goes to stderr.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import sys
@@ -17,8 +18,11 @@ from pathlib import Path
 from typing import Any
 
 from isf_robot.core.exceptions import ConfigError
+from isf_robot.core.hooks import Observers
+from isf_robot.core.jit import JIT_ENV
 from isf_robot.core.strategies import strategy_info, strategy_names
 from isf_robot.record.options import add_recording_args, make_observer
+from isf_robot.support.parallel import Interrupted
 from isf_robot.support.report import format_value, to_jsonable, with_schema
 
 __all__ = ["register", "DEMO_SCENE"]
@@ -202,8 +206,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
         check_display()
         observers.append(LiveViewer(speed=args.view_speed, show_collision=args.view_collision))
     if any(o is not None for o in observers):
-        from isf_robot.core.hooks import Observers
-
         sim.observers = Observers(observers)  # (drops None)
     d = to_jsonable(sim.run(args.duration).as_dict())
     if args.json:
@@ -253,9 +255,6 @@ def _print_comparison(comp: Any, as_json: bool) -> None:
 
 def _keep_partial(fn: Any) -> Any:
     """On Ctrl-C / SIGTERM, print the episodes that finished (marked partial), then re-raise."""
-    import functools
-
-    from isf_robot.support.parallel import Interrupted
 
     @functools.wraps(fn)
     def wrapper(args: argparse.Namespace) -> int:
@@ -299,7 +298,6 @@ DEMO_PLAIN_NOTICE = ("the fast kernels are not compiled for this machine yet, so
 def _cmd_demo(args: argparse.Namespace) -> int:
     from isf_robot.arm import kernels
     from isf_robot.arm.compare import SceneSpec, compare_strategies, format_table
-    from isf_robot.core.jit import JIT_ENV
 
     held, count = kernels.compiled_here()
     plain = bool(count) and not held  # (the first command after an install: the demo does not wait for the compiler)
