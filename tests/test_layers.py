@@ -1,4 +1,4 @@
-"""Layers point one way: ``cli -> {arm, satellite, record} -> core`` (README.md, "Project layout").
+"""Layers point one way: ``cli -> {arm, satellite, record, plots} -> {support, core}`` (README.md, "Project layout").
 
 Every import statement of every module is read (``ast``, relative imports resolved), so a
 function-local import counts as much as a top-level one.
