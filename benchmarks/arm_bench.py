@@ -59,7 +59,7 @@ from isf_robot.arm import sim as sim_module  # noqa: E402
 from isf_robot.arm.params import resolve_params  # noqa: E402
 from isf_robot.arm.sim import ArmSimulation  # noqa: E402
 from isf_robot.core import QPSolver  # noqa: E402
-from isf_robot.core.files import write_text_atomic  # noqa: E402
+from isf_robot.support.files import write_text_atomic  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 START, END = "<!-- arm-bench:start -->", "<!-- arm-bench:end -->"

@@ -30,8 +30,8 @@ from _common import cpu_model, write_section  # noqa: E402
 from isf_robot.arm import ArmSimulation, load_scene  # noqa: E402
 from isf_robot.arm.calibration_loop import calibrate_in_loop  # noqa: E402
 from isf_robot.arm.params import resolve_params  # noqa: E402
-from isf_robot.core.files import write_text_atomic  # noqa: E402
-from isf_robot.core.parallel import Interrupted, run_tasks  # noqa: E402
+from isf_robot.support.files import write_text_atomic  # noqa: E402
+from isf_robot.support.parallel import Interrupted, run_tasks  # noqa: E402
 
 START, END = "<!-- d_bar_loop:start -->", "<!-- d_bar_loop:end -->"
 

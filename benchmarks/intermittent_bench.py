@@ -27,7 +27,7 @@ from _common import cpu_model, write_section  # noqa: E402
 
 from isf_robot.arm import ArmSimulation, load_scene  # noqa: E402
 from isf_robot.arm.params import resolve_params  # noqa: E402
-from isf_robot.core.files import write_text_atomic  # noqa: E402
+from isf_robot.support.files import write_text_atomic  # noqa: E402
 
 START, END = "<!-- intermittent_bench:start -->", "<!-- intermittent_bench:end -->"
 OFF = {"blend": 0.0, "horizon": 0.0}

@@ -36,8 +36,8 @@ from _common import cpu_model, write_section  # noqa: E402
 
 from isf_robot.arm.compare import SceneSpec  # noqa: E402
 from isf_robot.arm.sweep import SweepPoint, format_sweep, run_sweep  # noqa: E402
-from isf_robot.core.files import write_text_atomic  # noqa: E402
-from isf_robot.core.report import with_schema  # noqa: E402
+from isf_robot.support.files import write_text_atomic  # noqa: E402
+from isf_robot.support.report import with_schema  # noqa: E402
 
 SCENES = ("panda_pole", "panda_shelf", "panda_moving", "panda_servo")
 

@@ -100,7 +100,7 @@ def bench(repeats: int, hours: float) -> str:
 
 
 def main() -> None:
-    from isf_robot.core.files import write_text_atomic
+    from isf_robot.support.files import write_text_atomic
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--repeats", type=int, default=2)

@@ -53,8 +53,8 @@ from isf_robot.arm.compare import json_safe  # noqa: E402
 from isf_robot.arm.episode import episode_setup  # noqa: E402
 from isf_robot.arm.params import resolve_params  # noqa: E402
 from isf_robot.core.exceptions import IsfError  # noqa: E402
-from isf_robot.core.files import write_text_atomic  # noqa: E402
-from isf_robot.core.parallel import Interrupted, Terminated, run_tasks  # noqa: E402
+from isf_robot.support.files import write_text_atomic  # noqa: E402
+from isf_robot.support.parallel import Interrupted, Terminated, run_tasks  # noqa: E402
 
 START, END = "<!-- stress_bench:start -->", "<!-- stress_bench:end -->"
 SCENES = ("panda_pole", "panda_shelf", "panda_moving", "panda_servo")

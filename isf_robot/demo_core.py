@@ -27,9 +27,9 @@ from .core import (
     lie_data,
 )
 from .core.exceptions import ConfigError
-from .core.report import format_table as report_table
-from .core.report import format_value, mean_std_cell
 from .core.strategies import make_strategy, strategy_info, strategy_names
+from .support.report import format_table as report_table
+from .support.report import format_value, mean_std_cell
 
 __all__ = ["DemoScene", "make_scene", "run_episode", "compare", "format_table", "MAX_STEPS"]
 

@@ -11,8 +11,8 @@ from collections.abc import Mapping
 from typing import Any, TextIO
 
 from isf_robot.core import ConfigError, Observer, UnknownNameError
-from isf_robot.core.report import with_schema
 from isf_robot.record.options import add_recording_args, make_observer
+from isf_robot.support.report import with_schema
 from satellite.arcs import IntegratorSettings
 from satellite.contact import CONTACT_MODES
 from satellite.controller import CONTROLLERS, ControlParams

@@ -10,9 +10,9 @@ from pathlib import Path
 from typing import Any
 
 from isf_robot.core import ConfigError
-from isf_robot.core.extras import install_hint
-from isf_robot.core.parallel import BACKENDS, MAX_JOBS, Interrupted, check_backend
-from isf_robot.core.report import with_schema
+from isf_robot.support.extras import install_hint
+from isf_robot.support.parallel import BACKENDS, MAX_JOBS, Interrupted, check_backend
+from isf_robot.support.report import with_schema
 from satellite.fields import DEFAULT_GRAVITY, GRAVITY_MODELS, load_field
 from satellite.study import STUDY_TRIGGERS, StudySettings, StudyTask, controllers, plan, run_study
 from satellite.study_stats import format_study
@@ -129,7 +129,7 @@ def _resumed(path: str, settings: StudySettings) -> list[dict[str, Any]]:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``isf-satellite study``; return the exit status."""
-    from isf_robot.core.files import check_output_path, write_text_atomic
+    from isf_robot.support.files import check_output_path, write_text_atomic
 
     if args.seeds < 1 or args.first_seed < 0:
         raise ConfigError(f"--seeds must be >= 1 and --first-seed >= 0, got {args.seeds} and {args.first_seed}")

@@ -1,4 +1,4 @@
-"""Safeguarding impulsive controller (paper, Section III-B; DESIGN.md section 4) and its margin.
+"""Safeguarding impulsive controller (the paper, Section III-C) and its margin (``c`` of Section III-A).
 
 At the current radius ``r`` the controller aims at the apsis ``r_t = 2R + 0.5 (r - 2R)``:
 

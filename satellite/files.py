@@ -5,6 +5,6 @@ The project's one implementation, :func:`isf_robot.core.files.write_text_atomic`
 
 from __future__ import annotations
 
-from isf_robot.core.files import write_text_atomic
+from isf_robot.support.files import write_text_atomic
 
 __all__ = ["write_text_atomic"]

@@ -39,8 +39,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from isf_robot.core.files import write_bytes_atomic
 from isf_robot.core.sums import vecmat
+from isf_robot.support.files import write_bytes_atomic
 from satellite.errors import GravityModelError
 from satellite.polyhedron import PolyhedronField
 

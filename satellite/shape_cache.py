@@ -149,7 +149,7 @@ def exact_samples(field: Any, points: NDArray[np.float64]) -> NDArray[np.float64
 
 
 def _write(path: Path, **arrays: Any) -> None:
-    from isf_robot.core.files import write_bytes_atomic
+    from isf_robot.support.files import write_bytes_atomic
 
     buf = io.BytesIO()
     np.savez_compressed(buf, **arrays)

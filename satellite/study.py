@@ -22,7 +22,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from isf_robot.core import ConfigError, UnknownNameError
-from isf_robot.core.parallel import Interrupted, run_tasks
+from isf_robot.support.parallel import Interrupted, run_tasks
 from satellite.controller import ControlParams
 from satellite.study_stats import paired_comparison, summarize_config
 

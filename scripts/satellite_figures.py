@@ -197,8 +197,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"differs: {line}")
         print("satellite figures data: " + ("differs" if diffs else "identical"))
         return 1 if diffs else 0
-    from isf_robot.core.files import write_text_atomic
     from isf_robot.plots.output import save_figure
+    from isf_robot.support.files import write_text_atomic
 
     FIGURES.mkdir(parents=True, exist_ok=True)
     for trig in ("greedy", "maneuver"):

@@ -1,4 +1,4 @@
-"""Layers point one way: ``cli -> {arm, satellite, record} -> core`` (DESIGN.md, section 1).
+"""Layers point one way: ``cli -> {arm, satellite, record, plots} -> {support, core}`` (README.md, "Project layout").
 
 Every import statement of every module is read (``ast``, relative imports resolved), so a
 function-local import counts as much as a top-level one.
@@ -17,8 +17,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 # package prefix of a module -> the project packages it must not import
 FORBIDDEN = {
-    "isf_robot.core": ("isf_robot.arm", "isf_robot.record", "isf_robot.cli", "satellite", "mujoco", "rerun",
-                       "scipy"),
+    "isf_robot.core": ("isf_robot.arm", "isf_robot.record", "isf_robot.cli", "isf_robot.plots", "isf_robot.support",
+                       "satellite", "mujoco", "rerun", "scipy"),
+    # pools, atomic files, report tables, install hints: beside the core, below every other layer
+    "isf_robot.support": ("isf_robot.arm", "isf_robot.record", "isf_robot.cli", "isf_robot.plots", "satellite",
+                          "mujoco", "rerun", "scipy"),
     "isf_robot.arm": ("isf_robot.record", "isf_robot.cli", "satellite", "rerun"),
     "isf_robot.record": ("isf_robot.arm", "isf_robot.cli", "satellite"),
     "satellite": ("isf_robot.arm", "isf_robot.record", "isf_robot.cli", "mujoco", "rerun"),

@@ -3,7 +3,7 @@
 The filter plans with ``q_dot = u + d``; ``d = q_dot - u`` is what the low-level controller
 (:func:`~isf_robot.arm.actuation.make_actuation`: computed torque for motors, integrated targets
 for position servos, ``ctrl = u`` for velocity servos) fails to track. Its bound is measured, not
-guessed (DESIGN.md, section 3):
+guessed (the paper takes the bound ``|d| <= d_bar`` as known, Section II):
 
 1. Copy the model and switch off contacts with the obstacles (``contype = conaffinity = 0``
    on the obstacle geoms), so that the arm moves freely through the scene.

@@ -30,11 +30,14 @@ from dataclasses import dataclass
 from typing import Any
 
 from isf_robot.core.exceptions import ConfigError
+from isf_robot.core.strategies import strategy_info
 
+from .calibration import _key
 from .records import FilterParams
 from .scene import Scene
+from .sim import ArmSimulation
 
-__all__ = ["LoopCalibration", "calibrate_in_loop"]
+__all__ = ["LoopCalibration", "calibrate_in_loop", "loop_params"]
 
 
 @dataclass(frozen=True)
@@ -103,11 +106,6 @@ def calibrate_in_loop(
         ConfigError: Bad arguments, or a strategy that never filters.
 
     """
-    from isf_robot.core.strategies import strategy_info
-
-    from .calibration import _key
-    from .sim import ArmSimulation
-
     info = strategy_info(strategy)  # an unknown name raises ConfigError naming the valid ones
     if not info.filters:
         raise ConfigError(f"calibrating d_bar in the loop needs a filtering strategy, not {strategy!r}")
@@ -145,3 +143,13 @@ def calibrate_in_loop(
     if use_cache:
         _CACHE[key] = cal
     return cal
+
+
+def loop_params(scene: Scene, strategy: str, params: FilterParams, **kwargs: Any) -> FilterParams:
+    """``params`` with ``d_bar`` from :func:`calibrate_in_loop` (``d_bar_source`` gets ``"+loop"``).
+
+    What ``isf-robot run --d-bar-in-loop`` does after resolving the parameters
+    (:func:`~isf_robot.arm.params.resolve_params`); ``kwargs`` go to :func:`calibrate_in_loop`.
+    """
+    cal = calibrate_in_loop(scene, strategy, params, **kwargs)
+    return dataclasses.replace(params, d_bar=cal.d_bar, d_bar_source=f"{params.d_bar_source}+loop")

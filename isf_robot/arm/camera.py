@@ -18,6 +18,9 @@ import numpy as np
 
 from isf_robot.core import ConfigError
 
+# mujoco is imported inside the functions: `isf-robot render` loads this module before render.select_gl sets
+# MUJOCO_GL, which MuJoCo reads once, at its first import
+
 __all__ = ["View", "parse_lookat", "camera_id", "framed_points", "fit_camera", "frame_workspace",
            "DEFAULT_AZIMUTH", "DEFAULT_ELEVATION", "GOAL_ROOM", "FIT_MARGIN"]
 

@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 
 from isf_robot.core import ConfigError
-from isf_robot.core.parallel import MAX_JOBS, Interrupted, run_tasks
-from isf_robot.core.report import format_table as _table
-from isf_robot.core.report import mean_std_cell, to_jsonable
 from isf_robot.core.strategies import strategy_info, strategy_names
+from isf_robot.support.parallel import MAX_JOBS, Interrupted, run_tasks
+from isf_robot.support.report import format_table as _table
+from isf_robot.support.report import mean_std_cell, to_jsonable
 
 from .params import resolve_params
 from .records import FilterParams
@@ -119,7 +119,7 @@ def run_task(task: EpisodeTask) -> dict[str, Any]:
 
 
 json_safe = to_jsonable
-"""JSON-ready values with non-finite floats as ``None`` (:func:`isf_robot.core.report.to_jsonable`)."""
+"""JSON-ready values with non-finite floats as ``None`` (:func:`isf_robot.support.report.to_jsonable`)."""
 
 
 def _stats(values: Sequence[Any]) -> tuple[float | None, float | None, int]:

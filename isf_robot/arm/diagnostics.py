@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .actuation import actuator_info
-from .calibration import Calibration
+from .actuation import actuator_info, speed_bound
+from .calibration import Calibration, calibrate_d_bar
 from .pairs import collision_pairs
 from .records import FilterParams
 from .scene import Scene
@@ -138,8 +138,6 @@ def speed_bounds(scene: Scene) -> tuple[np.ndarray, list[str]]:
     ``max_joint_speed`` to), a servo on an undamped joint gets the largest velocity step it answers within
     its force range: what ``isf-robot init`` bases its suggestion on.
     """
-    from .actuation import speed_bound
-
     _, grav = joint_speed_limits(scene)
     out, rules = np.full(scene.n_joints, np.inf), []
     for i, a in enumerate(scene.actuator_ids):
@@ -371,7 +369,5 @@ def run_findings(scene: Scene, params: FilterParams) -> list[Finding]:
     """
     out = check_scene(scene)
     if params.d_bar_source == "calibration":
-        from .calibration import calibrate_d_bar
-
         return out + check_calibration(scene, calibrate_d_bar(scene), params.d_bar)
     return out + _d_bar(scene, params.d_bar)

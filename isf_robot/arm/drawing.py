@@ -17,6 +17,9 @@ from typing import Any
 
 import numpy as np
 
+# mujoco is imported inside the functions: `isf-robot render` loads this module before render.select_gl sets
+# MUJOCO_GL, which MuJoCo reads once, at its first import
+
 __all__ = ["drawing_model", "hidden_collision_geoms", "drawn", "robot_drawn_geoms", "SKY_TOP", "SKY_BOTTOM"]
 
 SKY_TOP = (0.42, 0.62, 0.85)

@@ -1,8 +1,9 @@
 """Nominal controllers: the task the safety filter protects.
 
 Both controllers output a commanded joint velocity ``u_nom`` (shape (n,), [rad/s]) for the
-reduced-order model ``q_dot = u + d`` (DESIGN.md, section 3). They read the current state
-from ``MjData`` and need its kinematics up to date (``mj_step1`` / ``mj_kinematics`` done).
+reduced-order model ``q_dot = u + d`` (the paper's ``x_dot = f(x, u) + d``, Section II, with ``x = q`` and
+``f(x, u) = u``). They read the current state from ``MjData`` and need its kinematics up to date
+(``mj_step1`` / ``mj_kinematics`` done).
 
 * :class:`ReachingController`: task-space reaching through a sequence of end-effector goals,
   ``v = kp (p_goal - p_ee)`` (speed capped at ``max_ee_speed``), mapped to joint space with the

@@ -4,20 +4,23 @@
 :func:`resolve_params` takes it from the caller, else from the scene config, else from the
 tracking calibration (:func:`isf_robot.arm.calibration.calibrate_d_bar`, about 4 s per scene,
 cached per process). The simulation never calibrates behind the caller's back: the command line
-and :func:`isf_robot.arm.run_episode` call this function, and a script may too.
+and :func:`isf_robot.arm.run_episode` call this function, and a script may too. Raising ``d_bar``
+with the filter in the loop is a step after this one (:func:`isf_robot.arm.calibration_loop.loop_params`,
+which runs simulations).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from isf_robot.core import ClassK, ConfigError, Linear
 
+from .calibration import calibrate_d_bar
 from .records import FilterParams
+from .rollout import NominalRollout
 from .scene import Scene
 
 __all__ = ["resolve_params", "filter_options"]
@@ -44,7 +47,6 @@ def resolve_params(
     horizon: float | None = None,
     predict_every: int | None = None,
     c_pred: float | None = None,
-    in_loop: str | None = None,
 ) -> FilterParams:
     """The filter parameters of a run on ``scene``: arguments first, then ``[filter]`` of the config.
 
@@ -63,10 +65,6 @@ def resolve_params(
         predict_every: Control steps between its rollouts (``None``: 5).
         c_pred: Off margin when the rollout predicts the nominal safe over the horizon (``0 < c_pred <= c``);
             default ``[filter] c_pred`` (0: none, the prediction only delays the off switch at ``c``).
-        in_loop: A strategy name: raise ``d_bar`` (from whatever source above) until the tracking error
-            that strategy produces in the loop is covered
-            (:func:`~isf_robot.arm.calibration_loop.calibrate_in_loop`, a few episodes); ``d_bar_source``
-            gets ``"+loop"``.
 
     Raises:
         ConfigError: A parameter is not a positive number (``d_bar``: not >= 0), or ``d_bar``
@@ -104,15 +102,8 @@ def resolve_params(
             f"scene {scene.name!r} has no d_bar ([filter] d_bar = 0): pass d_bar=, or "
             "params=resolve_params(scene) (runs the tracking calibration, about 4 s)")
     else:
-        from .calibration import calibrate_d_bar
-
         p = FilterParams(a, cc, bb, calibrate_d_bar(scene).d_bar, "calibration", **opts)
-    if in_loop is None:
-        return p
-    from .calibration_loop import calibrate_in_loop
-
-    cal = calibrate_in_loop(scene, in_loop, p)
-    return replace(p, d_bar=cal.d_bar, d_bar_source=f"{p.d_bar_source}+loop")
+    return p
 
 
 def _options(c: float, min_off: float | None, c_max: float | None, blend: float | None,
@@ -154,7 +145,5 @@ def filter_options(sim: Any) -> dict[str, Any]:
         cutoff_h = float(np.min(sim.coll.cutoff - sim.coll.pairs.margin))
         out["c_max"] = max(p.c, min(p.c_max, p.class_k(cutoff_h)))
     if p.horizon > 0:
-        from .rollout import NominalRollout
-
         out["rollout"] = NominalRollout(sim, p.horizon)
     return out

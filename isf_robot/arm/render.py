@@ -33,8 +33,8 @@ from typing import Any
 import numpy as np
 
 from isf_robot.core import ConfigError, Observer
-from isf_robot.core.extras import install_hint
-from isf_robot.core.files import check_output_path, commit_partial, partial_path
+from isf_robot.support.extras import install_hint
+from isf_robot.support.files import check_output_path, commit_partial, partial_path
 
 from .camera import View, camera_id, frame_workspace
 from .drawing import drawing_model, drawn, robot_drawn_geoms

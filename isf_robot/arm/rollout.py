@@ -2,8 +2,9 @@
 
 The intermittent filter's predictive off trigger (:class:`~isf_robot.core.intermittent.OffPredictor`)
 asks, before switching off, what the nominal controller would do alone: :class:`NominalRollout`
-integrates the reduced model ``q_dot = u_nom(t, q)`` (DESIGN.md, section 3) by explicit Euler from
-the episode's current joint positions, moves the moving obstacles along their paths, and returns
+integrates the reduced model ``q_dot = u_nom(t, q)`` (the paper's ``x_dot = f(x, u) + d`` of Section II with
+``x = q``, ``f(x, u) = u`` and ``d = 0``) by explicit Euler from the episode's current joint positions,
+moves the moving obstacles along their paths, and returns
 the barrier rows (the collision pairs within the cut-off and the joint limits, as the simulation
 builds them) with the nominal command at each predicted point. The core computes ``Xi_on`` at
 those points with the filter's own ``alpha`` and ``d_bar``.

@@ -3,7 +3,7 @@
 A sweep is a list of :class:`SweepPoint` (a strategy and the filter parameters it overrides), run
 on every scene and seed. Every point of a scene runs on the same seeds (same initial configuration,
 goal jitter and obstacle phase per seed) with the same ``d_bar`` (resolved once per scene: flag,
-config or the tracking calibration). Episodes run through :func:`isf_robot.core.parallel.run_tasks`
+config or the tracking calibration). Episodes run through :func:`isf_robot.support.parallel.run_tasks`
 (local processes or Ray; Ctrl-C keeps what finished) and every result is a plain JSON-ready dict, so the
 same seeds give the same numbers whatever the number of workers.
 
@@ -32,13 +32,14 @@ from typing import Any
 import numpy as np
 
 from isf_robot.core import ConfigError
-from isf_robot.core.parallel import MAX_JOBS, Interrupted, check_backend, run_tasks
-from isf_robot.core.report import format_table
 from isf_robot.core.strategies import strategy_info
+from isf_robot.support.parallel import MAX_JOBS, Interrupted, check_backend, run_tasks
+from isf_robot.support.report import format_table
 
 from .compare import EpisodeTask, SceneSpec, json_safe, run_task
 from .params import resolve_params
 from .records import FilterParams
+from .sim import ArmSimulation
 
 __all__ = ["SweepPoint", "SweepTask", "grid_points", "random_points", "run_sweep", "summarize_point",
            "pareto_front", "goals_time", "format_sweep", "PARAMETERS", "OBJECTIVES", "MAX_SWEEP_EPISODES"]
@@ -212,7 +213,7 @@ def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: S
               address: str | None = None) -> dict[str, Any]:
     """Run every point on every scene and seed; return the JSON-ready sweep (see :func:`_summary`).
 
-    ``backend``/``address``: where the episodes run (:func:`isf_robot.core.parallel.run_tasks`:
+    ``backend``/``address``: where the episodes run (:func:`isf_robot.support.parallel.run_tasks`:
     local processes, or Ray); the numbers do not depend on it nor on ``jobs``.
 
     Raises:
@@ -230,8 +231,6 @@ def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: S
     if n > MAX_SWEEP_EPISODES:
         raise ConfigError(f"{n} episodes asked for; at most {MAX_SWEEP_EPISODES} per sweep")
     check_backend(backend, address)  # a missing Ray extra is said before any episode runs
-    from .sim import ArmSimulation
-
     tasks: list[SweepTask] = []
     names: list[tuple[str, int]] = []
     for i, spec in enumerate(specs):

@@ -10,6 +10,7 @@ With ``--json`` stdout holds exactly one JSON object; progress goes to stderr.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import sys
@@ -17,9 +18,12 @@ from pathlib import Path
 from typing import Any
 
 from isf_robot.core.exceptions import ConfigError
-from isf_robot.core.report import format_value, to_jsonable, with_schema
+from isf_robot.core.hooks import Observers
+from isf_robot.core.jit import JIT_ENV
 from isf_robot.core.strategies import strategy_info, strategy_names
 from isf_robot.record.options import add_recording_args, make_observer
+from isf_robot.support.parallel import Interrupted
+from isf_robot.support.report import format_value, to_jsonable, with_schema
 
 __all__ = ["register", "DEMO_SCENE"]
 
@@ -76,12 +80,14 @@ def _intermittent_kwargs(args: argparse.Namespace) -> dict[str, Any]:
 
 def _params(args: argparse.Namespace, scene: Any) -> dict[str, Any]:
     """ArmSimulation keyword arguments from the flags, the filter parameters resolved once."""
+    from isf_robot.arm.calibration_loop import loop_params
     from isf_robot.arm.diagnostics import run_findings
     from isf_robot.arm.params import resolve_params
 
-    in_loop = args.filter if getattr(args, "d_bar_in_loop", False) else None
-    out: dict[str, Any] = {"params": resolve_params(
-        scene, args.alpha, args.c, args.b, args.d_bar, in_loop=in_loop, **_intermittent_kwargs(args))}
+    params = resolve_params(scene, args.alpha, args.c, args.b, args.d_bar, **_intermittent_kwargs(args))
+    if getattr(args, "d_bar_in_loop", False):
+        params = loop_params(scene, args.filter, params)
+    out: dict[str, Any] = {"params": params}
     for f in run_findings(scene, out["params"]):  # what `isf-robot check` reports, before the run
         print(f"warning [{f.code}]: {f.message}", file=sys.stderr)
     if getattr(args, "control_period", None) is not None:
@@ -200,8 +206,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
         check_display()
         observers.append(LiveViewer(speed=args.view_speed, show_collision=args.view_collision))
     if any(o is not None for o in observers):
-        from isf_robot.core.hooks import Observers
-
         sim.observers = Observers(observers)  # (drops None)
     d = to_jsonable(sim.run(args.duration).as_dict())
     if args.json:
@@ -251,9 +255,6 @@ def _print_comparison(comp: Any, as_json: bool) -> None:
 
 def _keep_partial(fn: Any) -> Any:
     """On Ctrl-C / SIGTERM, print the episodes that finished (marked partial), then re-raise."""
-    import functools
-
-    from isf_robot.core.parallel import Interrupted
 
     @functools.wraps(fn)
     def wrapper(args: argparse.Namespace) -> int:
@@ -297,7 +298,6 @@ DEMO_PLAIN_NOTICE = ("the fast kernels are not compiled for this machine yet, so
 def _cmd_demo(args: argparse.Namespace) -> int:
     from isf_robot.arm import kernels
     from isf_robot.arm.compare import SceneSpec, compare_strategies, format_table
-    from isf_robot.core.jit import JIT_ENV
 
     held, count = kernels.compiled_here()
     plain = bool(count) and not held  # (the first command after an install: the demo does not wait for the compiler)

@@ -9,7 +9,7 @@ import sys
 from typing import Any
 
 from isf_robot.core.exceptions import ConfigError
-from isf_robot.core.report import with_schema
+from isf_robot.support.report import with_schema
 
 __all__ = ["register", "add_arguments", "handle"]
 

@@ -7,10 +7,10 @@ Every subcommand handler runs through :func:`run_handler`:
   ``<prog> <command>: error: <message>`` (multi-line messages, e.g. MuJoCo's XML parser's, are
   joined), and exits with status 2, the status argparse uses for bad arguments;
 * Ctrl-C (:class:`KeyboardInterrupt`) prints ``<prog> <command>: interrupted`` and exits 130;
-  SIGTERM is turned into :class:`~isf_robot.core.parallel.Terminated` while a handler runs, so
+  SIGTERM is turned into :class:`~isf_robot.support.parallel.Terminated` while a handler runs, so
   the same clean-up happens (workers stopped, partial results printed) and the exit status is
   143. Handlers print what finished before re-raising
-  (:class:`~isf_robot.core.parallel.Interrupted` carries it);
+  (:class:`~isf_robot.support.parallel.Interrupted` carries it);
 * a closed stdout (``... | head``) is not an error of ours: exit 0 quietly.
 
 Anything else is a bug and keeps its traceback.
@@ -27,7 +27,7 @@ from typing import Any, NoReturn
 
 from isf_robot.core.exceptions import IsfError
 from isf_robot.core.jit import announce_compiles, end_notice
-from isf_robot.core.parallel import Interrupted, Terminated
+from isf_robot.support.parallel import Interrupted, Terminated
 
 __all__ = ["EXIT_USAGE", "EXIT_INTERRUPTED", "EXIT_TERMINATED", "run_handler", "parse_command", "one_line",
            "OneLineParser"]

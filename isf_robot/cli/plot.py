@@ -19,10 +19,13 @@ matplotlib is the optional ``plots`` extra; without it the command says which ex
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from isf_robot.core import ConfigError
 
@@ -97,8 +100,6 @@ def _recordings(args: argparse.Namespace) -> tuple[Any, str]:
 
 
 def _json(path: Path) -> tuple[Any, str]:
-    import json
-
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
@@ -118,10 +119,6 @@ def sweep_figure(doc: Any) -> tuple[Any, str]:
 
 
 def _tau(path: Path) -> tuple[Any, str]:
-    import json
-
-    import numpy as np
-
     from isf_robot.plots import TauSamples, tau_figure
     from satellite.model import BAND_CENTRE, BAND_INNER, BAND_OUTER
     from satellite.tau import load_tau

@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from isf_robot.cli.arm import _add_filter_args, _add_scene_args, _check_seed, _params, _spec
 from isf_robot.core.strategies import strategy_names
 
 __all__ = ["register", "handle"]
@@ -22,8 +23,6 @@ __all__ = ["register", "handle"]
 
 def register(sub: Any) -> None:
     """Register ``render`` on the ``isf-robot`` subparsers."""
-    from isf_robot.cli.arm import _add_filter_args, _add_scene_args
-
     p = sub.add_parser(
         "render", help="render an arm run offscreen to a GIF, MP4 or PNG",
         description="Simulate one episode (as `isf-robot run`) and render it offscreen with MuJoCo: "
@@ -61,8 +60,6 @@ def register(sub: Any) -> None:
 
 def handle(args: argparse.Namespace) -> int:
     """Check the output, choose the GL backend, simulate with a VideoRecorder, report."""
-    from isf_robot.cli.arm import _check_seed, _params, _spec
-
     _check_seed(args)
     from isf_robot.arm.camera import View, camera_id, parse_lookat
     from isf_robot.arm.render import VideoRecorder

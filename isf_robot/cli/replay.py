@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from isf_robot.core.report import format_value, with_schema
+from isf_robot.support.report import format_value, with_schema
 
 __all__ = ["register", "handle", "add_arguments", "describe_recording"]
 

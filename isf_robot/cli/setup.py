@@ -18,6 +18,9 @@ import argparse
 import sys
 from typing import Any
 
+from isf_robot.core.exceptions import ConfigError, IsfError
+from isf_robot.support.files import check_output_path, write_text_atomic
+
 from .arm import _add_scene_args, _spec
 
 __all__ = ["register", "print_findings"]
@@ -57,8 +60,6 @@ def print_findings(findings: Any, file: Any = None) -> None:
 
 def _cmd_init(args: argparse.Namespace) -> int:
     from isf_robot.arm.starter import starter_toml
-    from isf_robot.core.exceptions import ConfigError
-    from isf_robot.core.files import check_output_path, write_text_atomic
 
     if args.output:
         out = check_output_path(args.output, "--output")
@@ -105,7 +106,6 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 def _kinds(scene: Any) -> list[str]:
     from isf_robot.arm.actuation import actuator_info
-    from isf_robot.core.exceptions import IsfError
 
     out = []
     for j, a in zip(scene.joint_names, scene.actuator_ids):

@@ -16,11 +16,13 @@ import json
 import sys
 from typing import Any
 
+from isf_robot.cli.plot import sweep_figure
 from isf_robot.core.exceptions import ConfigError
-from isf_robot.core.extras import install_hint
-from isf_robot.core.parallel import BACKENDS, check_backend
-from isf_robot.core.report import with_schema
 from isf_robot.core.strategies import strategy_names
+from isf_robot.support.extras import install_hint
+from isf_robot.support.files import check_output_path, write_text_atomic
+from isf_robot.support.parallel import BACKENDS, Interrupted, check_backend
+from isf_robot.support.report import with_schema
 
 __all__ = ["register"]
 
@@ -98,14 +100,12 @@ def _points(args: argparse.Namespace) -> list[Any]:
 
 def _emit(args: argparse.Namespace, sweep: dict[str, Any]) -> None:
     from isf_robot.arm.sweep import format_sweep
-    from isf_robot.core.files import write_text_atomic
 
     doc = with_schema("isf-robot-sweep", sweep)
     if args.output:
         write_text_atomic(args.output, json.dumps(doc, indent=1) + "\n")
         print(f"sweep written to {args.output}", file=sys.stderr)
     if args.plot:
-        from isf_robot.cli.plot import sweep_figure
         from isf_robot.plots import save_figure
 
         fig, what = sweep_figure(doc)
@@ -117,8 +117,6 @@ def _emit(args: argparse.Namespace, sweep: dict[str, Any]) -> None:
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from isf_robot.arm.compare import SceneSpec
     from isf_robot.arm.sweep import run_sweep
-    from isf_robot.core.files import check_output_path
-    from isf_robot.core.parallel import Interrupted
 
     if args.episodes < 1 or args.seed < 0:
         raise ConfigError(f"--episodes must be >= 1 and --seed >= 0, got {args.episodes} and {args.seed}")

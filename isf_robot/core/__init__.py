@@ -25,7 +25,6 @@ _EXPORTS: dict[str, str] = {
     "min_interval": "miet", "MietRate": "miet", "estimate_miet_rate": "miet",
     "FilterQP": "qp", "QPResult": "qp", "build_filter_qp": "qp", "project_halfspace": "qp",
     "QPSolver": "qp_solver", "BACKENDS": "qp_solver",
-    "to_jsonable": "report", "format_table": "report", "format_value": "report", "mean_std_cell": "report",
     "StrategyInfo": "strategies", "NominalStrategy": "strategies", "register_strategy": "strategies",
     "strategy_names": "strategies", "strategy_info": "strategies", "make_strategy": "strategies",
     "SwitchEvent": "switches", "SwitchCounter": "switches",

@@ -7,8 +7,8 @@ from pathlib import Path
 from typing import Any
 
 from isf_robot.core import ConfigError
-from isf_robot.core.extras import install_hint
-from isf_robot.core.files import check_output_path, write_bytes_atomic
+from isf_robot.support.extras import install_hint
+from isf_robot.support.files import check_output_path, write_bytes_atomic
 
 __all__ = ["PlotsUnavailableError", "require_matplotlib", "new_figure", "save_figure", "check_figure_path", "FORMATS"]
 

@@ -22,8 +22,7 @@ Names load on first use, so importing this package (as the CLI does to register
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from isf_robot._exports import lazy_exports
 
 _EXPORTS: dict[str, str] = {
     "TIMELINE": "buffer", "Channel": "buffer", "ColumnBuffer": "buffer", "RaggedChannel": "buffer",
@@ -38,17 +37,4 @@ _EXPORTS: dict[str, str] = {
     "close_stream": "stream", "find_viewer": "stream", "open_stream": "stream",
 }
 
-__all__ = sorted(_EXPORTS)
-
-
-def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module 'isf_robot.record' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+__all__, __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())

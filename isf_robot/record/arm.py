@@ -39,6 +39,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
+import mujoco
 import numpy as np
 import rerun as rr
 
@@ -136,8 +137,6 @@ class ArmRecorder(RerunRecorder):
 
     def versions(self) -> dict[str, str]:
         """isf_robot, rerun and MuJoCo versions."""
-        import mujoco
-
         return {**super().versions(), "mujoco": str(mujoco.__version__)}
 
     def make_step_channel(self) -> Channel | None:

@@ -26,18 +26,12 @@ from typing import Any
 from isf_robot.core.hooks import Observer
 
 from .errors import RecordError
+from .serve import DEFAULT_BIND, DEFAULT_CONNECT, GRPC_PORT, WEB_PORT, check_bind
 
 __all__ = [
     "add_recording_args", "make_observer", "open_recorder", "recording_path", "run_name", "PerRunRecorder",
     "APPLICATION_IDS",
 ]
-
-DEFAULT_CONNECT = "rerun+http://127.0.0.1:9876/proxy"
-"""Where ``--connect`` streams without an address: a viewer started with ``rerun`` on this machine."""
-GRPC_PORT = 9876
-"""Port of the gRPC server of ``--serve-web``."""
-WEB_PORT = 9090
-"""Port of the web viewer's page of ``--serve-web``."""
 
 APPLICATION_IDS = {"arm": "isf_robot_arm", "satellite": "isf_robot_satellite", "generic": "isf_robot"}
 """Rerun application id per recording kind."""
@@ -129,7 +123,7 @@ def make_observer(args: argparse.Namespace, kind: str, *, name: str | None = Non
     if kind not in APPLICATION_IDS:
         raise RecordError(f"unknown recording kind {kind!r}; valid kinds: {', '.join(sorted(APPLICATION_IDS))}")
     if spawn:
-        from .stream import find_viewer
+        from .stream import find_viewer  # (imports rerun: see open_recorder)
 
         find_viewer()  # fail before simulating
     if getattr(args, "rrd_per_run", False):
@@ -142,8 +136,6 @@ def make_observer(args: argparse.Namespace, kind: str, *, name: str | None = Non
 
 def _serve_options(args: argparse.Namespace, serve_web: bool) -> dict[str, Any]:
     """``bind``, ``web_port``, ``grpc_port`` of ``--serve-web``, checked; they need ``--serve-web``."""
-    from .serve import DEFAULT_BIND, check_bind
-
     given = {k: getattr(args, k, None) for k in ("bind", "web_port", "grpc_port")}
     named = [f"--{k.replace('_', '-')}" for k, v in given.items() if v is not None]
     if named and not serve_web:
@@ -176,6 +168,8 @@ def open_recorder(kind: str, path: Path | None, *, spawn: bool = False, name: st
         **context: Recorder arguments (see :func:`make_observer`).
 
     """
+    # (the stream and the recorders import rerun, and the arm's mujoco: loaded when a recording opens, not when
+    # a command adds its options)
     from .blueprints import blueprint_for
     from .stream import open_stream
 

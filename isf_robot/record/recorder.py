@@ -21,10 +21,12 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+import pyarrow as pa
 import rerun as rr
 
+from isf_robot import __version__
 from isf_robot.core.hooks import Observer
-from isf_robot.core.report import to_jsonable
+from isf_robot.support.report import to_jsonable
 
 from . import schema
 from .buffer import Channel, ColumnBuffer
@@ -40,8 +42,6 @@ def value_columns(**fields: np.ndarray) -> Any:
     The same columns as ``rr.AnyValues.columns(**fields)`` (a list of one value per row), built as
     Arrow list arrays in one go: Rerun's own conversion makes a Python list per value.
     """
-    import pyarrow as pa
-
     out = {}
     for name, values in fields.items():
         v = np.ascontiguousarray(values).reshape(-1)
@@ -138,8 +138,6 @@ class RerunRecorder(Observer):
     # -- observer hooks ------------------------------------------------------------------
     def versions(self) -> dict[str, str]:
         """Versions stored with the recording: isf_robot and rerun (subclasses add their engine)."""
-        from isf_robot import __version__
-
         return {"isf_robot": __version__, "rerun": str(rr.__version__)}
 
     def on_start(self, info: Mapping[str, Any]) -> None:

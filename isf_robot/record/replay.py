@@ -25,8 +25,8 @@ import pyarrow as pa
 from rerun.chunk import RrdReader
 
 from isf_robot.core.metrics import compute_metrics
-from isf_robot.core.report import format_table as report_table
-from isf_robot.core.report import format_value
+from isf_robot.support.report import format_table as report_table
+from isf_robot.support.report import format_value
 
 from . import schema
 from .columns import _check_file, _damaged, read_columns

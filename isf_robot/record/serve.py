@@ -1,4 +1,4 @@
-"""Where ``--serve-web`` listens: the bind address, and the web viewer's page served by Rerun's CLI.
+"""Viewer addresses: where ``--serve-web`` listens (bind address, ports, the page) and ``--connect`` streams.
 
 ``--serve-web`` needs two servers: the recording's gRPC server (a
 :class:`rerun.GrpcServerSink`, which takes a bind address) and the web viewer's page. The
@@ -29,11 +29,17 @@ from pathlib import Path
 
 from .errors import RecordError
 
-__all__ = ["DEFAULT_BIND", "check_bind", "check_port_free", "connect_host", "rerun_binary", "rerun_executable",
-           "WebViewerServer"]
+__all__ = ["DEFAULT_BIND", "DEFAULT_CONNECT", "GRPC_PORT", "WEB_PORT", "check_bind", "check_port_free", "connect_host",
+           "rerun_binary", "rerun_executable", "WebViewerServer"]
 
 DEFAULT_BIND = "127.0.0.1"
 """Address ``--serve-web`` listens on without ``--bind``: this machine only."""
+GRPC_PORT = 9876
+"""Port of the gRPC server of ``--serve-web``."""
+WEB_PORT = 9090
+"""Port of the web viewer's page of ``--serve-web``."""
+DEFAULT_CONNECT = "rerun+http://127.0.0.1:9876/proxy"
+"""Where ``--connect`` streams without an address: a viewer started with ``rerun`` on this machine."""
 START_TIMEOUT_S = 20.0
 """How long the web viewer's server may take to listen."""
 

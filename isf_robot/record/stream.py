@@ -10,7 +10,7 @@ beforehand that a viewer can start, so ``--spawn`` fails with one clear message 
 hanging or crashing in a headless session.
 
 A recording file is written as ``<name>.partial`` and renamed to ``<name>`` by
-:func:`close_stream` once the run has finished (:mod:`isf_robot.core.files`): a bad parameter,
+:func:`close_stream` once the run has finished (:mod:`isf_robot.support.files`): a bad parameter,
 a crash or Ctrl-C leaves an existing recording as it was, and what was recorded before the
 interruption under ``<name>.partial``.
 """
@@ -30,14 +30,22 @@ from urllib.parse import quote
 import rerun as rr
 
 from isf_robot.core.exceptions import ConfigError
-from isf_robot.core.files import check_output_path, commit_partial, partial_path
+from isf_robot.support.files import check_output_path, commit_partial, partial_path
 
 from .errors import RecordError, ViewerUnavailableError
-from .options import DEFAULT_CONNECT, GRPC_PORT, WEB_PORT
-from .serve import DEFAULT_BIND, WebViewerServer, check_bind, check_port_free, connect_host, rerun_executable
+from .serve import (
+    DEFAULT_BIND,
+    DEFAULT_CONNECT,
+    GRPC_PORT,
+    WEB_PORT,
+    WebViewerServer,
+    check_bind,
+    check_port_free,
+    connect_host,
+    rerun_executable,
+)
 
-__all__ = ["find_viewer", "open_stream", "close_stream", "stream_path", "wait_while_serving", "DEFAULT_CONNECT",
-           "GRPC_PORT", "WEB_PORT"]
+__all__ = ["find_viewer", "open_stream", "close_stream", "stream_path", "wait_while_serving"]
 
 # id(stream) -> the .rrd path its .partial file is renamed to when the stream is closed
 _TARGETS: dict[int, Path] = {}

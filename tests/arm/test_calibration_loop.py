@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 
-from isf_robot.arm import ArmSimulation
-from isf_robot.arm.calibration_loop import calibrate_in_loop
+from isf_robot.arm import ArmSimulation, calibration_loop
+from isf_robot.arm.calibration_loop import calibrate_in_loop, loop_params
 from isf_robot.arm.params import resolve_params
 from isf_robot.core import ConfigError
 
@@ -31,6 +33,14 @@ def test_a_covering_d_bar_is_kept(planar):
     cal = calibrate_in_loop(planar, "cbf", p, **KW)
     assert cal.covered and cal.d_bar == 0.05 and len(cal.rounds) == 1 and cal.rounds[0][1] <= 0.05
     assert cal.as_dict()["strategy"] == "cbf"
+
+
+def test_loop_params_take_the_loop_s_d_bar_and_say_so(planar):
+    p = resolve_params(planar, d_bar=1e-4, blend=0.0)
+    q = loop_params(planar, "cbf", p, seeds=(0,), duration=1.0, max_rounds=2)
+    cal = calibrate_in_loop(planar, "cbf", p, seeds=(0,), duration=1.0, max_rounds=2)  # (the cached result)
+    assert q.d_bar == cal.d_bar > p.d_bar and q.d_bar_source == "argument+loop"
+    assert dataclasses.replace(q, d_bar=p.d_bar, d_bar_source=p.d_bar_source) == p  # nothing else changed
 
 
 def test_bad_in_loop_arguments_are_refused(planar):
@@ -65,9 +75,8 @@ class _FakeSim:
 
 @pytest.mark.parametrize("law, settles", [(lambda d: 0.05 + 0.2 * d, True), (lambda d: 0.1 + 2.0 * d, False)])
 def test_known_answers_settling_and_a_diverging_error(planar, monkeypatch, law, settles):
-    import isf_robot.arm.sim as sim_mod
-
-    monkeypatch.setattr(sim_mod, "ArmSimulation", _FakeSim)
+    monkeypatch.setattr(calibration_loop, "ArmSimulation", _FakeSim)
+    _FakeSim.calls = []
     monkeypatch.setattr(_FakeSim, "law", staticmethod(law))
     p = resolve_params(planar, d_bar=0.01)
     cal = calibrate_in_loop(planar, "isf", p, seeds=(0,), duration=1.0, factor=1.25, max_rounds=6, use_cache=False)
@@ -78,3 +87,5 @@ def test_known_answers_settling_and_a_diverging_error(planar, monkeypatch, law, 
     else:  # 0.12 -> d = 0.15 -> error 0.4 > 0.12 grew: stop, keep the starting d_bar, not covered
         assert cal.diverged and not cal.covered and len(cal.rounds) == 2
         assert cal.d_bar == 0.01
+        assert [e for _, e in cal.rounds] == pytest.approx([0.12, 0.4])
+    assert _FakeSim.calls == [d for d, _ in cal.rounds]  # the stand-in ran every round

@@ -8,7 +8,7 @@ import pytest
 
 from isf_robot.arm.compare import Comparison, SceneSpec, format_table, summarize
 from isf_robot.arm.sweep import SweepPoint, format_sweep, run_sweep
-from isf_robot.core.parallel import Interrupted
+from isf_robot.support.parallel import Interrupted
 
 
 def _run(seed: int) -> dict:

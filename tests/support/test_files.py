@@ -6,8 +6,8 @@ import os
 
 import pytest
 
-import isf_robot.core.files as files
-from isf_robot.core.files import check_output_path, commit_partial, partial_path, write_text_atomic
+import isf_robot.support.files as files
+from isf_robot.support.files import check_output_path, commit_partial, partial_path, write_text_atomic
 
 
 def test_write_replaces_the_file(tmp_path) -> None:  # type: ignore[no-untyped-def]
@@ -58,7 +58,7 @@ def test_partial_file_is_renamed_into_place_only_on_commit(tmp_path) -> None:  #
 
 
 def test_written_files_get_ordinary_permissions(tmp_path) -> None:  # type: ignore[no-untyped-def]
-    from isf_robot.core.files import write_bytes_atomic
+    from isf_robot.support.files import write_bytes_atomic
 
     old = os.umask(0o022)
     try:

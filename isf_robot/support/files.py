@@ -17,7 +17,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from .exceptions import ConfigError
+from isf_robot.core.exceptions import ConfigError
 
 __all__ = ["write_text_atomic", "write_bytes_atomic", "partial_path", "check_output_path", "commit_partial",
            "PARTIAL_SUFFIX"]

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from isf_robot.core.exceptions import ConfigError
-from isf_robot.core.parallel import check_backend, run_tasks
+from isf_robot.support.parallel import check_backend, run_tasks
 
 TASKS = [0.0, 1.0, 2.0, 9.0, 16.0, 2.5]
 
@@ -57,7 +57,7 @@ def test_a_ray_that_cannot_start_is_one_error(monkeypatch) -> None:  # type: ign
     import sys
     import types
 
-    from isf_robot.core.parallel import RayStartError
+    from isf_robot.support.parallel import RayStartError
 
     fake = types.ModuleType("ray")
     fake.is_initialized = lambda: False  # type: ignore[attr-defined]

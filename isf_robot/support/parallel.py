@@ -30,7 +30,8 @@ import threading
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
-from .exceptions import ConfigError, IsfError
+from isf_robot.core.exceptions import ConfigError, IsfError
+
 from .extras import install_hint
 
 __all__ = ["Interrupted", "Terminated", "run_tasks", "MAX_JOBS", "BACKENDS", "check_backend"]

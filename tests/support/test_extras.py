@@ -12,8 +12,8 @@ try:
 except ImportError:  # Python 3.10
     import tomli as tomllib
 
-from isf_robot.core.extras import EXTRAS, install_hint
-from isf_robot.core.parallel import RAY_MISSING
+from isf_robot.support.extras import EXTRAS, install_hint
+from isf_robot.support.parallel import RAY_MISSING
 
 ROOT = Path(__file__).resolve().parents[2]
 
