@@ -27,6 +27,7 @@ from .core import (
     lie_data,
 )
 from .core.exceptions import ConfigError
+from .core.spec import FilterSpec
 from .core.strategies import make_strategy, strategy_info, strategy_names
 from .support.report import format_table as report_table
 from .support.report import format_value, mean_std_cell
@@ -97,7 +98,7 @@ def run_episode(
         DiscObstacleBarrier(cc, r, name=f"disc{i}") for i, (cc, r) in enumerate(zip(scene.centers, scene.radii))
     ]
     alpha = Linear(alpha_gain)
-    filt = (make_strategy(strategy, alpha=alpha, c=c, b=b, d_bar=0.0, system=system, barriers=barriers)
+    filt = (make_strategy(strategy, FilterSpec(alpha=alpha, c=c, b=b), system=system, barriers=barriers)
             if info.filters else None)
     steps = int(round(duration / dt))
     if steps > MAX_STEPS:

@@ -15,7 +15,7 @@ _EXPORTS: dict[str, str] = {
     "load_scene_from_files": "scene", "build_scene": "build",
     "SceneConfig": "config_schema", "RobotConfig": "config_schema", "ObstacleConfig": "config_schema",
     "Goal": "config_schema", "TaskConfig": "config_schema", "BarrierConfig": "config_schema",
-    "GainsConfig": "config_schema", "FilterConfig": "config_schema", "ControlConfig": "config_schema",
+    "GainsConfig": "config_schema", "ControlConfig": "config_schema",
     "load_config": "config_toml", "parse_config": "config_toml",
     "CirclePath": "paths", "LinearBouncePath": "paths", "ObstaclePath": "paths", "MovingObstacle": "paths",
     # barriers

@@ -152,4 +152,4 @@ def loop_params(scene: Scene, strategy: str, params: FilterParams, **kwargs: Any
     (:func:`~isf_robot.arm.params.resolve_params`); ``kwargs`` go to :func:`calibrate_in_loop`.
     """
     cal = calibrate_in_loop(scene, strategy, params, **kwargs)
-    return dataclasses.replace(params, d_bar=cal.d_bar, d_bar_source=f"{params.d_bar_source}+loop")
+    return params.replace(d_bar=cal.d_bar, d_bar_source=f"{params.d_bar_source}+loop")

@@ -16,7 +16,6 @@ from __future__ import annotations
 from .config_schema import (
     BarrierConfig,
     ControlConfig,
-    FilterConfig,
     GainsConfig,
     Goal,
     ObstacleConfig,
@@ -34,7 +33,6 @@ __all__ = [
     "TaskConfig",
     "BarrierConfig",
     "GainsConfig",
-    "FilterConfig",
     "ControlConfig",
     "CirclePath",
     "LinearBouncePath",

@@ -12,6 +12,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from isf_robot.core.spec import FilterSpec
+
 from .paths import MovingObstacle
 
 __all__ = [
@@ -21,7 +23,6 @@ __all__ = [
     "TaskConfig",
     "BarrierConfig",
     "GainsConfig",
-    "FilterConfig",
     "ControlConfig",
     "SceneConfig",
 ]
@@ -172,33 +173,6 @@ class GainsConfig:
 
 
 @dataclass(frozen=True)
-class FilterConfig:
-    """Default safety-filter parameters for the scene (see :mod:`isf_robot.core`).
-
-    Attributes:
-        alpha: Slope of the linear class-K function ``alpha(h) = alpha * h`` [1/s].
-        c: Off-trigger threshold: the filter turns off once every ``Xi_on >= c``.
-        b: Promotion level of the safety-promoting filter, ``b > 0``.
-        d_bar: Bound on the disturbance ``|d|`` of ``q_dot = u + d`` [rad/s].
-        min_off: Asked-for shortest off period of the intermittent filter [s] (0: the fixed margin ``c``).
-        blend: Hand-over time of the intermittent filter after each switch [s] (0: none).
-        horizon: Horizon of its predictive off trigger [s] (0: none).
-        c_pred: Its off margin when the rollout predicts the nominal safe over the horizon (0: none,
-            off at ``c``; needs ``horizon > 0``).
-
-    """
-
-    alpha: float = 5.0
-    c: float = 0.05
-    b: float = 0.02
-    d_bar: float = 0.0
-    min_off: float = 0.0
-    blend: float = 0.0
-    horizon: float = 0.0
-    c_pred: float = 0.0
-
-
-@dataclass(frozen=True)
 class ControlConfig:
     """Control timing.
 
@@ -223,7 +197,8 @@ class SceneConfig:
         task: The reaching task.
         barrier: Barrier margins and broad-phase cut-off.
         gains: Controller gains.
-        filter: Default safety-filter parameters.
+        filter: Default safety-filter parameters (``[filter]``: any field of :class:`~isf_robot.core.FilterSpec`;
+            ``d_bar = 0``: calibrate it).
         control: Control timing.
         moving: Mocap obstacles with known paths.
         source: The TOML file this was read from, or ``None``.
@@ -238,7 +213,7 @@ class SceneConfig:
     task: TaskConfig
     barrier: BarrierConfig = BarrierConfig()
     gains: GainsConfig = GainsConfig()
-    filter: FilterConfig = FilterConfig()
+    filter: FilterSpec = FilterSpec()
     control: ControlConfig = ControlConfig()
     moving: tuple[MovingObstacle, ...] = ()
     source: Path | None = None

@@ -17,11 +17,12 @@ from typing import Any
 import numpy as np
 
 from isf_robot.core.exceptions import ConfigError
+from isf_robot.core.spec import NAMES as SPEC_NAMES
+from isf_robot.core.spec import FilterSpec
 
 from .config_schema import (
     BarrierConfig,
     ControlConfig,
-    FilterConfig,
     GainsConfig,
     Goal,
     ObstacleConfig,
@@ -48,7 +49,7 @@ SECTION_KEYS: dict[str, tuple[str, ...]] = {
     "barrier": ("margin", "self_margin", "joint_margin", "cutoff"),
     "gains": ("task_kp", "dls_damping", "max_ee_speed", "max_joint_speed", "max_joint_acc", "joint_kp",
               "tracking_kp", "tracking_kd", "goal_timeout", "extra"),
-    "filter": ("alpha", "c", "b", "d_bar", "min_off", "blend", "horizon", "c_pred"),
+    "filter": SPEC_NAMES,
     "control": ("period",),
     "moving.circle": ("body", "type", "center", "radius", "period", "normal", "phase"),
     "moving.linear_bounce": ("body", "type", "start", "end", "speed", "phase"),
@@ -337,17 +338,11 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
     g.finish()
 
     f = top.sub("filter", SECTION_KEYS["filter"])
-    df = FilterConfig()
-    filt = FilterConfig(
-        alpha=f.number("alpha", df.alpha, positive=True),
-        c=f.number("c", df.c, positive=True),
-        b=f.number("b", df.b, positive=True),
-        d_bar=f.number("d_bar", df.d_bar, nonneg=True),
-        min_off=f.number("min_off", df.min_off, nonneg=True),
-        blend=f.number("blend", df.blend, nonneg=True),
-        horizon=f.number("horizon", df.horizon, nonneg=True),
-        c_pred=f.number("c_pred", df.c_pred, nonneg=True),
-    )
+    try:
+        filt = FilterSpec.from_mapping({name: f.raw(name) for name in SPEC_NAMES if f.has(name)},
+                                       where=f"{origin}: [filter]")
+    except ConfigError as e:
+        raise ConfigError(str(e) if str(e).startswith(origin) else f"{origin}: [filter] {e}") from None
     f.finish()
 
     c = top.sub("control", SECTION_KEYS["control"])

@@ -9,19 +9,19 @@ parameters. Re-exported by :mod:`isf_robot.arm.sim`.
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from isf_robot.core import ClassK, DutyCycleMetrics, FilterStats, SwitchEvent, as_class_k
+from isf_robot.core import DutyCycleMetrics, FilterSpec, FilterStats, SwitchEvent
+from isf_robot.core.spec import PARAMETERS
 from isf_robot.core.strategies import strategy_info
 
 __all__ = ["ArmStepRecord", "FilterParams", "RunResult", "INTERMITTENT_KEYS"]
 
-INTERMITTENT_KEYS = ("min_off", "c_max", "blend", "horizon", "predict_every", "c_pred")
+INTERMITTENT_KEYS = tuple(p.name for p in PARAMETERS if p.intermittent and p.name not in ("c", "b"))
 """Keys of :meth:`FilterParams.as_dict` that only an intermittent strategy uses."""
 
 
@@ -90,67 +90,23 @@ class ArmStepRecord:
 
 
 @dataclass(frozen=True)
-class FilterParams:
-    """Resolved filter parameters of a run (see :func:`isf_robot.arm.resolve_params`).
+class FilterParams(FilterSpec):
+    """Resolved filter parameters of a run (:func:`isf_robot.arm.resolve_params`).
+
+    A :class:`~isf_robot.core.FilterSpec` and where its ``d_bar`` came from.
 
     Attributes:
-        alpha: Class-K function: a linear gain ``alpha(h) = alpha h`` [1/s] (a float), or any
-            :class:`~isf_robot.core.ClassK`.
-        c: Off-trigger margin of the intermittent filter.
-        b: Promotion rate of the intermittent filter [m/s or rad/s].
-        d_bar: Tracking-error bound [rad/s].
-        d_bar_source: ``"argument"``, ``"config"`` or ``"calibration"``.
-        min_off: Asked-for shortest off period [s] of the intermittent filter (``None``: the
-            fixed margin ``c``; :mod:`isf_robot.core.intermittent`).
-        c_max: Largest off margin ``min_off`` may design.
-        blend: Hand-over time after each switch [s] (0: none).
-        horizon: Horizon of the predictive off trigger [s] (0: off at ``Xi_on >= c`` at once).
-        predict_every: Control steps between rollouts of the predictive off trigger.
-        c_pred: Off margin when the rollout predicts the nominal safe over the horizon (``None``:
-            the prediction only delays the off switch at ``c``; needs ``horizon > 0``).
+        d_bar_source: ``"argument"``, ``"config"`` or ``"calibration"`` (``+loop`` when the in-loop
+            calibration raised it).
 
     """
 
-    alpha: float | ClassK
-    c: float
-    b: float
-    d_bar: float
-    d_bar_source: str
-    min_off: float | None = None
-    c_max: float = math.inf
-    blend: float = 0.0
-    horizon: float = 0.0
-    predict_every: int = 5
-    c_pred: float | None = None
-
-    def intermittent_options(self) -> dict[str, Any]:
-        """Keyword arguments of the intermittent filter besides ``alpha, c, b, d_bar`` (no rollout)."""
-        out = {"min_off": self.min_off, "c_max": self.c_max, "blend": self.blend,
-               "predict_every": self.predict_every}
-        if self.c_pred is not None:
-            out["c_pred"] = self.c_pred
-        return out
-
-    @property
-    def class_k(self) -> ClassK:
-        """``alpha`` as a class-K function."""
-        return as_class_k(self.alpha)
+    d_bar_source: str = "argument"
 
     def as_dict(self) -> dict[str, Any]:
-        """Plain dict; a non-linear class-K function is given by its description."""
-        a = self.alpha
-        out = {"d_bar": self.d_bar, "d_bar_source": self.d_bar_source,
-               "alpha": a if isinstance(a, (int, float)) else str(a), "c": self.c, "b": self.b}
-        # the intermittent options appear only when set (the output of a run without them is unchanged)
-        if self.min_off is not None:
-            out.update(min_off=self.min_off, c_max=self.c_max)
-        if self.blend > 0:
-            out["blend"] = self.blend
-        if self.horizon > 0:
-            out.update(horizon=self.horizon, predict_every=self.predict_every)
-        if self.c_pred is not None:
-            out["c_pred"] = self.c_pred
-        return out
+        """Plain dict (``d_bar``, its source, then :meth:`~isf_robot.core.FilterSpec.as_info`)."""
+        info = self.as_info()
+        return {"d_bar": info.pop("d_bar"), "d_bar_source": self.d_bar_source, **info}
 
 
 @dataclass(frozen=True)

@@ -151,7 +151,8 @@ class ArmSimulation:
             raise ConfigError(
                 f"alpha(cutoff - margin) = {as_class_k(p.alpha)(cutoff_h):.3g} < c = {p.c}: pairs beyond the "
                 "broad-phase cut-off would keep the intermittent filter on; raise the cut-off")
-        self.strategy = make_strategy(strategy, alpha=p.alpha, c=p.c, b=p.b, d_bar=p.d_bar, **filter_options(self),
+        spec, wiring = filter_options(self)
+        self.strategy = make_strategy(strategy, spec, **wiring,
                                       solver=solver if solver is not None else QPSolver(few_rows=True),
                                       on_infeasible="fallback", fallback=_brake, validate=False)
 

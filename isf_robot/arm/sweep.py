@@ -26,7 +26,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -142,7 +142,7 @@ def _params_of(scene: Any, base: FilterParams, point: SweepPoint) -> FilterParam
     v = dict(point.values)
     every = v.pop("predict_every", None)
     p = resolve_params(scene, d_bar=base.d_bar, predict_every=None if every is None else int(every), **v)
-    return replace(p, d_bar_source=base.d_bar_source)
+    return p.replace(d_bar_source=base.d_bar_source)
 
 
 def summarize_point(runs: Sequence[Mapping[str, Any]]) -> dict[str, Any]:

@@ -20,6 +20,7 @@ from typing import Any
 from isf_robot.core.exceptions import ConfigError
 from isf_robot.core.hooks import Observers
 from isf_robot.core.jit import JIT_ENV
+from isf_robot.core.spec import PARAMETERS, Parameter
 from isf_robot.core.strategies import strategy_info, strategy_names
 from isf_robot.record.options import add_recording_args, make_observer
 from isf_robot.support.parallel import Interrupted
@@ -47,35 +48,33 @@ def _add_filter_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--control-period", type=float, default=None, metavar="S",
                    help="control period [s], a whole multiple of the physics timestep "
                         "(default: the scene's)")
-    p.add_argument("--alpha", type=float, default=None, help="class-K gain [1/s]")
-    p.add_argument("--c", type=float, default=None, help="off-trigger margin c")
-    p.add_argument("--b", type=float, default=None, help="promotion rate b")
-    p.add_argument("--d-bar", type=float, default=None, metavar="D",
-                   help="tracking-error bound [rad/s] (default: the scene's, else calibrated)")
+    main = {q.name: q for q in PARAMETERS if q.name in _MAIN}
+    for name in _MAIN:
+        _add_parameter(p, main[name])
     _add_intermittent_args(p)
+
+
+_MAIN = ("alpha", "c", "b", "d_bar")  # (the paper's four; the intermittent options in their own group)
+_HELP = {"d_bar": "tracking-error bound [rad/s] (default: the scene's, else calibrated)",
+         "predict_every": "control steps between rollouts of the predictive off trigger (default 5)"}
+_CLI_ONLY_IN_CONFIG = ("fall_rate_prior", "fall_rate_forget")  # (scene files and scripts; no flag)
+
+
+def _add_parameter(p: Any, q: Parameter) -> None:
+    """``--name`` for one field of :class:`~isf_robot.core.FilterSpec` (default: the scene's)."""
+    p.add_argument("--" + q.name.replace("_", "-"), type=int if q.name == "predict_every" else float, default=None,
+                   metavar=q.metavar, help=_HELP.get(q.name, q.help))
 
 
 def _add_intermittent_args(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("intermittent filter options (isf; off by default)")
-    g.add_argument("--min-off", type=float, default=None, metavar="S",
-                   help="asked-for shortest off period [s]: the off margin is designed from the measured "
-                        "fall rate of Xi_on (at least c, at most --c-max and alpha(cut-off - margin))")
-    g.add_argument("--c-max", type=float, default=None, metavar="C", help="largest designed off margin")
-    g.add_argument("--blend", type=float, default=None, metavar="S",
-                   help="hand-over time [s] after each switch (no step in the command beyond what safety needs)")
-    g.add_argument("--horizon", type=float, default=None, metavar="S",
-                   help="predictive off trigger: off only if the nominal, rolled forward this long on "
-                        "q_dot = u_nom(q), keeps every Xi_on > 0")
-    g.add_argument("--predict-every", type=int, default=None, metavar="K",
-                   help="control steps between rollouts of the predictive off trigger (default 5)")
-    g.add_argument("--c-pred", type=float, default=None, metavar="C",
-                   help="off margin when the rollout predicts the nominal safe over the horizon "
-                        "(0 < C <= c; off as soon as it is predicted safe instead of at Xi_on >= c)")
+    for q in PARAMETERS:
+        if q.name not in _MAIN + _CLI_ONLY_IN_CONFIG:
+            _add_parameter(g, q)
 
 
 def _intermittent_kwargs(args: argparse.Namespace) -> dict[str, Any]:
-    return {k: getattr(args, k, None) for k in ("min_off", "c_max", "blend", "horizon", "predict_every",
-                                                   "c_pred")}
+    return {q.name: getattr(args, q.name, None) for q in PARAMETERS if q.name not in _MAIN + _CLI_ONLY_IN_CONFIG}
 
 
 def _params(args: argparse.Namespace, scene: Any) -> dict[str, Any]:

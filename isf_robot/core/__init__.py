@@ -27,6 +27,7 @@ _EXPORTS: dict[str, str] = {
     "QPSolver": "qp_solver", "BACKENDS": "qp_solver",
     "StrategyInfo": "strategies", "NominalStrategy": "strategies", "register_strategy": "strategies",
     "strategy_names": "strategies", "strategy_info": "strategies", "make_strategy": "strategies",
+    "Strategy": "strategies", "FilterSpec": "spec",
     "SwitchEvent": "switches", "SwitchCounter": "switches",
     "ControlAffineSystem": "system", "SingleIntegrator": "system", "FunctionSystem": "system", "LieData": "system",
     "lie_data": "system",

@@ -32,17 +32,18 @@ import numpy as np
 from . import projection, robust, screening
 from .barrier import Barrier, evaluate_barriers
 from .class_k import ClassK, Linear, as_class_k
-from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
 from .closed_step import closed_step
+from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
 from .handover import promote_rows
 from .jit import compiled, jit_enabled
 from .projection import FEW_ROWS
 from .qp import FilterQP, QPResult
 from .qp_solver import QPSolver
+from .spec import FilterSpec
 from .step import FilterStep
 from .switches import SwitchCounter
 from .system import ControlAffineSystem, LieData, lie_data
-from .validation import as_vector, check_finite_scalar, check_nonnegative
+from .validation import as_vector, check_finite_scalar
 
 __all__ = ["FilterStep", "FallbackFn"]  # (FilterStep: from .step, where it lives)
 
@@ -120,7 +121,8 @@ class _FilterBase:
     ) -> None:
         self.validate = bool(validate)
         self.alpha = as_class_k(alpha)
-        self.d_bar = check_nonnegative(d_bar, "d_bar (disturbance bound)")
+        self.spec = FilterSpec(alpha=self.alpha, d_bar=d_bar)  # (the intermittent filter's holds its options too)
+        self.d_bar = self.spec.d_bar
         self.system = system
         self.barriers = list(barriers) if barriers is not None else None
         if self.barriers is not None and len(self.barriers) == 0:
@@ -328,8 +330,11 @@ class _FilterBase:
     def _closed(self, lie: LieData, u_nom: np.ndarray, xi: np.ndarray, av: np.ndarray, promote: np.ndarray | None,
                 ramp: np.ndarray, b: float, rows: np.ndarray | None,
                 passes: Passes) -> tuple[QPResult, bool] | None:
-        """The kept rows by their closed form (:func:`~isf_robot.core.closed_step.closed_step`): ``(result,
-        every other row holds)``, or ``None`` (input bounds, the closed forms off, too many rows, no answer)."""
+        """The kept rows by their closed form (:func:`~isf_robot.core.closed_step.closed_step`).
+
+        ``(result, every other row holds)``, or ``None`` (input bounds, the closed forms off, too many
+        rows, no answer).
+        """
         solver = self.solver
         if self.u_min is not None or self.u_max is not None or not solver.closed_form:
             return None

@@ -46,9 +46,9 @@ from .filter_base import FallbackFn, FilterStep, _FilterBase
 from .handover import PromotionRamp, blend_weight
 from .intermittent import FallRateBound, OffPredictor, Prediction, RolloutFn
 from .qp_solver import QPSolver
+from .spec import FilterSpec
 from .system import ControlAffineSystem, LieData
 from .triggers import OnOffTrigger
-from .validation import check_nonnegative, check_positive
 
 __all__ = ["FilterStep", "SafetyFilter", "IntermittentSafetyFilter"]
 
@@ -78,6 +78,11 @@ class SafetyFilter(_FilterBase):
         screen: Row-screening threshold on ``Xi_on`` (scalar or per row), or ``None``.
 
     """
+
+    @classmethod
+    def from_spec(cls, spec: FilterSpec, **wiring: Any) -> SafetyFilter:
+        """The filter with ``spec``'s ``alpha`` and ``d_bar`` (``wiring``: as the class's keyword arguments)."""
+        return cls(spec.alpha, spec.d_bar, **wiring)
 
     def reset(self, t0: float = 0.0) -> None:
         """Forget the mode history."""
@@ -176,23 +181,28 @@ class IntermittentSafetyFilter(_FilterBase):
         super().__init__(alpha, d_bar, system=system, barriers=barriers, u_min=u_min, u_max=u_max,
                          solver=solver, on_infeasible=on_infeasible, fallback=fallback, validate=validate,
                          screen=screen)
-        self.c = check_positive(c, "c (off-trigger margin)")
-        self.b = check_positive(b, "b (promotion rate)")
-        self.min_off = None if min_off is None else check_positive(min_off, "min_off (shortest off period) [s]")
-        if not c_max >= self.c:
-            raise ConfigError(f"c_max must be >= c = {self.c}, got {c_max}")
-        self.c_max = float(c_max)
-        self.fall_rate = FallRateBound(fall_rate_prior, fall_rate_forget)
-        self.predictor = None if rollout is None else OffPredictor(rollout, predict_every)
-        self.blend = check_nonnegative(blend, "blend (hand-over time) [s]")
-        self.c_pred = None if c_pred is None else check_positive(c_pred, "c_pred (predicted-safe off margin)")
-        if self.c_pred is not None:
-            if self.predictor is None:
-                raise ConfigError("c_pred (predicted-safe off margin) needs a rollout (the predictive off trigger)")
-            if self.c_pred > self.c:
-                raise ConfigError(f"c_pred must be <= c = {self.c}, got {self.c_pred}")
+        self.spec = spec = FilterSpec(
+            alpha=self.alpha, d_bar=self.d_bar, c=c, b=b, min_off=0.0 if min_off is None else min_off, c_max=c_max,
+            fall_rate_prior=fall_rate_prior, fall_rate_forget=fall_rate_forget, blend=blend,
+            predict_every=predict_every, c_pred=0.0 if c_pred is None else c_pred)
+        self.c, self.b, self.c_max, self.blend = spec.c, spec.b, spec.c_max, spec.blend
+        self.min_off = spec.min_off or None
+        self.c_pred = spec.c_pred or None
+        self.fall_rate = FallRateBound(spec.fall_rate_prior, spec.fall_rate_forget)
+        self.predictor = None if rollout is None else OffPredictor(rollout, spec.predict_every)
+        if self.c_pred is not None and self.predictor is None:
+            raise ConfigError("c_pred (predicted-safe off margin) needs a rollout (the predictive off trigger)")
         self.trigger = OnOffTrigger(self.c if self.c_pred is None else self.c_pred, t0)
         self.reset(t0)
+
+    @classmethod
+    def from_spec(cls, spec: FilterSpec, **wiring: Any) -> IntermittentSafetyFilter:
+        """The filter with the parameters of ``spec``.
+
+        ``wiring``: ``system``, ``barriers``, ``u_min``, ``u_max``, ``solver``, ``on_infeasible``,
+        ``fallback``, ``validate``, ``screen``, ``t0``, ``rollout`` (see the class).
+        """
+        return cls(spec.alpha, spec.c, spec.b, spec.d_bar, **spec.intermittent_kwargs(), **wiring)
 
     @property
     def on(self) -> bool:

@@ -126,7 +126,7 @@ def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float
 
 @formula
 def _confirm(A: np.ndarray, lb: np.ndarray, u: np.ndarray, tol: np.ndarray, res: np.ndarray) -> float:
-    """``min(A u - lb)`` (written to ``res``) when ``u`` is finite and every row holds to ``tol max(1, |u|_inf)``; NaN if not."""
+    """``min(A u - lb)`` (``res``) when ``u`` is finite and every row holds to ``tol max(1, |u|_inf)``; NaN if not."""
     res[:] = A @ u - lb
     if not (math.isfinite(np.sum(res)) and math.isfinite(np.sum(u))):
         return math.nan

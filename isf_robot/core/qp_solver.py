@@ -185,7 +185,8 @@ class QPSolver:
         return QPResult._of(u_nom.copy() if code == 0 else u, "closed_form", np.array([slack <= self.active_tol]),
                             time.perf_counter() - t0)
 
-    def solve_few(self, A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
+    def solve_few(self, A: np.ndarray, lb: np.ndarray,
+                  u_nom: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
         """2 to ``FEW_ROWS`` rows without bounds when one or two are active: ``(u, A u - lb, min)``, or ``None``.
 
         :func:`~isf_robot.core.projection.project_few`, every row checked; ``None``: the backend decides.

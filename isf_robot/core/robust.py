@@ -1,7 +1,7 @@
-"""The robust barrier condition and its promoted form: each formula once (paper, eqs. barr_cond, filter_inc,
-trigger:filter_on, greedy_cond).
+"""The robust barrier condition and its promoted form, each formula once.
 
-For a barrier ``h`` with Lie data ``Lf h`` (drift, ``dh/dt`` included), ``Lg h`` and ``|dh/dx|``:
+The paper's eqs. barr_cond, filter_inc, trigger:filter_on and greedy_cond. For a barrier ``h`` with
+Lie data ``Lf h`` (drift, ``dh/dt`` included), ``Lg h`` and ``|dh/dx|``:
 
 * the robust slack under a command ``u`` is ``Xi = Lf h + Lg h u - |dh/dx| d_bar + alpha(h)``
   (:func:`robust_slack`): the on trigger's value ``Xi_on`` at ``u = u_nom``, the greedy impulsive

@@ -16,29 +16,43 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from .exceptions import UnknownNameError
 from .filters import FilterStep, IntermittentSafetyFilter, SafetyFilter
+from .spec import FilterSpec
 from .system import LieData
 
 __all__ = [
+    "Strategy",
     "StrategyInfo",
     "NominalStrategy",
     "register_strategy",
     "strategy_names",
     "strategy_info",
     "make_strategy",
-    "INTERMITTENT_OPTIONS",
+    "INTERMITTENT_WIRING",
 ]
 
-INTERMITTENT_OPTIONS = ("min_off", "c_max", "fall_rate_prior", "fall_rate_forget", "rollout", "predict_every",
-                        "blend", "c_pred")
-"""Keyword arguments only an intermittent strategy takes (designed off periods, the predictive off
-trigger, the hand-over; :class:`~isf_robot.core.filters.IntermittentSafetyFilter`). :func:`make_strategy`
-drops them for the other strategies, so one set of options serves a comparison."""
+INTERMITTENT_WIRING = ("rollout", "t0")
+"""Keyword arguments only an intermittent strategy takes besides its :class:`FilterSpec` (the predictive
+off trigger's rollout, the start time); :func:`make_strategy` drops them for the other strategies."""
+
+
+class Strategy(Protocol):
+    """What a strategy offers an adapter (the core filters and :class:`NominalStrategy`)."""
+
+    uses_rows: bool
+    intermittent: bool
+
+    @property
+    def on(self) -> bool: ...
+
+    def reset(self, t0: float = 0.0) -> None: ...
+
+    def step_lie(self, t: float, lie: LieData, u_nom: np.ndarray, x: Any = None, **kw: Any) -> FilterStep: ...
 
 
 class NominalStrategy:
@@ -75,7 +89,7 @@ class StrategyInfo:
     Attributes:
         name: Its name on the command line and in results.
         summary: One line for ``--help``.
-        factory: ``factory(alpha=, c=, b=, d_bar=, **filter_kwargs) -> strategy``.
+        factory: ``factory(spec, **wiring) -> strategy``.
         intermittent: Whether it is an on/off (event-triggered) filter with the margin ``c``.
         filters: Whether it ever changes the nominal command.
 
@@ -114,32 +128,27 @@ def strategy_info(name: str) -> StrategyInfo:
         raise UnknownNameError("strategy", name, tuple(_REGISTRY)) from None
 
 
-def make_strategy(name: str, *, alpha: Any, c: float, b: float, d_bar: float, **filter_kwargs: Any) -> Any:
-    """Build the strategy ``name`` with the filter parameters (unused ones are ignored).
+def make_strategy(name: str, spec: FilterSpec, **wiring: Any) -> Strategy:
+    """Build the strategy ``name`` with the filter parameters ``spec`` (those it does not use are ignored).
 
     Args:
         name: A registered strategy name.
-        alpha: Class-K function or linear gain.
-        c: Off-trigger margin (intermittent strategies).
-        b: Promotion rate (intermittent strategies).
-        d_bar: Disturbance bound.
-        **filter_kwargs: Passed to the filter (solver, bounds, infeasibility policy, ...);
-            :data:`INTERMITTENT_OPTIONS` only to intermittent strategies.
+        spec: The filter parameters.
+        **wiring: Passed to the filter (system, barriers, solver, bounds, infeasibility policy, screening,
+            ...); :data:`INTERMITTENT_WIRING` only to intermittent strategies.
 
     """
     info = strategy_info(name)
     if not info.intermittent:
-        filter_kwargs = {k: v for k, v in filter_kwargs.items() if k not in INTERMITTENT_OPTIONS}
-    return info.factory(alpha=alpha, c=c, b=b, d_bar=d_bar, **filter_kwargs)
+        wiring = {k: v for k, v in wiring.items() if k not in INTERMITTENT_WIRING}
+    return info.factory(spec, **wiring)  # type: ignore[no-any-return]
 
 
 register_strategy(StrategyInfo(
     "nominal", "no filter: the nominal command as it is (shows the danger)",
-    lambda **_: NominalStrategy(), intermittent=False, filters=False))
+    lambda spec, **_: NominalStrategy(), intermittent=False, filters=False))
 register_strategy(StrategyInfo(
-    "cbf", "the standard robust safety filter, solved every control step",
-    lambda *, alpha, c, b, d_bar, **kw: SafetyFilter(alpha, d_bar, **kw)))
+    "cbf", "the standard robust safety filter, solved every control step", SafetyFilter.from_spec))
 register_strategy(StrategyInfo(
     "isf", "the intermittent safety filter: on at Xi_on <= 0, promotes, off at Xi_on >= c",
-    lambda *, alpha, c, b, d_bar, **kw: IntermittentSafetyFilter(alpha, c, b, d_bar, **kw),
-    intermittent=True))
+    IntermittentSafetyFilter.from_spec, intermittent=True))

@@ -138,7 +138,7 @@ def test_min_off_is_capped_at_what_a_pair_at_the_cutoff_can_reach(planar):
 
 
 @pytest.mark.parametrize("kw, match", [
-    (dict(min_off=0.0), "min_off"), (dict(c_max=1e-6), "c_max"), (dict(blend=-1.0), "blend"),
+    (dict(min_off=-1.0), "min_off"), (dict(c_max=1e-6), "c_max"), (dict(blend=-1.0), "blend"),
     (dict(horizon=math.nan), "horizon"), (dict(predict_every=0), "predict_every"),
     (dict(predict_every=1.5), "predict_every"), (dict(c_pred=0.01), "c_pred needs the predictive off"),
     (dict(c_pred=0.5, horizon=0.2), "c_pred must be <= c"), (dict(c_pred=-0.01, horizon=0.2), "c_pred"),
@@ -153,11 +153,11 @@ def test_scene_filter_table_gives_the_defaults_and_arguments_override_them(plana
 
     pole = load_scene("panda_pole")
     p = resolve_params(pole, d_bar=0.04)
-    assert (p.blend, p.horizon, p.min_off) == (0.05, 0.3, None)  # models/panda_pole.toml [filter]
+    assert (p.blend, p.horizon, p.min_off) == (0.05, 0.3, 0.0)  # models/panda_pole.toml [filter] (0: no min_off)
     q = resolve_params(pole, d_bar=0.04, blend=0.0, horizon=0.0)
     assert (q.blend, q.horizon) == (0.0, 0.0) and "horizon" not in q.as_dict()
     r = resolve_params(planar, d_bar=0.05)
-    assert (r.blend, r.horizon, r.min_off) == (0.0, 0.0, None)  # a scene without them: off
+    assert (r.blend, r.horizon, r.min_off) == (0.0, 0.0, 0.0)  # a scene without them: off
 
 
 def test_c_pred_reaches_the_filter_and_the_result_on_the_arm(planar_moving):

@@ -12,8 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from isf_robot.core import IntermittentSafetyFilter, LieData, Power, QPSolver, SafetyFilter
-from isf_robot.core import handover, robust, screening
+from isf_robot.core import IntermittentSafetyFilter, LieData, Power, QPSolver, SafetyFilter, handover, robust, screening
 from isf_robot.core.jit import compiled
 
 pytestmark = pytest.mark.kernels  # (skipped under ISF_ROBOT_JIT=0: tests/conftest.py)

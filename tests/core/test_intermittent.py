@@ -159,7 +159,7 @@ def test_predict_matches_a_direct_evaluation():
 
 def test_bad_options_are_refused():
     with pytest.raises(ConfigError, match="min_off"):
-        IntermittentSafetyFilter(1.0, 0.1, 0.1, min_off=0.0)
+        IntermittentSafetyFilter(1.0, 0.1, 0.1, min_off=-1.0)  # (0: none, the fixed margin)
     with pytest.raises(ConfigError, match="c_max"):
         IntermittentSafetyFilter(1.0, 0.1, 0.1, c_max=0.01)
     with pytest.raises(ConfigError, match="blend"):

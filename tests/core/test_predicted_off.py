@@ -97,4 +97,4 @@ def test_c_pred_options_are_checked():
     with pytest.raises(ConfigError, match="c_pred must be <= c"):
         IntermittentSafetyFilter(1.0, 0.1, 0.1, c_pred=0.5, rollout=rollout)
     with pytest.raises(ConfigError, match="c_pred"):
-        IntermittentSafetyFilter(1.0, 0.1, 0.1, c_pred=0.0, rollout=rollout)
+        IntermittentSafetyFilter(1.0, 0.1, 0.1, c_pred=-0.05, rollout=rollout)  # (0: none)

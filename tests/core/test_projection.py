@@ -6,8 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isf_robot.core import FilterQP, QPSolver
-from isf_robot.core import projection
+from isf_robot.core import FilterQP, QPSolver, projection
 from isf_robot.core.jit import compiled
 from isf_robot.core.projection import FEW_ROWS, REL_TOL
 
