@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from isf_robot.core import ConfigError
-from satellite.contact import ContactWatch, RadiusEnvelope, ellipsoid_mesh
-from satellite.model import InitialOrbit
-from satellite.shapes import EllipsoidSurface
-from satellite.simulate import simulate
+from satellite.control.contact import ContactWatch, RadiusEnvelope, ellipsoid_mesh
+from satellite.orbit.model import InitialOrbit
+from satellite.orbit.simulate import simulate
+from satellite.shape.surfaces import EllipsoidSurface
 
 
 def directions(n: int, seed: int) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Compiled arcs (satellite/fast_arcs.py) against the Python path (satellite/events.py + scipy's DOP853)."""
+"""Compiled arcs (satellite/orbit/fast_arcs.py) against the Python path (satellite/orbit/events.py + scipy's DOP853)."""
 
 from __future__ import annotations
 
@@ -10,13 +10,13 @@ import pytest
 pytest.importorskip("numba")
 
 from isf_robot.core import Linear  # noqa: E402
-from satellite.contact import make_contact  # noqa: E402
-from satellite.events import event, integrate  # noqa: E402
-from satellite.fast_arcs import CONTACT, RDOT, XI, FastArcs, H, jit_enabled  # noqa: E402
-from satellite.fields import DEFAULT_GRAVITY, load_field  # noqa: E402
-from satellite.mesh_surface import load_surface  # noqa: E402
-from satellite.model import OrbitModel  # noqa: E402
-from satellite.triggers import BandTriggers  # noqa: E402
+from satellite.control.contact import make_contact  # noqa: E402
+from satellite.control.triggers import BandTriggers  # noqa: E402
+from satellite.gravity.fields import DEFAULT_GRAVITY, load_field  # noqa: E402
+from satellite.orbit.events import event, integrate  # noqa: E402
+from satellite.orbit.fast_arcs import CONTACT, RDOT, XI, FastArcs, H, jit_enabled  # noqa: E402
+from satellite.orbit.model import OrbitModel  # noqa: E402
+from satellite.shape.mesh_surface import load_surface  # noqa: E402
 
 KW = dict(rtol=1e-10, atol=1e-12, max_step=1200.0, min_dt=1e-2)
 
@@ -40,7 +40,7 @@ def _state(model: OrbitModel, r_over_R: float, speed: float, incl: float) -> np.
 
 
 def test_compiled_right_hand_side_is_the_models(setup) -> None:  # type: ignore[no-untyped-def]
-    from satellite._jit_parts import rhs
+    from satellite.orbit.kernel_parts import rhs
 
     model, _, _, fast = setup
     rng = np.random.default_rng(3)
@@ -163,8 +163,8 @@ def test_arcs_outside_the_table_stay_compiled(setup) -> None:  # type: ignore[no
 
 
 def test_greedy_run_agrees_with_the_python_path(monkeypatch) -> None:  # type: ignore[no-untyped-def]
-    from satellite.model import InitialOrbit
-    from satellite.simulate import simulate
+    from satellite.orbit.model import InitialOrbit
+    from satellite.orbit.simulate import simulate
 
     if not jit_enabled():
         pytest.skip("compiled arcs switched off")
@@ -221,9 +221,9 @@ def test_alpha_x100_run_is_fast_and_counts_as_with_the_exact_field() -> None:
     exact one outside the radii (2400 h, where the orbit is chaotic: REPRODUCTION.md)."""
     import time
 
-    from satellite.controller import ControlParams
-    from satellite.model import InitialOrbit
-    from satellite.simulate import simulate
+    from satellite.control.controller import ControlParams
+    from satellite.orbit.model import InitialOrbit
+    from satellite.orbit.simulate import simulate
 
     if not jit_enabled():
         pytest.skip("compiled arcs switched off (ISF_ROBOT_JIT=0)")

@@ -7,9 +7,9 @@ import pytest
 from scipy.spatial import cKDTree
 
 from satellite.errors import GravityModelError
-from satellite.gravity_near import build_near_tiles, tile_faces
-from satellite.gravity_table import GravityTable, TableGrid, build_table
-from satellite.polyhedron import FacePatch, PolyhedronField
+from satellite.gravity.near import build_near_tiles, tile_faces
+from satellite.gravity.polyhedron import FacePatch, PolyhedronField
+from satellite.gravity.table import GravityTable, TableGrid, build_table
 
 GM = 2.0
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from satellite import gravity_table
 from satellite.errors import GravityModelError
-from satellite.gravity_table import GravityTable, TableGrid, bspline3, build_table, dbspline3, shell_continued
-from satellite.polyhedron import PolyhedronField
+from satellite.gravity import table as gravity_table
+from satellite.gravity.polyhedron import PolyhedronField
+from satellite.gravity.table import GravityTable, TableGrid, bspline3, build_table, dbspline3, shell_continued
 
 GM = 2.0
 

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from isf_robot.core import Linear, ManeuverScheduler, UnknownNameError
-from satellite.controller import ControlParams, make_controller, resolve_control
-from satellite.gravity import load_default_field  # the degree-8 series: these cases were chosen on it
-from satellite.model import OrbitModel
-from satellite.triggers import TRIGGERS, BandTriggers, Trigger
+from satellite.control.controller import ControlParams, make_controller, resolve_control
+from satellite.control.triggers import TRIGGERS, BandTriggers, Trigger
+from satellite.gravity.spherical import load_default_field  # the degree-8 series: these cases were chosen on it
+from satellite.orbit.model import OrbitModel
 
 
 @pytest.fixture(scope="module")
