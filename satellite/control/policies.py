@@ -47,10 +47,9 @@ from numpy.typing import NDArray
 
 from isf_robot.core import ConfigError, EventTriggeredImpulsiveController, JumpEvent, ManeuverScheduler
 from isf_robot.core.class_k import Linear
-from satellite.control.triggers import BandTriggers, Trigger
+from satellite.control.triggers import RDOT, XI, XITAU, BandTriggers, H, Trigger
 from satellite.orbit.arcs import ArcIntegrator
 from satellite.orbit.events import event
-from satellite.orbit.fast_arcs import RDOT, XI, XITAU, H
 
 __all__ = [
     "TriggerPolicy", "NoControl", "Greedy", "Maneuver", "Periodic", "make_policy", "MIN_INTERVAL_S",
@@ -299,12 +298,10 @@ def _xi_tau_rate(trig: BandTriggers, tau: Any) -> Any:
     and ``|tau_p''| <= sum_k k (k - 1) |a_k| / h_max^2``. ``None`` (step points only) without
     acceleration bound or for a fit that is not such a polynomial.
     """
-    coef = getattr(tau, "coef", None)
-    if trig.accel_bound is None or coef is None:
+    bounds = getattr(tau, "slope_bounds", None)
+    if trig.accel_bound is None or bounds is None:
         return None
-    hm = float(tau.h_max)
-    d1 = sum(k * abs(a) for k, a in enumerate(coef)) / hm
-    d2 = sum(k * (k - 1) * abs(a) for k, a in enumerate(coef)) / hm**2
+    d1, d2 = bounds
     return trig.xi_tau_rate(d1, d2)
 
 

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from satellite.compiled import inlined
 from satellite.control.controller import ControlParams, make_controller, resolve_control
 from satellite.control.triggers import BandTriggers
 from satellite.errors import SatelliteError
@@ -37,6 +38,7 @@ from satellite.gravity.fields import DEFAULT_GRAVITY, load_field
 from satellite.orbit.model import BAND_INNER, BAND_OUTER, OrbitModel
 
 __all__ = [
+    "tau_slope",
     "TAU_FORMAT",
     "DEFAULT_RADII",
     "TauFileError",
@@ -96,6 +98,17 @@ class TauData:
         return np.sum(self.times_h >= self.max_hours, axis=1)
 
 
+@inlined
+def tau_slope(tp: Any, h: float) -> float:
+    """``d tau_p / d h`` [s/m^2] at ``h`` [m^2] of a packed fit (:attr:`TauFit.packed`); ``s = h / h_max`` in [0, 1]."""
+    hm = tp[2]
+    s = min(max(h / hm, 0.0), 1.0)
+    acc = 0.0
+    for m in range(len(tp) - 1, 2, -1):
+        acc = acc * s + tp[m]
+    return acc / hm  # type: ignore[no-any-return]
+
+
 class TauFit:
     """``tau_p(h)`` as a polynomial in ``s = h / h_max``.
 
@@ -114,6 +127,13 @@ class TauFit:
         self.coef = [float(v) for v in c]
         self.h_max = float(h_max)
         self._dcoef = [k * self.coef[k] for k in range(1, len(self.coef))]
+        d1 = sum(k * abs(a) for k, a in enumerate(self.coef)) / self.h_max
+        d2 = sum(k * (k - 1) * abs(a) for k, a in enumerate(self.coef)) / self.h_max**2
+        self.slope_bounds = (d1, d2)
+        """``(d1, d2)``: ``|tau_p'| <= d1`` [s/m^2] and ``|tau_p''| <= d2`` [s/m^4] on ``s`` in [0, 1]."""
+        self._tp = [d1, d2, self.h_max, *(self._dcoef or [0.0])]
+        self.packed = np.array(self._tp, dtype=np.float64)
+        """``d1, d2, h_max`` and the coefficients of ``d tau_p / d s``, lowest degree first (:func:`tau_slope`)."""
         self.controller: str | None = None  # the safeguarding controller of the data (set by load_tau)
 
     def _poly(self, s: float) -> float:
@@ -126,7 +146,7 @@ class TauFit:
         acc = 0.0
         for a in reversed(self._dcoef):
             acc = acc * s + a
-        return acc
+        return acc  # (the tangent continuation of tau_p; the slope the trigger uses is tau_slope's)
 
     def tau_p(self, h: float) -> float:
         """Expected inter-event time [s] after an impulse at barrier value ``h`` [m^2]."""
@@ -138,9 +158,8 @@ class TauFit:
         return self._poly(s)
 
     def dtau_dh(self, h: float) -> float:
-        """``d tau_p / d h`` [s / m^2]."""
-        s = min(max(h / self.h_max, 0.0), 1.0)
-        return self._dpoly(s) / self.h_max
+        """``d tau_p / d h`` [s / m^2] (:func:`tau_slope`)."""
+        return tau_slope(self._tp, h)
 
     def describe(self) -> dict[str, Any]:
         """JSON-ready description."""

@@ -3,11 +3,11 @@
 * :class:`Trigger`: the one definition of the choices ``none | greedy | maneuver`` (the CLI's
   ``--trigger`` values, :func:`satellite.orbit.simulate.simulate`'s argument, ``RunResult.trigger``).
 * :class:`BandTriggers`: the trigger values for the band barrier in plain floats, for the
-  integrator's event functions. The formulas are the core's: ``Xi`` is
-  :func:`isf_robot.core.triggers.xi_on_scalar` with no input term (eq. greedy_cond) and
-  ``Xi_tau`` is :func:`isf_robot.core.xi_tau` (eq. trigger:int_time); only the band's Lie data
-  are computed here: ``h = (0.4R)^2 - (r - 2R)^2``, ``LF h = -2 (r - 2R) r_dot`` along the Kepler
-  flow and ``|dh/dx| = 2 |r - 2R|``.
+  integrator's event functions, through the plain formula functions :func:`band_values`
+  (``h = (0.4R)^2 - (r - 2R)^2``, ``LF h = -2 (r - 2R) r_dot`` along the Kepler flow), :func:`band_xi`
+  (the robust bound of eq. greedy_cond with ``|dh/dx| = 2 |r - 2R|``) and :func:`band_rate` (the rate
+  bounds), which the compiled arcs (:mod:`satellite.orbit.kernel_parts`) call too. ``Xi_tau`` is
+  :func:`isf_robot.core.xi_tau` (eq. trigger:int_time).
 
 What each trigger does during a run is its policy, :mod:`satellite.control.policies`.
 """
@@ -23,11 +23,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from isf_robot.core import ClassK, UnknownNameError, xi_tau
-from isf_robot.core.triggers import xi_on_scalar
+from satellite.compiled import inlined
 from satellite.orbit.events import RateBound
 from satellite.orbit.model import BAND_INNER, BAND_OUTER, OrbitModel
 
-__all__ = ["Trigger", "TRIGGERS", "BandTriggers", "EventFn", "RateBound"]
+__all__ = ["Trigger", "TRIGGERS", "BandTriggers", "EventFn", "RateBound", "band_values", "band_xi", "band_rate",
+           "XI", "H", "RDOT", "CONTACT", "XITAU"]
 
 EventFn = Callable[[float, NDArray[np.float64]], float]
 """An event function ``g(t, y)``."""
@@ -84,6 +85,56 @@ TRIGGERS: tuple[str, ...] = tuple(t.value for t in Trigger)
 """Trigger names, in definition order."""
 
 
+XI, H, RDOT, CONTACT, XITAU = 0, 1, 2, 3, 4
+"""Event kinds of the compiled arcs (:attr:`satellite.orbit.events.Event.code`'s first item)."""
+
+
+@inlined
+def band_values(y: Any, r_centre: float, h_max: float) -> tuple[Any, Any, Any]:
+    """``(r [m], h [m^2], LF h [m^2/s])`` at state(s) ``y``, shape (6,) or (6, k)."""
+    r = np.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2])
+    dr = r - r_centre
+    return r, h_max - dr * dr, -2.0 * dr * (y[0] * y[3] + y[1] * y[4] + y[2] * y[5]) / r
+
+
+@inlined
+def band_xi(lfh: Any, r: Any, r_centre: float, d_bar: float, alpha_h: Any) -> Any:
+    """``Xi = LF h - |dh/dx| d_bar + alpha(h)`` on the band, ``|dh/dx| = 2 |r - 2R|`` (paper, eq. greedy_cond).
+
+    The core's robust bound (:func:`isf_robot.core.triggers.xi_on_scalar`) with no input term, for floats
+    or arrays and compiled code; ``alpha_h`` is ``alpha(h)``.
+    """
+    return lfh - 2.0 * abs(r - r_centre) * d_bar + alpha_h
+
+
+@inlined
+def band_rate(kind: int, ya: Any, yb: Any, dt: Any, a: float, r_inner: float, r_outer: float, half_width: float,
+              r_centre: float, alpha_slope: float, d_bar: float, d1: float, d2: float) -> Any:
+    """Bound on ``|dg/dt|`` of the band's event ``kind`` (:data:`H`, :data:`XI`, :data:`RDOT`, :data:`XITAU`).
+
+    Over intervals of length ``dt`` with end states ``ya``, ``ya`` (shape (6,) or (6, k)); the bounds of
+    :class:`BandTriggers` (its docstring derives them); ``d1``, ``d2`` bound ``|tau_p'|``, ``|tau_p''|``.
+    """
+    ra = np.sqrt(ya[0] * ya[0] + ya[1] * ya[1] + ya[2] * ya[2])
+    rb = np.sqrt(yb[0] * yb[0] + yb[1] * yb[1] + yb[2] * yb[2])
+    v = 0.5 * (np.sqrt(ya[3] * ya[3] + ya[4] * ya[4] + ya[5] * ya[5])
+               + np.sqrt(yb[3] * yb[3] + yb[4] * yb[4] + yb[5] * yb[5])) + 0.5 * a * dt
+    b = v * v / r_inner + a
+    rda = abs(ya[0] * ya[3] + ya[1] * ya[4] + ya[2] * ya[5]) / ra
+    rdb = abs(yb[0] * yb[3] + yb[1] * yb[4] + yb[2] * yb[5]) / rb
+    p = np.minimum(v, 0.5 * (rda + rdb) + 0.5 * b * dt)
+    d = np.minimum(half_width, 0.5 * (abs(ra - r_centre) + abs(rb - r_centre)) + 0.5 * p * dt)
+    if kind == H:
+        return 2.0 * d * p
+    if kind == RDOT:
+        return p * p + r_outer * b
+    lfh_rate = 2.0 * p * p + 2.0 * d * b
+    if kind == XI:
+        return lfh_rate + alpha_slope * 2.0 * d * p + 2.0 * d_bar * p
+    lfh = 2.0 * d * p
+    return 0.5 * (d2 * lfh * lfh + d1 * lfh_rate)
+
+
 class BandTriggers:
     """Band-barrier trigger values in plain floats, for the integrator's event functions.
 
@@ -130,16 +181,13 @@ class BandTriggers:
         self.alpha_slope = 1.05 * float(np.max(slopes)) if np.all(np.isfinite(slopes)) else math.inf
 
     def parts(self, y: NDArray[np.float64]) -> tuple[float, float, float]:
-        """Return ``(r [m], h [m^2], LF h [m^2/s])`` at state ``y``, shape (6,)."""
-        px, py, pz, vx, vy, vz = y.tolist()
-        r = math.sqrt(px * px + py * py + pz * pz)
-        dr = r - self.r_centre
-        return r, self.h_max - dr * dr, -2.0 * dr * (px * vx + py * vy + pz * vz) / r
+        """Return ``(r [m], h [m^2], LF h [m^2/s])`` at state ``y``, shape (6,) (:func:`band_values`)."""
+        return band_values(y.tolist(), self.r_centre, self.h_max)
 
     def xi(self, t: float, y: NDArray[np.float64]) -> float:
-        """Greedy trigger ``Xi`` [m^2/s] (core :func:`~isf_robot.core.triggers.xi_on_scalar`)."""
+        """Greedy trigger ``Xi`` [m^2/s] (:func:`band_xi`)."""
         r, h, lfh = self.parts(y)
-        return xi_on_scalar(lfh, 0.0, 2.0 * abs(r - self.r_centre), h, self.alpha, self.d_bar)
+        return band_xi(lfh, r, self.r_centre, self.d_bar, self.alpha(h))
 
     def h(self, t: float, y: NDArray[np.float64]) -> float:
         """Barrier value [m^2]."""
@@ -165,80 +213,45 @@ class BandTriggers:
         return xi_tau_event
 
     # -- many points at once (the event scan's grids) -------------------------------------
-    def _parts_batch(self, y: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
-        r = np.sqrt(y[0] ** 2 + y[1] ** 2 + y[2] ** 2)
-        dr = r - self.r_centre
-        return r, self.h_max - dr * dr, -2.0 * dr * (y[0] * y[3] + y[1] * y[4] + y[2] * y[5]) / r
-
     def xi_batch(self, t: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``Xi`` at states ``y``, shape (6, k) -> (k,) (same formula as :meth:`xi`)."""
-        r, h, lfh = self._parts_batch(y)
-        return lfh - 2.0 * np.abs(r - self.r_centre) * self.d_bar + self.alpha.vector(h)
+        """``Xi`` at states ``y``, shape (6, k) -> (k,) (:func:`band_xi`)."""
+        r, h, lfh = band_values(y, self.r_centre, self.h_max)
+        return band_xi(lfh, r, self.r_centre, self.d_bar, self.alpha.vector(h))  # type: ignore[no-any-return]
 
     def h_batch(self, t: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
         """``h`` at states ``y``, shape (6, k) -> (k,)."""
-        return self._parts_batch(y)[1]
+        return band_values(y, self.r_centre, self.h_max)[1]  # type: ignore[no-any-return]
 
     def r_dot_batch(self, t: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
         """``r . v`` at states ``y``, shape (6, k) -> (k,)."""
         return y[0] * y[3] + y[1] * y[4] + y[2] * y[5]
 
-    # -- rate bounds (see the class docstring); states (6,) or (6, k) ----------------------
-    def _bounds(self, ya: NDArray[np.float64], yb: NDArray[np.float64], dt: Any) -> tuple[Any, Any, Any, Any]:
-        """``(V, D, P, B)``: bounds on ``|v|``, ``|r - 2R|``, ``|r_dot|`` and ``|r_ddot|``."""
+    # -- rate bounds (see the class docstring; :func:`band_rate`); states (6,) or (6, k) ----
+    def rate(self, kind: int, ya: NDArray[np.float64], yb: NDArray[np.float64], dt: Any, d1: float = 0.0,
+             d2: float = 0.0) -> Any:
+        """:func:`band_rate` of this band (floats for one interval, arrays for many)."""
         if ya.ndim == 1:
-            return self._bounds_scalar(ya.tolist(), yb.tolist(), float(dt))
-        a = float(self.accel_bound)  # type: ignore[arg-type]
-        ra = np.sqrt(ya[0] ** 2 + ya[1] ** 2 + ya[2] ** 2)
-        rb = np.sqrt(yb[0] ** 2 + yb[1] ** 2 + yb[2] ** 2)
-        v = 0.5 * (np.sqrt(ya[3] ** 2 + ya[4] ** 2 + ya[5] ** 2) + np.sqrt(yb[3] ** 2 + yb[4] ** 2 + yb[5] ** 2))
-        v = v + 0.5 * a * dt
-        b = v * v / self.r_inner + a
-        rda = np.abs(ya[0] * ya[3] + ya[1] * ya[4] + ya[2] * ya[5]) / ra
-        rdb = np.abs(yb[0] * yb[3] + yb[1] * yb[4] + yb[2] * yb[5]) / rb
-        p = np.minimum(v, 0.5 * (rda + rdb) + 0.5 * b * dt)
-        d = np.minimum(self.half_width, 0.5 * (np.abs(ra - self.r_centre) + np.abs(rb - self.r_centre)) + 0.5 * p * dt)
-        return v, d, p, b
-
-    def _bounds_scalar(self, ya: list[float], yb: list[float], dt: float) -> tuple[float, float, float, float]:
-        """:meth:`_bounds` for one interval, in plain floats (the scan's bisection)."""
-        a = float(self.accel_bound)  # type: ignore[arg-type]
-        ra = math.sqrt(ya[0] * ya[0] + ya[1] * ya[1] + ya[2] * ya[2])
-        rb = math.sqrt(yb[0] * yb[0] + yb[1] * yb[1] + yb[2] * yb[2])
-        v = 0.5 * (math.sqrt(ya[3] * ya[3] + ya[4] * ya[4] + ya[5] * ya[5])
-                   + math.sqrt(yb[3] * yb[3] + yb[4] * yb[4] + yb[5] * yb[5])) + 0.5 * a * dt
-        b = v * v / self.r_inner + a
-        rda = abs(ya[0] * ya[3] + ya[1] * ya[4] + ya[2] * ya[5]) / ra
-        rdb = abs(yb[0] * yb[3] + yb[1] * yb[4] + yb[2] * yb[5]) / rb
-        p = min(v, 0.5 * (rda + rdb) + 0.5 * b * dt)
-        d = min(self.half_width, 0.5 * (abs(ra - self.r_centre) + abs(rb - self.r_centre)) + 0.5 * p * dt)
-        return v, d, p, b
+            ya, yb, dt = ya.tolist(), yb.tolist(), float(dt)
+        return band_rate(kind, ya, yb, dt, float(self.accel_bound), self.r_inner,  # type: ignore[arg-type]
+                         self.r_outer, self.half_width, self.r_centre, self.alpha_slope, self.d_bar, d1, d2)
 
     def h_rate(self, ya: NDArray[np.float64], yb: NDArray[np.float64], dt: Any) -> Any:
         """Bound on ``|dh/dt| = |LF h|`` [m^2/s] over the interval(s)."""
-        _, d, rdot, _ = self._bounds(ya, yb, dt)
-        return 2.0 * d * rdot
-
-    def _lfh_rate(self, d: Any, rdot: Any, b: Any) -> Any:
-        return 2.0 * rdot * rdot + 2.0 * d * b
+        return self.rate(H, ya, yb, dt)
 
     def xi_rate(self, ya: NDArray[np.float64], yb: NDArray[np.float64], dt: Any) -> Any:
         """Bound on ``|dXi/dt|`` [m^2/s^2] over the interval(s)."""
-        v, d, rdot, b = self._bounds(ya, yb, dt)
-        return self._lfh_rate(d, rdot, b) + self.alpha_slope * 2.0 * d * rdot + 2.0 * self.d_bar * rdot
+        return self.rate(XI, ya, yb, dt)
 
     def apsis_rate(self, ya: NDArray[np.float64], yb: NDArray[np.float64], dt: Any) -> Any:
         """Bound on ``|d(r . v)/dt| = |r_dot^2 + r r_ddot|`` [m^2/s^2] over the interval(s)."""
-        _, _, rdot, b = self._bounds(ya, yb, dt)
-        return rdot * rdot + self.r_outer * b
+        return self.rate(RDOT, ya, yb, dt)
 
     def xi_tau_rate(self, d1: float, d2: float) -> RateBound:
         """Rate bound of ``Xi_tau`` given ``|tau_p'| <= d1`` [s/m^2] and ``|tau_p''| <= d2`` [s/m^4]."""
 
         def rate(ya: NDArray[np.float64], yb: NDArray[np.float64], dt: Any) -> Any:
-            _, d, rdot, b = self._bounds(ya, yb, dt)
-            lfh = 2.0 * d * rdot
-            return 0.5 * (d2 * lfh * lfh + d1 * self._lfh_rate(d, rdot, b))
+            return self.rate(XITAU, ya, yb, dt, d1, d2)
 
         return rate
 

@@ -43,12 +43,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from isf_robot.core.sums import vecmat
+from satellite.compiled import inlined
 from satellite.errors import GravityModelError
 from satellite.gravity.polyhedron import exact_parallel
 from satellite.gravity.splines import bspline3
 
-__all__ = ["FineBoxes", "build_fine_boxes", "add_fine_level", "STEP_M", "D_FULL_M", "D_ZERO_M"]
+__all__ = ["FineBoxes", "boxes_correction", "NO_BOXES", "build_fine_boxes", "add_fine_level", "STEP_M", "D_FULL_M",
+           "D_ZERO_M"]
 
 STEP_M = 4.0
 """Default node spacing [m] of the boxes."""
@@ -66,11 +67,50 @@ ZERO_LAYERS = 16
 """Rows of zero nodes on each side of a box (coefficient leakage 0.27^16 = 7e-10 of the correction)."""
 
 
-def _weights(t: float) -> tuple[float, float, float, float]:
-    t2 = t * t
-    t3 = t2 * t
-    u = 1.0 - t
-    return u * u * u / 6.0, (3.0 * t3 - 6.0 * t2 + 4.0) / 6.0, (-3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0) / 6.0, t3 / 6.0
+NO_BOXES = (np.zeros((0, 4)), np.zeros((0, 4), dtype=np.int64), np.zeros(0))
+"""The packed arrays of no boxes (:meth:`FineBoxes.packed`)."""
+
+
+@inlined
+def boxes_correction(x: float, y: float, z: float, box_o: NDArray[np.float64], box_n: NDArray[np.int64],
+                     coef: NDArray[np.float64]) -> tuple[float, float, float, bool]:
+    """The boxes' correction [m/s^2] at a point [m]: the sum over the boxes holding it, and whether any does.
+
+    Box ``b`` has its corner and ``1/step`` in ``box_o[b]``, its node counts and the offset of its
+    coefficients in ``coef`` (flat, C order of (nx, ny, nz, 3)) in ``box_n[b]`` (:meth:`FineBoxes.packed`).
+    """
+    fx = fy = fz = 0.0
+    hit = False
+    for b in range(box_o.shape[0]):
+        nx, ny, nz, off = box_n[b, 0], box_n[b, 1], box_n[b, 2], box_n[b, 3]
+        inv = box_o[b, 3]
+        bu = (x - box_o[b, 0]) * inv
+        bv = (y - box_o[b, 1]) * inv
+        bw = (z - box_o[b, 2]) * inv
+        if not (1.0 <= bu < nx - 2 and 1.0 <= bv < ny - 2 and 1.0 <= bw < nz - 2):
+            continue
+        hit = True
+        bi, bj, bk = int(bu), int(bv), int(bw)
+        qa = bspline3(bu - bi)
+        qb = bspline3(bv - bj)
+        qc = bspline3(bw - bk)
+        gx = gy = gz = 0.0
+        for cc in range(4):  # per z layer, the 4 x 4 x-y sum, then weighted (as the shell's)
+            sx = sy = sz = 0.0
+            for aa in range(4):
+                for bb in range(4):
+                    wab = qa[aa] * qb[bb]
+                    n = off + 3 * (((bi - 1 + aa) * ny + (bj - 1 + bb)) * nz + (bk - 1 + cc))
+                    sx += wab * coef[n]
+                    sy += wab * coef[n + 1]
+                    sz += wab * coef[n + 2]
+            gx += qc[cc] * sx
+            gy += qc[cc] * sy
+            gz += qc[cc] * sz
+        fx += gx
+        fy += gy
+        fz += gz
+    return fx, fy, fz, hit
 
 
 class FineBoxes:
@@ -84,7 +124,7 @@ class FineBoxes:
     """
 
     def __init__(self, step: float, boxes: list[tuple[Any, ...]]) -> None:
-        from scipy.ndimage import spline_filter1d
+        from scipy.ndimage import spline_filter1d  # (deferred: scipy.ndimage loads when boxes are first read)
 
         if not (math.isfinite(step) and step > 0):
             raise GravityModelError(f"fine box step must be a positive number of metres, got {step}")
@@ -92,8 +132,8 @@ class FineBoxes:
         self.origins: list[NDArray[np.int64]] = []
         self.values: list[NDArray[np.float64]] = []
         self.steps: list[float] = []
-        self._boxes: list[tuple[float, float, float, int, int, int, NDArray[np.float64], float]] = []
         self._coef4: list[NDArray[np.float64]] = []
+        heads = []
         for origin, values, *own in boxes:
             h = float(own[0]) if own else self.step
             if not (math.isfinite(h) and h > 0):
@@ -102,53 +142,46 @@ class FineBoxes:
             v = np.asarray(values, dtype=np.float64)
             if v.ndim != 4 or v.shape[3] != 3 or min(v.shape[:3]) < 4 or not np.isfinite(v).all():
                 raise GravityModelError(f"fine box values must be finite, shape (nx >= 4, ny, nz, 3), got {v.shape}")
-            c = v
-            for axis in range(3):
-                c = spline_filter1d(c, 3, axis=axis, mode="mirror")
-            nx, ny, nz = v.shape[:3]
             self.origins.append(o)
             self.values.append(v)
             self.steps.append(h)
-            self._coef4.append(np.ascontiguousarray(c))
-            self._boxes.append((float(o[0]) * h, float(o[1]) * h, float(o[2]) * h,
-                                nx, ny, nz, self._coef4[-1].reshape(nx, ny, nz * 3), 1.0 / h))
+            heads.append((o, v.shape[:3], h))
+        sizes = [v.size for v in self.values]
+        offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        self._coef = np.empty(int(offsets[-1]))  # every box's coefficients, flat (one array for the kernels)
+        self._box_o = np.zeros((len(heads), 4))
+        self._box_n = np.zeros((len(heads), 4), dtype=np.int64)
+        for b, ((o, shape, h), v) in enumerate(zip(heads, self.values)):
+            c = v
+            for axis in range(3):
+                c = spline_filter1d(c, 3, axis=axis, mode="mirror")
+            view = self._coef[offsets[b]: offsets[b + 1]]
+            view[:] = c.reshape(-1)
+            self._coef4.append(view.reshape(c.shape))
+            self._box_o[b] = (float(o[0]) * h, float(o[1]) * h, float(o[2]) * h, 1.0 / h)
+            self._box_n[b] = (*shape, offsets[b])
+
+    def packed(self) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
+        """``(box_o, box_n, coef)``: the boxes' corners and 1/step, node counts and offsets, flat coefficients."""
+        return self._box_o, self._box_n, self._coef
 
     def merged(self, other: FineBoxes) -> FineBoxes:
         """The boxes of ``self`` and ``other`` (each keeps its step): their corrections add."""
         return FineBoxes(self.step, [(o, v, h) for b in (self, other) for o, v, h in zip(b.origins, b.values, b.steps)])
 
     def __len__(self) -> int:
-        return len(self._boxes)
+        return len(self.values)
 
     def at(self, x: float, y: float, z: float) -> list[float] | None:
-        """Correction [m/s^2] at one point [m] as three floats, or None outside every box.
-
-        The 16 x 12 product in written order (:func:`~isf_robot.core.sums.vecmat`), as the compiled kernel.
-        """
-        out = None
-        for x0, y0, z0, nx, ny, nz, coef, inv in self._boxes:
-            u = (x - x0) * inv
-            v = (y - y0) * inv
-            w = (z - z0) * inv
-            if not (1.0 <= u < nx - 2 and 1.0 <= v < ny - 2 and 1.0 <= w < nz - 2):
-                continue
-            i, j, k = int(u), int(v), int(w)
-            a0, a1, a2, a3 = _weights(u - i)
-            b0, b1, b2, b3 = _weights(v - j)
-            c0, c1, c2, c3 = _weights(w - k)
-            wxy = np.array([a0 * b0, a0 * b1, a0 * b2, a0 * b3, a1 * b0, a1 * b1, a1 * b2, a1 * b3,
-                            a2 * b0, a2 * b1, a2 * b2, a2 * b3, a3 * b0, a3 * b1, a3 * b2, a3 * b3])
-            s = vecmat(wxy, coef[i - 1: i + 3, j - 1: j + 3, 3 * k - 3: 3 * k + 9].reshape(16, 12)).tolist()
-            f = [c0 * s[0] + c1 * s[3] + c2 * s[6] + c3 * s[9], c0 * s[1] + c1 * s[4] + c2 * s[7] + c3 * s[10],
-                 c0 * s[2] + c1 * s[5] + c2 * s[8] + c3 * s[11]]
-            out = f if out is None else [out[0] + f[0], out[1] + f[1], out[2] + f[2]]
-        return out
+        """Correction [m/s^2] at one point [m] as three floats, or None outside every box (:func:`boxes_correction`)."""
+        fx, fy, fz, hit = boxes_correction(x, y, z, self._box_o, self._box_n, self._coef)
+        return [fx, fy, fz] if hit else None
 
     def at_batch(self, points: ArrayLike) -> NDArray[np.float64]:
         """Correction [m/s^2] at points [m], shape (N, 3) -> (N, 3) (zero outside the boxes)."""
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         out = np.zeros_like(p)
-        for (x0, y0, z0, nx, ny, nz, _, inv), coef in zip(self._boxes, self._coef4):
+        for (x0, y0, z0, inv), (nx, ny, nz, _), coef in zip(self._box_o.tolist(), self._box_n.tolist(), self._coef4):
             u = (p - np.array([x0, y0, z0])) * inv
             ok = ((u >= 1.0) & (u < np.array([nx, ny, nz]) - 2.0)).all(axis=1)
             if not ok.any():

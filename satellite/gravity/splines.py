@@ -11,6 +11,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from satellite.compiled import inlined
+
 __all__ = ["RG", "bspline3", "dbspline3", "prefilter", "pad_nodes"]
 
 _GHOSTS = 6
@@ -20,6 +22,7 @@ RG = 3
 """Radial ghost coefficient layers a table keeps on each side (its spline reaches two cells below ``r_lo``)."""
 
 
+@inlined
 def bspline3(t: Any) -> tuple[Any, Any, Any, Any]:
     """Uniform cubic B-spline weights of the coefficients ``i-1 .. i+2`` at fraction ``t`` of cell ``[i, i+1]``."""
     t2, t3 = t * t, t * t * t
@@ -28,6 +31,7 @@ def bspline3(t: Any) -> tuple[Any, Any, Any, Any]:
             t3 / 6.0)
 
 
+@inlined
 def dbspline3(t: Any) -> tuple[Any, Any, Any, Any]:
     """Derivatives with respect to ``t`` of :func:`bspline3`'s weights (they sum to 0)."""
     t2 = t * t

@@ -39,19 +39,20 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from isf_robot.core.files import write_bytes_atomic
-from isf_robot.core.sums import vecmat
+from satellite.compiled import compiled, inlined
 from satellite.errors import GravityModelError
-from satellite.gravity.fine import FineBoxes
+from satellite.gravity.fine import NO_BOXES, FineBoxes, boxes_correction
 from satellite.gravity.near import NearTiles, build_near_tiles, cell_flags
 from satellite.gravity.polyhedron import PolyhedronField, exact_parallel
 from satellite.gravity.splines import RG as _RG
 from satellite.gravity.splines import bspline3, dbspline3, pad_nodes, prefilter
 
-__all__ = ["GravityTable", "TableGrid", "build_table", "shell_continued"]
+__all__ = ["GravityTable", "TableGrid", "build_table", "shell_spline", "shell_continued", "table_acceleration"]
 
 TABLE_FORMAT = "isf-satellite-gravity-table/2"
 """/2: cubic B-spline through the node values (/1 was Catmull-Rom and is refused: rebuild it)."""
 
+@inlined
 def shell_continued(x: float, y: float, z: float, ext: NDArray[np.float64], r_lo: float, r_hi: float, inv_dr: float,
                     inv_dang: float, n_r: int) -> tuple[float, float, float]:
     """The table's shell part (non-Kepler, [m/s^2]) at a body-frame point [m] outside its radii, continued.
@@ -66,9 +67,8 @@ def shell_continued(x: float, y: float, z: float, ext: NDArray[np.float64], r_lo
     which equals ``S`` with slope ``S'`` at ``r_b`` (C1 there; the second derivative jumps) and
     decays like the field's leading non-Kepler (quadrupole) term, ``r^-4``, with a linear correction.
     The caller adds the fine boxes (Cartesian, built across ``r_in`` down to ~1.39 R) and the Kepler
-    part, as inside the radii. One function for both paths: called as is by :class:`GravityTable` and
-    compiled by :mod:`satellite.orbit.kernel_parts` (``register_jitable``), ``ext`` being the table's padded
-    coefficients (``GravityTable._ext``).
+    part, as inside the radii (:func:`table_acceleration`); ``ext`` is the table's padded coefficients
+    (``GravityTable._ext``).
 
     Why it is sound: a run's accepted trajectory stays in the band, ``[1.6 R, 2.4 R]``, inside the
     table's radii ``[1.5625 R, 2.4375 R]``; only DOP853's stage and trial points of steps near the
@@ -114,6 +114,59 @@ def shell_continued(x: float, y: float, z: float, ext: NDArray[np.float64], r_lo
     lin = r - rb
     return (q4 * (sx + lin * (dx + 4.0 * sx / rb)), q4 * (sy + lin * (dy + 4.0 * sy / rb)),
             q4 * (sz + lin * (dz + 4.0 * sz / rb)))
+
+
+@inlined
+def shell_spline(x: float, y: float, z: float, r: float, ext: NDArray[np.float64], r_lo: float, inv_dr: float,
+                 inv_dang: float, n_r: int) -> tuple[float, float, float]:
+    """The table's shell B-spline (non-Kepler, [m/s^2]) at a body-frame point [m] of radius ``r`` within its radii."""
+    u = (r - r_lo) * inv_dr
+    k = min(int(u), n_r - 3)
+    v = (math.asin(z / r) + 0.5 * math.pi) * inv_dang - 0.5
+    i = math.floor(v)
+    w = (math.atan2(y, x) + math.pi) * inv_dang - 0.5
+    j = math.floor(w)
+    wa = bspline3(u - k)
+    wb = bspline3(v - i)
+    wc = bspline3(w - j)
+    ax = ay = az = 0.0
+    for cc in range(4):  # per longitude layer, the 4 x 4 radius-latitude sum, then weighted
+        sx = sy = sz = 0.0
+        for aa in range(4):
+            for bb in range(4):
+                wab = wa[aa] * wb[bb]
+                e = ext[k + _RG - 1 + aa, i + 1 + bb, j + 1 + cc]
+                sx += wab * e[0]
+                sy += wab * e[1]
+                sz += wab * e[2]
+        ax += wc[cc] * sx
+        ay += wc[cc] * sy
+        az += wc[cc] * sz
+    return ax, ay, az
+
+
+@compiled
+def table_acceleration(x: float, y: float, z: float, geom: NDArray[np.float64], ext: NDArray[np.float64],
+                       box_o: NDArray[np.float64], box_n: NDArray[np.int64],
+                       coef: NDArray[np.float64]) -> tuple[float, float, float]:
+    """The tabulated field [m/s^2] at a body-frame point [m]: shell part, fine boxes, Kepler.
+
+    The shell part is :func:`shell_spline` within the table's radii, :func:`shell_continued` outside them;
+    the fine boxes' correction is :func:`satellite.gravity.fine.boxes_correction`. ``geom`` holds
+    ``GM, r_lo, r_hi, 1/dr, 1/dang, n_r, r_in, r_out`` (:attr:`GravityTable.geom`); ``box_o``, ``box_n``,
+    ``coef`` are the boxes' packed arrays (:class:`satellite.gravity.fine.FineBoxes`). The one evaluation of
+    both the Python path (:meth:`GravityTable.acceleration`) and the compiled arcs.
+    """
+    r2 = x * x + y * y + z * z
+    r = math.sqrt(r2)
+    n_r = int(geom[5])
+    if geom[6] <= r <= geom[7]:
+        ax, ay, az = shell_spline(x, y, z, r, ext, geom[1], geom[3], geom[4], n_r)
+    else:
+        ax, ay, az = shell_continued(x, y, z, ext, geom[1], geom[2], geom[3], geom[4], n_r)
+    fx, fy, fz, _ = boxes_correction(x, y, z, box_o, box_n, coef)
+    kep = -geom[0] / (r2 * r)
+    return ax + fx + kep * x, ay + fy + kep * y, az + fz + kep * z
 
 
 class TableGrid:
@@ -181,9 +234,11 @@ class GravityTable:
         self.provenance = dict(provenance or {})
         # radial ghost layers of coefficients on each side: the spline extends two cells below r_lo
         self._ext = np.ascontiguousarray(pad_nodes(prefilter(values, ghosts=_RG), grid.n_lat))
-        self._ext3 = self._ext.reshape(*self._ext.shape[:2], -1)  # (n_r, n_lat, n_lon 3): one block per slice
         self._r_in, self._r_out = grid.r_lo + grid.dr, grid.r_hi - grid.dr
         self._inv_dr, self._inv_dang = 1.0 / grid.dr, 1.0 / grid.dang
+        self.geom = np.array([self.gm, grid.r_lo, grid.r_hi, self._inv_dr, self._inv_dang, grid.n_r, self._r_in,
+                              self._r_out], dtype=np.float64)
+        """``GM, r_lo, r_hi, 1/dr, 1/dang, n_r, r_in, r_out``: the scalars of :func:`table_acceleration`."""
         self.near, self.fine = near, fine
         self._near_cells: NDArray[np.bool_] | None = None  # the tiles answer only in a table without boxes
 
@@ -202,8 +257,8 @@ class GravityTable:
     def acceleration(self, r_body: ArrayLike) -> NDArray[np.float64]:
         """Acceleration [m/s^2] at one body-frame point [m] (shape (3,) or a 3-tuple); (k, 3) goes to the batch path.
 
-        One lookup: the shell B-spline (64 coefficients, weights as Python floats, one 16 x 12 product in the
-        compiled kernel's written order, not BLAS's per-CPU one), a fine box's B-spline, Kepler added exactly.
+        :func:`table_acceleration` (compiled where numba is used); a table with exact near-surface tiles instead
+        of fine boxes adds the tiles' correction.
         """
         if type(r_body) is tuple:
             x, y, z = r_body
@@ -212,10 +267,18 @@ class GravityTable:
             if p.ndim == 2:
                 return self.acceleration_batch(p)
             x, y, z = p.tolist()
-        r2 = x * x + y * y + z * z
-        r = math.sqrt(r2)
+        if self.fine is None and self.near is not None:
+            return self._with_tiles(x, y, z)
+        box_o, box_n, coef = self.fine.packed() if self.fine is not None else NO_BOXES
+        return np.array(table_acceleration(x, y, z, self.geom, self._ext, box_o, box_n, coef))
+
+    def _with_tiles(self, x: float, y: float, z: float) -> NDArray[np.float64]:
+        """:meth:`acceleration` of a table whose near-surface correction is its exact tiles (no fine boxes)."""
+        box_o, box_n, coef = NO_BOXES
+        ax, ay, az = table_acceleration(x, y, z, self.geom, self._ext, box_o, box_n, coef)
+        r = math.sqrt(x * x + y * y + z * z)
         if not self._r_in <= r <= self._r_out:
-            return self._continued(x, y, z, r2, r)
+            return np.array([ax, ay, az])
         g = self.grid
         u = (r - g.r_lo) * self._inv_dr
         k = min(int(u), g.n_r - 3)
@@ -223,27 +286,12 @@ class GravityTable:
         i = math.floor(v)
         w = (math.atan2(y, x) + math.pi) * self._inv_dang - 0.5
         j = math.floor(w)
-        a0, a1, a2, a3 = bspline3(u - k)
-        b0, b1, b2, b3 = bspline3(v - i)
-        c0, c1, c2, c3 = bspline3(w - j)
-        wab = np.array([a0 * b0, a0 * b1, a0 * b2, a0 * b3, a1 * b0, a1 * b1, a1 * b2, a1 * b3,
-                        a2 * b0, a2 * b1, a2 * b2, a2 * b3, a3 * b0, a3 * b1, a3 * b2, a3 * b3])
-        blk = self._ext3[k + _RG - 1: k + _RG + 3, i + 1: i + 5, 3 * j + 3: 3 * j + 15].reshape(16, 12)
-        s = vecmat(wab, blk).tolist()
-        ax = c0 * s[0] + c1 * s[3] + c2 * s[6] + c3 * s[9]
-        ay = c0 * s[1] + c1 * s[4] + c2 * s[7] + c3 * s[10]
-        az = c0 * s[2] + c1 * s[5] + c2 * s[8] + c3 * s[11]
-        if self.fine is not None:
-            f = self.fine.at(x, y, z)
-            if f is not None:
-                ax, ay, az = ax + f[0], ay + f[1], az + f[2]
-        elif self.near is not None and self._cells()[k, i + 1, j + 1]:
-            fix = self.near.correction(np.array([x, y, z]), k, i, j, np.array((a0, a1, a2, a3)),
-                                       np.array((b0, b1, b2, b3)), np.array((c0, c1, c2, c3)))
+        if self._cells()[k, i + 1, j + 1]:
+            fix = self.near.correction(np.array([x, y, z]), k, i, j, np.array(bspline3(u - k)),
+                                       np.array(bspline3(v - i)), np.array(bspline3(w - j)))
             if fix is not None:
                 ax, ay, az = ax + float(fix[0]), ay + float(fix[1]), az + float(fix[2])
-        kep = -self.gm / (r2 * r)
-        return np.array([ax + kep * x, ay + kep * y, az + kep * z])
+        return np.array([ax, ay, az])
 
     def spline_batch(self, r_body: ArrayLike) -> NDArray[np.float64]:
         """The shell B-spline alone (non-Kepler part [m/s^2], no tiles, no boxes) at points [m], (N, 3) -> (N, 3).
@@ -301,14 +349,8 @@ class GravityTable:
 
     def _continued(self, x: float, y: float, z: float, r2: float, r: float) -> NDArray[np.float64]:
         """Acceleration [m/s^2] at one point outside the radii: :func:`shell_continued`, the fine boxes, Kepler."""
-        g = self.grid
-        ax, ay, az = shell_continued(x, y, z, self._ext, g.r_lo, g.r_hi, self._inv_dr, self._inv_dang, g.n_r)
-        if self.fine is not None:
-            f = self.fine.at(x, y, z)
-            if f is not None:
-                ax, ay, az = ax + f[0], ay + f[1], az + f[2]
-        kep = -self.gm / (r2 * r)
-        return np.array([ax + kep * x, ay + kep * y, az + kep * z])
+        box_o, box_n, coef = self.fine.packed() if self.fine is not None else NO_BOXES
+        return np.array(table_acceleration(x, y, z, self.geom, self._ext, box_o, box_n, coef))
 
     # -- files -------------------------------------------------------------------------------
     def save(self, path: str | Path) -> None:

@@ -27,9 +27,9 @@ from numpy.typing import NDArray
 
 from isf_robot.core import IsfError, Observers
 from satellite.control.contact import ContactWatch
-from satellite.control.triggers import BandTriggers, EventFn
+from satellite.control.triggers import CONTACT, BandTriggers, EventFn
 from satellite.orbit.events import Event, IntegrationFailed, event, integrate
-from satellite.orbit.fast_arcs import CONTACT, FastArcs
+from satellite.orbit.fast_arcs import FastArcs
 from satellite.orbit.model import OrbitModel
 from satellite.shape.surface_check import SurfaceCheck
 

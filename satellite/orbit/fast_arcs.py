@@ -40,15 +40,13 @@ from numpy.typing import NDArray
 
 from isf_robot.core.jit import jit_enabled as core_jit_enabled
 from satellite.control.tau import TauFit
-from satellite.gravity.table import GravityTable
+from satellite.control.triggers import XI, XITAU
+from satellite.gravity.fine import NO_BOXES
+from satellite.gravity.table import GravityTable, table_acceleration
 from satellite.orbit.events import ArcSolution, Event, IntegrationFailed
 
-__all__ = ["FastArcs", "FastDense", "jit_enabled", "signals_deferred", "XI", "H", "RDOT", "CONTACT", "XITAU"]
+__all__ = ["FastArcs", "FastDense", "jit_enabled", "signals_deferred"]
 
-XI, H, RDOT, CONTACT, XITAU = 0, 1, 2, 3, 4
-"""Event kinds (:attr:`satellite.orbit.events.Event.code`'s first item; as in :mod:`satellite.orbit.kernel_parts`)."""
-
-_PACKS: dict[int, tuple[Any, ...]] = {}
 _JIT: dict[str, Any] = {}
 
 
@@ -79,18 +77,15 @@ def signals_deferred() -> Iterator[None]:
 
 
 def jit_enabled() -> bool:
-    """Whether compiled arcs can be used (numba importable, ``ISF_ROBOT_JIT`` not ``0``)."""
-    if not core_jit_enabled():
+    """Whether compiled arcs can be used (numba importable, ``ISF_ROBOT_JIT`` not ``0``, the formulas compiled)."""
+    if not core_jit_enabled() or not hasattr(table_acceleration, "py_func"):
         return False
     if "arc" not in _JIT:
         try:
-            from satellite.orbit import arc_kernel as _jit_arc
-            from satellite.orbit import kernel_parts as _jit_parts
+            from satellite.orbit import arc_kernel as _jit_arc  # (deferred: numba compiles or loads the kernels)
         except ImportError:
             _JIT["arc"] = None
         else:
-            assert (_jit_parts.XI, _jit_parts.H, _jit_parts.RDOT, _jit_parts.CONTACT, _jit_parts.XITAU) == (
-                XI, H, RDOT, CONTACT, XITAU)
             _JIT["arc"] = _jit_arc.arc
     return _JIT["arc"] is not None
 
@@ -120,32 +115,11 @@ def _dop853_coefficients() -> Any:
 
 
 def _pack_field(field: Any) -> tuple[Any, ...] | None:
-    """The table's arrays for the kernel (cached per field), or ``None`` when it has no compiled form."""
+    """The table's arrays for the kernel, or ``None`` when it has no compiled form."""
     if not isinstance(field, GravityTable) or (field.fine is None and field.near is not None):
         return None
-    key = id(field)
-    if key in _PACKS and _PACKS[key][0] is field:
-        return _PACKS[key][1:]
-    ext = np.ascontiguousarray(field._ext, dtype=np.float64)
-    fine = field.fine
-    boxes = list(zip(fine._boxes, fine._coef4)) if fine is not None else []
-    if any(len(b) != 8 for b, _ in boxes):  # a layout this kernel does not know: the Python path
-        return None
-    box_o = np.zeros((max(1, len(boxes)), 4))
-    box_n = np.zeros((max(1, len(boxes)), 4), dtype=np.int64)
-    from numba.typed import List
-
-    coef = List()  # each box's coefficients, flat views (no copy: ~100 MB for the two-level table)
-    for b, ((x0, y0, z0, nx, ny, nz, _, inv), c4) in enumerate(boxes):
-        box_o[b] = (x0, y0, z0, inv)
-        box_n[b] = (nx, ny, nz, 0)
-        coef.append(np.ascontiguousarray(c4, dtype=np.float64).reshape(-1))
-    if not boxes:
-        coef.append(np.zeros(1))
-    g = field.grid
-    base = [field.gm, g.r_lo, field._inv_dr, field._inv_dang, field._r_in, field._r_out, g.n_r, g.r_hi, len(boxes)]
-    _PACKS[key] = (field, base, ext, box_o, box_n, coef)
-    return base, ext, box_o, box_n, coef
+    box_o, box_n, coef = field.fine.packed() if field.fine is not None else NO_BOXES
+    return field.geom, field._ext, box_o, box_n, coef
 
 
 class FastDense:
@@ -192,8 +166,8 @@ class FastArcs:
 
     def __init__(self, model: Any, trig: Any, contact: Any, packed: tuple[Any, ...]) -> None:
         dc = _dop853_coefficients()
-        base, self.ext, self.box_o, self.box_n, self.coef = packed
-        self.fp = np.array([model.body_phase, model.omega, model.disturbance_scale, *base], dtype=np.float64)
+        geom, self.ext, self.box_o, self.box_n, self.coef = packed
+        self.fp = np.array([model.body_phase, model.omega, model.disturbance_scale, *geom], dtype=np.float64)
         gain = float(getattr(trig.alpha, "gain", math.nan))
         self.bp = np.array([trig.r_centre, trig.h_max, trig.d_bar, trig.accel_bound or 0.0, trig.r_inner,
                             trig.r_outer, trig.half_width, gain, trig.alpha_slope], dtype=np.float64)
@@ -215,8 +189,7 @@ class FastArcs:
         """The compiled arcs of a run, or ``None`` (numba missing or off, or a field without compiled form)."""
         if not jit_enabled():
             return None
-        with signals_deferred():  # (numba's typed List compiles on first use)
-            packed = _pack_field(model.field)
+        packed = _pack_field(model.field)
         return cls(model, trig, contact, packed) if packed is not None else None
 
     def _tau(self, fit: Any) -> NDArray[np.float64] | None:
@@ -227,12 +200,7 @@ class FastArcs:
 
         if type(fit) is not TauFit:
             return None
-        coef = fit.coef
-        hm = float(fit.h_max)
-        d1 = sum(k * abs(a) for k, a in enumerate(coef)) / hm
-        d2 = sum(k * (k - 1) * abs(a) for k, a in enumerate(coef)) / hm**2
-        dcoef = [k * float(coef[k]) for k in range(1, len(coef))] or [0.0]
-        tp = np.array([d1, d2, hm, *dcoef], dtype=np.float64)
+        tp = fit.packed
         self._tp[id(fit)] = (fit, tp)
         return tp
 

@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from isf_robot.core import Barrier, ConfigError
+from satellite.compiled import inlined
 from satellite.gravity.fields import DEFAULT_GRAVITY, load_field
 
 __all__ = [
@@ -47,6 +48,8 @@ __all__ = [
     "OrbitModel",
     "BandBarrier",
     "InitialOrbit",
+    "to_body",
+    "truth_from_body",
 ]
 
 SPIN_PERIOD_H = 12.1324
@@ -60,6 +63,29 @@ BAND_OUTER = 2.4
 
 BAND_CENTRE = 2.0
 """Centre of the band in units of R; the barrier's half-width is 0.4 R."""
+
+
+@inlined
+def to_body(theta: float, px: float, py: float) -> tuple[float, float, float, float]:
+    """``(cos theta, sin theta, x_body, y_body)`` of an inertial position's x, y with the body turned by ``theta``."""
+    c = math.cos(theta)
+    s = math.sin(theta)
+    return c, s, c * px + s * py, c * py - s * px
+
+
+@inlined
+def truth_from_body(c: float, s: float, qx: float, qy: float, qz: float, bx: float, by: float, bz: float,
+                    mu: float, k: float) -> tuple[float, float, float]:
+    """Inertial truth acceleration from the body-frame field ``b`` at the body-frame point ``q``.
+
+    ``a = Rz(theta) [a_K + k (b - a_K)]`` with ``a_K = -mu q / |q|^3`` (``k = 1``: the field itself), and
+    ``c, s`` the cosine and sine of the body angle (:func:`to_body`).
+    """
+    if k != 1.0:
+        r2 = qx * qx + qy * qy + qz * qz
+        g = -mu / (r2 * math.sqrt(r2))
+        bx, by, bz = g * qx + k * (bx - g * qx), g * qy + k * (by - g * qy), g * qz + k * (bz - g * qz)
+    return c * bx - s * by, s * bx + c * by, bz
 
 
 class OrbitModel:
@@ -137,17 +163,10 @@ class OrbitModel:
     def truth_rhs(self, t: float, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Truth flow: the gravity model of the spinning body (body frame turned), shape (6,)."""
         px, py, pz, vx, vy, vz = x.tolist()
-        th = self.body_phase + self.omega * t
-        c = math.cos(th)
-        s = math.sin(th)
-        qx, qy = c * px + s * py, c * py - s * px
+        c, s, qx, qy = to_body(self.body_phase + self.omega * t, px, py)
         bx, by, bz = self.field.acceleration((qx, qy, pz)).tolist()
-        k = self.disturbance_scale
-        if k != 1.0:
-            r2 = px * px + py * py + pz * pz
-            g = -self.mu / (r2 * math.sqrt(r2))
-            bx, by, bz = g * qx + k * (bx - g * qx), g * qy + k * (by - g * qy), g * pz + k * (bz - g * pz)
-        return np.array([vx, vy, vz, c * bx - s * by, s * bx + c * by, bz])
+        ax, ay, az = truth_from_body(c, s, qx, qy, pz, bx, by, bz, self.mu, self.disturbance_scale)
+        return np.array([vx, vy, vz, ax, ay, az])
 
     def truth_acceleration(self, t: float, r: NDArray[np.float64]) -> NDArray[np.float64]:
         """Inertial acceleration of the truth model at position ``r`` [m], shape (3,)."""

@@ -26,9 +26,9 @@ from satellite.control.shooting import shooting_report
 from satellite.control.surface_barrier import add_surface_barrier
 from satellite.control.tau import check_tau_controller
 from satellite.control.triggers import TRIGGERS, BandTriggers, Trigger
+from satellite.control.triggers import H as EV_H
 from satellite.orbit.arcs import ArcIntegrator, IntegratorSettings, SatelliteSample, SimulationError, Tracker
 from satellite.orbit.events import event
-from satellite.orbit.fast_arcs import H as EV_H
 from satellite.orbit.model import BAND_INNER, BAND_OUTER, InitialOrbit, OrbitModel
 from satellite.orbit.result import (
     MietReport,

@@ -9,7 +9,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from isf_robot.core import Linear
-from satellite.control.triggers import BandTriggers
+from satellite.control.triggers import BandTriggers, band_values
 from satellite.gravity.spherical import load_default_field  # the degree-8 series: these cases were chosen on it
 from satellite.orbit.events import event, integrate
 from satellite.orbit.model import OrbitModel
@@ -75,7 +75,7 @@ def test_band_rate_bounds_hold_along_truth_arcs() -> None:
     rng = np.random.default_rng(3)
     fns = {"h": (trig.h_batch, trig.h_rate), "xi": (trig.xi_batch, trig.xi_rate),
            "apsis": (trig.r_dot_batch, trig.apsis_rate),
-           "xi_tau": (lambda t, y: 0.5 * (1 + (3.0 + 2e-3 * trig._parts_batch(y)[1]) * trig._parts_batch(y)[2]),
+           "xi_tau": (lambda t, y: 0.5 * (1 + (3.0 + 2e-3 * band_values(y, trig.r_centre, trig.h_max)[1]) * band_values(y, trig.r_centre, trig.h_max)[2]),
                       trig.xi_tau_rate(3.0 + 2e-3 * model.h_max, 2e-3))}
     for _ in range(6):
         u = rng.normal(size=3)

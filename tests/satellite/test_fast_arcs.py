@@ -11,10 +11,16 @@ pytest.importorskip("numba")
 
 from isf_robot.core import Linear  # noqa: E402
 from satellite.control.contact import make_contact  # noqa: E402
-from satellite.control.triggers import BandTriggers  # noqa: E402
+from satellite.control.triggers import (  # noqa: E402
+    CONTACT,
+    RDOT,
+    XI,
+    BandTriggers,  # noqa: E402
+    H,
+)
 from satellite.gravity.fields import DEFAULT_GRAVITY, load_field  # noqa: E402
 from satellite.orbit.events import event, integrate  # noqa: E402
-from satellite.orbit.fast_arcs import CONTACT, RDOT, XI, FastArcs, H, jit_enabled  # noqa: E402
+from satellite.orbit.fast_arcs import FastArcs, jit_enabled  # noqa: E402
 from satellite.orbit.model import OrbitModel  # noqa: E402
 from satellite.shape.mesh_surface import load_surface  # noqa: E402
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from satellite.errors import GravityModelError
-from satellite.gravity import table as gravity_table
 from satellite.gravity.polyhedron import PolyhedronField
-from satellite.gravity.table import GravityTable, TableGrid, bspline3, build_table, dbspline3, shell_continued
+from satellite.gravity.splines import bspline3, dbspline3
+from satellite.gravity.table import GravityTable, TableGrid, build_table, shell_continued, shell_spline
 
 GM = 2.0
 
@@ -121,7 +121,7 @@ def test_continuation_meets_the_table_at_its_ends(body, tables) -> None:  # type
             assert np.abs(slope_in).max() > 1e-2 * scale / r0  # a slope worth matching
 
 
-def test_continuation_is_used_only_outside_the_radii(body, tables, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+def test_continuation_is_used_only_outside_the_radii(body, tables) -> None:  # type: ignore[no-untyped-def]
     field, rb = body
     tab = tables[12]
     r_in, r_out = tab.fast_radii
@@ -131,22 +131,21 @@ def test_continuation_is_used_only_outside_the_radii(body, tables, monkeypatch) 
     inside = u * np.concatenate([[r_in, r_out], rng.uniform(r_in, r_out, 58)])[:, None]
     outside = u[:6] * np.array([0.9 * r_in, np.nextafter(r_in, 0.0), 0.5 * (tab.grid.r_lo + r_in),
                                 np.nextafter(r_out, np.inf), tab.grid.r_hi, 1.5 * r_out])[:, None]
-    before = tab.acceleration_batch(inside)
-    calls: list[float] = []
-    real = gravity_table.shell_continued
+    g = tab.grid
 
-    def counted(*args):  # type: ignore[no-untyped-def]
-        calls.append(float(np.linalg.norm(args[:3])))
-        return real(*args)
+    def expected(p, continued):  # type: ignore[no-untyped-def]
+        x, y, z = p.tolist()
+        if continued:
+            s = shell_continued(x, y, z, tab._ext, g.r_lo, g.r_hi, 1.0 / g.dr, 1.0 / g.dang, g.n_r)
+        else:
+            s = shell_spline(x, y, z, float(np.linalg.norm(p)), tab._ext, g.r_lo, 1.0 / g.dr, 1.0 / g.dang, g.n_r)
+        return np.array(s) - tab.gm * p / np.linalg.norm(p) ** 3
 
-    monkeypatch.setattr(gravity_table, "shell_continued", counted)
-    np.testing.assert_array_equal(tab.acceleration_batch(inside), before)
-    for p in inside[:10]:
-        tab.acceleration(p)
-    assert calls == []
+    for pts, continued in ((inside, False), (outside, True)):
+        want = np.array([expected(p, continued) for p in pts])
+        np.testing.assert_allclose(np.array([tab.acceleration(p) for p in pts]), want, rtol=1e-12, atol=0.0)
+        np.testing.assert_allclose(tab.acceleration_batch(pts), want, rtol=1e-12, atol=0.0)
     got = tab.acceleration_batch(outside)
-    assert len(calls) == len(outside)
-    np.testing.assert_array_equal(got, np.array([tab.acceleration(p) for p in outside]))
     # the radial continuation against the exact field (the lumpy body's table: 9 radii over 0.8 rb; measured <= 1 %)
     near = u * rng.choice([0.97 * tab.grid.r_lo, 1.05 * tab.grid.r_hi], len(u))[:, None]  # beyond the end nodes
     exact = field.acceleration(near)

@@ -66,7 +66,8 @@ def compiled_xi(model: OrbitModel, trig: BandTriggers):  # type: ignore[no-untyp
 
     ``None`` when the compiled arcs are off (``ISF_ROBOT_JIT=0``): the runs do not use it then.
     """
-    from satellite.orbit.fast_arcs import XI, FastArcs, jit_enabled
+    from satellite.control.triggers import XI
+    from satellite.orbit.fast_arcs import FastArcs, jit_enabled
 
     if not jit_enabled():
         return None
