@@ -30,10 +30,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from satellite.compiled import compiled, inlined
 from satellite.gravity.fields import exact_samples
+from satellite.orbit.model import to_body
 from satellite.shape.surfaces import EllipsoidSurface, SurfaceModel
 
-__all__ = ["CONTACT_MODES", "RadiusEnvelope", "ContactWatch", "ellipsoid_mesh", "make_contact", "contact_samples"]
+__all__ = ["CONTACT_MODES", "envelope_radius", "envelope_radii", "contact_g", "contact_rate", "RadiusEnvelope",
+           "ContactWatch", "ellipsoid_mesh", "make_contact", "contact_samples"]
 
 CONTACT_MODES = ("off", "count", "stop")
 """``off``: surface ignored (the paper); ``count``: contacts counted, the orbit goes on through
@@ -69,6 +72,65 @@ def ellipsoid_mesh(semi_axes: NDArray[np.float64], n: int = 96) -> tuple[NDArray
     c, d = idx[1:], np.roll(idx[1:], -1, axis=1)
     faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
     return verts, faces
+
+
+@inlined
+def envelope_radius(values: NDArray[np.float64], d: float, n_lat: int, n_lon: int, x: float, y: float,
+                    z: float) -> float:
+    """``r_env`` [m] in the direction of the body-frame point ``(x, y, z)``: bilinear between cell centres.
+
+    ``values`` is the envelope's (n_lat, n_lon) grid of cells of ``d`` radians (:class:`RadiusEnvelope`).
+    """
+    r = math.sqrt(x * x + y * y + z * z)
+    q = z / r if r > 0 else z
+    lat = math.asin(min(max(q, -1.0), 1.0))
+    lon = math.atan2(y, x)
+    xx = min(max((lat + 0.5 * math.pi) / d - 0.5, 0.0), n_lat - 1.0)
+    yq = (lon + math.pi) / d - 0.5
+    yq = yq - n_lon * math.floor(yq / n_lon)
+    i = min(int(math.floor(xx)), n_lat - 2) if n_lat > 1 else 0
+    fl = math.floor(yq)
+    j = int(fl) % n_lon
+    fx = xx - i
+    fy = yq - fl
+    j1 = (j + 1) % n_lon
+    i1 = min(i + 1, n_lat - 1)
+    return ((1 - fx) * ((1 - fy) * values[i, j] + fy * values[i, j1])  # type: ignore[no-any-return]
+            + fx * ((1 - fy) * values[i1, j] + fy * values[i1, j1]))
+
+
+@compiled
+def envelope_radii(values: NDArray[np.float64], d: float, n_lat: int, n_lon: int,
+                   points: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`envelope_radius` of each row of ``points`` (N, 3) -> (N,)."""
+    out = np.empty(points.shape[0])
+    for k in range(points.shape[0]):
+        out[k] = envelope_radius(values, d, n_lat, n_lon, points[k, 0], points[k, 1], points[k, 2])
+    return out
+
+
+@inlined
+def contact_g(t: float, px: float, py: float, pz: float, phase: float, omega: float, values: NDArray[np.float64],
+              d: float, n_lat: int, n_lon: int, max_radius: float) -> float:
+    """The contact event ``g = |r| - r_env(u_body(t))`` [m] (``|r| - max r_env`` beyond the envelope's reach)."""
+    r = math.sqrt(px * px + py * py + pz * pz)
+    if r > max_radius:
+        return r - max_radius
+    _, _, qx, qy = to_body(phase + omega * t, px, py)
+    return r - envelope_radius(values, d, n_lat, n_lon, qx, qy, pz)
+
+
+@inlined
+def contact_rate(ya: Any, yb: Any, dt: Any, a: float, slope: float, min_radius: float, max_radius: float,
+                 omega: float) -> Any:
+    """Bound on ``|dg/dt|`` [m/s] of :func:`contact_g` over intervals (floats, or arrays of end states (6, k))."""
+    ra = np.sqrt(ya[0] * ya[0] + ya[1] * ya[1] + ya[2] * ya[2])
+    rb = np.sqrt(yb[0] * yb[0] + yb[1] * yb[1] + yb[2] * yb[2])
+    v = 0.5 * (np.sqrt(ya[3] * ya[3] + ya[4] * ya[4] + ya[5] * ya[5])
+               + np.sqrt(yb[3] * yb[3] + yb[4] * yb[4] + yb[5] * yb[5])) + 0.5 * a * dt
+    r_low = np.minimum(ra, rb) - 0.5 * v * dt
+    turn = slope * (v / np.maximum(r_low, min_radius) + abs(omega))
+    return v + turn * (r_low <= max_radius)  # beyond the envelope g = r - max: no turn term
 
 
 class RadiusEnvelope:
@@ -151,19 +213,9 @@ class RadiusEnvelope:
         return cls(verts, faces, n_lat, name=surface.name)
 
     def radius(self, dirs: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``r_env`` [m] of directions, shape (N, 3) (need not be unit) -> (N,)."""
-        p = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
-        r = np.linalg.norm(p, axis=1)
-        lat, lon = _lat_lon(p, np.where(r > 0, r, 1.0))
-        x = np.clip((lat + 0.5 * math.pi) / self.d - 0.5, 0.0, self.n_lat - 1.0)
-        y = ((lon + math.pi) / self.d - 0.5) % self.n_lon
-        i = np.minimum(np.floor(x).astype(np.intp), self.n_lat - 2) if self.n_lat > 1 else np.zeros(len(x), np.intp)
-        j = np.floor(y).astype(np.intp) % self.n_lon
-        fx, fy = x - i, y - np.floor(y)
-        j1 = (j + 1) % self.n_lon
-        v = self.values
-        i1 = np.minimum(i + 1, self.n_lat - 1)
-        return ((1 - fx) * ((1 - fy) * v[i, j] + fy * v[i, j1]) + fx * ((1 - fy) * v[i1, j] + fy * v[i1, j1]))
+        """``r_env`` [m] of directions, shape (N, 3) (need not be unit) -> (N,) (:func:`envelope_radius`)."""
+        p = np.ascontiguousarray(dirs, dtype=np.float64).reshape(-1, 3)
+        return envelope_radii(self.values, self.d, self.n_lat, self.n_lon, p)  # type: ignore[no-any-return]
 
 
 class ContactWatch:
@@ -198,27 +250,19 @@ class ContactWatch:
         return self._body(t, np.asarray(y, dtype=float)[:3]).reshape(1, 3)
 
     def g(self, t: float, y: NDArray[np.float64]) -> float:
-        """``|r| - r_env(u_body)`` [m]."""
-        r = math.sqrt(float(y[0] ** 2 + y[1] ** 2 + y[2] ** 2))
-        if r > self.envelope.max_radius:
-            return r - self.envelope.max_radius
-        return r - float(self.envelope.radius(self._body(t, y[:3]).reshape(1, 3))[0])
+        """``|r| - r_env(u_body)`` [m] (:func:`contact_g`)."""
+        e = self.envelope
+        px, py, pz = y[:3].tolist()
+        return contact_g(t, px, py, pz, self.body_phase, self.omega, e.values, e.d, e.n_lat, e.n_lon, e.max_radius)
 
     def batch(self, t: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
         """:meth:`g` at states ``y``, shape (6, k) -> (k,)."""
-        r = np.sqrt(y[0] ** 2 + y[1] ** 2 + y[2] ** 2)
-        return r - np.minimum(self.envelope.radius(self._body(t, y[:3])), np.maximum(r, self.envelope.max_radius))
+        return np.array([self.g(float(tk), y[:, k]) for k, tk in enumerate(np.broadcast_to(t, y.shape[1:]))])
 
     def rate(self, ya: NDArray[np.float64], yb: NDArray[np.float64], dt: Any) -> Any:
-        """Bound on ``|dg/dt|`` [m/s] over the interval(s) (see the module docstring)."""
-        a = self.accel_bound
-        ra = np.sqrt(ya[0] ** 2 + ya[1] ** 2 + ya[2] ** 2)
-        rb = np.sqrt(yb[0] ** 2 + yb[1] ** 2 + yb[2] ** 2)
-        v = 0.5 * (np.sqrt(ya[3] ** 2 + ya[4] ** 2 + ya[5] ** 2) + np.sqrt(yb[3] ** 2 + yb[4] ** 2 + yb[5] ** 2))
-        v = v + 0.5 * a * dt
-        r_low = np.minimum(ra, rb) - 0.5 * v * dt
-        turn = self.envelope.slope * (v / np.maximum(r_low, self.envelope.min_radius) + abs(self.omega))
-        return v + np.where(r_low > self.envelope.max_radius, 0.0, turn)  # beyond the envelope g = r - max
+        """Bound on ``|dg/dt|`` [m/s] over the interval(s) (:func:`contact_rate`; see the module docstring)."""
+        e = self.envelope
+        return contact_rate(ya, yb, dt, self.accel_bound, e.slope, e.min_radius, e.max_radius, self.omega)
 
     def passes(self, t0: float, t1: float, g0: float, crossings: NDArray[np.float64]) -> list[tuple[float, float]]:
         """Intervals of ``[t0, t1]`` inside the envelope, from ``g(t0)`` and the crossing times."""

@@ -22,13 +22,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from isf_robot.core import ClassK, UnknownNameError, xi_tau
+from isf_robot.core import ClassK, UnknownNameError
+from isf_robot.core.triggers import xi_tau as _core_xi_tau
 from satellite.compiled import inlined
 from satellite.orbit.events import RateBound
 from satellite.orbit.model import BAND_INNER, BAND_OUTER, OrbitModel
 
 __all__ = ["Trigger", "TRIGGERS", "BandTriggers", "EventFn", "RateBound", "band_values", "band_xi", "band_rate",
-           "XI", "H", "RDOT", "CONTACT", "XITAU"]
+           "xi_tau", "XI", "H", "RDOT", "CONTACT", "XITAU"]
 
 EventFn = Callable[[float, NDArray[np.float64]], float]
 """An event function ``g(t, y)``."""
@@ -84,6 +85,9 @@ _DESCRIPTIONS = {
 TRIGGERS: tuple[str, ...] = tuple(t.value for t in Trigger)
 """Trigger names, in definition order."""
 
+
+xi_tau = inlined(_core_xi_tau)
+"""The core's ``Xi_tau`` (eq. trigger:int_time), callable from the compiled arcs too."""
 
 XI, H, RDOT, CONTACT, XITAU = 0, 1, 2, 3, 4
 """Event kinds of the compiled arcs (:attr:`satellite.orbit.events.Event.code`'s first item)."""

@@ -1,14 +1,20 @@
 """Compiled pieces of the fast arc integrator (imported only when numba is installed and used).
 
-The arcs call the run's formula functions themselves, compiled (:mod:`satellite.compiled`): the truth
-right-hand side is :func:`satellite.orbit.model.to_body`, :func:`satellite.gravity.table.table_acceleration`
-and :func:`satellite.orbit.model.truth_from_body`; the band's events and rate bounds are
-:func:`satellite.control.triggers.band_values`, :func:`~satellite.control.triggers.band_xi` and
-:func:`~satellite.control.triggers.band_rate`, the maneuver trigger's slope :func:`satellite.control.tau.tau_slope`.
-Here: the dispatch by event kind, the contact watch's envelope, DOP853's interpolant at one point and Brent's
-method on an event along it. :mod:`satellite.orbit.arc_kernel` integrates arcs with them;
-:mod:`satellite.orbit.fast_arcs` packs the arguments. numba's on-disk cache keys each kernel on its own
-file: after editing a formula in another module, clear ``satellite/**/__pycache__/*.nb*``.
+The arcs call the run's formula functions themselves, compiled (:mod:`satellite.compiled`):
+
+* the truth right-hand side: :func:`satellite.orbit.model.to_body`,
+  :func:`satellite.gravity.table.table_acceleration`, :func:`satellite.orbit.model.truth_from_body`;
+* the band's events and rate bounds: :func:`satellite.control.triggers.band_values`,
+  :func:`~satellite.control.triggers.band_xi`, :func:`~satellite.control.triggers.band_rate`;
+* the maneuver trigger: :func:`satellite.control.tau.tau_slope` and the core's
+  :func:`isf_robot.core.triggers.xi_tau`;
+* the contact watch: :func:`satellite.control.contact.contact_g` and
+  :func:`~satellite.control.contact.contact_rate`.
+
+Here: the dispatch by event kind, DOP853's interpolant at one point and Brent's method on an event
+along it. :mod:`satellite.orbit.arc_kernel` integrates arcs with them; :mod:`satellite.orbit.fast_arcs`
+packs the arguments. numba's on-disk cache keys each kernel on its own file: after editing a formula in
+another module, clear ``satellite/**/__pycache__/*.nb*``.
 
 Packed parameters (float arrays, filled by :mod:`satellite.orbit.fast_arcs`):
 
@@ -24,13 +30,12 @@ Packed parameters (float arrays, filled by :mod:`satellite.orbit.fast_arcs`):
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
+from satellite.control.contact import contact_g, contact_rate
 from satellite.control.tau import tau_slope
-from satellite.control.triggers import CONTACT, RDOT, XI, XITAU, H, band_rate, band_values, band_xi
+from satellite.control.triggers import CONTACT, RDOT, XI, XITAU, H, band_rate, band_values, band_xi, xi_tau
 from satellite.gravity.table import table_acceleration
 from satellite.orbit.model import to_body, truth_from_body
 
@@ -64,61 +69,25 @@ def interp(tq, t_old, h, y_old, F, out):  # pragma: no cover (compiled)
 
 
 @njit(cache=True, nogil=True)
-def _envelope(cp, env, bx, by, bz):  # pragma: no cover (compiled)
-    r = math.sqrt(bx * bx + by * by + bz * bz)
-    q = bz / r if r > 0 else bz
-    lat = math.asin(min(max(q, -1.0), 1.0))
-    lon = math.atan2(by, bx)
-    d = cp[2]
-    n_lat = int(cp[3])
-    n_lon = int(cp[4])
-    xx = min(max((lat + 0.5 * math.pi) / d - 0.5, 0.0), n_lat - 1.0)
-    yq = (lon + math.pi) / d - 0.5
-    yq = yq - n_lon * math.floor(yq / n_lon)
-    i = min(int(math.floor(xx)), n_lat - 2) if n_lat > 1 else 0
-    fl = math.floor(yq)
-    j = int(fl) % n_lon
-    fx = xx - i
-    fy = yq - fl
-    j1 = (j + 1) % n_lon
-    i1 = min(i + 1, n_lat - 1)
-    return (1 - fx) * ((1 - fy) * env[i, j] + fy * env[i, j1]) + fx * ((1 - fy) * env[i1, j] + fy * env[i1, j1])
-
-
-@njit(cache=True, nogil=True)
 def g_event(kind, par, t, y, bp, cp, env, tp):  # pragma: no cover (compiled)
     """The event function of ``kind`` at ``(t, y)``."""
-    px, py, pz = y[0], y[1], y[2]
     if kind == RDOT:
-        return px * y[3] + py * y[4] + pz * y[5]
+        return y[0] * y[3] + y[1] * y[4] + y[2] * y[5]
     if kind == CONTACT:
-        r = math.sqrt(px * px + py * py + pz * pz)
-        if r > cp[5]:
-            return r - cp[5]
-        th = cp[0] + cp[1] * t
-        c, s = math.cos(th), math.sin(th)
-        return r - _envelope(cp, env, c * px + s * py, c * py - s * px, pz)
+        return contact_g(t, y[0], y[1], y[2], cp[0], cp[1], env, cp[2], int(cp[3]), int(cp[4]), cp[5])
     r, h, lfh = band_values(y, bp[0], bp[1])
     if kind == H:
         return h - par
     if kind == XI:
         return band_xi(lfh, r, bp[0], bp[2], bp[7] * h)
-    return 0.5 * (1.0 + tau_slope(tp, h) * lfh)  # XITAU: the core's xi_tau (eq. trigger:int_time)
+    return xi_tau(tau_slope(tp, h), lfh)  # XITAU
 
 
 @njit(cache=True, nogil=True)
 def g_rate(kind, ya, yb, dt, bp, cp, tp):  # pragma: no cover (compiled)
     """Bound on ``|dg/dt|`` over an interval of length ``dt`` with end states ``ya``, ``yb``."""
     if kind == CONTACT:
-        va = math.sqrt(ya[3] * ya[3] + ya[4] * ya[4] + ya[5] * ya[5])
-        vb = math.sqrt(yb[3] * yb[3] + yb[4] * yb[4] + yb[5] * yb[5])
-        ra = math.sqrt(ya[0] * ya[0] + ya[1] * ya[1] + ya[2] * ya[2])
-        rb = math.sqrt(yb[0] * yb[0] + yb[1] * yb[1] + yb[2] * yb[2])
-        v = 0.5 * (va + vb) + 0.5 * cp[8] * dt
-        r_low = min(ra, rb) - 0.5 * v * dt
-        if r_low > cp[5]:
-            return v + 0.0
-        return v + cp[7] * (v / max(r_low, cp[6]) + abs(cp[1]))
+        return contact_rate(ya, yb, dt, cp[8], cp[7], cp[6], cp[5], cp[1])
     return band_rate(kind, ya, yb, dt, bp[3], bp[4], bp[5], bp[6], bp[0], bp[8], bp[2], tp[0], tp[1])
 
 
