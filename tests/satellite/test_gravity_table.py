@@ -168,3 +168,33 @@ def test_file_round_trip_and_bad_files(tables, tmp_path) -> None:  # type: ignor
         GravityTable.load(tmp_path / "bad.npz")
     with pytest.raises(GravityModelError, match="bad table grid"):
         TableGrid(2.0, 1.0, 9, 12)
+
+
+def test_committed_table_is_a_potential_field_outside_the_body() -> None:
+    """Outside the body the field is a gradient (symmetric Jacobian) and harmonic (zero trace): central differences.
+
+    The shell spline, the fine boxes and Kepler each interpolate their own components, so both hold to the
+    interpolation error (measured <= 4e-3 of the Jacobian's size at band points); a wrong weight, index or
+    component in :func:`satellite.gravity.table.table_acceleration` breaks them at order one.
+    """
+    from satellite.gravity.fields import load_field
+    from satellite.shape.mesh_surface import load_surface
+
+    tab = load_field("table")
+    rng = np.random.default_rng(0)
+    u = rng.normal(size=(40, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    pts = u * rng.uniform(1.6, 2.4, size=40)[:, None] * tab.r_ref_m
+    pts = np.vstack([pts, [[s * x, 0.0, 0.0] for s in (-1, 1) for x in (300.0, 320.0)]])  # the long axis' tips
+    pts = pts[~load_surface().inside(pts)]
+    assert len(pts) > 30 and any(tab.fine.at(*p.tolist()) is not None for p in pts)  # the boxes are exercised
+
+    def nonkep(p):  # type: ignore[no-untyped-def]
+        return tab.acceleration(p) + tab.gm * p / np.linalg.norm(p) ** 3
+
+    step = 0.05
+    for p in pts:
+        jac = np.array([(nonkep(p + step * e) - nonkep(p - step * e)) / (2 * step) for e in np.eye(3)]).T
+        size = np.linalg.norm(jac)
+        assert np.linalg.norm(jac - jac.T) < 2e-2 * size, p
+        assert abs(np.trace(jac)) < 2e-2 * size, p
