@@ -4,8 +4,8 @@ The same algorithm as :func:`satellite.orbit.events.integrate` driving scipy's `
 control, initial step, error estimate and interpolant of scipy's implementation, the scan and
 its bisection of :func:`satellite.orbit.events.brackets`, Brent's method on the step's interpolant,
 ``solve_ivp``'s event conventions), with the right-hand side and the event functions of
-:mod:`satellite.orbit.kernel_parts`. Sums are formed in another order than numpy's BLAS calls, so step
-decisions agree with the scipy path to rounding, not bit for bit. Imported only when numba is
+:mod:`satellite.orbit.kernel_parts`. Its stage sums are loops, scipy's are BLAS calls, so step
+decisions agree with the scipy path to rounding (event times to the integrator's tolerance). Imported only when numba is
 installed (:mod:`satellite.orbit.fast_arcs`).
 
 The method is the published one: Dormand and Prince's explicit Runge-Kutta pair of order 8(5,3)

@@ -6,11 +6,12 @@ numpy glue, the scan's Python bisection) a 2400 h run took ~35 s. :class:`FastAr
 same algorithm in one compiled call per arc (:mod:`satellite.orbit.arc_kernel`): scipy's DOP853 step-size
 control and interpolant, the certified scan with its bisection and Brent's method, the truth
 right-hand side of a tabulated field (the shell B-spline, the fine boxes, Kepler, the spin), and
-the band, apsis, contact and maneuver event functions with their rate bounds, term for term.
-The right-hand side is the Python path's bit for bit (the table's one-point sums are in the same written
-order, :func:`isf_robot.core.sums.vecmat`); scipy's DOP853 adds its stages by BLAS (``np.dot``), the kernel in
-one written order, so results agree with the Python path to rounding (a chaotic orbit's long-run trajectory
-diverges from it as from any other rounding). The kernel's order is the same on every CPU, BLAS's is not.
+the band, apsis, contact and maneuver event functions with their rate bounds. The formulas are the
+Python path's own functions, compiled (:mod:`satellite.orbit.kernel_parts` lists them), so the right-hand
+side and the event values agree with the Python path's to a relative 1e-12 (in practice exactly: the Python
+path calls the same compiled functions); scipy's DOP853 adds its stages by BLAS (``np.dot``) and the kernel
+by loops, so step decisions, and event times, agree to the integrator's tolerance (a chaotic orbit's
+long-run trajectory diverges from it as from any other rounding).
 
 It is used when every event of an arc has a compiled form (:attr:`satellite.orbit.events.Event.code`)
 and the field is a :class:`~satellite.gravity.table.GravityTable` whose near-surface correction is

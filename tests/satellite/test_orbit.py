@@ -46,7 +46,7 @@ def test_kepler_rhs(model: OrbitModel) -> None:
 
 
 def test_disturbance_is_large_at_2R(model: OrbitModel) -> None:
-    # DESIGN.md section 4: about 20 % of the point-mass pull at 2R (median over directions).
+    # about 20 % of the point-mass pull at 2R (median over directions): the disturbance is not small.
     rng = np.random.default_rng(0)
     u = rng.normal(size=(400, 3))
     u /= np.linalg.norm(u, axis=1)[:, None]
