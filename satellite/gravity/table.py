@@ -47,7 +47,8 @@ from satellite.gravity.polyhedron import PolyhedronField, exact_parallel
 from satellite.gravity.splines import RG as _RG
 from satellite.gravity.splines import bspline3, dbspline3, pad_nodes, prefilter
 
-__all__ = ["GravityTable", "TableGrid", "build_table", "shell_spline", "shell_continued", "table_acceleration"]
+__all__ = ["GravityTable", "TableGrid", "build_table", "shell_spline", "shell_continued", "table_acceleration",
+           "table_accelerations"]
 
 TABLE_FORMAT = "isf-satellite-gravity-table/2"
 """/2: cubic B-spline through the node values (/1 was Catmull-Rom and is refused: rebuild it)."""
@@ -167,6 +168,20 @@ def table_acceleration(x: float, y: float, z: float, geom: NDArray[np.float64], 
     fx, fy, fz, _ = boxes_correction(x, y, z, box_o, box_n, coef)
     kep = -geom[0] / (r2 * r)
     return ax + fx + kep * x, ay + fy + kep * y, az + fz + kep * z
+
+
+@compiled
+def table_accelerations(points: NDArray[np.float64], geom: NDArray[np.float64], ext: NDArray[np.float64],
+                        box_o: NDArray[np.float64], box_n: NDArray[np.int64],
+                        coef: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`table_acceleration` at each row of ``points`` (N, 3) -> (N, 3)."""
+    out = np.empty((points.shape[0], 3))
+    for n in range(points.shape[0]):
+        ax, ay, az = table_acceleration(points[n, 0], points[n, 1], points[n, 2], geom, ext, box_o, box_n, coef)
+        out[n, 0] = ax
+        out[n, 1] = ay
+        out[n, 2] = az
+    return out
 
 
 class TableGrid:
@@ -320,37 +335,31 @@ class GravityTable:
         return acc
 
     def acceleration_batch(self, r_body: ArrayLike) -> NDArray[np.float64]:
-        """Acceleration [m/s^2] at body-frame points [m], shape (N, 3) -> (N, 3)."""
-        p = np.asarray(r_body, dtype=np.float64).reshape(-1, 3)
+        """Acceleration [m/s^2] at body-frame points [m], shape (N, 3) -> (N, 3) (:func:`table_accelerations`)."""
+        p = np.ascontiguousarray(r_body, dtype=np.float64).reshape(-1, 3)
+        if self.fine is not None or self.near is None:
+            box_o, box_n, coef = self.fine.packed() if self.fine is not None else NO_BOXES
+            return table_accelerations(p, self.geom, self._ext, box_o, box_n, coef)  # type: ignore[no-any-return]
+        # a table with exact near-surface tiles (no fine boxes): the tiles' correction, vectorised
         g = self.grid
         r = np.linalg.norm(p, axis=1)
         out = np.empty_like(p)
         ok = (r >= self._r_in) & (r <= self._r_out)
-        for n in np.flatnonzero(~ok).tolist():
-            x, y, z = p[n].tolist()
-            out[n] = self._continued(x, y, z, x * x + y * y + z * z, math.sqrt(x * x + y * y + z * z))
+        out[~ok] = table_accelerations(np.ascontiguousarray(p[~ok]), self.geom, self._ext, *NO_BOXES)
         q, rq = p[ok], r[ok]
         acc = self.spline_batch(q)
-        if self.fine is not None:
-            acc += self.fine.at_batch(q)
-        elif self.near is not None:
-            u = (rq - g.r_lo) / g.dr
-            k = np.minimum(u.astype(np.intp), g.n_r - 3)
-            v = (np.arcsin(q[:, 2] / rq) + 0.5 * math.pi) / g.dang - 0.5
-            i = np.floor(v).astype(np.intp)
-            w = (np.arctan2(q[:, 1], q[:, 0]) + math.pi) / g.dang - 0.5
-            j = np.floor(w).astype(np.intp)
-            wr, wl, wn = (np.stack(bspline3(t), axis=1) for t in (u - k, v - i, w - j))
-            m = np.flatnonzero(self._cells()[k, i + 1, j + 1])
-            if len(m):
-                acc[m] += self.near.correction_batch(q[m], k[m], i[m], j[m], wr[m], wl[m], wn[m])
+        u = (rq - g.r_lo) / g.dr
+        k = np.minimum(u.astype(np.intp), g.n_r - 3)
+        v = (np.arcsin(q[:, 2] / rq) + 0.5 * math.pi) / g.dang - 0.5
+        i = np.floor(v).astype(np.intp)
+        w = (np.arctan2(q[:, 1], q[:, 0]) + math.pi) / g.dang - 0.5
+        j = np.floor(w).astype(np.intp)
+        wr, wl, wn = (np.stack(bspline3(t), axis=1) for t in (u - k, v - i, w - j))
+        m = np.flatnonzero(self._cells()[k, i + 1, j + 1])
+        if len(m):
+            acc[m] += self.near.correction_batch(q[m], k[m], i[m], j[m], wr[m], wl[m], wn[m])
         out[ok] = acc - self.gm * q / (rq**3)[:, None]
         return out
-
-    def _continued(self, x: float, y: float, z: float, r2: float, r: float) -> NDArray[np.float64]:
-        """Acceleration [m/s^2] at one point outside the radii: :func:`shell_continued`, the fine boxes, Kepler."""
-        box_o, box_n, coef = self.fine.packed() if self.fine is not None else NO_BOXES
-        return np.array(table_acceleration(x, y, z, self.geom, self._ext, box_o, box_n, coef))
 
     # -- files -------------------------------------------------------------------------------
     def save(self, path: str | Path) -> None:
