@@ -83,11 +83,12 @@ def jit_enabled() -> bool:
         return False
     if "arc" not in _JIT:
         try:
-            from satellite.orbit import arc_kernel as _jit_arc  # (deferred: numba compiles or loads the kernels)
+            from satellite.orbit import arc_kernel, kernel_parts  # (deferred: numba compiles or loads the kernels)
         except ImportError:
             _JIT["arc"] = None
         else:
-            _JIT["arc"] = _jit_arc.arc
+            _JIT["arc"] = arc_kernel.arc
+            _JIT["interp_many"] = kernel_parts.interp_many
     return _JIT["arc"] is not None
 
 
@@ -124,7 +125,7 @@ def _pack_field(field: Any) -> tuple[Any, ...] | None:
 
 
 class FastDense:
-    """Dense output of a compiled arc (``OdeSolution``'s segment rule and DOP853's interpolant).
+    """Dense output of a compiled arc (``OdeSolution``'s segment rule and the kernel's DOP853 interpolant).
 
     Args:
         ts: Step points [s], shape (n,).
@@ -145,13 +146,8 @@ class FastDense:
         scalar = tq.ndim == 0
         tt = np.atleast_1d(tq)
         seg = np.clip(np.searchsorted(self.ts, tt, side="left") - 1, 0, len(self.hs) - 1)
-        x = ((tt - self.ts[seg]) / self.hs[seg])[:, None]
-        y = np.zeros((len(tt), 6))
-        F = self.F[seg]
-        for i in range(7):
-            y += F[:, 6 - i]
-            y *= x if i % 2 == 0 else 1.0 - x
-        y += self.y_old[seg]
+        y = np.empty((len(tt), 6))
+        _JIT["interp_many"](tt, seg, self.ts, self.hs, self.y_old, self.F, y)
         return y[0] if scalar else y.T
 
 

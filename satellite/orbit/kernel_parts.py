@@ -39,7 +39,7 @@ from satellite.control.triggers import CONTACT, RDOT, XI, XITAU, H, band_rate, b
 from satellite.gravity.table import table_acceleration
 from satellite.orbit.model import to_body, truth_from_body
 
-__all__ = ["rhs", "interp", "g_event", "g_rate", "brent", "XI", "H", "RDOT", "CONTACT", "XITAU"]
+__all__ = ["rhs", "interp", "interp_many", "g_event", "g_rate", "brent", "XI", "H", "RDOT", "CONTACT", "XITAU"]
 
 
 @njit(cache=True, nogil=True)
@@ -66,6 +66,14 @@ def interp(tq, t_old, h, y_old, F, out):  # pragma: no cover (compiled)
             acc += F[6 - i, c]
             acc *= x if i % 2 == 0 else 1.0 - x
         out[c] = acc + y_old[c]
+
+
+@njit(cache=True, nogil=True)
+def interp_many(tq, seg, ts, hs, y_old, F, out):  # pragma: no cover (compiled)
+    """:func:`interp` at times ``tq`` (k,) in the segments ``seg`` (k,) of a dense output, into ``out`` (k, 6)."""
+    for n in range(tq.shape[0]):
+        s = seg[n]
+        interp(tq[n], ts[s], hs[s], y_old[s], F[s], out[n])
 
 
 @njit(cache=True, nogil=True)
