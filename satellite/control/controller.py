@@ -1,4 +1,4 @@
-"""Safeguarding impulsive controller (paper, Section III-B, "Application to Satellite Systems") and its margin.
+"""Safeguarding impulsive controller (paper, Section III-B) and its margin.
 
 At the current radius ``r`` the controller aims at the apsis ``r_t = 2R + 0.5 (r - 2R)``:
 
