@@ -73,7 +73,7 @@ def worker(case: str, record: str, out: str) -> dict[str, Any]:
         from isf_robot.arm.scene import load_scene
         from isf_robot.arm.sim import ArmSimulation
     else:
-        from satellite.simulate import simulate
+        from satellite.orbit.simulate import simulate
     if record == "rrd":  # imported before the clock starts: "run" excludes imports, "command" includes them
         import isf_robot.record.arm  # noqa: F401
         import isf_robot.record.satellite  # noqa: F401

@@ -5,7 +5,7 @@ Usage: ``python benchmarks/satellite_alpha.py [--repeats 2] [--hours 2400] [--ou
 Target (issue 21, item 2): an alpha x100 2400 h run takes seconds. A larger gain lets the orbit run
 closer to the band's edges before an impulse, so DOP853's stage and trial points of those steps reach
 outside the gravity table's radii (r/R 1.47-2.56 at x100, the orbit itself staying in [1.6, 2.4]);
-there the table's radial continuation answers (:func:`satellite.gravity_table.shell_continued`)
+there the table's radial continuation answers (:func:`satellite.gravity.table.shell_continued`)
 inside the compiled arc. Measured: the whole command ``isf-satellite run --trigger greedy --hours
 2400 --seed 0 --alpha-gain G --json --quiet`` in a subprocess (start-up included), wall and the
 child's CPU time (user + system), for ``G`` = 1, 10 and 100 times the mean motion at 2 R (the
@@ -57,8 +57,8 @@ def whole_command(args: list[str]) -> tuple[float, float, dict[str, Any]]:
 
 
 def bench(repeats: int, hours: float) -> str:
-    from satellite.fields import load_field
-    from satellite.model import OrbitModel
+    from satellite.gravity.fields import load_field
+    from satellite.orbit.model import OrbitModel
 
     base = OrbitModel(load_field("table")).mean_motion_centre()
     whole_command(command(1.0, base))  # warm numba's cache and the file system, not timed

@@ -9,7 +9,7 @@ contacts counted) in <= 10 s on one core, start-up included. Measured:
   subprocess (interpreter start, imports, table and shape loading, the contact watch's set-up, the
   loop, the JSON): wall time and the child's CPU time (user + system, from ``getrusage``; on a
   shared machine the CPU time is what one core would take);
-* the loop alone, in this process: :func:`satellite.simulate.simulate`'s ``wall_s`` (set-up of the
+* the loop alone, in this process: :func:`satellite.orbit.simulate.simulate`'s ``wall_s`` (set-up of the
   run included, process start-up and file loading not) with the same settings;
 * side by side, the same command with the compiled arcs switched off (``ISF_ROBOT_JIT=0``: scipy's
   DOP853 stepped from Python, the scan in Python), ``--python-repeats`` times;
@@ -61,9 +61,9 @@ def whole_command(jit: bool) -> tuple[float, float, dict[str, Any]]:
 
 def loop_only(repeats: int) -> list[Any]:
     """The run's loop in this process (default field, contacts counted, as the command line)."""
-    from satellite.fields import load_field
-    from satellite.model import InitialOrbit, OrbitModel
-    from satellite.simulate import simulate
+    from satellite.gravity.fields import load_field
+    from satellite.orbit.model import InitialOrbit, OrbitModel
+    from satellite.orbit.simulate import simulate
 
     model = OrbitModel(load_field("table"))
     simulate("greedy", 1.0, initial=InitialOrbit(seed=0), model=model, contact="count")  # warm: files, compiled code
@@ -73,10 +73,10 @@ def loop_only(repeats: int) -> list[Any]:
 
 def tau_rows(workers: int, repeats: int) -> list[str]:
     """The tau collection and a maneuver run with its fit (``--with-tau``)."""
-    from satellite.fields import load_field
-    from satellite.model import InitialOrbit, OrbitModel
-    from satellite.simulate import simulate
-    from satellite.tau import collect_tau, fit_tau
+    from satellite.control.tau import collect_tau, fit_tau
+    from satellite.gravity.fields import load_field
+    from satellite.orbit.model import InitialOrbit, OrbitModel
+    from satellite.orbit.simulate import simulate
 
     model = OrbitModel(load_field("table"))
     taus = []

@@ -38,9 +38,9 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 from _common import cpu_model, write_section  # noqa: E402
 
-from satellite.closest import ClosestPoints  # noqa: E402
-from satellite.fields import exact_itokawa, load_field  # noqa: E402
-from satellite.gravity_table import GravityTable  # noqa: E402
+from satellite.gravity.fields import exact_itokawa, load_field  # noqa: E402
+from satellite.gravity.table import GravityTable  # noqa: E402
+from satellite.shape.closest import ClosestPoints  # noqa: E402
 
 RADII = (1.6, 1.7, 1.8, 1.9, 2.0, 2.2, 2.4)
 START = "<!-- satellite-gravity:start -->"
@@ -161,8 +161,8 @@ def _per_call_us(model, pts: np.ndarray, repeats: int = 5) -> float:  # type: ig
 
 
 def speed(table: GravityTable, exact, repeats: int, runs: bool) -> str:  # type: ignore[no-untyped-def]
-    from satellite.model import InitialOrbit, OrbitModel
-    from satellite.simulate import simulate
+    from satellite.orbit.model import InitialOrbit, OrbitModel
+    from satellite.orbit.simulate import simulate
 
     sh8 = load_field("sh8")
     R = sh8.r_ref_m

@@ -3,12 +3,12 @@
 The public names below are imported lazily (the project's one export style,
 :func:`isf_robot._exports.lazy_exports`), so ``import satellite`` stays cheap.
 
-Modules, bottom up: ``errors``; ``mesh`` (OBJ, exact moments) -> ``harmonics`` (coefficients of
-a body) -> ``gravity_io`` (the table on disk) -> ``gravity`` (the field); ``model`` (orbit, band,
-initial orbit), ``elements``; ``controller`` (safeguarding impulse and margin); ``shapes``,
-``mesh_surface`` (body shapes) -> ``surface`` (the check); ``triggers`` (the choices and their
-values) -> ``arcs`` (one integrated arc) -> ``policies`` (what each trigger does) -> ``simulate``
-(a run); ``tau``, ``study``; the command line ``cli`` and ``cmd_*`` on top.
+Subpackages, bottom up (no module imports one above it): ``errors``; ``shape`` (meshes, the shipped
+Itokawa mesh, surface models, the trajectory's surface check); ``gravity`` (spherical harmonics, the exact
+polyhedron field, the tabulated field with its near-surface corrections, the models by name); ``orbit``
+(the model and its band, elements, event location, arcs, compiled arcs, a run); ``control`` (triggers and
+their policies, the impulsive and shooting controllers, ``tau_p``, the contact watch, the surface barrier);
+``study`` (the paired study); the command line ``cli`` on top.
 
 Typical use::
 
@@ -22,23 +22,23 @@ from isf_robot._exports import lazy_exports
 
 _EXPORTS = {
     # gravity and shape
-    "GravityField": "gravity", "load_default_field": "gravity",
-    "polyhedron_harmonics": "harmonics", "PolyhedronHarmonics": "harmonics",
-    "TriangleMesh": "mesh", "read_obj": "mesh",
-    "SurfaceModel": "shapes", "EllipsoidSurface": "shapes",
-    "MeshSurface": "mesh_surface", "load_surface": "mesh_surface", "body_mesh_info": "mesh_surface",
-    "SurfaceCheck": "surface",
+    "GravityField": "gravity.spherical", "load_default_field": "gravity.spherical",
+    "polyhedron_harmonics": "gravity.harmonics", "PolyhedronHarmonics": "gravity.harmonics",
+    "TriangleMesh": "shape.mesh", "read_obj": "shape.cache",
+    "SurfaceModel": "shape.surfaces", "EllipsoidSurface": "shape.surfaces",
+    "MeshSurface": "shape.mesh_surface", "load_surface": "shape.mesh_surface", "body_mesh_info": "shape.mesh_surface",
+    "SurfaceCheck": "shape.surface_check",
     # orbit model and controller
-    "OrbitModel": "model", "BandBarrier": "model", "InitialOrbit": "model",
-    "osculating_elements": "elements", "OrbitalElements": "elements",
-    "SafeguardingController": "controller", "ControlParams": "controller", "resolve_control": "controller",
-    "make_controller": "controller",
+    "OrbitModel": "orbit.model", "BandBarrier": "orbit.model", "InitialOrbit": "orbit.model",
+    "osculating_elements": "orbit.elements", "OrbitalElements": "orbit.elements",
+    "SafeguardingController": "control.controller", "ControlParams": "control.controller",
+    "resolve_control": "control.controller", "make_controller": "control.controller",
     # triggers and runs
-    "Trigger": "triggers", "TRIGGERS": "triggers", "BandTriggers": "triggers",
-    "IntegratorSettings": "arcs", "SatelliteSample": "arcs", "SimulationError": "arcs",
-    "simulate": "simulate", "RunResult": "simulate",
+    "Trigger": "control.triggers", "TRIGGERS": "control.triggers", "BandTriggers": "control.triggers",
+    "IntegratorSettings": "orbit.arcs", "SatelliteSample": "orbit.arcs", "SimulationError": "orbit.arcs",
+    "simulate": "orbit.simulate", "RunResult": "orbit.simulate",
     # tau_p
-    "collect_tau": "tau", "fit_tau": "tau", "load_tau": "tau", "TauFit": "tau",
+    "collect_tau": "control.tau", "fit_tau": "control.tau", "load_tau": "control.tau", "TauFit": "control.tau",
     # errors
     "SatelliteError": "errors", "MeshError": "errors", "GravityModelError": "errors",
 }

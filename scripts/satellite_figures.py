@@ -74,10 +74,10 @@ class _Collect(_observer_base()):  # type: ignore[misc]
 
 
 def _run(trigger: str, hours: float, tau_path: Path) -> tuple[_Collect, Any]:
-    from satellite.fields import load_field
-    from satellite.model import InitialOrbit, OrbitModel
-    from satellite.simulate import simulate
-    from satellite.tau import load_tau
+    from satellite.control.tau import load_tau
+    from satellite.gravity.fields import load_field
+    from satellite.orbit.model import InitialOrbit, OrbitModel
+    from satellite.orbit.simulate import simulate
 
     col = _Collect()
     res = simulate(trigger, hours, initial=InitialOrbit(seed=0, inclination_deg=45.0),
@@ -88,7 +88,7 @@ def _run(trigger: str, hours: float, tau_path: Path) -> tuple[_Collect, Any]:
 
 def compute(hours: float) -> tuple[dict[str, Any], dict[str, _Collect]]:
     """The figures' data (JSON-ready) and the two runs' samples."""
-    from satellite.tau import load_tau
+    from satellite.control.tau import load_tau
 
     doc: dict[str, Any] = {"settings": {"seed": 0, "inclination_deg": 45.0, "gravity": "table", "hours": hours,
                                         "controller": "kepler", "tau_file": TAU_FILE.relative_to(ROOT).as_posix()},
@@ -116,7 +116,7 @@ def compute(hours: float) -> tuple[dict[str, Any], dict[str, _Collect]]:
 
 def _series(col: _Collect, trig: str, doc: dict[str, Any]) -> Any:
     from isf_robot.plots import OrbitSeries
-    from satellite.model import BAND_INNER, BAND_OUTER
+    from satellite.orbit.model import BAND_INNER, BAND_OUTER
 
     t_h = np.asarray(col.t) / 3600.0
     d = doc[trig]
@@ -150,8 +150,8 @@ def _histogram(doc: dict[str, Any]) -> Any:
 
 def _tau_figure() -> Any:
     from isf_robot.plots import TauSamples, tau_figure
-    from satellite.model import BAND_CENTRE, BAND_INNER, BAND_OUTER
-    from satellite.tau import load_tau
+    from satellite.control.tau import load_tau
+    from satellite.orbit.model import BAND_CENTRE, BAND_INNER, BAND_OUTER
 
     fit = load_tau(TAU_FILE)
     d = json.loads(TAU_FILE.read_text())

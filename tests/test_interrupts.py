@@ -96,7 +96,7 @@ def satellite_compiled() -> None:
 
     A fresh clone has none: the first arc of a run compiles for ~13 s on one free core (this Intel
     Xeon; about twice that with two test workers and another load), and a Ctrl-C in that time is
-    held until the compilation ends (satellite.fast_arcs.signals_deferred), so a signal sent "2 s
+    held until the compilation ends (satellite.orbit.fast_arcs.signals_deferred), so a signal sent "2 s
     after the recording opened" would wait for the compiler, not test the interrupt of a run. One
     short run of the same command fills the cache (~1.5 s when it is already there); its bound,
     600 s, only catches a hang.
@@ -107,8 +107,8 @@ def satellite_compiled() -> None:
 
 
 def test_signals_in_compiled_calls_act_when_the_call_returns() -> None:
-    """satellite.fast_arcs.signals_deferred: the handler does not run inside the body, it runs at its end."""
-    from satellite.fast_arcs import signals_deferred
+    """satellite.orbit.fast_arcs.signals_deferred: the handler does not run inside the body, it runs at its end."""
+    from satellite.orbit.fast_arcs import signals_deferred
 
     class Hit(Exception):
         pass
@@ -168,7 +168,7 @@ sys.exit(main(["--help"]))
 
 @pytest.mark.parametrize(("cli", "module", "prog"), [
     ("isf_robot.cli", "isf_robot.cli.replay", "isf-robot"),
-    ("satellite.cli", "satellite.cmd_run", "isf-satellite")])
+    ("satellite.cli", "satellite.cli.run", "isf-satellite")])
 def test_ctrl_c_while_importing_commands_is_one_line(cli: str, module: str, prog: str) -> None:
     code = _EARLY.format(cli=cli, module=module)
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)

@@ -36,7 +36,7 @@ def test_shared_data_found_from_the_working_directory(tmp_path: Path, monkeypatc
 
 
 def test_satellite_default_shape_follows_the_data_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from satellite.mesh_surface import default_shape_path
+    from satellite.shape.mesh_surface import default_shape_path
 
     monkeypatch.setenv(paths.DATA_ENV, str(tmp_path))
     assert default_shape_path() == tmp_path / "itokawa" / "itokawa_low.obj"

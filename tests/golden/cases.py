@@ -63,9 +63,10 @@ TOLERANCES: dict[str, dict[str, tuple[object, ...]]] = {
 # exactly; another field model: ~1e-5 over 12 h).
 MACHINE_RTOL: dict[str, float] = {"satellite-surface-12h": 1e-7}
 
-# Cases whose arcs run compiled when numba is installed (satellite/fast_arcs.py; generated that way): the
-# Python path (no numba, or ISF_ROBOT_JIT=0) has the same right-hand side bit for bit, but scipy's DOP853 adds its
-# stages in BLAS's order, not the kernel's, and reproduces them to ~3e-8, not 1e-9 (2.6e-8 measured).
+# Cases whose arcs run compiled when numba is installed (satellite/orbit/fast_arcs.py; generated that way): the
+# Python path (no numba, or ISF_ROBOT_JIT=0) evaluates the same formula functions (satellite/compiled.py), but
+# scipy's DOP853 adds its stages in BLAS's order, not the kernel's, and reproduces them to ~3e-8, not 1e-9
+# (2.6e-8 measured).
 PYTHON_PATH_RTOL: dict[str, float] = {"satellite-greedy-12h": 1e-6}
 
 # Fields that measure the machine, not the behaviour: never compared.

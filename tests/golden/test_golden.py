@@ -50,7 +50,7 @@ Changes so far, each deliberate:
   12 h orbits move by ~1e-5 relative (same impulses), the 200 h one is another orbit (104 impulses
   instead of 90, min h 1383 m^2), inside its tolerances either way.
 * Compiled satellite arcs (issue 14, item 1: the 2400 h run's speed): with numba installed the arcs run
-  in one compiled call (DOP853, event scan, table field; satellite/fast_arcs.py), summing in another order
+  in one compiled call (DOP853, event scan, table field; satellite/orbit/fast_arcs.py), summing in another order
   than numpy's BLAS: ``satellite-greedy-12h`` regenerated (same 7 impulses; times, h, dv and radii moved by
   <= 2e-8 relative: min_h 1952.06654 -> 1952.06658 m^2); without numba (or ``ISF_ROBOT_JIT=0``) the Python
   path still gives the old numbers, so that case is compared to ``cases.PYTHON_PATH_RTOL`` (1e-6) then.
@@ -156,7 +156,7 @@ def test_golden_output(name: str) -> None:
     diffs: list[str] = []
     rtol = MACHINE_RTOL.get(name, RTOL)
     if name in PYTHON_PATH_RTOL:
-        from satellite.fast_arcs import jit_enabled
+        from satellite.orbit.fast_arcs import jit_enabled
 
         rtol = rtol if jit_enabled() else max(rtol, PYTHON_PATH_RTOL[name])
     _diff(name, want, got, diffs, TOLERANCES.get(name), rtol=rtol)

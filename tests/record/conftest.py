@@ -61,7 +61,7 @@ def arm_run(tmp_path_factory: pytest.TempPathFactory) -> RecordedRun:
 def sat_run(tmp_path_factory: pytest.TempPathFactory) -> RecordedRun:
     """A 60 h greedy satellite run, recorded."""
     from isf_robot.record import SatelliteRecorder, open_stream, satellite_blueprint
-    from satellite.simulate import simulate
+    from satellite.orbit.simulate import simulate
 
     path = tmp_path_factory.mktemp("sat") / "greedy.rrd"
     rec = SatelliteRecorder(open_stream("isf_robot_satellite", rrd_path=path, blueprint=satellite_blueprint()),

@@ -110,7 +110,7 @@ def test_cli_help_does_not_import_rerun() -> None:
 
 
 def test_record_package_is_the_only_rerun_importer() -> None:
-    code = ("import sys, isf_robot.core, isf_robot.arm, satellite.simulate; "
+    code = ("import sys, isf_robot.core, isf_robot.arm, satellite.orbit.simulate; "
             "print('rerun' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"

@@ -109,7 +109,7 @@ def test_satellite_figure_stars_every_impulse_in_the_window(sat_run, tmp_path: P
 
 
 def test_tau_figure_draws_the_fit(tmp_path: Path) -> None:
-    from satellite.tau import DEFAULT_RADII, TauData, fit_tau, tau_document
+    from satellite.control.tau import DEFAULT_RADII, TauData, fit_tau, tau_document
 
     r = np.asarray(DEFAULT_RADII, dtype=float)
     rng = np.random.default_rng(0)

@@ -68,7 +68,7 @@ def test_bad_body_mesh_is_a_record_error(tmp_path: Path, mesh: object) -> None:
 
 
 def test_simulated_run_sends_the_shape_model(sat_run) -> None:  # type: ignore[no-untyped-def]
-    from satellite.mesh_surface import body_mesh_info
+    from satellite.shape.mesh_surface import body_mesh_info
 
     mesh = body_mesh_info()
     if mesh is None:

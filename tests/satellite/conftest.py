@@ -15,7 +15,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from satellite.mesh import TriangleMesh
+from satellite.shape.mesh import TriangleMesh
 
 
 def box_mesh(a: float = 1.0, b: float = 1.0, c: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
@@ -212,7 +212,7 @@ def helpers() -> SimpleNamespace:
 @pytest.fixture(scope="session")
 def itokawa_obj() -> Path:
     """Path of the raw Itokawa shape file; skips the test when it is absent (the shipped mesh needs no file)."""
-    from satellite.mesh_surface import default_shape_path
+    from satellite.shape.mesh_surface import default_shape_path
 
     path = default_shape_path()
     if not path.is_file():

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from satellite.cli import SUBCOMMAND_MODULES, build_parser, main
-from satellite.gravity import G_CODATA2018, GravityField
+from satellite.gravity.spherical import G_CODATA2018, GravityField
 
 
 @pytest.fixture
@@ -107,7 +107,7 @@ def test_help_lists_gravity_and_parser_is_extensible(capsys):
         main(["--help"])
     assert exc.value.code == 0
     assert "gravity" in capsys.readouterr().out
-    assert SUBCOMMAND_MODULES[0] == "satellite.cmd_gravity"
+    assert SUBCOMMAND_MODULES[0] == "satellite.cli.gravity"
     parser = build_parser()
     args = parser.parse_args(["gravity", "--shape", "a.obj", "--degree", "3", "--out", "b.json"])
     assert args.mass == 3.51e10 and args.units == "km" and callable(args.func)
@@ -124,9 +124,9 @@ def test_console_entry_runs_without_traceback(tmp_path):
 
 
 def test_gravity_table_command(tmp_path, helpers, capsys):
-    from satellite.gravity_table import GravityTable
-    from satellite.mesh import read_obj
-    from satellite.polyhedron import PolyhedronField
+    from satellite.gravity.polyhedron import PolyhedronField
+    from satellite.gravity.table import GravityTable
+    from satellite.shape.cache import read_obj
 
     v, f = helpers.icosphere(1)
     obj = helpers.write_obj(tmp_path / "ball.obj", v * np.array([1.5, 1.0, 0.8]) * 100.0, f)  # metres

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from satellite.cli import main
-from satellite.tau import TauFit, load_tau
+from satellite.control.tau import TauFit, load_tau
 
 KEYS = {
     "trigger", "hours", "triggers", "min_h", "r_min_over_R", "r_max_over_R", "total_dv",

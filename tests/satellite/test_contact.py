@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from isf_robot.core import ConfigError
-from satellite.contact import ContactWatch, RadiusEnvelope, ellipsoid_mesh
-from satellite.model import InitialOrbit
-from satellite.shapes import EllipsoidSurface
-from satellite.simulate import simulate
+from satellite.control.contact import ContactWatch, RadiusEnvelope, ellipsoid_mesh
+from satellite.orbit.model import InitialOrbit
+from satellite.orbit.simulate import simulate
+from satellite.shape.surfaces import EllipsoidSurface
 
 
 def directions(n: int, seed: int) -> np.ndarray:
@@ -119,3 +119,47 @@ def test_stop_ends_the_run_on_the_surface(contact_runs) -> None:  # type: ignore
 def test_unknown_contact_mode_is_refused() -> None:
     with pytest.raises(ConfigError, match="contact must be one of"):
         simulate("greedy", 1.0, contact="bounce")
+
+
+def test_contact_event_and_its_rate_bound_along_truth_arcs() -> None:
+    """``g`` of one state, of many and of the compiled formula agree; the rate bound exceeds every finite difference."""
+    from scipy.integrate import solve_ivp
+
+    from satellite.gravity.fields import load_field
+    from satellite.orbit.model import OrbitModel
+
+    model = OrbitModel(load_field("table"), body_phase=0.4)
+    v, f = lumpy_body(2)
+    v = v * (1.35 * model.R / np.linalg.norm(v, axis=1).max())  # a body reaching into the band
+    env = RadiusEnvelope(v, f, n_lat=30)
+    watch = ContactWatch(EllipsoidSurface((1.0, 1.0, 1.0)), env, model.body_phase, model.omega,
+                         accel_bound=2.0 * model.accel_bound(samples=400))
+    rng = np.random.default_rng(5)
+    seen_inside = False
+    for _ in range(5):
+        u = directions(1, int(rng.integers(1 << 30)))[0]
+        w = np.cross(u, rng.normal(size=3))
+        w /= np.linalg.norm(w)
+        r = 1.45 * model.R
+        y0 = np.concatenate([r * u, 0.9 * math.sqrt(model.mu / r) * w])
+        sol = solve_ivp(model.truth_rhs, (0.0, 3000.0), y0, method="DOP853", rtol=1e-11, atol=1e-12,
+                        dense_output=True)
+        ts = np.linspace(0.0, sol.t[-1], 1501)
+        ys = sol.sol(ts)
+        g = watch.batch(ts, ys)
+        np.testing.assert_array_equal(g[::100], [watch.g(t, y) for t, y in zip(ts[::100], ys.T[::100])])
+        r = np.linalg.norm(ys[:3], axis=0)
+        body = np.array([watch.body_point(t, y)[0] for t, y in zip(ts, ys.T)])
+        cont = r - env.radius(body)  # g without its shortcut beyond max r_env (g <= cont, equal where g < 0)
+        assert np.all(g <= cont + 1e-9) and np.array_equal(g < 0, cont < 0)
+        seen_inside |= bool((r <= env.max_radius).any())
+        for step in (1, 25, 300):
+            a, b = slice(0, -step, step), slice(step, None, step)
+            dt = ts[step] - ts[0]
+            bound = watch.rate(ys[:, a], ys[:, b], dt) * dt
+            out = (cont[a] >= 0) & (cont[b] >= 0)  # the bound is stated where g >= 0 (where the scan needs it)
+            bad = np.flatnonzero(out & (np.abs(cont[b] - cont[a]) > bound))
+            assert not len(bad), (step, cont[a][bad[:3]], cont[b][bad[:3]], bound[bad[:3]])
+            one = [float(watch.rate(ys[:, i], ys[:, i + step], dt)) for i in range(0, len(ts) - step, 7 * step)]
+            np.testing.assert_allclose(one, bound[::7] / dt, rtol=1e-12)  # the formula for one interval
+    assert seen_inside  # the arcs pass below the envelope's top, where its turn term counts

@@ -8,15 +8,15 @@ import numpy as np
 import pytest
 
 from isf_robot.core import ConfigError
-from satellite.controller import (
+from satellite.control.controller import (
     ControlParams,
     SafeguardingController,
     make_controller,
     resolve_control,
 )
-from satellite.elements import osculating_elements
-from satellite.gravity import load_default_field  # the degree-8 series: these cases were chosen on it
-from satellite.model import OrbitModel
+from satellite.gravity.spherical import load_default_field  # the degree-8 series: these cases were chosen on it
+from satellite.orbit.elements import osculating_elements
+from satellite.orbit.model import OrbitModel
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Event location that cannot miss a crossing between steps (satellite/events.py)."""
+"""Event location that cannot miss a crossing between steps (satellite/orbit/events.py)."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from isf_robot.core import Linear
-from satellite.events import event, integrate
-from satellite.gravity import load_default_field  # the degree-8 series: these cases were chosen on it
-from satellite.model import OrbitModel
-from satellite.triggers import BandTriggers
+from satellite.control.triggers import BandTriggers, band_values
+from satellite.gravity.spherical import load_default_field  # the degree-8 series: these cases were chosen on it
+from satellite.orbit.events import event, integrate
+from satellite.orbit.model import OrbitModel
 
 
 def oscillator(t: float, y: np.ndarray) -> np.ndarray:
@@ -75,7 +75,7 @@ def test_band_rate_bounds_hold_along_truth_arcs() -> None:
     rng = np.random.default_rng(3)
     fns = {"h": (trig.h_batch, trig.h_rate), "xi": (trig.xi_batch, trig.xi_rate),
            "apsis": (trig.r_dot_batch, trig.apsis_rate),
-           "xi_tau": (lambda t, y: 0.5 * (1 + (3.0 + 2e-3 * trig._parts_batch(y)[1]) * trig._parts_batch(y)[2]),
+           "xi_tau": (lambda t, y: 0.5 * (1 + (3.0 + 2e-3 * band_values(y, trig.r_centre, trig.h_max)[1]) * band_values(y, trig.r_centre, trig.h_max)[2]),
                       trig.xi_tau_rate(3.0 + 2e-3 * model.h_max, 2e-3))}
     for _ in range(6):
         u = rng.normal(size=3)
@@ -110,8 +110,8 @@ HIGH_GAIN_X0 = np.array([183.18358858602997, 77.04972084225318, -168.32352300203
 
 @pytest.fixture(scope="module")
 def high_gain() -> tuple[OrbitModel, BandTriggers]:
-    from satellite.controller import ControlParams, resolve_control
-    from satellite.model import InitialOrbit
+    from satellite.control.controller import ControlParams, resolve_control
+    from satellite.orbit.model import InitialOrbit
 
     model = OrbitModel(load_default_field()).with_phase(InitialOrbit(seed=8).body_phase())
     res = resolve_control(model, ControlParams(alpha_gain=2.6262e-2))
@@ -139,7 +139,7 @@ def test_high_gain_arc_scan_fires_before_the_band_is_left(high_gain) -> None:  #
 
 def test_band_exit_is_reported_at_the_first_zero_of_h(high_gain) -> None:  # type: ignore[no-untyped-def]
     from isf_robot.core import Observers
-    from satellite.arcs import ArcIntegrator, IntegratorSettings, Tracker
+    from satellite.orbit.arcs import ArcIntegrator, IntegratorSettings, Tracker
 
     model, trig = high_gain
     track = Tracker(model, trig, Observers([]), 60.0)
@@ -169,7 +169,7 @@ MISS_PHASE = 5.353222021298137
 def _start_at(x0: np.ndarray, phase: float):  # type: ignore[no-untyped-def]
     from dataclasses import dataclass
 
-    from satellite.model import InitialOrbit
+    from satellite.orbit.model import InitialOrbit
 
     @dataclass(frozen=True)
     class At(InitialOrbit):
@@ -183,8 +183,8 @@ def _start_at(x0: np.ndarray, phase: float):  # type: ignore[no-untyped-def]
 
 
 def test_alpha_100x_greedy_run_keeps_h_nonnegative_only_with_the_scan() -> None:
-    from satellite.controller import ControlParams
-    from satellite.simulate import IntegratorSettings, simulate
+    from satellite.control.controller import ControlParams
+    from satellite.orbit.simulate import IntegratorSettings, simulate
 
     runs = {scan: simulate("greedy", 10.0, initial=_start_at(MISS_X0, MISS_PHASE),
                            control=ControlParams(alpha_gain=2.6262e-2), miet_samples=50,

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from satellite.errors import GravityModelError
-from satellite.fields import DEFAULT_GRAVITY, exact_itokawa, load_field, model_name
-from satellite.gravity import GravityField
-from satellite.gravity_table import GravityTable, TableGrid
+from satellite.gravity.fields import DEFAULT_GRAVITY, exact_itokawa, load_field, model_name
+from satellite.gravity.spherical import GravityField
+from satellite.gravity.table import GravityTable, TableGrid
 
 
 def test_names_and_errors() -> None:
@@ -62,7 +62,7 @@ def test_committed_table_is_within_one_percent_of_the_exact_field() -> None:
 
 def test_committed_table_is_within_one_percent_of_the_exact_field_near_the_surface() -> None:
     """Points outside the body within 10 m of the long-axis tips (where the fine boxes answer), some within 1 m."""
-    from satellite.closest import ClosestPoints
+    from satellite.shape.closest import ClosestPoints
 
     exact = exact_itokawa()  # the shipped shape
     table = load_field("table")

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from satellite.errors import GravityModelError
-from satellite.gravity import (
+from satellite.gravity.spherical import (
     G_CODATA2018,
     ITOKAWA_MASS_KG,
     GravityField,
@@ -16,8 +16,8 @@ from satellite.gravity import (
     polyhedron_harmonics,
     solid_harmonics,
 )
-from satellite.mesh import TriangleMesh
-from satellite.shape_cache import shipped_mesh
+from satellite.shape.cache import shipped_mesh
+from satellite.shape.mesh import TriangleMesh
 
 RNG_SEED = 20260101
 

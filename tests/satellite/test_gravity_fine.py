@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from satellite.closest import ClosestPoints, closest_on_triangles
 from satellite.errors import GravityModelError
-from satellite.gravity_fine import FineBoxes, add_fine_level, build_fine_boxes
-from satellite.gravity_table import GravityTable, TableGrid, build_table
-from satellite.polyhedron import PolyhedronField
+from satellite.gravity.fine import FineBoxes, add_fine_level, build_fine_boxes
+from satellite.gravity.polyhedron import PolyhedronField
+from satellite.gravity.table import GravityTable, TableGrid, build_table
+from satellite.shape.closest import ClosestPoints, closest_on_triangles
 
 GM = 2.0
 STEP, D_FULL, D_ZERO = 6.0, 12.0, 20.0

@@ -5,8 +5,8 @@ import pytest
 
 from isf_robot.core.exceptions import ConfigError
 from satellite.errors import MeshError
-from satellite.mesh import TriangleMesh, check_closed_oriented, read_obj
-from satellite.shape_cache import shipped_mesh
+from satellite.shape.cache import read_obj, shipped_mesh
+from satellite.shape.mesh import TriangleMesh, check_closed_oriented
 
 
 def test_unit_cube_volume_is_one(helpers):

@@ -9,9 +9,9 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from isf_robot.core import ConfigError
-from satellite.elements import osculating_elements
-from satellite.gravity import load_default_field  # the degree-8 series: these cases were chosen on it
-from satellite.model import BandBarrier, InitialOrbit, OrbitModel
+from satellite.gravity.spherical import load_default_field  # the degree-8 series: these cases were chosen on it
+from satellite.orbit.elements import osculating_elements
+from satellite.orbit.model import BandBarrier, InitialOrbit, OrbitModel
 
 
 @pytest.fixture(scope="module")
@@ -109,9 +109,9 @@ def test_library_default_field_is_the_valid_one() -> None:
     """OrbitModel(), simulate() and the tau helpers default to the command line's valid field, not sh8."""
     import inspect
 
-    from satellite.fields import DEFAULT_GRAVITY, load_field, model_name
-    from satellite.simulate import simulate
-    from satellite.tau import collect_tau, time_to_trigger
+    from satellite.control.tau import collect_tau, time_to_trigger
+    from satellite.gravity.fields import DEFAULT_GRAVITY, load_field, model_name
+    from satellite.orbit.simulate import simulate
 
     model = OrbitModel()
     assert DEFAULT_GRAVITY == "table" and model_name(model.field) == model_name(load_field("table")) != "sh8"

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from isf_robot.core import ConfigError
-from satellite.simulate import simulate
+from satellite.orbit.simulate import simulate
 
 
 def test_impulses_come_every_period_and_keep_the_post_jump_condition() -> None:

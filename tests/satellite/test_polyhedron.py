@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from satellite.errors import GravityModelError, MeshError
-from satellite.gravity import GravityField
-from satellite.polyhedron import PolyhedronField
+from satellite.gravity.polyhedron import PolyhedronField
+from satellite.gravity.spherical import GravityField
 
 GM = 2.0
 
@@ -74,8 +74,8 @@ def test_equals_the_harmonic_series_of_the_same_body_outside_its_sphere(body) ->
 
 
 def test_itokawa_equals_degree_8_far_out() -> None:
-    from satellite.gravity import load_default_field
-    from satellite.shape_cache import shipped_mesh
+    from satellite.gravity.spherical import load_default_field
+    from satellite.shape.cache import shipped_mesh
 
     sh = load_default_field()
     field = PolyhedronField.from_mesh(shipped_mesh(), sh.gm)

@@ -5,7 +5,7 @@ band barrier ``h = (0.4 R)^2 - (|p| - 2R)^2`` along the Kepler flow ``F = [v, -m
 :func:`xi_paper` below restates it from the vectors (the gradient ``dh/dx`` and its norm, ``F``), not
 from the code's scalar shortcut ``2 |r - 2R|``, so each implementation is checked against the
 equation: the scalar ``BandTriggers.xi``, the event scan's ``BandTriggers.xi_batch`` and the compiled
-event function ``satellite._jit_parts.g_event`` (the compiled arcs' ``Xi``), all with ``d_bar > 0``
+event function ``satellite.orbit.kernel_parts.g_event`` (the compiled arcs' ``Xi``), all with ``d_bar > 0``
 (where the robust term's sign shows), and the post-jump condition ``Xi(G(x, K(x))) >= c`` (paper,
 eq. control_jump_cond) on its own: at random states near the band's edges and after every impulse
 of a short run.
@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 from isf_robot.core import Linear
-from satellite.controller import ControlParams, SafeguardingController, jump_map, resolve_control
-from satellite.model import InitialOrbit, OrbitModel
-from satellite.triggers import BandTriggers
+from satellite.control.controller import ControlParams, SafeguardingController, jump_map, resolve_control
+from satellite.control.triggers import BandTriggers
+from satellite.orbit.model import InitialOrbit, OrbitModel
 
 D_BARS = (1e-5, 1e-4, 1e-3)  # m/s^2: the robust term 2 |r - 2R| d_bar is up to 1.3e-3 .. 0.13 m^2/s in the band
 
@@ -66,11 +66,12 @@ def compiled_xi(model: OrbitModel, trig: BandTriggers):  # type: ignore[no-untyp
 
     ``None`` when the compiled arcs are off (``ISF_ROBOT_JIT=0``): the runs do not use it then.
     """
-    from satellite.fast_arcs import XI, FastArcs, jit_enabled
+    from satellite.control.triggers import XI
+    from satellite.orbit.fast_arcs import FastArcs, jit_enabled
 
     if not jit_enabled():
         return None
-    from satellite._jit_parts import g_event
+    from satellite.orbit.kernel_parts import g_event
 
     fast = FastArcs.make(model, trig, None)
     assert fast is not None
@@ -163,7 +164,7 @@ def test_post_jump_xi_is_at_least_c_near_the_band_edges(model: OrbitModel, d_bar
 
 @pytest.fixture(scope="module")
 def disturbed_run():  # type: ignore[no-untyped-def]
-    from satellite.simulate import simulate
+    from satellite.orbit.simulate import simulate
 
     return simulate("greedy", 24.0, initial=InitialOrbit(seed=0), control=ControlParams(d_bar=1e-3), miet_samples=50)
 

@@ -8,10 +8,10 @@ from typing import Any
 import pytest
 
 from isf_robot.core import ConfigError, Observer, UnknownNameError
-from satellite.gravity import load_default_field  # the degree-8 series: these cases were chosen on it
-from satellite.model import InitialOrbit, OrbitModel
-from satellite.simulate import SatelliteSample, simulate
-from satellite.tau import TauFit, collect_tau, fit_tau
+from satellite.control.tau import TauFit, collect_tau, fit_tau
+from satellite.gravity.spherical import load_default_field  # the degree-8 series: these cases were chosen on it
+from satellite.orbit.model import InitialOrbit, OrbitModel
+from satellite.orbit.simulate import SatelliteSample, simulate
 
 H_TOL = 1e-6  # m^2, event-location tolerance on h (h_max is about 4195 m^2)
 
@@ -111,7 +111,7 @@ def test_maneuver_reports_xi_tau_minimum_and_the_tau_condition(model: OrbitModel
     res = simulate("maneuver", 48.0, initial=InitialOrbit(seed=2), tau=flat)
     assert res.kinds.get("safe", 0) > 0 and "tau" not in res.kinds  # second impulses happen, none by Xi_tau
     assert res.min_xi_tau == 0.5 and res.summary()["min_xi_tau"] == 0.5
-    from satellite.cmd_run import format_text
+    from satellite.cli.run import format_text
 
     line = next(x for x in format_text(res).splitlines() if x.startswith("min Xi_tau"))
     assert line.split()[2] == "0.5" and "dtau_p/dt <= -1" in line

@@ -9,12 +9,12 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from isf_robot.core import ConfigError, Linear, UnknownNameError
-from satellite.controller import ControlParams, make_controller, resolve_control
-from satellite.model import OrbitModel
-from satellite.shooting import ShootingController, ShootingError, ShootingParams, plane_basis, predict_trigger
-from satellite.simulate import simulate
-from satellite.tau import TauFit
-from satellite.triggers import BandTriggers
+from satellite.control.controller import ControlParams, make_controller, resolve_control
+from satellite.control.shooting import ShootingController, ShootingError, ShootingParams, plane_basis, predict_trigger
+from satellite.control.tau import TauFit
+from satellite.control.triggers import BandTriggers
+from satellite.orbit.model import OrbitModel
+from satellite.orbit.simulate import simulate
 
 
 @pytest.fixture(scope="module")

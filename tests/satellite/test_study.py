@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from satellite.cli import main as satellite_main
-from satellite.model import OrbitModel
-from satellite.study import StudySettings, plan, run_study
-from satellite.study_stats import bootstrap_ci, paired_comparison, paired_t_ci, summarize_config
+from satellite.orbit.model import OrbitModel
+from satellite.study.paired import StudySettings, plan, run_study
+from satellite.study.stats import bootstrap_ci, paired_comparison, paired_t_ci, summarize_config
 
 SATELLITE = [sys.executable, "-c", "import sys; from satellite.cli import main; sys.exit(main())"]
 
@@ -190,9 +190,3 @@ def test_bad_study_input_is_one_line(argv: list[str], tmp_path: Path, capsys) ->
     assert code == 2, err
     assert err and "\n" not in err and "Traceback" not in err and "error" in err, err
     assert prev.read_text() == "previous good result\n"
-
-
-def test_python_m_satellite_study_points_to_the_command() -> None:
-    from satellite.study import main
-
-    assert main([]) == 2

@@ -8,7 +8,7 @@ import os
 
 import pytest
 
-from satellite.study import StudySettings, plan, run_study
+from satellite.study.paired import StudySettings, plan, run_study
 
 try:
     import ray  # noqa: F401

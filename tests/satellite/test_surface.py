@@ -10,14 +10,14 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-import satellite.mesh_surface as mesh_surface_mod
+import satellite.shape.mesh_surface as mesh_surface_mod
 from satellite.cli import main
-from satellite.mesh import TriangleMesh
-from satellite.mesh_surface import MeshSurface, load_surface
-from satellite.model import OrbitModel
-from satellite.shapes import EllipsoidSurface, winding_numbers
-from satellite.simulate import simulate
-from satellite.surface import SurfaceCheck, to_body_frame
+from satellite.orbit.model import OrbitModel
+from satellite.orbit.simulate import simulate
+from satellite.shape.mesh import TriangleMesh
+from satellite.shape.mesh_surface import MeshSurface, load_surface
+from satellite.shape.surface_check import SurfaceCheck, to_body_frame
+from satellite.shape.surfaces import EllipsoidSurface, winding_numbers
 
 SURFACE_KEYS = {"surface_model", "surface_hits", "first_surface_hit_h", "min_clearance_m", "surface_passes"}
 

@@ -10,12 +10,12 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from isf_robot.core import ConfigError
-from satellite.controller import make_controller, resolve_control
-from satellite.gravity import load_default_field  # the degree-8 series: these cases were chosen on it
-from satellite.mesh_surface import load_surface
-from satellite.model import InitialOrbit, OrbitModel
-from satellite.simulate import simulate
-from satellite.surface_barrier import Superellipsoid, SurfaceBarrier, SurfaceFilter, SurfaceTriggers
+from satellite.control.controller import make_controller, resolve_control
+from satellite.control.surface_barrier import Superellipsoid, SurfaceBarrier, SurfaceFilter, SurfaceTriggers
+from satellite.gravity.spherical import load_default_field  # the degree-8 series: these cases were chosen on it
+from satellite.orbit.model import InitialOrbit, OrbitModel
+from satellite.orbit.simulate import simulate
+from satellite.shape.mesh_surface import load_surface
 
 
 @pytest.fixture(scope="module")
@@ -164,7 +164,7 @@ def test_run_with_the_surface_barrier_avoids_the_contact_the_band_alone_allows(s
 
 
 def test_maneuver_run_with_the_surface_barrier(shape) -> None:  # type: ignore[no-untyped-def]
-    from satellite.tau import TauFit
+    from satellite.control.tau import TauFit
 
     model = OrbitModel(load_default_field())
     tau = TauFit([3000.0, 3000.0], model.h_max)  # tau_p from 50 to 100 min over the band

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from isf_robot.core import Linear, ManeuverScheduler, UnknownNameError
-from satellite.controller import ControlParams, make_controller, resolve_control
-from satellite.gravity import load_default_field  # the degree-8 series: these cases were chosen on it
-from satellite.model import OrbitModel
-from satellite.triggers import TRIGGERS, BandTriggers, Trigger
+from satellite.control.controller import ControlParams, make_controller, resolve_control
+from satellite.control.triggers import TRIGGERS, BandTriggers, Trigger
+from satellite.gravity.spherical import load_default_field  # the degree-8 series: these cases were chosen on it
+from satellite.orbit.model import OrbitModel
 
 
 @pytest.fixture(scope="module")
@@ -74,3 +74,21 @@ def test_band_parts_are_the_barrier_and_its_lie_derivative(model: OrbitModel) ->
         hm = band.h(0.0, np.concatenate([x[:3] - eps * x[3:], x[3:]]))
         assert lfh == pytest.approx((hp - hm) / (2 * eps), rel=1e-6, abs=1e-9)
         assert math.copysign(1.0, band.r_dot(0.0, x)) == math.copysign(1.0, float(x[:3] @ x[3:]))
+
+
+def test_tau_slope_is_the_derivative_of_tau_p_and_within_its_bounds() -> None:
+    """``dtau_dh`` (the compiled arcs' :func:`tau_slope`) against central differences of ``tau_p``; d1, d2 hold."""
+    from satellite.control.tau import TauFit, tau_slope
+
+    fit = TauFit([3600.0, -900.0, 2500.0, -1200.0], h_max=4000.0)
+    d1, d2 = fit.slope_bounds
+    hs = np.linspace(40.0, 3960.0, 50)
+    step = 1e-3
+    fd = np.array([(fit.tau_p(h + step) - fit.tau_p(h - step)) / (2 * step) for h in hs])
+    slope = np.array([fit.dtau_dh(h) for h in hs])
+    np.testing.assert_allclose(slope, fd, rtol=1e-6)
+    assert np.all(np.abs(slope) <= d1)
+    curv = np.array([(fit.dtau_dh(h + step) - fit.dtau_dh(h - step)) / (2 * step) for h in hs])
+    assert np.all(np.abs(curv) <= d2 * (1 + 1e-9))
+    assert fit.dtau_dh(-50.0) == fit.dtau_dh(0.0) and fit.dtau_dh(5000.0) == fit.dtau_dh(4000.0)  # held outside
+    assert tau_slope(fit.packed, 1234.0) == fit.dtau_dh(1234.0)

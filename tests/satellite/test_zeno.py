@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from isf_robot.core import ConfigError
-from satellite.model import InitialOrbit
-from satellite.simulate import simulate
+from satellite.orbit.model import InitialOrbit
+from satellite.orbit.simulate import simulate
 
 HOLD = 3600.0  # longer than several of the free run's intervals (shortest ~1000 s)
 

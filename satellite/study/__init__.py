@@ -1,0 +1,1 @@
+"""The paired study over seeds (``isf-satellite study``) and its statistics."""
