@@ -120,8 +120,8 @@ def sweep_figure(doc: Any) -> tuple[Any, str]:
 
 def _tau(path: Path) -> tuple[Any, str]:
     from isf_robot.plots import TauSamples, tau_figure
-    from satellite.orbit.model import BAND_CENTRE, BAND_INNER, BAND_OUTER
     from satellite.control.tau import load_tau
+    from satellite.orbit.model import BAND_CENTRE, BAND_INNER, BAND_OUTER
 
     fit = load_tau(path)  # checks the format and the fit, one-line errors
     doc = json.loads(path.read_text(encoding="utf-8"))

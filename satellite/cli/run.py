@@ -12,6 +12,7 @@ from typing import Any, TextIO
 
 from isf_robot.core import ConfigError, Observer, UnknownNameError
 from isf_robot.record.options import add_recording_args, make_observer
+from isf_robot.support.report import with_schema
 from satellite.control.contact import CONTACT_MODES
 from satellite.control.controller import CONTROLLERS, ControlParams, resolve_control
 from satellite.control.shooting import ShootingParams

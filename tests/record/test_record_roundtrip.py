@@ -105,7 +105,7 @@ def test_satellite_round_trip(sat_run) -> None:  # type: ignore[no-untyped-def]
     m = replay_metrics(log)
     assert m["triggers"] == res.triggers > 3
     assert m["kinds"] == res.kinds
-    assert m["total_dv"] == res.total_dv
+    assert math.isclose(m["total_dv"], res.total_dv, rel_tol=1e-12)  # (the replay adds |dv| by numpy, the run by sums)
     assert math.isclose(m["min_inter_event_h"], res.min_inter_event_h, rel_tol=1e-12)
     assert math.isclose(m["mean_inter_event_h"], res.mean_inter_event_h, rel_tol=1e-12)
     samples = sat_run.collector.steps
