@@ -1,23 +1,13 @@
-"""Small sums of products in one written order: the numpy side of the compiled kernels, on every machine.
+"""Small sums of products in one written order (elementwise numpy, no BLAS): the same numbers on every machine.
 
 numpy's BLAS products (``@``, ``dot``) and ``einsum`` add their terms in an order that depends on the
-CPU: OpenBLAS picks its kernels at run time (fused multiply-adds on one machine, plain products on
-another) and einsum's SIMD loop keeps as many partial sums as the vector width. The same run then
-gave other last bits on another machine, and a compiled kernel (which adds in one order) could agree
-with numpy only where a probe found the two orders equal; on an Intel Xeon with AVX-512 none did.
-
-These functions make the small products of a control step with elementwise numpy operations in a
-written order: each product and each sum is one correctly rounded IEEE operation (no fused
-multiply-add), so the result is the same on every machine, and a kernel that makes the same
-operations in the same order gives the same bits. Users: the arm's barrier rows (``dh/dq``,
-``|dh/dq|``, ``dh/dt``), its reaching controller (``J J^T``, ``y J``) and tracking error
-(:mod:`isf_robot.arm.kernels`), and the filters' few-row closed form (``A u``, ``A A^T`` of
-:func:`~isf_robot.core.qp_small.project_few`, the screened rows' ``Lg h du``;
-:mod:`isf_robot.core._step_jit`), the impulsive controller's ``Xi`` and the MIET samples (``dot``, ``norm``), and
-the satellite: its controller's plane basis and ``|dv|`` (``norm``), the gravity table's and fine boxes' one-point
-B-spline sums (``vecmat``, in the order of the compiled kernel :mod:`satellite._jit_parts`). ``np.linalg.norm`` of
-a vector is BLAS's dot too: OpenBLAS's AVX-512 kernel and its Haswell one gave other last bits, which the satellite's
-orbit amplified to 2e-9 in 12 h.
+CPU (OpenBLAS picks its kernels at run time; einsum's SIMD loop keeps as many partial sums as the
+vector width). These functions make each product and each sum one correctly rounded IEEE operation
+in a written order instead. Users: the arm's barrier rows, reaching controller and tracking error,
+whose compiled kernels (:mod:`isf_robot.arm.kernels`) make the same operations in the same order;
+the metrics' and MIET samples' norms; the satellite's plane basis and total ``|dv|``, where the
+orbit amplifies a last-bit difference over thousands of hours. The filter step itself does not use
+them (:mod:`isf_robot.core.robust`: its compiled and plain passes agree to a tolerance).
 """
 
 from __future__ import annotations
@@ -26,7 +16,7 @@ import math
 
 import numpy as np
 
-__all__ = ["combine3", "dot", "dots3", "gram", "matvec", "norm", "row_norms", "row_sq_sums", "sq_sum", "vecmat"]
+__all__ = ["combine3", "dot", "dots3", "gram", "norm", "row_norms", "row_sq_sums", "sq_sum"]
 
 
 def sq_sum(e: np.ndarray) -> float:
@@ -79,16 +69,6 @@ def gram(jac: np.ndarray) -> np.ndarray:
     return np.add.accumulate(jac[:, None, :] * jac[None, :, :], axis=2)[:, :, -1].copy()
 
 
-def matvec(a: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """``A x`` of a (k, m) array and an (m,) vector: each row's products added in column order, from the first.
-
-    C-contiguous, shape (k,) (zeros for m = 0).
-    """
-    if a.shape[1] == 0:
-        return np.zeros(a.shape[0])
-    return np.add.accumulate(a * x, axis=1)[:, -1].copy()
-
-
 def dot(a: np.ndarray, b: np.ndarray) -> float:
     """``a . b`` of two vectors: the products added in index order, from the first (``matvec``'s order; 0 if empty)."""
     al, bl = a.tolist(), b.tolist()
@@ -98,13 +78,3 @@ def dot(a: np.ndarray, b: np.ndarray) -> float:
     for i in range(1, len(al)):
         s += al[i] * bl[i]
     return s
-
-
-def vecmat(x: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """``x A`` of an (m,) vector and an (m, k) array: each column's products added in row order, from the first.
-
-    Shape (k,). The order of a compiled loop ``s += x[i] * a[i]`` over the rows: the gravity table's and fine
-    boxes' one-point B-spline sums (:mod:`satellite.gravity_table`, :mod:`satellite.gravity_fine`), as their
-    compiled kernel (:mod:`satellite._jit_parts`) makes them.
-    """
-    return np.add.accumulate(x[:, None] * a, axis=0)[-1]  # (accumulate: strictly in order)

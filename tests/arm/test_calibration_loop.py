@@ -13,6 +13,9 @@ from isf_robot.core import ConfigError
 
 KW = dict(seeds=(0, 1), duration=1.5, use_cache=False)
 
+# each test takes seconds; a wrong normal or sign makes the loop's simulations crawl: fail then, not minutes later
+pytestmark = pytest.mark.time_limit(120)
+
 
 def test_a_too_small_d_bar_is_raised_until_the_filter_s_tracking_error_is_covered(planar):
     p = resolve_params(planar, d_bar=1e-4, blend=0.0)
