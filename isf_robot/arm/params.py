@@ -87,5 +87,6 @@ def filter_options(sim: Any) -> tuple[FilterParams, dict[str, Any]]:
         cutoff_h = float(np.min(sim.coll.cutoff - sim.coll.pairs.margin))
         p = p.replace(c_max=max(p.c, min(p.c_max, p.class_k(cutoff_h))))
     if p.horizon > 0:
-        wiring["rollout"] = NominalRollout(sim, p.horizon)
+        wiring["rollout"] = NominalRollout(sim.scene, sim.nominal, sim.coll, sim.joints, sim.control_period,
+                                           sim.setup.time_offset, p.horizon)
     return p, wiring

@@ -41,8 +41,11 @@ from isf_robot.core import ConfigError, LieData
 from isf_robot.core.intermittent import StackedPoints
 
 from . import kernels, narrow
+from .collision import CollisionBarriers
+from .joint_limits import JointLimitBarriers
 from .nominal import ReachingController
 from .paths import path_track
+from .scene import Scene
 
 __all__ = ["NominalRollout", "MAX_POINTS"]
 
@@ -73,30 +76,34 @@ def _rollout_kernels() -> tuple[Callable[..., Any], Callable[..., Any] | None] |
 
 
 class NominalRollout:
-    """``rollout(t, data) -> [(s, lie, u_nom), ...]`` for an :class:`~isf_robot.arm.ArmSimulation`.
+    """``rollout(t, data) -> [(s, lie, u_nom), ...]``: the nominal rolled forward on its own scratch ``MjData``.
 
     Args:
-        sim: The simulation being built (its scene, nominal controller, barriers, episode setup
-            and control period are used).
+        scene: The scene.
+        nominal: The nominal controller (with ``snapshot()``/``restore()``: put back after each rollout).
+        coll: The collision barriers (their rows at the predicted states).
+        joints: The joint-limit barriers.
+        control_period: The control period [s].
+        time_offset: The episode's time offset [s] (moving obstacles' clock).
         horizon: Prediction horizon [s], > 0.
         points: Largest number of predicted points; the Euler step is
             ``max(control period, horizon / points)``.
 
     """
 
-    def __init__(self, sim: Any, horizon: float, points: int = MAX_POINTS) -> None:
+    def __init__(self, scene: Scene, nominal: Any, coll: CollisionBarriers, joints: JointLimitBarriers,
+                 control_period: float, time_offset: float, horizon: float, points: int = MAX_POINTS) -> None:
         if not (math.isfinite(horizon) and horizon > 0):
             raise ConfigError(f"rollout horizon must be > 0 [s], got {horizon}")
         if int(points) != points or points < 1:
             raise ConfigError(f"rollout points must be a whole number >= 1, got {points}")
-        nominal = sim.nominal
         if not (callable(getattr(nominal, "snapshot", None)) and callable(getattr(nominal, "restore", None))):
             raise ConfigError("the predictive off trigger (horizon > 0) needs a nominal controller with "
                               "snapshot() and restore() (isf_robot.arm.NominalController has them)")
-        self.scene, self.nominal = sim.scene, nominal
-        self.coll, self.joints = sim.coll, sim.joints
-        self.offset = float(sim.setup.time_offset)
-        self.dt = max(float(sim.control_period), float(horizon) / int(points))
+        self.scene, self.nominal = scene, nominal
+        self.coll, self.joints = coll, joints
+        self.offset = float(time_offset)
+        self.dt = max(float(control_period), float(horizon) / int(points))
         self.n = max(1, int(math.ceil(float(horizon) / self.dt - 1e-9)))
         self._s = tuple((j + 1) * self.dt for j in range(self.n))  # (the points' times ahead, as the loop makes them)
         self.horizon = float(horizon)
