@@ -44,7 +44,8 @@ def test_robust_slack_row_lower_and_promotion_level_known_answers() -> None:
     _close(xi, lg @ u - lb)
     # promoted: b at w = 1 (never below -alpha(h)), the robust level at w = 0, monotone in between
     assert robust.promotion_level(0.2, 0.05, 1.0) == 0.05
-    assert robust.promotion_level(-0.2, 0.05, 1.0) == 0.2  # h < 0: the robust condition is stronger
+    assert robust.promotion_level(-0.2, 0.05, 1.0) == 0.05  # h < 0: still b once fully promoted (eq. filter_inc)
+    assert robust.promotion_level(-0.2, 0.05, 0.5) == 0.2  # ramping: never below the robust level
     assert robust.promotion_level(0.2, 0.05, 0.0) == -0.2
     levels = [robust.promotion_level(0.2, 0.05, w) for w in np.linspace(0.0, 1.0, 11)]
     assert levels == sorted(levels) and levels[5] == pytest.approx(0.5 * 0.05 - 0.5 * 0.2)
