@@ -341,7 +341,7 @@ class _FilterBase:
         k = xi.shape[0]
         idx = self._all_rows(k) if rows is None else rows
         n = idx.shape[0]
-        few = solver.few_rows and n <= FEW_ROWS
+        few = solver.few_closed and n <= FEW_ROWS
         if n == 0 or (n > 1 and not few):
             return None
         u, res = np.empty(u_nom.shape[0]), self._res_buf

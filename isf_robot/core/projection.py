@@ -75,16 +75,17 @@ def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float
     if not math.isfinite(np.sum(r)):
         return -1, 0.0
     tol = rel_tol * np.maximum(1.0, np.abs(lb))
-    if np.all(r >= -tol):
+    neg = r < -tol
+    if not neg.any():
         u[:] = u_nom
         res[:] = r
         return 0, np.min(r)
-    G = A @ A.T
-    if not math.isfinite(np.sum(G)):
-        return -1, 0.0
+    G = A @ A.T  # (a non-finite G gives no candidate that passes; _confirm checks every answer)
     diag = np.diag(G).copy()
-    viol = np.flatnonzero((r < -tol) & (diag > 1e-200))
-    order = viol[np.argsort(r[viol] / np.sqrt(diag[viol]), kind="mergesort")]  # most violated first
+    viol = np.flatnonzero(neg & (diag > 1e-200))
+    order = viol
+    if viol.shape[0] > 1:  # most violated first
+        order = viol[np.argsort(r[viol] / np.sqrt(diag[viol]), kind="mergesort")]
     for i in order:  # one active row
         lam = -r[i] / G[i, i]
         pred = r + lam * G[i]
@@ -128,9 +129,7 @@ def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float
 def _confirm(A: np.ndarray, lb: np.ndarray, u: np.ndarray, tol: np.ndarray, res: np.ndarray) -> float:
     """``min(A u - lb)`` (``res``) when ``u`` is finite and every row holds to ``tol max(1, |u|_inf)``; NaN if not."""
     res[:] = A @ u - lb
-    if not (math.isfinite(np.sum(res)) and math.isfinite(np.sum(u))):
-        return math.nan
     scale = max(1.0, np.max(np.abs(u)))
-    if np.any(res < -tol * scale):
+    if not (scale < math.inf and np.all(res >= -tol * scale)):  # (NaN anywhere: refused)
         return math.nan
     return np.min(res)
