@@ -37,15 +37,16 @@ default, so a filter built without them behaves exactly as before):
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from .class_k import ClassK
+from .class_k import ClassK, Linear
 from .exceptions import ConfigError, NonFiniteError, ShapeError
-from .jit import compiled
+from .jit import JIT_ENV, compiled
 from .miet import miet_bound
 from .robust import predict_pass, robust_slack
 from .system import LieData
@@ -227,12 +228,26 @@ class StackedPoints(Sequence[tuple[float, LieData, np.ndarray]]):
 
 def _lg_block(lg: Sequence[np.ndarray] | np.ndarray, shape: tuple[int, ...], m: int, kl: list[int]) -> np.ndarray:
     """The points' ``Lg h`` as one float64 (n, K, m) array (``lg`` itself when it is one)."""
-    if type(lg) is np.ndarray and lg.dtype == _F64 and lg.shape == (*shape, m) and lg.flags.c_contiguous:
-        return lg
+    if type(lg) is np.ndarray and lg.dtype == _F64 and lg.shape == (*shape, m):
+        return np.ascontiguousarray(lg)
     block = np.zeros((*shape, m))
     for j, a in enumerate(lg):
         block[j, :kl[j]] = np.asarray(a, dtype=float)[:kl[j]]
     return block
+
+
+_NO_AV = np.zeros((0, 0))
+_NO_KEYS = np.zeros((0, 0), np.int64)
+_PASS: dict[str, Any] = {}
+
+
+def _predict_pass() -> Any:
+    """:func:`~isf_robot.core.robust.predict_pass`, compiled where ``ISF_ROBOT_JIT`` allows (once per setting)."""
+    key = os.environ.get(JIT_ENV, "1")
+    got = _PASS.get(key)
+    if got is None:
+        got = _PASS[key] = compiled(predict_pass)
+    return got
 
 
 def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Prediction:
@@ -240,32 +255,38 @@ def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Pred
     h, k, kl, u = points.h, points.rows, points._rows, points.u
     m = u.shape[1]
     lg = _lg_block(points.lg, h.shape, m, kl)
-    av = np.zeros(h.shape)
-    for j, kj in enumerate(kl):
-        av[j, :kj] = alpha.vector(h[j, :kj])  # (the point's h: the same array as its lie.h)
+    if type(alpha) is Linear:  # (alpha(h) = gain h, made in the pass)
+        av = _NO_AV
+        gain = alpha.gain
+    else:
+        av = np.zeros(h.shape)
+        gain = 0.0
+        for j, kj in enumerate(kl):
+            av[j, :kj] = alpha.vector(h[j, :kj])  # (the point's h: the same array as its lie.h)
     xi = np.empty(h.shape)
     fails = np.empty(h.shape, np.int64)
     nfail = np.empty(len(kl), np.int64)
-    run = compiled(predict_pass) if m > 0 else predict_pass
-    bad, xi_lo = run(points.lf, lg, np.ascontiguousarray(u), points.grad_norm, float(d_bar), av, k, xi, fails, nfail)
+    keys, names = points.keys, points.key_names
+    nk = 0 if names is None else len(names)
+    out = np.empty(fails.size if keys is not None else 0, np.int64)
+    run = _predict_pass() if m > 0 else predict_pass
+    bad, xi_lo, found = run(points.lf, lg, np.ascontiguousarray(u), points.grad_norm, float(d_bar), h, gain, av, k,
+                            xi, fails, nfail, _NO_KEYS if keys is None else keys, np.zeros(nk, np.bool_), out)
     if bad >= 0:
         raise NonFiniteError(f"predicted Xi_on not finite {points.s[bad]:.3g} s ahead: {xi[bad, :kl[bad]]}")
     first: float | None = None
     failing: set[str] = set()
-    keys, names = points.keys, points.key_names
-    for j, c in enumerate(nfail.tolist()):
-        if not c:
-            continue
-        s = points.s[j]
-        first = s if first is None else min(first, s)
-        if keys is not None:
-            got = keys[j, fails[j, :c]].tolist()
-            if min(got) < 0 or max(got) >= len(names):  # type: ignore[arg-type]
-                raise ShapeError(f"stacked points: a failing row's key lies outside key_names "
-                                 f"(0..{len(names) - 1})")  # type: ignore[arg-type]
-            failing.update(names[i] for i in got)  # type: ignore[index]
+    nf = nfail.tolist()
+    if any(nf):
+        first = min(s for s, c in zip(points.s, nf) if c)
+        if keys is not None:  # (the failing rows' keys, each once, from the pass)
+            if found < 0:
+                raise ShapeError(f"stacked points: a failing row's key lies outside key_names (0..{nk - 1})")
+            failing.update(names[i] for i in out[:found].tolist())  # type: ignore[index]
         else:
-            failing.update(points.row_names(j, fails[j, :c].tolist()))
+            for j, c in enumerate(nf):
+                if c:
+                    failing.update(points.row_names(j, fails[j, :c].tolist()))
     pred = _new(Prediction)  # (a frozen dataclass's __dict__ set whole, without the field-by-field __init__)
     _set(pred, "__dict__", {"ok": first is None, "xi_min": float(xi_lo), "first_fail_s": first,
                             "failing": frozenset(failing), "points": len(kl)})

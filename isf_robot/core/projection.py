@@ -69,35 +69,71 @@ def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float
 
     ``code`` 0: every row holds at ``u_nom`` (``u``, ``res = A u - lb`` written); 1: the solution in
     ``u`` and ``res``; -1: no such answer (see the module docstring). ``A`` (k, m) with k <= FEW_ROWS.
+    Written as loops over the few rows (what the compiled code runs fastest; as written, the
+    filters send such problems to the QP backend instead: :attr:`QPSolver.few_closed`).
     """
-    k = A.shape[0]
-    r = A @ u_nom - lb
-    if not math.isfinite(np.sum(r)):
+    k, m = A.shape
+    r = np.empty(k)
+    tol = np.empty(k)
+    low = math.inf
+    total = 0.0
+    nneg = 0
+    for i in range(k):
+        s = -lb[i]
+        for q in range(m):
+            s += A[i, q] * u_nom[q]
+        r[i] = s
+        total += s
+        tol[i] = rel_tol * max(1.0, abs(lb[i]))
+        if s < -tol[i]:
+            nneg += 1
+        low = min(low, s)
+    if not math.isfinite(total):
         return -1, 0.0
-    tol = rel_tol * np.maximum(1.0, np.abs(lb))
-    neg = r < -tol
-    if not neg.any():
+    if nneg == 0:
         u[:] = u_nom
-        res[:] = r
-        return 0, np.min(r)
-    G = A @ A.T  # (a non-finite G gives no candidate that passes; _confirm checks every answer)
-    diag = np.diag(G).copy()
-    viol = np.flatnonzero(neg & (diag > 1e-200))
-    order = viol
-    if viol.shape[0] > 1:  # most violated first
-        order = viol[np.argsort(r[viol] / np.sqrt(diag[viol]), kind="mergesort")]
-    for i in order:  # one active row
-        lam = -r[i] / G[i, i]
-        pred = r + lam * G[i]
-        pred[i] = 0.0  # (active by construction)
-        if np.all(pred >= -tol):
-            u[:] = u_nom + lam * A[i]
-            low = _confirm(A, lb, u, tol, res)
-            if low == low:
-                return 1, low
+        res[:k] = r
+        return 0, low
+    G = np.empty((k, k))
+    for i in range(k):
+        for j in range(i, k):
+            s = 0.0
+            for q in range(m):
+                s += A[i, q] * A[j, q]
+            G[i, j] = s
+            G[j, i] = s
+    order = np.empty(k, np.int64)  # the violated rows, most violated first (a stable insertion sort)
+    keys = np.empty(k)
     violated = np.zeros(k, np.bool_)
-    violated[viol] = True
-    for i in order:  # two active rows: i (violated at u_nom) and any other
+    nv = 0
+    for i in range(k):
+        if r[i] < -tol[i] and G[i, i] > 1e-200:
+            key = r[i] / math.sqrt(G[i, i])
+            p = nv
+            while p > 0 and key < keys[p - 1]:
+                keys[p] = keys[p - 1]
+                order[p] = order[p - 1]
+                p -= 1
+            keys[p] = key
+            order[p] = i
+            nv += 1
+            violated[i] = True
+    for a in range(nv):  # one active row: lam = -r_i / G_ii
+        i = order[a]
+        lam = -r[i] / G[i, i]
+        ok = True
+        for j in range(k):
+            if j != i and r[j] + lam * G[i, j] < -tol[j]:
+                ok = False
+                break
+        if ok:
+            for q in range(m):
+                u[q] = u_nom[q] + lam * A[i, q]
+            got = _confirm(A, lb, u, tol, res)
+            if got == got:
+                return 1, got
+    for a in range(nv):  # two active rows: i (violated at u_nom) and any other, by Cramer's rule
+        i = order[a]
         gii, ri = G[i, i], r[i]
         for j in range(k):
             if j == i or (violated[j] and j < i):
@@ -114,22 +150,36 @@ def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float
             lj = (-rj * gii + ri * gij) / det
             if not (li >= 0.0 and lj >= 0.0):
                 continue
-            pred = r + li * G[i] + lj * G[j]
-            pred[i] = 0.0
-            pred[j] = 0.0
-            if np.all(pred >= -tol):
-                u[:] = (u_nom + li * A[i]) + lj * A[j]
-                low = _confirm(A, lb, u, tol, res)
-                if low == low:
-                    return 1, low
+            ok = True
+            for q in range(k):
+                if q != i and q != j and r[q] + li * G[i, q] + lj * G[j, q] < -tol[q]:
+                    ok = False
+                    break
+            if ok:
+                for q in range(m):
+                    u[q] = (u_nom[q] + li * A[i, q]) + lj * A[j, q]
+                got = _confirm(A, lb, u, tol, res)
+                if got == got:
+                    return 1, got
     return -1, 0.0
 
 
 @formula
 def _confirm(A: np.ndarray, lb: np.ndarray, u: np.ndarray, tol: np.ndarray, res: np.ndarray) -> float:
     """``min(A u - lb)`` (``res``) when ``u`` is finite and every row holds to ``tol max(1, |u|_inf)``; NaN if not."""
-    res[:] = A @ u - lb
-    scale = max(1.0, np.max(np.abs(u)))
-    if not (scale < math.inf and np.all(res >= -tol * scale)):  # (NaN anywhere: refused)
+    k, m = A.shape
+    scale = 1.0
+    for q in range(m):
+        scale = max(scale, abs(u[q]))
+    if not scale < math.inf:  # (NaN or inf in u)
         return math.nan
-    return np.min(res)
+    low = math.inf
+    for i in range(k):
+        s = -lb[i]
+        for q in range(m):
+            s += A[i, q] * u[q]
+        res[i] = s
+        if not s >= -tol[i] * scale:  # (NaN: refused)
+            return math.nan
+        low = min(low, s)
+    return low

@@ -110,29 +110,49 @@ def row_bounds(rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: f
 
 
 def predict_pass(lf: np.ndarray, lg: np.ndarray, u: np.ndarray, grad_norm: np.ndarray, d_bar: float,
-                 alpha_h: np.ndarray, k: np.ndarray, xi: np.ndarray, fails: np.ndarray,
-                 nfail: np.ndarray) -> tuple:
+                 h: np.ndarray, gain: float, alpha_h: np.ndarray, k: np.ndarray, xi: np.ndarray, fails: np.ndarray,
+                 nfail: np.ndarray, keys: np.ndarray, seen: np.ndarray, out: np.ndarray) -> tuple:
     """``Xi_on`` at every predicted point, stacked: point ``j``'s ``k[j]`` rows in row ``j`` of the (n, K) arrays.
 
-    ``lg`` (n, K, m), ``u`` (n, m). Writes ``xi``, and each point's rows with ``Xi_on <= 0`` to
-    ``fails[j, :nfail[j]]`` (ascending). Returns ``(bad, xi_min)``: ``bad`` the first point whose
-    values are not finite (-1: none; the pass stops there), ``xi_min`` the least value before it.
+    ``lg`` (n, K, m), ``u`` (n, m); ``alpha(h)``: ``alpha_h``, or ``gain h`` with ``gain > 0``. Writes
+    ``xi``, and each point's rows with ``Xi_on <= 0`` to ``fails[j, :nfail[j]]`` (ascending). With
+    ``keys`` (n, K) (no rows: none), the failing rows' keys, each once, go to ``out`` (``seen``: False,
+    one entry per key). Returns ``(bad, xi_min, keys found)``: ``bad`` the first point whose values
+    are not finite (-1: none; the pass stops there), ``xi_min`` the least value before it; keys found
+    -1 when a key lies outside ``seen``.
     """
+    n, K, m = lg.shape
+    lg_u = np.zeros((n, K))
+    for q in range(m):  # (every point at once: m array operations, not n matrix products)
+        lg_u += lg[:, :, q] * u[:, q:q + 1]
+    a = gain * h if gain > 0.0 else alpha_h
+    x = robust_slack(lf, lg_u, grad_norm, d_bar, a)
     low = math.inf
-    for j in range(k.shape[0]):
+    for j in range(n):
         kj = k[j]
         nfail[j] = 0
         if kj == 0:
             continue
-        x = robust_slack(lf[j, :kj], lg[j, :kj] @ u[j], grad_norm[j, :kj], d_bar, alpha_h[j, :kj])
-        xi[j, :kj] = x
-        if not math.isfinite(np.sum(x)):
-            return j, low
-        lo = np.min(x)
+        xj = x[j, :kj]
+        xi[j, :kj] = xj
+        if not math.isfinite(np.sum(xj)):
+            return j, low, 0
+        lo = np.min(xj)
         if lo < low:
             low = lo
         if lo <= 0.0:
-            bad = np.flatnonzero(x <= 0.0)
+            bad = np.flatnonzero(xj <= 0.0)
             nfail[j] = bad.shape[0]
             fails[j, :bad.shape[0]] = bad
-    return -1, low
+    found = 0
+    if keys.shape[0]:
+        for j in range(n):
+            for i in fails[j, :nfail[j]]:
+                key = keys[j, i]
+                if key < 0 or key >= seen.shape[0]:
+                    return -1, low, -1
+                if not seen[key]:
+                    seen[key] = True
+                    out[found] = key
+                    found += 1
+    return -1, low, found
