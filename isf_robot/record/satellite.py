@@ -91,7 +91,7 @@ def _impulse_columns(rows: list[tuple[Any, ...]]) -> Any:
 
 
 class SatelliteRecorder(RerunRecorder):
-    """Observer of ``satellite.simulate``: logs body, band, trajectory, triggers and impulses.
+    """Observer of :func:`satellite.orbit.simulate.simulate`: logs body, band, trajectory, triggers and impulses.
 
     Args:
         stream: The recording stream.
