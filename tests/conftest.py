@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
+import sys
 from collections.abc import Iterator
 
 import pytest
@@ -39,3 +41,20 @@ def _time_limit(request: pytest.FixtureRequest) -> Iterator[None]:
         signal.alarm(0)
         signal.signal(signal.SIGALRM, old)
 
+
+
+@pytest.fixture(scope="session")
+def arm_compiled() -> None:
+    """numba's cache of the arm's and the core's kernels, filled before a test that times a command starts its clock.
+
+    A fresh clone has none: a command's first control steps compile them (about 30 s on one free core), and a
+    Ctrl-C in that time is held until the compiler returns, so a test that signals "after the first episode" and
+    expects the command to stop within seconds would time the compiler. Short runs of the strategies fill the
+    cache (about 3 s when it is already there); the bound, 600 s, only catches a hang.
+    """
+    robot = [sys.executable, "-m", "isf_robot.cli"]
+    for argv in (["compare", "--scene", "planar", "--episodes", "1", "--duration", "0.3", "--filters", "nominal", "cbf",
+                  "isf", "--d-bar", "0.1", "--quiet"],
+                 ["run", "--scene", "panda_pole", "--filter", "isf", "--duration", "0.5", "--d-bar", "0.04"]):
+        done = subprocess.run(robot + argv, capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, done.stderr

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import pytest
 
-pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+pytestmark = [pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals"),
+              pytest.mark.usefixtures("arm_compiled")]  # (compiled before a clock starts: tests/conftest.py)
 
 ROBOT = [sys.executable, "-m", "isf_robot.cli"]
 SATELLITE = [sys.executable, "-c", "import sys; from satellite.cli import main; sys.exit(main())"]

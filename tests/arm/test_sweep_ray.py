@@ -17,6 +17,8 @@ from isf_robot.arm.compare import SceneSpec
 from isf_robot.arm.sweep import SweepPoint, run_sweep
 from isf_robot.cli import main
 
+pytestmark = pytest.mark.usefixtures("arm_compiled")  # (compiled before a clock starts: tests/conftest.py)
+
 try:
     import ray  # noqa: F401
 

@@ -14,6 +14,8 @@ from isf_robot.record import stream as st
 from isf_robot.record.errors import RecordError
 from isf_robot.record.replay import read_rrd
 
+pytestmark = pytest.mark.usefixtures("arm_compiled")  # (compiled before a clock starts: tests/conftest.py)
+
 
 def _free_port() -> int:
     with socket.socket() as s:
