@@ -165,19 +165,20 @@ class ArmRecorder(RerunRecorder):
         """Send every entity of a block of steps in columns (one ``send_columns`` call each).
 
         ``b`` is a :class:`~isf_robot.arm.step_columns.StepColumns` of the arm loop: its first
-        ``len(b)`` rows are read where they are.
+        ``len(b)`` rows are copied (the loop reuses its arrays for the next block, and the stream may
+        encode the columns after ``send_columns`` returns).
         """
         n = len(b)
         if n == 0:
             return
         t = b.t[:n].copy()
-        u, u_nom = b.u[:n], b.u_nom[:n]
+        u, u_nom = b.u[:n].copy(), b.u_nom[:n].copy()
         a = {
             "t": t, "dt": np.full(n, float(b.dt)), "on": b.on[:n].copy(), "qp_solved": b.qp_solved[:n].copy(),
             # in the metrics accumulator's written order (sums.sq_sum per row), so the sums match
             "intervention_rate": row_sq_sums(u - u_nom),
-            "dist_min": b.dist_min[:n], "h_filter": b.h_min[:n], "xi": b.xi_min[:n],
-            "h": b.h[:n], "u_nom": u_nom, "u": u, "ee": b.ee_pos[:n], "goal": b.goal_pos[:n],
+            "dist_min": b.dist_min[:n].copy(), "h_filter": b.h_min[:n].copy(), "xi": b.xi_min[:n].copy(),
+            "h": b.h[:n].copy(), "u_nom": u_nom, "u": u, "ee": b.ee_pos[:n].copy(), "goal": b.goal_pos[:n].copy(),
         }
         if not self._names:
             self._names = tuple(b.names)

@@ -90,8 +90,10 @@ class Channel:
         n = self._n
         if n == 0:
             return
-        arrays = {k: a[:n] for k, a in zip(self._names, self._arrays)}
-        stream, timeline, t = self._buffer.stream, self._buffer.timeline, self._t[:n]
+        # copies: the stream may encode the columns after this call returns (a background thread), while the
+        # buffers fill again; views sent here were overwritten under load (rows of later blocks read back)
+        arrays = {k: a[:n].copy() for k, a in zip(self._names, self._arrays)}
+        stream, timeline, t = self._buffer.stream, self._buffer.timeline, self._t[:n].copy()
         if self._build is not None:
             stream.send_columns(self.path, indexes=[rr.TimeColumn(timeline, duration=t)],
                                 columns=self._build(**arrays))

@@ -223,7 +223,7 @@ class SatelliteRecorder(RerunRecorder):
         n = self._n_pos
         if n == 0:
             return
-        pts = self._pos[:n]
+        pts = self._pos[:n].copy()  # (the buffer fills again before the stream may have encoded it)
         if self._last_pos is not None:
             pts = np.vstack([self._last_pos, pts])
         self._band_lines(self._t_last)
