@@ -43,18 +43,18 @@ def project_row(a: np.ndarray, lb: float, u_nom: np.ndarray, feas_tol: float, u:
     """``min |u - u_nom|^2  s.t.  a u >= lb``, checked: ``(code, slack)``.
 
     ``code`` 0: the row holds at ``u_nom`` (the answer is ``u_nom``; ``u`` not written); 1: the
-    projection, written to ``u``; -1: no closed-form answer (``|a|^2`` underflows, or the answer
-    violates the row beyond ``feas_tol max(1, |lb|)`` or is not finite: the caller's backend
-    decides). ``slack = a u - lb`` of the answer.
+    projection, written to ``u``; -1: no closed-form answer (``|a|^2`` underflows while the row is
+    violated, or the answer violates the row beyond ``feas_tol max(1, |lb|)`` or is not finite: the
+    caller's backend decides). ``slack = a u - lb`` of the answer.
     """
-    aa = a @ a
-    if not aa > 1e-200:
-        return -1, 0.0
     gap = lb - a @ u_nom
     if gap <= 0.0:
         if not math.isfinite(u_nom @ u_nom):
             return -1, 0.0
         return 0, -gap
+    aa = a @ a
+    if not aa > 1e-200:
+        return -1, 0.0
     u[:] = u_nom + (gap / aa) * a
     slack = a @ u - lb
     if not (slack >= -feas_tol * max(1.0, abs(lb)) and math.isfinite(u @ u)):

@@ -11,20 +11,22 @@ with row i ``A_i = Lg h_i`` and ``lb_i = -Lf h_i + |dh_i/dx| d_bar + r_i`` where
 safety-promoting condition (eq. filter_inc). :func:`build_filter_qp` returns the problem,
 :class:`~isf_robot.core.qp_solver.QPSolver` solves it (daqp by default, ProxQP selectable) at
 explicit tolerances and checks the answer against the constraints before returning it. One row and
-no bounds has the closed form :func:`project_halfspace`, used as a fast path and a test oracle.
+no bounds has the closed form :func:`project_halfspace` (:func:`~isf_robot.core.projection.project_row`).
 
 This module holds the problem and its result; :mod:`isf_robot.core.qp_solver` solves it.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 
 from .exceptions import ShapeError, SolverError
-from .sums import dot
+from .projection import project_row
+from .robust import row_lower
 
 __all__ = ["FilterQP", "QPResult", "build_filter_qp", "project_halfspace"]
 
@@ -181,20 +183,21 @@ def build_filter_qp(
     m = u_nom.shape[0]
     if lg.ndim != 2 or lg.shape[1] != m:
         raise ShapeError(f"Lg h must have shape (k, {m}), got {lg.shape}")
-    lb = rhs - lf + grad_norm * d_bar
+    lb = row_lower(np.asarray(rhs, dtype=float), lf, grad_norm, d_bar)
     return FilterQP(u_nom=u_nom, A=lg, lb=lb, u_min=u_min, u_max=u_max, kinds=kinds, names=names)
 
 
 def project_halfspace(u_nom: np.ndarray, a: np.ndarray, lb: float) -> np.ndarray:
     """Closed-form solution of ``min |u - u_nom|^2  s.t.  a^T u >= lb``.
 
-    ``u = u_nom + max(0, lb - a^T u_nom) / |a|^2 * a``. Raises :class:`SolverError` when
-    ``a = 0`` and the constraint is violated (no ``u`` can satisfy it).
+    ``u = u_nom + max(0, lb - a^T u_nom) / |a|^2 * a``
+    (:func:`~isf_robot.core.projection.project_row`). Raises :class:`SolverError` when no answer
+    exists (``a = 0`` and the constraint violated) or it is not finite.
     """
-    slack = lb - dot(a, u_nom)  # (sums' written order, as QPSolver.solve_row)
-    if slack <= 0.0:
-        return u_nom.copy()
-    aa = dot(a, a)
-    if aa == 0.0:
-        raise SolverError(f"constraint 0 >= {lb:.6g} cannot be satisfied (Lg h = 0)")
-    return u_nom + (slack / aa) * a
+    u_nom = np.asarray(u_nom, dtype=float)
+    u = np.empty(u_nom.shape[0])
+    code, _ = project_row(np.asarray(a, dtype=float), float(lb), u_nom, math.inf, u)
+    if code < 0:
+        raise SolverError(f"constraint {np.asarray(a)} u >= {lb:.6g} has no closed-form answer from {u_nom} "
+                          f"(|a| = 0 or not finite)")
+    return u_nom.copy() if code == 0 else u

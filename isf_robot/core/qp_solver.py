@@ -65,7 +65,7 @@ class QPSolver:
         active_tol: A row is "active" when its slack is below this.
         max_iter: Iteration limit of a filter solve; a problem still unsolved at the limit goes
             to the phase-1 check, which decides infeasibility.
-        closed_form: Use :func:`~isf_robot.core.qp.project_halfspace` for a single row without
+        closed_form: Use :func:`~isf_robot.core.projection.project_row` for a single row without
             bounds (its answer is checked like any other; a violating one, or a row so small
             that ``|Lg h|^2`` underflows, goes to the backend instead).
         few_rows: With ``closed_form``, solve 2 to ``FEW_ROWS`` rows without bounds exactly when
