@@ -37,7 +37,6 @@ default, so a filter built without them behaves exactly as before):
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -46,7 +45,7 @@ import numpy as np
 
 from .class_k import ClassK, Linear
 from .exceptions import ConfigError, NonFiniteError, ShapeError
-from .jit import JIT_ENV, compiled
+from .jit import compiled
 from .miet import miet_bound
 from .robust import predict_pass, robust_slack
 from .system import LieData
@@ -238,18 +237,6 @@ def _lg_block(lg: Sequence[np.ndarray] | np.ndarray, shape: tuple[int, ...], m: 
 
 _NO_AV = np.zeros((0, 0))
 _NO_KEYS = np.zeros((0, 0), np.int64)
-_PASS: dict[str, Any] = {}
-
-
-def _predict_pass() -> Any:
-    """:func:`~isf_robot.core.robust.predict_pass`, compiled where ``ISF_ROBOT_JIT`` allows (once per setting)."""
-    key = os.environ.get(JIT_ENV, "1")
-    got = _PASS.get(key)
-    if got is None:
-        got = _PASS[key] = compiled(predict_pass)
-    return got
-
-
 def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Prediction:
     """:func:`predict` of stacked points in one pass (:func:`~isf_robot.core.robust.predict_pass`)."""
     h, k, kl, u = points.h, points.rows, points._rows, points.u
@@ -269,7 +256,7 @@ def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Pred
     keys, names = points.keys, points.key_names
     nk = 0 if names is None else len(names)
     out = np.empty(fails.size if keys is not None else 0, np.int64)
-    run = _predict_pass() if m > 0 else predict_pass
+    run = compiled(predict_pass) if m > 0 else predict_pass
     bad, xi_lo, found = run(points.lf, lg, np.ascontiguousarray(u), points.grad_norm, float(d_bar), h, gain, av, k,
                             xi, fails, nfail, _NO_KEYS if keys is None else keys, np.zeros(nk, np.bool_), out)
     if bad >= 0:

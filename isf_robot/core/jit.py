@@ -158,9 +158,12 @@ def compiled(fn: Any) -> Any:
     callees are :func:`formula` functions of its own module (numba's cache then follows edits of
     that one file). Creating it compiles nothing: the first call with new argument types does.
     """
+    got = _COMPILED.get(fn)
+    if got is not None and _ENV.get(JIT_ENV) == _COMPILED_ENV[0]:  # (the common case: no parsing of the setting)
+        return got
     if not jit_enabled():
         return fn
-    got = _COMPILED.get(fn)
+    _COMPILED_ENV[0] = _ENV.get(JIT_ENV)
     if got is None:
         try:
             from numba import njit
@@ -201,4 +204,6 @@ def _register_formulas() -> None:
 
 
 _COMPILED: dict[Any, Any] = {}
+_COMPILED_ENV: list[str | None] = ["?"]  # the ISF_ROBOT_JIT value the kernels were last handed out under
+_ENV = os.environ
 _FORMULAS: list[Any] = []

@@ -7,8 +7,6 @@ same modes and switch events and commands to 1e-9. Also the formulas' own identi
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
@@ -141,4 +139,4 @@ def test_filters_compiled_and_as_written_give_the_same_steps(kind: str, monkeypa
         np.testing.assert_allclose(ua, ub, rtol=1e-9, atol=1e-9)
         assert (oa, ea, na) == (ob, eb, nb)
         switches += ea != "None"
-    assert switches > 5 and not math.isnan(switches)
+    assert switches > 5

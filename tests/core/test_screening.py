@@ -25,7 +25,7 @@ def _walk_same_steps(short, general, seed: int) -> None:  # type: ignore[no-unty
     rng = np.random.default_rng(seed)
     lie = _random_lie(rng, 6, 8)
     for i in range(600):
-        h = np.clip(lie.h + rng.normal(scale=0.02, size=6), 0.0, 0.6)  # (the safe set: the robust rows hold)
+        h = np.clip(lie.h + rng.normal(scale=0.02, size=6), -0.05, 0.6)
         lie = LieData(h, lie.lf + rng.normal(scale=0.05, size=6), lie.lg + rng.normal(scale=0.05, size=(6, 8)),
                       lie.grad_norm, lie.names)
         u_nom = rng.normal(size=8)
@@ -34,7 +34,8 @@ def _walk_same_steps(short, general, seed: int) -> None:  # type: ignore[no-unty
         assert a.on == b.on and str(a.event) == str(b.event)
         assert (a.qp is None) == (b.qp is None)
         xi_u = lie.lf + lie.lg @ a.u - lie.grad_norm * short.d_bar + short.alpha.vector(lie.h)
-        assert np.all(xi_u >= -1e-9), xi_u
+        # every robust condition holds at the answer where h >= 0 (below, a promoted row asks b, which can be less)
+        assert np.all(xi_u[lie.h >= 0.0] >= -1e-9), xi_u
 
 
 @pytest.mark.parametrize("make", [
