@@ -49,7 +49,7 @@ FILTER_KEYS = ("alpha", "c", "b", "d_bar")
 
 # Per-run keys averaged in a comparison (mean and standard deviation over episodes).
 SUMMARY_KEYS: tuple[str, ...] = (
-    "duration_s", "control_steps", "duty_cycle", "on_switches", "mean_off_s", "min_off_s",
+    "duration_s", "control_steps", "duty_cycle", "on_switches", "mean_off_s", "min_off_s", "short_offs",
     "min_barrier", "collisions", "goals_reached", "goals_missed", "intervention", "qp_solves",
     "fallbacks", "relaxations", "min_joint_barrier", "tracking_error_q99", "qp_time_median_us",
     "d_bar", "wall_s",
@@ -275,6 +275,7 @@ _COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("on_switches", "switches", ".1f"),
     ("mean_off_s", "mean off [s]", ".3f"),
     ("min_off_s", "min off [s]", ".3f"),
+    ("short_offs", "offs < 0.25 s", ".1f"),
     ("min_barrier", "min h [m]", ".4f"),
     ("collisions", "collisions", ".1f"),
     ("goals_reached", "goals", ".2f"),
@@ -289,7 +290,9 @@ def format_table(comp: Comparison) -> str:
 
     An interrupted comparison's title says how many episodes finished per strategy.
 
-    ``-`` marks a mean over no episode (e.g. no complete off period in any run).
+    ``-`` marks a mean over no episode (e.g. no complete off period in any run). Below the table, a
+    ``chatter:`` line per strategy whose episodes had off periods under 0.25 s, with the change that
+    would stop it.
     """
     rows = []
     for strategy, res in comp.results.items():
@@ -302,4 +305,9 @@ def format_table(comp: Comparison) -> str:
     else:
         title = (f"scene {comp.scene}: {comp.episodes} episode(s) per strategy, seeds "
                  f"{comp.seeds[0]}..{comp.seeds[-1]} (mean ± std)")
-    return _table(["strategy"] + [h for _, h, _ in _COLUMNS], rows, title=title)
+    out = _table(["strategy"] + [h for _, h, _ in _COLUMNS], rows, title=title)
+    for strategy, res in comp.results.items():
+        hit = [e["chatter"] for e in res.get("episodes", ()) if e.get("chatter")]
+        if hit:
+            out += f"\nchatter: {strategy} in {len(hit)} of {len(res['episodes'])} episodes; first: {hit[0]}"
+    return out

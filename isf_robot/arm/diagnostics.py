@@ -28,8 +28,11 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from isf_robot.core.chatter import chatter_risk
+
 from .actuation import actuator_info, speed_bound
 from .calibration import Calibration, calibrate_d_bar
+from .filter_design import designed_options
 from .pairs import collision_pairs
 from .records import FilterParams
 from .scene import Scene
@@ -304,6 +307,17 @@ def _ancestors(model: mujoco.MjModel, b: int) -> list[int]:
 def check_scene(scene: Scene) -> list[Finding]:
     """Every check that needs no simulation (see the module docstring), in a fixed order."""
     return _home_contacts(scene) + _speed(scene) + _servo_chatter(scene) + _pairs(scene) + _goals(scene)
+
+
+def filter_findings(scene: Scene) -> list[Finding]:
+    """The scene's own intermittent-filter parameters (``[filter]`` and the design): a chatter risk.
+
+    Reported by ``isf-robot check``, not before every run (a standard filter's run does not use them).
+    """
+    spec = scene.config.filter
+    spec = spec.replace(**designed_options(scene.config, spec))
+    risk = chatter_risk(spec, scene.config.control.period)
+    return [] if risk is None else [Finding("chatter-risk", f"[filter]: {risk}")]
 
 
 def check_calibration(scene: Scene, cal: Calibration, d_bar: float | None = None) -> list[Finding]:

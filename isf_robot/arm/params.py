@@ -19,6 +19,7 @@ import numpy as np
 from isf_robot.core import ClassK, ConfigError, FilterSpec, Linear
 
 from .calibration import calibrate_d_bar
+from .filter_design import designed_options
 from .records import FilterParams
 from .rollout import NominalRollout
 from .scene import Scene
@@ -47,7 +48,9 @@ def resolve_params(
             calibrated (when ``calibrate``).
         calibrate: Allow the calibration run.
         **options: Any other field of :class:`~isf_robot.core.FilterSpec` (``min_off``, ``c_max``,
-            ``blend``, ``horizon``, ``predict_every``, ``c_pred``, ...); ``None``: the scene's.
+            ``blend``, ``horizon``, ``predict_every``, ``c_pred``, ...); ``None``: the scene's. A
+            ``blend`` or ``horizon`` that neither gives is designed from the scene
+            (:mod:`isf_robot.arm.filter_design`).
 
     Raises:
         ConfigError: A parameter the spec refuses, an unknown one, ``c_pred`` without a horizon,
@@ -56,6 +59,7 @@ def resolve_params(
     """
     given = {"alpha": alpha.gain if isinstance(alpha, Linear) else alpha, "c": c, "b": b, **options}
     spec = FilterSpec.from_mapping(given, scene.config.filter)
+    spec = spec.replace(**designed_options(scene.config, spec))
     if spec.c_pred and not spec.horizon > 0:
         raise ConfigError("filter parameter c_pred needs the predictive off trigger: a horizon > 0 [s]")
     fields = {f.name: getattr(spec, f.name) for f in dataclasses.fields(FilterSpec)}

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from isf_robot.core import DutyCycleMetrics, FilterSpec, FilterStats, SwitchEvent
+from isf_robot.core.chatter import chatter_advice
 from isf_robot.core.spec import PARAMETERS
 from isf_robot.core.strategies import strategy_info
 
@@ -134,7 +135,9 @@ class RunResult:
         tracking_error_q99: 99th percentile of ``|q_dot - u|`` at the control ticks [rad/s];
             ``d_bar_covered`` in :meth:`as_dict` says whether the ``d_bar`` in use covers it (if
             not, the robust term does not cover the tracking error this strategy produces, and
-            safety rests on the clearance the filter builds).
+            safety rests on the clearance the filter builds). An intermittent strategy's
+            ``chatter`` in :meth:`as_dict` is one line when off periods fell under 0.25 s, with the
+            change that would stop it (:func:`isf_robot.core.chatter.chatter_advice`), else ``None``.
         wall_s: Wall time of :meth:`ArmSimulation.run` [s] (setup of the episode and the loop;
             not the construction, calibration or scene loading).
         timings: Wall time per phase [s] when timing was requested, else empty.
@@ -189,6 +192,8 @@ class RunResult:
         out.update(control_period=self.control_period, timestep=self.timestep,
                    tracking_error_q99=self.tracking_error_q99,
                    d_bar_covered=bool(self.tracking_error_q99 <= self.params.d_bar))
+        if strategy_info(self.filter).intermittent:
+            out["chatter"] = chatter_advice(m, self.params, self.control_period)
         out.update(st)
         out.update(wall_s=self.wall_s, timings=dict(self.timings))
         return out

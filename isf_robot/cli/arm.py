@@ -230,6 +230,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if d["filter"] != "nominal" and not d["d_bar_covered"]:
         print(f"warning: tracking error q99 {d['tracking_error_q99']:.3g} rad/s > d_bar {d['d_bar']:.3g}: the "
               "robust term does not cover it (safety rests on the clearance the filter keeps)", file=sys.stderr)
+    if d.get("chatter"):
+        print(f"warning: {d['chatter']}", file=sys.stderr)
     return 0
 
 

@@ -6,7 +6,9 @@ Parameters are given as lists (``--c 0.05,0.2,0.5``: a grid over every combinati
 ray``: a local Ray, or the cluster at ``--address``; the ``ray`` extra), with the same numbers on
 both. Progress goes to stderr; ``--json`` prints the whole sweep (every episode's
 result) and ``--output PATH.json`` writes it atomically. Ctrl-C stops the workers and prints (and
-writes) what finished, marked partial.
+writes) what finished, marked partial. ``--model/--config`` sweep the user's own arm, and
+``--write-config PATH.toml`` writes the chosen ``[filter]`` table with its evidence beside it
+(:mod:`isf_robot.arm.tune`).
 """
 
 from __future__ import annotations
@@ -14,11 +16,12 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 from typing import Any
 
 from isf_robot.cli.plot import sweep_figure
 from isf_robot.core.exceptions import ConfigError
-from isf_robot.core.strategies import strategy_names
+from isf_robot.core.strategies import strategy_info, strategy_names
 from isf_robot.support.extras import install_hint
 from isf_robot.support.files import check_output_path, write_text_atomic
 from isf_robot.support.parallel import BACKENDS, Interrupted, check_backend
@@ -38,8 +41,10 @@ def register(subparsers: Any) -> None:
         description="Run strategies over a grid (comma lists) or random draws (--random N with LO:HI ranges) "
                     "of filter parameters, on several scenes and seeds; print one table per scene with the "
                     "Pareto front (duty, switches, shortest off period, intervention, goals, violations).")
-    p.add_argument("--scenes", nargs="+", default=["panda_pole"], metavar="NAME",
-                   help="shipped scenes (default panda_pole)")
+    p.add_argument("--scenes", nargs="+", default=None, metavar="NAME",
+                   help="shipped scenes (default panda_pole, unless --model is given)")
+    p.add_argument("--model", metavar="PATH.xml", help="your arm's MJCF file (with --config): swept too")
+    p.add_argument("--config", metavar="PATH.toml", help="its scene config (with --model)")
     p.add_argument("--filters", nargs="+", choices=strategy_names(), default=["cbf", "isf"], metavar="FILTER",
                    help="strategies (default: cbf isf)")
     p.add_argument("--episodes", type=int, default=5, help="seeds per point (default 5)")
@@ -63,6 +68,11 @@ def register(subparsers: Any) -> None:
                    help="N random draws per intermittent strategy from the LO:HI ranges")
     p.add_argument("--sweep-seed", type=int, default=0, help="seed of the random draws (default 0)")
     p.add_argument("--output", metavar="PATH.json", help="also write the JSON here (atomically)")
+    p.add_argument("--write-config", metavar="PATH.toml", default=None,
+                   help="one scene only: write the chosen intermittent point as a [filter] table to paste into "
+                        "the scene file (lowest duty among the Pareto points with no violation, no off period "
+                        "under 0.25 s and cbf's goals), with the evidence beside it: PATH.json (the sweep) and "
+                        "PATH.txt (its table)")
     p.add_argument("--plot", metavar="FIG.png", default=None,
                    help="also draw the Pareto figure (duty vs intervention per scene; .png/.svg/.pdf; "
                         "the plots extra)")
@@ -115,7 +125,6 @@ def _emit(args: argparse.Namespace, sweep: dict[str, Any]) -> None:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from isf_robot.arm.compare import SceneSpec
     from isf_robot.arm.sweep import run_sweep
 
     if args.episodes < 1 or args.seed < 0:
@@ -128,7 +137,16 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
         check_figure_path(args.plot)
         require_matplotlib()
+    specs = _specs(args)
+    if args.write_config:
+        if len(specs) != 1:
+            raise ConfigError(f"--write-config writes one scene's [filter]: give one scene, got {len(specs)}")
+        for path in _evidence_paths(args.write_config):
+            check_output_path(str(path), "--write-config")
     points = _points(args)
+    if args.write_config and not any(strategy_info(pt.strategy).intermittent for pt in points):
+        raise ConfigError("--write-config chooses an intermittent point: add an intermittent strategy to "
+                          "--filters (e.g. cbf isf)")
     seeds = list(range(args.seed, args.seed + args.episodes))
 
     def progress(done: int, total: int, task: Any, r: Any) -> None:
@@ -138,7 +156,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
                   file=sys.stderr, flush=True)
 
     try:
-        sweep = run_sweep([SceneSpec(name=n) for n in args.scenes], points, seeds, duration=args.duration,
+        sweep = run_sweep(specs, points, seeds, duration=args.duration,
                           jobs=args.jobs, d_bar=args.d_bar, progress=progress, backend=args.backend,
                           address=args.address)
     except Interrupted as exc:
@@ -146,4 +164,38 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             _emit(args, exc.partial)
         raise
     _emit(args, sweep)
+    if args.write_config:
+        _write_config(args.write_config, sweep)
     return 0
+
+
+def _specs(args: argparse.Namespace) -> list[Any]:
+    from isf_robot.arm.compare import SceneSpec
+
+    files = args.model is not None or args.config is not None
+    names = args.scenes if args.scenes is not None else ([] if files else ["panda_pole"])
+    specs = [SceneSpec(name=n) for n in names]
+    if files:
+        specs.append(SceneSpec(model=args.model, config=args.config))  # (both or a one-line error)
+    return specs
+
+
+def _evidence_paths(path: str) -> tuple[Path, Path, Path]:
+    """The ``[filter]`` file and its evidence beside it: ``PATH.toml``, ``PATH.json``, ``PATH.txt``."""
+    p = Path(path)
+    if p.suffix != ".toml":
+        raise ConfigError(f"--write-config {path!r}: give a .toml path (the evidence goes beside it as .json and .txt)")
+    return p, p.with_suffix(".json"), p.with_suffix(".txt")
+
+
+def _write_config(path: str, sweep: dict[str, Any]) -> None:
+    from isf_robot.arm.sweep import format_sweep
+    from isf_robot.arm.tune import filter_section
+
+    toml, js, txt = _evidence_paths(path)
+    doc = with_schema("isf-robot-sweep", sweep)
+    write_text_atomic(js, json.dumps(doc, indent=1) + "\n")
+    write_text_atomic(txt, format_sweep(sweep) + "\n")
+    text = filter_section(sweep["scenes"][0], sweep["seeds"], f"{js.name}, {txt.name}")
+    write_text_atomic(toml, text)
+    print(f"wrote {toml} (the chosen [filter]) and its evidence {js.name}, {txt.name}:\n{text}", file=sys.stderr, end="")

@@ -10,6 +10,7 @@ Conventions (the same code computes a live run's figures and a replayed log's):
   the sense of the paper's MIET, so ``mean_off_s``/``min_off_s`` exclude them (``None`` when
   there is no complete off period). On periods likewise.
 * ``intervention = sum_k |u_k - u_nom,k|^2 dt_k``.
+* ``short_offs``: complete off periods shorter than :data:`CHATTER_OFF_S` (chatter).
 """
 
 from __future__ import annotations
@@ -23,7 +24,11 @@ import numpy as np
 from .exceptions import ShapeError
 from .sums import row_sq_sums, sq_sum
 
-__all__ = ["DutyCycleMetrics", "FilterStats", "compute_metrics", "MetricsAccumulator"]
+__all__ = ["CHATTER_OFF_S", "DutyCycleMetrics", "FilterStats", "compute_metrics", "MetricsAccumulator"]
+
+CHATTER_OFF_S = 0.25
+"""Shortest off period [s] that is not chatter: an intermittent filter whose complete off periods fall
+under it is switching faster than an arm's motion changes (``short_offs`` counts them)."""
 
 _F64 = np.dtype(np.float64)
 _CHUNK = 1 << 16  # steps kept as tuples before they are packed into arrays
@@ -47,6 +52,7 @@ class DutyCycleMetrics:
     max_off_s: float | None
     intervention: float
     qp_solves: int
+    short_offs: int = 0
 
     def as_dict(self) -> dict[str, Any]:
         """Plain dict (JSON-ready)."""
@@ -155,6 +161,7 @@ def compute_metrics(
         max_off_s=stat(off_p, np.max),
         intervention=float(np.sum(rate * dt_arr)),
         qp_solves=solves,
+        short_offs=int(np.count_nonzero(off_p < CHATTER_OFF_S)),
     )
 
 

@@ -60,8 +60,11 @@ class FilterSpec:
         c_max: Largest margin ``min_off`` may design (>= ``c``; ``inf``: none).
         fall_rate_prior: Fall rate of ``Xi_on`` assumed before the first measurement, >= 0.
         fall_rate_forget: Time constant [s] of the measured fall rate's memory, > 0.
-        blend: Hand-over time [s] after each switch (0: the command steps at switches).
-        horizon: Horizon [s] of the predictive off trigger's rollout (0: none; the adapter rolls out).
+        blend: Hand-over time [s] after each switch (0: the command steps at switches; ``None``: the
+            adapter designs it, and the core filter alone takes 0). An arm scene's design:
+            :func:`isf_robot.arm.filter_design.designed_options`.
+        horizon: Horizon [s] of the predictive off trigger's rollout (0: none; the adapter rolls out;
+            ``None``: the adapter designs it, as ``blend``).
         predict_every: Control steps between rollouts while the off condition holds, >= 1.
         c_pred: Off margin when the rollout predicts the nominal safe (0: none; ``0 < c_pred <= c``).
 
@@ -76,10 +79,10 @@ class FilterSpec:
     c_max: float = _p(math.inf, "largest designed off margin", "C")
     fall_rate_prior: float = _p(0.0, "fall rate of Xi_on assumed before the first measurement", "R")
     fall_rate_forget: float = _p(2.0, "time constant [s] of the measured fall rate's memory", "S")
-    blend: float = _p(0.0, "hand-over time [s] after each switch (no step in the command beyond what safety "
-                           "needs)", "S")
-    horizon: float = _p(0.0, "predictive off trigger: off only if the nominal, rolled forward this long, keeps "
-                             "every Xi_on > 0 [s]", "S")
+    blend: float | None = _p(None, "hand-over time [s] after each switch (no step in the command beyond what "
+                                   "safety needs; 0: none; default: designed from the scene)", "S")
+    horizon: float | None = _p(None, "predictive off trigger: off only if the nominal, rolled forward this long, "
+                                     "keeps every Xi_on > 0 [s] (0: none; default: designed from the scene)", "S")
     predict_every: int = _p(5, "control steps between rollouts of the predictive off trigger", "K")
     c_pred: float = _p(0.0, "off margin when the rollout predicts the nominal safe over the horizon (0 < C <= c; "
                             "off as soon as it is predicted safe instead of at Xi_on >= c)", "C")
@@ -91,8 +94,11 @@ class FilterSpec:
         _number(self, "d_bar", nonneg=True)
         _number(self, "c", positive=True)
         _number(self, "b", positive=True)
-        for name in ("min_off", "fall_rate_prior", "blend", "horizon", "c_pred"):
+        for name in ("min_off", "fall_rate_prior", "c_pred"):
             _number(self, name, nonneg=True)
+        for name in ("blend", "horizon"):
+            if getattr(self, name) is not None:
+                _number(self, name, nonneg=True)
         _number(self, "fall_rate_forget", positive=True, infinite=True)
         c_max = _number(self, "c_max", infinite=True)
         if not c_max >= self.c:
@@ -128,7 +134,7 @@ class FilterSpec:
         """The intermittent filter's options (:class:`~isf_robot.core.filters.IntermittentSafetyFilter`)."""
         return {"min_off": self.min_off or None, "c_max": self.c_max, "fall_rate_prior": self.fall_rate_prior,
                 "fall_rate_forget": self.fall_rate_forget, "predict_every": self.predict_every,
-                "blend": self.blend, "c_pred": self.c_pred or None}
+                "blend": self.blend or 0.0, "c_pred": self.c_pred or None}
 
     def as_info(self, intermittent: bool = True) -> dict[str, Any]:
         """The parameters a run records: the four of the paper, and each intermittent option that is set.

@@ -101,7 +101,7 @@ def test_rollout_rows_are_the_active_rows_of_a_full_evaluation_bit_for_bit(plana
 
 def test_predictive_trigger_on_the_arm_is_safe_and_bounded(planar_moving):
     scene = planar_moving
-    base = resolve_params(scene, d_bar=0.05)
+    base = resolve_params(scene, d_bar=0.05, blend=0.0, horizon=0.0)  # (no designed options: the plain filter)
     plain = ArmSimulation(scene, "isf", seed=3, params=base).run(3.0)
     pred = resolve_params(scene, d_bar=0.05, horizon=0.15, predict_every=4)
     sim = ArmSimulation(scene, "isf", seed=3, params=pred)
@@ -118,8 +118,8 @@ def test_predictive_trigger_on_the_arm_is_safe_and_bounded(planar_moving):
 
 
 def test_blend_removes_the_command_jump_at_switches(planar):
-    p0 = resolve_params(planar, d_bar=0.05)
-    p1 = resolve_params(planar, d_bar=0.05, blend=0.03)
+    p0 = resolve_params(planar, d_bar=0.05, blend=0.0, horizon=0.0)
+    p1 = resolve_params(planar, d_bar=0.05, blend=0.03, horizon=0.0)
     r0 = ArmSimulation(planar, "isf", seed=1, params=p0).run(3.0)
     r1 = ArmSimulation(planar, "isf", seed=1, params=p1).run(3.0)
     assert r0.on_switches > 0 and r1.on_switches > 0
@@ -140,7 +140,7 @@ def test_min_off_is_capped_at_what_a_pair_at_the_cutoff_can_reach(planar):
 @pytest.mark.parametrize("kw, match", [
     (dict(min_off=-1.0), "min_off"), (dict(c_max=1e-6), "c_max"), (dict(blend=-1.0), "blend"),
     (dict(horizon=math.nan), "horizon"), (dict(predict_every=0), "predict_every"),
-    (dict(predict_every=1.5), "predict_every"), (dict(c_pred=0.01), "c_pred needs the predictive off"),
+    (dict(predict_every=1.5), "predict_every"), (dict(c_pred=0.01, horizon=0.0), "c_pred needs the predictive off"),
     (dict(c_pred=0.5, horizon=0.2), "c_pred must be <= c"), (dict(c_pred=-0.01, horizon=0.2), "c_pred"),
 ])
 def test_bad_intermittent_options_are_refused(planar, kw, match):
@@ -153,11 +153,12 @@ def test_scene_filter_table_gives_the_defaults_and_arguments_override_them(plana
 
     pole = load_scene("panda_pole")
     p = resolve_params(pole, d_bar=0.04)
-    assert (p.blend, p.horizon, p.min_off) == (0.05, 0.3, 0.0)  # models/panda_pole.toml [filter] (0: no min_off)
+    # models/panda_pole.toml names neither: designed from [gains] 1.5 / 10 and 0.25 + 0.15 + 5 x 0.002
+    assert (p.blend, p.horizon, p.min_off) == (pytest.approx(0.15), pytest.approx(0.41), 0.0)
     q = resolve_params(pole, d_bar=0.04, blend=0.0, horizon=0.0)
     assert (q.blend, q.horizon) == (0.0, 0.0) and "horizon" not in q.as_dict()
-    r = resolve_params(planar, d_bar=0.05)
-    assert (r.blend, r.horizon, r.min_off) == (0.0, 0.0, 0.0)  # a scene without them: off
+    r = resolve_params(planar, d_bar=0.05, horizon=0.2)
+    assert (r.blend, r.horizon, r.min_off) == (pytest.approx(0.2), 0.2, 0.0)  # planar: [gains] 2.0 / 10
 
 
 def test_c_pred_reaches_the_filter_and_the_result_on_the_arm(planar_moving):

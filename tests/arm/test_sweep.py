@@ -10,6 +10,7 @@ from isf_robot.arm.compare import SceneSpec
 from isf_robot.arm.sweep import SweepPoint, grid_points, pareto_front, random_points, run_sweep
 from isf_robot.cli import main
 from isf_robot.core import ConfigError
+from isf_robot.paths import models_dir
 
 
 def test_grid_gives_each_strategy_only_the_parameters_it_uses():
@@ -48,7 +49,8 @@ def test_sweep_numbers_equal_in_one_process_and_in_workers(tmp_path):
     pts = [SweepPoint("cbf", {}), SweepPoint("isf", {"c": 0.1, "blend": 0.01})]
     args = dict(duration=0.6, d_bar=0.05)
     one = run_sweep([SceneSpec(name="planar")], pts, [0, 1], jobs=1, **args)
-    two = run_sweep([SceneSpec(name="planar")], pts, [0, 1], jobs=2, **args)
+    files = SceneSpec(model=str(models_dir() / "planar.xml"), config=str(models_dir() / "planar.toml"))
+    two = run_sweep([files], pts, [0, 1], jobs=2, **args)  # the same scene as a user's files (--model/--config)
 
     def strip(sweep):
         for sc in sweep["scenes"]:
@@ -78,3 +80,29 @@ def test_sweep_cli_writes_json_and_refuses_bad_input(tmp_path, capsys):
     assert "is not a number" in capsys.readouterr().err
     assert main(["sweep", "--scenes", "planar", "--c", "0.05", "--blend", "-1", "--d-bar", "0.05"]) == 2
     assert "blend" in capsys.readouterr().err
+
+
+def test_sweep_tunes_a_users_arm_and_writes_its_filter_table(tmp_path, capsys):
+    import tomllib
+
+    xml, toml = str(models_dir() / "planar.xml"), str(models_dir() / "planar.toml")
+    out = tmp_path / "tuned.toml"
+    base = ["sweep", "--model", xml, "--config", toml, "--episodes", "1", "--duration", "0.4", "--d-bar", "0.05",
+            "--quiet"]
+    # refused before anything runs, nothing written: two scenes, no intermittent strategy, not .toml
+    assert main(base + ["--scenes", "planar", "--write-config", str(out)]) == 2
+    assert "give one scene, got 2" in capsys.readouterr().err
+    assert main(base + ["--filters", "cbf", "--write-config", str(out)]) == 2
+    assert "add an intermittent strategy" in capsys.readouterr().err
+    assert main(base + ["--write-config", str(tmp_path / "tuned.txt")]) == 2
+    assert "give a .toml path" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+    assert main(base + ["--filters", "cbf", "isf", "--c", "0.05,0.1", "--write-config", str(out)]) == 0
+    table = tomllib.loads(out.read_text())["filter"]
+    assert table["c"] in (0.05, 0.1) and table["d_bar"] == 0.05
+    evidence = json.loads(out.with_suffix(".json").read_text())
+    assert evidence["schema"] == "isf-robot-sweep/1" and evidence["scenes"][0]["scene"] == "planar"
+    chosen = [r for r in evidence["scenes"][0]["points"] if r["strategy"] == "isf" and r["values"]["c"] == table["c"]]
+    assert len(chosen) == 1 and f"point {chosen[0]['label']}" in out.read_text()
+    assert "Pareto" in out.with_suffix(".txt").read_text()
+    assert "wrote" in capsys.readouterr().err

@@ -14,6 +14,7 @@ import time
 import pytest
 
 from isf_robot.arm.compare import SceneSpec
+from isf_robot.paths import models_dir
 from isf_robot.arm.sweep import SweepPoint, run_sweep
 from isf_robot.cli import main
 
@@ -49,7 +50,8 @@ def test_sweep_on_local_ray_equals_local_processes():
     pts = [SweepPoint("cbf", {}), SweepPoint("isf", {"c": 0.1, "blend": 0.02})]
     args = dict(duration=0.6, d_bar=0.05)
     seen = []
-    on_ray = run_sweep([SceneSpec(name="planar")], pts, [0, 1], jobs=2, backend="ray",
+    files = SceneSpec(model=str(models_dir() / "planar.xml"), config=str(models_dir() / "planar.toml"))
+    on_ray = run_sweep([files], pts, [0, 1], jobs=2, backend="ray",  # a user's own files, as --model/--config
                        progress=lambda done, total, task, r: seen.append((done, total)), **args)
     local = run_sweep([SceneSpec(name="planar")], pts, [0, 1], jobs=2, **args)
     assert sorted(seen) == [(i, 4) for i in range(1, 5)]

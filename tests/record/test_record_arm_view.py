@@ -34,11 +34,12 @@ def _components(path: Path) -> dict[tuple[str, bool], dict[str, list]]:
 
 @pytest.fixture(scope="module")
 def panda_rrd(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """`isf-robot run --scene panda_pole --filter isf --rrd x.rrd` (1 s)."""
+    """`isf-robot run --scene panda_pole --filter isf --rrd x.rrd` (1 s; switching on and off, so no predictive trigger)."""
     from isf_robot.cli import main
 
     path = tmp_path_factory.mktemp("panda") / "x.rrd"
-    assert main(["run", "--scene", "panda_pole", "--filter", "isf", "--duration", "1", "--rrd", str(path)]) == 0
+    assert main(["run", "--scene", "panda_pole", "--filter", "isf", "--duration", "1", "--horizon", "0",
+                 "--rrd", str(path)]) == 0
     return path
 
 

@@ -1,0 +1,50 @@
+"""The intermittent filter's hand-over and predictive off trigger, designed from the scene.
+
+A scene whose ``[filter]`` table does not name ``blend`` or ``horizon`` (and a run that does not pass
+them) gets the values below, so that the intermittent filter does not chatter on an arm nobody has
+tuned. Both come from numbers the scene already states:
+
+* **Hand-over** ``blend = max_joint_speed / max_joint_acc``: the time the nominal controller itself
+  takes to go from rest to its speed cap under its own rate limit (``[gains]``). A switch hands the
+  command over no faster than the nominal is allowed to change it, so the low-level tracker sees no
+  step it would not see from the nominal, and the tracking error stays within what ``d_bar`` was
+  calibrated on. (Panda scenes: 1.5 / 10 = 0.15 s; the UR5e scene: 0.5 / 10 = 0.05 s.)
+* **Predictive off trigger** ``horizon = CHATTER_OFF_S + blend + predict_every * period``
+  (:func:`isf_robot.core.chatter.horizon_for`, with the scene's ``[control] period``): the filter
+  turns off only when the nominal, rolled forward this long on the reduced model, keeps every
+  ``Xi_on > 0``. An off period shorter than the horizon then needs the arm to leave the rollout,
+  which is what ``d_bar`` bounds. The horizon covers the shortest off period that is not chatter
+  (:data:`~isf_robot.core.metrics.CHATTER_OFF_S`, 0.25 s), the hand-over during which the command
+  is still partly the filter's, and the control steps between two rollouts. (Panda scenes:
+  0.25 + 0.15 + 5 x 0.002 = 0.41 s.)
+
+An explicit value (``blend = 0``, ``--horizon 0``) turns either off. ``isf-robot run`` and ``compare``
+report chatter (off periods under 0.25 s) with the change that would fix it
+(:func:`isf_robot.core.chatter.chatter_advice`).
+"""
+
+from __future__ import annotations
+
+from isf_robot.core import FilterSpec
+from isf_robot.core.chatter import horizon_for
+
+from .config_schema import SceneConfig
+
+__all__ = ["designed_blend", "designed_options"]
+
+
+def designed_blend(config: SceneConfig) -> float:
+    """Hand-over time [s]: the nominal's time from rest to its joint-speed cap at its rate limit."""
+    g = config.gains
+    return g.max_joint_speed / g.max_joint_acc
+
+
+def designed_options(config: SceneConfig, spec: FilterSpec) -> dict[str, float]:
+    """``blend`` and ``horizon`` for each of the two that ``spec`` leaves to the design (``None``)."""
+    out: dict[str, float] = {}
+    blend = spec.blend
+    if blend is None:
+        blend = out["blend"] = designed_blend(config)
+    if spec.horizon is None:
+        out["horizon"] = horizon_for(blend, spec.predict_every, config.control.period)
+    return out

@@ -1,0 +1,92 @@
+"""The intermittent filter's designed hand-over and predictive horizon (isf_robot.arm.filter_design).
+
+A scene that does not name ``blend``/``horizon`` gets them from its ``[gains]`` and ``[control]``; one
+that names them (0 included) keeps its own; a run's arguments win over both. ``check`` prints the
+values and flags a chatter risk.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import pytest
+
+from isf_robot.arm import build_scene
+from isf_robot.arm.diagnostics import filter_findings
+from isf_robot.arm.filter_design import designed_blend, designed_options
+from isf_robot.arm.params import resolve_params
+from isf_robot.cli import main
+from isf_robot.core import FilterSpec
+from isf_robot.core.metrics import CHATTER_OFF_S
+
+# Two joints, a wall in reach and one goal: the smallest scene the design reads.
+ARM = """
+<mujoco>
+  <option timestep="0.001"/>
+  <worldbody>
+    <body name="base">
+      <body name="l1">
+        <joint name="j1" axis="0 0 1" range="-3 3"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+        <body name="l2" pos="0.3 0 0">
+          <joint name="j2" axis="0 0 1" range="-3 3"/>
+          <geom type="capsule" fromto="0 0 0 0.25 0 0" size="0.03"/>
+          <site name="tip" pos="0.25 0 0"/>
+        </body>
+      </body>
+    </body>
+    <body name="obstacles"><geom name="wall" type="box" pos="0.35 0.35 0" size="0.05 0.05 0.1"/></body>
+    <site name="goal_a" pos="0.4 -0.2 0"/>
+  </worldbody>
+  <actuator>
+    <velocity joint="j1" kv="20"/><velocity joint="j2" kv="20"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def _scene(gains: dict | None = None, filt: dict | None = None, period: float = 0.004):  # type: ignore[no-untyped-def]
+    cfg = {"robot": {"subtree": "base", "ee_site": "tip"}, "obstacles": {"bodies": ["obstacles"]},
+           "task": {"goals": [{"site": "goal_a"}]}, "gains": gains or {}, "control": {"period": period},
+           "filter": {"d_bar": 0.05, **(filt or {})}}
+    return build_scene(mujoco.MjModel.from_xml_string(ARM), cfg)
+
+
+def test_blend_and_horizon_come_from_the_gains_and_the_period() -> None:
+    sc = _scene({"max_joint_speed": 1.2, "max_joint_acc": 8.0}, period=0.004)
+    p = resolve_params(sc)
+    assert p.blend == pytest.approx(1.2 / 8.0)
+    # the chatter threshold, the hand-over and the five control steps between two rollouts
+    assert p.horizon == pytest.approx(CHATTER_OFF_S + 0.15 + 5 * 0.004)
+    assert designed_blend(sc.config) == pytest.approx(0.15)
+    # predict_every enters the horizon
+    assert resolve_params(sc, predict_every=20).horizon == pytest.approx(CHATTER_OFF_S + 0.15 + 20 * 0.004)
+    # the run records what it used
+    info = p.as_info()
+    assert info["blend"] == pytest.approx(0.15) and info["horizon"] == pytest.approx(0.42)
+
+
+def test_a_scene_or_a_run_that_names_them_keeps_its_own() -> None:
+    sc = _scene({"max_joint_speed": 1.2, "max_joint_acc": 8.0}, {"blend": 0.0})
+    p = resolve_params(sc)
+    assert p.blend == 0.0  # explicit 0: no hand-over
+    assert p.horizon == pytest.approx(CHATTER_OFF_S + 0.0 + 5 * 0.004)  # the horizon follows the blend in use
+    assert resolve_params(sc, horizon=0.0).horizon == 0.0
+    assert resolve_params(sc, blend=0.3, horizon=0.7).blend == 0.3
+    sc2 = _scene({"max_joint_speed": 1.2, "max_joint_acc": 8.0}, {"horizon": 0.5})
+    assert resolve_params(sc2).horizon == 0.5 and resolve_params(sc2).blend == pytest.approx(0.15)
+    # the core's own default leaves both to the adapter; alone, the core filter takes no hand-over
+    assert FilterSpec().blend is None and FilterSpec().horizon is None
+    assert FilterSpec().intermittent_kwargs()["blend"] == 0.0
+    assert designed_options(sc.config, FilterSpec(blend=0.1, horizon=0.2)) == {}
+
+
+def test_check_prints_the_design_and_flags_an_unguarded_scene(capsys, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    assert filter_findings(_scene()) == []  # the design guards itself
+    risky = filter_findings(_scene(filt={"horizon": 0.1}))
+    assert [f.code for f in risky] == ["chatter-risk"]
+    # default gains: blend 2.0 / 10 = 0.2 s; 0.25 + 0.2 + 5 x 0.004 = 0.47, rounded up to 0.05
+    assert "horizon = 0.5 (--horizon 0.5)" in risky[0].message
+    assert filter_findings(_scene(filt={"horizon": 0.0, "min_off": 0.3})) == []  # a designed margin guards too
+    assert main(["check", "--scene", "panda_pole", "--no-calibration"]) == 0
+    out = capsys.readouterr().out
+    assert "hand-over blend = 0.15 s, predictive horizon = 0.41 s" in out and "designed from [gains]" in out
