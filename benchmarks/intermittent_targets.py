@@ -1,20 +1,20 @@
-"""The issue-13 target comparison: isf against cbf with the shipped defaults, on the same seeds.
+"""The intermittent filter's targets: isf against cbf with the library's defaults, on the same seeds.
 
     nice -n 19 python benchmarks/intermittent_targets.py [--episodes 20] [--jobs 2] \
-        [--scenes panda_pole panda_shelf panda_moving panda_servo] [--json sweep.json] \
+        [--scenes panda_pole panda_shelf panda_moving panda_servo ur5e_pole] [--json sweep.json] \
         [--backend processes|ray] [--marker intermittent_targets] [--no-write]
 
-Runs ``cbf`` and ``isf`` with every scene's shipped parameters (``d_bar`` as the scene resolves it:
-config or the tracking calibration) on seeds 0..N-1 at the scene's full episode length, through
+Runs ``cbf`` and ``isf`` with every scene's shipped parameters (no scene sets the intermittent
+options: the hand-over and the predictive horizon are designed from the scene,
+:mod:`isf_robot.arm.filter_design`; ``d_bar`` as the scene resolves it: config or the tracking calibration) on seeds 0..N-1 at the scene's full episode length, through
 :func:`isf_robot.arm.sweep.run_sweep`, and writes one table per target into RESULTS.md between
 the ``<!-- MARKER:start -->`` / ``<!-- MARKER:end -->`` markers (``--no-write``: print only).
 ``--json`` also writes the whole sweep (every episode) for ``isf-robot plot pareto``.
 
-Targets (issue 13): duty <= 0.75x cbf; on-switches <= 2x cbf; shortest off period >= 0.25 s in
-every episode; goals >= cbf's (mean, within 0.1); intervention <= 1.5x cbf; zero violations on
-the true geometry; tracking error q99 <= the d_bar in use in every episode. "Time to complete the
-goals" is reported beside the goals (the sweep's ``goals_time_s``, defined in
-:mod:`isf_robot.arm.sweep`); it has no target of its own.
+Targets: duty <= 0.6x cbf; on-switches <= 1.5x cbf; shortest off period >= 0.25 s in every
+episode; goals >= cbf's (mean, within 0.1); time to the goals <= cbf's + 5 % (the sweep's
+``goals_time_s``, defined in :mod:`isf_robot.arm.sweep`); intervention <= 1.2x cbf; zero
+violations on the true geometry; tracking error q99 <= the d_bar in use in every episode.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ from isf_robot.arm.sweep import SweepPoint, format_sweep, run_sweep  # noqa: E40
 from isf_robot.support.files import write_text_atomic  # noqa: E402
 from isf_robot.support.report import with_schema  # noqa: E402
 
-SCENES = ("panda_pole", "panda_shelf", "panda_moving", "panda_servo")
+SCENES = ("panda_pole", "panda_shelf", "panda_moving", "panda_servo", "ur5e_pole")
 
 
 def _f(v: Any, fmt: str = ".3f") -> str:
@@ -60,8 +60,8 @@ def targets(cbf: dict[str, Any], isf: dict[str, Any], k: Any = "?") -> list[tupl
         how = "met" if met else f"missed by {r - limit:.2f}"
         out.append((name, f"{r:.2f}x ({_f(a)} vs {_f(b)}), {how}", met))
 
-    ratio("duty_cycle", 0.75, "duty <= 0.75x cbf")
-    ratio("on_switches", 2.0, "on-switches <= 2x cbf")
+    ratio("duty_cycle", 0.6, "duty <= 0.6x cbf")
+    ratio("on_switches", 1.5, "on-switches <= 1.5x cbf")
     offs = [r["min_off_s"] for r in isf["runs"] if r.get("min_off_s") is not None]
     short = min(offs) if offs else None
     met = short is None or short >= 0.25
@@ -76,7 +76,11 @@ def targets(cbf: dict[str, Any], isf: dict[str, Any], k: Any = "?") -> list[tupl
     times = "" if t_i is None else f"; time to goal {k}: {_f(t_i, '.2f')} vs {_f(t_c, '.2f')} s"
     out.append(("goals >= cbf's (within 0.1)",
                 f"{g_i:.2f} vs {g_c:.2f}, " + ("met" if met else f"missed by {g_c - 0.1 - g_i:.2f}") + times, met))
-    ratio("intervention", 1.5, "intervention <= 1.5x cbf")
+    if t_i is not None and t_c:
+        met = t_i <= 1.05 * t_c
+        out.append(("time to the goals <= cbf's + 5 %", f"{t_i / t_c:.2f}x ({t_i:.2f} vs {t_c:.2f} s, goal {k}), "
+                    + ("met" if met else f"missed by {t_i / t_c - 1.05:.2f}"), met))
+    ratio("intervention", 1.2, "intervention <= 1.2x cbf")
     v = isf["violations"]
     out.append(("zero violations (true geometry)", f"{v} (cbf {cbf['violations']}), " + ("met" if v == 0 else "missed"),
                 v == 0))

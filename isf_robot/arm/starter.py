@@ -211,7 +211,10 @@ def starter_toml(xml_path: str | Path) -> str:
     else:
         comment = "# no joint damping, servo kv or torque limit bounds the speed: the default"
     lines += ["", "[gains]", comment, f"max_joint_speed = {suggest:.2g}", "max_ee_speed = 0.4", "",
-              "[control]", f"period = {2 * model.opt.timestep:g}  # [s] a whole multiple of the timestep", ""]
+              "[control]", f"period = {2 * model.opt.timestep:g}  # [s] a whole multiple of the timestep", "",
+              "# [filter] is optional: alpha, c, b, d_bar (0: calibrated) and the intermittent filter's options.",
+              "# Its hand-over (blend) and predictive off trigger (horizon) are designed from [gains] and",
+              "# [control] when left out (models/README.md); `isf-robot check` prints the values.", ""]
     return "\n".join(lines)
 
 
