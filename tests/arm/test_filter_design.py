@@ -90,3 +90,15 @@ def test_check_prints_the_design_and_flags_an_unguarded_scene(capsys, tmp_path) 
     assert main(["check", "--scene", "panda_pole", "--no-calibration"]) == 0
     out = capsys.readouterr().out
     assert "hand-over blend = 0.15 s, predictive horizon = 0.41 s" in out and "designed from [gains]" in out
+
+
+def test_run_and_compare_report_chatter_with_the_fix(capsys) -> None:  # type: ignore[no-untyped-def]
+    plain = ["--scene", "planar", "--duration", "3", "--d-bar", "0.05", "--blend", "0", "--horizon", "0"]
+    assert main(["run", "--filter", "isf", *plain]) == 0
+    err = capsys.readouterr().err
+    line = next(x for x in err.splitlines() if x.startswith("warning: chatter:"))
+    assert "off periods under 0.25 s" in line and "turn on the predictive off trigger: horizon = 0.3" in line
+    assert main(["compare", "--filters", "isf", "cbf", "--episodes", "1", "--quiet", *plain]) == 0
+    out = capsys.readouterr().out
+    assert "offs < 0.25 s" in out and "chatter: isf in 1 of 1 episodes" in out
+    assert "chatter: cbf" not in out  # the standard filter has no off periods to guard
