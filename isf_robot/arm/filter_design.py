@@ -9,14 +9,14 @@ tuned. Both come from numbers the scene already states:
   command over no faster than the nominal is allowed to change it, so the low-level tracker sees no
   step it would not see from the nominal, and the tracking error stays within what ``d_bar`` was
   calibrated on. (Panda scenes: 1.5 / 10 = 0.15 s; the UR5e scene: 0.5 / 10 = 0.05 s.)
-* **Predictive off trigger** ``horizon = CHATTER_OFF_S + blend + predict_every * period``
+* **Predictive off trigger** ``horizon = CHATTER_OFF_S + predict_every * period``
   (:func:`isf_robot.core.chatter.horizon_for`, with the scene's ``[control] period``): the filter
   turns off only when the nominal, rolled forward this long on the reduced model, keeps every
   ``Xi_on > 0``. An off period shorter than the horizon then needs the arm to leave the rollout,
   which is what ``d_bar`` bounds. The horizon covers the shortest off period that is not chatter
-  (:data:`~isf_robot.core.metrics.CHATTER_OFF_S`, 0.25 s), the hand-over during which the command
-  is still partly the filter's, and the control steps between two rollouts. (Panda scenes:
-  0.25 + 0.15 + 5 x 0.002 = 0.41 s.)
+  (:data:`~isf_robot.core.metrics.CHATTER_OFF_S`, 0.25 s) and the control steps between two
+  rollouts, and no more (a longer one holds the filter on where it pushes far pairs; see
+  :func:`~isf_robot.core.chatter.horizon_for`). Every shipped scene: 0.25 + 5 x 0.002 = 0.26 s.
 
 An explicit value (``blend = 0``, ``--horizon 0``) turns either off. ``isf-robot run`` and ``compare``
 report chatter (off periods under 0.25 s) with the change that would fix it
@@ -42,9 +42,8 @@ def designed_blend(config: SceneConfig) -> float:
 def designed_options(config: SceneConfig, spec: FilterSpec) -> dict[str, float]:
     """``blend`` and ``horizon`` for each of the two that ``spec`` leaves to the design (``None``)."""
     out: dict[str, float] = {}
-    blend = spec.blend
-    if blend is None:
-        blend = out["blend"] = designed_blend(config)
+    if spec.blend is None:
+        out["blend"] = designed_blend(config)
     if spec.horizon is None:
-        out["horizon"] = horizon_for(blend, spec.predict_every, config.control.period)
+        out["horizon"] = horizon_for(spec.predict_every, config.control.period)
     return out

@@ -19,15 +19,19 @@ from .spec import FilterSpec
 __all__ = ["chatter_advice", "chatter_risk", "horizon_for"]
 
 
-def horizon_for(blend: float, predict_every: int, period: float) -> float:
+def horizon_for(predict_every: int, period: float) -> float:
     """The shortest predictive horizon [s] that keeps off periods above the chatter threshold.
 
-    ``CHATTER_OFF_S + blend + predict_every * period``: the filter turns off only when the nominal,
-    rolled forward this long, keeps every ``Xi_on > 0``; the horizon covers the shortest off period
-    that is not chatter, the hand-over ``blend`` [s] (the command is still partly the filter's), and
-    the control steps between two rollouts.
+    ``CHATTER_OFF_S + predict_every * period``: the filter turns off only when the nominal, rolled
+    forward this long, keeps every ``Xi_on > 0``; the horizon covers the shortest off period that is
+    not chatter and the control steps between two rollouts (``period`` [s] each).
+
+    Not longer: while the prediction holds the filter on, the rows it finds failing are promoted
+    even when they are far, and a pair pushed out to the broad phase's cut-off leaves the filter's
+    rows and comes back, so the command alternates between the promoted one and the nominal. The
+    longer the horizon, the more often that happens (``RESULTS.md``, "designed, not tuned").
     """
-    return CHATTER_OFF_S + blend + predict_every * period
+    return CHATTER_OFF_S + predict_every * period
 
 
 def _up(x: float) -> float:
@@ -36,7 +40,7 @@ def _up(x: float) -> float:
 
 
 def _fix(spec: FilterSpec, period: float) -> str:
-    need = horizon_for(spec.blend or 0.0, spec.predict_every, period)
+    need = horizon_for(spec.predict_every, period)
     h = spec.horizon or 0.0
     if h < need:
         what = "turn on the predictive off trigger" if h == 0 else f"lengthen the predictive horizon (now {h:g} s)"
@@ -53,7 +57,7 @@ def chatter_risk(spec: FilterSpec, period: float) -> str | None:
     ``None`` when a predictive horizon of at least :func:`horizon_for` or a designed off margin
     (``min_off >= CHATTER_OFF_S``) guards against it.
     """
-    need = horizon_for(spec.blend or 0.0, spec.predict_every, period)
+    need = horizon_for(spec.predict_every, period)
     if (spec.horizon or 0.0) >= need - 1e-12 or spec.min_off >= CHATTER_OFF_S:
         return None
     return (f"nothing keeps the intermittent filter's off periods above {CHATTER_OFF_S:g} s, so it may chatter; "

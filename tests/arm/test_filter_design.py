@@ -55,21 +55,21 @@ def test_blend_and_horizon_come_from_the_gains_and_the_period() -> None:
     sc = _scene({"max_joint_speed": 1.2, "max_joint_acc": 8.0}, period=0.004)
     p = resolve_params(sc)
     assert p.blend == pytest.approx(1.2 / 8.0)
-    # the chatter threshold, the hand-over and the five control steps between two rollouts
-    assert p.horizon == pytest.approx(CHATTER_OFF_S + 0.15 + 5 * 0.004)
+    # the chatter threshold and the five control steps between two rollouts
+    assert p.horizon == pytest.approx(CHATTER_OFF_S + 5 * 0.004)
     assert designed_blend(sc.config) == pytest.approx(0.15)
     # predict_every enters the horizon
-    assert resolve_params(sc, predict_every=20).horizon == pytest.approx(CHATTER_OFF_S + 0.15 + 20 * 0.004)
+    assert resolve_params(sc, predict_every=20).horizon == pytest.approx(CHATTER_OFF_S + 20 * 0.004)
     # the run records what it used
     info = p.as_info()
-    assert info["blend"] == pytest.approx(0.15) and info["horizon"] == pytest.approx(0.42)
+    assert info["blend"] == pytest.approx(0.15) and info["horizon"] == pytest.approx(0.27)
 
 
 def test_a_scene_or_a_run_that_names_them_keeps_its_own() -> None:
     sc = _scene({"max_joint_speed": 1.2, "max_joint_acc": 8.0}, {"blend": 0.0})
     p = resolve_params(sc)
     assert p.blend == 0.0  # explicit 0: no hand-over
-    assert p.horizon == pytest.approx(CHATTER_OFF_S + 0.0 + 5 * 0.004)  # the horizon follows the blend in use
+    assert p.horizon == pytest.approx(CHATTER_OFF_S + 5 * 0.004)
     assert resolve_params(sc, horizon=0.0).horizon == 0.0
     assert resolve_params(sc, blend=0.3, horizon=0.7).blend == 0.3
     sc2 = _scene({"max_joint_speed": 1.2, "max_joint_acc": 8.0}, {"horizon": 0.5})
@@ -84,12 +84,12 @@ def test_check_prints_the_design_and_flags_an_unguarded_scene(capsys, tmp_path) 
     assert filter_findings(_scene()) == []  # the design guards itself
     risky = filter_findings(_scene(filt={"horizon": 0.1}))
     assert [f.code for f in risky] == ["chatter-risk"]
-    # default gains: blend 2.0 / 10 = 0.2 s; 0.25 + 0.2 + 5 x 0.004 = 0.47, rounded up to 0.05
-    assert "horizon = 0.5 (--horizon 0.5)" in risky[0].message
+    # 0.25 + 5 x 0.004 = 0.27, rounded up to 0.05
+    assert "horizon = 0.3 (--horizon 0.3)" in risky[0].message
     assert filter_findings(_scene(filt={"horizon": 0.0, "min_off": 0.3})) == []  # a designed margin guards too
     assert main(["check", "--scene", "panda_pole", "--no-calibration"]) == 0
     out = capsys.readouterr().out
-    assert "hand-over blend = 0.15 s, predictive horizon = 0.41 s" in out and "designed from [gains]" in out
+    assert "hand-over blend = 0.15 s, predictive horizon = 0.26 s" in out and "designed from [gains]" in out
 
 
 def test_run_and_compare_report_chatter_with_the_fix(capsys) -> None:  # type: ignore[no-untyped-def]

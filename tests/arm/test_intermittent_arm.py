@@ -153,8 +153,8 @@ def test_scene_filter_table_gives_the_defaults_and_arguments_override_them(plana
 
     pole = load_scene("panda_pole")
     p = resolve_params(pole, d_bar=0.04)
-    # models/panda_pole.toml names neither: designed from [gains] 1.5 / 10 and 0.25 + 0.15 + 5 x 0.002
-    assert (p.blend, p.horizon, p.min_off) == (pytest.approx(0.15), pytest.approx(0.41), 0.0)
+    # models/panda_pole.toml names neither: designed from [gains] 1.5 / 10 and 0.25 + 5 x 0.002
+    assert (p.blend, p.horizon, p.min_off) == (pytest.approx(0.15), pytest.approx(0.26), 0.0)
     q = resolve_params(pole, d_bar=0.04, blend=0.0, horizon=0.0)
     assert (q.blend, q.horizon) == (0.0, 0.0) and "horizon" not in q.as_dict()
     r = resolve_params(planar, d_bar=0.05, horizon=0.2)

@@ -42,18 +42,18 @@ def test_short_off_periods_are_counted_in_time() -> None:
 
 def test_the_advice_follows_what_is_set() -> None:
     m = {"short_offs": 1, "min_off_s": 0.1}
-    # a horizon too short for the hand-over it covers: lengthen it to the rule's value
+    # a horizon shorter than the rule's: lengthen it to the rule's value
     short = chatter_advice(m, FilterSpec(blend=0.1, horizon=0.2), 0.002)
-    assert short is not None and "lengthen the predictive horizon (now 0.2 s): horizon = 0.4 (--horizon 0.4)" in short
+    assert short is not None and "lengthen the predictive horizon (now 0.2 s): horizon = 0.3 (--horizon 0.3)" in short
     # a horizon that already covers the rule: half as long again, or design the margin
     long = chatter_advice(m, FilterSpec(blend=0.1, horizon=0.4), 0.002)
     assert long is not None and "horizon = 0.6 (--horizon 0.6)" in long and "min_off = 0.25" in long
 
 
 def test_risk_from_the_parameters_alone() -> None:
-    assert horizon_for(0.15, 5, 0.002) == pytest.approx(CHATTER_OFF_S + 0.16)
-    assert chatter_risk(FilterSpec(blend=0.15, horizon=0.41), 0.002) is None
+    assert horizon_for(5, 0.002) == pytest.approx(CHATTER_OFF_S + 0.01)
+    assert chatter_risk(FilterSpec(blend=0.15, horizon=0.26), 0.002) is None
     assert chatter_risk(FilterSpec(blend=0.0, horizon=0.0, min_off=CHATTER_OFF_S), 0.002) is None
-    risk = chatter_risk(FilterSpec(blend=0.15, horizon=0.3), 0.002)
-    assert risk is not None and "horizon = 0.45" in risk
+    risk = chatter_risk(FilterSpec(blend=0.15, horizon=0.2), 0.002)
+    assert risk is not None and "horizon = 0.3" in risk
     assert "turn on the predictive off trigger" in (chatter_risk(FilterSpec(), 0.002) or "")
