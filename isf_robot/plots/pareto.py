@@ -4,7 +4,7 @@ One panel per scene: every sweep point at (duty cycle, intervention), coloured b
 on the sweep's Pareto front (its six objectives, not only these two) are drawn large with a black
 edge and labelled; the standard filter (cbf) is the reference, with dotted lines through it. The
 shortest off period of the point sets the marker's shape: a circle when every episode's off
-periods were >= 0.25 s (the issue's target), a cross otherwise.
+periods were >= 0.25 s (not chatter: :data:`~isf_robot.core.metrics.CHATTER_OFF_S`), a cross otherwise.
 
 :func:`sweep_scenes` reads the sweep JSON (schema ``isf-robot-sweep/1``) into plain
 :class:`ParetoPoint` lists; :func:`pareto_figure` draws them.
@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from isf_robot.core import ConfigError
+from isf_robot.core.metrics import CHATTER_OFF_S
 
 from .figures import strategy_color
 from .output import new_figure
@@ -27,8 +28,8 @@ __all__ = ["ParetoPoint", "sweep_scenes", "pareto_figure", "POINTS_GID", "MIN_OF
 POINTS_GID = "sweep-points"
 """``gid`` of the scatter artists that hold the sweep points (one offset per point)."""
 
-MIN_OFF_TARGET_S = 0.25
-"""Shortest off period the issue asks for in every episode [s]."""
+MIN_OFF_TARGET_S = CHATTER_OFF_S
+"""Shortest off period that is not chatter, in every episode [s] (a point below it is drawn as a cross)."""
 
 
 @dataclass(frozen=True)
