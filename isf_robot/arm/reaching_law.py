@@ -1,0 +1,108 @@
+"""The nominal controllers' command law, one plain function per formula (:mod:`isf_robot.arm.nominal`).
+
+:class:`~isf_robot.arm.nominal.ReachingController` maps the end-effector error ``e = p_goal - p_ee``
+[m] to joint velocities by damped least squares, and both nominal controllers cap the command's
+speed and its rate of change::
+
+    v   = kp e, scaled to |v| <= v_max                       (ee_gain: the factor on e)
+    u   = J^T (J J^T + lambda^2 I)^-1 v                       (damped_least_squares, J of shape (3, n))
+    u  <- u min(1, u_max / max_i |u_i|)                       (cap_speed: direction kept)
+    u  <- u_prev + (u - u_prev) min(1, a_max dt / max_i |u_i - u_prev,i|)   (rate_limit)
+
+The numpy path of the controllers and the compiled kernel (``_kernels_step``: MuJoCo's site
+Jacobian, then these functions) call the same source (:func:`~isf_robot.core.jit.formula`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from isf_robot.core.jit import formula
+
+__all__ = ["ee_distance", "ee_gain", "damped_least_squares", "cap_speed", "rate_limit", "reaching_command"]
+
+
+@formula
+def ee_distance(err):  # type: ignore[no-untyped-def]
+    """``|e|`` [m] of the end-effector error, shape (3,)."""
+    return math.sqrt(err[0] * err[0] + err[1] * err[1] + err[2] * err[2])
+
+
+@formula
+def ee_gain(dist, kp, max_ee):  # type: ignore[no-untyped-def]
+    """The factor ``g`` of ``v = g e``: ``kp`` [1/s], or ``max_ee / dist`` where ``kp dist`` exceeds ``max_ee`` [m/s]."""
+    return kp if kp * dist <= max_ee else max_ee / dist
+
+
+@formula
+def damped_least_squares(jac, v, lam2, out):  # type: ignore[no-untyped-def]
+    """``out = J^T (J J^T + lam2 I)^-1 v`` for ``J`` of shape (3, n), ``v`` (3,), ``lam2 > 0``; returns ``out``.
+
+    ``J J^T + lam2 I`` is symmetric positive definite: solved by its Cholesky factor, written out.
+    """
+    n = jac.shape[1]
+    a00 = a01 = a02 = a11 = a12 = a22 = 0.0
+    for k in range(n):
+        j0, j1, j2 = jac[0, k], jac[1, k], jac[2, k]
+        a00 += j0 * j0
+        a01 += j0 * j1
+        a02 += j0 * j2
+        a11 += j1 * j1
+        a12 += j1 * j2
+        a22 += j2 * j2
+    l00 = math.sqrt(a00 + lam2)
+    l10, l20 = a01 / l00, a02 / l00
+    l11 = math.sqrt(a11 + lam2 - l10 * l10)
+    l21 = (a12 - l20 * l10) / l11
+    l22 = math.sqrt(a22 + lam2 - l20 * l20 - l21 * l21)
+    z0 = v[0] / l00  # L z = v, then L^T y = z
+    z1 = (v[1] - l10 * z0) / l11
+    z2 = (v[2] - l20 * z0 - l21 * z1) / l22
+    y2 = z2 / l22
+    y1 = (z1 - l21 * y2) / l11
+    y0 = (z0 - l10 * y1 - l20 * y2) / l00
+    for k in range(n):
+        out[k] = jac[0, k] * y0 + jac[1, k] * y1 + jac[2, k] * y2
+    return out
+
+
+@formula
+def cap_speed(u, limit):  # type: ignore[no-untyped-def]
+    """Scale ``u`` as a whole so that ``max_i |u_i| <= limit`` (direction kept), in place; returns ``u``."""
+    peak = np.max(np.abs(u))
+    if peak > limit:
+        u *= limit / peak
+    return u
+
+
+@formula
+def rate_limit(u, prev, has_prev, dt, a_max):  # type: ignore[no-untyped-def]
+    """Limit the change from ``prev``: ``max_i |u_i - prev_i| <= a_max max(dt, 0)``, in place; ``prev`` becomes ``u``.
+
+    The whole change is scaled (direction kept); without a previous command (``has_prev`` false) the
+    command is zero (the arm starts at rest). ``a_max = inf``: no limit.
+    """
+    if a_max != math.inf:
+        if has_prev:
+            step = max(dt, 0.0) * a_max
+            du = u - prev
+            peak = np.max(np.abs(du))
+            if peak > step:
+                u[:] = prev + du * (step / peak)
+        else:
+            u[:] = 0.0
+    prev[:] = u
+    return u
+
+
+@formula
+def reaching_command(err, dist, jac, kp, max_ee, lam2, max_js, out):  # type: ignore[no-untyped-def]
+    """The reaching command before its rate limit, into ``out`` (n,): ``v = ee_gain e``, DLS, speed cap."""
+    gain = ee_gain(dist, kp, max_ee)
+    v = np.empty(3)
+    for i in range(3):
+        v[i] = err[i] * gain
+    damped_least_squares(jac, v, lam2, out)
+    return cap_speed(out, max_js)
