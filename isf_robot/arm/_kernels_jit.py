@@ -22,10 +22,41 @@ from isf_robot.core.jit import formula
 
 from .joint_limits import joint_value
 from .libmujoco import library_path
-from .narrow import (P_DOF, P_FROMTO, P_JAC1, P_JAC2, P_JGRAD, P_JOFF, P_JQ, P_JSIGN, P_LEVER, P_LIVE, P_LOWER,
-                     P_MARGIN, P_MOCAP, P_NDOF, P_NFT, P_NGEOM, P_NJ, P_NLOWER, P_NQ, P_NU, P_NV, P_QADR, P_QPOS,
-                     P_QPREV, P_QSTATE, P_TAB, P_THR2, P_XPOS, dot3, obstacle_dhdt, pair_value, substep_distmax,
-                     unit_normal)
+from .narrow import (
+    P_DOF,
+    P_FROMTO,
+    P_JAC1,
+    P_JAC2,
+    P_JGRAD,
+    P_JOFF,
+    P_JQ,
+    P_JSIGN,
+    P_LEVER,
+    P_LIVE,
+    P_LOWER,
+    P_MARGIN,
+    P_MOCAP,
+    P_NDOF,
+    P_NFT,
+    P_NGEOM,
+    P_NJ,
+    P_NLOWER,
+    P_NQ,
+    P_NU,
+    P_NV,
+    P_QADR,
+    P_QPOS,
+    P_QPREV,
+    P_QSTATE,
+    P_TAB,
+    P_THR2,
+    P_XPOS,
+    dot3,
+    obstacle_dhdt,
+    pair_value,
+    substep_distmax,
+    unit_normal,
+)
 
 _PATH = library_path()
 if _PATH is None:  # (kernels._build treats this as "numba missing")

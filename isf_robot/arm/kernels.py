@@ -117,6 +117,9 @@ def step_kernels(n: int) -> dict[str, Any] | None:
 
 
 def rollout_kernels() -> tuple[Callable[..., Any], Callable[..., Any]] | None:
-    """The compiled Euler step and whole-rollout kernel of :class:`~isf_robot.arm.rollout.NominalRollout` (``None``: numpy)."""
+    """The compiled Euler step and whole-rollout kernel of :class:`~isf_robot.arm.rollout.NominalRollout`.
+
+    ``None``: the numpy path.
+    """
     k = _kernels()
     return None if k is None else (k["euler_step"], k["rollout_points"])

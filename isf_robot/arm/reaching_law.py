@@ -32,7 +32,7 @@ def ee_distance(err):  # type: ignore[no-untyped-def]
 
 @formula
 def ee_gain(dist, kp, max_ee):  # type: ignore[no-untyped-def]
-    """The factor ``g`` of ``v = g e``: ``kp`` [1/s], or ``max_ee / dist`` where ``kp dist`` exceeds ``max_ee`` [m/s]."""
+    """The factor ``g`` of ``v = g e``: ``kp`` [1/s], or ``max_ee / dist`` where ``kp dist`` exceeds ``max_ee``."""
     return kp if kp * dist <= max_ee else max_ee / dist
 
 

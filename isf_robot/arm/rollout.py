@@ -23,9 +23,10 @@ handed over stacked
 (:class:`~isf_robot.core.intermittent.StackedPoints`: the blocks' arrays, each point's Lie data read from
 its block only when asked for, so ``predict`` evaluates every point in one compiled pass); otherwise
 each point's Euler step and kinematics are one call and its rows
-:meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`. Every path computes the numpy loop's points
-with the same formulas (equal to rounding). Measured on panda_pole (10 points, process time, 2026-11-23): about 120 us per rollout
-outside the loop in one call (190 us point by point), mostly the collision kernel's distance calls.
+:meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`. Every path computes the numpy loop's
+points with the same formulas (equal to rounding). Measured on panda_pole (10 points, process time,
+2026-11-23): about 120 us per rollout outside the loop in one call (190 us point by point), mostly the
+collision kernel's distance calls.
 """
 
 from __future__ import annotations

@@ -40,7 +40,7 @@ def motor_ctrl(tau, bias, passive, friction, inv_gain, lo, hi):  # type: ignore[
 
 @formula
 def command_feedforward(u_new, u_old, inv_period):  # type: ignore[no-untyped-def]
-    """``(u_k - u_{k-1}) / T`` [rad/s^2]: the acceleration fed forward over the control period ``T`` (``inv_period = 1/T``)."""
+    """``(u_k - u_{k-1}) / T`` [rad/s^2]: the acceleration fed forward over the control period (``1/T`` given)."""
     return (u_new - u_old) * inv_period
 
 
