@@ -29,7 +29,7 @@ RTOL = 1e-12
 def _same(a: np.ndarray, b: np.ndarray) -> bool:
     """Equal shapes and values to ``RTOL`` (relative, floor ``RTOL`` times the larger magnitude in ``b``)."""
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    scale = max(1.0, float(np.max(np.abs(b), initial=0.0)))
+    scale = max(1.0, float(np.max(np.abs(b[np.isfinite(b)]), initial=0.0)))
     return a.shape == b.shape and bool(np.allclose(a, b, rtol=RTOL, atol=RTOL * scale))
 
 
