@@ -77,7 +77,7 @@ class CollisionBarriers(NarrowPhase):
         dof_adr: The arm's dof addresses (columns of ``dh/dq``), shape (n,).
         cutoff: Broad-phase cut-off distance [m], > 0.
         jit: Use the compiled kernel of :mod:`isf_robot.arm.kernels` when it is available (the
-            same rows, bit for bit; ``False``: always the numpy path).
+            same formulas, equal to rounding; ``False``: always the numpy path).
 
     """
 
