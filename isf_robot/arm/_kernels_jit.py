@@ -203,9 +203,12 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
             for c in range(ndof):
                 col = dof[c]
                 g[k, c] -= dot3(n0, n1, n2, jac2[0, col], jac2[1, col], jac2[2, col])
-    if norms_in != 0:
+    if norms_in != 0:  # |dh/dq| of each row (the numpy path: np.linalg.norm; a loop here, no BLAS call per row)
         for k in range(j + nj):
-            gn[k] = np.linalg.norm(g[k])
+            s = 0.0
+            for c in range(ndof):
+                s += g[k, c] * g[k, c]
+            gn[k] = math.sqrt(s)
     return j, hmin, dmin, jmin, touching, key
 
 @formula

@@ -17,11 +17,10 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from isf_robot.core.jit import formula
 
-__all__ = ["ee_distance", "ee_gain", "damped_least_squares", "cap_speed", "rate_limit", "reaching_command"]
+__all__ = ["ee_distance", "ee_gain", "damped_least_squares", "peak_abs", "peak_change", "cap_speed", "rate_limit",
+           "reaching_command"]
 
 
 @formula
@@ -69,11 +68,39 @@ def damped_least_squares(jac, v, lam2, out):  # type: ignore[no-untyped-def]
 
 
 @formula
+def peak_abs(u):  # type: ignore[no-untyped-def]
+    """``max_i |u_i|``: NaN if some ``u_i`` is NaN, 0 for an empty ``u``."""
+    peak = 0.0
+    for k in range(u.shape[0]):
+        a = abs(u[k])
+        if not a <= peak:  # (a NaN is taken, and nothing replaces it)
+            peak = a
+            if a != a:
+                break
+    return peak
+
+
+@formula
+def peak_change(u, prev):  # type: ignore[no-untyped-def]
+    """``max_i |u_i - prev_i|``: NaN if some term is NaN, 0 for empty vectors."""
+    peak = 0.0
+    for k in range(u.shape[0]):
+        a = abs(u[k] - prev[k])
+        if not a <= peak:
+            peak = a
+            if a != a:
+                break
+    return peak
+
+
+@formula
 def cap_speed(u, limit):  # type: ignore[no-untyped-def]
     """Scale ``u`` as a whole so that ``max_i |u_i| <= limit`` (direction kept), in place; returns ``u``."""
-    peak = np.max(np.abs(u))
+    peak = peak_abs(u)
     if peak > limit:
-        u *= limit / peak
+        f = limit / peak
+        for k in range(u.shape[0]):
+            u[k] *= f
     return u
 
 
@@ -87,10 +114,11 @@ def rate_limit(u, prev, has_prev, dt, a_max):  # type: ignore[no-untyped-def]
     if a_max != math.inf:
         if has_prev:
             step = max(dt, 0.0) * a_max
-            du = u - prev
-            peak = np.max(np.abs(du))
+            peak = peak_change(u, prev)
             if peak > step:
-                u[:] = prev + du * (step / peak)
+                f = step / peak
+                for k in range(u.shape[0]):
+                    u[k] = prev[k] + (u[k] - prev[k]) * f
         else:
             u[:] = 0.0
     prev[:] = u
@@ -99,10 +127,12 @@ def rate_limit(u, prev, has_prev, dt, a_max):  # type: ignore[no-untyped-def]
 
 @formula
 def reaching_command(err, dist, jac, kp, max_ee, lam2, max_js, out):  # type: ignore[no-untyped-def]
-    """The reaching command before its rate limit, into ``out`` (n,): ``v = ee_gain e``, DLS, speed cap."""
+    """The reaching command before its rate limit, into ``out`` (n,): ``v = ee_gain e``, DLS, speed cap.
+
+    (The DLS map is linear: it maps ``e`` and the result is scaled by the gain.)
+    """
+    damped_least_squares(jac, err, lam2, out)
     gain = ee_gain(dist, kp, max_ee)
-    v = np.empty(3)
-    for i in range(3):
-        v[i] = err[i] * gain
-    damped_least_squares(jac, v, lam2, out)
+    for k in range(out.shape[0]):
+        out[k] *= gain
     return cap_speed(out, max_js)

@@ -13,6 +13,8 @@ kernel (``_kernels_step``) once per joint, the same source compiled by numba
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from isf_robot.core.jit import formula
@@ -47,4 +49,7 @@ def command_feedforward(u_new, u_old, inv_period):  # type: ignore[no-untyped-de
 @formula
 def tracking_error(qd, u):  # type: ignore[no-untyped-def]
     """``|q_dot - u|`` [rad/s]: the velocity error of the held command (the disturbance ``d`` of the reduced model)."""
-    return np.sqrt(np.sum((qd - u) ** 2))
+    s = 0.0
+    for k in range(qd.shape[0]):
+        s += (qd[k] - u[k]) * (qd[k] - u[k])
+    return math.sqrt(s)

@@ -12,7 +12,15 @@ import math
 import numpy as np
 import pytest
 
-from isf_robot.arm.reaching_law import cap_speed, damped_least_squares, ee_distance, ee_gain, rate_limit
+from isf_robot.arm.reaching_law import (
+    cap_speed,
+    damped_least_squares,
+    ee_distance,
+    ee_gain,
+    peak_abs,
+    peak_change,
+    rate_limit,
+)
 from isf_robot.arm.tracking_law import (
     command_feedforward,
     desired_acceleration,
@@ -97,3 +105,10 @@ def test_tracking_law_known_answers() -> None:
     assert motor_ctrl(-100.0, 0.0, 0.0, 0.0, 1.0, -10.0, 10.0) == -10.0
     assert command_feedforward(1.0, 0.5, 1000.0) == 500.0
     assert tracking_error(np.array([3.0, 0.0]), np.array([0.0, 4.0])) == 5.0
+
+
+def test_a_nan_command_is_not_hidden_by_the_caps() -> None:
+    u = np.array([0.1, np.nan, 3.0])
+    assert math.isnan(peak_abs(u)) and math.isnan(peak_change(u, np.zeros(3)))
+    assert math.isnan(cap_speed(u.copy(), 1.0)[1])  # (the NaN stays visible to the filter's input checks)
+    assert peak_abs(np.zeros(0)) == 0.0
