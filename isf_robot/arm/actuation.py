@@ -346,7 +346,7 @@ def tracking_step(tracker: Actuation, dof_adr: np.ndarray) -> Callable[[mujoco.M
         return command  # type: ignore[no-any-return]
 
     def step(data: mujoco.MjData, u: np.ndarray, period: float) -> float:
-        err = float(tracking_error(data.qvel[dof_adr], tracker.u))
+        err = float(tracking_error(data.qvel[dof_adr].tolist(), tracker.u.tolist()))
         tracker.set_command(u, period)
         tracker.apply(data)
         return err

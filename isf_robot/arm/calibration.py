@@ -181,7 +181,7 @@ def calibrate_d_bar(
             if peak > vmax:
                 u *= vmax / peak
             tracker.set_command(u, per_control * dt)
-        errors[i] = tracking_error(data.qvel[dofs], tracker.u)  # (the tracking error as the run measures it)
+        errors[i] = tracking_error(data.qvel[dofs].tolist(), tracker.u.tolist())  # (as the run measures it)
         tracker.apply(data)
         mujoco.mj_step2(model, data)
         sat += tracker.saturated(data)

@@ -259,7 +259,7 @@ class VelocityTracker:
             return float(step(self._maddr, self._daddr, self._ptrs, self._buf, self.n, self._acc_full.size,
                               u if type(u) is np.ndarray else np.asarray(u, float),
                               1.0 / period if ff else 0.0, ff))  # type: ignore[operator]
-        err = float(tracking_error(data.qvel[self._dof], self.u))
+        err = float(tracking_error(data.qvel[self._dof].tolist(), self.u.tolist()))
         self.set_command(u, period)
         self.apply(data)
         return err

@@ -227,7 +227,7 @@ class ReachingController(NominalController):
             err = self.goal_positions[self.goals.index] - self.scene.ee_position(data)
             dist = ee_distance(err)
         self.scene.ee_jacobian(data, self._jac)
-        u = reaching_command(err, dist, self._jac[:, self._dofs], self.kp, self.max_ee_speed, self._lam2,
+        u = reaching_command(err, dist, self._jac[:, self._dofs].tolist(), self.kp, self.max_ee_speed, self._lam2,
                              self.max_joint_speed, np.empty(self.n))
         return self._rate(t, u)
 

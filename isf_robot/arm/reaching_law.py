@@ -40,17 +40,19 @@ def damped_least_squares(jac, v, lam2, out):  # type: ignore[no-untyped-def]
     """``out = J^T (J J^T + lam2 I)^-1 v`` for ``J`` of shape (3, n), ``v`` (3,), ``lam2 > 0``; returns ``out``.
 
     ``J J^T + lam2 I`` is symmetric positive definite: solved by its Cholesky factor, written out.
+    ``jac`` is indexed ``jac[r][k]``: an array, or (the plain path, faster in Python) its ``tolist()``.
     """
-    n = jac.shape[1]
+    j0, j1, j2 = jac[0], jac[1], jac[2]
+    n = len(j0)
     a00 = a01 = a02 = a11 = a12 = a22 = 0.0
     for k in range(n):
-        j0, j1, j2 = jac[0, k], jac[1, k], jac[2, k]
-        a00 += j0 * j0
-        a01 += j0 * j1
-        a02 += j0 * j2
-        a11 += j1 * j1
-        a12 += j1 * j2
-        a22 += j2 * j2
+        a, b, c = j0[k], j1[k], j2[k]
+        a00 += a * a
+        a01 += a * b
+        a02 += a * c
+        a11 += b * b
+        a12 += b * c
+        a22 += c * c
     l00 = math.sqrt(a00 + lam2)
     l10, l20 = a01 / l00, a02 / l00
     l11 = math.sqrt(a11 + lam2 - l10 * l10)
@@ -63,7 +65,7 @@ def damped_least_squares(jac, v, lam2, out):  # type: ignore[no-untyped-def]
     y1 = (z1 - l21 * y2) / l11
     y0 = (z0 - l10 * y1 - l20 * y2) / l00
     for k in range(n):
-        out[k] = jac[0, k] * y0 + jac[1, k] * y1 + jac[2, k] * y2
+        out[k] = j0[k] * y0 + j1[k] * y1 + j2[k] * y2
     return out
 
 
@@ -71,7 +73,7 @@ def damped_least_squares(jac, v, lam2, out):  # type: ignore[no-untyped-def]
 def peak_abs(u):  # type: ignore[no-untyped-def]
     """``max_i |u_i|``: NaN if some ``u_i`` is NaN, 0 for an empty ``u``."""
     peak = 0.0
-    for k in range(u.shape[0]):
+    for k in range(len(u)):
         a = abs(u[k])
         if not a <= peak:  # (a NaN is taken, and nothing replaces it)
             peak = a
@@ -84,7 +86,7 @@ def peak_abs(u):  # type: ignore[no-untyped-def]
 def peak_change(u, prev):  # type: ignore[no-untyped-def]
     """``max_i |u_i - prev_i|``: NaN if some term is NaN, 0 for empty vectors."""
     peak = 0.0
-    for k in range(u.shape[0]):
+    for k in range(len(u)):
         a = abs(u[k] - prev[k])
         if not a <= peak:
             peak = a
@@ -129,7 +131,8 @@ def rate_limit(u, prev, has_prev, dt, a_max):  # type: ignore[no-untyped-def]
 def reaching_command(err, dist, jac, kp, max_ee, lam2, max_js, out):  # type: ignore[no-untyped-def]
     """The reaching command before its rate limit, into ``out`` (n,): ``v = ee_gain e``, DLS, speed cap.
 
-    (The DLS map is linear: it maps ``e`` and the result is scaled by the gain.)
+    ``jac`` as :func:`damped_least_squares` takes it. (The DLS map is linear: it maps ``e``, and the
+    result is scaled by the gain.)
     """
     damped_least_squares(jac, err, lam2, out)
     gain = ee_gain(dist, kp, max_ee)
