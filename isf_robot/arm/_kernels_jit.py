@@ -268,11 +268,3 @@ def near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norm
     return near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, lever, qadr, cutoff, distmax,
                 slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, norms_in, mocap, lin, dhdt_in, rows, h, g,
                 gn, wit, lf)
-
-
-@formula
-def near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norms_in, lin, dhdt_in):  # pragma: no cover
-    """:func:`near_packed_key` without the key: (j, min h, min dist, min joint value, touching)."""
-    j, hmin, dmin, jmin, touching, _ = near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norms_in,
-                                                       lin, dhdt_in)
-    return j, hmin, dmin, jmin, touching

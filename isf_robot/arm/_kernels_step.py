@@ -29,8 +29,8 @@ ROWS = 8
 
 
 @formula
-def _apply(ma, da, p, buf, n, nv):  # pragma: no cover (compiled)
-    """VelocityTracker.apply: the tracking law per joint around ``mj_mulM``."""
+def track_apply(ma, da, p, buf, n, nv):  # pragma: no cover (compiled)
+    """VelocityTracker.apply: the torques for the held command (one physics step), the law around ``mj_mulM``."""
     q, qd, ctrl = carray(f64p(p[0]), n), carray(f64p(p[1]), n), carray(f64p(p[2]), n)
     bias, passive = carray(f64p(p[3]), n), carray(f64p(p[4]), n)
     dof0 = p[5]
@@ -48,25 +48,20 @@ def _apply(ma, da, p, buf, n, nv):  # pragma: no cover (compiled)
                              buf[HI * n + i])
 
 
-def track_apply(ma, da, p, buf, n, nv):  # pragma: no cover (compiled)
-    """VelocityTracker.apply: the torques for the held command (one physics step)."""
-    _apply(ma, da, p, buf, n, nv)
-
-
 def track_step(ma, da, p, buf, n, nv, cmd, inv_period, feedforward):  # pragma: no cover (compiled)
     """Tracking error of the held command, then set_command(cmd) and apply; returns ``|qd - u_held|``."""
     err = tracking_error(carray(f64p(p[1]), n), buf[U * n: U * n + n])
     for i in range(n):
         buf[AFF * n + i] = command_feedforward(cmd[i], buf[U * n + i], inv_period) if feedforward else 0.0
         buf[U * n + i] = cmd[i]
-    _apply(ma, da, p, buf, n, nv)
+    track_apply(ma, da, p, buf, n, nv)
     return err
 
 
 def monitor_apply(ma, da, rows, g1, g2, margin, thresh, bound, p, buf, n, nv):  # pragma: no cover (compiled)
     """A physics sub-step's safety check (``_kernels_jit.monitor``), then the tracker's apply, in one call."""
     step_h, step_d = monitor(ma, da, rows, g1, g2, margin, thresh, bound)
-    _apply(ma, da, p, buf, n, nv)
+    track_apply(ma, da, p, buf, n, nv)
     return step_h, step_d
 
 

@@ -5,7 +5,7 @@ hands them out; its cache is keyed on every source file of this folder, so an ed
 formula this calls compiles it again). MuJoCo's ``mj_kinematics`` and ``mj_comPos`` are called on the
 raw addresses of the ``MjModel``/``MjData`` the bindings hold; :func:`rollout_points` calls the
 reaching controller's kernel (``_kernels_step.reach``) and the collision kernel
-(``_kernels_jit.near_packed``).
+(``_kernels_jit.near_packed_key``).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from numba import carray
 
 from isf_robot.core.jit import formula
 
-from ._kernels_jit import com_pos, f64p, kinematics, near_packed  # (loads libmujoco; ImportError without it)
+from ._kernels_jit import com_pos, f64p, kinematics, near_packed_key  # (loads libmujoco; ImportError without it)
 from ._kernels_step import reach
 
 
@@ -35,7 +35,7 @@ def rollout_points(ma, da, q, u0, t, dt, qpos, qadr, rp, nb, outs, n, nv, dof0, 
 
     Per point ``j`` (time ``t + (j + 1) dt``): the Euler step from the previous command, the reaching
     controller's command into ``outs[j]`` (``reach``, buffer ``nb``, addresses ``rp``), the collision
-    kernel's rows into ``blks[j]``/``rows[j]`` (``near_packed``, tables ``pn``, no coherence bounds), and
+    kernel's rows into ``blks[j]``/``rows[j]`` (``near_packed_key``, tables ``pn``, no coherence bounds), and
     each row's key into ``keys[j]`` (a pair's index for the pair rows, ``npairs + i`` for the i-th row
     after them: the joint rows).
     ``res[j]``: near pairs, h_min, dist_min, joint_min, touching, goal distance. Returns the points done:
@@ -58,8 +58,9 @@ def rollout_points(ma, da, q, u0, t, dt, qpos, qadr, rp, nb, outs, n, nv, dof0, 
                           max_ee, max_js, lam2)
         t_prev = tj
         u = outs[j]
-        k, h_min, dist_min, jmin, touching = near_packed(ma, da, pn, blks[j], rows[j], False, cutoff, distmax, slack,
-                                                         eps, norms_in, lins[j] if lins.shape[0] else lin, dhdt_in)
+        k, h_min, dist_min, jmin, touching, _ = near_packed_key(ma, da, pn, blks[j], rows[j], False, cutoff, distmax,
+                                                                slack, eps, norms_in, lins[j] if lins.shape[0] else lin,
+                                                                dhdt_in)
         res[j, 0], res[j, 1], res[j, 2], res[j, 3], res[j, 4] = k, h_min, dist_min, jmin, 1.0 if touching else 0.0
         for i in range(k):
             keys[j, i] = rows[j, i]

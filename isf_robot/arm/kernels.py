@@ -18,7 +18,7 @@ One source: the kernels are plain functions compiled by :func:`~isf_robot.core.j
 :mod:`isf_robot.arm.tracking_law` and :mod:`isf_robot.arm.reaching_law`). The two paths agree to
 rounding (``tests/arm/test_kernels.py`` and ``test_step_kernels.py``: 1e-12 relative, with an
 absolute floor). Pairs whose witness points coincide (``|dist| < 1e-9``) are left to the numpy path.
-The collision kernel takes its tables as one array of their addresses (``_kernels_jit.near_packed``):
+The collision kernel takes its tables as one array of their addresses (``_kernels_jit.near_packed_key``):
 a numba call costs about 0.1 us per 1-D and 0.6 us per 2-D array argument, which for 31 arguments
 was more than the kernel's work.
 

@@ -41,7 +41,7 @@ _EPS_DIST = 1e-9  # [m] below this |dist| the witness points give no direction
 _new = tuple.__new__  # a NamedTuple from a tuple of its fields (as _make, without the length check)
 _BLOCK_FLOATS = 32768  # the compiled path's outputs are allocated up to this many float64s (256 kB) at a time
 
-# The tables of the packed kernel's address array ``p`` (``_kernels_jit.near_packed``; built by
+# The tables of the packed kernel's address array ``p`` (``_kernels_jit.near_packed_key``; built by
 # NarrowPhase._build_context): sizes first, then the arrays' addresses.
 (P_LIVE, P_NJ, P_NDOF, P_NV, P_NGEOM, P_NQ, P_NU, P_NLOWER, P_NFT, P_QPOS, P_XPOS, P_TAB, P_MARGIN, P_THR2,
  P_LOWER, P_QPREV, P_QSTATE, P_LEVER, P_QADR, P_DOF, P_FROMTO, P_JAC1, P_JAC2, P_JQ, P_JSIGN, P_JOFF,
@@ -92,7 +92,7 @@ def substep_distmax(thresh, margin, bound):  # type: ignore[no-untyped-def]
 def _output_blocks(size: int, m: int, n: int, n_live: int) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Fresh outputs of the packed kernel for the next calls: ``(blk, rows, g)``, each handed out once.
 
-    ``blk``: float64 (size,), the kernel's output block (layout in ``_kernels_jit.near_packed``);
+    ``blk``: float64 (size,), the kernel's output block (layout in ``_kernels_jit.near_packed_key``);
     ``rows``: int64 (n_live,); ``g``: the (m, n) view of ``blk``'s gradient rows. Up to 64 blocks (at
     most 256 kB) are allocated at once with their views: cheaper than two ``np.empty``, a reshape and
     three views per call made between the other phases' work. A block is never handed out twice, so
@@ -144,7 +144,7 @@ class NarrowPhase:
                         joints: JointLimitBarriers | None) -> tuple:
         """The packed kernel's tables for ``data``, ``coherence`` and ``joints``, from a small cache.
 
-        Their addresses (``p``), sizes and the layout of the output block (see ``_kernels_jit.near_packed``).
+        Their addresses (``p``), sizes and the layout of the output block (see ``_kernels_jit.near_packed_key``).
         :data:`KERNEL_CONTEXTS` are kept, keyed by the three objects' ids (each entry holds them): the
         rollout's scratch ``MjData`` between two steps of the episode's costs a lookup, not two rebuilds.
         An entry is rebuilt when ``coherence.reset`` has replaced the bounds (the kernel writes into them).
