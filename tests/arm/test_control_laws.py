@@ -57,7 +57,9 @@ def test_ee_gain_caps_the_task_speed() -> None:
 
 
 def test_cap_speed_keeps_the_direction_and_the_limit(rng) -> None:  # type: ignore[no-untyped-def]
-    for scale in (0.1, 1.0, 10.0):
+    np.testing.assert_allclose(cap_speed(np.array([0.5, -1.5, 0.3]), 1.0), [1 / 3, -1.0, 0.2], rtol=1e-15)
+    assert np.array_equal(cap_speed(np.array([0.5, -1.0, 0.3]), 1.0), [0.5, -1.0, 0.3])  # at the cap: untouched
+    for scale in (0.1, 0.5, 1.0, 10.0):
         u = rng.normal(scale=scale, size=7)
         before = u.copy()
         out = cap_speed(u, 1.0)
