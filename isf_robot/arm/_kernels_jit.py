@@ -1,7 +1,11 @@
-"""The numba kernels of :mod:`isf_robot.arm.kernels` (imported only when numba is installed).
+"""The collision kernels of :mod:`isf_robot.arm.kernels` (imported only when numba is installed).
 
-Module-level functions, so numba's cache (``__pycache__``) serves later processes; MuJoCo's C
-functions are resolved by symbol in the ``libmujoco`` the ``mujoco`` package loaded.
+Plain functions that :func:`~isf_robot.core.jit.compiled` compiles (:mod:`isf_robot.arm.kernels`
+hands them out); the ones other kernels call are :func:`~isf_robot.core.jit.formula` functions.
+What is here is what only compiled code can do: MuJoCo's C functions, resolved by symbol in the
+``libmujoco`` the ``mujoco`` package loaded, called on raw addresses, and the loops over pairs
+around them. The rows' formulas are those of :mod:`isf_robot.arm.narrow` and
+:mod:`isf_robot.arm.joint_limits`, which the numpy path calls too.
 """
 
 from __future__ import annotations
@@ -11,14 +15,48 @@ import math
 import llvmlite.binding as llvm
 import numpy as np
 from llvmlite import ir
-from numba import carray, njit, types
+from numba import carray, types
 from numba.extending import intrinsic
 
-from isf_robot.core.jit import watch_compiles
+from isf_robot.core.jit import formula
 
+from .joint_limits import joint_value
 from .libmujoco import library_path
-
-watch_compiles()  # (a command's one-line notice when a kernel is compiled: isf_robot.core.jit)
+from .narrow import (
+    P_DOF,
+    P_FROMTO,
+    P_JAC1,
+    P_JAC2,
+    P_JGRAD,
+    P_JOFF,
+    P_JQ,
+    P_JSIGN,
+    P_LEVER,
+    P_LIVE,
+    P_LOWER,
+    P_MARGIN,
+    P_MOCAP,
+    P_NDOF,
+    P_NFT,
+    P_NGEOM,
+    P_NJ,
+    P_NLOWER,
+    P_NQ,
+    P_NU,
+    P_NV,
+    P_QADR,
+    P_QPOS,
+    P_QPREV,
+    P_QSTATE,
+    P_TAB,
+    P_THR2,
+    P_XPOS,
+    dot3,
+    obstacle_dhdt,
+    pair_value,
+    substep_distmax,
+    unit_normal,
+)
 
 _PATH = library_path()
 if _PATH is None:  # (kernels._build treats this as "numba missing")
@@ -30,6 +68,14 @@ _ptr, _i32, _f64 = types.intp, types.int32, types.float64
 geom_distance = types.ExternalFunction("mj_geomDistance", _f64(_ptr, _ptr, _i32, _i32, _f64, _ptr))
 # void mj_jac(const mjModel*, const mjData*, mjtNum* jacp, mjtNum* jacr, const mjtNum point[3], int body)
 jac = types.ExternalFunction("mj_jac", types.void(_ptr, _ptr, _ptr, _ptr, _ptr, _i32))
+# void mj_mulM(const mjModel* m, const mjData* d, mjtNum* res, const mjtNum* vec)
+mul_m = types.ExternalFunction("mj_mulM", types.void(_ptr, _ptr, _ptr, _ptr))
+# void mj_jacSite(const mjModel* m, const mjData* d, mjtNum* jacp, mjtNum* jacr, int site)
+jac_site = types.ExternalFunction("mj_jacSite", types.void(_ptr, _ptr, _ptr, _ptr, _i32))
+# void mj_kinematics(const mjModel* m, mjData* d)
+kinematics = types.ExternalFunction("mj_kinematics", types.void(_ptr, _ptr))
+# void mj_comPos(const mjModel* m, mjData* d)
+com_pos = types.ExternalFunction("mj_comPos", types.void(_ptr, _ptr))
 
 
 
@@ -53,28 +99,13 @@ i64p = _pointer(ir.IntType(64), types.int64)
 """``i64p(addr)``: the address ``addr`` as an int64 pointer."""
 
 
-@njit(cache=True, nogil=True, inline="always")
-def row_norm(g, k):  # pragma: no cover (compiled)
-    """|g[k]|: the squares added in column order from 0 (:func:`isf_robot.core.sums.row_norms`)."""
-    s = 0.0
-    for c in range(g.shape[1]):
-        s += g[k, c] * g[k, c]
-    return np.sqrt(s)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def dot3(a0, a1, a2, b0, b1, b2):  # pragma: no cover (compiled)
-    """``a . b`` of 3-vectors, ``((0 + a0 b0) + a1 b1) + a2 b2`` (:func:`isf_robot.core.sums.dots3`)."""
-    return ((0.0 + a0 * b0) + a1 * b1) + a2 * b2
-
-
-@njit(cache=True, nogil=True)
+@formula
 def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, lever, qadr,
          cutoff, distmax, slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, norms_in,
          mocap, lin, dhdt_in, rows, h, g, gn, wit, lf):  # pragma: no cover (compiled)
     """Fill rows[:j], h[:j + l], g[:j + l], gn[:j + l] (with ``norms_in``) and wit[:j] = (p1, p2, n).
 
-    With ``dhdt_in``: ``lf[k] = dh/dt = -n^T v`` (:func:`dot3`)
+    With ``dhdt_in``: ``lf[k] = dh/dt = -n^T v`` (``narrow.obstacle_dhdt``)
     of each near pair whose obstacle is mocap body ``mocap[r] >= 0``, ``v`` its row of ``lin``
     (flat, 3 per mocap body); ``lf`` is left alone otherwise.
 
@@ -131,7 +162,7 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
     nj = jq.size
     jmin = math.inf
     for i in range(nj):  # the joint-limit rows after the pairs'
-        hj = jsign[i] * qpos[jq[i]] + joff[i]
+        hj = joint_value(jsign[i], qpos[jq[i]], joff[i])
         h[j + i] = hj
         jmin = min(jmin, hj)
         for c in range(ndof):
@@ -146,7 +177,7 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
             key |= 1 << r
         d = ds[k]
         rows[k] = live[r, 0]
-        hk = d - margin[r]
+        hk = pair_value(d, margin[r])
         h[k] = hk
         hmin = min(hmin, hk)
         dmin = min(dmin, d)
@@ -156,50 +187,44 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
         if -eps < d < eps:
             touching = True
             continue
-        inv = 1.0 / d
-        n0 = (fromto[k, 0] - fromto[k, 3]) * inv
-        n1 = (fromto[k, 1] - fromto[k, 4]) * inv
-        n2 = (fromto[k, 2] - fromto[k, 5]) * inv
+        n0 = unit_normal(fromto[k, 0], fromto[k, 3], d)
+        n1 = unit_normal(fromto[k, 1], fromto[k, 4], d)
+        n2 = unit_normal(fromto[k, 2], fromto[k, 5], d)
         wit[k, 2, 0], wit[k, 2, 1], wit[k, 2, 2] = n0, n1, n2
         if dhdt_in != 0 and mocap[r] >= 0:
             b = 3 * mocap[r]
-            lf[k] = -dot3(n0, n1, n2, lin[b], lin[b + 1], lin[b + 2])
+            lf[k] = obstacle_dhdt(n0, n1, n2, lin[b], lin[b + 1], lin[b + 2])
         jac(ma, da, jac1.ctypes.data, 0, fromto[k].ctypes.data, np.int32(live[r, 3]))
         for c in range(ndof):
             col = dof[c]
-            g[k, c] = 0.0 + n0 * jac1[0, col] + n1 * jac1[1, col] + n2 * jac1[2, col]
+            g[k, c] = dot3(n0, n1, n2, jac1[0, col], jac1[1, col], jac1[2, col])
         if live[r, 5] != 0:
             jac(ma, da, jac2.ctypes.data, 0, fromto[k, 3:].ctypes.data, np.int32(live[r, 4]))
             for c in range(ndof):
                 col = dof[c]
-                g[k, c] = g[k, c] - (0.0 + n0 * jac2[0, col] + n1 * jac2[1, col] + n2 * jac2[2, col])
-    if norms_in != 0:
+                g[k, c] -= dot3(n0, n1, n2, jac2[0, col], jac2[1, col], jac2[2, col])
+    if norms_in != 0:  # |dh/dq| of each row (the numpy path: np.linalg.norm; a loop here, no BLAS call per row)
         for k in range(j + nj):
-            gn[k] = row_norm(g, k)
+            s = 0.0
+            for c in range(ndof):
+                s += g[k, c] * g[k, c]
+            gn[k] = math.sqrt(s)
     return j, hmin, dmin, jmin, touching, key
 
-@njit(cache=True, nogil=True)
+@formula
 def monitor(ma, da, rows, g1, g2, margin, thresh, bound):  # pragma: no cover (compiled)
+    """The smallest ``h`` and distance of the pairs ``rows`` at a physics sub-step (``SafetyMonitor.substep``)."""
     step_h = math.inf
     step_d = math.inf
     for t in range(rows.size):
         i = rows[t]
-        cap = max(thresh + margin[i], bound) + 1e-6
-        d = geom_distance(ma, da, np.int32(g1[i]), np.int32(g2[i]), cap, 0)
-        if d - margin[i] < step_h:
-            step_h = d - margin[i]
-        if d < step_d:
-            step_d = d
+        d = geom_distance(ma, da, np.int32(g1[i]), np.int32(g2[i]), substep_distmax(thresh, margin[i], bound), 0)
+        step_h = min(step_h, pair_value(d, margin[i]))
+        step_d = min(step_d, d)
     return step_h, step_d
 
 
-# The tables of near_packed's P (addresses and sizes; see NarrowPhase._kernel_context).
-(P_LIVE, P_NJ, P_NDOF, P_NV, P_NGEOM, P_NQ, P_NU, P_NLOWER, P_NFT, P_QPOS, P_XPOS, P_TAB, P_MARGIN, P_THR2,
- P_LOWER, P_QPREV, P_QSTATE, P_LEVER, P_QADR, P_DOF, P_FROMTO, P_JAC1, P_JAC2, P_JQ, P_JSIGN, P_JOFF,
- P_JGRAD, P_MOCAP) = range(28)
-
-
-@njit(cache=True, nogil=True)
+@formula
 def near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norms_in, lin, dhdt_in):  # pragma: no cover
     """:func:`near` (and its key of the set of near pairs) with its tables as the addresses in ``p``.
 
@@ -243,11 +268,3 @@ def near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norm
     return near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, lever, qadr, cutoff, distmax,
                 slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, norms_in, mocap, lin, dhdt_in, rows, h, g,
                 gn, wit, lf)
-
-
-@njit(cache=True, nogil=True)
-def near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norms_in, lin, dhdt_in):  # pragma: no cover
-    """:func:`near_packed_key` without the key: (j, min h, min dist, min joint value, touching)."""
-    j, hmin, dmin, jmin, touching, _ = near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norms_in,
-                                                       lin, dhdt_in)
-    return j, hmin, dmin, jmin, touching

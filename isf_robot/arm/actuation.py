@@ -31,10 +31,10 @@ import mujoco
 import numpy as np
 
 from isf_robot.core.exceptions import ConfigError
-from isf_robot.core.sums import sq_sum
 
 from .lowlevel import VelocityTracker, friction_feedforward
 from .scene import Scene
+from .tracking_law import tracking_error
 
 __all__ = ["ActuatorInfo", "actuator_info", "Actuation", "ServoTracker", "make_actuation", "tracking_step", "KINDS",
            "speed_bound"]
@@ -346,9 +346,9 @@ def tracking_step(tracker: Actuation, dof_adr: np.ndarray) -> Callable[[mujoco.M
         return command  # type: ignore[no-any-return]
 
     def step(data: mujoco.MjData, u: np.ndarray, period: float) -> float:
-        e = data.qvel[dof_adr] - tracker.u
+        err = float(tracking_error(data.qvel[dof_adr].tolist(), tracker.u.tolist()))
         tracker.set_command(u, period)
         tracker.apply(data)
-        return math.sqrt(sq_sum(e))
+        return err
 
     return step

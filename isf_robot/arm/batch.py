@@ -14,7 +14,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from isf_robot.core.exceptions import ConfigError, ShapeError
-from isf_robot.core.sums import row_norms
 from isf_robot.core.system import LieData
 
 __all__ = ["BarrierBatch", "stack_batches"]
@@ -72,7 +71,7 @@ class BarrierBatch:
         With f0 = 0 and g = I: ``Lf h = dh/dt``, ``Lg h = dh/dq``, ``|dh/dx| = |dh/dq|``.
         """
         return LieData(h=self.h, lf=self.dhdt, lg=self.grad,
-                       grad_norm=row_norms(self.grad), names=self.names)
+                       grad_norm=np.linalg.norm(self.grad, axis=1), names=self.names)
 
 
 def stack_batches(*batches: BarrierBatch) -> BarrierBatch:

@@ -36,11 +36,11 @@ import mujoco
 import numpy as np
 
 from isf_robot.core.exceptions import ConfigError
-from isf_robot.core.sums import norm
 
 from .actuation import make_actuation
 from .nominal import ReachingController
 from .scene import Scene
+from .tracking_law import tracking_error
 
 __all__ = ["Calibration", "calibrate_d_bar", "clear_calibration_cache"]
 
@@ -181,8 +181,7 @@ def calibrate_d_bar(
             if peak > vmax:
                 u *= vmax / peak
             tracker.set_command(u, per_control * dt)
-        e = data.qvel[dofs] - tracker.u
-        errors[i] = norm(e)  # (the tracking error as the run measures it: sums' order)
+        errors[i] = tracking_error(data.qvel[dofs].tolist(), tracker.u.tolist())  # (as the run measures it)
         tracker.apply(data)
         mujoco.mj_step2(model, data)
         sat += tracker.saturated(data)

@@ -38,7 +38,6 @@ import numpy as np
 
 from isf_robot.core import LieData
 from isf_robot.core.exceptions import ConfigError, IsfWarning
-from isf_robot.core.sums import row_norms
 
 from . import kernels
 from .batch import BarrierBatch
@@ -78,7 +77,7 @@ class CollisionBarriers(NarrowPhase):
         dof_adr: The arm's dof addresses (columns of ``dh/dq``), shape (n,).
         cutoff: Broad-phase cut-off distance [m], > 0.
         jit: Use the compiled kernel of :mod:`isf_robot.arm.kernels` when it is available (the
-            same rows, bit for bit; ``False``: always the numpy path).
+            same formulas, equal to rounding; ``False``: always the numpy path).
 
     """
 
@@ -150,8 +149,8 @@ class CollisionBarriers(NarrowPhase):
         self._lie_names: tuple[tuple[str, ...] | None, dict[tuple[int, ...], tuple[str, ...]]] = (None, {})
         # The compiled kernel's tables: one row per live pair (pair, geom1, geom2, body1, body2, self).
         # (the kernels need the raw MjModel/MjData addresses the bindings expose as _address)
-        self._kernel = kernels.near_kernel(packed=True) if jit and getattr(model, "_address", 0) else None
-        self._knorms = int(self._kernel is not None)  # 1: |dh/dq| in the kernel (sums.row_norms' order)
+        self._kernel = kernels.near_kernel() if jit and getattr(model, "_address", 0) else None
+        self._knorms = int(self._kernel is not None)  # 1: |dh/dq| in the kernel
         live = self.broadphase.live
         self._ktab = np.ascontiguousarray(np.stack(
             [live, pairs.geom1[live], pairs.geom2[live], b1arr[live], b2[live], pairs.is_self[live]], axis=1),
@@ -161,7 +160,7 @@ class CollisionBarriers(NarrowPhase):
         self._kfromto = np.zeros((max(live.size, 1), 6))
         self._kdof = np.ascontiguousarray(self.dof_adr, dtype=np.int64)
         self._kmocap = np.ascontiguousarray(self._mocap[live], dtype=np.int64)  # per live pair (-1: not moving)
-        self._kdhdt = int(self._kernel is not None)  # 1: dh/dt in the kernel (sums.dots3's order; 0: numpy)
+        self._kdhdt = int(self._kernel is not None)  # 1: dh/dt in the kernel (narrow.obstacle_dhdt; 0: numpy)
         self._knolin = np.zeros(0)
         self._lin_shape = (model.nmocap, 3)
         self._kctx: tuple | None = None  # (see NarrowPhase._kernel_context)
@@ -301,14 +300,14 @@ class CollisionBarriers(NarrowPhase):
         their rows here. The names tuple of each set of near pairs is built once and shared.
         """
         g, gn = rows.grad, rows.grad_norm
-        return LieData._of(rows.h, rows.lf, g, gn if gn is not None else row_norms(g),
+        return LieData._of(rows.h, rows.lf, g, gn if gn is not None else np.linalg.norm(g, axis=1),
                            self._row_names(rows.near.row_list, joints))
 
     def lie_rows(self, data: mujoco.MjData, joints: JointLimitBarriers, mocap_lin: np.ndarray | None = None, *,
                  coherence: JointCoherence | None = None, witness: bool = False) -> TickRows:
         """``lie(rows(...))`` with what a control tick's accounting needs of ``rows(...)``, in one pass.
 
-        The same Lie data, bit for bit, and ``near.rows``, ``near.row_list`` (as a tuple), ``near.h_min``,
+        The same Lie data (computed once, by the same path), and ``near.rows``, ``near.row_list`` (as a tuple), ``near.h_min``,
         ``near.dist_min``, ``joint_min`` of :meth:`rows` (arguments as there; the near pairs' witness
         points with ``witness``): the simulation's barrier phase. The compiled path builds no
         :class:`NearPairs` (nor its views of ``h``, ``dh/dq``, ``dh/dt``) for it.

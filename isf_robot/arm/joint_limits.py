@@ -9,13 +9,20 @@ import mujoco
 import numpy as np
 
 from isf_robot.core.exceptions import ConfigError, ShapeError
+from isf_robot.core.jit import formula
 
 from .batch import BarrierBatch
 
 if TYPE_CHECKING:
     from .scene import Scene
 
-__all__ = ["JointLimitBarriers"]
+__all__ = ["JointLimitBarriers", "joint_value"]
+
+
+@formula
+def joint_value(sign, q, offset):  # type: ignore[no-untyped-def]
+    """A joint-limit row's value ``h = sign q + offset`` (floats or arrays; see :attr:`JointLimitBarriers.tables`)."""
+    return sign * q + offset
 
 
 class JointLimitBarriers:
@@ -90,7 +97,7 @@ class JointLimitBarriers:
 
     def values(self, data: mujoco.MjData) -> np.ndarray:
         """The barrier values ``h`` at ``data.qpos``, shape (k,) (the rest of a batch is constant)."""
-        return self._sign * data.qpos[self._qadr] + self._offset
+        return joint_value(self._sign, data.qpos[self._qadr], self._offset)
 
     def batch(self, h: np.ndarray) -> BarrierBatch:
         """The batch of the values ``h`` (from :meth:`values`)."""

@@ -11,25 +11,21 @@ MuJoCo's C functions ``mj_geomDistance`` and ``mj_jac`` directly: from the ``lib
 ``mujoco`` package ships, resolved by symbol name, on the addresses of the very ``MjModel`` and
 ``MjData`` the Python bindings hold (``_address``).
 
-Same answers: the kernels make the same floating-point operations in the same order as the
-numpy path of :mod:`isf_robot.arm.narrow` (``h = dist - margin``; ``n = (p_1 - p_2) (1/dist)``;
-``dh/dq_c = ((0 + n_0 J_0c) + n_1 J_1c) + n_2 J_2c``, the written order of
-:func:`isf_robot.core.sums.combine3`, signed zeros included; the joint rows ``sign q + offset``), so the rows are
-equal bit for bit (``tests/arm/test_kernels.py`` checks it at random states and along runs). The
-broad phase and the coherence bounds only choose which pairs reach the narrow phase; both are
-conservative, so the rows are the same whichever way they round.
-Pairs whose witness points coincide (``|dist| < 1e-9``) are left to the numpy path. The row norms
-``|dh/dq|`` and the mocap obstacles' ``dh/dt`` are added in one written order too (the numpy side in
-:mod:`isf_robot.core.sums`: numpy's own ``einsum`` and BLAS products add in an order that depends on
-the CPU, so no kernel could follow them on every machine). The kernel takes its tables as one array of their addresses
-(``_kernels_jit.near_packed``): a numba call costs about 0.1 us per 1-D and 0.6 us per 2-D array
-argument, which for 31 arguments was more than the kernel's work.
+One source: the kernels are plain functions compiled by :func:`~isf_robot.core.jit.compiled`
+(numba's cache keyed on every source file of this folder); what they compute they take from the
+:func:`~isf_robot.core.jit.formula` functions that the numpy paths call too (the rows in
+:mod:`isf_robot.arm.narrow` and :mod:`isf_robot.arm.joint_limits`, the control laws in
+:mod:`isf_robot.arm.tracking_law` and :mod:`isf_robot.arm.reaching_law`). The two paths agree to
+rounding (``tests/arm/test_kernels.py`` and ``test_step_kernels.py``: 1e-12 relative, with an
+absolute floor). Pairs whose witness points coincide (``|dist| < 1e-9``) are left to the numpy path.
+The collision kernel takes its tables as one array of their addresses (``_kernels_jit.near_packed_key``):
+a numba call costs about 0.1 us per 1-D and 0.6 us per 2-D array argument, which for 31 arguments
+was more than the kernel's work.
 
 The nominal and act phases (:func:`step_kernels`, ``_kernels_step.py``): the tracker's ``apply``
 (``mj_mulM``), its ``command`` with the tracking error, a sub-step's safety check fused with ``apply``,
-and the reaching controller's damped least squares (``mj_jacSite``, ``mju_cholFactor``/``Solve``, the
-speed cap and the rate limit), each one call, the same operations in the same order as their numpy
-code (its small products in :mod:`isf_robot.core.sums`' order).
+and the reaching controller's command (``mj_jacSite``, then the damped least squares, the speed cap
+and the rate limit), each one call.
 
 Without numba, or with ``ISF_ROBOT_JIT=0`` in the environment, :func:`near_kernel` and
 :func:`step_kernels` return ``None`` and the numpy paths run. The first use compiles the kernels (a few
@@ -43,10 +39,10 @@ from collections.abc import Callable
 from typing import Any
 
 from isf_robot.core.filter_base import core_kernels
+from isf_robot.core.jit import compiled, jit_enabled
 from isf_robot.core.jit import compiled_here as jit_compiled_here
-from isf_robot.core.jit import jit_enabled
 
-__all__ = ["available", "compiled_here", "monitor_kernel", "near_kernel", "step_kernels"]
+__all__ = ["available", "compiled_here", "monitor_kernel", "near_kernel", "rollout_kernels", "step_kernels"]
 
 _STATE: dict[str, Any] = {}
 
@@ -58,12 +54,13 @@ def _build() -> dict[str, Callable[..., Any]] | None:
     try:
         from . import _kernels_jit as kj
         from . import _kernels_step as ks
+        from . import _rollout_jit as kr
     except ImportError:
         return None
-    return {"near": kj.near, "near_packed": kj.near_packed, "near_packed_key": kj.near_packed_key,
-            "monitor": kj.monitor,
-            "track_apply": ks.track_apply, "track_step": ks.track_step, "reach": ks.reach,
-            "monitor_apply": ks.monitor_apply}
+    fns = {"near_packed_key": kj.near_packed_key, "monitor": kj.monitor, "track_apply": ks.track_apply,
+           "track_step": ks.track_step, "reach": ks.reach, "monitor_apply": ks.monitor_apply,
+           "euler_step": kr.euler_step, "rollout_points": kr.rollout_points}
+    return {name: compiled(fn) for name, fn in fns.items()}
 
 
 def _kernels() -> dict[str, Callable[..., Any]] | None:
@@ -79,13 +76,10 @@ def compiled_here() -> tuple[int, int]:
     ``(0, n)`` before the first run after an install (which compiles them); ``(0, 0)`` when the
     kernels are off or absent, or the cache cannot be read.
     """
-    if _kernels() is None:
+    k = _kernels()
+    if k is None:
         return 0, 0
-    try:
-        from . import _kernels_jit, _kernels_step, _rollout_jit
-    except ImportError:
-        return 0, 0
-    return jit_compiled_here((_kernels_jit, _kernels_step, _rollout_jit, *core_kernels()))
+    return jit_compiled_here((*k.values(), *core_kernels()))
 
 
 def available() -> bool:
@@ -93,14 +87,13 @@ def available() -> bool:
     return _kernels() is not None
 
 
-def near_kernel(packed: bool = False) -> Callable[..., Any] | None:
+def near_kernel() -> Callable[..., Any] | None:
     """The compiled narrow phase of :meth:`CollisionBarriers.near` (``None``: use numpy).
 
-    ``packed``: the same with its tables as addresses, returning also the key of the set of near pairs
-    (``_kernels_jit.near_packed_key``, cheaper to call).
+    Its tables as addresses, returning also the key of the set of near pairs (``_kernels_jit.near_packed_key``).
     """
     k = _kernels()
-    return None if k is None else k["near_packed_key" if packed else "near"]
+    return None if k is None else k["near_packed_key"]
 
 
 def monitor_kernel() -> Callable[..., Any] | None:
@@ -121,3 +114,12 @@ def step_kernels(n: int) -> dict[str, Any] | None:
         return None
     return {"track_apply": k["track_apply"], "track_step": k["track_step"], "monitor_apply": k["monitor_apply"],
             "reach": k["reach"]}
+
+
+def rollout_kernels() -> tuple[Callable[..., Any], Callable[..., Any]] | None:
+    """The compiled Euler step and whole-rollout kernel of :class:`~isf_robot.arm.rollout.NominalRollout`.
+
+    ``None``: the numpy path.
+    """
+    k = _kernels()
+    return None if k is None else (k["euler_step"], k["rollout_points"])

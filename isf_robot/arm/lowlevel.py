@@ -28,21 +28,23 @@ the full friction torque once ``|u| >> v_s``, smoothly through zero, so a comman
 for no torque and the friction holds the joint. Without it a joint with friction lags every
 command by the friction torque over the tracking gain, and the calibrated ``d_bar`` measures
 the friction instead of the tracking.
+
+The formulas are the plain functions of :mod:`isf_robot.arm.tracking_law`; the compiled
+:meth:`VelocityTracker.apply` (``_kernels_step``) calls the same ones.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import mujoco
 import numpy as np
 
 from isf_robot.core.exceptions import ConfigError
-from isf_robot.core.sums import sq_sum
 
 from . import kernels
 from .scene import Scene
+from .tracking_law import command_feedforward, desired_acceleration, motor_ctrl, reference_error, tracking_error
 
 __all__ = ["VelocityTracker", "friction_feedforward", "FRICTION_SMOOTHING"]
 
@@ -86,7 +88,7 @@ class VelocityTracker:
         feedforward: Use the acceleration feedforward (needs the control period in
             :meth:`set_command`).
         jit: Use the compiled :meth:`apply` of :mod:`isf_robot.arm.kernels` when it is available
-            (the same numbers, bit for bit; ``False``: always numpy).
+            (the same formulas, compiled; ``False``: always numpy).
         friction: Feed the model's joint friction (``dof_frictionloss``) forward (module
             docstring); an arm without friction is unaffected. With friction it is compensated
             on the numpy path (the compiled kernel has no friction term).
@@ -130,9 +132,9 @@ class VelocityTracker:
         nv = int(model.nv)
         # One buffer holds the tracker's state and constants (rows of n: see _kernels_step), the
         # full-size acceleration/torque scratch and two scalars: the compiled apply reads it whole.
-        self._buf = buf = np.zeros(9 * n + 2 * nv + 2)
-        rows = buf[: 9 * n].reshape(9, n)
-        self.u, self.q_ref, self.a_ff, self._kd, self._kp, self._inv_gain, self._lo, self._hi, self._err = rows
+        self._buf = buf = np.zeros(8 * n + 2 * nv + 2)
+        rows = buf[: 8 * n].reshape(8, n)
+        self.u, self.q_ref, self.a_ff, self._kd, self._kp, self._inv_gain, self._lo, self._hi = rows
         self._kp[:], self._kd[:] = kp_v, kd_v
         self._gain = (model.actuator_gear[act, 0] * model.actuator_gainprm[act, 0]).copy()
         limited = model.actuator_ctrllimited[act].astype(bool)
@@ -142,17 +144,16 @@ class VelocityTracker:
         self._act = as_slice(np.asarray(act))
         self._dof = as_slice(np.asarray(scene.dof_adr))
         self._qadr = as_slice(np.asarray(scene.qpos_adr))
-        self._acc_full = buf[9 * n: 9 * n + nv]
-        self._tau_full = buf[9 * n + nv: 9 * n + 2 * nv]
+        self._acc_full = buf[8 * n: 8 * n + nv]
+        self._tau_full = buf[8 * n + nv: 8 * n + 2 * nv]
         self.feedforward = bool(feedforward)
-        self._tmp = np.zeros(n)
         fric = model.dof_frictionloss[np.asarray(scene.dof_adr)].astype(float)
         self.friction = fric if friction else np.zeros(n)
         self._fric = bool(friction and np.any(fric > 0))
         self._ftmp = np.zeros(n)
         self._inv_gain[:] = 1.0 / self._gain
         self._dt = float(model.opt.timestep)
-        buf[9 * n + 2 * nv] = self._dt
+        buf[8 * n + 2 * nv] = self._dt
         self.max_ref_error = float(max_ref_error)
         self._data: mujoco.MjData | None = None
         self._views: tuple[np.ndarray, ...] | None = None
@@ -214,8 +215,7 @@ class VelocityTracker:
 
         """
         if self.feedforward and period is not None and period > 0:
-            np.subtract(u, self.u, out=self.a_ff)
-            self.a_ff *= 1.0 / period
+            self.a_ff[:] = command_feedforward(u, self.u, 1.0 / period)
         else:
             self.a_ff[:] = 0.0
         self.u[:] = u
@@ -259,8 +259,7 @@ class VelocityTracker:
             return float(step(self._maddr, self._daddr, self._ptrs, self._buf, self.n, self._acc_full.size,
                               u if type(u) is np.ndarray else np.asarray(u, float),
                               1.0 / period if ff else 0.0, ff))  # type: ignore[operator]
-        e = data.qvel[self._dof] - self.u
-        err = math.sqrt(sq_sum(e))  # (the kernel's order)
+        err = float(tracking_error(data.qvel[self._dof].tolist(), self.u.tolist()))
         self.set_command(u, period)
         self.apply(data)
         return err
@@ -270,7 +269,7 @@ class VelocityTracker:
 
         Advances the reference by one physics step. Works in preallocated buffers and, with the
         arm's joints and actuators contiguous, in views bound once per ``data`` (it runs at the
-        physics rate), or in one compiled call (:mod:`isf_robot.arm.kernels`; the same numbers).
+        physics rate), or in one compiled call (:mod:`isf_robot.arm.kernels`; the same formulas).
         """
         if data is not self._data:
             self._bind(data)
@@ -283,57 +282,24 @@ class VelocityTracker:
             self._apply_indexed(data)
             return
         q, qd, acc, tau, ctrl, bias, passive = views
-        u, ref, err = self.u, self.q_ref, self._err
-        # reference: ref <- q + clip(ref + u dt - q, +-e_max)
-        np.multiply(u, self._dt, out=err)
-        ref += err
-        np.subtract(ref, q, out=err)
-        np.minimum(err, self.max_ref_error, out=err)
-        np.maximum(err, -self.max_ref_error, out=err)
+        u, ref = self.u, self.q_ref
+        err = reference_error(ref, u, self._dt, q, self.max_ref_error)
         np.add(q, err, out=ref)
-        # desired acceleration: a_ff + kd (u - qd) + kp err
-        np.subtract(u, qd, out=acc)
-        acc *= self._kd
-        err *= self._kp
-        acc += err
-        acc += self.a_ff
+        acc[:] = desired_acceleration(u, qd, err, self._kd, self._kp, self.a_ff)
         mujoco.mj_mulM(self.model, data, self._tau_full, self._acc_full)
-        tau_full = self._tau_full
-        tau_full += bias
-        tau_full -= passive
-        if self._fric:
-            tau += friction_feedforward(self.friction, u, self._ftmp)
-        np.multiply(tau, self._inv_gain, out=ctrl)
-        np.minimum(ctrl, self._hi, out=ctrl)
-        np.maximum(ctrl, self._lo, out=ctrl)
+        dof = self._dof
+        fric = friction_feedforward(self.friction, u, self._ftmp) if self._fric else 0.0
+        ctrl[:] = motor_ctrl(tau, bias[dof], passive[dof], fric, self._inv_gain, self._lo, self._hi)
 
     def _apply_indexed(self, data: mujoco.MjData) -> None:
         """:meth:`apply` for joints or actuators that are not contiguous (index arrays, copies)."""
         dof = self._dof
         q = data.qpos[self._qadr]
-        u = self.u
-        ref, err, tmp, acc = self.q_ref, self._err, self._tmp, self._acc_full
-        # reference: ref <- q + clip(ref + u dt - q, +-e_max)
-        np.multiply(u, self._dt, out=tmp)
-        ref += tmp
-        np.subtract(ref, q, out=err)
-        np.minimum(err, self.max_ref_error, out=err)
-        np.maximum(err, -self.max_ref_error, out=err)
+        u, ref = self.u, self.q_ref
+        err = reference_error(ref, u, self._dt, q, self.max_ref_error)
         np.add(q, err, out=ref)
-        # desired acceleration: a_ff + kd (u - qd) + kp err
-        np.subtract(u, data.qvel[dof], out=tmp)
-        tmp *= self._kd
-        err *= self._kp
-        tmp += err
-        tmp += self.a_ff
-        acc[dof] = tmp
-        mujoco.mj_mulM(self.model, data, self._tau_full, acc)
-        tau = self._tau_full
-        tau += data.qfrc_bias
-        tau -= data.qfrc_passive
-        np.multiply(tau[dof], self._inv_gain, out=tmp)
-        if self._fric:
-            tmp += friction_feedforward(self.friction, u, self._ftmp) * self._inv_gain
-        np.minimum(tmp, self._hi, out=tmp)
-        np.maximum(tmp, self._lo, out=tmp)
-        data.ctrl[self._act] = tmp
+        self._acc_full[dof] = desired_acceleration(u, data.qvel[dof], err, self._kd, self._kp, self.a_ff)
+        mujoco.mj_mulM(self.model, data, self._tau_full, self._acc_full)
+        fric = friction_feedforward(self.friction, u, self._ftmp) if self._fric else 0.0
+        data.ctrl[self._act] = motor_ctrl(self._tau_full[dof], data.qfrc_bias[dof], data.qfrc_passive[dof], fric,
+                                          self._inv_gain, self._lo, self._hi)

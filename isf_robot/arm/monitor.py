@@ -17,6 +17,7 @@ import numpy as np
 
 from . import kernels
 from .barriers import CollisionBarriers
+from .narrow import pair_value, substep_distmax
 
 if TYPE_CHECKING:
     from .actuation import Actuation
@@ -142,10 +143,7 @@ class SafetyMonitor:
         step_h = math.inf
         step_d = math.inf
         for i in rows:
-            cap = max(thresh + marg[i], bound) + 1e-6
-            d = mujoco.mj_geomDistance(m, data, g1[i], g2[i], cap, None)
-            if d - marg[i] < step_h:
-                step_h = d - marg[i]
-            if d < step_d:
-                step_d = d
+            d = mujoco.mj_geomDistance(m, data, g1[i], g2[i], substep_distmax(thresh, marg[i], bound), None)
+            step_h = min(step_h, pair_value(d, marg[i]))
+            step_d = min(step_d, d)
         return step_h, step_d

@@ -1,10 +1,18 @@
 """The narrow phase of the collision barriers: the rows of the pairs within the cut-off.
 
 :class:`NarrowPhase` is the part of :class:`~isf_robot.arm.collision.CollisionBarriers` that
-evaluates the candidate pairs at a state, in two interchangeable ways with the same results bit
-for bit: numpy around per-pair ``mj_geomDistance``/``mj_jac`` calls, and the compiled kernel of
-:mod:`isf_robot.arm.kernels` (one call per state). The formulas are in
-:mod:`isf_robot.arm.collision`; the types of the rows in :mod:`isf_robot.arm.rows`.
+evaluates the candidate pairs at a state, in two interchangeable ways: numpy around per-pair
+``mj_geomDistance``/``mj_jac`` calls, and the compiled kernel of :mod:`isf_robot.arm.kernels` (one
+call per state). Both compute a pair's row with the formulas here, one source each::
+
+    h = dist - margin                       (pair_value)
+    n = (p_1 - p_2) / dist                  (unit_normal, per component)
+    dh/dq = n^T (J_1(p_1) - J_2(p_2))       (dot3 of n and each Jacobian column)
+    dh/dt = -n^T v_2(p_2)                   (obstacle_dhdt: a moving obstacle's velocity at p_2)
+
+(the numpy path calls them on arrays of all near pairs, the kernel on the scalars of one pair;
+the two agree to rounding, ``tests/arm/test_kernels.py`` checks 1e-12 relative). The geometry is
+in :mod:`isf_robot.arm.collision`; the types of the rows in :mod:`isf_robot.arm.rows`.
 """
 
 from __future__ import annotations
@@ -17,7 +25,7 @@ import numpy as np
 
 from isf_robot.core import LieData
 from isf_robot.core.exceptions import ShapeError
-from isf_robot.core.sums import combine3, dots3, row_norms
+from isf_robot.core.jit import formula
 
 from .rows import FilterRows, NearPairs, TickRows
 
@@ -26,17 +34,65 @@ if TYPE_CHECKING:
     from .joint_limits import JointLimitBarriers
     from .pairs import CollisionPairs
 
-__all__ = ["FilterRows", "NarrowPhase", "NearPairs", "TickRows"]
+__all__ = ["FilterRows", "NarrowPhase", "NearPairs", "TickRows", "pair_value", "unit_normal", "dot3", "obstacle_dhdt",
+           "substep_distmax"]
 
 _EPS_DIST = 1e-9  # [m] below this |dist| the witness points give no direction
 _new = tuple.__new__  # a NamedTuple from a tuple of its fields (as _make, without the length check)
 _BLOCK_FLOATS = 32768  # the compiled path's outputs are allocated up to this many float64s (256 kB) at a time
 
+# The tables of the packed kernel's address array ``p`` (``_kernels_jit.near_packed_key``; built by
+# NarrowPhase._build_context): sizes first, then the arrays' addresses.
+(P_LIVE, P_NJ, P_NDOF, P_NV, P_NGEOM, P_NQ, P_NU, P_NLOWER, P_NFT, P_QPOS, P_XPOS, P_TAB, P_MARGIN, P_THR2,
+ P_LOWER, P_QPREV, P_QSTATE, P_LEVER, P_QADR, P_DOF, P_FROMTO, P_JAC1, P_JAC2, P_JQ, P_JSIGN, P_JOFF,
+ P_JGRAD, P_MOCAP) = range(28)
+
+
+@formula
+def pair_value(dist, margin):  # type: ignore[no-untyped-def]
+    """A pair's barrier value ``h = dist - margin`` [m] (floats or arrays)."""
+    return dist - margin
+
+
+@formula
+def unit_normal(a, b, dist):  # type: ignore[no-untyped-def]
+    """A component of the unit normal ``n = (p_1 - p_2) / dist`` (``a``, ``b``: that component of p_1, p_2).
+
+    Floats, or arrays that broadcast (all near pairs' components at once). ``dist`` must not be
+    near 0 (the callers treat ``|dist| < 1e-9`` apart).
+    """
+    return (a - b) / dist
+
+
+@formula
+def dot3(a0, a1, a2, b0, b1, b2):  # type: ignore[no-untyped-def]
+    """``a . b`` of 3-vectors given by components (floats, or arrays that broadcast).
+
+    ``dh/dq`` column ``c`` of a pair is ``dot3(n, J_1[:, c]) - dot3(n, J_2[:, c])``.
+    """
+    return a0 * b0 + a1 * b1 + a2 * b2
+
+
+@formula
+def obstacle_dhdt(n0, n1, n2, v0, v1, v2):  # type: ignore[no-untyped-def]
+    """``dh/dt = -n^T v``: a pair's barrier rate from its obstacle's velocity ``v`` at the witness point [m/s]."""
+    return -dot3(n0, n1, n2, v0, v1, v2)
+
+
+@formula
+def substep_distmax(thresh, margin, bound):  # type: ignore[no-untyped-def]
+    """The ``distmax`` of a pair's distance call at a physics sub-step [m].
+
+    ``max(thresh + margin, bound) + 1e-6``: a distance at or above it can change neither the running
+    minimum barrier ``thresh`` (>= 0) nor the running minimum distance ``bound`` (the safety monitor).
+    """
+    return max(thresh + margin, bound) + 1e-6
+
 
 def _output_blocks(size: int, m: int, n: int, n_live: int) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Fresh outputs of the packed kernel for the next calls: ``(blk, rows, g)``, each handed out once.
 
-    ``blk``: float64 (size,), the kernel's output block (layout in ``_kernels_jit.near_packed``);
+    ``blk``: float64 (size,), the kernel's output block (layout in ``_kernels_jit.near_packed_key``);
     ``rows``: int64 (n_live,); ``g``: the (m, n) view of ``blk``'s gradient rows. Up to 64 blocks (at
     most 256 kB) are allocated at once with their views: cheaper than two ``np.empty``, a reshape and
     three views per call made between the other phases' work. A block is never handed out twice, so
@@ -88,7 +144,7 @@ class NarrowPhase:
                         joints: JointLimitBarriers | None) -> tuple:
         """The packed kernel's tables for ``data``, ``coherence`` and ``joints``, from a small cache.
 
-        Their addresses (``p``), sizes and the layout of the output block (see ``_kernels_jit.near_packed``).
+        Their addresses (``p``), sizes and the layout of the output block (see ``_kernels_jit.near_packed_key``).
         :data:`KERNEL_CONTEXTS` are kept, keyed by the three objects' ids (each entry holds them): the
         rollout's scratch ``MjData`` between two steps of the episode's costs a lookup, not two rebuilds.
         An entry is rebuilt when ``coherence.reset`` has replaced the bounds (the kernel writes into them).
@@ -116,7 +172,7 @@ class NarrowPhase:
         hit = tn[1].get(key) if tn[0] is joints.names else None
         if hit is None:
             hit = self._tick_key(key, rows.tolist(), joints)
-        gn = blk[o_gn: o_gn + k] if norms_in else row_norms(gk)
+        gn = blk[o_gn: o_gn + k] if norms_in else np.linalg.norm(gk, axis=1)
         return (LieData._of(blk[:k], blk[o_lf: o_lf + k], gk, gn, hit[0]),
                 rows, hit[1])
 
@@ -129,8 +185,6 @@ class NarrowPhase:
     def _build_context(self, data: mujoco.MjData, coherence: JointCoherence | None,
                        joints: JointLimitBarriers | None) -> tuple:
         """The tables of :meth:`_kernel_context`, built."""
-        from . import _kernels_jit as kj
-
         if coherence is None:
             lower, qprev, qstate, lever, qadr = self._knone
             distmax, slack = self.cutoff, 0.0
@@ -149,11 +203,11 @@ class NarrowPhase:
         p = np.zeros(28, dtype=np.int64)
         p[:9] = (n_live, nj, n, self.model.nv, data.geom_xpos.shape[0], data.qpos.size, qadr.size, lower.size,
                  self._kfromto.shape[0])
-        arrays = {kj.P_QPOS: data.qpos, kj.P_XPOS: data.geom_xpos, kj.P_TAB: self._ktab, kj.P_MARGIN: self._kmargin,
-                  kj.P_THR2: self._kthr2, kj.P_LOWER: lower, kj.P_QPREV: qprev, kj.P_QSTATE: qstate,
-                  kj.P_LEVER: lever, kj.P_QADR: qadr, kj.P_DOF: self._kdof, kj.P_FROMTO: self._kfromto,
-                  kj.P_JAC1: self._kjac1, kj.P_JAC2: self._kjac2, kj.P_JQ: jq, kj.P_JSIGN: jsign, kj.P_JOFF: joff,
-                  kj.P_JGRAD: jgrad, kj.P_MOCAP: self._kmocap}
+        arrays = {P_QPOS: data.qpos, P_XPOS: data.geom_xpos, P_TAB: self._ktab, P_MARGIN: self._kmargin,
+                  P_THR2: self._kthr2, P_LOWER: lower, P_QPREV: qprev, P_QSTATE: qstate,
+                  P_LEVER: lever, P_QADR: qadr, P_DOF: self._kdof, P_FROMTO: self._kfromto,
+                  P_JAC1: self._kjac1, P_JAC2: self._kjac2, P_JQ: jq, P_JSIGN: jsign, P_JOFF: joff,
+                  P_JGRAD: jgrad, P_MOCAP: self._kmocap}
         for slot, arr in arrays.items():
             p[slot] = arr.ctypes.data
         m = n_live + nj
@@ -186,7 +240,7 @@ class NarrowPhase:
             blk, rows, g2 = next(self._output_source(c, m, n, nj, size, True)[1])
         lin, dhdt_in = self._knolin, 0
         moving = self._any_moving and mocap_lin is not None
-        if moving and self._kdhdt and mocap_ang is None:  # dh/dt in the kernel (in sums.dots3's order)
+        if moving and self._kdhdt and mocap_ang is None:  # dh/dt in the kernel (obstacle_dhdt)
             if mocap_lin.shape != self._lin_shape:  # type: ignore[union-attr]
                 raise ShapeError(f"mocap velocities must have shape {self._lin_shape} (rows like data.mocap_pos); "
                                  f"got {mocap_lin.shape}")  # type: ignore[union-attr]
@@ -287,7 +341,8 @@ class NarrowPhase:
                 if mocap_ang is not None and np.any(mocap_ang):
                     r = p2[moving] - data.xpos[self._obstacle_body[mp]]
                     v = v + _cross(mocap_ang[mi], r)
-                dhdt[moving] = -dots3(n[moving], v)  # (the kernel's order)
+                nm = n[moving]
+                dhdt[moving] = obstacle_dhdt(nm[:, 0], nm[:, 1], nm[:, 2], v[:, 0], v[:, 1], v[:, 2])
         return dhdt
 
     def _near_numpy(self, data: mujoco.MjData, mocap_lin: np.ndarray | None, mocap_ang: np.ndarray | None,
@@ -320,28 +375,31 @@ class NarrowPhase:
             rows = cand
             fr = self._fromto[:j]
         marg, b1, p1r, j1r, jac = self._marginl, self._b1, self._p1_rows, self._j1_rows, mujoco.mj_jac
-        hs = [d - marg[i] for d, i in zip(ds, rows)]
+        hs = [pair_value(d, marg[i]) for d, i in zip(ds, rows)]
         for k, r in enumerate(sel):
             jac(m, data, j1r[k], None, p1r[r], b1[cand[r]])
-        # n = (p1 - p2) / dist, as (p1 - p2) * (1 / dist); where the witness points coincide, the
-        # direction between the geom centres.
-        n = fr[:, :3] - fr[:, 3:]
-        inv = [0.0 if -_EPS_DIST < d < _EPS_DIST else 1.0 / d for d in ds]
-        touching = [r for r, v in enumerate(inv) if v == 0.0]  # (1/d is never 0 for a finite d)
-        n *= np.array(inv)[:, None]
+        # n = (p1 - p2) / dist; where the witness points coincide, the direction between the geom centres.
+        touching = [r for r, d in enumerate(ds) if -_EPS_DIST < d < _EPS_DIST]
+        dcol = np.array(ds)[:, None]
+        if touching:
+            dcol[touching] = 1.0
+        n = unit_normal(fr[:, :3], fr[:, 3:], dcol)
         idx = np.array(rows, dtype=np.int64)
         if touching:
             ti = idx[touching]
             c = data.geom_xpos[self.pairs.geom1[ti]] - data.geom_xpos[self.pairs.geom2[ti]]
             n[touching] = c / np.maximum(np.linalg.norm(c, axis=1, keepdims=True), 1e-12)
-        g = combine3(n, self._jac1[:j])  # n^T J, the kernel's order
+        n0, n1, n2 = n[:, 0, None], n[:, 1, None], n[:, 2, None]
+        j1 = self._jac1[:j]
+        g = dot3(n0, n1, n2, j1[:, 0], j1[:, 1], j1[:, 2])  # n^T J_1
         if self._any_self:
             selfs = [r for r, i in enumerate(rows) if self._self[i]]
             if selfs:
                 b2, p2r, j2r = self._b2, self._p2_rows, self._j2_rows
                 for k in selfs:
                     jac(m, data, j2r[k], None, p2r[sel[k]], b2[rows[k]])
-                g[selfs] -= combine3(n[selfs], self._jac2[selfs])
+                j2 = self._jac2[selfs]
+                g[selfs] -= dot3(n0[selfs], n1[selfs], n2[selfs], j2[:, 0], j2[:, 1], j2[:, 2])
         if not self._all_dofs:
             g = g[:, self.dof_adr]
         dhdt = self._dhdt(data, rows, idx, n, fr[:, 3:], mocap_lin, mocap_ang)

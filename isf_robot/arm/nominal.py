@@ -14,12 +14,12 @@ reduced-order model ``q_dot = u + d`` (the paper's ``x_dot = f(x, u) + d``, Sect
 
 Both cap the joint speeds by scaling the whole command (direction kept), limit its rate of
 change (``max_joint_acc``: a real task does not ask for velocity steps), count goals
-reached, hold each goal for its dwell time and then move to the next (looping if asked).
+reached, hold each goal for its dwell time and then move to the next (looping if asked). The
+formulas are those of :mod:`isf_robot.arm.reaching_law`, which the compiled command calls too.
 """
 
 from __future__ import annotations
 
-import math
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from typing import Any
@@ -28,10 +28,10 @@ import mujoco
 import numpy as np
 
 from isf_robot.core.exceptions import ConfigError, ShapeError
-from isf_robot.core.sums import combine3, gram, sq_sum
 
 from . import kernels
 from .goals import GoalSequence
+from .reaching_law import cap_speed, ee_distance, rate_limit, reaching_command
 from .scene import Scene
 
 __all__ = ["NominalController", "GoalSequence", "ReachingController", "JointPDController"]
@@ -96,13 +96,6 @@ class NominalController(ABC):
         """The nominal command at time ``t`` [s]; shape (n,) [rad/s]. May reuse a buffer."""
 
 
-def _cap(u: np.ndarray, limit: float) -> np.ndarray:
-    peak = max(map(abs, u.tolist()))  # = max(u.max(), -u.min()), without two array reductions
-    if peak > limit:
-        u *= limit / peak
-    return u
-
-
 class _RateLimit:
     """Limits the change of a command between calls: ``|u_k - u_{k-1}| <= a_max (t_k - t_{k-1})``.
 
@@ -121,18 +114,10 @@ class _RateLimit:
         self.t_prev = None
 
     def __call__(self, t: float, u: np.ndarray) -> np.ndarray:
-        t_prev, a_max = self.t_prev, self.a_max
-        if a_max != math.inf:  # (a_max > 0, checked: finite unless inf)
-            if t_prev is not None:
-                step = max(t - t_prev, 0.0) * a_max
-                du = u - self.prev
-                peak = max(map(abs, du.tolist()))
-                if peak > step:
-                    u = self.prev + du * (step / peak)
-            else:
-                u = np.zeros_like(u)  # the arm starts at rest
+        """``u`` limited (:func:`~isf_robot.arm.reaching_law.rate_limit`, in place)."""
+        t_prev = self.t_prev
+        rate_limit(u, self.prev, t_prev is not None, 0.0 if t_prev is None else t - t_prev, self.a_max)
         self.t_prev = t
-        self.prev[:] = u
         return u
 
 
@@ -160,8 +145,8 @@ class ReachingController(NominalController):
             ``[gains] max_joint_acc`` or 10. ``inf`` disables it.
         timeout: Give up a goal not reached within this time [s]; default
             ``[gains] goal_timeout`` or 4 s.
-        jit: Use the compiled command of :mod:`isf_robot.arm.kernels` when it is available and
-            gives numpy's numbers on this machine (an ee site, contiguous dofs; ``False``: numpy).
+        jit: Use the compiled command of :mod:`isf_robot.arm.kernels` when it is available (an
+            ee site, contiguous dofs; ``False``: numpy). The same formulas either way.
 
     """
 
@@ -207,19 +192,15 @@ class ReachingController(NominalController):
         if not self.damping > 0:
             raise ConfigError(f"ReachingController damping must be > 0 [m], got {self.damping}")
         self._jac = np.zeros((3, scene.model.nv))
-        self._damp = (self.damping ** 2) * np.eye(3)
         dofs = np.asarray(scene.dof_adr)
         contiguous = dofs.size and np.array_equal(dofs, np.arange(dofs[0], dofs[0] + dofs.size))
         self._dofs = slice(int(dofs[0]), int(dofs[0]) + dofs.size) if contiguous else dofs
-        self._a = np.zeros((3, 3))
-        self._jac_arm = np.zeros((3, self.n))
-        self._y = np.zeros(3)
-        # The compiled command (isf_robot.arm.kernels.step_kernels: the same numbers, bit for bit) works in
-        # one buffer: the rate limit's previous command, a copy of it, the Jacobian (3, nv) and scratch.
+        # The compiled command (isf_robot.arm.kernels.step_kernels: the same formulas) works in one
+        # buffer: the rate limit's previous command, a copy of it, the Jacobian (3, nv) and scratch.
         model, n, nv = scene.model, self.n, int(scene.model.nv)
-        self._buf = np.zeros(2 * n + 3 * nv + 15)
+        self._buf = np.zeros(2 * n + 3 * nv + 3)
         self._rate = _RateLimit(n, _max_acc(scene, max_joint_acc), prev=self._buf[:n])
-        self._lam2 = float(self._damp[0, 0])
+        self._lam2 = self.damping ** 2
         use = contiguous and scene.ee_site_id >= 0 and getattr(model, "_address", 0) and jit
         k = kernels.step_kernels(n) if use else None
         self._reach = k["reach"] if k is not None else None
@@ -240,23 +221,15 @@ class ReachingController(NominalController):
             return self._compiled(t)
         index = self.goals.index
         err = self.goal_positions[index] - self.scene.ee_position(data)
-        dist = math.sqrt(sq_sum(err))  # (the small products in sums' order: the kernel's, on every machine)
+        dist = ee_distance(err)
         self.goals.update(t, dist)
         if self.goals.index != index:
             err = self.goal_positions[self.goals.index] - self.scene.ee_position(data)
-            dist = math.sqrt(sq_sum(err))
-        speed = self.kp * dist
-        v = err * (self.kp if speed <= self.max_ee_speed else self.max_ee_speed / dist)
+            dist = ee_distance(err)
         self.scene.ee_jacobian(data, self._jac)
-        jac = self._jac_arm
-        jac[:] = self._jac[:, self._dofs]
-        a = self._a
-        a[:] = gram(jac)
-        a += self._damp
-        mujoco.mju_cholFactor(a, 0.0)
-        mujoco.mju_cholSolve(self._y, a, v)
-        u = combine3(self._y, jac)
-        return self._rate(t, _cap(u, self.max_joint_speed))
+        u = reaching_command(err, dist, self._jac[:, self._dofs].tolist(), self.kp, self.max_ee_speed, self._lam2,
+                             self.max_joint_speed, np.empty(self.n))
+        return self._rate(t, u)
 
     def _bound(self, data: mujoco.MjData) -> bool:
         """Point the compiled command at ``data`` and the goal positions; ``False``: use numpy."""
@@ -276,7 +249,7 @@ class ReachingController(NominalController):
         return self._goals_seen is not None
 
     def _compiled(self, t: float) -> np.ndarray:
-        """:meth:`__call__` by the compiled kernel (the same operations in the same order)."""
+        """:meth:`__call__` by the compiled kernel (the same formulas, compiled)."""
         goals, rate, out = self.goals, self._rate, np.empty(self.n)
         index, t_prev = goals.index, rate.t_prev
         args = (t, 0.0 if t_prev is None else t_prev, t_prev is not None, rate.a_max, self.kp, self.max_ee_speed,
@@ -347,4 +320,4 @@ class JointPDController(NominalController):
         self.goals.update(t, float(np.max(np.abs(err))))
         if self.goals.index != index:
             err = self.targets[self.goals.index] - data.qpos[self._qadr]
-        return self._rate(t, _cap(self.kp * err, self.max_joint_speed))
+        return self._rate(t, cap_speed(self.kp * err, self.max_joint_speed))

@@ -23,15 +23,16 @@ handed over stacked
 (:class:`~isf_robot.core.intermittent.StackedPoints`: the blocks' arrays, each point's Lie data read from
 its block only when asked for, so ``predict`` evaluates every point in one compiled pass); otherwise
 each point's Euler step and kinematics are one call and its rows
-:meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`. Every path gives the numpy loop's points
-bit for bit. Measured on panda_pole (10 points, process time, 2026-11-23): about 120 us per rollout
-outside the loop in one call (190 us point by point), mostly the collision kernel's distance calls.
+:meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`. Every path computes the numpy loop's
+points with the same formulas (equal to rounding). Measured on panda_pole (10 points, process time,
+2026-11-23): about 120 us per rollout outside the loop in one call (190 us point by point), mostly the
+collision kernel's distance calls.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import mujoco
@@ -53,26 +54,6 @@ _NO_IDS, _NO_POS, _NO_LINS = np.zeros(0, np.int64), np.zeros((0, 0, 3)), np.zero
 
 MAX_POINTS = 10
 """Default largest number of predicted points per rollout (the integration step grows with the horizon)."""
-
-
-_GUARDED: list[bool] = []
-
-
-def _rollout_kernels() -> tuple[Callable[..., Any], Callable[..., Any] | None] | None:
-    """The compiled Euler step and whole-rollout kernel (:mod:`isf_robot.arm._rollout_jit`), or ``None``.
-
-    ``None`` without numba, or with ``ISF_ROBOT_JIT=0``. The first call checks the whole-rollout kernel's
-    cache (``guard_cache``; the kernel is ``None`` where it cannot).
-    """
-    if not kernels.available():
-        return None
-    try:
-        from ._rollout_jit import euler_step, guard_cache, rollout_points
-    except ImportError:
-        return None
-    if not _GUARDED:
-        _GUARDED.append(guard_cache())
-    return euler_step, rollout_points if _GUARDED[0] else None
 
 
 class NominalRollout:
@@ -110,7 +91,7 @@ class NominalRollout:
         self.moving = len(self.scene.config.moving) > 0
         self._data = mujoco.MjData(self.scene.model)
         self._qadr = np.ascontiguousarray(self.scene.qpos_adr, dtype=np.int64)
-        ks = _rollout_kernels() if getattr(self.scene.model, "_address", 0) else None
+        ks = kernels.rollout_kernels() if getattr(self.scene.model, "_address", 0) else None
         self._step = ks[0] if ks is not None else None
         reach = (type(nominal) is ReachingController and nominal._reach is not None  # (its compiled command)
                  and nominal.scene.model is self.scene.model)
@@ -131,7 +112,7 @@ class NominalRollout:
         return self.coll.lie_rows(data, self.joints, lin)[0]  # (lie(rows(...)) in one pass, as the simulation's rows)
 
     def _compiled(self, t: float, q: np.ndarray, u: np.ndarray) -> Sequence[tuple[float, LieData, np.ndarray]] | None:
-        """Every point in one compiled call (``_rollout_jit.rollout_points``), the general loop's numbers.
+        """Every point in one compiled call (``_rollout_jit.rollout_points``), the general loop's formulas.
 
         Taken while the goal index cannot change over the horizon (:meth:`GoalSequence.steady`: the
         kernel holds it; the goal bookkeeping is put back after the rollout anyway) and the reaching

@@ -48,7 +48,7 @@ class FilterRows(NamedTuple):
         h: Their ``h``, then the joint-limit values, shape (j + l,).
         grad: Their ``dh/dq``, then the joint-limit rows (``+-e_i``), shape (j + l, n).
         joint_min: The smallest joint-limit value (``inf`` without joint rows).
-        grad_norm: ``|dh/dq|`` of every row (:func:`~isf_robot.core.sums.row_norms`, the same bits),
+        grad_norm: ``|dh/dq|`` of every row,
             shape (j + l,), or ``None``
             (not computed: the caller computes it).
         lf: ``dh/dt`` of every row (the pairs', then zeros for the joint rows), shape (j + l,).

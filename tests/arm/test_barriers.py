@@ -13,6 +13,7 @@ from isf_robot.arm import (
     CollisionBarriers,
     JointLimitBarriers,
     collision_pairs,
+    kernels,
     load_scene,
     min_distance,
     stack_batches,
@@ -449,3 +450,36 @@ def test_stack_and_lie_data(planar) -> None:  # type: ignore[no-untyped-def]
     np.testing.assert_allclose(lie.grad_norm, np.linalg.norm(both.grad, axis=1))
     with pytest.raises(ConfigError):
         stack_batches()
+
+
+_NO_KERNELS = pytest.mark.skipif(not kernels.available(), reason="compiled kernels off or numba not importable")
+
+
+@pytest.mark.parametrize("jit", [pytest.param(True, marks=_NO_KERNELS), False])
+def test_rows_follow_h_along_random_directions(random_states, rng, jit) -> None:  # type: ignore[no-untyped-def]
+    """``dh/dq . w`` equals the central difference of ``h`` along a random joint direction ``w`` (both paths)."""
+    scene = load_scene("panda_shelf")
+    coll = CollisionBarriers(scene.model, CollisionBarriers.from_scene(scene).pairs, scene.dof_adr,
+                             CollisionBarriers.from_scene(scene).cutoff, jit=jit)
+    assert (coll._kernel is not None) == jit
+    m, eps, checked = scene.model, 1e-6, 0
+    for d in random_states(scene, rng, 30):
+        near = coll.near(d)
+        if not near.row_list:
+            continue
+        w = rng.normal(size=scene.n_joints)
+        w /= np.linalg.norm(w)
+        q0 = d.qpos[scene.qpos_adr].copy()
+        hs = []
+        for s in (eps, -eps):
+            e = mujoco.MjData(m)
+            e.qpos[:] = d.qpos
+            e.qpos[scene.qpos_adr] = q0 + s * w
+            mujoco.mj_forward(m, e)
+            dist = [mujoco.mj_geomDistance(m, e, int(coll.pairs.geom1[i]), int(coll.pairs.geom2[i]), 10.0, None)
+                    for i in near.row_list]
+            hs.append(np.array(dist) - coll.pairs.margin[near.rows])
+        fd = (hs[0] - hs[1]) / (2 * eps)
+        np.testing.assert_allclose(near.grad @ w, fd, rtol=1e-4, atol=1e-6)
+        checked += len(near.row_list)
+    assert checked > 20

@@ -19,13 +19,18 @@ from isf_robot.arm import narrow as narrow_module
 pytestmark = pytest.mark.skipif(not kernels.available(), reason="compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
 
 
+RTOL = 1e-12
+"""The kernel and the numpy path: the same formulas; a stale table gives other pairs or values far beyond this."""
+
+
 def _same_rows(x, y) -> None:  # type: ignore[no-untyped-def]
-    """Rows of the kernel (x) and of the numpy path (y): the same pairs and the same bits."""
+    """Rows of the kernel (x) and of the numpy path (y): the same pairs, the same values to ``RTOL``."""
     assert x.near.row_list == y.near.row_list
     for field in ("h", "grad", "lf"):
         a, b = getattr(x, field), getattr(y, field)
-        assert a.shape == b.shape and a.tobytes() == b.tobytes(), field
-    assert x.joint_min == y.joint_min
+        scale = max(1.0, float(np.max(np.abs(b[np.isfinite(b)]), initial=0.0)))
+        assert a.shape == b.shape and np.allclose(a, b, rtol=RTOL, atol=RTOL * scale), field
+    assert np.isclose(x.joint_min, y.joint_min, rtol=RTOL, atol=RTOL)
 
 
 def _builds(monkeypatch, cb: CollisionBarriers) -> list[int]:  # type: ignore[no-untyped-def]

@@ -1,9 +1,9 @@
-"""``CollisionBarriers.lie_rows``: a tick's filter rows in one pass, equal to ``lie(rows(...))`` bit for bit.
+"""``CollisionBarriers.lie_rows``: a tick's filter rows in one pass, equal to ``lie(rows(...))``.
 
 The simulation's barrier phase takes its rows from ``lie_rows`` when no observer records the step
 (the compiled path then builds no ``NearPairs``); recorded runs and the predictive off trigger's
 rollout take ``rows()`` and ``lie()``. These tests pin the two ways to each other and to the numpy
-path: the Lie data (``h``, ``lf``, ``lg``, ``grad_norm`` bytes, names) and what the tick's
+path: the Lie data (``h``, ``lf``, ``lg``, ``grad_norm`` to ``RTOL``, names exactly) and what the tick's
 accounting reads (near rows, minima, the smallest joint value), at random states, along a path
 with the coherence bounds, with mocap obstacles, with coinciding witness points, and with no pair
 near; that the compiled path's outputs stay fresh over many calls; and that a run is the same
@@ -31,13 +31,23 @@ def _bytes(a: np.ndarray) -> tuple[tuple[int, ...], str, bytes]:
     return a.shape, a.dtype.str, a.tobytes()
 
 
+RTOL = 1e-12
+"""The compiled and numpy paths: the same formulas, equal to rounding (the kernel's norm is numba's)."""
+
+
+def _close(a, b) -> bool:  # type: ignore[no-untyped-def]
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    scale = max(1.0, float(np.max(np.abs(b[np.isfinite(b)]), initial=0.0)))
+    return a.shape == b.shape and bool(np.allclose(a, b, rtol=RTOL, atol=RTOL * scale))
+
+
 def _assert_tick_equals_rows(t, r, lie) -> None:  # type: ignore[no-untyped-def]
-    """``t`` (a TickRows) equal to ``rows()``'s ``r`` and its ``lie`` in every byte."""
+    """``t`` (a TickRows) equal to ``rows()``'s ``r`` and its ``lie``: rows and names exactly, numbers to ``RTOL``."""
     for f in ("h", "lf", "lg", "grad_norm"):
-        assert _bytes(getattr(t.lie, f)) == _bytes(getattr(lie, f)), f
+        assert _close(getattr(t.lie, f), getattr(lie, f)), f
     assert t.lie.names == lie.names
     assert type(t.row_list) is tuple and t.row_list == tuple(r.near.row_list) and _bytes(t.rows) == _bytes(r.near.rows)
-    assert (t.h_min, t.dist_min, t.joint_min) == (r.near.h_min, r.near.dist_min, r.joint_min)
+    assert _close([t.h_min, t.dist_min, t.joint_min], [r.near.h_min, r.near.dist_min, r.joint_min])
 
 
 def _barriers(scene, jit: bool, cutoff: float | None = None, self_collision: bool = False) -> CollisionBarriers:  # type: ignore[no-untyped-def]
