@@ -47,8 +47,8 @@ def _fix(spec: FilterSpec, period: float) -> str:
         v = _up(need)
         return f"{what}: horizon = {v:g} (--horizon {v:g})"
     v = _up(max(1.5 * h, need))
-    return (f"lengthen the predictive horizon (now {h:g} s): horizon = {v:g} (--horizon {v:g}), "
-            f"or design the off margin: min_off = {CHATTER_OFF_S:g} (--min-off {CHATTER_OFF_S:g})")
+    return (f"design the off margin: min_off = {CHATTER_OFF_S:g} (--min-off {CHATTER_OFF_S:g}), or lengthen the "
+            f"predictive horizon (now {h:g} s; a longer one costs tracking error): horizon = {v:g} (--horizon {v:g})")
 
 
 def chatter_risk(spec: FilterSpec, period: float) -> str | None:
