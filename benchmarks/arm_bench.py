@@ -26,7 +26,7 @@ honest QP cost: every solve of the step with its polish and checks, from
 present, panda_pole with 64 extra far-away spheres is compared to panda_pole itself (broad-phase
 cost, the same step clock): the arm's own cost per step (the step minus one ``mj_step`` of the same
 episode) with and without them, since MuJoCo's own collision of the spheres makes ``mj_step`` itself
-dearer (see :func:`bench_far`). panda_pole's isf also runs without its scene's options (the predictive
+dearer (see :func:`bench_far`). panda_pole's isf also runs without its designed options (the predictive
 off trigger, then the hand-over too), to show what they cost per step (:func:`bench_isf_options`).
 
 Results go to ``BENCHMARKS.md`` between the ``arm-bench`` markers (written atomically), with
@@ -173,13 +173,14 @@ def bench_backends(args: argparse.Namespace) -> dict:
             for b, rs in runs.items()}
 
 
-ISF_VARIANTS = (("scene's options", {}), ("no predictive off trigger (horizon 0)", {"horizon": 0.0}),
+ISF_VARIANTS = (("designed options", {}), ("no predictive off trigger (horizon 0)", {"horizon": 0.0}),
                 ("neither trigger nor hand-over (horizon 0, blend 0)", {"horizon": 0.0, "blend": 0.0}))
 
 
 def bench_isf_options(args: argparse.Namespace) -> list[dict]:
-    """panda_pole's isf with its options (models/panda_pole.toml: the predictive off trigger and the
-    hand-over) and without them, each figure as in :func:`bench_scene`: what the options cost per step."""
+    """panda_pole's isf with its options (the predictive off trigger and the hand-over, designed from the
+    scene: :mod:`isf_robot.arm.filter_design`) and without them, each figure as in :func:`bench_scene`:
+    what the options cost per step."""
     scene = load_scene("panda_pole")
     out = []
     for label, kw in ISF_VARIANTS:
@@ -274,9 +275,9 @@ def render(scenes: list[dict], backends: dict, far: dict | None, args: argparse.
     for b, d in backends.items():
         out.append(f"| {b} | {d['us']:.1f} | {d['qp']:.1f} | {d['solver']:.1f} |")
     if options:
-        out += ["", "The intermittent filter's options on panda_pole (its scene file sets a predictive off trigger, "
-                "`horizon = 0.3` s with a rollout of 10 points at most every 5 steps while it holds, and a hand-over "
-                "`blend = 0.05` s; issue 13): the isf step with and without them, measured as above:", "",
+        out += ["", "The intermittent filter's options on panda_pole (designed from the scene: a predictive off "
+                "trigger, `horizon = 0.26` s with a rollout at most every 5 steps while it holds, and a hand-over "
+                "`blend = 0.15` s): the isf step with and without them, measured as above:", "",
                 "| isf on panda_pole | us/step | mj_step [us] | x mj_step | strategy [us] | duty | on switches |",
                 "|---|---|---|---|---|---|---|"]
         out += [f"| {o['label']} | {o['us']:.1f} | {o['mj_us']:.2f} | **{o['ratio']:.1f}** | {o['strategy']:.1f} | "
