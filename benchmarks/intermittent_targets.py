@@ -6,7 +6,8 @@
 
 Runs ``cbf`` and ``isf`` with every scene's shipped parameters (no scene sets the intermittent
 options: the hand-over and the predictive horizon are designed from the scene,
-:mod:`isf_robot.arm.filter_design`; ``d_bar`` as the scene resolves it: config or the tracking calibration) on seeds 0..N-1 at the scene's full episode length, through
+:mod:`isf_robot.arm.filter_design`; ``d_bar`` as the scene resolves it: config or the tracking
+calibration) on seeds 0..N-1 at the scene's full episode length, through
 :func:`isf_robot.arm.sweep.run_sweep`, and writes one table per target into RESULTS.md between
 the ``<!-- MARKER:start -->`` / ``<!-- MARKER:end -->`` markers (``--no-write``: print only).
 ``--json`` also writes the whole sweep (every episode) for ``isf-robot plot pareto``.

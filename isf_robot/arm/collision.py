@@ -307,9 +307,9 @@ class CollisionBarriers(NarrowPhase):
                  coherence: JointCoherence | None = None, witness: bool = False) -> TickRows:
         """``lie(rows(...))`` with what a control tick's accounting needs of ``rows(...)``, in one pass.
 
-        The same Lie data (computed once, by the same path), and ``near.rows``, ``near.row_list`` (as a tuple), ``near.h_min``,
-        ``near.dist_min``, ``joint_min`` of :meth:`rows` (arguments as there; the near pairs' witness
-        points with ``witness``): the simulation's barrier phase. The compiled path builds no
+        The same Lie data (computed once, by the same path), and ``near.rows``, ``near.row_list`` (as a
+        tuple), ``near.h_min``, ``near.dist_min``, ``joint_min`` of :meth:`rows` (arguments as there; the
+        near pairs' witness points with ``witness``): the simulation's barrier phase. The compiled path builds no
         :class:`NearPairs` (nor its views of ``h``, ``dh/dq``, ``dh/dt``) for it.
         """
         if self._kernel is not None:

@@ -26,9 +26,6 @@ SKY_TOP = (0.42, 0.62, 0.85)
 """Colour of the added sky at the zenith (a gradient to :data:`SKY_BOTTOM` at the horizon and below)."""
 SKY_BOTTOM = (0.93, 0.95, 0.98)
 
-def _is_visual(model: Any, g: int) -> bool:
-    return int(model.geom_contype[g]) == 0 and int(model.geom_conaffinity[g]) == 0
-
 
 def hidden_collision_geoms(model: Any) -> np.ndarray:
     """Collision geoms whose body (not the world) also has visual geoms (``contype = conaffinity = 0``)."""

@@ -198,4 +198,5 @@ def _write_config(path: str, sweep: dict[str, Any]) -> None:
     write_text_atomic(txt, format_sweep(sweep) + "\n")
     text = filter_section(sweep["scenes"][0], sweep["seeds"], f"{js.name}, {txt.name}")
     write_text_atomic(toml, text)
-    print(f"wrote {toml} (the chosen [filter]) and its evidence {js.name}, {txt.name}:\n{text}", file=sys.stderr, end="")
+    print(f"wrote {toml} (the chosen [filter]) and its evidence {js.name}, {txt.name}:\n{text}", file=sys.stderr,
+          end="")

@@ -216,7 +216,6 @@ class IntermittentSafetyFilter(_FilterBase):
         self.fall_rate.reset()
         if self.predictor is not None:
             self.predictor.reset()
-        self._t_on: float | None = None
         self._t_off: float | None = None
         self._u_prev: np.ndarray | None = None
         self._u_handover: np.ndarray | None = None
@@ -256,9 +255,7 @@ class IntermittentSafetyFilter(_FilterBase):
         event = trigger.update(t, xi_min, c, not held)
         bound = None
         if event is not None:
-            if event.kind == "on":
-                self._t_on = t
-            else:
+            if event.kind == "off":
                 self._t_off, self._u_handover = t, self._u_prev
                 self._ramp.clear()
                 self._t_ramp = None

@@ -14,9 +14,9 @@ import time
 import pytest
 
 from isf_robot.arm.compare import SceneSpec
-from isf_robot.paths import models_dir
 from isf_robot.arm.sweep import SweepPoint, run_sweep
 from isf_robot.cli import main
+from isf_robot.paths import models_dir
 
 pytestmark = pytest.mark.usefixtures("arm_compiled")  # (compiled before a clock starts: tests/conftest.py)
 

@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-import tomllib
-
 import pytest
+import tomllib
 
 from isf_robot.arm.tune import choose_point, filter_section, missed_targets
 
