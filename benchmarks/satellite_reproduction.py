@@ -18,6 +18,11 @@ Parts (each a paired study, :func:`satellite.study.paired.run_study`, over the s
   x0.25 and x0.5, the degree-8 series, alpha x0.1, the shooting controller) against the default;
 * ``check``: 24 h, 3 starts, greedy / maneuver / periodic: small enough to rerun in CI (``--check``).
 
+Three more parts regenerate the other figures: ``tau`` (the two tau_p files, ``isf-satellite tau``;
+the studies read them, so it runs first), ``field`` (the default field's largest error against the
+exact one, ``benchmarks/satellite_field_worst.py``) and ``figures`` (``scripts/satellite_figures.py``:
+the paper's Figs. 2-4 and their data, ``docs/figures/satellite_figures.json``).
+
 Each part's study document is written to ``docs/figures/satellite_repro_<part>.json`` (atomically,
 after every orbit; an interrupted part resumes from it with ``--resume``). The tables between the
 ``<!-- repro:NAME:start -->`` / ``end`` markers of REPRODUCTION.md are rendered from those files.
@@ -34,6 +39,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import subprocess
 import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
@@ -98,6 +104,32 @@ def parts() -> dict[str, Part]:
         "check": Part("check", (Study("check", _kepler("greedy", "maneuver", "periodic"),
                                       StudySettings(hours=24.0, tau=TAU), tuple(CHECK_STARTS)),)),
     }
+
+
+TAU_COMMANDS = {
+    "kepler": ["tau", "--samples", "100"],
+    "shooting": ["tau", "--samples", "20", "--max-hours", "48", "--controller", "shooting"],
+}
+"""``isf-satellite`` arguments that make each controller's tau_p file (``--out`` and ``--workers`` added)."""
+OTHER_PARTS = ("tau", "field", "figures")
+
+
+def run_other(name: str, workers: int) -> None:
+    """The parts that are not studies: the tau_p files, the field's worst error, the figures."""
+    if name == "tau":
+        from satellite.cli import main as satellite_main
+
+        for ctrl, args in TAU_COMMANDS.items():
+            code = satellite_main([*args, "--workers", str(workers), "--out", TAU[ctrl]])
+            if code:
+                raise SystemExit(f"isf-satellite {' '.join(args)} failed ({code})")
+    elif name == "field":
+        import satellite_field_worst
+
+        doc = satellite_field_worst.run(1500, 8, 0)
+        write_text_atomic(part_file("field"), json.dumps(doc, indent=1) + "\n")
+    elif name == "figures":
+        subprocess.run([sys.executable, str(ROOT / "scripts" / "satellite_figures.py")], check=True)
 
 
 def part_file(name: str) -> Path:
@@ -266,9 +298,56 @@ def table_check(doc: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def table_field(doc: Mapping[str, Any]) -> str:
+    lines = ["| region of the band (distance to the surface) | random points: median / max | largest found by "
+             "the search | where: r / R, distance |", "|---|---|---|---|"]
+    for r in doc["regions"]:
+        lines.append(f"| {r['region']} | {100 * r['random_median']:.3g} / {100 * r['random_max']:.3g} % | "
+                     f"**{100 * r['searched_max']:.3g} %** | {r['at_r_over_R']:.3f} R, {r['at_distance_m']:.1f} m |")
+    lines += ["", f"Largest error found: **{100 * doc['max']:.2g} %** of the non-Kepler pull ({doc['candidates']} "
+              f"random points per region, the {doc['starts']} worst refined by Nelder-Mead; "
+              f"{doc['evaluations']} exact evaluations; seed {doc['seed']})."]
+    return "\n".join(lines)
+
+
+def _tau_fit(coef: list[float], s: float) -> float:
+    return sum(c * s**k for k, c in enumerate(coef)) / 3600.0
+
+
+def table_tau() -> str:
+    lines = []
+    for ctrl, path in TAU.items():
+        d = json.loads(Path(path).read_text())
+        r, med, x = d["radii_over_R"], d["median_h"], d["h_over_h_max"]
+        coef = d["fit"]["coef_s"]
+        lines += [f"**{ctrl} controller** ({d['samples']} states per radius, censored at {d['max_hours']:g} h: "
+                  f"{sum(d['censored'])} samples; fit tau_p = " + " + ".join(
+                      f"{c:.0f} s" + ("" if k == 0 else " * s" if k == 1 else f" * s^{k}") for k, c in enumerate(coef))
+                  + ", s = h / h_max)", "",
+                  "| r/R | " + " | ".join(f"{v:.2f}" for v in r) + " |", "|---" * (len(r) + 1) + "|",
+                  "| median [h] | " + " | ".join(f"{v:.2f}" for v in med) + " |",
+                  "| fit [h] | " + " | ".join(f"{_tau_fit(coef, v):.2f}" for v in x) + " |", ""]
+    return "\n".join(lines).rstrip()
+
+
+def table_figures() -> str:
+    d = json.loads((FIGURES / "satellite_figures.json").read_text())
+    st = d["settings"]
+    lines = [f"Seed {st['seed']}, inclination {st['inclination_deg']:g} deg, {st['hours']:g} h, "
+             f"{st['controller']} controller, field `{st['gravity']}`:", "",
+             "| trigger | impulses (kinds) | shortest / mean inter-event [h] | min h [m^2] | surface contacts |",
+             "|---|---|---|---|---|"]
+    for k in ("greedy", "maneuver"):
+        g = d[k]
+        kinds = ", ".join(f"{a} {b}" for a, b in sorted(g["kinds"].items()))
+        lines.append(f"| {k} | {g['triggers']} ({kinds}) | {g['min_inter_event_h']:.3f} / "
+                     f"{g['mean_inter_event_h']:.2f} | {g['min_h']:.0f} | {g['surface_contacts']} |")
+    return "\n".join(lines)
+
+
 def render() -> None:
     """Rewrite every generated block of REPRODUCTION.md from the committed part files."""
-    studies = {name: _load(name) or {} for name in parts()}
+    studies = {name: _load(name) or {} for name in parts() if name not in OTHER_PARTS}
     blocks: dict[str, Callable[[], str]] = {"paper": lambda: table_paper(studies)}
     if studies["headline"]:
         blocks["headline"] = lambda: table_study(studies["headline"]["headline"])
@@ -279,6 +358,10 @@ def render() -> None:
                                                           studies["shooting"].get("shooting"))
     if studies["check"]:
         blocks["check"] = lambda: table_check(studies["check"]["check"])
+    if part_file("field").exists():
+        blocks["field"] = lambda: table_field(json.loads(part_file("field").read_text()))
+    blocks["tau"] = table_tau
+    blocks["figures"] = table_figures
     text = DOC.read_text(encoding="utf-8")
     for name, make in blocks.items():
         start, end = f"<!-- repro:{name}:start -->", f"<!-- repro:{name}:end -->"
@@ -321,8 +404,9 @@ def check() -> int:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--parts", nargs="+", choices=list(parts()), default=list(parts()), metavar="PART",
-                    help=f"parts to run, of {', '.join(parts())} (default all)")
+    order = ["tau", "headline", "shooting", "sensitivity", "check", "field", "figures"]
+    ap.add_argument("--parts", nargs="+", choices=order, default=order, metavar="PART",
+                    help=f"parts to run, in this order, of {', '.join(order)} (default all)")
     ap.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
     ap.add_argument("--resume", action="store_true", help="keep the finished orbits of the parts' files")
     ap.add_argument("--render", action="store_true", help="only rewrite REPRODUCTION.md's tables")
@@ -334,8 +418,11 @@ def main(argv: list[str] | None = None) -> int:
     if a.check:
         return check()
     if not a.render:
-        for name in a.parts:
-            run_part(parts()[name], a.workers, a.resume, a.quiet)
+        for name in sorted(set(a.parts), key=order.index):
+            if name in OTHER_PARTS:
+                run_other(name, a.workers)
+            else:
+                run_part(parts()[name], a.workers, a.resume, a.quiet)
     render()
     return 0
 
