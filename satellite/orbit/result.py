@@ -7,8 +7,8 @@ Split from :mod:`satellite.orbit.simulate` (which re-exports :class:`RunResult` 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np

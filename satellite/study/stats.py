@@ -19,7 +19,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["paired_t_ci", "bootstrap_ci", "summarize_config", "paired_comparison", "paired_physical", "plain_change", "format_study"]
+__all__ = ["paired_t_ci", "bootstrap_ci", "summarize_config", "paired_comparison", "paired_physical", "plain_change",
+           "format_study"]
 
 BOOTSTRAP_RESAMPLES = 10_000
 
@@ -55,7 +56,7 @@ def bootstrap_ci(values: Sequence[float], level: float = 0.95, resamples: int = 
     return float(lo), float(hi)
 
 
-def _stats(v: Sequence[float]) -> dict[str, float | None]:
+def _stats(v: Sequence[float | None]) -> dict[str, float | None]:
     x = np.asarray([a for a in v if a is not None], dtype=float)
     if x.size == 0:
         return {"mean": None, "sd": None, "min": None, "max": None}

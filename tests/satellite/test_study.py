@@ -17,8 +17,14 @@ import pytest
 from satellite.cli import main as satellite_main
 from satellite.orbit.model import OrbitModel
 from satellite.study.paired import StudySettings, plan, run_study
-from satellite.study.stats import (bootstrap_ci, paired_comparison, paired_physical, paired_t_ci, plain_change,
-                                   summarize_config)
+from satellite.study.stats import (
+    bootstrap_ci,
+    paired_comparison,
+    paired_physical,
+    paired_t_ci,
+    plain_change,
+    summarize_config,
+)
 
 SATELLITE = [sys.executable, "-c", "import sys; from satellite.cli import main; sys.exit(main())"]
 
