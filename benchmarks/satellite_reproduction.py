@@ -194,7 +194,7 @@ def _cmp(doc: Mapping[str, Any], a: str, b: str) -> Mapping[str, Any]:
     for c in doc["comparisons"]:
         if c["a"] == a and c["b"] == b:
             return c
-    by = {}
+    by: dict[str, list[dict[str, Any]]] = {}
     for r in doc["runs"]:
         by.setdefault(r["config"], []).append(r)
     return {"a": a, "b": b, **paired_comparison(by.get(a, []), by.get(b, []))}
