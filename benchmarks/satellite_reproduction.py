@@ -244,7 +244,7 @@ def table_paper(studies: Mapping[str, Any]) -> str:
 
 
 def table_study(doc: Mapping[str, Any]) -> str:
-    lines = ["| configuration | orbits | impulses before contact, per 100 h | flight to first contact [h] | "
+    lines = ["| configuration | orbits flown to the end | impulses before contact, per 100 h | physical flight [h] | "
              "orbits with contact | whole run: impulses | whole run: dv [m/s] | tau impulses | min Xi_tau | "
              "band exits |", "|---|---|---|---|---|---|---|---|---|---|"]
     for c in doc["configs"]:
@@ -270,7 +270,8 @@ def _f0(v: float | None) -> str:
 
 def table_sensitivity(studies: Mapping[str, Any], shoot: Mapping[str, Any] | None) -> str:
     lines = ["| setting (240 h greedy, 51 starts; one change from the default) | impulses per 100 h, before "
-             "contact | impulses per 100 h, whole run | flight to first contact [h] | orbits with contact |",
+             "contact | impulses per 100 h, whole run | physical flight [h] (to the first contact, else the "
+             "whole run) | orbits with contact |",
              "|---|---|---|---|---|"]
     rows = [(d.get("label") or k.removeprefix("sensitivity "), d, "greedy/kepler") for k, d in studies.items()]
     if shoot:
