@@ -31,7 +31,7 @@ after every orbit; an interrupted part resumes from it with ``--resume``). The t
 and kinds exactly, ``total_dv``, ``min_h`` and the physical flight to a relative ``1e-4`` (the measured
 spread of last-bit rounding between CPUs over 12-24 h; ``tests/golden``). Exit status 1 on a difference.
 
-Use ``--workers 1`` on a shared machine (the default); the whole set takes about an hour of one core.
+Use ``--workers 1`` on a shared machine (the default); the whole set takes about four hours of one core.
 """
 
 from __future__ import annotations
@@ -210,6 +210,10 @@ def _partial(doc: Mapping[str, Any]) -> str:
     return f" (partial: {doc['orbits_done']} of {doc['orbits_total']} orbits)" if doc.get("partial") else ""
 
 
+def _partial_note(doc: Mapping[str, Any]) -> str:
+    return f"\n\nPartial: {doc['orbits_done']} of {doc['orbits_total']} orbits." if doc.get("partial") else ""
+
+
 def table_paper(studies: Mapping[str, Any]) -> str:
     head = studies.get("headline", {}).get("headline")
     shoot = studies.get("shooting", {}).get("shooting")
@@ -261,7 +265,7 @@ def table_study(doc: Mapping[str, Any]) -> str:
         lines.append(f"| {c['a']} against {c['b']} | {ph['n']}, {_f0(ph['horizon_h']['mean'])} h | "
                      f"{plain_change(ph['triggers'])} | {plain_change(ph['total_dv'])} | {c['n']} | "
                      f"{plain_change(c['triggers'])} | {plain_change(c['total_dv'])} |")
-    return "\n".join(lines) + _partial(doc)
+    return "\n".join(lines) + _partial_note(doc)
 
 
 def _f0(v: float | None) -> str:
