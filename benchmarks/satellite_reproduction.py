@@ -233,8 +233,9 @@ def table_paper(studies: Mapping[str, Any]) -> str:
         lines += [
             f"| greedy: {PAPER_TRIGGERS['greedy']} triggers (one per {2400 / PAPER_TRIGGERS['greedy']:.1f} h) | "
             f"before the first surface contact: {_ms(g['physical_per_100h'], '.1f')} per 100 h over {n} orbits "
-            f"(the paper's rate: {100 * PAPER_TRIGGERS['greedy'] / 2400:.1f}); first contact after "
-            f"{_ms(g['physical_h'], '.0f')} h; over the whole 2400 h, through the body: {_ms(g['triggers'])} | "
+            f"(the paper's rate: {100 * PAPER_TRIGGERS['greedy'] / 2400:.1f}); {g['orbits_with_contact']} of "
+            f"{g['orbits']} orbits touch the surface, the physical flight lasting {_ms(g['physical_h'], '.0f')} h; "
+            f"over the whole 2400 h, through the body: {_ms(g['triggers'])} impulses | "
             "\"The paired study\", \"Why more triggers than the paper\" |",
             f"| maneuver: {PAPER_TRIGGERS['maneuver']} triggers, 19.5 % fewer than greedy | "
             f"before contact: **{plain_change(gm['physical']['triggers'], 'impulses')}** than greedy "
