@@ -15,6 +15,7 @@ Parts (each a paired study, :func:`satellite.study.paired.run_study`, over the s
 * ``headline``: 2400 h (the paper's length), greedy, maneuver and periodic (every 0.25 h), Kepler controller;
 * ``shooting``: 240 h, greedy, maneuver and periodic (every hour) with the shooting controller, and
   greedy and maneuver with the Kepler controller, paired;
+* ``shooting2400``: 2400 h, greedy and maneuver with the shooting controller, the 17 starts at 45 deg;
 * ``sensitivity``: 240 h greedy, Kepler controller, one setting changed at a time (no spin, disturbance
   x0.25 and x0.5, the degree-8 series, alpha x0.1, the shooting controller) against the default;
 * ``check``: 24 h, 3 starts, greedy / maneuver / periodic: small enough to rerun in CI (``--check``).
@@ -104,6 +105,10 @@ def parts() -> dict[str, Part]:
                                                          *_kepler("greedy", "maneuver"),
                                                          StudyConfig("periodic", "shooting", SHOOTING_PERIOD_H)),
                                             base240),)),
+        "shooting2400": Part("shooting2400", (Study("shooting 2400 h", (StudyConfig("greedy", "shooting"),
+                                                                        StudyConfig("maneuver", "shooting")),
+                                                    StudySettings(hours=2400.0, tau=TAU),
+                                                    tuple(s for s in STARTS if s[1] == 45.0)),)),
         "sensitivity": Part("sensitivity", tuple(Study(f"sensitivity {k}", _kepler("greedy"), s, label=k)
                                                  for k, s in sens)),
         "check": Part("check", (Study("check", _kepler("greedy", "maneuver", "periodic"),
@@ -371,6 +376,8 @@ def render() -> None:
         blocks["headline"] = lambda: table_study(studies["headline"]["headline"])
     if studies["shooting"]:
         blocks["shooting"] = lambda: table_study(studies["shooting"]["shooting"])
+    if studies["shooting2400"]:
+        blocks["shooting2400"] = lambda: table_study(studies["shooting2400"]["shooting 2400 h"])
     if studies["sensitivity"]:
         blocks["sensitivity"] = lambda: table_sensitivity(studies["sensitivity"],
                                                           studies["shooting"].get("shooting"))
@@ -422,7 +429,7 @@ def check() -> int:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    order = ["tau", "headline", "shooting", "sensitivity", "check", "field", "figures"]
+    order = ["tau", "headline", "shooting", "shooting2400", "sensitivity", "check", "field", "figures"]
     ap.add_argument("--parts", nargs="+", choices=order, default=order, metavar="PART",
                     help=f"parts to run, in this order, of {', '.join(order)} (default all)")
     ap.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
