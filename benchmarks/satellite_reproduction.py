@@ -262,6 +262,16 @@ def table_paper(studies: Mapping[str, Any]) -> str:
                   f"**{plain_change(c['physical']['triggers'], 'impulses')}** than greedy; greedy/shooting "
                   f"{plain_change(k['physical']['triggers'], 'impulses')} than greedy/Kepler{pp} | "
                   "\"The shooting controller\" |"]
+    s24 = studies.get("shooting2400", {}).get("shooting 2400 h")
+    if s24:
+        g = _summary(s24, "greedy/shooting")
+        c = _cmp(s24, "maneuver/shooting", "greedy/shooting")
+        lines.append(f"| greedy 267, maneuver 215 (19.5 % fewer) | shooting controller, 2400 h, "
+                     f"{g['orbits']} starts at "
+                     f"45 deg: greedy {_ms(g['physical_per_100h'], '.1f')} impulses per 100 h before contact, "
+                     f"{_ms(g['triggers'])} over the whole 2400 h; maneuver before contact "
+                     f"**{plain_change(c['physical']['triggers'], 'impulses')}** than greedy | "
+                     "\"The shooting controller\" |")
     return "\n".join(lines)
 
 
