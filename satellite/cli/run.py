@@ -203,6 +203,8 @@ def format_text(res: RunResult) -> str:
             f"{f(c['first_contact_h'], '.4g')} h; {c['envelope_passes']} pass(es) near the surface, "
             f"min clearance {f(c['min_pass_clearance_m'], '.3g')} m){' - run stopped' if c['contact_stopped'] else ''}",
             f"contact model      {c['contact_model']}",
+            f"before contact     {c['triggers_physical']} impulse(s), {c['total_dv_physical']:.6g} m/s in "
+            f"{c['physical_h']:.4g} h (the physical flight: a run that touched the surface goes on through it)",
         ]
     if res.surface_barrier is not None:
         b = res.surface_barrier

@@ -75,7 +75,7 @@ def shell_continued(x: float, y: float, z: float, ext: NDArray[np.float64], r_lo
     table's radii ``[1.5625 R, 2.4375 R]``; only DOP853's stage and trial points of steps near the
     band's edges reach outside (``r/R`` 1.47-2.56 at ``--alpha-gain`` x100), within ~0.12 R, where
     this answers to a fraction of a per cent of the non-Kepler part (measured against the exact
-    field outside the body: REPRODUCTION.md, "The table outside its radii"), and the step's
+    field outside the body: REPRODUCTION.md, "The truth field and its accuracy"), and the step's
     accepted point is back in the band. An accepted point outside the radii lies past a band exit,
     which the run reports (``none`` and ``periodic`` stop at the first exit, ``greedy`` and
     ``maneuver`` count ``band_exits``); beyond it the field is this continuation, not the exact

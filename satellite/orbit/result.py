@@ -7,6 +7,7 @@ Split from :mod:`satellite.orbit.simulate` (which re-exports :class:`RunResult` 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -175,22 +176,29 @@ def miet_estimate(
     return MietReport(consts.bound_s, rate.bound_s, consts.lipschitz_xi, rate.rate_bound, d_flow)
 
 
-def contact_report(mode: str, watch: Any, track: Tracker, stopped: float | None) -> dict[str, Any] | None:
+def contact_report(mode: str, watch: Any, track: Tracker, stopped: float | None,
+                   jumps: Sequence[JumpEvent] = (), simulated_s: float = 0.0) -> dict[str, Any] | None:
     """The contact report of a run (``None`` when off).
 
     Keys: ``contact_mode``, ``contact_model``, ``surface_contacts`` (passes into the shape),
     ``first_contact_h``, ``contact_stopped`` (the run ended at a contact), ``envelope_passes``
     and ``min_pass_clearance_m`` (smallest radial clearance sampled inside the envelope; < 0 is a
-    depth).
+    depth); and the run's physical part, its flight before the first contact (all of it without
+    one): ``physical_h`` [h], ``triggers_physical`` and ``total_dv_physical`` [m/s] (the impulses
+    before that time).
     """
     if watch is None:
         return None
     clear = track.min_pass_clearance
+    end = track.contacts[0] if track.contacts else simulated_s
+    before = [float(np.linalg.norm(j.v)) for j in jumps if j.t < end]
     return {
         "contact_mode": mode, "contact_model": watch.surface.name, "surface_contacts": len(track.contacts),
         "first_contact_h": track.contacts[0] / 3600.0 if track.contacts else None,
         "contact_stopped": stopped is not None, "envelope_passes": track.envelope_passes,
         "min_pass_clearance_m": clear if math.isfinite(clear) else None,
+        "physical_h": end / 3600.0, "triggers_physical": len(before),
+        "total_dv_physical": float(sum(before)),
     }
 
 

@@ -285,7 +285,7 @@ def simulate(
         nfev=track.nfev,
         surface=check.report() if check is not None else None,
         band_exits=len(exits),
-        contact=contact_report(contact, watch, track, arcs.stopped),
+        contact=contact_report(contact, watch, track, arcs.stopped, jumps, t),
         shooting=shooting_report(sfilter.nominal if sfilter is not None else ctrl.controller),
         surface_barrier=surface_barrier_report(sfilter, track, policy.surface_fires),
         min_xi_tau=track.xi_tau_min if math.isfinite(track.xi_tau_min) else None,

@@ -20,6 +20,8 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+import numpy as np
+
 from isf_robot.core import ConfigError, UnknownNameError
 from isf_robot.support.parallel import Interrupted, run_tasks
 from satellite.control import controller
@@ -136,13 +138,16 @@ def run_one(task: StudyTask) -> dict[str, Any]:
     keys = ("triggers", "kinds", "min_xi_tau", "min_h", "surface_min_h_m", "surface_impulses", "r_min_over_R",
             "r_max_over_R", "total_dv", "min_inter_event_h",
             "mean_inter_event_h", "miet_bound_h", "left_band_h", "band_exits", "simulated_h", "wall_s", "nfev",
-            "surface_contacts", "min_pass_clearance_m")
+            "surface_contacts", "min_pass_clearance_m", "first_contact_h", "physical_h", "triggers_physical",
+            "total_dv_physical")
     out: dict[str, Any] = {"config": cfg.label, "seed": task.seed, "inclination_deg": task.inclination_deg}
     start = model.with_phase(initial.body_phase())  # as simulate() sets the run up: the pairing's evidence
     out["x0"] = initial.state(start).tolist()
     out["body_phase_rad"] = start.body_phase
     out.update({k: s.get(k) for k in keys})
     out["completed"] = bool(res.simulated_h >= st.hours * (1.0 - 1e-9))
+    end_s = 3600.0 * s["physical_h"]  # the impulses before the first contact, for paired physical counts
+    out["impulses_physical"] = [[j.t / 3600.0, float(np.linalg.norm(j.v))] for j in res.events if j.t < end_s]
     return out
 
 

@@ -114,6 +114,22 @@ def test_stop_ends_the_run_on_the_surface(contact_runs) -> None:  # type: ignore
     assert c["first_contact_h"] == pytest.approx(count.contact["first_contact_h"], abs=1e-9)
     assert stop.simulated_h == pytest.approx(c["first_contact_h"], abs=1e-12) and stop.simulated_h < 20.0
     assert stop.triggers <= count.triggers
+    # the counting run's physical part is the stopping run: the same impulses, up to the same contact
+    assert c["physical_h"] == pytest.approx(c["first_contact_h"], abs=1e-12)
+    pc = count.contact
+    assert pc["physical_h"] == pytest.approx(c["first_contact_h"], abs=1e-9)
+    assert pc["physical_h"] < count.simulated_h
+    assert pc["triggers_physical"] == stop.triggers < count.triggers
+    assert pc["total_dv_physical"] == pytest.approx(stop.total_dv, rel=1e-12)
+    assert c["triggers_physical"] == stop.triggers
+
+
+def test_a_run_without_contact_is_physical_to_its_end() -> None:
+    res = simulate("greedy", 6.0, initial=InitialOrbit(seed=2), miet_samples=50, contact="count",
+                   contact_surface=EllipsoidSurface([100.0, 90.0, 80.0], name="small body"))
+    c = res.contact
+    assert c["surface_contacts"] == 0 and c["first_contact_h"] is None
+    assert c["physical_h"] == pytest.approx(res.simulated_h) and c["triggers_physical"] == res.triggers >= 1
 
 
 def test_unknown_contact_mode_is_refused() -> None:

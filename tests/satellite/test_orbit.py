@@ -46,7 +46,7 @@ def test_kepler_rhs(model: OrbitModel) -> None:
 
 
 def test_disturbance_is_large_at_2R(model: OrbitModel) -> None:
-    # REPRODUCTION.md, "Why the maneuver scheme does not reduce triggers here": about 20 % of the point-mass
+    # REPRODUCTION.md, "When the paper's maneuver can act": about 20 % of the point-mass
     # pull at 2R (median over directions).
     rng = np.random.default_rng(0)
     u = rng.normal(size=(400, 3))

@@ -17,7 +17,14 @@ import pytest
 from satellite.cli import main as satellite_main
 from satellite.orbit.model import OrbitModel
 from satellite.study.paired import StudySettings, plan, run_study
-from satellite.study.stats import bootstrap_ci, paired_comparison, paired_t_ci, summarize_config
+from satellite.study.stats import (
+    bootstrap_ci,
+    paired_comparison,
+    paired_physical,
+    paired_t_ci,
+    plain_change,
+    summarize_config,
+)
 
 SATELLITE = [sys.executable, "-c", "import sys; from satellite.cli import main; sys.exit(main())"]
 
@@ -107,6 +114,33 @@ def test_the_surface_barrier_option_reaches_the_runs_and_keeps_its_barrier_nonne
         assert r["surface_min_h_m"] is not None and r["surface_min_h_m"] >= 0.0
         assert r["surface_contacts"] == 0
     assert guarded["configs"][0]["summary"]["surface_min_h_m"] == min(r["surface_min_h_m"] for r in guarded["runs"])
+
+
+def _run(seed: int, physical_h: float, times: list[float]) -> dict:
+    return {"seed": seed, "inclination_deg": 45.0, "physical_h": physical_h,
+            "impulses_physical": [[t, 0.5] for t in times if t < physical_h]}
+
+
+def test_physical_counts_stop_at_the_pairs_earlier_contact() -> None:
+    """Known answer: each pair is counted up to the earlier of its two ends; nothing after a contact enters."""
+    a0, b0 = _run(0, 5.0, [1, 2, 3, 10]), _run(0, 8.0, [1, 4, 6, 7])  # horizon 5 h: a 3, b 2 impulses
+    a1, b1 = _run(1, 20.0, [2, 4, 6, 8]), _run(1, 9.0, [1, 3, 5, 7, 11])  # horizon 9 h: a 4, b 4
+    a2, b2 = _run(2, 0.0, []), _run(2, 9.0, [1])  # a touched at once: no physical flight, left out
+    out = paired_physical([(a0, b0), (a1, b1), (a2, b2)])
+    assert out["n"] == 2 and out["horizon_h"]["mean"] == pytest.approx(7.0)
+    assert out["triggers"]["mean"] == pytest.approx(((1 - 3 / 2) + 0.0) / 2)  # -25 %: a fired more
+    assert out["total_dv"]["mean"] == pytest.approx(out["triggers"]["mean"])  # every impulse 0.5 m/s
+    assert out["triggers"]["fewer"] == 0
+
+
+@pytest.mark.parametrize("mean, ci, want", [
+    (-0.074, [-0.122, -0.025], "7.4 % more impulses (95 % CI 2.5 % to 12.2 % more)"),
+    (0.669, [0.630, 0.708], "66.9 % fewer impulses (95 % CI 63.0 % to 70.8 % fewer)"),
+    (-0.006, [-0.022, 0.009], "0.6 % more impulses (95 % CI 2.2 % more to 0.9 % fewer)"),
+    (0.0, [0.0, 0.0], "0.0 % impulses"),
+])
+def test_changes_read_as_fewer_or_more(mean: float, ci: list[float], want: str) -> None:
+    assert plain_change({"mean": mean, "ci_t": ci}, "impulses") == want
 
 
 def test_finished_runs_of_an_earlier_study_are_kept(tmp_path: Path) -> None:
