@@ -32,8 +32,8 @@ CASES["satellite-surface-12h"] = ["isf-satellite", "run", "--trigger", "greedy",
 
 # The long satellite case is chaotic: a change of rounding of 1e-15 (another CPU's SIMD/BLAS kernels,
 # a reordered sum) flips an adaptive step's accept/reject decision and, within ~60 h, the trajectory;
-# over 200 h the same start perturbed by 1e-13 R gives 90-115 impulses (REPRODUCTION.md, "Golden
-# satellite cases"). Its orbit-dependent fields are compared with these tolerances; every other
+# over 200 h the same start perturbed by 1e-13 R gives 90-115 impulses (measured when these
+# tolerances were set). Its orbit-dependent fields are compared with these tolerances; every other
 # field (settings, margins, MIET figures, band exits, holds, the case's shape) exactly as the
 # arm cases. The 12 h cases keep every field; surface-12h's floats to MACHINE_RTOL, not RTOL (below).
 # Spec: ("rel", r): |got - want| <= r |want|; ("range", lo, hi): lo <= got <= hi; ("any",): not compared.
