@@ -33,7 +33,6 @@ a screened row is never promoted; the trigger always sees every row's ``Xi_on``.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -54,6 +53,7 @@ __all__ = ["FilterStep", "SafetyFilter", "IntermittentSafetyFilter"]
 
 _NONE_B = np.zeros(0, bool)
 _NONE_F = np.zeros(0)
+_SPEC = FilterSpec()  # (the defaults of the options below: FilterSpec's, stated once)
 
 
 class SafetyFilter(_FilterBase):
@@ -157,7 +157,7 @@ class IntermittentSafetyFilter(_FilterBase):
         alpha: ClassK | float | Callable[[float], float],
         c: float,
         b: float,
-        d_bar: float = 0.0,
+        d_bar: float = _SPEC.d_bar,
         *,
         system: ControlAffineSystem | None = None,
         barriers: Sequence[Barrier] | None = None,
@@ -170,11 +170,11 @@ class IntermittentSafetyFilter(_FilterBase):
         screen: float | np.ndarray | None = None,
         t0: float = 0.0,
         min_off: float | None = None,
-        c_max: float = math.inf,
-        fall_rate_prior: float = 0.0,
-        fall_rate_forget: float = 2.0,
+        c_max: float = _SPEC.c_max,
+        fall_rate_prior: float = _SPEC.fall_rate_prior,
+        fall_rate_forget: float = _SPEC.fall_rate_forget,
         rollout: RolloutFn | None = None,
-        predict_every: int = 5,
+        predict_every: int = _SPEC.predict_every,
         blend: float = 0.0,
         c_pred: float | None = None,
     ) -> None:
