@@ -77,10 +77,7 @@ def targets(cbf: dict[str, Any], isf: dict[str, Any], k: Any = "?") -> list[tupl
     times = "" if t_i is None else f"; time to goal {k}: {_f(t_i, '.2f')} vs {_f(t_c, '.2f')} s"
     out.append(("goals >= cbf's (within 0.1)",
                 f"{g_i:.2f} vs {g_c:.2f}, " + ("met" if met else f"missed by {g_c - 0.1 - g_i:.2f}") + times, met))
-    if t_i is not None and t_c:
-        met = t_i <= 1.05 * t_c
-        out.append(("time to the goals <= cbf's + 5 %", f"{t_i / t_c:.2f}x ({t_i:.2f} vs {t_c:.2f} s, goal {k}), "
-                    + ("met" if met else f"missed by {t_i / t_c - 1.05:.2f}"), met))
+    ratio("goals_time_s", 1.05, "time to the goals <= cbf's + 5 %")  # (always a row: the table is by position)
     ratio("intervention", 1.2, "intervention <= 1.2x cbf")
     v = isf["violations"]
     out.append(("zero violations (true geometry)", f"{v} (cbf {cbf['violations']}), " + ("met" if v == 0 else "missed"),

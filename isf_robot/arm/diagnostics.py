@@ -32,7 +32,7 @@ from isf_robot.core.chatter import chatter_risk
 
 from .actuation import actuator_info, speed_bound
 from .calibration import Calibration, calibrate_d_bar
-from .filter_design import designed_options
+from .filter_design import with_design
 from .pairs import collision_pairs
 from .records import FilterParams
 from .scene import Scene
@@ -314,9 +314,7 @@ def filter_findings(scene: Scene) -> list[Finding]:
 
     Reported by ``isf-robot check``, not before every run (a standard filter's run does not use them).
     """
-    spec = scene.config.filter
-    spec = spec.replace(**designed_options(scene.config, spec))
-    risk = chatter_risk(spec, scene.config.control.period)
+    risk = chatter_risk(with_design(scene.config), scene.config.control.period)
     return [] if risk is None else [Finding("chatter-risk", f"[filter]: {risk}")]
 
 

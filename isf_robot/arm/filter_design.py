@@ -30,7 +30,7 @@ from isf_robot.core.chatter import horizon_for
 
 from .config_schema import SceneConfig
 
-__all__ = ["designed_blend", "designed_options"]
+__all__ = ["designed_blend", "designed_options", "with_design"]
 
 
 def designed_blend(config: SceneConfig) -> float:
@@ -47,3 +47,9 @@ def designed_options(config: SceneConfig, spec: FilterSpec) -> dict[str, float]:
     if spec.horizon is None:
         out["horizon"] = horizon_for(spec.predict_every, config.control.period)
     return out
+
+
+def with_design(config: SceneConfig, spec: FilterSpec | None = None) -> FilterSpec:
+    """``spec`` (default: the scene's ``[filter]``) with what it leaves to the design filled in."""
+    spec = config.filter if spec is None else spec
+    return spec.replace(**designed_options(config, spec))

@@ -19,7 +19,7 @@ import numpy as np
 from isf_robot.core import ClassK, ConfigError, FilterSpec, Linear
 
 from .calibration import calibrate_d_bar
-from .filter_design import designed_options
+from .filter_design import with_design
 from .records import FilterParams
 from .rollout import NominalRollout
 from .scene import Scene
@@ -59,7 +59,7 @@ def resolve_params(
     """
     given = {"alpha": alpha.gain if isinstance(alpha, Linear) else alpha, "c": c, "b": b, **options}
     spec = FilterSpec.from_mapping(given, scene.config.filter)
-    spec = spec.replace(**designed_options(scene.config, spec))
+    spec = with_design(scene.config, spec)
     if spec.c_pred and not spec.horizon > 0:
         raise ConfigError("filter parameter c_pred needs the predictive off trigger: a horizon > 0 [s]")
     fields = {f.name: getattr(spec, f.name) for f in dataclasses.fields(FilterSpec)}

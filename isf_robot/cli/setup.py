@@ -77,7 +77,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
 def _cmd_check(args: argparse.Namespace) -> int:
     from isf_robot.arm.calibration import calibrate_d_bar
     from isf_robot.arm.diagnostics import check_calibration, check_scene, filter_findings, speed_bounds
-    from isf_robot.arm.filter_design import designed_options
+    from isf_robot.arm.filter_design import designed_options, with_design
 
     scene = _spec(args).load()
     findings = check_scene(scene)
@@ -92,8 +92,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
           + f" (max_joint_speed = {scene.config.gains.max_joint_speed:g}; damping: (F - gravity) / damping, the "
             "steady speed, checked; servo kv: (F - gravity) / kv on an undamped joint, the largest velocity step "
             "the servo answers unsaturated, init's conservative suggestion)")
-    spec, named = scene.config.filter, designed_options(scene.config, scene.config.filter)
-    spec = spec.replace(**named)
+    spec, named = with_design(scene.config), designed_options(scene.config, scene.config.filter)
     print(f"  intermittent filter: hand-over blend = {spec.blend:.3g} s, predictive horizon = {spec.horizon:.3g} s"
           + (f" ({' and '.join(sorted(named))} designed from [gains] max_joint_speed / max_joint_acc and "
              "[control] period; models/README.md)" if named else " (from [filter])"))

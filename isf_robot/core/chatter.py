@@ -39,8 +39,8 @@ def _up(x: float) -> float:
     return math.ceil(x / 0.05 - 1e-9) * 0.05
 
 
-def _fix(spec: FilterSpec, period: float) -> str:
-    need = horizon_for(spec.predict_every, period)
+def _fix(spec: FilterSpec, need: float) -> str:
+    """The change that would stop chatter, given the rule's horizon ``need`` [s]."""
     h = spec.horizon or 0.0
     if h < need:
         what = "turn on the predictive off trigger" if h == 0 else f"lengthen the predictive horizon (now {h:g} s)"
@@ -61,7 +61,7 @@ def chatter_risk(spec: FilterSpec, period: float) -> str | None:
     if (spec.horizon or 0.0) >= need - 1e-12 or spec.min_off >= CHATTER_OFF_S:
         return None
     return (f"nothing keeps the intermittent filter's off periods above {CHATTER_OFF_S:g} s, so it may chatter; "
-            + _fix(spec, period))
+            + _fix(spec, need))
 
 
 def chatter_advice(metrics: Mapping[str, Any], spec: FilterSpec, period: float) -> str | None:
@@ -72,4 +72,4 @@ def chatter_advice(metrics: Mapping[str, Any], spec: FilterSpec, period: float) 
     shortest = metrics.get("min_off_s")
     at = f" (shortest {shortest:.3f} s)" if shortest is not None else ""
     return (f"chatter: {n:g} off period{'s' if n != 1 else ''} under {CHATTER_OFF_S:g} s{at}; "
-            + _fix(spec, period))
+            + _fix(spec, horizon_for(spec.predict_every, period)))
