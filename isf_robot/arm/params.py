@@ -81,7 +81,8 @@ def filter_options(sim: Any) -> tuple[FilterParams, dict[str, Any]]:
 
     With ``min_off`` the designed margin is capped at ``alpha(cutoff - margin)`` too (a larger one
     could not be met by a pair at the broad-phase cut-off); with a horizon, the wiring holds the
-    rollout of the nominal on the reduced model (:class:`~isf_robot.arm.rollout.NominalRollout`).
+    rollout of the nominal on the reduced model (:class:`~isf_robot.arm.rollout.NominalRollout`), and
+    with ``shoot`` the shooting's rollout (the same, over ``shoot`` seconds).
     """
     p: FilterParams = sim.params
     if not sim.info.intermittent:
@@ -90,7 +91,8 @@ def filter_options(sim: Any) -> tuple[FilterParams, dict[str, Any]]:
     if p.min_off:  # no margin above what a pair at the broad-phase cut-off can reach
         cutoff_h = float(np.min(sim.coll.cutoff - sim.coll.pairs.margin))
         p = p.replace(c_max=max(p.c, min(p.c_max, p.class_k(cutoff_h))))
-    if p.horizon > 0:
-        wiring["rollout"] = NominalRollout(sim.scene, sim.nominal, sim.coll, sim.joints, sim.control_period,
-                                           sim.setup.time_offset, p.horizon)
+    for key, horizon in (("rollout", p.horizon), ("shoot_rollout", p.shoot)):
+        if horizon > 0:
+            wiring[key] = NominalRollout(sim.scene, sim.nominal, sim.coll, sim.joints, sim.control_period,
+                                         sim.setup.time_offset, horizon)
     return p, wiring

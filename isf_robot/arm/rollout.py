@@ -111,7 +111,8 @@ class NominalRollout:
         """The filter's rows at the state in ``data`` (kinematics done), ``lin``: the mocap velocities or ``None``."""
         return self.coll.lie_rows(data, self.joints, lin)[0]  # (lie(rows(...)) in one pass, as the simulation's rows)
 
-    def _compiled(self, t: float, q: np.ndarray, u: np.ndarray) -> Sequence[tuple[float, LieData, np.ndarray]] | None:
+    def _compiled(self, t: float, q: np.ndarray, u: np.ndarray,
+                  first: np.ndarray) -> Sequence[tuple[float, LieData, np.ndarray]] | None:
         """Every point in one compiled call (``_rollout_jit.rollout_points``), the general loop's formulas.
 
         Taken while the goal index cannot change over the horizon (:meth:`GoalSequence.steady`: the
@@ -135,7 +136,7 @@ class NominalRollout:
             if coll._any_moving:
                 lin, dl = lins[0], coll._kdhdt
         outs, res, q0 = np.empty((n, u.size)), np.empty((n, 6)), q.copy()
-        done = self._whole(*self._addr, q, u, t, dt, self._qpos, self._qadr, nom._ptrs, nom._buf, outs,  # type: ignore[misc, attr-defined]
+        done = self._whole(*self._addr, q, first, t, dt, self._qpos, self._qadr, nom._ptrs, nom._buf, outs,  # type: ignore[misc, attr-defined]
                            u.size, nom._jac.shape[1], nom._dof0, nom.scene.ee_site_id, nom.goals.index,  # type: ignore[attr-defined]
                            rate.t_prev, rate.a_max, nom.kp, nom.max_ee_speed, nom.max_joint_speed, nom._lam2,  # type: ignore[attr-defined]
                            c[4], blk, rows, keys, len(coll.pairs.names), res, coll.cutoff, c[14], c[15],
@@ -188,8 +189,13 @@ class NominalRollout:
             kn = self._kn = (pairs, joints, (*pairs, *joints))
         return kn[2]
 
-    def __call__(self, t: float, x: Any) -> Sequence[tuple[float, LieData, np.ndarray]]:
-        """Predicted points ``t + s``, ``s = dt, 2 dt, ..., n dt``, from the state in ``x`` (the episode's MjData)."""
+    def __call__(self, t: float, x: Any,
+                 first: np.ndarray | None = None) -> Sequence[tuple[float, LieData, np.ndarray]]:
+        """Predicted points ``t + s``, ``s = dt, 2 dt, ..., n dt``, from the state in ``x`` (the episode's MjData).
+
+        ``first``: the command over the first Euler step ``[t, t + dt]`` instead of the nominal's (a
+        candidate maneuver's, :mod:`isf_robot.core.shooting`); the nominal takes over from ``t + dt``.
+        """
         if not isinstance(x, mujoco.MjData):
             raise ConfigError("NominalRollout needs the episode's MjData as the state x of step_lie")
         m, d, scene = self.scene.model, self._data, self.scene
@@ -204,10 +210,16 @@ class NominalRollout:
         step, (ma, da), qpos, qadr, dt = self._step, self._addr, self._qpos, self._qadr, self.dt
         try:
             u = np.array(self.nominal(t, x), dtype=float)  # the command now (the controller's next call)
+            if first is not None:
+                first = np.array(first, dtype=float)
+                if first.shape != u.shape:
+                    raise ConfigError(f"rollout: the first command has shape {first.shape}, the nominal's {u.shape}")
             if self._whole is not None:
-                pts = self._compiled(t, q, u)
+                pts = self._compiled(t, q, u, u if first is None else first)
                 if pts is not None:
                     return pts
+            if first is not None:
+                u = first
             for j in range(1, self.n + 1):
                 s = j * dt
                 lin = None

@@ -45,6 +45,7 @@ from .filter_base import FallbackFn, FilterStep, _FilterBase
 from .handover import PromotionRamp, blend_weight
 from .intermittent import FallRateBound, OffPredictor, Prediction, RolloutFn
 from .qp_solver import QPSolver
+from .shooting import ManeuverShooter
 from .spec import FilterSpec
 from .system import ControlAffineSystem, LieData
 from .triggers import OnOffTrigger
@@ -147,6 +148,11 @@ class IntermittentSafetyFilter(_FilterBase):
             ``rollout``): the filter turns off as soon as every ``Xi_on >= c_pred`` and the rollout
             predicts every ``Xi_on > 0`` over its horizon, instead of pushing on to ``Xi_on >= c``
             (``None``: the prediction only delays the off switch at ``c``).
+        shoot: Maneuvers by shooting: the horizon [s] of ``shoot_rollout`` (0: off; the adapter's rollout
+            has it): while on, the promotion level among ``b, 3 b, 10 b`` after which the nominal is
+            predicted to re-trigger latest (:class:`~isf_robot.core.shooting.ManeuverShooter`).
+        shoot_rollout: The rollout that scores the levels (:data:`~isf_robot.core.intermittent.RolloutFn`
+            taking ``first=u``); needed when ``shoot > 0``.
 
     """
 
@@ -177,6 +183,8 @@ class IntermittentSafetyFilter(_FilterBase):
         predict_every: int = _SPEC.predict_every,
         blend: float = 0.0,
         c_pred: float | None = None,
+        shoot: float = 0.0,
+        shoot_rollout: Callable[..., Any] | None = None,
     ) -> None:
         super().__init__(alpha, d_bar, system=system, barriers=barriers, u_min=u_min, u_max=u_max,
                          solver=solver, on_infeasible=on_infeasible, fallback=fallback, validate=validate,
@@ -184,7 +192,7 @@ class IntermittentSafetyFilter(_FilterBase):
         self.spec = spec = FilterSpec(
             alpha=self.alpha, d_bar=self.d_bar, c=c, b=b, min_off=0.0 if min_off is None else min_off, c_max=c_max,
             fall_rate_prior=fall_rate_prior, fall_rate_forget=fall_rate_forget, blend=blend,
-            predict_every=predict_every, c_pred=0.0 if c_pred is None else c_pred)
+            predict_every=predict_every, c_pred=0.0 if c_pred is None else c_pred, shoot=shoot)
         self.c, self.b, self.c_max, self.blend = spec.c, spec.b, spec.c_max, spec.blend
         self.min_off = spec.min_off or None
         self.c_pred = spec.c_pred or None
@@ -192,6 +200,9 @@ class IntermittentSafetyFilter(_FilterBase):
         self.predictor = None if rollout is None else OffPredictor(rollout, spec.predict_every)
         if self.c_pred is not None and self.predictor is None:
             raise ConfigError("c_pred (predicted-safe off margin) needs a rollout (the predictive off trigger)")
+        if spec.shoot and shoot_rollout is None:
+            raise ConfigError("shoot (maneuvers by shooting) needs its rollout: shoot_rollout(t, x, first=u)")
+        self.shooter = ManeuverShooter(shoot_rollout, spec.predict_every) if spec.shoot else None
         self.trigger = OnOffTrigger(self.c if self.c_pred is None else self.c_pred, t0)
         self.reset(t0)
 
@@ -216,6 +227,8 @@ class IntermittentSafetyFilter(_FilterBase):
         self.fall_rate.reset()
         if self.predictor is not None:
             self.predictor.reset()
+        if self.shooter is not None:
+            self.shooter.reset()
         self._t_off: float | None = None
         self._u_prev: np.ndarray | None = None
         self._u_handover: np.ndarray | None = None
@@ -262,6 +275,8 @@ class IntermittentSafetyFilter(_FilterBase):
                 bound = self.fall_rate.bound_s(c)
                 if self.predictor is not None:
                     self.predictor.idle()
+                if self.shooter is not None:
+                    self.shooter.idle()
         if not trigger.on:
             w = 0.0
             if self._u_handover is not None:
@@ -290,7 +305,13 @@ class IntermittentSafetyFilter(_FilterBase):
             rate = (t - self._t_ramp) / self.blend if self._t_ramp is not None else 0.0
             self._t_ramp = t
         promote, ramp = self._ramp(xi, c, _NONE_B if failing is None else failing, rate, lie.names)
-        res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, xs.av, promote, ramp, self.b, c,
+        b = self.b
+        if self.shooter is not None:
+            def solve(level: float) -> np.ndarray:
+                return self._solve_rows(t, x, lie, u_nom, xi, xs.av, promote, ramp, level, c, screen, xs)[0].u
+
+            b = self.shooter.level(t, x, b, solve, self.alpha, self.d_bar)
+        res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, xs.av, promote, ramp, b, c,
                                                       screen, xs)
         return self._done(FilterStep._of(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names,
                                          resolved, c, bound, ran, held))

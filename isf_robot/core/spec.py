@@ -67,6 +67,9 @@ class FilterSpec:
             ``None``: the adapter designs it, as ``blend``).
         predict_every: Control steps between rollouts while the off condition holds, >= 1.
         c_pred: Off margin when the rollout predicts the nominal safe (0: none; ``0 < c_pred <= c``).
+        shoot: Maneuvers by shooting: the horizon [s] of the rollout that scores each candidate promotion
+            level (``b``, ``3 b``, ``10 b``) by the predicted re-trigger of the nominal after it
+            (:mod:`isf_robot.core.shooting`; 0: always ``b``; the adapter rolls out).
 
     """
 
@@ -86,6 +89,8 @@ class FilterSpec:
     predict_every: int = _p(5, "control steps between rollouts of the predictive off trigger", "K")
     c_pred: float = _p(0.0, "off margin when the rollout predicts the nominal safe over the horizon (0 < C <= c; "
                             "off as soon as it is predicted safe instead of at Xi_on >= c)", "C")
+    shoot: float = _p(0.0, "maneuvers by shooting: while on, push with b, 3b or 10b, whichever the nominal, rolled "
+                           "forward this long [s] after it, re-triggers latest on (0: always b)", "S")
 
     def __post_init__(self) -> None:
         alpha = self.alpha
@@ -94,7 +99,7 @@ class FilterSpec:
         _number(self, "d_bar", nonneg=True)
         _number(self, "c", positive=True)
         _number(self, "b", positive=True)
-        for name in ("min_off", "fall_rate_prior", "c_pred"):
+        for name in ("min_off", "fall_rate_prior", "c_pred", "shoot"):
             _number(self, name, nonneg=True)
         for name in ("blend", "horizon"):
             if getattr(self, name) is not None:
@@ -134,7 +139,7 @@ class FilterSpec:
         """The intermittent filter's options (:class:`~isf_robot.core.filters.IntermittentSafetyFilter`)."""
         return {"min_off": self.min_off or None, "c_max": self.c_max, "fall_rate_prior": self.fall_rate_prior,
                 "fall_rate_forget": self.fall_rate_forget, "predict_every": self.predict_every,
-                "blend": self.blend or 0.0, "c_pred": self.c_pred or None}
+                "blend": self.blend or 0.0, "c_pred": self.c_pred or None, "shoot": self.shoot}
 
     def as_info(self, intermittent: bool = True) -> dict[str, Any]:
         """The parameters a run records: the four of the paper, and each intermittent option that is set.
@@ -157,6 +162,8 @@ class FilterSpec:
             out.update(horizon=self.horizon, predict_every=self.predict_every)
         if self.c_pred:
             out["c_pred"] = self.c_pred
+        if self.shoot:
+            out["shoot"] = self.shoot
         for name in ("fall_rate_prior", "fall_rate_forget"):
             if getattr(self, name) != getattr(default, name):
                 out[name] = getattr(self, name)

@@ -36,9 +36,10 @@ __all__ = [
     "INTERMITTENT_WIRING",
 ]
 
-INTERMITTENT_WIRING = ("rollout", "t0")
+INTERMITTENT_WIRING = ("rollout", "shoot_rollout", "t0")
 """Keyword arguments only an intermittent strategy takes besides its :class:`FilterSpec` (the predictive
-off trigger's rollout, the start time); :func:`make_strategy` drops them for the other strategies."""
+off trigger's rollout, the shooting rollout, the start time); :func:`make_strategy` drops them for the
+other strategies."""
 
 
 class Strategy(Protocol):
