@@ -2,7 +2,7 @@
 
     nice -n 19 python benchmarks/intermittent_targets.py [--episodes 20] [--jobs 2] \
         [--scenes panda_pole panda_shelf panda_moving panda_servo ur5e_pole] [--json sweep.json] \
-        [--backend processes|ray] [--marker intermittent_targets] [--no-write]
+        [--backend processes|ray] [--marker intermittent_targets] [--no-write] [--shoot S]
 
 Runs ``cbf`` and ``isf`` with every scene's shipped parameters (no scene sets the intermittent
 options: the hand-over and the predictive horizon are designed from the scene,
@@ -11,6 +11,8 @@ calibration) on seeds 0..N-1 at the scene's full episode length, through
 :func:`isf_robot.arm.sweep.run_sweep`, and writes one table per target into RESULTS.md between
 the ``<!-- MARKER:start -->`` / ``<!-- MARKER:end -->`` markers (``--no-write``: print only).
 ``--json`` also writes the whole sweep (every episode) for ``isf-robot plot pareto``.
+``--shoot S``: the isf runs with maneuvers by shooting over ``S`` seconds (:mod:`isf_robot.core.shooting`),
+written under the marker ``shooting_targets`` unless ``--marker`` names another.
 
 Targets: duty <= 0.6x cbf; on-switches <= 1.5x cbf; shortest off period >= 0.25 s in every
 episode; goals >= cbf's (mean, within 0.1); time to the goals <= cbf's + 5 % (the sweep's
@@ -123,12 +125,17 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=None)
     ap.add_argument("--backend", default="processes")
     ap.add_argument("--json", default=None, metavar="PATH")
-    ap.add_argument("--marker", default="intermittent_targets")
+    ap.add_argument("--marker", default=None, help="RESULTS.md section (default intermittent_targets, "
+                                                   "with --shoot shooting_targets)")
+    ap.add_argument("--shoot", type=float, default=0.0, metavar="S",
+                    help="isf with maneuvers by shooting over S seconds (default 0: off)")
     ap.add_argument("--no-write", action="store_true")
     ap.add_argument("--merge", nargs="*", default=[], metavar="PATH",
                     help="sweep JSON files (--json of earlier runs) whose scenes join the report; "
                          "with --episodes 0 nothing new runs")
     args = ap.parse_args()
+    marker = args.marker or ("shooting_targets" if args.shoot else "intermittent_targets")
+    isf = SweepPoint("isf", {"shoot": args.shoot} if args.shoot else {})
     load = os.getloadavg()
     t0 = time.perf_counter()
     kw: dict[str, Any] = {}
@@ -141,7 +148,7 @@ def main() -> None:
 
     sweep: dict[str, Any] = {"partial": False, "seeds": list(range(args.episodes)), "scenes": []}
     if args.episodes > 0:
-        sweep = run_sweep([SceneSpec(name=n) for n in args.scenes], [SweepPoint("cbf"), SweepPoint("isf")],
+        sweep = run_sweep([SceneSpec(name=n) for n in args.scenes], [SweepPoint("cbf"), isf],
                           list(range(args.episodes)), duration=args.duration, jobs=args.jobs, progress=progress,
                           **kw)
     for path in args.merge:  # earlier runs' scenes (a scene run here wins)
@@ -156,7 +163,7 @@ def main() -> None:
     body = report(sweep, cmd.strip(), load, wall)
     print(body)
     if not args.no_write:
-        write_section(ROOT / "RESULTS.md", f"<!-- {args.marker}:start -->", f"<!-- {args.marker}:end -->", body,
+        write_section(ROOT / "RESULTS.md", f"<!-- {marker}:start -->", f"<!-- {marker}:end -->", body,
                       write=write_text_atomic)
 
 

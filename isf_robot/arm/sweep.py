@@ -44,7 +44,7 @@ from .sim import ArmSimulation
 __all__ = ["SweepPoint", "SweepTask", "grid_points", "random_points", "run_sweep", "summarize_point",
            "pareto_front", "goals_time", "format_sweep", "PARAMETERS", "OBJECTIVES", "MAX_SWEEP_EPISODES"]
 
-PARAMETERS = ("alpha", "c", "b", "min_off", "c_max", "blend", "horizon", "predict_every", "c_pred")
+PARAMETERS = ("alpha", "c", "b", "min_off", "c_max", "blend", "horizon", "predict_every", "c_pred", "shoot")
 """Filter parameters a sweep can vary (the names of :func:`~isf_robot.arm.params.resolve_params`)."""
 
 _INTERMITTENT_ONLY = frozenset(PARAMETERS) - {"alpha"}

@@ -31,7 +31,7 @@ __all__ = ["register"]
 
 _FLAGS = {"alpha": "--alpha", "c": "--c", "b": "--b", "min_off": "--min-off", "c_max": "--c-max",
           "blend": "--blend", "horizon": "--horizon", "predict_every": "--predict-every",
-          "c_pred": "--c-pred"}
+          "c_pred": "--c-pred", "shoot": "--shoot"}
 
 
 def register(subparsers: Any) -> None:

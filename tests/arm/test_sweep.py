@@ -7,9 +7,11 @@ import json
 import pytest
 
 from isf_robot.arm.compare import SceneSpec
-from isf_robot.arm.sweep import SweepPoint, grid_points, pareto_front, random_points, run_sweep
+from isf_robot.arm.sweep import PARAMETERS, SweepPoint, grid_points, pareto_front, random_points, run_sweep
 from isf_robot.cli import main
+from isf_robot.cli.sweep import _FLAGS
 from isf_robot.core import ConfigError
+from isf_robot.core.spec import NAMES
 from isf_robot.paths import models_dir
 
 
@@ -106,3 +108,9 @@ def test_sweep_tunes_a_users_arm_and_writes_its_filter_table(tmp_path, capsys):
     assert len(chosen) == 1 and f"point {chosen[0]['label']}" in out.read_text()
     assert "Pareto" in out.with_suffix(".txt").read_text()
     assert "wrote" in capsys.readouterr().err
+
+
+def test_every_sweep_parameter_has_its_flag_and_is_a_filter_field() -> None:
+    assert tuple(_FLAGS) == PARAMETERS
+    assert set(PARAMETERS) <= set(NAMES)
+    assert all(flag == "--" + name.replace("_", "-") for name, flag in _FLAGS.items())
