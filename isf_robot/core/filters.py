@@ -202,7 +202,7 @@ class IntermittentSafetyFilter(_FilterBase):
             raise ConfigError("c_pred (predicted-safe off margin) needs a rollout (the predictive off trigger)")
         if spec.shoot and shoot_rollout is None:
             raise ConfigError("shoot (maneuvers by shooting) needs its rollout: shoot_rollout(t, x, first=u)")
-        self.shooter = ManeuverShooter(shoot_rollout, spec.predict_every) if spec.shoot else None
+        self.shooter = ManeuverShooter(shoot_rollout, spec.predict_every, self.blend) if spec.shoot else None
         self.trigger = OnOffTrigger(self.c if self.c_pred is None else self.c_pred, t0)
         self.reset(t0)
 

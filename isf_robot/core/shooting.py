@@ -9,10 +9,13 @@ controller takes over from there (``rollout(t, x, first=u_j)``, on the same redu
 predictive off trigger, with its own, longer horizon), and scores the level by the predicted
 *re-trigger time* ``tau_j``: the time of the first predicted point with some ``Xi_on <= 0``
 (``inf`` when every ``Xi_on > 0`` over the horizon). The level with the
-largest ``tau_j`` is used until the next choice; among equal ones the smallest (the least
-intervention), so the filter pushes harder than ``b`` only where the prediction says it pays. A
-choice is made at each on switch and then every ``every`` control steps while on, so the cost is
-bounded: ``len(LEVELS)`` QP solves and rollouts per choice.
+largest ``tau_j`` is chosen; among equal ones the smallest (the least intervention), so the
+filter pushes harder than ``b`` only where the prediction says it pays. A choice is made at each
+on switch and then every ``every`` control steps while on, so the cost is bounded: ``len(LEVELS)``
+QP solves and rollouts per choice. The level in use moves to the chosen one at a bounded rate (the
+whole range of levels in ``ramp`` seconds: the filter's hand-over time), so a new choice does not
+step the command: a step the arm's low-level controller could not track would break the tracking
+bound ``d_bar`` that the robust condition rests on.
 
 Safety does not rest on the choice: every level is a promotion above the robust condition, so
 Theorem 1's argument for the safety-promoting filter holds whichever is chosen.
@@ -48,38 +51,54 @@ class ManeuverShooter:
         rollout: The rollout callback, taking ``first=u``: the command over its first step
             (:class:`~isf_robot.arm.rollout.NominalRollout` does).
         every: Control steps between choices while on, >= 1.
+        ramp: Time [s] in which the level in use may cross the whole range of levels, >= 0 (0: at once).
         levels: Candidate levels as multiples of ``b``, each > 0, increasing.
 
     """
 
-    def __init__(self, rollout: Callable[..., Any], every: int = 5, levels: tuple[float, ...] = LEVELS) -> None:
+    def __init__(self, rollout: Callable[..., Any], every: int = 5, ramp: float = 0.0,
+                 levels: tuple[float, ...] = LEVELS) -> None:
         if not callable(rollout):
             raise ConfigError("shooting needs a rollout: rollout(t, x, first=u) -> [(s, lie, u_nom), ...]")
         if int(every) != every or every < 1:
             raise ConfigError(f"shooting needs every >= 1 control steps, got {every}")
         if not levels or any(not f > 0 for f in levels) or list(levels) != sorted(levels):
             raise ConfigError(f"shooting levels must be > 0 and increasing, got {levels}")
+        if not (math.isfinite(ramp) and ramp >= 0):
+            raise ConfigError(f"shooting ramp must be >= 0 [s], got {ramp}")
         self.rollout, self.every, self.levels = rollout, int(every), tuple(levels)
+        self._rate = math.inf if ramp == 0 else (self.levels[-1] - self.levels[0]) / float(ramp)
         self.reset()
 
     def reset(self) -> None:
         """Forget the current choice and the counts."""
-        self.factor = self.levels[0]
+        self.factor = self.applied = self.levels[0]
         self._since = 0
+        self._t: float | None = None
         self.choices = 0
         self.raised = 0  # choices of a level above the first
         self.last_tau: tuple[float, ...] = ()
 
     def idle(self) -> None:
-        """The filter is off: the next :meth:`level` chooses afresh."""
+        """The filter is off: the next :meth:`level` chooses afresh, from the first level."""
         self._since = 0
+        self.factor = self.applied = self.levels[0]
+        self._t = None
 
     def level(self, t: float, x: Any, b: float, solve: Callable[[float], np.ndarray], alpha: ClassK,
               d_bar: float) -> float:
         """The promotion level to use at ``t``; ``solve(level)`` is the filter's command with that level."""
         if self._since and self._since < self.every:
             self._since += 1
-            return self.factor * b
+        else:
+            self._choose(t, x, b, solve, alpha, d_bar)
+        step = math.inf if self._t is None else self._rate * (t - self._t)
+        self._t = t
+        self.applied += max(-step, min(step, self.factor - self.applied))
+        return self.applied * b
+
+    def _choose(self, t: float, x: Any, b: float, solve: Callable[[float], np.ndarray], alpha: ClassK,
+                d_bar: float) -> None:
         taus = []
         best, best_tau = self.levels[0], -math.inf
         for f in self.levels:
@@ -91,4 +110,3 @@ class ManeuverShooter:
         self.factor, self._since, self.last_tau = best, 1, tuple(taus)
         self.choices += 1
         self.raised += best != self.levels[0]
-        return best * b

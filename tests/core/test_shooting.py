@@ -144,3 +144,30 @@ def test_bad_shooting_options_are_config_errors():
         ManeuverShooter(shoot_rollout, every=0)
     with pytest.raises(ConfigError, match="rollout"):
         ManeuverShooter(None)  # type: ignore[arg-type]
+
+
+def test_a_new_choice_moves_the_level_in_use_at_the_bounded_rate():
+    """The level in use crosses the levels' range in ``ramp`` seconds, never in one step."""
+    prefer_top = [False]
+
+    def fake_rollout(t, x, first=None):  # (level 10 re-triggers latest once prefer_top, else all the same)
+        tau = 0.5 if prefer_top[0] and float(first[0]) >= 10 * B - 1e-12 else 0.1
+        return [(tau, _lie(-1.0), np.zeros(1))]  # (h = -1: Xi_on < 0 at s = tau)
+
+    sh = ManeuverShooter(fake_rollout, every=1, ramp=0.1)
+    solve = lambda level: np.array([level])  # noqa: E731
+    assert sh.level(0.0, None, B, solve, Linear(A), 0.0) == pytest.approx(B)  # all equal: the smallest
+    prefer_top[0] = True
+    used, t = [], 0.0
+    for _ in range(15):
+        t = round(t + DT, 10)
+        used.append(sh.level(t, None, B, solve, Linear(A), 0.0) / B)
+    steps = np.diff([1.0, *used])
+    assert np.all(steps <= (LEVELS[-1] - LEVELS[0]) / 0.1 * DT + 1e-9)  # 0.9 per 10 ms
+    assert used[-1] == pytest.approx(LEVELS[-1]) and used[0] < LEVELS[-1]
+    assert sh.raised == 15
+    sh.idle()  # off: the next on period starts from the first level
+    prefer_top[0] = False
+    assert sh.level(1.0, None, B, solve, Linear(A), 0.0) == pytest.approx(B)
+    with pytest.raises(ConfigError, match="ramp"):
+        ManeuverShooter(fake_rollout, ramp=-1.0)
