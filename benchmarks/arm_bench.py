@@ -27,7 +27,8 @@ present, panda_pole with 64 extra far-away spheres is compared to panda_pole its
 cost, the same step clock): the arm's own cost per step (the step minus one ``mj_step`` of the same
 episode) with and without them, since MuJoCo's own collision of the spheres makes ``mj_step`` itself
 dearer (see :func:`bench_far`). panda_pole's isf also runs without its designed options (the predictive
-off trigger, then the hand-over too), to show what they cost per step (:func:`bench_isf_options`).
+off trigger, then the hand-over too) and with maneuvers by shooting, to show what they cost per step
+(:func:`bench_isf_options`).
 
 Results go to ``BENCHMARKS.md`` between the ``arm-bench`` markers (written atomically), with
 machine and date:
@@ -174,7 +175,8 @@ def bench_backends(args: argparse.Namespace) -> dict:
 
 
 ISF_VARIANTS = (("designed options", {}), ("no predictive off trigger (horizon 0)", {"horizon": 0.0}),
-                ("neither trigger nor hand-over (horizon 0, blend 0)", {"horizon": 0.0, "blend": 0.0}))
+                ("neither trigger nor hand-over (horizon 0, blend 0)", {"horizon": 0.0, "blend": 0.0}),
+                ("designed options and maneuvers by shooting (shoot 0.5)", {"shoot": 0.5}))
 
 
 def bench_isf_options(args: argparse.Namespace) -> list[dict]:
@@ -277,7 +279,9 @@ def render(scenes: list[dict], backends: dict, far: dict | None, args: argparse.
     if options:
         out += ["", "The intermittent filter's options on panda_pole (designed from the scene: a predictive off "
                 "trigger, `horizon = 0.26` s with a rollout at most every 5 steps while it holds, and a hand-over "
-                "`blend = 0.15` s): the isf step with and without them, measured as above:", "",
+                "`blend = 0.15` s), and with maneuvers by shooting (`--shoot 0.5`: three QP solves and three rollouts "
+                "over 0.5 s at each on switch and then at most every 5 steps while on): the isf step with and "
+                "without them, measured as above:", "",
                 "| isf on panda_pole | us/step | mj_step [us] | x mj_step | strategy [us] | duty | on switches |",
                 "|---|---|---|---|---|---|---|"]
         out += [f"| {o['label']} | {o['us']:.1f} | {o['mj_us']:.2f} | **{o['ratio']:.1f}** | {o['strategy']:.1f} | "
