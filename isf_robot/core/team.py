@@ -150,7 +150,7 @@ class AgentTally:
 
 def _check_blocks(blocks: Sequence[slice], names: Sequence[str]) -> None:
     if len(blocks) != len(names) or len(blocks) < 1:
-        raise ConfigError(f"a team needs one name per block of columns, got {len(blocks)} blocks and {len(names)} names")
+        raise ConfigError(f"a team needs one name per block of columns, got {len(blocks)} blocks, {len(names)} names")
 
 
 class CentralFilter:
@@ -209,6 +209,7 @@ class SharedFilter:
     The team's step: the agents' commands stacked, ``on`` when any agent's filter is on (with its own
     switch events), ``xi`` per row the smallest of the agents' ``Xi_on`` of that row (rows that involve
     no agent: ``inf``), ``qp`` the first agent's QP result that exists.
+
     """
 
     def __init__(self, strategies: Sequence[Strategy], blocks: Sequence[slice], names: Sequence[str],
