@@ -3,7 +3,8 @@
 A scene with ``[[arm]]`` tables (:class:`~isf_robot.arm.config_schema.ArmConfig`) is one robot for
 the single-arm machinery: its joints are every arm's joints in ``[[arm]]`` order, its geoms every
 arm's geoms, its goals every arm's goals. :class:`ArmInfo` says which part of each belongs to which
-arm, so that a nominal controller, a filter or a metric can act per arm.
+arm, so that a nominal controller, a filter or a metric can act per arm
+(:func:`isf_robot.arm.one_arm.arm_scene` makes one arm a single-arm scene).
 """
 
 from __future__ import annotations

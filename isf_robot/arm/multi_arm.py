@@ -33,31 +33,19 @@ from isf_robot.core.team import CentralFilter, SharedFilter, agent_lie, row_agen
 from .arms import geom_arms
 from .episode import episode_setup
 from .nominal import NominalController, ReachingController
+from .one_arm import arm_scene
 from .params import filter_options
 from .records import RunResult
 from .scene import Scene
 from .sim import ArmSimulation
 
-__all__ = ["COORDINATIONS", "arm_scene", "TeamReaching", "MultiArmSimulation", "ArmRunResult", "run_team"]
+__all__ = ["COORDINATIONS", "TeamReaching", "MultiArmSimulation", "ArmRunResult", "run_team"]
 
 COORDINATIONS = {
     "central": "one filter over every arm's joints (inter-arm rows solved together)",
     "decentral": "one filter per arm; each takes an equal share of every inter-arm row",
 }
 """How the arms of a scene are filtered: name -> one line for ``--help``."""
-
-
-def arm_scene(scene: Scene, i: int) -> Scene:
-    """Arm ``i`` of ``scene`` as a single-arm scene (its joints, geoms, end effector and goals)."""
-    a = scene.arms[i]
-    j, g, model = a.joints, a.goals, scene.model
-    return dataclasses.replace(
-        scene, name=f"{scene.name}:{a.name}", joint_ids=scene.joint_ids[j], qpos_adr=scene.qpos_adr[j],
-        dof_adr=scene.dof_adr[j], actuator_ids=scene.actuator_ids[j], joint_range=scene.joint_range[j],
-        torque_limit=scene.torque_limit[j], home=scene.home[j], robot_geom_ids=a.geom_ids,
-        ee_site_id=a.ee_site_id, ee_body_id=int(model.site_bodyid[a.ee_site_id]),
-        ee_offset=model.site_pos[a.ee_site_id].copy(), goal_positions=scene.goal_positions[g],
-        goal_dwell=scene.goal_dwell[g], arm_joint_names=scene.joint_names[j], arms=())
 
 
 class TeamReaching(NominalController):
