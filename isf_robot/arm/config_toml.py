@@ -6,6 +6,7 @@ ones and names the file and the table); the schema is documented in ``models/REA
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 import sys
@@ -403,6 +404,11 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
         goal_timeout=g.number("goal_timeout", dg.goal_timeout, positive=True),
         extra=MappingProxyType(extra),
     )
+    if arms and len({len(a.joints) for a in arms}) == 1:  # one arm's gains stand for every arm's
+        per_arm = len(arms[0].joints)
+        gains = dataclasses.replace(gains, **{key: getattr(gains, key) * len(arms)
+                                              for key in ("tracking_kp", "tracking_kd")
+                                              if len(getattr(gains, key)) == per_arm > 1})
     for key in ("tracking_kp", "tracking_kd"):
         n = len(getattr(gains, key))
         if joints and n not in (1, len(joints)):

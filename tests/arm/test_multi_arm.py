@@ -10,8 +10,9 @@ import pytest
 
 from isf_robot.arm import CollisionBarriers, load_scene, load_scene_from_files
 from isf_robot.arm.config_toml import parse_config
-from isf_robot.arm.multi_arm import MultiArmSimulation, TeamReaching, run_team
+from isf_robot.arm.multi_arm import MultiArmSimulation, run_team
 from isf_robot.arm.one_arm import arm_scene
+from isf_robot.arm.team_nominal import TeamReaching
 from isf_robot.core import ConfigError, FilterSpec, LieData, QPSolver, UnknownNameError
 from isf_robot.core.strategies import make_strategy
 from isf_robot.core.team import SharedFilter, row_agents
