@@ -27,7 +27,7 @@ import numpy as np
 
 from isf_robot.core import ConfigError, LieData, QPSolver, UnknownNameError
 from isf_robot.core.strategies import make_strategy
-from isf_robot.core.team import CentralFilter, SharedFilter, agent_lie, row_agents
+from isf_robot.core.team import CentralFilter, SharedFilter, agent_lie, block_matrix, row_agents
 
 from .arms import geom_arms
 from .episode import episode_setup
@@ -55,13 +55,14 @@ class _ArmRollout:
 
     def __init__(self, rollout: Any, cache: dict[str, Any], blocks: tuple[slice, ...], i: int) -> None:
         self.rollout, self.cache, self.blocks, self.i = rollout, cache, blocks, i
+        self.M = block_matrix(blocks, blocks[-1].stop)
 
     def __call__(self, t: float, x: Any) -> list[tuple[float, LieData, np.ndarray]]:
         if self.cache.get("t") != t:
             self.cache.update(t=t, points=list(self.rollout(t, x)))
         b, out = self.blocks[self.i], []
         for s, lie, u in self.cache["points"]:
-            inv = row_agents(lie.lg, self.blocks)
+            inv = row_agents(lie.lg, self.M)
             rows = np.flatnonzero(inv[:, self.i])
             out.append((s, agent_lie(lie, b, rows, 1.0 / inv[rows].sum(axis=1)), np.asarray(u)[b]))
         return out
@@ -82,7 +83,9 @@ class _TeamEpisode(ArmSimulation.episode):  # type: ignore[name-defined,misc]
         self._arm_of = sim.geom_arm
         self._obstacle = np.zeros(sim.scene.model.ngeom, dtype=bool)
         self._obstacle[sim.scene.obstacle_geom_ids] = True
-        self._nj = sim.joints.evaluate(self.data).k
+        pairs = sim.coll.pairs
+        self._between = self._arm_of[pairs.geom1] != self._arm_of[pairs.geom2]
+        self._between &= (self._arm_of[pairs.geom1] >= 0) & (self._arm_of[pairs.geom2] >= 0)
         sim.last_episode = self
 
     def sense(self, k: int) -> None:
@@ -100,14 +103,15 @@ class _TeamEpisode(ArmSimulation.episode):  # type: ignore[name-defined,misc]
 
     def barriers(self) -> tuple[Any, LieData | None]:
         values, lie = super().barriers()
-        if lie is not None:
-            nc = lie.k - self._nj
-            if nc > 0:
-                between = row_agents(lie.lg[:nc], self.sim.blocks).sum(axis=1) > 1
-                h = lie.h[:nc]
-                for kind, rows in (("arm-arm", between), ("arm-obstacle", ~between)):
-                    if rows.any():
-                        self.kind_min[kind] = min(self.kind_min[kind], float(h[rows].min()))
+        rows = self.monitor.rows  # (the pairs within the cut-off at this tick: the first rows of lie, in order)
+        if lie is not None and len(rows):
+            h = lie.h[:len(rows)]
+            between = self._between[np.asarray(rows)]
+            for kind, sel in (("arm-arm", between), ("arm-obstacle", ~between)):
+                if sel.any():
+                    v = float(h[sel].min())
+                    if v < self.kind_min[kind]:
+                        self.kind_min[kind] = v
         return values, lie
 
 

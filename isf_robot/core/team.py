@@ -60,24 +60,31 @@ from .strategies import Strategy
 from .switches import SwitchCounter
 from .system import LieData
 
-__all__ = ["row_agents", "agent_lie", "AgentTally", "AgentResult", "CentralFilter", "SharedFilter"]
+__all__ = ["block_matrix", "row_agents", "agent_lie", "AgentTally", "AgentResult", "CentralFilter", "SharedFilter"]
 
 
-def row_agents(lg: np.ndarray, blocks: Sequence[slice]) -> np.ndarray:
+def block_matrix(blocks: Sequence[slice], m: int) -> np.ndarray:
+    """``M[j, i] = 1`` when column j is agent i's, shape (m, a): ``|Lg h| M > 0`` is :func:`row_agents`."""
+    M = np.zeros((m, len(blocks)))
+    for i, b in enumerate(blocks):
+        M[b, i] = 1.0
+    return M
+
+
+def row_agents(lg: np.ndarray, blocks: Sequence[slice] | np.ndarray) -> np.ndarray:
     """Which agents each row involves: ``out[r, i]`` when row r's ``Lg h`` is non-zero in agent i's columns.
 
     Args:
         lg: ``Lg h``, shape (k, m).
-        blocks: Agent i's columns, slices covering ``0..m`` without overlap.
+        blocks: Agent i's columns, slices covering ``0..m`` without overlap; or their :func:`block_matrix`
+            (computed once by a caller that asks every step).
 
     Returns:
         Shape (k, a), bool.
 
     """
-    out = np.empty((lg.shape[0], len(blocks)), dtype=bool)
-    for i, b in enumerate(blocks):
-        out[:, i] = np.any(lg[:, b] != 0.0, axis=1)
-    return out
+    M = blocks if isinstance(blocks, np.ndarray) else block_matrix(blocks, lg.shape[1])
+    return np.abs(lg) @ M > 0.0
 
 
 def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray) -> LieData:
@@ -169,6 +176,7 @@ class CentralFilter:
         self.inner, self.blocks, self.period = strategy, tuple(blocks), float(period)
         self.uses_rows, self.intermittent = strategy.uses_rows, strategy.intermittent
         self.tallies = [AgentTally(n) for n in names]
+        self._M: np.ndarray | None = None
 
     @property
     def on(self) -> bool:
@@ -184,12 +192,15 @@ class CentralFilter:
     def step_lie(self, t: float, lie: LieData | None, u_nom: np.ndarray, x: Any = None, **kw: Any) -> FilterStep:
         """The strategy's step; each agent's share of it is recorded."""
         step = self.inner.step_lie(t, lie, u_nom, x, **kw) if lie is not None else self.inner.step_lie(t, lie, u_nom)
-        shared = (row_agents(lie.lg, self.blocks).sum(axis=1) > 1 if lie is not None
-                  else np.zeros(0, dtype=bool))
+        shared = np.zeros(step.xi.shape, dtype=bool)
+        if lie is not None and step.on and lie.k == step.xi.shape[0]:  # (coordination counts only while on)
+            if self._M is None or self._M.shape[0] != lie.m:
+                self._M = block_matrix(self.blocks, lie.m)
+            shared = row_agents(lie.lg, self._M).sum(axis=1) > 1
         for b, tally in zip(self.blocks, self.tallies):
             part = FilterStep._of(t, step.u[b], step.u_nom[b], step.on, step.h, step.xi, step.event, step.qp,
                                   margin=step.margin)
-            tally.add(part, shared if shared.shape == step.xi.shape else np.zeros(step.xi.shape, bool), self.period)
+            tally.add(part, shared, self.period)
         return step
 
     def agent_results(self) -> list[AgentResult]:
@@ -223,6 +234,7 @@ class SharedFilter:
         self.tallies = [AgentTally(n) for n in names]
         self.last: list[FilterStep] = []
         self._switch = SwitchCounter()
+        self._M: np.ndarray | None = None
 
     @property
     def on(self) -> bool:
@@ -238,7 +250,9 @@ class SharedFilter:
 
     def split(self, lie: LieData) -> list[tuple[np.ndarray, LieData, np.ndarray]]:
         """Each agent's ``(rows, its Lie data, which of those rows are shared)`` (:func:`agent_lie`)."""
-        inv = row_agents(lie.lg, self.blocks)
+        if self._M is None or self._M.shape[0] != lie.m:
+            self._M = block_matrix(self.blocks, lie.m)
+        inv = row_agents(lie.lg, self._M)
         count = inv.sum(axis=1)
         out = []
         for i, b in enumerate(self.blocks):
