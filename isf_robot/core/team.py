@@ -31,11 +31,9 @@ is kept by the same argument as for one filter, up to the robust terms (the trac
 ``d_bar`` on every joint, and the sample-and-hold between control steps, as for one arm). The same holds
 for a promoted row (``>= b``). What the split gives up is optimality: an agent meets its share even when
 the other agent alone could have satisfied the row; the centralised filter would let one agent do all
-the work. An agent whose filter cannot meet its share falls back (brakes, ``u_i = 0``) as a single
-filter does; the other agents still meet theirs, so a row whose every agent meets its share is never
-at risk from another agent's fallback only if that fallback meets its share too (braking gives
-``lg_i u_i = 0``, which meets a share whose bound is <= 0, i.e. whenever the row's condition holds
-without input).
+the work. An agent whose QP has no solution brakes (``u_i = 0``; the adapter's fallback, counted, as for
+one filter): braking meets the agent's share of every row whose bound is <= 0 (a row that holds without
+input) and of no other, so a fallback is reported, never hidden.
 
 **Coordination** (:class:`AgentTally`): an agent *needs the other agents* at a step when its filter is
 on and a row it shares with another agent is in play: that row's ``Xi_on`` under the nominal is below

@@ -67,15 +67,12 @@ geoms = ["post"]
 duration = 3.0
 
 [barrier]
-margin = 0.02
 cutoff = 0.25
 
 [gains]
-task_kp = 4.0
 max_ee_speed = 0.6
-max_joint_speed = 2.0
-tracking_kp = [300.0, 200.0, 300.0, 200.0]
-tracking_kd = [30.0, 20.0, 30.0, 20.0]
+tracking_kp = [300.0, 200.0]  # one arm's: every arm gets them
+tracking_kd = [30.0, 20.0]
 
 [filter]
 alpha = 5.0
@@ -103,6 +100,7 @@ def test_arm_tables_build_the_robot(two_arms) -> None:  # type: ignore[no-untype
     assert [a.name for a in two_arms.arms] == ["a", "b"]
     assert cfg.arms[1].goals[0].site == "b_g1"  # 'like' takes the names as written, then the arm's prefix
     np.testing.assert_allclose(two_arms.home, [0.3, -0.6, 0.3, -0.6])
+    assert cfg.gains.tracking_kp == (300.0, 200.0, 300.0, 200.0)  # one arm's gains stand for every arm's
     np.testing.assert_allclose(two_arms.goal_positions[two_arms.arms[1].goals], [[0.4, -0.22, 0.2], [0.4, 0.22, 0.2]])
     one = arm_scene(two_arms, 1)
     assert one.n_joints == 2 and one.joint_names == ("b_q1", "b_q2") and one.arms == ()
