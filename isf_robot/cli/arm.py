@@ -26,7 +26,7 @@ from isf_robot.record.options import add_recording_args, make_observer
 from isf_robot.support.parallel import Interrupted
 from isf_robot.support.report import format_value, to_jsonable, with_schema
 
-from .arm_team import COORDINATION_HELP, check_coordination, team_compare, team_run
+from .arm_team import COORDINATION_HELP, check_coordination, team_compare, team_report, team_simulation
 
 __all__ = ["register", "DEMO_SCENE"]
 
@@ -203,9 +203,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     scene = _spec(args).load()
     check_coordination(args, scene)
     kwargs = _params(args, scene)
-    if scene.arms:
-        return team_run(args, scene, kwargs)
-    sim = ArmSimulation(scene, args.filter, seed=args.seed, **kwargs)  # validates before any output
+    sim = (team_simulation(args, scene, kwargs) if scene.arms else
+           ArmSimulation(scene, args.filter, seed=args.seed, **kwargs))  # validates before any output
     sim.control_steps(args.duration)
     observers = [make_observer(args, "arm", name=f"{scene.name}-{args.filter}-seed{args.seed}"), video]
     if args.view:
@@ -215,6 +214,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         observers.append(LiveViewer(speed=args.view_speed, show_collision=args.view_collision))
     if any(o is not None for o in observers):
         sim.observers = Observers(observers)  # (drops None)
+    if scene.arms:
+        return team_report(args, sim)
     d = to_jsonable(sim.run(args.duration).as_dict())
     if args.json:
         print(json.dumps(with_schema("isf-robot-run", d)))

@@ -18,7 +18,7 @@ import numpy as np
 from isf_robot.core.exceptions import ConfigError
 from isf_robot.support.report import format_value, to_jsonable, with_schema
 
-__all__ = ["COORDINATION_HELP", "check_coordination", "team_run", "team_compare"]
+__all__ = ["COORDINATION_HELP", "check_coordination", "team_simulation", "team_report", "team_compare"]
 
 COORDINATION_HELP = ("with a scene of several arms: central (one filter over every arm's joints) or decentral "
                      "(one filter per arm, each with an equal share of every inter-arm row)")
@@ -40,13 +40,17 @@ def _arm_lines(r: Any) -> list[str]:
     return out
 
 
-def team_run(args: argparse.Namespace, scene: Any, kwargs: dict[str, Any]) -> int:
-    """One episode of a multi-arm scene; per-arm lines (or one JSON object)."""
+def team_simulation(args: argparse.Namespace, scene: Any, kwargs: dict[str, Any]) -> Any:
+    """The simulation of a multi-arm scene for ``run`` and ``render`` (``--coordination``, default central)."""
     from isf_robot.arm.multi_arm import MultiArmSimulation
 
-    coordination = args.coordination or "central"
-    sim = MultiArmSimulation(scene, args.filter, coordination=coordination, seed=args.seed, **kwargs)
-    sim.control_steps(args.duration)
+    return MultiArmSimulation(scene, args.filter, coordination=getattr(args, "coordination", None) or "central",
+                              seed=args.seed, **kwargs)
+
+
+def team_report(args: argparse.Namespace, sim: Any) -> int:
+    """Run a multi-arm simulation; per-arm lines (or one JSON object)."""
+    coordination = sim.coordination
     r = sim.run_team(args.duration)
     d = to_jsonable(r.as_dict())
     if args.json:
