@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import mujoco
@@ -219,3 +220,43 @@ def test_multi_arm_simulation_refuses_one_arm_and_unknown_coordination(two_arms)
         MultiArmSimulation(load_scene("planar"), "cbf", d_bar=0.05)
     with pytest.raises(UnknownNameError, match="central"):
         MultiArmSimulation(two_arms, "cbf", coordination="both")
+
+
+# ----------------------------------------------------------------------------- the command line
+
+
+@pytest.fixture(scope="module")
+def two_arm_files(two_arms):  # type: ignore[no-untyped-def]
+    return ["--model", str(two_arms.xml_path), "--config", str(two_arms.config.source)]
+
+
+def test_run_prints_a_line_per_arm(capsys, two_arm_files) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.cli import main
+
+    assert main(["run", *two_arm_files, "--filter", "isf", "--coordination", "decentral", "--duration", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "(decentral)" in out and "penetrating contacts" in out
+    lines = out.splitlines()
+    assert sum(ln.split()[0] in ("a", "b") for ln in lines if ln.strip()) == 2
+    assert main(["run", *two_arm_files, "--filter", "cbf", "--duration", "1", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["coordination"] == "central" and [a["name"] for a in d["arms"]] == ["a", "b"]
+    assert d["violations"] == 0 and d["schema"].startswith("isf-robot-run")
+
+
+def test_compare_runs_each_way_on_the_same_seeds(capsys, two_arm_files) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.cli import main
+
+    assert main(["compare", *two_arm_files, "--filters", "cbf", "isf", "--episodes", "1", "--duration", "1",
+                 "--json", "--quiet"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert set(d["results"]) == {"cbf/central", "cbf/decentral", "isf/central", "isf/decentral"}
+    assert all(r["violations"] == 0 and len(r["arms"]) == 2 for r in d["results"].values())
+
+
+def test_coordination_on_one_arm_is_a_one_line_error(capsys) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.cli import main
+
+    assert main(["run", "--scene", "planar", "--coordination", "decentral", "--duration", "0.1", "--d-bar", "0.1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "several arms" in err and "'planar' has one" in err
