@@ -260,3 +260,20 @@ def test_coordination_on_one_arm_is_a_one_line_error(capsys) -> None:  # type: i
     assert main(["run", "--scene", "planar", "--coordination", "decentral", "--duration", "0.1", "--d-bar", "0.1"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "several arms" in err and "'planar' has one" in err
+
+
+def test_init_writes_an_arm_table_per_arm(tmp_path: Path) -> None:
+    import shutil
+
+    from isf_robot.arm.starter import starter_toml
+    from isf_robot.paths import models_dir
+
+    for f in ("panda_pair.xml", "panda_arm.xml"):
+        shutil.copy(models_dir() / f, tmp_path / f)
+    text = starter_toml(tmp_path / "panda_pair.xml")
+    assert text.count("\n[[arm]]") == 2 and "\n[robot]" not in text and 'prefix = "right_"' in text
+    (tmp_path / "panda_pair.toml").write_text(text)
+    sc = load_scene_from_files(tmp_path / "panda_pair.xml", tmp_path / "panda_pair.toml")  # loads as it is
+    assert [a.name for a in sc.arms] == ["left", "right"] and sc.n_joints == 14
+    assert sc.config.arms[1].goals[0].site == "right_goal_a"
+    assert CollisionBarriers.from_scene(sc).pairs.k == 252
