@@ -215,6 +215,15 @@ def test_team_reaching_stacks_each_arms_controller(two_arms) -> None:  # type: i
         np.testing.assert_allclose(u[two_arms.arms[i].joints], c(0.01, d))
 
 
+def test_single_arm_paths_refuse_several_arms(two_arms) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.arm.nominal import ReachingController
+    from isf_robot.arm.sim import ArmSimulation
+
+    for build in (lambda: ReachingController(two_arms), lambda: ArmSimulation(two_arms, "cbf", d_bar=0.05)):
+        with pytest.raises(ConfigError, match="has 2 arms: its nominal task is every arm's"):
+            build()
+
+
 def test_multi_arm_simulation_refuses_one_arm_and_unknown_coordination(two_arms) -> None:  # type: ignore[no-untyped-def]
     with pytest.raises(ConfigError, match="one arm"):
         MultiArmSimulation(load_scene("planar"), "cbf", d_bar=0.05)
