@@ -286,3 +286,21 @@ def test_init_writes_an_arm_table_per_arm(tmp_path: Path) -> None:
     assert [a.name for a in sc.arms] == ["left", "right"] and sc.n_joints == 14
     assert sc.config.arms[1].goals[0].site == "right_goal_a"
     assert CollisionBarriers.from_scene(sc).pairs.k == 252
+
+
+def test_per_arm_intervention_reads_back_from_a_recording(capsys, two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """The recording's per-joint correction ``u - u_nom``, summed over each arm's joints, gives the arm's figure."""
+    pytest.importorskip("rerun")
+    from isf_robot.cli import main
+    from isf_robot.record import read_columns
+
+    rrd = tmp_path / "pair.rrd"
+    assert main(["run", *two_arm_files, "--filter", "isf", "--coordination", "decentral", "--duration", "1.5",
+                 "--rrd", str(rrd), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    col = read_columns(rrd, "/plots/joints/correction", ["Scalars:scalars"])["Scalars:scalars"]
+    assert col.shape == (d["control_steps"], 4)
+    for arm, cols in zip(d["arms"], (slice(0, 2), slice(2, 4))):
+        again = float(np.sum(col[:, cols] ** 2) * d["control_period"])
+        assert again == pytest.approx(arm["intervention"], rel=1e-9, abs=1e-12), arm["name"]
+    assert sum(a["intervention"] for a in d["arms"]) > 0  # the filter acted
