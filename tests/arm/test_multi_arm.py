@@ -9,7 +9,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from isf_robot.arm import CollisionBarriers, load_scene, load_scene_from_files
+from isf_robot.arm import CollisionBarriers, list_scenes, load_scene, load_scene_from_files
+from isf_robot.arm.arms import geom_arms
 from isf_robot.arm.config_toml import parse_config
 from isf_robot.arm.multi_arm import MultiArmSimulation, run_team
 from isf_robot.arm.one_arm import arm_scene
@@ -304,3 +305,23 @@ def test_per_arm_intervention_reads_back_from_a_recording(capsys, two_arm_files,
         again = float(np.sum(col[:, cols] ** 2) * d["control_period"])
         assert again == pytest.approx(arm["intervention"], rel=1e-9, abs=1e-12), arm["name"]
     assert sum(a["intervention"] for a in d["arms"]) > 0  # the filter acted
+
+
+@pytest.mark.parametrize("name", [s.name for s in list_scenes() if load_scene(s.name).arms])
+def test_shipped_multi_arm_tasks_collide_without_a_filter(name: str) -> None:
+    """Every arm's nominal task, rolled out kinematically (q_dot = u_nom), brings two arms into contact."""
+    sc = load_scene(name)
+    cb, team = CollisionBarriers.from_scene(sc), TeamReaching(sc)
+    m, d = sc.model, sc.make_data()
+    arm = geom_arms(sc.arms, np.arange(m.ngeom))
+    between = np.flatnonzero((arm[cb.pairs.geom1] >= 0) & (arm[cb.pairs.geom2] >= 0))  # (arm-arm pairs)
+    q, dt, worst = sc.home.copy(), 0.01, np.inf
+    for k in range(int(6.0 / dt)):
+        d.qpos[sc.qpos_adr] = q
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        worst = min(worst, float(np.min(cb.evaluate(d).h[between])))
+        if worst < 0.0:
+            break
+        q = q + dt * team(k * dt, d)
+    assert worst < 0.0
