@@ -12,8 +12,8 @@ arm-obstacle, self), per arm the mean duty cycle, on-switches, intervention, goa
 coordination steps and events, and the shortest complete off period of any episode.
 
 Step cost: wall time per control step (median over ``--cost-seeds`` seeds, 6 s episodes, one process,
-one after another, no other work of this script in parallel) of ``panda_pole`` (one arm) against the
-scenes with several arms, each strategy and coordination.
+the configurations interleaved seed by seed, after the episodes above) of ``panda_pole`` (one arm) against
+the scenes with several arms, each strategy and coordination.
 
 Writes both tables into RESULTS.md between ``<!-- MARKER:start -->`` and ``<!-- MARKER:end -->``
 (``--no-write``: print only).
@@ -109,23 +109,28 @@ def main() -> int:
             for w in (WAYS if st != "nominal" else WAYS[:1]) for seed in range(args.episodes)]
     with ProcessPoolExecutor(args.jobs) as pool:
         rows = list(pool.map(_episode, jobs))
-    cost: dict[str, float] = {}
-    for st in ("cbf", "isf"):  # (one process, one run after another: the step costs compare)
-        _single(("panda_pole", st, 0, 0.5))  # (warm-up: the compiled kernels this strategy uses are loaded)
-        cost[f"panda_pole {st}"] = statistics.median(
-            _single(("panda_pole", st, k, 6.0)) for k in range(args.cost_seeds))
-        for s in args.scenes:
-            for w in WAYS:
-                _episode((s, st, w, 0, 0.5))
-                cost[f"{s} {st} {w}"] = statistics.median(
-                    _episode((s, st, w, k, 6.0))["step_us"] for k in range(args.cost_seeds))
+    configs = [(st, None, None) for st in ("cbf", "isf")] + [
+        (st, sc, w) for st in ("cbf", "isf") for sc in args.scenes for w in WAYS]
+
+    def step_us(st: str, sc: str | None, w: str | None, seed: int, duration: float) -> float:
+        return _single(("panda_pole", st, seed, duration)) if sc is None else _episode((sc, st, w, seed, duration))[
+            "step_us"]
+
+    for cfg in configs:  # (warm-up: every compiled kernel a configuration uses is loaded before the timing)
+        step_us(*cfg, 0, 0.5)
+    samples: dict[tuple[str, str | None, str | None], list[float]] = {cfg: [] for cfg in configs}
+    for k in range(args.cost_seeds):  # (one process; the configurations interleaved, so load changes hit all alike)
+        for cfg in configs:
+            samples[cfg].append(step_us(*cfg, k, 6.0))
+    cost = {(f"panda_pole {st}" if sc is None else f"{sc} {st} {w}"): statistics.median(v)
+            for (st, sc, w), v in samples.items()}
     lines = [f"Measured {datetime.date.today()} on {cpu_model()}: {args.episodes} seeds per row, the scenes' "
              "episode length, shipped parameters (`d_bar` calibrated). Regenerate with "
              f"`nice -n 19 python benchmarks/multi_arm_targets.py --episodes {args.episodes}`.", ""]
     for s in args.scenes:
         lines += [outcome_table(rows, s), ""]
     lines += ["Step cost (wall time per control step, median of "
-              f"{args.cost_seeds} seeds of 6 s, one process, runs one after another):", "",
+              f"{args.cost_seeds} seeds of 6 s, one process, the runs interleaved):", "",
               "| run | us / step | x one arm (same strategy) |", "|---|---|---|"]
     for key, us in cost.items():
         st = key.split()[1]
