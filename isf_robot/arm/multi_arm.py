@@ -122,7 +122,9 @@ class ArmRunResult:
     Attributes:
         run: The whole run (every joint; safety over every pair at every physics step).
         coordination: ``central`` or ``decentral``.
-        arms: Per arm: name, duty cycle, switches, off periods, intervention, goals, coordination.
+        arms: Per arm: name, duty cycle, switches, off periods, intervention (over its own joints), goals,
+            coordination steps and events. Centrally filtered, the duty, switches and off periods are the one
+            filter's (the same for every arm); per arm, they are the arm's own filter's.
         clearance: Smallest barrier value at the control ticks by kind (``arm-arm``, ``arm-obstacle``) [m].
         contacts: Penetrating MuJoCo contacts at the control ticks by kind (``arm-arm``, ``arm-obstacle``, ``self``).
 
