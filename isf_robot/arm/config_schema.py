@@ -82,6 +82,8 @@ class ArmConfig:
         ee_site: The arm's end-effector site.
         home: Initial joint positions [rad], shape (len(joints),); ``None``: the model's qpos0.
         goals: The arm's reaching goals, in order.
+        self_collision: Barriers for the non-adjacent pairs of the arm's own geoms too (every arm of a
+            scene gives the same value).
 
     """
 
@@ -92,6 +94,7 @@ class ArmConfig:
     ee_site: str
     home: tuple[float, ...] | None
     goals: tuple[Goal, ...]
+    self_collision: bool = False
 
 
 @dataclass(frozen=True)

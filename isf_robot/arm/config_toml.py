@@ -55,7 +55,7 @@ SECTION_KEYS: dict[str, tuple[str, ...]] = {
     "control": ("period",),
     "moving.circle": ("body", "type", "center", "radius", "period", "normal", "phase"),
     "moving.linear_bounce": ("body", "type", "start", "end", "speed", "phase"),
-    "arm": ("name", "prefix", "like", "joints", "geoms", "ee_site", "home", "goals"),
+    "arm": ("name", "prefix", "like", "joints", "geoms", "ee_site", "home", "goals", "self_collision"),
 }
 """The keys each table of a scene's TOML file may have (``models/README.md`` documents them)."""
 TABLES = ("scene", "robot", "obstacles", "task", "barrier", "gains", "filter", "control", "moving", "arm")
@@ -221,7 +221,8 @@ def _arms(raw: Any, origin: str) -> tuple[ArmConfig, ...]:
         prefix = r.string("prefix", "")
         own = {"joints": r.strings("joints", None), "geoms": r.strings("geoms", None),
                "ee_site": r.string("ee_site", None), "home": r.numbers("home", None),
-               "goals": r.raw("goals", None)}
+               "goals": r.raw("goals", None), "self_collision": r.boolean("self_collision", False)
+               if r.has("self_collision") else None}
         vals = {k: v if v is not None else base.get(k) for k, v in own.items()}
         for key in ("joints", "geoms", "ee_site", "goals"):
             if vals[key] is None:
@@ -243,7 +244,11 @@ def _arms(raw: Any, origin: str) -> tuple[ArmConfig, ...]:
             goals.append(Goal(goal.position, goal.dwell, None if goal.site is None else pre(goal.site)))
         arms.append(ArmConfig(name=name, prefix=prefix, joints=tuple(map(pre, vals["joints"])),
                               geoms=tuple(map(pre, vals["geoms"])), ee_site=pre(vals["ee_site"]),
-                              home=vals["home"], goals=tuple(goals)))
+                              home=vals["home"], goals=tuple(goals),
+                              self_collision=bool(vals["self_collision"])))
+    if len({a.self_collision for a in arms}) > 1:
+        raise ConfigError(f"{origin}: [[arm]] self_collision: give every arm the same value (per arm: "
+                          f"{ {a.name: a.self_collision for a in arms} })")
     homes = [a.home is None for a in arms]
     if any(homes) and not all(homes):
         raise ConfigError(f"{origin}: [[arm]] give 'home' for every arm or for none "
@@ -255,7 +260,8 @@ def _arms_robot(arms: tuple[ArmConfig, ...]) -> RobotConfig:
     """The robot of a scene with several arms: every arm's joints and geoms, in ``[[arm]]`` order."""
     home = None if arms[0].home is None else tuple(x for a in arms for x in a.home)  # type: ignore[union-attr]
     return RobotConfig(joints=tuple(j for a in arms for j in a.joints), ee_site=arms[0].ee_site,
-                       geoms=tuple(g for a in arms for g in a.geoms), home=home)
+                       geoms=tuple(g for a in arms for g in a.geoms), home=home,
+                       self_collision=arms[0].self_collision)
 
 
 def _path(r: _Reader) -> ObstaclePath:

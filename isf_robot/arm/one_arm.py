@@ -18,7 +18,8 @@ def arm_scene(scene: Scene, i: int) -> Scene:
     """
     a, cfg = scene.arms[i], scene.config
     j, g, model, arm = a.joints, a.goals, scene.model, cfg.arms[i]
-    robot = RobotConfig(joints=arm.joints, ee_site=arm.ee_site, geoms=arm.geoms, home=arm.home)
+    robot = RobotConfig(joints=arm.joints, ee_site=arm.ee_site, geoms=arm.geoms, home=arm.home,
+                        self_collision=arm.self_collision)
     config = dataclasses.replace(cfg, robot=robot, task=dataclasses.replace(cfg.task, goals=arm.goals), arms=())
     return dataclasses.replace(
         scene, name=f"{scene.name}:{a.name}", config=config, joint_ids=scene.joint_ids[j],

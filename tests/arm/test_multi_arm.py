@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from isf_robot.arm import CollisionBarriers, list_scenes, load_scene, load_scene_from_files
+from isf_robot.arm import CollisionBarriers, collision_pairs, list_scenes, load_scene, load_scene_from_files
 from isf_robot.arm.arms import geom_arms
 from isf_robot.arm.config_toml import parse_config
 from isf_robot.arm.multi_arm import MultiArmSimulation, run_team
@@ -114,6 +114,7 @@ def test_arm_tables_build_the_robot(two_arms) -> None:  # type: ignore[no-untype
     (lambda t: t.replace('home = [0.3, -0.6]', 'home = [0.3]'), "expected 2 numbers"),
     (lambda t: t.replace('[task]', '[task]\ngoals = [{ site = "a_g1" }]'), "each arm's goals"),
     (lambda t: t.replace('prefix = "b_"', 'prefix = "b_"\nspeed = 1'), "unknown key 'speed'"),
+    (lambda t: t.replace('prefix = "b_"', 'prefix = "b_"\nself_collision = true'), "the same value"),
 ])
 def test_bad_arm_tables_say_what_is_valid(edit, message) -> None:  # type: ignore[no-untyped-def]
     import tomllib
@@ -133,6 +134,17 @@ def test_single_arm_scene_has_no_arms_and_unchanged_pairs() -> None:
     sc = load_scene("panda_pole")
     assert sc.arms == ()
     assert CollisionBarriers.from_scene(sc).pairs.k == 28
+
+
+def test_self_collision_of_every_arm_adds_each_arms_own_pairs() -> None:
+    sc = load_scene("panda_quad")  # self_collision = true in the first [[arm]], taken by the others through 'like'
+    assert [a.self_collision for a in sc.config.arms] == [True] * 4
+    p = CollisionBarriers.from_scene(sc).pairs
+    arm = geom_arms(sc.arms, np.arange(sc.model.ngeom))
+    same = arm[p.geom1] == arm[p.geom2]
+    one = collision_pairs(sc.model, sc.arms[0].geom_ids, [], margin=0.0, self_collision=True, self_margin=0.01)
+    assert same.sum() == 4 * one.k and np.all(p.margin[same] == 0.01)  # each arm's own pairs, with self_margin
+    assert np.all(p.margin[p.is_self & ~same] == 0.02) and (p.is_self & ~same).sum() == 6 * 14 * 14  # arm-arm
 
 
 # ----------------------------------------------------------------------------- inter-arm rows
