@@ -223,7 +223,7 @@ def _arms(raw: Any, origin: str) -> tuple[ArmConfig, ...]:
                "ee_site": r.string("ee_site", None), "home": r.numbers("home", None),
                "goals": r.raw("goals", None), "self_collision": r.boolean("self_collision", False)
                if r.has("self_collision") else None}
-        vals = {k: v if v is not None else base.get(k) for k, v in own.items()}
+        vals: dict[str, Any] = {k: v if v is not None else base.get(k) for k, v in own.items()}
         for key in ("joints", "geoms", "ee_site", "goals"):
             if vals[key] is None:
                 raise r._err(key, "missing (required, or take it from another arm with 'like')")

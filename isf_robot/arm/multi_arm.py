@@ -73,7 +73,7 @@ def _brake(t: float, x: Any, lie: LieData, res: Any) -> np.ndarray:
     return np.zeros(lie.m)
 
 
-class _TeamEpisode(ArmSimulation.episode):  # type: ignore[name-defined,misc]
+class _TeamEpisode(ArmSimulation.episode):  # type: ignore[name-defined,misc,valid-type]
     """The run's phases, plus the clearance by kind at each tick and penetrating contacts by kind."""
 
     def __init__(self, sim: MultiArmSimulation, n_ctrl: int) -> None:

@@ -189,7 +189,8 @@ class CentralFilter:
 
     def step_lie(self, t: float, lie: LieData | None, u_nom: np.ndarray, x: Any = None, **kw: Any) -> FilterStep:
         """The strategy's step; each agent's share of it is recorded."""
-        step = self.inner.step_lie(t, lie, u_nom, x, **kw) if lie is not None else self.inner.step_lie(t, lie, u_nom)
+        step = (self.inner.step_lie(t, lie, u_nom, x, **kw) if lie is not None
+                else self.inner.step_lie(t, lie, u_nom))  # type: ignore[arg-type]  # (no rows: NominalStrategy)
         shared = np.zeros(step.xi.shape, dtype=bool)
         if lie is not None and step.on and lie.k == step.xi.shape[0]:  # (coordination counts only while on)
             if self._M is None or self._M.shape[0] != lie.m:
@@ -266,7 +267,7 @@ class SharedFilter:
         steps = []
         if lie is None:
             for s, b in zip(self.agents, self.blocks):
-                steps.append(s.step_lie(t, None, u_nom[b]))
+                steps.append(s.step_lie(t, None, u_nom[b]))  # type: ignore[arg-type]  # (NominalStrategy)
             xi = np.zeros(0)
             parts: list[tuple[np.ndarray, LieData, np.ndarray]] = []
         else:
