@@ -15,7 +15,8 @@ _EXPORTS: dict[str, str] = {
     "load_scene_from_files": "scene", "build_scene": "build",
     "SceneConfig": "config_schema", "RobotConfig": "config_schema", "ObstacleConfig": "config_schema",
     "Goal": "config_schema", "TaskConfig": "config_schema", "BarrierConfig": "config_schema",
-    "GainsConfig": "config_schema", "ControlConfig": "config_schema",
+    "GainsConfig": "config_schema", "ControlConfig": "config_schema", "ArmConfig": "config_schema",
+    "ArmInfo": "arms", "arm_scene": "one_arm",
     "load_config": "config_toml", "parse_config": "config_toml",
     "CirclePath": "paths", "LinearBouncePath": "paths", "ObstaclePath": "paths", "MovingObstacle": "paths",
     # barriers
@@ -35,6 +36,9 @@ _EXPORTS: dict[str, str] = {
     "EpisodeSetup": "episode", "check_control_period": "episode", "episode_setup": "episode",
     "ArmSimulation": "sim", "run_episode": "sim", "resolve_params": "params",
     "ArmStepRecord": "records", "FilterParams": "records", "RunResult": "records",
+    # several arms: the team's nominal, the loop with a coordination, its result
+    "TeamReaching": "team_nominal", "MultiArmSimulation": "multi_arm", "ArmRunResult": "multi_arm",
+    "run_team": "multi_arm", "COORDINATIONS": "multi_arm",
     # comparisons
     "SceneSpec": "compare", "Comparison": "compare", "compare_strategies": "compare", "format_table": "compare",
 }

@@ -40,6 +40,7 @@ from isf_robot.core.exceptions import ConfigError
 from .actuation import make_actuation
 from .nominal import ReachingController
 from .scene import Scene
+from .team_nominal import TeamReaching
 from .tracking_law import tracking_error
 
 __all__ = ["Calibration", "calibrate_d_bar", "clear_calibration_cache"]
@@ -148,12 +149,13 @@ def calibrate_d_bar(
         return _CACHE[key]
 
     model = copy.deepcopy(scene.model)
-    for g in scene.obstacle_geom_ids:
+    for g in (scene.obstacle_geom_ids if not scene.arms else  # (several arms: not into each other either)
+              np.concatenate([scene.obstacle_geom_ids, scene.robot_geom_ids])):
         model.geom_contype[g] = 0
         model.geom_conaffinity[g] = 0
     free = dataclasses.replace(scene, model=model)
     data = free.make_data(0.0)
-    nominal = ReachingController(free)
+    nominal = ReachingController(free) if not scene.arms else TeamReaching(free)
     tracker = make_actuation(free, friction=friction)
     tracker.reset(data)
     rng = np.random.default_rng(seed)
@@ -161,7 +163,7 @@ def calibrate_d_bar(
     n_steps = int(round(duration / dt))
     per_switch = max(1, int(round(switch_period / dt)))
     per_control = max(1, int(round(scene.config.control.period / dt)))
-    vmax = nominal.max_joint_speed
+    vmax = float(scene.config.gains.max_joint_speed)
     offset = np.zeros(free.n_joints)
     errors = np.empty(n_steps)
     sat = np.zeros(free.n_joints)

@@ -40,6 +40,7 @@ from isf_robot.core import LieData
 from isf_robot.core.exceptions import ConfigError, IsfWarning
 
 from . import kernels
+from .arms import geom_arms
 from .batch import BarrierBatch
 from .broadphase import BroadPhase, JointCoherence
 from .clearance import Clearance, _ClearanceSearch
@@ -181,7 +182,8 @@ class CollisionBarriers(NarrowPhase):
         bc = scene.config.barrier
         pairs = collision_pairs(scene.model, scene.robot_geom_ids, scene.obstacle_geom_ids,
                                 margin=bc.margin, self_collision=scene.config.robot.self_collision,
-                                self_margin=bc.self_margin)
+                                self_margin=bc.self_margin,
+                                arm_of=geom_arms(scene.arms, scene.robot_geom_ids) if scene.arms else None)
         return cls(scene.model, pairs, scene.dof_adr, bc.cutoff)
 
     @property

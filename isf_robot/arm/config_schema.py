@@ -18,6 +18,7 @@ from .paths import MovingObstacle
 
 __all__ = [
     "RobotConfig",
+    "ArmConfig",
     "ObstacleConfig",
     "Goal",
     "TaskConfig",
@@ -62,6 +63,38 @@ class RobotConfig:
     geom_group: int | None = None
     ee_body: str | None = None
     ee_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class ArmConfig:
+    """One arm of a scene with several arms (a ``[[arm]]`` table).
+
+    The names below are the model's, prefix included (the file may write them without it; see
+    ``models/README.md``). A scene with arms has no ``[robot]`` table: its robot is every arm's
+    joints and geoms in ``[[arm]]`` order (:attr:`SceneConfig.robot` is built from them), so the
+    single-arm machinery acts on the concatenated joints; its goals are every arm's goals in order.
+
+    Attributes:
+        name: The arm's name (unique in the scene).
+        prefix: The prefix of the arm's names in the model (e.g. the ``prefix`` of an ``<attach>``).
+        joints: The arm's joints in control order.
+        geoms: The arm's collision geoms.
+        ee_site: The arm's end-effector site.
+        home: Initial joint positions [rad], shape (len(joints),); ``None``: the model's qpos0.
+        goals: The arm's reaching goals, in order.
+        self_collision: Barriers for the non-adjacent pairs of the arm's own geoms too (every arm of a
+            scene gives the same value).
+
+    """
+
+    name: str
+    prefix: str
+    joints: tuple[str, ...]
+    geoms: tuple[str, ...]
+    ee_site: str
+    home: tuple[float, ...] | None
+    goals: tuple[Goal, ...]
+    self_collision: bool = False
 
 
 @dataclass(frozen=True)
@@ -201,6 +234,7 @@ class SceneConfig:
             ``d_bar = 0``: calibrate it).
         control: Control timing.
         moving: Mocap obstacles with known paths.
+        arms: The arms of a scene with several (``[[arm]]`` tables); empty for one arm (``[robot]``).
         source: The TOML file this was read from, or ``None``.
 
     """
@@ -217,3 +251,4 @@ class SceneConfig:
     control: ControlConfig = ControlConfig()
     moving: tuple[MovingObstacle, ...] = ()
     source: Path | None = None
+    arms: tuple[ArmConfig, ...] = ()

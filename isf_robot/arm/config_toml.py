@@ -6,6 +6,7 @@ ones and names the file and the table); the schema is documented in ``models/REA
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 import sys
@@ -21,6 +22,7 @@ from isf_robot.core.spec import NAMES as SPEC_NAMES
 from isf_robot.core.spec import FilterSpec
 
 from .config_schema import (
+    ArmConfig,
     BarrierConfig,
     ControlConfig,
     GainsConfig,
@@ -53,11 +55,12 @@ SECTION_KEYS: dict[str, tuple[str, ...]] = {
     "control": ("period",),
     "moving.circle": ("body", "type", "center", "radius", "period", "normal", "phase"),
     "moving.linear_bounce": ("body", "type", "start", "end", "speed", "phase"),
+    "arm": ("name", "prefix", "like", "joints", "geoms", "ee_site", "home", "goals", "self_collision"),
 }
 """The keys each table of a scene's TOML file may have (``models/README.md`` documents them)."""
-TABLES = ("scene", "robot", "obstacles", "task", "barrier", "gains", "filter", "control", "moving")
-"""The top-level tables, in the order the schema lists them (``moving`` is an array of tables)."""
-_ARRAY_TABLES = ("moving",)
+TABLES = ("scene", "robot", "obstacles", "task", "barrier", "gains", "filter", "control", "moving", "arm")
+"""The top-level tables, in the order the schema lists them (``moving`` and ``arm`` are arrays of tables)."""
+_ARRAY_TABLES = ("moving", "arm")
 
 
 class _Reader:
@@ -179,8 +182,8 @@ def _table_name(key: str) -> str:
     return f"[[{key}]]" if key in _ARRAY_TABLES else f"[{key}]"
 
 
-def _goal(tab: Any, origin: str, i: int) -> Goal:
-    label = f"[[task.goals]] goal {i + 1}"
+def _goal(tab: Any, origin: str, i: int, where: str = "[[task.goals]]") -> Goal:
+    label = f"{where} goal {i + 1}"
     if not isinstance(tab, Mapping):
         raise ConfigError(f"{origin}: {label} must be a table")
     r = _Reader(tab, "task.goals", origin, SECTION_KEYS["task.goals"], label=label)
@@ -191,6 +194,74 @@ def _goal(tab: Any, origin: str, i: int) -> Goal:
     if (site is None) == (pos is None):
         raise ConfigError(f"{origin}: {label}: give exactly one of 'pos' or 'site'")
     return Goal(position=pos if pos is not None else (math.nan,) * 3, dwell=dwell, site=site)
+
+
+def _arms(raw: Any, origin: str) -> tuple[ArmConfig, ...]:
+    """The ``[[arm]]`` tables: names given without the arm's ``prefix`` get it.
+
+    ``like = "<arm>"`` takes that arm's joints, geoms, end-effector site, home and goals (as the file
+    writes them, before prefixing) for every key the table leaves out.
+    """
+    if not isinstance(raw, list) or not raw:
+        raise ConfigError(f"{origin}: 'arm' must be a non-empty array of tables ([[arm]])")
+    written: dict[str, dict[str, Any]] = {}
+    arms = []
+    for i, tab in enumerate(raw):
+        if not isinstance(tab, Mapping):
+            raise ConfigError(f"{origin}: [[arm]] entry {i + 1} must be a table")
+        r = _Reader(tab, "arm", origin, SECTION_KEYS["arm"], label=f"[[arm]] entry {i + 1}")
+        name = r.string("name")
+        if not name or name in written:
+            raise r._err("name", f"must be a non-empty name no other arm has, got {name!r}")
+        r.label = f"[[arm]] {name!r}"
+        like = r.string("like", None)
+        if like is not None and like not in written:
+            raise r._err("like", f"names no arm before this one; valid: {sorted(written)}")
+        base = written.get(like, {}) if like is not None else {}
+        prefix = r.string("prefix", "")
+        own = {"joints": r.strings("joints", None), "geoms": r.strings("geoms", None),
+               "ee_site": r.string("ee_site", None), "home": r.numbers("home", None),
+               "goals": r.raw("goals", None), "self_collision": r.boolean("self_collision", False)
+               if r.has("self_collision") else None}
+        vals: dict[str, Any] = {k: v if v is not None else base.get(k) for k, v in own.items()}
+        for key in ("joints", "geoms", "ee_site", "goals"):
+            if vals[key] is None:
+                raise r._err(key, "missing (required, or take it from another arm with 'like')")
+        if vals["home"] is not None and len(vals["home"]) != len(vals["joints"]):
+            raise r._err("home", f"expected {len(vals['joints'])} numbers (one per joint), got {len(vals['home'])}")
+        goals_raw = vals["goals"]
+        if not isinstance(goals_raw, list) or not goals_raw:
+            raise r._err("goals", "expected a non-empty array of tables ([[arm.goals]])")
+        r.finish()
+        written[name] = vals
+
+        def pre(n: str, prefix: str = prefix) -> str:
+            return n if n.startswith(prefix) else prefix + n
+
+        goals = []
+        for j, g in enumerate(goals_raw):
+            goal = _goal(g, origin, j, where=f"[[arm]] {name!r}")
+            goals.append(Goal(goal.position, goal.dwell, None if goal.site is None else pre(goal.site)))
+        arms.append(ArmConfig(name=name, prefix=prefix, joints=tuple(map(pre, vals["joints"])),
+                              geoms=tuple(map(pre, vals["geoms"])), ee_site=pre(vals["ee_site"]),
+                              home=vals["home"], goals=tuple(goals),
+                              self_collision=bool(vals["self_collision"])))
+    if len({a.self_collision for a in arms}) > 1:
+        raise ConfigError(f"{origin}: [[arm]] self_collision: give every arm the same value (per arm: "
+                          f"{ {a.name: a.self_collision for a in arms} })")
+    homes = [a.home is None for a in arms]
+    if any(homes) and not all(homes):
+        raise ConfigError(f"{origin}: [[arm]] give 'home' for every arm or for none "
+                          f"(missing: {[a.name for a in arms if a.home is None]})")
+    return tuple(arms)
+
+
+def _arms_robot(arms: tuple[ArmConfig, ...]) -> RobotConfig:
+    """The robot of a scene with several arms: every arm's joints and geoms, in ``[[arm]]`` order."""
+    home = None if arms[0].home is None else tuple(x for a in arms for x in a.home)  # type: ignore[union-attr]
+    return RobotConfig(joints=tuple(j for a in arms for j in a.joints), ee_site=arms[0].ee_site,
+                       geoms=tuple(g for a in arms for g in a.geoms), home=home,
+                       self_collision=arms[0].self_collision)
 
 
 def _path(r: _Reader) -> ObstaclePath:
@@ -264,7 +335,10 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
     model = s.string("model", f"{name}.xml")
     s.finish()
 
-    r = top.sub("robot", SECTION_KEYS["robot"], required=True)
+    arms = _arms(top.raw("arm"), origin) if top.has("arm") else ()
+    if arms and top.has("robot"):
+        raise ConfigError(f"{origin}: give the arms either in [[arm]] tables or as one [robot], not both")
+    r = top.sub("robot", SECTION_KEYS["robot"], required=not arms)
     joints = r.strings("joints", ())
     robot = RobotConfig(
         joints=joints,
@@ -278,6 +352,8 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
         home=_home(r, len(joints) or None),
         self_collision=r.boolean("self_collision", False),
     )
+    if arms:
+        robot, joints = _arms_robot(arms), _arms_robot(arms).joints
     if (robot.ee_site is None) == (robot.ee_body is None):
         raise ConfigError(f"{origin}: [robot] give exactly one of 'ee_site' or 'ee_body'")
     if r.has("ee_offset") and robot.ee_body is None:
@@ -294,11 +370,14 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
     o.finish()
 
     t = top.sub("task", SECTION_KEYS["task"], required=True)
-    goals_raw = t.raw("goals")
+    if arms and t.has("goals"):
+        raise ConfigError(f"{origin}: [task] goals: a scene with [[arm]] tables gives each arm's goals in its table")
+    goals_raw = t.raw("goals") if not arms else [None]
     if not isinstance(goals_raw, list) or not goals_raw:
         raise ConfigError(f"{origin}: [task] goals: expected a non-empty array of tables")
     task = TaskConfig(
-        goals=tuple(_goal(g, origin, i) for i, g in enumerate(goals_raw)),
+        goals=tuple(g for a in arms for g in a.goals) if arms else tuple(
+            _goal(g, origin, i) for i, g in enumerate(goals_raw)),
         loop=t.boolean("loop", True),
         tolerance=t.number("tolerance", 0.02, positive=True),
         duration=t.number("duration", 10.0, positive=True),
@@ -331,6 +410,11 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
         goal_timeout=g.number("goal_timeout", dg.goal_timeout, positive=True),
         extra=MappingProxyType(extra),
     )
+    if arms and len({len(a.joints) for a in arms}) == 1:  # one arm's gains stand for every arm's
+        per_arm = len(arms[0].joints)
+        gains = dataclasses.replace(gains, **{key: getattr(gains, key) * len(arms)
+                                              for key in ("tracking_kp", "tracking_kd")
+                                              if len(getattr(gains, key)) == per_arm > 1})
     for key in ("tracking_kp", "tracking_kd"):
         n = len(getattr(gains, key))
         if joints and n not in (1, len(joints)):
@@ -363,7 +447,7 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
 
     return SceneConfig(name=name, description=description, model=model, robot=robot,
                        obstacles=obstacles, task=task, barrier=barrier, gains=gains,
-                       filter=filt, control=control, moving=tuple(moving), source=source)
+                       filter=filt, control=control, moving=tuple(moving), source=source, arms=arms)
 
 
 def load_config(path: str | Path) -> SceneConfig:

@@ -31,8 +31,10 @@ import numpy as np
 from isf_robot.core.chatter import chatter_risk
 
 from .actuation import actuator_info, speed_bound
+from .arms import geom_arms
 from .calibration import Calibration, calibrate_d_bar
 from .filter_design import with_design
+from .one_arm import arm_scene
 from .pairs import collision_pairs
 from .records import FilterParams
 from .scene import Scene
@@ -206,7 +208,8 @@ def _servo_chatter(scene: Scene) -> list[Finding]:
 def _pairs(scene: Scene) -> list[Finding]:
     model, bc = scene.model, scene.config.barrier
     pairs = collision_pairs(model, scene.robot_geom_ids, scene.obstacle_geom_ids, margin=bc.margin,
-                            self_collision=scene.config.robot.self_collision, self_margin=bc.self_margin)
+                            self_collision=scene.config.robot.self_collision, self_margin=bc.self_margin,
+                            arm_of=geom_arms(scene.arms, scene.robot_geom_ids) if scene.arms else None)
     box_obstacle, box_robot, gjk = [], [], []
     obstacles = set(scene.obstacle_geom_ids.tolist())
     for name, a, b in zip(pairs.names, pairs.geom1, pairs.geom2):
@@ -242,6 +245,8 @@ def _pairs(scene: Scene) -> list[Finding]:
 
 
 def _goals(scene: Scene, iterations: int = 300) -> list[Finding]:
+    if scene.arms:  # (each arm's goals by its own end effector)
+        return [f for i in range(len(scene.arms)) for f in _goals(arm_scene(scene, i), iterations)]
     model = scene.model
     data = mujoco.MjData(model)
     data.qpos[scene.qpos_adr] = scene.home

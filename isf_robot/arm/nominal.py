@@ -166,6 +166,10 @@ class ReachingController(NominalController):
         timeout: float | None = None,
         jit: bool = True,
     ) -> None:
+        if scene.arms:
+            raise ConfigError(f"scene {scene.name!r} has {len(scene.arms)} arms: its nominal task is every arm's "
+                              "(isf_robot.arm.team_nominal.TeamReaching; run it with isf_robot.arm.multi_arm, or "
+                              "`isf-robot run`/`compare`/`render`)")
         gains, task = scene.config.gains, scene.config.task
         self.scene = scene
         self.n = scene.n_joints

@@ -1,5 +1,9 @@
 """Which geom pairs get a collision barrier: robot-obstacle and optional robot-robot pairs, filtered.
 
+In a scene with several arms, the pairs of geoms of two different arms (inter-arm pairs) are
+robot-robot pairs too: both bodies move, so each row carries both arms' Jacobians, exactly as a
+self-collision row does (``is_self``).
+
 A candidate pair is dropped when MuJoCo itself would never let the two geoms collide: same
 (welded) body, parent and child bodies, contype/conaffinity bits, or an MJCF ``<exclude>``.
 """
@@ -72,6 +76,7 @@ def collision_pairs(
     margin: float,
     self_collision: bool = False,
     self_margin: float = 0.0,
+    arm_of: Sequence[int] | np.ndarray | None = None,
 ) -> CollisionPairs:
     """Build the filtered robot-obstacle (and optionally robot-robot) pairs.
 
@@ -87,6 +92,9 @@ def collision_pairs(
         margin: Robot-obstacle margin [m].
         self_collision: Add the non-adjacent robot-robot pairs.
         self_margin: Robot-robot margin [m].
+        arm_of: The arm index of each robot geom (a scene with several arms): robot-robot pairs of
+            geoms of different arms are added with the robot-obstacle ``margin`` (with or without
+            ``self_collision``, which adds the pairs within an arm).
 
     Returns:
         The pairs, robot-obstacle first.
@@ -96,9 +104,13 @@ def collision_pairs(
         return geom_label(model, g)
 
     cands = [(int(r), int(o), False) for r in robot_geoms for o in obstacle_geoms]
-    if self_collision:
-        rg = [int(g) for g in robot_geoms]
-        cands += [(rg[i], rg[j], True) for i in range(len(rg)) for j in range(i + 1, len(rg))]
+    rg = [int(g) for g in robot_geoms]
+    arm = [0] * len(rg) if arm_of is None else [int(a) for a in arm_of]
+    inter = arm_of is not None
+    if self_collision or inter:
+        cands += [(rg[i], rg[j], True) for i in range(len(rg)) for j in range(i + 1, len(rg))
+                  if self_collision or arm[i] != arm[j]]
+    between = {(rg[i], rg[j]) for i in range(len(rg)) for j in range(len(rg)) if arm[i] != arm[j]}
     keep, excluded = [], []
     for g1, g2, is_self in cands:
         why = _exclusion_reason(model, g1, g2)
@@ -109,7 +121,8 @@ def collision_pairs(
     return CollisionPairs(
         geom1=np.array([p[0] for p in keep], dtype=np.int64),
         geom2=np.array([p[1] for p in keep], dtype=np.int64),
-        margin=np.array([self_margin if p[2] else margin for p in keep], dtype=float),
+        margin=np.array([self_margin if p[2] and (p[0], p[1]) not in between else margin for p in keep],
+                        dtype=float),
         is_self=np.array([p[2] for p in keep], dtype=bool),
         names=tuple(f"{name(p[0])}|{name(p[1])}" for p in keep),
         excluded=tuple(excluded),

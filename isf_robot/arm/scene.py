@@ -17,6 +17,7 @@ import numpy as np
 from isf_robot.core.exceptions import ConfigError, UnknownNameError
 from isf_robot.paths import models_dir
 
+from .arms import ArmInfo, resolve_arms
 from .config_schema import SceneConfig
 from .config_toml import load_config
 from .paths import path_track
@@ -78,6 +79,8 @@ class Scene:
         arm_joint_names: Arm joint names in control order (the config's, or the actuated joints).
         ee_body_id: Body carrying the end-effector point (the site's body for ``ee_site``).
         ee_offset: The end-effector point in that body's frame [m], shape (3,).
+        arms: Each arm's joints, geoms, end effector and goals in a scene with several arms
+            (``[[arm]]`` tables); empty for one arm.
 
     """
 
@@ -102,6 +105,7 @@ class Scene:
     arm_joint_names: tuple[str, ...] = ()
     ee_body_id: int = -1
     ee_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    arms: tuple[ArmInfo, ...] = ()
 
     @property
     def n_joints(self) -> int:
@@ -284,6 +288,7 @@ def _resolve(model: mujoco.MjModel, cfg: SceneConfig, xml_path: Path | None) -> 
         moving_mocap_ids=np.array(mov_m, dtype=np.int32), goal_positions=goals,
         goal_dwell=np.array([g.dwell for g in cfg.task.goals]),
         arm_joint_names=tuple(joint_names), ee_body_id=ee_body, ee_offset=ee_offset,
+        arms=resolve_arms(model, cfg),
     )
 
 

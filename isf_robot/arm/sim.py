@@ -102,6 +102,8 @@ class ArmSimulation:
 
     """
 
+    episode: type[_Episode]
+
     def __init__(
         self,
         scene: Scene,
@@ -200,7 +202,7 @@ class ArmSimulation:
         n_ctrl = self.control_steps(duration)
         wall0 = time.perf_counter()
         T = self.control_period
-        ep = _Episode(self, n_ctrl)
+        ep = self.episode(self, n_ctrl)
         phases: dict[str, Callable[..., Any]] = {name: getattr(ep, name) for name in PHASES}
         timers = PhaseTimers(phases) if self.timing else None
         sense, barriers, nominal, strategy, act = (phases[name] for name in PHASES)
@@ -395,6 +397,10 @@ class _Episode:
             timestep=sim.timestep, tracking_error_q99=float(np.quantile(self.track_err, 0.99)),
             wall_s=wall, timings=timings, goal_times=tuple(getattr(sim.nominal, "goal_times", ())),
         )
+
+
+ArmSimulation.episode = _Episode
+"""The class of one run's state and phases (a subclass may add to a phase: :mod:`isf_robot.arm.multi_arm`)."""
 
 
 def run_episode(

@@ -26,6 +26,8 @@ from isf_robot.record.options import add_recording_args, make_observer
 from isf_robot.support.parallel import Interrupted
 from isf_robot.support.report import format_value, to_jsonable, with_schema
 
+from .arm_team import COORDINATION_HELP, check_coordination, team_compare, team_report, team_simulation
+
 __all__ = ["register", "DEMO_SCENE"]
 
 DEMO_SCENE = "panda_pole"
@@ -120,6 +122,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--filter", choices=strategy_names(), default="isf",
                    help=f"strategy (default isf) -- {_strategy_help()}")
     p.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
+    p.add_argument("--coordination", choices=("central", "decentral"), default=None,
+                   help=COORDINATION_HELP + " (default central)")
     _add_filter_args(p)
     p.add_argument("--d-bar-in-loop", action="store_true",
                    help="raise d_bar until the tracking error this filter produces is covered (runs it on seeds "
@@ -149,6 +153,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
     p.add_argument("--jobs", type=int, default=1, metavar="K",
                    help="worker processes (default 1)")
+    p.add_argument("--coordination", choices=("central", "decentral"), default=None,
+                   help=COORDINATION_HELP + " (default both; episodes run one after another)")
     _add_filter_args(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -195,8 +201,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     _check_seed(args)
     scene = _spec(args).load()
+    check_coordination(args, scene)
     kwargs = _params(args, scene)
-    sim = ArmSimulation(scene, args.filter, seed=args.seed, **kwargs)  # validates before any output
+    sim = (team_simulation(args, scene, kwargs) if scene.arms else
+           ArmSimulation(scene, args.filter, seed=args.seed, **kwargs))  # validates before any output
     sim.control_steps(args.duration)
     observers = [make_observer(args, "arm", name=f"{scene.name}-{args.filter}-seed{args.seed}"), video]
     if args.view:
@@ -206,6 +214,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         observers.append(LiveViewer(speed=args.view_speed, show_collision=args.view_collision))
     if any(o is not None for o in observers):
         sim.observers = Observers(observers)  # (drops None)
+    if scene.arms:
+        return team_report(args, sim)
     d = to_jsonable(sim.run(args.duration).as_dict())
     if args.json:
         print(json.dumps(with_schema("isf-robot-run", d)))
@@ -275,7 +285,11 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
     _check_seed(args)
     spec = _spec(args)
-    params = _params(args, spec.load())
+    scene = spec.load()
+    check_coordination(args, scene)
+    params = _params(args, scene)
+    if scene.arms:
+        return team_compare(args, scene, params)
     obs = make_observer(args, "arm")
     comp = compare_strategies(spec, args.episodes, strategies=args.filters,
                               duration=args.duration, seed0=args.seed, jobs=args.jobs,

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from isf_robot.cli.arm import _add_filter_args, _add_scene_args, _check_seed, _params, _spec
+from isf_robot.cli.arm_team import team_simulation
 from isf_robot.core.strategies import strategy_names
 
 __all__ = ["register", "handle"]
@@ -77,7 +78,9 @@ def handle(args: argparse.Namespace) -> int:
     scene = _spec(args).load()
     if view.camera is not None:
         camera_id(scene.model, view.camera)  # an unknown name fails before the episode runs
-    sim = ArmSimulation(scene, args.filter, seed=args.seed, observers=[video], **_params(args, scene))
+    params = {**_params(args, scene), "observers": [video]}
+    sim = (team_simulation(args, scene, params) if scene.arms else  # (several arms: central coordination)
+           ArmSimulation(scene, args.filter, seed=args.seed, **params))
     wall = time.perf_counter()
     res = sim.run(args.duration)
     wall = time.perf_counter() - wall

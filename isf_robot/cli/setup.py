@@ -84,6 +84,9 @@ def _cmd_check(args: argparse.Namespace) -> int:
     v, rules = speed_bounds(scene)
     print(f"scene {scene.name}: {scene.n_joints} joints {list(scene.joint_names)}, "
           f"{len(scene.robot_geom_ids)} robot geoms, {len(scene.obstacle_geom_ids)} obstacle geoms")
+    for a in scene.arms:
+        print(f"  arm {a.name}: joints {list(scene.joint_names[a.joints])}, {a.geom_ids.size} geoms, "
+              f"{a.goals.stop - a.goals.start} goals")
     kinds = _kinds(scene)
     print(f"  actuators: {', '.join(f'{j} {k}' for j, k in zip(scene.joint_names, kinds))}")
     why = {"damping": " (damping)", "servo kv": " (servo kv)", "none": ""}

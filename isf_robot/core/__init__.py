@@ -32,6 +32,8 @@ _EXPORTS: dict[str, str] = {
     "ControlAffineSystem": "system", "SingleIntegrator": "system", "FunctionSystem": "system", "LieData": "system",
     "lie_data": "system",
     "OnOffTrigger": "triggers", "xi_on": "triggers", "xi_tau": "triggers",
+    "CentralFilter": "team", "SharedFilter": "team", "AgentTally": "team", "AgentResult": "team",
+    "row_agents": "team", "agent_lie": "team", "block_matrix": "team",
 }
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())

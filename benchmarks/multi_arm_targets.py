@@ -1,0 +1,146 @@
+"""Arms sharing a workspace: violations, per-arm duty against cbf, off periods and step cost.
+
+    nice -n 19 python benchmarks/multi_arm_targets.py [--episodes 20] [--jobs 2] \
+        [--scenes panda_pair panda_quad] [--cost-seeds 3] [--marker multi_arm] [--no-write]
+
+For each scene with several arms, ``cbf`` and ``isf`` with each coordination (``central``: one filter over
+every arm's joints; ``decentral``: one filter per arm with an equal share of each inter-arm row) on seeds
+0..N-1 at the scene's episode length, the scene's shipped parameters (``d_bar`` calibrated), plus
+``nominal`` (no filter) to show the tasks collide. Reports per scene and way: violations (physics steps
+with a pair below its margin, and penetrating contacts at the control ticks by kind: arm-arm,
+arm-obstacle, self), per arm the mean duty cycle, on-switches, intervention, goals reached and missed,
+coordination steps and events, and the shortest complete off period of any episode.
+
+Step cost: wall time per control step (median over ``--cost-seeds`` seeds, 6 s episodes, one process,
+the configurations interleaved seed by seed, after the episodes above) of ``panda_pole`` (one arm) against
+the scenes with several arms, each strategy and coordination.
+
+Writes both tables into RESULTS.md between ``<!-- MARKER:start -->`` and ``<!-- MARKER:end -->``
+(``--no-write``: print only).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import statistics
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from _common import cpu_model, write_section  # noqa: E402
+
+WAYS = ("central", "decentral")
+
+
+def _episode(job: tuple[str, str, str, int, float | None]) -> dict[str, Any]:
+    from isf_robot.arm import load_scene
+    from isf_robot.arm.multi_arm import run_team
+    from isf_robot.arm.params import resolve_params
+
+    name, strategy, way, seed, duration = job
+    scene = load_scene(name)
+    r = run_team(scene, strategy, way, duration=duration, seed=seed, params=resolve_params(scene))
+    steps = max(1, r.run.metrics.control_steps)
+    return {"scene": name, "strategy": strategy, "way": way, "seed": seed, "violations": r.violations,
+            "collisions": r.run.collisions, "contacts": r.contacts, "min_barrier": r.run.min_barrier,
+            "arms": list(r.arms), "step_us": r.run.wall_s / steps * 1e6, "fallbacks": r.run.stats.fallbacks}
+
+
+def _single(job: tuple[str, str, int, float]) -> float:
+    from isf_robot.arm import load_scene, run_episode
+
+    name, strategy, seed, duration = job
+    r = run_episode(load_scene(name), strategy, duration, seed)
+    return r.wall_s / max(1, r.metrics.control_steps) * 1e6
+
+
+def _fmt(x: Any, spec: str = ".3f") -> str:
+    return "-" if x is None else format(x, spec)
+
+
+def outcome_table(rows: list[dict[str, Any]], scene: str) -> str:
+    out = [f"**{scene}**", "",
+           "| strategy | way | violations (steps / arm-arm / arm-obstacle / self contacts) | min h [m] | arm | duty "
+           "| duty / cbf | on sw | min off [s] | intervention | goals (missed) | coordination steps (events) |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    keys = [("nominal", WAYS[0])] + [(s, w) for s in ("cbf", "isf") for w in WAYS]
+    for strategy, way in keys:
+        eps = [r for r in rows if r["scene"] == scene and r["strategy"] == strategy and r["way"] == way]
+        if not eps:
+            continue
+        cbf = [r for r in rows if r["scene"] == scene and r["strategy"] == "cbf" and r["way"] == way]
+        viol = (f"{sum(r['violations'] for r in eps)} ({sum(r['collisions'] for r in eps)} / "
+                + " / ".join(str(sum(r["contacts"][k] for r in eps)) for k in ("arm-arm", "arm-obstacle", "self"))
+                + ")")
+        for i, arm in enumerate(eps[0]["arms"]):
+            def mean(key: str, group: list[dict[str, Any]] = eps, i: int = i) -> float:
+                return statistics.fmean(r["arms"][i][key] for r in group)
+
+            offs = [r["arms"][i]["min_off_s"] for r in eps if r["arms"][i]["min_off_s"] is not None]
+            ratio = (mean("duty_cycle") / mean("duty_cycle", cbf)) if cbf and strategy != "nominal" and mean(
+                "duty_cycle", cbf) > 0 else None
+            head = (f"| {strategy} | {way if strategy != 'nominal' else '-'} | {viol} | "
+                    f"{min(r['min_barrier'] for r in eps):.4f} |") if i == 0 else "| | | | |"
+            out.append(f"{head} {arm['name']} | {mean('duty_cycle'):.3f} | {_fmt(ratio, '.2f')} | "
+                       f"{mean('on_switches'):.1f} | {_fmt(min(offs) if offs else None)} | "
+                       f"{mean('intervention'):.3f} | {mean('goals_reached'):.1f} ({mean('goals_missed'):.1f}) | "
+                       f"{mean('coordination_steps'):.0f} ({mean('coordination_events'):.1f}) |")
+    return "\n".join(out)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--episodes", type=int, default=20)
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--scenes", nargs="+", default=["panda_pair", "panda_quad"])
+    ap.add_argument("--duration", type=float, default=None, help="episode length [s] (default: the scene's)")
+    ap.add_argument("--cost-seeds", type=int, default=3)
+    ap.add_argument("--marker", default="multi_arm")
+    ap.add_argument("--no-write", action="store_true")
+    args = ap.parse_args()
+
+    jobs = [(s, st, w, seed, args.duration) for s in args.scenes for st in ("nominal", "cbf", "isf")
+            for w in (WAYS if st != "nominal" else WAYS[:1]) for seed in range(args.episodes)]
+    with ProcessPoolExecutor(args.jobs) as pool:
+        rows = list(pool.map(_episode, jobs))
+    configs = [(st, None, None) for st in ("cbf", "isf")] + [
+        (st, sc, w) for st in ("cbf", "isf") for sc in args.scenes for w in WAYS]
+
+    def step_us(st: str, sc: str | None, w: str | None, seed: int, duration: float) -> float:
+        return _single(("panda_pole", st, seed, duration)) if sc is None else _episode((sc, st, w, seed, duration))[
+            "step_us"]
+
+    for cfg in configs:  # (warm-up: every compiled kernel a configuration uses is loaded before the timing)
+        step_us(*cfg, 0, 0.5)
+    samples: dict[tuple[str, str | None, str | None], list[float]] = {cfg: [] for cfg in configs}
+    for k in range(args.cost_seeds):  # (one process; the configurations interleaved, so load changes hit all alike)
+        for cfg in configs:
+            samples[cfg].append(step_us(*cfg, k, 6.0))
+    cost = {(f"panda_pole {st}" if sc is None else f"{sc} {st} {w}"): statistics.median(v)
+            for (st, sc, w), v in samples.items()}
+    lines = [f"Measured {datetime.date.today()} on {cpu_model()}: {args.episodes} seeds per row, the scenes' "
+             "episode length, shipped parameters (`d_bar` calibrated). Regenerate with "
+             f"`nice -n 19 python benchmarks/multi_arm_targets.py --episodes {args.episodes}`.", ""]
+    for s in args.scenes:
+        lines += [outcome_table(rows, s), ""]
+    lines += ["Step cost (wall time per control step, median of "
+              f"{args.cost_seeds} seeds of 6 s, one process, the runs interleaved):", "",
+              "| run | us / step | x one arm (same strategy) |", "|---|---|---|"]
+    for key, us in cost.items():
+        st = key.split()[1]
+        lines.append(f"| {key} | {us:.0f} | {us / cost[f'panda_pole {st}']:.2f} |")
+    body = "\n".join(lines)
+    print(body)
+    if not args.no_write:
+        write_section(ROOT / "RESULTS.md", f"<!-- {args.marker}:start -->", f"<!-- {args.marker}:end -->", body)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,220 @@
+"""Arms sharing a workspace: a run of a scene with several arms, filtered centrally or per arm.
+
+A scene with ``[[arm]]`` tables is one robot for the single-arm loop (:class:`~isf_robot.arm.ArmSimulation`):
+its joints are every arm's joints, its collision pairs the arm-obstacle pairs and the inter-arm pairs
+(geoms of two different arms: both bodies move, so each row holds both arms' Jacobians, as a
+self-collision row does; :mod:`isf_robot.arm.pairs`). What this module adds:
+
+* :class:`~isf_robot.arm.team_nominal.TeamReaching` (the default nominal): each arm's
+  :class:`~isf_robot.arm.nominal.ReachingController` through its own goals, the commands stacked.
+* :class:`MultiArmSimulation`: the loop with a *coordination*: ``central`` (one filter over every arm's
+  joints, :class:`~isf_robot.core.team.CentralFilter`) or ``decentral`` (one filter per arm with its
+  share of each inter-arm row, :class:`~isf_robot.core.team.SharedFilter`; the share and the safety
+  argument are in :mod:`isf_robot.core.team`). Both build their filters with the core's
+  :func:`~isf_robot.core.strategies.make_strategy`, so ``cbf`` and ``isf`` (and ``nominal``) work either way.
+* Per-arm figures (:meth:`MultiArmSimulation.arm_results`): duty cycle, switches, off periods,
+  intervention, goals, coordination steps and events, and the run's smallest clearance and
+  penetrating contacts by kind (arm-arm, arm-obstacle, self).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+
+from isf_robot.core import ConfigError, LieData, QPSolver, UnknownNameError
+from isf_robot.core.strategies import make_strategy
+from isf_robot.core.team import CentralFilter, SharedFilter, agent_lie, block_matrix, row_agents
+
+from .arms import geom_arms
+from .episode import episode_setup
+from .nominal import NominalController
+from .params import filter_options
+from .records import RunResult
+from .scene import Scene
+from .sim import ArmSimulation
+from .team_nominal import TeamReaching
+
+__all__ = ["COORDINATIONS", "TeamReaching", "MultiArmSimulation", "ArmRunResult", "run_team"]
+
+COORDINATIONS = {
+    "central": "one filter over every arm's joints (inter-arm rows solved together)",
+    "decentral": "one filter per arm; each takes an equal share of every inter-arm row",
+}
+"""How the arms of a scene are filtered: name -> one line for ``--help``."""
+
+
+class _ArmRollout:
+    """Arm ``i``'s view of the team's rollout: each point's rows as :func:`agent_lie` splits them.
+
+    The arms share one rollout per control step (the first arm to ask runs it).
+    """
+
+    def __init__(self, rollout: Any, cache: dict[str, Any], blocks: tuple[slice, ...], i: int) -> None:
+        self.rollout, self.cache, self.blocks, self.i = rollout, cache, blocks, i
+        self.M = block_matrix(blocks, blocks[-1].stop)
+
+    def __call__(self, t: float, x: Any) -> list[tuple[float, LieData, np.ndarray]]:
+        if self.cache.get("t") != t:
+            self.cache.update(t=t, points=list(self.rollout(t, x)))
+        b, out = self.blocks[self.i], []
+        for s, lie, u in self.cache["points"]:
+            inv = row_agents(lie.lg, self.M)
+            rows = np.flatnonzero(inv[:, self.i])
+            out.append((s, agent_lie(lie, b, rows, 1.0 / inv[rows].sum(axis=1)), np.asarray(u)[b]))
+        return out
+
+
+def _brake(t: float, x: Any, lie: LieData, res: Any) -> np.ndarray:
+    """An arm's fallback when no command meets its rows: stop (u = 0), as :class:`ArmSimulation`'s."""
+    return np.zeros(lie.m)
+
+
+class _TeamEpisode(ArmSimulation.episode):  # type: ignore[name-defined,misc,valid-type]
+    """The run's phases, plus the clearance by kind at each tick and penetrating contacts by kind."""
+
+    def __init__(self, sim: MultiArmSimulation, n_ctrl: int) -> None:
+        super().__init__(sim, n_ctrl)
+        self.kind_min = {"arm-arm": math.inf, "arm-obstacle": math.inf}
+        self.contacts = {"arm-arm": 0, "arm-obstacle": 0, "self": 0}
+        self._arm_of = sim.geom_arm
+        self._obstacle = np.zeros(sim.scene.model.ngeom, dtype=bool)
+        self._obstacle[sim.scene.obstacle_geom_ids] = True
+        pairs = sim.coll.pairs
+        self._between = self._arm_of[pairs.geom1] != self._arm_of[pairs.geom2]
+        self._between &= (self._arm_of[pairs.geom1] >= 0) & (self._arm_of[pairs.geom2] >= 0)
+        sim.last_episode = self
+
+    def sense(self, k: int) -> None:
+        super().sense(k)
+        data = self.data
+        for c in range(data.ncon):  # (mj_step1 ran the collision detection: contacts that penetrate)
+            con = data.contact[c]
+            if con.dist >= 0.0:
+                continue
+            a1, a2 = self._arm_of[con.geom1], self._arm_of[con.geom2]
+            if a1 >= 0 and a2 >= 0:
+                self.contacts["self" if a1 == a2 else "arm-arm"] += 1
+            elif (a1 >= 0 and self._obstacle[con.geom2]) or (a2 >= 0 and self._obstacle[con.geom1]):
+                self.contacts["arm-obstacle"] += 1
+
+    def barriers(self) -> tuple[Any, LieData | None]:
+        values, lie = super().barriers()
+        rows = self.monitor.rows  # (the pairs within the cut-off at this tick: the first rows of lie, in order)
+        if lie is not None and len(rows):
+            h = lie.h[:len(rows)]
+            between = self._between[np.asarray(rows)]
+            for kind, sel in (("arm-arm", between), ("arm-obstacle", ~between)):
+                if sel.any():
+                    v = float(h[sel].min())
+                    if v < self.kind_min[kind]:
+                        self.kind_min[kind] = v
+        return values, lie
+
+
+@dataclasses.dataclass(frozen=True)
+class ArmRunResult:
+    """A run of a scene with several arms: the team's result and each arm's figures.
+
+    Attributes:
+        run: The whole run (every joint; safety over every pair at every physics step).
+        coordination: ``central`` or ``decentral``.
+        arms: Per arm: name, duty cycle, switches, off periods, intervention (over its own joints), goals,
+            coordination steps and events. Centrally filtered, the duty, switches and off periods are the one
+            filter's (the same for every arm); per arm, they are the arm's own filter's.
+        clearance: Smallest barrier value at the control ticks by kind (``arm-arm``, ``arm-obstacle``) [m].
+        contacts: Penetrating MuJoCo contacts at the control ticks by kind (``arm-arm``, ``arm-obstacle``, ``self``).
+
+    """
+
+    run: RunResult
+    coordination: str
+    arms: tuple[dict[str, Any], ...]
+    clearance: dict[str, float]
+    contacts: dict[str, int]
+
+    @property
+    def violations(self) -> int:
+        """Physics steps with a pair below its margin, plus penetrating contacts of any kind."""
+        return int(self.run.collisions) + sum(self.contacts.values())
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain dict (JSON-ready)."""
+        return {"coordination": self.coordination, "arms": list(self.arms), "clearance": self.clearance,
+                "contacts": self.contacts, "violations": self.violations, **self.run.as_dict()}
+
+
+class MultiArmSimulation(ArmSimulation):
+    """One episode of a scene with several arms, filtered centrally or per arm.
+
+    Args:
+        scene: A scene with ``[[arm]]`` tables.
+        strategy: A registered strategy name (``nominal``, ``cbf``, ``isf``, ...).
+        coordination: A name of :data:`COORDINATIONS`.
+        seed: Episode seed (as :class:`ArmSimulation`; goals jittered per arm).
+        nominal: Default :class:`TeamReaching` through the (seeded) goals.
+        **kwargs: As :class:`ArmSimulation` (``params``, ``alpha``, ..., ``observers``, ``timing``).
+
+    Raises:
+        ConfigError: The scene has one arm.
+        UnknownNameError: Unknown coordination or strategy (the message lists the valid ones).
+
+    """
+
+    episode = _TeamEpisode
+    last_episode: _TeamEpisode
+    """The state of the last run (its clearance and contacts by kind)."""
+
+    def __init__(self, scene: Scene, strategy: str = "isf", *, coordination: str = "central",
+                 seed: int | None = 0, nominal: NominalController | None = None, **kwargs: Any) -> None:
+        if not scene.arms:
+            raise ConfigError(f"scene {scene.name!r} has one arm: run it with ArmSimulation (a scene with "
+                              "several arms gives them as [[arm]] tables)")
+        if coordination not in COORDINATIONS:
+            raise UnknownNameError("coordination", coordination, list(COORDINATIONS))
+        if nominal is None:
+            goals = episode_setup(scene, seed).goals if seed is not None else scene.goal_positions
+            nominal = TeamReaching(scene, goals=goals)
+        super().__init__(scene, strategy, seed=seed, nominal=nominal, **kwargs)
+        self.coordination = coordination
+        self.blocks = tuple(a.joints for a in scene.arms)
+        self.arm_names = tuple(a.name for a in scene.arms)
+        self.geom_arm = geom_arms(scene.arms, np.arange(scene.model.ngeom))
+        if coordination == "central":
+            self.strategy = CentralFilter(self.strategy, self.blocks, self.arm_names, self.control_period)
+            return
+        spec, wiring = filter_options(self)
+        cache: dict[str, Any] = {}
+        per_arm = []
+        for i in range(len(self.blocks)):
+            w = dict(wiring)
+            if "rollout" in w:
+                w["rollout"] = _ArmRollout(wiring["rollout"], cache, self.blocks, i)
+            per_arm.append(make_strategy(strategy, spec, **w, solver=QPSolver(few_rows=True),
+                                         on_infeasible="fallback", fallback=_brake, validate=False))
+        self.strategy = SharedFilter(per_arm, self.blocks, self.arm_names, self.control_period)
+
+    def start_info(self, duration: float) -> dict[str, Any]:
+        """As :meth:`ArmSimulation.start_info`, plus the arms and the coordination."""
+        return {**super().start_info(duration), "coordination": self.coordination, "arms": list(self.arm_names),
+                "arm_joints": [(b.start, b.stop) for b in self.blocks]}
+
+    def run_team(self, duration: float | None = None) -> ArmRunResult:
+        """Run (as :meth:`ArmSimulation.run`) and gather each arm's figures."""
+        run = self.run(duration)
+        ep = self.last_episode
+        arms = []
+        for res, nom in zip(self.strategy.agent_results(), self.nominal.arms):  # type: ignore[attr-defined]
+            arms.append({"name": res.name, **res.metrics.as_dict(), "coordination_steps": res.coordination_steps,
+                         "coordination_events": res.coordination_events, "coordination_s": res.coordination_s,
+                         "goals_reached": nom.goals_reached, "goals_missed": nom.goals_missed})
+        return ArmRunResult(run, self.coordination, tuple(arms), dict(ep.kind_min), dict(ep.contacts))
+
+
+def run_team(scene: Scene, strategy: str = "isf", coordination: str = "central", duration: float | None = None,
+             seed: int | None = 0, **kwargs: Any) -> ArmRunResult:
+    """One run of a scene with several arms (:class:`MultiArmSimulation`); keyword arguments go to it."""
+    return MultiArmSimulation(scene, strategy, coordination=coordination, seed=seed, **kwargs).run_team(duration)

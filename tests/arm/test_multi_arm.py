@@ -1,0 +1,339 @@
+"""Arms sharing a workspace: [[arm]] tables, inter-arm rows, central and decentral (share) filters."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from isf_robot.arm import CollisionBarriers, collision_pairs, list_scenes, load_scene, load_scene_from_files
+from isf_robot.arm.arms import geom_arms
+from isf_robot.arm.config_toml import parse_config
+from isf_robot.arm.multi_arm import MultiArmSimulation, run_team
+from isf_robot.arm.one_arm import arm_scene
+from isf_robot.arm.team_nominal import TeamReaching
+from isf_robot.core import ConfigError, FilterSpec, LieData, QPSolver, UnknownNameError
+from isf_robot.core.strategies import make_strategy
+from isf_robot.core.team import SharedFilter, row_agents
+
+
+def _arm(p: str, x: float, yaw: float) -> str:
+    return f"""
+    <body name="{p}l1" pos="{x} 0 0.2" euler="0 0 {yaw}">
+      <joint name="{p}q1" type="hinge" axis="0 0 1" range="-2.9 2.9" damping="0.5" armature="0.01"/>
+      <geom name="{p}g1" type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/>
+      <body name="{p}l2" pos="0.3 0 0">
+        <joint name="{p}q2" type="hinge" axis="0 0 1" range="-2.6 2.6" damping="0.5" armature="0.01"/>
+        <geom name="{p}g2" type="capsule" fromto="0 0 0 0.25 0 0" size="0.025" mass="0.6"/>
+        <site name="{p}ee" pos="0.27 0 0" size="0.01"/>
+      </body>
+    </body>"""
+
+
+TWO_ARMS_XML = f"""<mujoco><compiler angle="radian"/><option timestep="0.002"/><worldbody>
+  {_arm("a_", 0.0, 0.0)}{_arm("b_", 0.9, 3.14159265)}
+  <geom name="post" type="capsule" fromto="0.45 0.45 0 0.45 0.45 0.3" size="0.03"/>
+  <site name="a_g1" pos="0.5 0.22 0.2"/><site name="a_g2" pos="0.5 -0.22 0.2"/>
+  <site name="b_g1" pos="0.4 -0.22 0.2"/><site name="b_g2" pos="0.4 0.22 0.2"/>
+</worldbody><actuator>
+  <motor joint="a_q1" ctrlrange="-20 20" ctrllimited="true"/><motor joint="a_q2" ctrlrange="-15 15" ctrllimited="true"/>
+  <motor joint="b_q1" ctrlrange="-20 20" ctrllimited="true"/><motor joint="b_q2" ctrlrange="-15 15" ctrllimited="true"/>
+</actuator></mujoco>"""
+
+TWO_ARMS_TOML = """
+[scene]
+name = "two_arms"
+model = "two_arms.xml"
+
+[[arm]]
+name = "a"
+prefix = "a_"
+joints = ["q1", "q2"]
+geoms = ["g1", "g2"]
+ee_site = "ee"
+home = [0.3, -0.6]
+goals = [{ site = "g1", dwell = 0.1 }, { site = "g2", dwell = 0.1 }]
+
+[[arm]]
+name = "b"
+prefix = "b_"
+like = "a"
+
+[obstacles]
+geoms = ["post"]
+
+[task]
+duration = 3.0
+
+[barrier]
+cutoff = 0.25
+
+[gains]
+max_ee_speed = 0.6
+tracking_kp = [300.0, 200.0]  # one arm's: every arm gets them
+tracking_kd = [30.0, 20.0]
+
+[filter]
+alpha = 5.0
+c = 0.05
+b = 0.02
+d_bar = 0.05
+"""
+
+
+@pytest.fixture(scope="module")
+def two_arms(tmp_path_factory: pytest.TempPathFactory):  # type: ignore[no-untyped-def]
+    d = tmp_path_factory.mktemp("two_arms")
+    (d / "two_arms.xml").write_text(TWO_ARMS_XML)
+    (d / "two_arms.toml").write_text(TWO_ARMS_TOML)
+    return load_scene_from_files(d / "two_arms.xml", d / "two_arms.toml")
+
+
+# ----------------------------------------------------------------------------- the schema
+
+
+def test_arm_tables_build_the_robot(two_arms) -> None:  # type: ignore[no-untyped-def]
+    cfg = two_arms.config
+    assert cfg.robot.joints == ("a_q1", "a_q2", "b_q1", "b_q2")
+    assert cfg.robot.geoms == ("a_g1", "a_g2", "b_g1", "b_g2")
+    assert [a.name for a in two_arms.arms] == ["a", "b"]
+    assert cfg.arms[1].goals[0].site == "b_g1"  # 'like' takes the names as written, then the arm's prefix
+    np.testing.assert_allclose(two_arms.home, [0.3, -0.6, 0.3, -0.6])
+    assert cfg.gains.tracking_kp == (300.0, 200.0, 300.0, 200.0)  # one arm's gains stand for every arm's
+    np.testing.assert_allclose(two_arms.goal_positions[two_arms.arms[1].goals], [[0.4, -0.22, 0.2], [0.4, 0.22, 0.2]])
+    one = arm_scene(two_arms, 1)
+    assert one.n_joints == 2 and one.joint_names == ("b_q1", "b_q2") and one.arms == ()
+
+
+@pytest.mark.parametrize(("edit", "message"), [
+    (lambda t: t.replace('[obstacles]', '[robot]\nee_site = "a_ee"\ngeoms = ["a_g1"]\n[obstacles]'), "not both"),
+    (lambda t: t.replace('like = "a"', 'like = "c"'), "valid: ['a']"),
+    (lambda t: t.replace('home = [0.3, -0.6]', 'home = [0.3]'), "expected 2 numbers"),
+    (lambda t: t.replace('[task]', '[task]\ngoals = [{ site = "a_g1" }]'), "each arm's goals"),
+    (lambda t: t.replace('prefix = "b_"', 'prefix = "b_"\nspeed = 1'), "unknown key 'speed'"),
+    (lambda t: t.replace('prefix = "b_"', 'prefix = "b_"\nself_collision = true'), "the same value"),
+])
+def test_bad_arm_tables_say_what_is_valid(edit, message) -> None:  # type: ignore[no-untyped-def]
+    import tomllib
+
+    with pytest.raises(ConfigError, match=message.replace("[", r"\[").replace("]", r"\]").replace("(", r"\(")):
+        parse_config(tomllib.loads(edit(TWO_ARMS_TOML)), origin="two_arms.toml")
+
+
+def test_unknown_arm_geom_lists_the_model_names(tmp_path: Path) -> None:
+    (tmp_path / "two_arms.xml").write_text(TWO_ARMS_XML)
+    (tmp_path / "two_arms.toml").write_text(TWO_ARMS_TOML.replace('geoms = ["g1", "g2"]', 'geoms = ["g1", "g9"]'))
+    with pytest.raises(UnknownNameError, match="a_g9"):
+        load_scene_from_files(tmp_path / "two_arms.xml", tmp_path / "two_arms.toml")
+
+
+def test_single_arm_scene_has_no_arms_and_unchanged_pairs() -> None:
+    sc = load_scene("panda_pole")
+    assert sc.arms == ()
+    assert CollisionBarriers.from_scene(sc).pairs.k == 28
+
+
+def test_self_collision_of_every_arm_adds_each_arms_own_pairs() -> None:
+    sc = load_scene("panda_quad")  # self_collision = true in the first [[arm]], taken by the others through 'like'
+    assert [a.self_collision for a in sc.config.arms] == [True] * 4
+    p = CollisionBarriers.from_scene(sc).pairs
+    arm = geom_arms(sc.arms, np.arange(sc.model.ngeom))
+    same = arm[p.geom1] == arm[p.geom2]
+    one = collision_pairs(sc.model, sc.arms[0].geom_ids, [], margin=0.0, self_collision=True, self_margin=0.01)
+    assert same.sum() == 4 * one.k and np.all(p.margin[same] == 0.01)  # each arm's own pairs, with self_margin
+    assert np.all(p.margin[p.is_self & ~same] == 0.02) and (p.is_self & ~same).sum() == 6 * 14 * 14  # arm-arm
+
+
+# ----------------------------------------------------------------------------- inter-arm rows
+
+
+def test_inter_arm_rows_match_finite_differences(two_arms, rng, fd_grad) -> None:  # type: ignore[no-untyped-def]
+    cb = CollisionBarriers.from_scene(two_arms)
+    p = cb.pairs
+    between = [i for i, (g1, g2) in enumerate(zip(p.geom1, p.geom2))
+               if {two_arms.model.geom(int(g1)).name[0], two_arms.model.geom(int(g2)).name[0]} == {"a", "b"}]
+    assert len(between) == 4 and p.is_self[between].all()  # every a-b geom pair, as two-moving-body rows
+    m, d = two_arms.model, mujoco.MjData(two_arms.model)
+    checked = 0
+    for _ in range(40):
+        d.qpos[:] = rng.uniform([-0.2, -1.5, -0.2, -1.5], [0.8, 1.5, 0.8, 1.5])
+        mujoco.mj_forward(m, d)
+        b = cb.evaluate(d)
+        rows = [i for i in between if b.active[i] and b.h[i] > 0.01]
+        if not rows:
+            continue
+        fd = fd_grad(m, d, lambda dd: cb.evaluate(dd).h[rows], two_arms.dof_adr)
+        np.testing.assert_allclose(b.grad[rows], fd, atol=1e-6)
+        assert np.all(np.abs(b.grad[rows][:, :2]).sum(axis=1) > 0)  # arm a's joints move the distance
+        assert np.all(np.abs(b.grad[rows][:, 2:]).sum(axis=1) > 0)  # and arm b's
+        checked += len(rows)
+    assert checked >= 10
+
+
+# ----------------------------------------------------------------------------- the share
+
+
+def test_shares_meet_the_pair_condition(rng) -> None:  # type: ignore[no-untyped-def]
+    """Whatever the nominal, the agents' commands together meet every row's robust condition (cbf and isf)."""
+    spec = FilterSpec(alpha=5.0, c=0.05, b=0.02, d_bar=0.05, blend=0.0, horizon=0.0)
+    blocks = (slice(0, 2), slice(2, 4))
+    for name in ("cbf", "isf"):
+        team = SharedFilter([make_strategy(name, spec, solver=QPSolver(few_rows=True)) for _ in blocks],
+                            blocks, ("a", "b"), 0.002)
+        for k in range(300):
+            lg = rng.normal(size=(3, 4))
+            lg[0, 2:] = 0.0  # row 0: arm a's only (an obstacle row); row 2 shared (2 rows per arm: feasible)
+            lg[1, :2] = 0.0  # row 1: arm b's only
+            lie = LieData(rng.uniform(0.0, 0.2, 3), rng.normal(0.0, 0.3, 3), lg, np.linalg.norm(lg, axis=1))
+            u_nom = rng.normal(0.0, 2.0, 4)
+            step = team.step_lie(k * 0.002, lie, u_nom)
+            lhs = lie.lf + lie.lg @ step.u - lie.grad_norm * spec.d_bar
+            assert np.all(lhs >= -spec.alpha * lie.h - 1e-7), (name, k)
+            if not step.on:
+                np.testing.assert_array_equal(step.u, u_nom)
+        np.testing.assert_array_equal(row_agents(lg, blocks), [[1, 0], [0, 1], [1, 1]])
+
+
+@pytest.mark.parametrize("coordination", ["central", "decentral"])
+def test_team_run_is_safe_and_its_arm_figures_add_up(two_arms, coordination) -> None:  # type: ignore[no-untyped-def]
+    nominal = run_team(two_arms, "nominal", coordination, duration=3.0, seed=0)
+    assert nominal.contacts["arm-arm"] > 0 or nominal.run.collisions > 0  # the tasks cross: the arms collide
+    for strategy in ("cbf", "isf"):
+        r = run_team(two_arms, strategy, coordination, duration=3.0, seed=0)
+        assert r.violations == 0 and r.run.collisions == 0 and r.run.fallbacks == 0, (strategy, r.contacts)
+        assert r.clearance["arm-arm"] > 0.0
+        arms = r.arms
+        assert [a["name"] for a in arms] == ["a", "b"]
+        # intervention is a sum over joints: the arms' shares add up to the team's
+        assert sum(a["intervention"] for a in arms) == pytest.approx(r.run.metrics.intervention, rel=1e-9, abs=1e-12)
+        assert sum(a["goals_reached"] for a in arms) == r.run.goals_reached
+        assert any(a["coordination_steps"] > 0 for a in arms)
+        for a in arms:
+            assert a["coordination_steps"] <= round(a["duty_cycle"] * a["control_steps"]) + 1
+            assert a["coordination_events"] <= a["coordination_steps"]
+            if coordination == "central":
+                assert a["duty_cycle"] == pytest.approx(r.run.metrics.duty_cycle)
+
+
+def test_team_reaching_stacks_each_arms_controller(two_arms) -> None:  # type: ignore[no-untyped-def]
+    team = TeamReaching(two_arms)
+    d = two_arms.make_data()
+    mujoco.mj_step1(two_arms.model, d)
+    u = team(0.01, d).copy()
+    for i, c in enumerate(team.arms):
+        c.reset()
+        np.testing.assert_allclose(u[two_arms.arms[i].joints], c(0.01, d))
+
+
+def test_single_arm_paths_refuse_several_arms(two_arms) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.arm.nominal import ReachingController
+    from isf_robot.arm.sim import ArmSimulation
+
+    for build in (lambda: ReachingController(two_arms), lambda: ArmSimulation(two_arms, "cbf", d_bar=0.05)):
+        with pytest.raises(ConfigError, match="has 2 arms: its nominal task is every arm's"):
+            build()
+
+
+def test_multi_arm_simulation_refuses_one_arm_and_unknown_coordination(two_arms) -> None:  # type: ignore[no-untyped-def]
+    with pytest.raises(ConfigError, match="one arm"):
+        MultiArmSimulation(load_scene("planar"), "cbf", d_bar=0.05)
+    with pytest.raises(UnknownNameError, match="central"):
+        MultiArmSimulation(two_arms, "cbf", coordination="both")
+
+
+# ----------------------------------------------------------------------------- the command line
+
+
+@pytest.fixture(scope="module")
+def two_arm_files(two_arms):  # type: ignore[no-untyped-def]
+    return ["--model", str(two_arms.xml_path), "--config", str(two_arms.config.source)]
+
+
+def test_run_prints_a_line_per_arm(capsys, two_arm_files) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.cli import main
+
+    assert main(["run", *two_arm_files, "--filter", "isf", "--coordination", "decentral", "--duration", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "(decentral)" in out and "penetrating contacts" in out
+    lines = out.splitlines()
+    assert sum(ln.split()[0] in ("a", "b") for ln in lines if ln.strip()) == 2
+    assert main(["run", *two_arm_files, "--filter", "cbf", "--duration", "1", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["coordination"] == "central" and [a["name"] for a in d["arms"]] == ["a", "b"]
+    assert d["violations"] == 0 and d["schema"].startswith("isf-robot-run")
+
+
+def test_compare_runs_each_way_on_the_same_seeds(capsys, two_arm_files) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.cli import main
+
+    assert main(["compare", *two_arm_files, "--filters", "cbf", "isf", "--episodes", "1", "--duration", "1",
+                 "--json", "--quiet"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert set(d["results"]) == {"cbf/central", "cbf/decentral", "isf/central", "isf/decentral"}
+    assert all(r["violations"] == 0 and len(r["arms"]) == 2 for r in d["results"].values())
+
+
+def test_coordination_on_one_arm_is_a_one_line_error(capsys) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.cli import main
+
+    assert main(["run", "--scene", "planar", "--coordination", "decentral", "--duration", "0.1", "--d-bar", "0.1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "several arms" in err and "'planar' has one" in err
+
+
+def test_init_writes_an_arm_table_per_arm(tmp_path: Path) -> None:
+    import shutil
+
+    from isf_robot.arm.starter import starter_toml
+    from isf_robot.paths import models_dir
+
+    for f in ("panda_pair.xml", "panda_arm.xml"):
+        shutil.copy(models_dir() / f, tmp_path / f)
+    text = starter_toml(tmp_path / "panda_pair.xml")
+    assert text.count("\n[[arm]]") == 2 and "\n[robot]" not in text and 'prefix = "right_"' in text
+    (tmp_path / "panda_pair.toml").write_text(text)
+    sc = load_scene_from_files(tmp_path / "panda_pair.xml", tmp_path / "panda_pair.toml")  # loads as it is
+    assert [a.name for a in sc.arms] == ["left", "right"] and sc.n_joints == 14
+    assert sc.config.arms[1].goals[0].site == "right_goal_a"
+    assert CollisionBarriers.from_scene(sc).pairs.k == 252
+
+
+def test_per_arm_intervention_reads_back_from_a_recording(capsys, two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """The recording's per-joint correction ``u - u_nom``, summed over each arm's joints, gives the arm's figure."""
+    pytest.importorskip("rerun")
+    from isf_robot.cli import main
+    from isf_robot.record import read_columns
+
+    rrd = tmp_path / "pair.rrd"
+    assert main(["run", *two_arm_files, "--filter", "isf", "--coordination", "decentral", "--duration", "1.5",
+                 "--rrd", str(rrd), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    col = read_columns(rrd, "/plots/joints/correction", ["Scalars:scalars"])["Scalars:scalars"]
+    assert col.shape == (d["control_steps"], 4)
+    for arm, cols in zip(d["arms"], (slice(0, 2), slice(2, 4))):
+        again = float(np.sum(col[:, cols] ** 2) * d["control_period"])
+        assert again == pytest.approx(arm["intervention"], rel=1e-9, abs=1e-12), arm["name"]
+    assert sum(a["intervention"] for a in d["arms"]) > 0  # the filter acted
+
+
+@pytest.mark.parametrize("name", [s.name for s in list_scenes() if load_scene(s.name).arms])
+def test_shipped_multi_arm_tasks_collide_without_a_filter(name: str) -> None:
+    """Every arm's nominal task, rolled out kinematically (q_dot = u_nom), brings two arms into contact."""
+    sc = load_scene(name)
+    cb, team = CollisionBarriers.from_scene(sc), TeamReaching(sc)
+    m, d = sc.model, sc.make_data()
+    arm = geom_arms(sc.arms, np.arange(m.ngeom))
+    between = np.flatnonzero((arm[cb.pairs.geom1] >= 0) & (arm[cb.pairs.geom2] >= 0))  # (arm-arm pairs)
+    q, dt, worst = sc.home.copy(), 0.01, np.inf
+    for k in range(int(6.0 / dt)):
+        d.qpos[sc.qpos_adr] = q
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        worst = min(worst, float(np.min(cb.evaluate(d).h[between])))
+        if worst < 0.0:
+            break
+        q = q + dt * team(k * dt, d)
+    assert worst < 0.0
