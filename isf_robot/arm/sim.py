@@ -190,6 +190,10 @@ class ArmSimulation:
         return n_ctrl
 
     # -- the loop ------------------------------------------------------------------------
+    def _episode(self, n_ctrl: int) -> _Episode:
+        """The state of a run of ``n_ctrl`` control steps (a subclass's loop phases: its own episode type)."""
+        return _Episode(self, n_ctrl)
+
     def run(self, duration: float | None = None) -> RunResult:
         """Simulate ``duration`` seconds (default ``[task] duration``) and summarise.
 
@@ -200,7 +204,7 @@ class ArmSimulation:
         n_ctrl = self.control_steps(duration)
         wall0 = time.perf_counter()
         T = self.control_period
-        ep = _Episode(self, n_ctrl)
+        ep = self._episode(n_ctrl)
         phases: dict[str, Callable[..., Any]] = {name: getattr(ep, name) for name in PHASES}
         timers = PhaseTimers(phases) if self.timing else None
         sense, barriers, nominal, strategy, act = (phases[name] for name in PHASES)
