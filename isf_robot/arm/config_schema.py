@@ -25,7 +25,11 @@ __all__ = [
     "GainsConfig",
     "ControlConfig",
     "SceneConfig",
+    "LEVELS",
 ]
+
+LEVELS = ("velocity", "torque")
+"""The levels a filter can act at (``[filter] level``; ``--level`` on the command line), the default first."""
 
 
 @dataclass(frozen=True)
@@ -202,6 +206,9 @@ class SceneConfig:
         control: Control timing.
         moving: Mocap obstacles with known paths.
         source: The TOML file this was read from, or ``None``.
+        level: The level the filter acts at by default (``[filter] level``, one of :data:`LEVELS`):
+            ``"velocity"`` (joint velocities on ``q_dot = u + d``) or ``"torque"`` (joint torques on the
+            full dynamics, :mod:`isf_robot.arm.torque_sim`).
 
     """
 
@@ -217,3 +224,4 @@ class SceneConfig:
     control: ControlConfig = ControlConfig()
     moving: tuple[MovingObstacle, ...] = ()
     source: Path | None = None
+    level: str = "velocity"

@@ -82,9 +82,11 @@ class TorqueRunResult(RunResult):
     Attributes:
         tau_peak_ratio: Largest ``|tau_i| / tau_max,i`` applied (<= 1: the limits held).
         reference_error_q99: 99th percentile of ``|q_dot - v_ref|`` at the ticks [rad/s].
-        intervention_torque: ``integral |tau - tau_nom|^2 dt`` [N^2 m^2 s] (the metrics' intervention).
+        level: ``"torque"``.
 
-    ``tracking_error_q99`` is the model error ``|q_ddot - (a0 + Minv tau)|`` [rad/s^2] (see the module).
+    ``tracking_error_q99`` is the model error ``|q_ddot - (a0 + Minv tau)|`` [rad/s^2] (see the module);
+    the metrics' ``intervention`` is ``integral |tau - tau_nom|^2 dt`` [N^2 m^2 s].
+
     """
 
     tau_peak_ratio: float = 0.0
