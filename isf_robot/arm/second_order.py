@@ -35,18 +35,23 @@ cut-off, ``psi`` drops by the pair's approach speed; the cut-off must satisfy
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 
 import mujoco
 import numpy as np
 
 from isf_robot.core import ConfigError, LieData
+from isf_robot.core.exceptions import IsfWarning
 
 from .collision import CollisionBarriers
 from .dynamics import DynamicsTerms
 from .joint_limits import JointLimitBarriers
 
-__all__ = ["psi_lie", "SecondOrderRows", "ObstacleClock"]
+__all__ = ["psi_lie", "SecondOrderRows", "ObstacleClock", "PROBE_REACH"]
+
+PROBE_REACH = 0.05
+"""How far beyond the broad-phase cut-off [m] the central differences of ``phi`` still see a pair."""
 
 ObstacleClock = Callable[[mujoco.MjData, float], np.ndarray | None]
 """``(data, t) -> mocap linear velocities (nmocap, 3) or None``: puts the moving obstacles where they
@@ -100,6 +105,11 @@ class SecondOrderRows:
         self.alpha_1, self.eps = float(alpha_1), float(eps)
         self.obstacles = obstacles
         self._scratch = mujoco.MjData(coll.model)
+        # The same pairs with a cut-off a little further out for the differences: a pair near at the state stays
+        # within it at q -+ eps q_dot (else its saturated value, with zero gradient, would make a false kink).
+        with warnings.catch_warnings():  # (the pairs' warnings were given when ``coll`` was made)
+            warnings.simplefilter("ignore", IsfWarning)
+            self._probe = CollisionBarriers(coll.model, coll.pairs, coll.dof_adr, coll.cutoff + PROBE_REACH)
 
     def phi_rate(self, data: mujoco.MjData, t: float, rows: np.ndarray, q_dot: np.ndarray) -> np.ndarray:
         """``D phi`` of the collision pairs ``rows`` at the state in ``data`` (time ``t``), shape (len(rows),)."""
@@ -115,7 +125,7 @@ class SecondOrderRows:
             lin = self.obstacles(s, t + sign * e) if self.obstacles is not None else None
             mujoco.mj_kinematics(model, s)
             mujoco.mj_comPos(model, s)
-            batch = self.coll.evaluate(s, lin)
+            batch = self._probe.evaluate(s, lin)
             out.append(batch.grad[rows] @ q_dot + batch.dhdt[rows])
         return (out[0] - out[1]) / (2.0 * e)
 
