@@ -86,7 +86,7 @@ def test_payload_needs_the_robust_term_and_the_calibration_covers_it(pole) -> No
     assert runs["loaded"].min_barrier > runs["bare"].min_barrier
 
 
-PAYLOAD_KG, PAYLOAD_S = 3.0, 4.0
+PAYLOAD_KG, PAYLOAD_S = 0.3, 3.0
 
 
 def test_compare_task_runs_the_torque_level(pole) -> None:  # type: ignore[no-untyped-def]
