@@ -108,8 +108,9 @@ def test_bad_input(pole) -> None:  # type: ignore[no-untyped-def]
 
 
 def test_scene_level_is_validated(pole) -> None:  # type: ignore[no-untyped-def]
-    import tomllib
     from pathlib import Path
+
+    import tomllib
 
     raw = tomllib.loads(Path(pole.config.source).read_text())
     raw["filter"]["level"] = "torque"
