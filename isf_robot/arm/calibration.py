@@ -42,7 +42,7 @@ from .nominal import ReachingController
 from .scene import Scene
 from .tracking_law import tracking_error
 
-__all__ = ["Calibration", "calibrate_d_bar", "clear_calibration_cache"]
+__all__ = ["Calibration", "calibrate_d_bar", "clear_calibration_cache", "free_scene"]
 
 
 @dataclass(frozen=True)
@@ -103,6 +103,15 @@ def _key(scene: Scene, params: tuple[Any, ...]) -> tuple[Any, ...]:
     return (scene.name, *files, params)
 
 
+def free_scene(scene: Scene, model: mujoco.MjModel | None = None) -> Scene:
+    """``scene`` on a copy of ``model`` (default: its own) without contacts with the obstacles (calibration step 1)."""
+    model = copy.deepcopy(scene.model if model is None else model)
+    for g in scene.obstacle_geom_ids:
+        model.geom_contype[g] = 0
+        model.geom_conaffinity[g] = 0
+    return dataclasses.replace(scene, model=model)
+
+
 def calibrate_d_bar(
     scene: Scene,
     *,
@@ -147,11 +156,8 @@ def calibrate_d_bar(
     if use_cache and key in _CACHE:
         return _CACHE[key]
 
-    model = copy.deepcopy(scene.model)
-    for g in scene.obstacle_geom_ids:
-        model.geom_contype[g] = 0
-        model.geom_conaffinity[g] = 0
-    free = dataclasses.replace(scene, model=model)
+    free = free_scene(scene)
+    model = free.model
     data = free.make_data(0.0)
     nominal = ReachingController(free)
     tracker = make_actuation(free, friction=friction)

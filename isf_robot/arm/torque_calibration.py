@@ -23,7 +23,6 @@ Results are cached for the life of the process (per scene files, plant and param
 from __future__ import annotations
 
 import copy
-import dataclasses
 from typing import Any
 
 import mujoco
@@ -31,7 +30,7 @@ import numpy as np
 
 from isf_robot.core.exceptions import ConfigError
 
-from .calibration import Calibration
+from .calibration import Calibration, _key, free_scene
 from .dynamics import ArmDynamics, torque_limits
 from .nominal import ReachingController
 from .scene import Scene
@@ -84,15 +83,12 @@ def calibrate_torque_d_bar(
                           f"{duration}, {switch_period}, {excitation}")
     if not (0.0 < quantile <= 1.0 and factor >= 1.0):
         raise ConfigError(f"calibration quantile must be in (0, 1] and factor >= 1, got {quantile}, {factor}")
-    key = (scene.name, str(scene.xml_path), str(scene.config.source), id(plant) if plant is not None else None,
-           duration, quantile, factor, excitation, switch_period, seed, kd)
+    key = _key(scene, (id(plant) if plant is not None else None, duration, quantile, factor, excitation,
+                       switch_period, seed, kd))
     if key in _CACHE:
         return _CACHE[key]
-    model = torque_plant(scene.model if plant is None else plant)
-    for g in scene.obstacle_geom_ids:
-        model.geom_contype[g] = 0
-        model.geom_conaffinity[g] = 0
-    free = dataclasses.replace(scene, model=model)
+    free = free_scene(scene, torque_plant(scene.model if plant is None else plant))
+    model = free.model
     data = free.make_data(0.0)
     dyn = ArmDynamics(scene.model, scene.dof_adr, own_data=plant is not None)
     T = float(scene.config.control.period)
