@@ -55,6 +55,7 @@ HEADER = ["level", "strategy", "duty", "switches", "min off [s]", "intervention"
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the comparisons and print the tables (see the module docstring)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--duration", type=float, default=8.0)

@@ -79,6 +79,7 @@ class ArmDynamics:
         self.dof = np.asarray(dof_adr, dtype=np.int64)
         self._full = np.zeros((model.nv, model.nv))
         self._own = mujoco.MjData(model) if own_data else None
+        self._all = bool(np.array_equal(self.dof, np.arange(model.nv)))  # (the arm is every dof: no selection)
 
     def terms(self, data: mujoco.MjData) -> DynamicsTerms:
         """The terms at the state in ``data`` (after ``mj_step1`` or ``mj_forward``)."""
@@ -92,6 +93,8 @@ class ArmDynamics:
         mujoco.mj_fullM(self.model, data, self._full)
         inv = np.linalg.inv(self._full)
         free = data.qfrc_passive - data.qfrc_bias
+        if self._all:
+            return DynamicsTerms(self._full.copy(), inv, inv @ free, -free)
         dof = self.dof
         return DynamicsTerms(self._full[np.ix_(dof, dof)].copy(), inv[np.ix_(dof, dof)], (inv @ free)[dof], -free[dof])
 

@@ -110,6 +110,7 @@ class SecondOrderRows:
         with warnings.catch_warnings():  # (the pairs' warnings were given when ``coll`` was made)
             warnings.simplefilter("ignore", IsfWarning)
             self._probe = CollisionBarriers(coll.model, coll.pairs, coll.dof_adr, coll.cutoff + PROBE_REACH)
+        self._at = np.full(coll.pairs.k, -1, dtype=np.int64)  # (pair -> its row in the probe's near pairs)
 
     def phi_rate(self, data: mujoco.MjData, t: float, rows: np.ndarray, q_dot: np.ndarray) -> np.ndarray:
         """``D phi`` of the collision pairs ``rows`` at the state in ``data`` (time ``t``), shape (len(rows),)."""
@@ -125,8 +126,14 @@ class SecondOrderRows:
             lin = self.obstacles(s, t + sign * e) if self.obstacles is not None else None
             mujoco.mj_kinematics(model, s)
             mujoco.mj_comPos(model, s)
-            batch = self._probe.evaluate(s, lin)
-            out.append(batch.grad[rows] @ q_dot + batch.dhdt[rows])
+            near = self._probe.near(s, lin)
+            at = self._at
+            at[near.rows] = np.arange(near.rows.size)
+            sel = at[rows]
+            at[near.rows] = -1
+            if np.any(sel < 0):  # (cannot happen within PROBE_REACH of the cut-off; said rather than assumed)
+                raise ConfigError(f"pairs {rows[sel < 0].tolist()} left the probe's reach within eps = {e} s")
+            out.append(near.grad[sel] @ q_dot + near.dhdt[sel])
         return (out[0] - out[1]) / (2.0 * e)
 
     def tick(self, data: mujoco.MjData, t: float, terms: DynamicsTerms, lin: np.ndarray | None = None, *,
