@@ -119,3 +119,16 @@ def test_scene_level_is_validated(pole) -> None:  # type: ignore[no-untyped-def]
     with pytest.raises(ConfigError, match=r"\[filter\] level: unknown 'joint'; valid: velocity, torque"):
         parse_config(raw)
     assert pole.config.level == "velocity"
+
+
+def test_cli_runs_the_torque_level(capsys) -> None:  # type: ignore[no-untyped-def]
+    import json
+
+    from isf_robot.cli import main
+
+    assert main(["run", "--scene", "panda_pole", "--level", "torque", "--filter", "cbf", "--duration", "0.1",
+                 "--d-bar", "0.6", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["level"] == "torque" and d["d_bar"] == 0.6 and d["d_bar_source"] == "argument"
+    assert main(["run", "--scene", "panda_pole", "--level", "torque", "--horizon", "0.3", "--d-bar", "0.6"]) == 2
+    assert "not available at the torque level" in capsys.readouterr().err
