@@ -123,13 +123,19 @@ def test_psi_and_its_lie_derivatives_match_the_integrated_motion(t, s, ot, os) -
     assert checked >= 3
 
 
-def test_moving_obstacle_rows_match_the_integrated_motion() -> None:
-    """dh/dt and its rate along the obstacle's path (panda_moving: a mocap ball on a circle)."""
-    scene = load_scene("panda_moving")
+def integration_scene(name: str):  # type: ignore[no-untyped-def]
+    """A shipped scene on a copy of its model for the oracle: RK4 at 10 us, no contacts, no actuator forces."""
+    scene = load_scene(name)
     model = copy.deepcopy(scene.model)
     model.opt.timestep, model.opt.integrator = 1e-5, int(mujoco.mjtIntegrator.mjINT_RK4)
-    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-    sc = dataclasses.replace(scene, model=model)
+    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION) | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    return dataclasses.replace(scene, model=model)
+
+
+def test_moving_obstacle_rows_match_the_integrated_motion() -> None:
+    """dh/dt and its rate along the obstacle's path (panda_moving: a mocap ball on a linear bouncing path)."""
+    sc = integration_scene("panda_moving")
+    model = sc.model
     coll, joints = CollisionBarriers.from_scene(sc), JointLimitBarriers.from_scene(sc)
 
     def clock(d, t):  # type: ignore[no-untyped-def]
@@ -158,12 +164,9 @@ def test_moving_obstacle_rows_match_the_integrated_motion() -> None:
 
 
 def test_joint_limit_rows_on_a_shipped_arm() -> None:
-    """Joint rows only (far from the obstacles): psi = +-q_dot + alpha_1 h, Lf psi = +-a0 + alpha_1 (+-q_dot)."""
-    scene = load_scene("ur5e_pole")
-    model = copy.deepcopy(scene.model)
-    model.opt.timestep, model.opt.integrator = 1e-5, int(mujoco.mjtIntegrator.mjINT_RK4)
-    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION) | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-    sc = dataclasses.replace(scene, model=model)
+    """The joint-limit rows (psi = +-q_dot + alpha_1 h, Lf psi = +-a0 + alpha_1 (+-q_dot)) and the near pairs at home."""
+    sc = integration_scene("ur5e_pole")
+    model = sc.model
     rows = SecondOrderRows(CollisionBarriers.from_scene(sc), JointLimitBarriers.from_scene(sc), sc.qpos_adr, ALPHA_1)
     rng = np.random.default_rng(3)
     d = mujoco.MjData(model)
