@@ -62,7 +62,8 @@ def _add_filter_args(p: argparse.ArgumentParser) -> None:
 
 
 _MAIN = ("alpha", "c", "b", "d_bar")  # (the paper's four; the intermittent options in their own group)
-_HELP = {"d_bar": "tracking-error bound [rad/s] (default: the scene's, else calibrated)",
+_HELP = {"d_bar": "disturbance bound: tracking error [rad/s] at the velocity level (default: the scene's, else "
+                  "calibrated), model error [rad/s^2] at the torque level (default: calibrated)",
          "predict_every": "control steps between rollouts of the predictive off trigger (default 5)"}
 _CLI_ONLY_IN_CONFIG = ("fall_rate_prior", "fall_rate_forget")  # (scene files and scripts; no flag)
 
