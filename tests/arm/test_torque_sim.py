@@ -132,3 +132,34 @@ def test_cli_runs_the_torque_level(capsys) -> None:  # type: ignore[no-untyped-d
     assert d["level"] == "torque" and d["d_bar"] == 0.6 and d["d_bar_source"] == "argument"
     assert main(["run", "--scene", "panda_pole", "--level", "torque", "--horizon", "0.3", "--d-bar", "0.6"]) == 2
     assert "not available at the torque level" in capsys.readouterr().err
+
+
+def test_fallback_damps_toward_rest_with_gravity_compensation(pole) -> None:  # type: ignore[no-untyped-def]
+    """The infeasibility fallback: within the limits, finite, and its torque beyond gravity opposes the motion."""
+    sim = TorqueSimulation(pole, "cbf", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR))
+    ep = sim._episode(10)
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        ep.data.qvel[pole.dof_adr] = rng.uniform(-1.0, 1.0, pole.n_joints)
+        ep.sense(0)
+        tau = sim._fallback(0.0, ep.data, None, None)  # type: ignore[arg-type]
+        assert np.all(np.isfinite(tau)) and np.all(np.abs(tau) <= sim.tau_max)
+        v = ep.data.qvel[pole.dof_adr]
+        assert float(v @ (tau - sim.terms.hold)) < 0.0  # type: ignore[union-attr]
+
+
+def test_torque_nominal_is_computed_torque_on_the_model(pole) -> None:  # type: ignore[no-untyped-def]
+    """Unclipped, the nominal torque gives the model's q_ddot = kd (v_ref - q_dot) + a_ref exactly."""
+    sim = TorqueSimulation(pole, "nominal", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR))
+    ep = sim._episode(10)
+    nom, T = sim.torque_nominal, sim.control_period
+    prev = None
+    for k in range(5):
+        ep.sense(k)
+        tau = nom(k * T, ep.data, sim.terms)
+        assert np.all(np.abs(tau) < sim.tau_max)
+        a_ref = np.zeros(pole.n_joints) if prev is None else (nom.v_ref - prev) / T
+        want = nom.kd * (nom.v_ref - ep.data.qvel[pole.dof_adr]) + a_ref
+        np.testing.assert_allclose(sim.terms.acceleration(tau), want, atol=1e-9)  # type: ignore[union-attr]
+        prev = nom.v_ref.copy()
+        ep.act(k, tau)
