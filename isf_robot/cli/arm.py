@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from isf_robot.arm.config_schema import LEVELS  # (no MuJoCo: the handlers import it lazily)
 from isf_robot.core.exceptions import ConfigError
 from isf_robot.core.hooks import Observers
 from isf_robot.core.jit import JIT_ENV
@@ -40,9 +41,6 @@ def _add_scene_args(p: argparse.ArgumentParser, files: bool = True) -> None:
     if files:
         p.add_argument("--model", metavar="PATH.xml", help="an MJCF file (with --config)")
         p.add_argument("--config", metavar="PATH.toml", help="its scene config (with --model)")
-
-
-LEVELS = ("velocity", "torque")  # (isf_robot.arm.config_schema.LEVELS; the arm is imported lazily)
 
 
 def _add_filter_args(p: argparse.ArgumentParser) -> None:
