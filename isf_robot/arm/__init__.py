@@ -39,6 +39,11 @@ _EXPORTS: dict[str, str] = {
     # several arms: the team's nominal, the loop with a coordination, its result
     "TeamReaching": "team_nominal", "MultiArmSimulation": "multi_arm", "ArmRunResult": "multi_arm",
     "run_team": "multi_arm", "COORDINATIONS": "multi_arm",
+    # the torque level: second-order barriers on the full dynamics, computed-torque nominal, its d_bar
+    "TorqueSimulation": "torque_sim", "TorqueRunResult": "torque_sim", "run_torque_episode": "torque_sim",
+    "resolve_torque_params": "torque_sim", "calibrate_torque_d_bar": "torque_calibration",
+    "SecondOrderRows": "second_order", "psi_lie": "second_order", "ArmDynamics": "dynamics",
+    "DynamicsTerms": "dynamics", "torque_limits": "dynamics", "TorqueNominal": "torque_nominal",
     # comparisons
     "SceneSpec": "compare", "Comparison": "compare", "compare_strategies": "compare", "format_table": "compare",
 }

@@ -43,7 +43,7 @@ from .scene import Scene
 from .team_nominal import TeamReaching
 from .tracking_law import tracking_error
 
-__all__ = ["Calibration", "calibrate_d_bar", "clear_calibration_cache"]
+__all__ = ["Calibration", "calibrate_d_bar", "clear_calibration_cache", "free_scene"]
 
 
 @dataclass(frozen=True)
@@ -104,6 +104,19 @@ def _key(scene: Scene, params: tuple[Any, ...]) -> tuple[Any, ...]:
     return (scene.name, *files, params)
 
 
+def free_scene(scene: Scene, model: mujoco.MjModel | None = None) -> Scene:
+    """``scene`` on a copy of ``model`` (default: its own) without contacts with the obstacles (calibration step 1).
+
+    With several arms, the arms' contacts with each other are off too.
+    """
+    model = copy.deepcopy(scene.model if model is None else model)
+    for g in (scene.obstacle_geom_ids if not scene.arms else
+              np.concatenate([scene.obstacle_geom_ids, scene.robot_geom_ids])):
+        model.geom_contype[g] = 0
+        model.geom_conaffinity[g] = 0
+    return dataclasses.replace(scene, model=model)
+
+
 def calibrate_d_bar(
     scene: Scene,
     *,
@@ -148,12 +161,8 @@ def calibrate_d_bar(
     if use_cache and key in _CACHE:
         return _CACHE[key]
 
-    model = copy.deepcopy(scene.model)
-    for g in (scene.obstacle_geom_ids if not scene.arms else  # (several arms: not into each other either)
-              np.concatenate([scene.obstacle_geom_ids, scene.robot_geom_ids])):
-        model.geom_contype[g] = 0
-        model.geom_conaffinity[g] = 0
-    free = dataclasses.replace(scene, model=model)
+    free = free_scene(scene)
+    model = free.model
     data = free.make_data(0.0)
     nominal = ReachingController(free) if not scene.arms else TeamReaching(free)
     tracker = make_actuation(free, friction=friction)

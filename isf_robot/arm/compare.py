@@ -23,10 +23,12 @@ from isf_robot.support.parallel import MAX_JOBS, Interrupted, run_tasks
 from isf_robot.support.report import format_table as _table
 from isf_robot.support.report import mean_std_cell, to_jsonable
 
+from .config_schema import LEVELS
 from .params import resolve_params
 from .records import FilterParams
 from .scene import Scene, load_scene, load_scene_from_files
 from .sim import ArmSimulation
+from .torque_sim import TorqueSimulation, resolve_torque_params
 
 __all__ = [
     "SceneSpec",
@@ -39,6 +41,8 @@ __all__ = [
     "format_table",
     "json_safe",
     "FILTER_KEYS",
+    "simulation_type",
+    "level_params",
 ]
 
 MAX_EPISODES = 1_000_000
@@ -98,6 +102,8 @@ class EpisodeTask:
         duration: Simulated time [s] (``None``: the scene's).
         params: Keyword arguments for :class:`~isf_robot.arm.ArmSimulation` (``params=`` the
             resolved :class:`FilterParams`, ``control_period``, ``observers``, ...).
+        level: ``"velocity"`` (:class:`~isf_robot.arm.ArmSimulation`) or ``"torque"``
+            (:class:`~isf_robot.arm.torque_sim.TorqueSimulation`).
 
     """
 
@@ -106,6 +112,25 @@ class EpisodeTask:
     seed: int
     duration: float | None
     params: Mapping[str, Any] = field(default_factory=dict)
+    level: str = "velocity"
+
+
+def simulation_type(level: str) -> type[ArmSimulation]:
+    """The simulation of a level (:data:`~isf_robot.arm.config_schema.LEVELS`).
+
+    Raises:
+        ConfigError: An unknown level (the message lists the valid ones).
+
+    """
+    if level not in LEVELS:
+        raise ConfigError(f"unknown level {level!r}; valid: {', '.join(LEVELS)}")
+    return TorqueSimulation if level == "torque" else ArmSimulation
+
+
+def level_params(scene: Scene, level: str, *args: Any, **options: Any) -> FilterParams:
+    """The filter parameters of a level: :func:`resolve_params` or :func:`resolve_torque_params` (its ``d_bar``)."""
+    simulation_type(level)
+    return (resolve_torque_params if level == "torque" else resolve_params)(scene, *args, **options)
 
 
 def run_task(task: EpisodeTask) -> dict[str, Any]:
@@ -113,8 +138,8 @@ def run_task(task: EpisodeTask) -> dict[str, Any]:
     scene = task.spec.load()
     kwargs = dict(task.params)
     if not isinstance(kwargs.get("params"), FilterParams):
-        kwargs["params"] = resolve_params(scene, *(kwargs.pop(k, None) for k in FILTER_KEYS))
-    res = ArmSimulation(scene, task.strategy, seed=task.seed, **kwargs).run(task.duration)
+        kwargs["params"] = level_params(scene, task.level, *(kwargs.pop(k, None) for k in FILTER_KEYS))
+    res = simulation_type(task.level)(scene, task.strategy, seed=task.seed, **kwargs).run(task.duration)
     return json_safe(res.as_dict())
 
 
@@ -167,6 +192,7 @@ class Comparison:
     seeds: tuple[int, ...]
     results: Mapping[str, Mapping[str, Any]]
     partial: bool = False
+    level: str = "velocity"
 
     def as_dict(self) -> dict[str, Any]:
         """``{"scene", "episodes", "seeds", "partial", "results": {strategy: {key: mean, ..., "episodes": [...]}}}``.
@@ -175,8 +201,11 @@ class Comparison:
         that finished (``count`` per key, ``episodes`` lists them; ``finished`` counts them per
         strategy, of ``episodes``).
         """
-        return json_safe({"scene": self.scene, "episodes": self.episodes, "seeds": list(self.seeds),
-                          "partial": self.partial, "finished": self.finished(), "results": self.results})
+        out = {"scene": self.scene, "episodes": self.episodes, "seeds": list(self.seeds),
+               "partial": self.partial, "finished": self.finished(), "results": self.results}
+        if self.level != "velocity":  # (the velocity level's output as it was)
+            out["level"] = self.level
+        return json_safe(out)
 
     def finished(self) -> dict[str, int]:
         """Episodes that finished, per strategy (``episodes`` each unless ``partial``)."""
@@ -196,6 +225,7 @@ def compare_strategies(
     jobs: int = 1,
     params: Mapping[str, Any] | None = None,
     progress: ProgressFn | None = None,
+    level: str = "velocity",
 ) -> Comparison:
     """Run every strategy on seeds ``seed0 .. seed0 + episodes - 1`` and summarise.
 
@@ -214,6 +244,8 @@ def compare_strategies(
             the calibration if ``d_bar`` is unknown) and extra
             :class:`~isf_robot.arm.ArmSimulation` keyword arguments.
         progress: Called after each episode as ``progress(done, total, task, result)``.
+        level: ``"velocity"`` or ``"torque"`` (:func:`simulation_type`; the torque level's ``d_bar`` is
+            its own, :func:`~isf_robot.arm.torque_sim.resolve_torque_params`).
 
     Returns:
         The :class:`Comparison`.
@@ -240,19 +272,21 @@ def compare_strategies(
         raise ConfigError(f"strategies repeat: {strategies}")
     if duration is not None and not (math.isfinite(duration) and duration > 0):
         raise ConfigError(f"duration must be a positive number of seconds, got {duration}")
+    sim_type = simulation_type(level)
     scene = spec.load()
     params = dict(params or {})
     if not isinstance(params.get("params"), FilterParams):
-        params["params"] = resolve_params(scene, *(params.pop(k, None) for k in FILTER_KEYS))
+        params["params"] = level_params(scene, level, *(params.pop(k, None) for k in FILTER_KEYS))
     # validates the control period and the rest before any worker starts
-    ArmSimulation(scene, strategies[0], seed=seed0, **params).control_steps(duration)
+    sim_type(scene, strategies[0], seed=seed0, **params).control_steps(duration)
     seeds = tuple(range(int(seed0), int(seed0) + int(episodes)))
-    tasks = [EpisodeTask(spec, s, seed, duration, params) for seed in seeds for s in strategies]
+    tasks = [EpisodeTask(spec, s, seed, duration, params, level) for seed in seeds for s in strategies]
     results: dict[tuple[str, int], dict[str, Any]] = {}
 
     def summary(partial: bool) -> Comparison:
         res = {s: summarize([results[(s, seed)] for seed in seeds if (s, seed) in results]) for s in strategies}
-        return Comparison(scene=scene.name, episodes=int(episodes), seeds=seeds, results=res, partial=partial)
+        return Comparison(scene=scene.name, episodes=int(episodes), seeds=seeds, results=res, partial=partial,
+                          level=level)
 
     def keep(done: int, total: int, task: EpisodeTask, r: dict[str, Any]) -> None:
         results[(task.strategy, task.seed)] = r
@@ -305,6 +339,8 @@ def format_table(comp: Comparison) -> str:
     else:
         title = (f"scene {comp.scene}: {comp.episodes} episode(s) per strategy, seeds "
                  f"{comp.seeds[0]}..{comp.seeds[-1]} (mean ± std)")
+    if comp.level != "velocity":
+        title += f"; {comp.level} level"
     out = _table(["strategy"] + [h for _, h, _ in _COLUMNS], rows, title=title)
     for strategy, res in comp.results.items():
         hit = [e["chatter"] for e in res.get("episodes", ()) if e.get("chatter")]

@@ -26,7 +26,11 @@ __all__ = [
     "GainsConfig",
     "ControlConfig",
     "SceneConfig",
+    "LEVELS",
 ]
+
+LEVELS = ("velocity", "torque")
+"""The levels a filter can act at (``[filter] level``; ``--level`` on the command line), the default first."""
 
 
 @dataclass(frozen=True)
@@ -236,6 +240,9 @@ class SceneConfig:
         moving: Mocap obstacles with known paths.
         arms: The arms of a scene with several (``[[arm]]`` tables); empty for one arm (``[robot]``).
         source: The TOML file this was read from, or ``None``.
+        level: The level the filter acts at by default (``[filter] level``, one of :data:`LEVELS`):
+            ``"velocity"`` (joint velocities on ``q_dot = u + d``) or ``"torque"`` (joint torques on the
+            full dynamics, :mod:`isf_robot.arm.torque_sim`).
 
     """
 
@@ -252,3 +259,4 @@ class SceneConfig:
     moving: tuple[MovingObstacle, ...] = ()
     source: Path | None = None
     arms: tuple[ArmConfig, ...] = ()
+    level: str = "velocity"

@@ -23,6 +23,7 @@ from isf_robot.core.spec import FilterSpec
 
 from .config_schema import (
     ArmConfig,
+    LEVELS,
     BarrierConfig,
     ControlConfig,
     GainsConfig,
@@ -51,7 +52,7 @@ SECTION_KEYS: dict[str, tuple[str, ...]] = {
     "barrier": ("margin", "self_margin", "joint_margin", "cutoff"),
     "gains": ("task_kp", "dls_damping", "max_ee_speed", "max_joint_speed", "max_joint_acc", "joint_kp",
               "tracking_kp", "tracking_kd", "goal_timeout", "extra"),
-    "filter": SPEC_NAMES,
+    "filter": (*SPEC_NAMES, "level"),
     "control": ("period",),
     "moving.circle": ("body", "type", "center", "radius", "period", "normal", "phase"),
     "moving.linear_bounce": ("body", "type", "start", "end", "speed", "phase"),
@@ -422,6 +423,9 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
     g.finish()
 
     f = top.sub("filter", SECTION_KEYS["filter"])
+    level = f.string("level", LEVELS[0])
+    if level not in LEVELS:
+        raise ConfigError(f"{origin}: [filter] level: unknown {level!r}; valid: {', '.join(LEVELS)}")
     try:
         filt = FilterSpec.from_mapping({name: f.raw(name) for name in SPEC_NAMES if f.has(name)},
                                        where=f"{origin}: [filter]")
@@ -447,7 +451,8 @@ def parse_config(data: Mapping[str, Any], origin: str = "<config>",
 
     return SceneConfig(name=name, description=description, model=model, robot=robot,
                        obstacles=obstacles, task=task, barrier=barrier, gains=gains,
-                       filter=filt, control=control, moving=tuple(moving), source=source, arms=arms)
+                       filter=filt, control=control, moving=tuple(moving), source=source, arms=arms,
+                       level=level)
 
 
 def load_config(path: str | Path) -> SceneConfig:

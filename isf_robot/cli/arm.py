@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from isf_robot.arm.config_schema import LEVELS  # (no MuJoCo: the handlers import it lazily)
 from isf_robot.core.exceptions import ConfigError
 from isf_robot.core.hooks import Observers
 from isf_robot.core.jit import JIT_ENV
@@ -47,6 +48,10 @@ def _add_scene_args(p: argparse.ArgumentParser, files: bool = True) -> None:
 def _add_filter_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="simulated time per episode [s] (default: the scene's)")
+    p.add_argument("--level", choices=LEVELS, default=None,
+                   help="what the filter commands: joint velocities on q_dot = u + d, or joint torques on the full "
+                        "dynamics (second-order barriers; d_bar [rad/s^2] calibrated for it); default: the scene's "
+                        "[filter] level, else velocity")
     p.add_argument("--control-period", type=float, default=None, metavar="S",
                    help="control period [s], a whole multiple of the physics timestep "
                         "(default: the scene's)")
@@ -57,7 +62,8 @@ def _add_filter_args(p: argparse.ArgumentParser) -> None:
 
 
 _MAIN = ("alpha", "c", "b", "d_bar")  # (the paper's four; the intermittent options in their own group)
-_HELP = {"d_bar": "tracking-error bound [rad/s] (default: the scene's, else calibrated)",
+_HELP = {"d_bar": "disturbance bound: tracking error [rad/s] at the velocity level (default: the scene's, else "
+                  "calibrated), model error [rad/s^2] at the torque level (default: calibrated)",
          "predict_every": "control steps between rollouts of the predictive off trigger (default 5)"}
 _CLI_ONLY_IN_CONFIG = ("fall_rate_prior", "fall_rate_forget")  # (scene files and scripts; no flag)
 
@@ -79,17 +85,41 @@ def _intermittent_kwargs(args: argparse.Namespace) -> dict[str, Any]:
     return {q.name: getattr(args, q.name, None) for q in PARAMETERS if q.name not in _MAIN + _CLI_ONLY_IN_CONFIG}
 
 
-def _params(args: argparse.Namespace, scene: Any) -> dict[str, Any]:
-    """ArmSimulation keyword arguments from the flags, the filter parameters resolved once."""
-    from isf_robot.arm.calibration_loop import loop_params
-    from isf_robot.arm.diagnostics import run_findings
-    from isf_robot.arm.params import resolve_params
+def _level(args: argparse.Namespace, scene: Any) -> str:
+    """``--level``, else the scene's ``[filter] level`` (the torque level: one arm only)."""
+    level = str(getattr(args, "level", None) or scene.config.level)
+    if level == "torque" and scene.arms:
+        raise ConfigError(f"the torque level runs a scene with one arm; {scene.name} has {len(scene.arms)} "
+                          "([[arm]] tables): use the velocity level")
+    return level
 
-    params = resolve_params(scene, args.alpha, args.c, args.b, args.d_bar, **_intermittent_kwargs(args))
+
+def _simulation(args: argparse.Namespace, scene: Any, **kwargs: Any) -> Any:
+    """The simulation of ``--filter`` at the run's level (keyword arguments: :func:`_params` and more); a scene
+    with several arms: the team's (``--coordination``)."""
+    from isf_robot.arm.compare import simulation_type
+
+    level = _level(args, scene)
+    if scene.arms:
+        return team_simulation(args, scene, kwargs)
+    return simulation_type(level)(scene, args.filter, seed=args.seed, **kwargs)
+
+
+def _params(args: argparse.Namespace, scene: Any) -> dict[str, Any]:
+    """ArmSimulation keyword arguments from the flags, the filter parameters resolved once (at the run's level)."""
+    from isf_robot.arm.calibration_loop import loop_params
+    from isf_robot.arm.compare import level_params
+    from isf_robot.arm.diagnostics import run_findings
+
+    level = _level(args, scene)
+    if level == "torque" and getattr(args, "d_bar_in_loop", False):
+        raise ConfigError("--d-bar-in-loop raises the velocity level's d_bar; the torque level's is calibrated "
+                          "(give --d-bar to set it)")
+    params = level_params(scene, level, args.alpha, args.c, args.b, args.d_bar, **_intermittent_kwargs(args))
     if getattr(args, "d_bar_in_loop", False):
         params = loop_params(scene, args.filter, params)
     out: dict[str, Any] = {"params": params}
-    for f in run_findings(scene, out["params"]):  # what `isf-robot check` reports, before the run
+    for f in run_findings(scene, out["params"]) if level == "velocity" else ():  # what `isf-robot check` reports
         print(f"warning [{f.code}]: {f.message}", file=sys.stderr)
     if getattr(args, "control_period", None) is not None:
         out["control_period"] = args.control_period
@@ -197,14 +227,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
         video = VideoRecorder(args.video)  # checks the path and format before anything runs
         if "mujoco" not in sys.modules:
             select_gl()
-    from isf_robot.arm.sim import ArmSimulation
-
     _check_seed(args)
     scene = _spec(args).load()
     check_coordination(args, scene)
     kwargs = _params(args, scene)
-    sim = (team_simulation(args, scene, kwargs) if scene.arms else
-           ArmSimulation(scene, args.filter, seed=args.seed, **kwargs))  # validates before any output
+    sim = _simulation(args, scene, **kwargs)  # validates before any output
     sim.control_steps(args.duration)
     observers = [make_observer(args, "arm", name=f"{scene.name}-{args.filter}-seed{args.seed}"), video]
     if args.view:
@@ -220,7 +247,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(with_schema("isf-robot-run", d)))
         return 0
-    print(f"scene {d['scene']}, filter {d['filter']}, seed {d['seed']}: "
+    torque = d.get("level") == "torque"
+    print(f"scene {d['scene']}, filter {d['filter']}, seed {d['seed']}{', torque level' if torque else ''}: "
           f"{d['duration_s']:.3f} s simulated, {d['control_steps']} control steps in "
           f"{d['wall_s']:.2f} s")
     rows = [
@@ -234,11 +262,17 @@ def _cmd_run(args: argparse.Namespace) -> int:
         ("largest command step at a switch", d["switch_jump_max"]),
         ("designed off bound [s]", d["off_bound_min_s"]),
     ]
+    if torque:  # (the same figures in the torque level's units)
+        rows = [(k.replace("[rad^2/s]", "[N^2 m^2 s]").replace("[rad/s]", "[rad/s^2]").replace(
+            "tracking error", "model error").replace("(braking)", "(damping to rest)"), v) for k, v in rows]
+        rows += [("largest |tau| / tau_max", d["tau_peak_ratio"]),
+                 ("reference tracking q99 [rad/s]", d["reference_error_q99"])]
     w = max(len(k) for k, _ in rows)
     for k, v in rows:
         print(f"  {k.ljust(w)}  {format_value(v)}")
     if d["filter"] != "nominal" and not d["d_bar_covered"]:
-        print(f"warning: tracking error q99 {d['tracking_error_q99']:.3g} rad/s > d_bar {d['d_bar']:.3g}: the "
+        what, unit = ("model error", "rad/s^2") if torque else ("tracking error", "rad/s")
+        print(f"warning: {what} q99 {d['tracking_error_q99']:.3g} {unit} > d_bar {d['d_bar']:.3g}: the "
               "robust term does not cover it (safety rests on the clearance the filter keeps)", file=sys.stderr)
     if d.get("chatter"):
         print(f"warning: {d['chatter']}", file=sys.stderr)
@@ -294,7 +328,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     comp = compare_strategies(spec, args.episodes, strategies=args.filters,
                               duration=args.duration, seed0=args.seed, jobs=args.jobs,
                               params={**params, **({"observers": [obs]} if obs else {})},
-                              progress=_progress(args.quiet))
+                              progress=_progress(args.quiet), level=_level(args, scene))
     _print_comparison(comp, args.json)
     if args.rrd is not None:
         from isf_robot.record.side_by_side import write_side_by_side

@@ -15,8 +15,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from isf_robot.cli.arm import _add_filter_args, _add_scene_args, _check_seed, _params, _spec
-from isf_robot.cli.arm_team import team_simulation
+from isf_robot.cli.arm import _add_filter_args, _add_scene_args, _check_seed, _params, _simulation, _spec
 from isf_robot.core.strategies import strategy_names
 
 __all__ = ["register", "handle"]
@@ -71,16 +70,13 @@ def handle(args: argparse.Namespace) -> int:
         from isf_robot.arm.render import select_gl
 
         select_gl()
-    from isf_robot.arm.sim import ArmSimulation
 
     video = VideoRecorder(args.output, fps=args.fps, width=args.width, height=args.height, speed=args.speed,
                           at=args.at, view=view, show_collision=args.show_collision)
     scene = _spec(args).load()
     if view.camera is not None:
         camera_id(scene.model, view.camera)  # an unknown name fails before the episode runs
-    params = {**_params(args, scene), "observers": [video]}
-    sim = (team_simulation(args, scene, params) if scene.arms else  # (several arms: central coordination)
-           ArmSimulation(scene, args.filter, seed=args.seed, **params))
+    sim = _simulation(args, scene, observers=[video], **_params(args, scene))
     wall = time.perf_counter()
     res = sim.run(args.duration)
     wall = time.perf_counter() - wall

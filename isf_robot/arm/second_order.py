@@ -1,0 +1,157 @@
+"""Second-order (exponential) barriers of the arm on its full dynamics: the torque level's rows.
+
+For a barrier ``h(q, t)`` of the velocity level (a collision pair or a joint limit, with
+``J = dh/dq`` and ``dh/dt`` from :class:`~isf_robot.arm.collision.CollisionBarriers` and
+:class:`~isf_robot.arm.joint_limits.JointLimitBarriers`), state ``x = (q, q_dot)`` and the arm
+torques ``tau`` as input::
+
+    phi = h_dot   = J q_dot + dh/dt
+    psi           = phi + alpha_1 h                              (the barrier the filter keeps >= 0)
+    psi_dot       = D phi + J q_ddot + alpha_1 phi
+    q_ddot        = a0 + Minv tau + d                            (:mod:`isf_robot.arm.dynamics`)
+    Lf psi        = D phi + J a0 + alpha_1 phi
+    Lg psi        = J Minv
+    |dpsi/dx|     = |J|
+
+``D phi = d/ds phi(q + s q_dot, t + s)`` at ``s = 0`` with ``q_dot`` held: ``Jdot q_dot`` plus the
+terms of the obstacle's motion (``d/dt (dh/dt)`` with the obstacle's acceleration, and the
+change of ``dh/dt`` with ``q``). It is the central difference of the velocity level's own rows
+at ``(q -+ eps q_dot, t -+ eps)`` (:class:`SecondOrderRows`): the curvature of the distance
+between two geoms (witness points that slide, normals that turn) comes with it, where
+``mj_jacDot`` at fixed witness points would miss it. Joint-limit rows have ``J`` constant and
+``dh/dt = 0``, so ``D phi = 0``.
+
+Robust term: the disturbance ``d`` enters ``q_ddot`` only (the unmodelled part of the
+dynamics, in [rad/s^2]), and ``dpsi/dq_dot = J``; so ``|dpsi/dx|`` restricted to the disturbed
+coordinates is ``|J|`` and the robust condition reads
+``Lf psi + Lg psi tau - |J| d_bar >= -alpha(psi)`` (the core's rows, unchanged).
+
+``psi >= 0`` for all time keeps ``h >= 0`` when ``h >= 0`` at the start (``h_dot >= -alpha_1 h``).
+An arm at rest starts with ``psi = alpha_1 h``. A pair beyond the broad-phase cut-off has
+``h = cutoff - margin``, ``J = 0``, so ``psi = alpha_1 (cutoff - margin)``: when it enters the
+cut-off, ``psi`` drops by the pair's approach speed; the cut-off must satisfy
+``alpha_1 (cutoff - margin) >`` the fastest approach speed for ``psi`` to enter positive.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable, Sequence
+
+import mujoco
+import numpy as np
+
+from isf_robot.core import ConfigError, LieData
+from isf_robot.core.exceptions import IsfWarning
+
+from .collision import CollisionBarriers
+from .dynamics import DynamicsTerms
+from .joint_limits import JointLimitBarriers
+
+__all__ = ["psi_lie", "SecondOrderRows", "ObstacleClock", "PROBE_REACH"]
+
+PROBE_REACH = 0.05
+"""How far beyond the broad-phase cut-off [m] the central differences of ``phi`` still see a pair."""
+
+ObstacleClock = Callable[[mujoco.MjData, float], np.ndarray | None]
+"""``(data, t) -> mocap linear velocities (nmocap, 3) or None``: puts the moving obstacles where they
+are at time ``t`` (writes ``data.mocap_pos``) and returns their velocities (``None``: static scene)."""
+
+
+def psi_lie(h: np.ndarray, grad: np.ndarray, dhdt: np.ndarray, dphi: np.ndarray, q_dot: np.ndarray,
+            terms: DynamicsTerms, alpha_1: float, names: tuple[str, ...] = ()) -> LieData:
+    """The Lie data of ``psi = J q_dot + dh/dt + alpha_1 h`` on the full dynamics (module docstring).
+
+    Args:
+        h: Barrier values, shape (k,).
+        grad: ``J = dh/dq``, shape (k, n).
+        dhdt: ``dh/dt``, shape (k,).
+        dphi: ``D phi`` (the rate of ``phi`` along the motion with ``q_dot`` held), shape (k,).
+        q_dot: Joint velocities [rad/s], shape (n,).
+        terms: The dynamics' terms at the state.
+        alpha_1: The inner gain [1/s], > 0.
+        names: Row names.
+
+    Returns:
+        ``LieData(h=psi, lf=Lf psi, lg=Lg psi, grad_norm=|J|)``.
+
+    """
+    phi = grad @ q_dot + dhdt
+    return LieData._of(phi + alpha_1 * h, dphi + grad @ terms.a0 + alpha_1 * phi, grad @ terms.minv,
+                       np.linalg.norm(grad, axis=1), names)
+
+
+class SecondOrderRows:
+    """The torque level's rows at a state: the velocity level's rows, their ``psi`` and its Lie data.
+
+    Args:
+        coll: The collision barriers (velocity level).
+        joints: The joint-limit barriers.
+        qpos_adr: The arm's qpos addresses, shape (n,) (hinge and slide joints: ``q_dot`` is the dof velocity).
+        alpha_1: The inner gain of ``psi = h_dot + alpha_1 h`` [1/s], > 0.
+        obstacles: Moving obstacles' clock (:data:`ObstacleClock`); ``None``: static obstacles.
+        eps: Step of the central difference of ``phi`` [s], > 0.
+
+    """
+
+    def __init__(self, coll: CollisionBarriers, joints: JointLimitBarriers, qpos_adr: Sequence[int] | np.ndarray,
+                 alpha_1: float, obstacles: ObstacleClock | None = None, eps: float = 1e-4) -> None:
+        if not (np.isfinite(alpha_1) and alpha_1 > 0):
+            raise ConfigError(f"alpha_1 must be a positive number [1/s], got {alpha_1}")
+        if not (np.isfinite(eps) and eps > 0):
+            raise ConfigError(f"eps must be a positive number [s], got {eps}")
+        self.coll, self.joints = coll, joints
+        self.qadr = np.asarray(qpos_adr, dtype=np.int64)
+        self.alpha_1, self.eps = float(alpha_1), float(eps)
+        self.obstacles = obstacles
+        self._scratch = mujoco.MjData(coll.model)
+        # The same pairs with a cut-off a little further out for the differences: a pair near at the state stays
+        # within it at q -+ eps q_dot (else its saturated value, with zero gradient, would make a false kink).
+        with warnings.catch_warnings():  # (the pairs' warnings were given when ``coll`` was made)
+            warnings.simplefilter("ignore", IsfWarning)
+            self._probe = CollisionBarriers(coll.model, coll.pairs, coll.dof_adr, coll.cutoff + PROBE_REACH)
+        self._at = np.full(coll.pairs.k, -1, dtype=np.int64)  # (pair -> its row in the probe's near pairs)
+
+    def phi_rate(self, data: mujoco.MjData, t: float, rows: np.ndarray, q_dot: np.ndarray) -> np.ndarray:
+        """``D phi`` of the collision pairs ``rows`` at the state in ``data`` (time ``t``), shape (len(rows),)."""
+        if rows.size == 0:
+            return np.zeros(0)
+        model, s, e = self.coll.model, self._scratch, self.eps
+        out = []
+        for sign in (1.0, -1.0):
+            s.qpos[:] = data.qpos
+            s.qpos[self.qadr] += sign * e * q_dot
+            s.mocap_pos[:] = data.mocap_pos
+            s.mocap_quat[:] = data.mocap_quat
+            lin = self.obstacles(s, t + sign * e) if self.obstacles is not None else None
+            mujoco.mj_kinematics(model, s)
+            mujoco.mj_comPos(model, s)
+            near = self._probe.near(s, lin)
+            at = self._at
+            at[near.rows] = np.arange(near.rows.size)
+            sel = at[rows]
+            at[near.rows] = -1
+            if np.any(sel < 0):  # (cannot happen within PROBE_REACH of the cut-off; said rather than assumed)
+                raise ConfigError(f"pairs {rows[sel < 0].tolist()} left the probe's reach within eps = {e} s")
+            out.append(near.grad[sel] @ q_dot + near.dhdt[sel])
+        return (out[0] - out[1]) / (2.0 * e)
+
+    def tick(self, data: mujoco.MjData, t: float, terms: DynamicsTerms, lin: np.ndarray | None = None, *,
+             coherence: object = None, witness: bool = False) -> tuple:
+        """The velocity level's tick rows and the torque level's Lie data at the state in ``data``.
+
+        ``data`` has the kinematics of its state (after ``mj_step1``); ``lin``: the mocap velocities at ``t``.
+
+        Returns:
+            ``(psi_lie, tick)``: the :func:`psi_lie` of every near pair then every joint limit, and
+            the :class:`~isf_robot.arm.rows.TickRows` of the velocity level (``h``, ``dh/dq``,
+            ``dh/dt`` in its ``lie``; the safety accounting's minima).
+
+        """
+        tick = self.coll.lie_rows(data, self.joints, lin, coherence=coherence, witness=witness)  # type: ignore[arg-type]
+        lie, idx = tick[0], tick[1]
+        h, grad, dhdt = lie.h.copy(), lie.lg.copy(), lie.lf.copy()  # (the compiled path reuses its buffers)
+        q_dot = data.qvel[self.coll.dof_adr]
+        dphi = np.zeros(h.shape[0])
+        dphi[:idx.size] = self.phi_rate(data, t, idx, q_dot)
+        return psi_lie(h, grad, dhdt, dphi, q_dot, terms, self.alpha_1, lie.names), tick

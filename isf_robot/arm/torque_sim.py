@@ -1,0 +1,255 @@
+"""The arm simulation at the torque level: the paper's filters on the full dynamics.
+
+The same loop as the velocity level (:class:`~isf_robot.arm.sim.ArmSimulation`: sense, barriers,
+nominal, strategy, act; safety judged on the true geometry at every physics step), with:
+
+* **rows**: the second-order barriers ``psi = h_dot + alpha_1 h`` of every near collision pair and
+  joint limit, with their Lie data on ``q_ddot = a0 + Minv tau + d``
+  (:mod:`isf_robot.arm.second_order`, :mod:`isf_robot.arm.dynamics`);
+* **nominal**: computed torque on the velocity level's reaching command
+  (:mod:`isf_robot.arm.torque_nominal`);
+* **strategy**: the core's strategies, unchanged (``step_lie`` on the ``psi`` rows), with the arm's
+  torque limits as input bounds; ``alpha`` is the outer class-K function of ``psi``, ``c`` and ``b``
+  are in ``psi``'s units ([m/s], [m/s^2]); the predictive off trigger (``horizon``) is not available
+  at this level (its rollout is the velocity level's) and is off;
+* **act**: the torque goes in ``qfrc_applied`` of a copy of the model with its actuators switched
+  off (:func:`~isf_robot.arm.torque_calibration.torque_plant`), held over the control period.
+
+Infeasibility: when no torque within the limits satisfies every robust condition, the arm gets
+the safe fallback ``clip(M (-kd q_dot) + hold)`` (damping toward rest with gravity compensation,
+the torque nominal's law with a zero reference); such steps are counted in ``fallbacks``.
+
+``d_bar`` [rad/s^2] is the torque level's own, calibrated by
+:func:`~isf_robot.arm.torque_calibration.calibrate_torque_d_bar` (:func:`resolve_torque_params`);
+the result's ``tracking_error_q99`` is the 99th percentile of the same model error measured in the
+run (``d_bar_covered`` compares them) and ``reference_error_q99`` the velocity tracking error
+``|q_dot - v_ref|`` [rad/s] of the torque nominal's reference.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from isf_robot.core import ClassK, ConfigError, LieData, Linear, NonFiniteError, QPSolver
+from isf_robot.core.strategies import make_strategy
+
+from .dynamics import ArmDynamics, DynamicsTerms, torque_limits
+from .params import filter_options, resolve_params
+from .records import FilterParams, RunResult
+from .scene import Scene
+from .second_order import SecondOrderRows
+from .sim import ArmSimulation, _Episode
+from .step_columns import TickValues
+from .torque_calibration import calibrate_torque_d_bar, torque_plant
+from .torque_nominal import TorqueNominal, computed_torque
+
+__all__ = ["TorqueSimulation", "TorqueRunResult", "resolve_torque_params", "run_torque_episode"]
+
+
+def resolve_torque_params(scene: Scene, alpha: float | ClassK | None = None, c: float | None = None,
+                          b: float | None = None, d_bar: float | None = None, *, calibrate: bool = True,
+                          plant: mujoco.MjModel | None = None, **options: Any) -> FilterParams:
+    """The torque level's filter parameters: as :func:`~isf_robot.arm.params.resolve_params`, ``horizon = 0``.
+
+    ``d_bar`` [rad/s^2]: the argument, else the torque calibration on ``plant`` (the scene's ``[filter]
+    d_bar`` is the velocity level's, in [rad/s], and is not used).
+
+    Raises:
+        ConfigError: As ``resolve_params``; ``d_bar`` not given and ``calibrate`` False; a ``horizon > 0``.
+
+    """
+    if options.get("horizon"):
+        raise ConfigError("the predictive off trigger (horizon) is not available at the torque level; "
+                          "give horizon = 0")
+    if d_bar is None and not calibrate:
+        raise ConfigError(f"scene {scene.name!r}: the torque level's d_bar [rad/s^2] is not known: pass d_bar=, "
+                          "or calibrate=True (runs the torque calibration)")
+    source = "argument" if d_bar is not None else "torque calibration"
+    value = d_bar if d_bar is not None else calibrate_torque_d_bar(scene, plant).d_bar
+    p = resolve_params(scene, alpha, c, b, value, calibrate=False, **{**options, "horizon": 0.0})
+    return dataclasses.replace(p, d_bar_source=source)
+
+
+@dataclasses.dataclass(frozen=True)
+class TorqueRunResult(RunResult):
+    """A :class:`~isf_robot.arm.records.RunResult` of the torque level.
+
+    Attributes:
+        tau_peak_ratio: Largest ``|tau_i| / tau_max,i`` applied (<= 1: the limits held).
+        reference_error_q99: 99th percentile of ``|q_dot - v_ref|`` at the ticks [rad/s].
+        level: ``"torque"``.
+
+    ``tracking_error_q99`` is the model error ``|q_ddot - (a0 + Minv tau)|`` [rad/s^2] (see the module);
+    the metrics' ``intervention`` is ``integral |tau - tau_nom|^2 dt`` [N^2 m^2 s].
+
+    """
+
+    tau_peak_ratio: float = 0.0
+    reference_error_q99: float = 0.0
+    level: str = "torque"
+
+    def as_dict(self) -> dict[str, Any]:
+        """:meth:`RunResult.as_dict` with the torque level's figures."""
+        return {**super().as_dict(), "level": self.level, "tau_peak_ratio": self.tau_peak_ratio,
+                "reference_error_q99": self.reference_error_q99}
+
+
+class TorqueSimulation(ArmSimulation):
+    """One episode of an arm scene at the torque level (see the module docstring).
+
+    Args:
+        scene: The scene; its model is the filter's model of the arm.
+        strategy: A registered strategy name.
+        plant: The simulated arm's model (default: the scene's): give one with what the filter does not
+            know (a payload, friction) to see the robust term at work. Its actuators are switched off.
+        params: Resolved parameters (:func:`resolve_torque_params`); or ``alpha``, ``c``, ``b``, ``d_bar``.
+        alpha_1: Inner gain of ``psi = h_dot + alpha_1 h`` [1/s]; default ``alpha``'s gain (linear alpha).
+        kd: Gain of the torque nominal and of the fallback [1/s].
+        **kwargs: As :class:`~isf_robot.arm.sim.ArmSimulation` (``seed``, ``observers``, ``timing``, ...).
+
+    """
+
+    level = "torque"
+
+    def __init__(self, scene: Scene, strategy: str = "isf", *, plant: mujoco.MjModel | None = None,
+                 params: FilterParams | None = None, alpha: float | None = None, c: float | None = None,
+                 b: float | None = None, d_bar: float | None = None, alpha_1: float | None = None,
+                 kd: float = 40.0, solver: QPSolver | None = None, **kwargs: Any) -> None:
+        if params is None:
+            params = resolve_torque_params(scene, alpha, c, b, d_bar, calibrate=False)
+        if params.horizon:
+            raise ConfigError("the predictive off trigger (horizon) is not available at the torque level; "
+                              "resolve the parameters with resolve_torque_params")
+        self.filter_scene = scene
+        self.tau_max = torque_limits(scene)
+        solver = solver if solver is not None else QPSolver(few_rows=True)
+        super().__init__(dataclasses.replace(scene, model=torque_plant(scene.model if plant is None else plant)),
+                         strategy, params=params, solver=solver, **kwargs)
+        if alpha_1 is None:
+            a = params.alpha
+            if not isinstance(a, (int, float, Linear)):
+                raise ConfigError("alpha_1 must be given when alpha is not a linear gain")
+            alpha_1 = a.gain if isinstance(a, Linear) else float(a)
+        self.alpha_1, self.kd = float(alpha_1), float(kd)
+        self.dynamics = ArmDynamics(scene.model, scene.dof_adr, own_data=plant is not None)
+        self.second_order = SecondOrderRows(self.coll, self.joints, scene.qpos_adr, self.alpha_1,
+                                            self._clock if scene.config.moving else None)
+        self.torque_nominal = TorqueNominal(self.nominal, scene.dof_adr, self.tau_max, self.control_period, kd)
+        self.terms: DynamicsTerms | None = None
+        self._zero = np.zeros(scene.n_joints)
+        spec, wiring = filter_options(self)
+        self.strategy = make_strategy(strategy, spec, **wiring, solver=solver, u_min=-self.tau_max,
+                                      u_max=self.tau_max, on_infeasible="fallback", fallback=self._fallback,
+                                      validate=False)
+
+    def _clock(self, data: mujoco.MjData, t: float) -> np.ndarray:
+        """Moving obstacles at run time ``t`` (their path's time ``t + time_offset``); their velocities."""
+        s = self.filter_scene
+        s.set_moving_obstacles(data, t + self.setup.time_offset)
+        return s.mocap_velocities(t + self.setup.time_offset)[0]
+
+    def _fallback(self, t: float, x: Any, lie: LieData, res: Any) -> np.ndarray:
+        """No torque within the limits meets every condition: damp toward rest, gravity compensated."""
+        assert self.terms is not None  # (set by the episode's sense phase before any strategy step)
+        return computed_torque(self.terms, self._zero, self._zero, x.qvel[self.scene.dof_adr], self.kd, self.tau_max)
+
+    def start_info(self, duration: float) -> dict[str, Any]:
+        """The velocity level's start information, with the level, ``alpha_1`` and the torque limits."""
+        return {**super().start_info(duration), "level": self.level, "alpha_1": self.alpha_1,
+                "tau_max": self.tau_max.copy()}
+
+
+class _TorqueEpisode(_Episode):
+    """The phases of one torque-level run (see the module docstring)."""
+
+    sim: TorqueSimulation
+
+    def __init__(self, sim: TorqueSimulation, n_ctrl: int) -> None:
+        super().__init__(sim, n_ctrl)
+        sim.torque_nominal.reset()
+        self.track_err[:] = 0.0
+        self.ref_err = np.zeros(n_ctrl)
+        self.tau_peak = 0.0
+        self._t = 0.0
+        self._last: tuple[int, np.ndarray, np.ndarray] | None = None  # (tick, q_dot, predicted q_ddot)
+        self._dofs = np.asarray(sim.scene.dof_adr)
+
+    def sense(self, k: int) -> None:
+        """The velocity level's sense, then the model's terms (and the last period's model error)."""
+        super().sense(k)
+        sim = self.sim
+        self._t = k * sim.control_period
+        sim.terms = sim.dynamics.terms(self.data)
+        if self._last is not None:
+            j, v0, pred = self._last
+            self.track_err[j] = float(np.linalg.norm((self.data.qvel[self._dofs] - v0) / sim.control_period - pred))
+
+    def barriers(self) -> tuple[TickValues | None, LieData | None]:
+        """The ``psi`` rows and the tick's safety accounting on the true geometry."""
+        sim = self.sim
+        assert sim.terms is not None
+        psi, tick = sim.second_order.tick(self.data, self._t, sim.terms, self.lin, coherence=self.coherence,
+                                          witness=self.recording)
+        lie, idx, row_list, h_min, dist_min, jmin, wit = tick
+        values = TickValues(idx, lie.h, wit) if self.recording else None
+        self.dmin = self.monitor.tick_min(min(h_min, self._h_far_min), row_list, dist_min, idx)
+        self.min_joint = min(self.min_joint, jmin)
+        return values, (psi if self.uses_rows else None)
+
+    def nominal(self, t: float) -> np.ndarray:
+        """The nominal torque at the tick."""
+        assert self.sim.terms is not None
+        return self.sim.torque_nominal(t, self.data, self.sim.terms)
+
+    def act(self, k: int, u: np.ndarray) -> None:
+        """Hold the torque ``u`` over the control period: S physics steps, each checked for safety."""
+        sim, data, model = self.sim, self.data, self.model
+        if not np.all(np.isfinite(u)):
+            raise NonFiniteError(f"torque command at t = {k * sim.control_period:g} s is not finite: {u}")
+        self.tau_peak = max(self.tau_peak, float(np.max(np.abs(u) / sim.tau_max)))
+        tau = np.clip(u, -sim.tau_max, sim.tau_max)  # (the QP's answer is within them up to its tolerance)
+        v = data.qvel[self._dofs]
+        self.ref_err[k] = float(np.linalg.norm(v - sim.torque_nominal.v_ref))
+        assert sim.terms is not None
+        self._last = (k, v.copy(), sim.terms.acceleration(tau))
+        data.qfrc_applied[self._dofs] = tau
+        mujoco.mj_step2(model, data)
+        bound, base = (self.dmin if self.recording else -math.inf), k * self.S
+        for s in range(1, self.S):
+            if self.moving:
+                self._place(base + s)
+            mujoco.mj_step1(model, data)
+            d2 = self.monitor.substep(data, bound)
+            if d2 < self.dmin:
+                self.dmin = d2
+                bound = d2 if self.recording else bound
+            mujoco.mj_step2(model, data)
+
+    def finish(self, wall: float, timings: dict[str, float]) -> RunResult:
+        """The velocity level's summary with the torque level's figures."""
+        last = self._last
+        if last is not None:
+            j, v0, pred = last
+            self.track_err[j] = float(np.linalg.norm((self.data.qvel[self._dofs] - v0) / self.sim.control_period
+                                                     - pred))
+        res = super().finish(wall, timings)
+        fields = {f.name: getattr(res, f.name) for f in dataclasses.fields(RunResult)}
+        return TorqueRunResult(**fields, tau_peak_ratio=self.tau_peak,
+                               reference_error_q99=float(np.quantile(self.ref_err, 0.99)))
+
+
+TorqueSimulation.episode = _TorqueEpisode  # type: ignore[misc]
+
+
+def run_torque_episode(scene: Scene, strategy: str = "isf", duration: float | None = None, seed: int | None = 0, *,
+                       alpha: float | None = None, c: float | None = None, b: float | None = None,
+                       d_bar: float | None = None, plant: mujoco.MjModel | None = None,
+                       **kwargs: Any) -> RunResult:
+    """Resolve the torque level's parameters (calibrating ``d_bar`` if needed), then run one episode."""
+    params = kwargs.pop("params", None) or resolve_torque_params(scene, alpha, c, b, d_bar, plant=plant)
+    return TorqueSimulation(scene, strategy, seed=seed, params=params, plant=plant, **kwargs).run(duration)

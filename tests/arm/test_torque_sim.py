@@ -1,0 +1,165 @@
+"""The torque level's simulation: safety on the true geometry, torque limits, the trigger, the nominal, input errors."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from isf_robot.arm import load_scene
+from isf_robot.arm.compare import EpisodeTask, SceneSpec, run_task, simulation_type
+from isf_robot.arm.config_toml import parse_config
+from isf_robot.arm.torque_sim import TorqueSimulation, resolve_torque_params
+from isf_robot.core import ConfigError
+
+D_BAR = 0.6  # [rad/s^2]: about the calibrated figure of panda_pole (0.53); passed so that no test calibrates
+
+
+@pytest.fixture(scope="module")
+def pole():  # type: ignore[no-untyped-def]
+    return load_scene("panda_pole")
+
+
+def _run(scene, strategy, seed=0, duration=2.5, **options):  # type: ignore[no-untyped-def]
+    params = resolve_torque_params(scene, d_bar=options.pop("d_bar", D_BAR), **options)
+    sim = TorqueSimulation(scene, strategy, seed=seed, params=params)
+    return sim, sim.run(duration)
+
+
+def test_nominal_collides_and_the_filters_keep_the_true_geometry_safe(pole) -> None:  # type: ignore[no-untyped-def]
+    _, nom = _run(pole, "nominal")
+    assert nom.collisions > 0  # the task is dangerous at the torque level too
+    for strategy in ("cbf", "isf"):
+        _, r = _run(pole, strategy)
+        assert r.collisions == 0 and r.min_barrier > 0, strategy
+        assert r.tau_peak_ratio <= 1.0 + 1e-9, strategy
+        assert r.fallbacks == 0, strategy
+        assert r.as_dict()["level"] == "torque" and r.d_bar == D_BAR
+
+
+def test_isf_trigger_on_the_psi_rows(pole) -> None:  # type: ignore[no-untyped-def]
+    """On only at some Xi_on <= 0, off only once every Xi_on >= c, and the nominal torque untouched while off."""
+    sim = TorqueSimulation(pole, "isf", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR, blend=0.0))
+    seen = []
+    inner = sim.strategy.step_lie
+
+    def spy(t, lie, u_nom, *args, **kw):  # type: ignore[no-untyped-def]
+        step = inner(t, lie, u_nom, *args, **kw)
+        xi = lie.lf + lie.lg @ u_nom - lie.grad_norm * D_BAR + sim.params.class_k(lie.h)
+        seen.append((xi.min(), step.on, step.u.copy(), u_nom.copy(), step.event))
+        return step
+
+    sim.strategy.step_lie = spy  # type: ignore[method-assign]
+    res = sim.run(2.5)
+    assert res.on_switches >= 1 and res.collisions == 0
+    was_on = False
+    for xi_min, on, u, u_nom, event in seen:
+        if on and not was_on:
+            assert xi_min <= 0.0 and event is not None
+        if was_on and not on:
+            assert xi_min >= sim.params.c and event is not None
+        if not on:
+            np.testing.assert_array_equal(u, u_nom)
+        was_on = on
+
+
+def test_payload_needs_the_robust_term_and_the_calibration_covers_it(pole) -> None:  # type: ignore[no-untyped-def]
+    """A payload the filter's model does not know: its model error exceeds the unloaded d_bar; calibrated on the
+    loaded arm, d_bar covers it and the filter keeps the arm clear."""
+    import copy
+
+    from isf_robot.arm.torque_calibration import calibrate_torque_d_bar
+
+    plant = copy.deepcopy(pole.model)
+    plant.body_mass[pole.model.site_bodyid[pole.ee_site_id]] += PAYLOAD_KG
+    bare = calibrate_torque_d_bar(pole, duration=1.0)
+    loaded = calibrate_torque_d_bar(pole, plant, duration=1.0)
+    assert loaded.d_bar > 5 * bare.d_bar
+    runs = {}
+    for label, d_bar in (("bare", bare.d_bar), ("loaded", loaded.d_bar)):
+        sim = TorqueSimulation(pole, "cbf", seed=0, plant=plant, params=resolve_torque_params(pole, d_bar=d_bar))
+        runs[label] = sim.run(PAYLOAD_S)
+    assert runs["bare"].tracking_error_q99 > bare.d_bar  # the model error the unloaded d_bar does not cover
+    assert runs["loaded"].tracking_error_q99 <= loaded.d_bar
+    assert runs["loaded"].collisions == 0 and runs["loaded"].min_barrier > 0
+    assert runs["loaded"].min_barrier > runs["bare"].min_barrier
+
+
+PAYLOAD_KG, PAYLOAD_S = 0.3, 3.0
+
+
+def test_compare_task_runs_the_torque_level(pole) -> None:  # type: ignore[no-untyped-def]
+    params = {"params": resolve_torque_params(pole, d_bar=D_BAR)}
+    r = run_task(EpisodeTask(SceneSpec(name="panda_pole"), "isf", 0, 0.2, params, "torque"))
+    assert r["level"] == "torque" and r["control_steps"] == 100
+    assert simulation_type("torque") is TorqueSimulation
+    with pytest.raises(ConfigError, match="valid: velocity, torque"):
+        simulation_type("tork")
+
+
+def test_bad_input(pole) -> None:  # type: ignore[no-untyped-def]
+    with pytest.raises(ConfigError, match="horizon"):
+        resolve_torque_params(pole, d_bar=1.0, horizon=0.3)
+    with pytest.raises(ConfigError, match="d_bar"):
+        resolve_torque_params(pole, calibrate=False)
+    with pytest.raises(ConfigError, match="horizon"):
+        TorqueSimulation(pole, "isf", params=dataclasses.replace(resolve_torque_params(pole, d_bar=1.0), horizon=0.3))
+
+
+def test_scene_level_is_validated(pole) -> None:  # type: ignore[no-untyped-def]
+    from pathlib import Path
+
+    import tomllib
+
+    raw = tomllib.loads(Path(pole.config.source).read_text())
+    raw["filter"]["level"] = "torque"
+    assert parse_config(raw).level == "torque"
+    raw["filter"]["level"] = "joint"
+    with pytest.raises(ConfigError, match=r"\[filter\] level: unknown 'joint'; valid: velocity, torque"):
+        parse_config(raw)
+    assert pole.config.level == "velocity"
+
+
+def test_cli_runs_the_torque_level(capsys) -> None:  # type: ignore[no-untyped-def]
+    import json
+
+    from isf_robot.cli import main
+
+    assert main(["run", "--scene", "panda_pole", "--level", "torque", "--filter", "cbf", "--duration", "0.1",
+                 "--d-bar", "0.6", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["level"] == "torque" and d["d_bar"] == 0.6 and d["d_bar_source"] == "argument"
+    assert main(["run", "--scene", "panda_pole", "--level", "torque", "--horizon", "0.3", "--d-bar", "0.6"]) == 2
+    assert "not available at the torque level" in capsys.readouterr().err
+
+
+def test_fallback_damps_toward_rest_with_gravity_compensation(pole) -> None:  # type: ignore[no-untyped-def]
+    """The infeasibility fallback: within the limits, finite, and its torque beyond gravity opposes the motion."""
+    sim = TorqueSimulation(pole, "cbf", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR))
+    ep = sim._episode(10)
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        ep.data.qvel[pole.dof_adr] = rng.uniform(-1.0, 1.0, pole.n_joints)
+        ep.sense(0)
+        tau = sim._fallback(0.0, ep.data, None, None)  # type: ignore[arg-type]
+        assert np.all(np.isfinite(tau)) and np.all(np.abs(tau) <= sim.tau_max)
+        v = ep.data.qvel[pole.dof_adr]
+        assert float(v @ (tau - sim.terms.hold)) < 0.0  # type: ignore[union-attr]
+
+
+def test_torque_nominal_is_computed_torque_on_the_model(pole) -> None:  # type: ignore[no-untyped-def]
+    """Unclipped, the nominal torque gives the model's q_ddot = kd (v_ref - q_dot) + a_ref exactly."""
+    sim = TorqueSimulation(pole, "nominal", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR))
+    ep = sim._episode(10)
+    nom, T = sim.torque_nominal, sim.control_period
+    prev = None
+    for k in range(5):
+        ep.sense(k)
+        tau = nom(k * T, ep.data, sim.terms)
+        assert np.all(np.abs(tau) < sim.tau_max)
+        a_ref = np.zeros(pole.n_joints) if prev is None else (nom.v_ref - prev) / T
+        want = nom.kd * (nom.v_ref - ep.data.qvel[pole.dof_adr]) + a_ref
+        np.testing.assert_allclose(sim.terms.acceleration(tau), want, atol=1e-9)  # type: ignore[union-attr]
+        prev = nom.v_ref.copy()
+        ep.act(k, tau)
