@@ -22,8 +22,8 @@ from isf_robot.core.spec import NAMES as SPEC_NAMES
 from isf_robot.core.spec import FilterSpec
 
 from .config_schema import (
-    ArmConfig,
     LEVELS,
+    ArmConfig,
     BarrierConfig,
     ControlConfig,
     GainsConfig,

@@ -95,8 +95,10 @@ def _level(args: argparse.Namespace, scene: Any) -> str:
 
 
 def _simulation(args: argparse.Namespace, scene: Any, **kwargs: Any) -> Any:
-    """The simulation of ``--filter`` at the run's level (keyword arguments: :func:`_params` and more); a scene
-    with several arms: the team's (``--coordination``)."""
+    """The simulation of ``--filter`` at the run's level (keyword arguments: :func:`_params` and more).
+
+    A scene with several arms: the team's (``--coordination``).
+    """
     from isf_robot.arm.compare import simulation_type
 
     level = _level(args, scene)
