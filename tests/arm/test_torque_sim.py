@@ -137,7 +137,7 @@ def test_cli_runs_the_torque_level(capsys) -> None:  # type: ignore[no-untyped-d
 def test_fallback_damps_toward_rest_with_gravity_compensation(pole) -> None:  # type: ignore[no-untyped-def]
     """The infeasibility fallback: within the limits, finite, and its torque beyond gravity opposes the motion."""
     sim = TorqueSimulation(pole, "cbf", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR))
-    ep = sim._episode(10)
+    ep = sim.episode(sim, 10)
     rng = np.random.default_rng(5)
     for _ in range(5):
         ep.data.qvel[pole.dof_adr] = rng.uniform(-1.0, 1.0, pole.n_joints)
@@ -151,7 +151,7 @@ def test_fallback_damps_toward_rest_with_gravity_compensation(pole) -> None:  # 
 def test_torque_nominal_is_computed_torque_on_the_model(pole) -> None:  # type: ignore[no-untyped-def]
     """Unclipped, the nominal torque gives the model's q_ddot = kd (v_ref - q_dot) + a_ref exactly."""
     sim = TorqueSimulation(pole, "nominal", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR))
-    ep = sim._episode(10)
+    ep = sim.episode(sim, 10)
     nom, T = sim.torque_nominal, sim.control_period
     prev = None
     for k in range(5):
