@@ -152,3 +152,43 @@ def test_badly_scaled_feasible_rows_are_solved_exactly_not_called_infeasible():
         res = solver.solve(FilterQP(u_nom, a[None, :], np.array([lb])))
         assert res.status == "optimal"
         np.testing.assert_allclose(res.u, exact, rtol=1e-8, atol=1e-8 * max(1.0, np.abs(exact).max()))
+
+
+def test_least_violation_known_answers_and_scale_free_rows() -> None:
+    """Two-stage least violation: a feasible problem's own optimum; an infeasible one's violations
+    measured per row in normalised units (a row's scale does not move the answer)."""
+    s = QPSolver()
+    # feasible: the QP's optimum, no violation
+    feas = FilterQP(np.array([0.0, 0.0]), np.array([[1.0, 0.0], [0.0, 1.0]]), np.array([1.0, -1.0]))
+    viol, u = s.least_violation(feas)
+    assert viol <= 1e-9 and u == pytest.approx([1.0, 0.0], abs=1e-9)
+    # u >= 1 and u <= -1 on one axis, the first row 1000x larger: the middle, u = 0, either way
+    for big in (1.0, 1e3, 1e-3):
+        qp = FilterQP(np.array([0.7, 2.0]), np.array([[big, 0.0], [-1.0, 0.0]]), np.array([big, 1.0]))
+        viol, u = s.least_violation(qp)
+        assert u[0] == pytest.approx(0.0, abs=1e-7)
+        assert u[1] == pytest.approx(2.0, abs=1e-7)  # the free axis keeps the nominal (stage 2)
+        assert viol == pytest.approx(max(big, 1.0), rel=1e-6)
+    # with input bounds that cut the middle off: the bound's side
+    qp = FilterQP(np.zeros(1), np.array([[1.0], [-1.0]]), np.array([1.0, 1.0]), np.array([0.5]), np.array([2.0]))
+    viol, u = s.least_violation(qp)
+    assert u == pytest.approx([0.5], abs=1e-9) and viol == pytest.approx(1.5, rel=1e-9)
+
+
+def test_least_violation_matches_a_brute_force_minimum() -> None:
+    """Stage 1 against a dense grid: the sum of squared normalised violations is the least (random 2-D cases)."""
+    rng = np.random.default_rng(5)
+    s = QPSolver()
+    g = np.linspace(-3.0, 3.0, 601)
+    U = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
+    for _ in range(5):
+        A = rng.normal(size=(4, 2)) * rng.choice([1e-2, 1.0, 1e2], size=(4, 1))
+        lb = A @ rng.normal(size=2) + np.abs(rng.normal(size=4)) * np.linalg.norm(A, axis=1)
+        qp = FilterQP(rng.normal(size=2), A, lb, np.full(2, -3.0), np.full(2, 3.0))
+        _, u = s.least_violation(qp)
+        n = np.linalg.norm(A, axis=1)
+
+        def cost(v: np.ndarray) -> np.ndarray:
+            return (np.maximum(lb / n - (v @ A.T) / n, 0.0) ** 2).sum(axis=-1)
+
+        assert cost(u) <= cost(U).min() + 1e-9
