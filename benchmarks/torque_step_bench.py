@@ -2,23 +2,36 @@
 
 Usage::
 
-    python benchmarks/torque_step_bench.py [--scene panda_pole] [--duration 4] [--repeats 3]
+    python benchmarks/torque_step_bench.py [--scene panda_pole] [--duration 4] [--repeats 3] [--no-write]
 
 For each strategy at the velocity and the torque level: one episode (seed 0, ``d_bar`` as given below,
 the per-phase timers on), its wall time per control step split into the phases, and one ``mj_step`` of
 the scene's model timed on the states of a nominal episode (the least of ``--repeats`` runs of each).
 ``control`` is the step minus its physics (``act``): what the filter level adds to the simulation.
+The table goes to BENCHMARKS.md between the ``torque-bench`` markers (written atomically), with the
+machine, the load and the date (``--no-write``: print only).
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
+import os
+import platform
 import sys
 import time
 import warnings
+from pathlib import Path
 
 import mujoco
 import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from _common import cpu_model, write_section  # noqa: E402
+
+from isf_robot.support.files import write_text_atomic  # noqa: E402
 
 
 def mj_step_us(scene, n: int = 4000) -> float:  # type: ignore[no-untyped-def]
@@ -35,19 +48,35 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scene", default="panda_pole")
     ap.add_argument("--duration", type=float, default=4.0)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--no-write", action="store_true", help="print only; do not rewrite BENCHMARKS.md")
     args = ap.parse_args(argv)
+    load = os.getloadavg()
+    lines: list[str] = []
+
+    def out(line: str = "") -> None:
+        print(line, flush=True)
+        lines.append(line)
+
     warnings.simplefilter("ignore")
     from isf_robot.arm import ArmSimulation, load_scene, resolve_params
     from isf_robot.arm.torque_sim import TorqueSimulation, resolve_torque_params
 
     scene = load_scene(args.scene)
     mj = min(mj_step_us(scene) for _ in range(args.repeats))
-    print(f"{args.scene}: mj_step {mj:.1f} us; control period {scene.config.control.period * 1e3:g} ms "
-          f"({int(round(scene.config.control.period / scene.model.opt.timestep))} physics steps); "
-          f"{args.duration:g} s episodes, seed 0\n")
-    print("| level | strategy | us/step | control us/step | control x mj_step | sense | barriers | nominal | "
-          "strategy | act |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    out("## Torque-level control step (`benchmarks/torque_step_bench.py`)")
+    out()
+    out(f"Machine: {platform.platform()}; CPU {cpu_model()}; {os.cpu_count()} cores; Python "
+        f"{platform.python_version()}. Date (UTC): {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M}. "
+        f"Load average before: {load[0]:.2f}, {load[1]:.2f}, {load[2]:.2f}.")
+    out()
+    out(f"{args.scene}: mj_step {mj:.1f} us; control period {scene.config.control.period * 1e3:g} ms "
+        f"({int(round(scene.config.control.period / scene.model.opt.timestep))} physics steps); "
+        f"{args.duration:g} s episodes, seed 0; per phase the least of {args.repeats} runs [us/step]. Target: "
+        "a torque-level step <= 10x `mj_step`.")
+    out()
+    out("| level | strategy | us/step | control us/step | control x mj_step | sense | barriers | nominal | "
+        "strategy | act |")
+    out("|---|---|---|---|---|---|---|---|---|---|")
     levels = (("velocity", ArmSimulation, resolve_params(scene)), ("torque", TorqueSimulation,
                                                                   resolve_torque_params(scene)))
     for level, cls, params in levels:
@@ -62,9 +91,13 @@ def main(argv: list[str] | None = None) -> int:
             assert best is not None
             total = sum(best.values())
             control = total - best["act"]
-            print(f"| {level} | {strategy} | {total:.0f} | {control:.0f} | {control / mj:.1f} | "
-                  + " | ".join(f"{best[k]:.0f}" for k in ("sense", "barriers", "nominal", "strategy", "act")) + " |",
-                  flush=True)
+            out(f"| {level} | {strategy} | {total:.0f} | {control:.0f} | {control / mj:.1f} | "
+                + " | ".join(f"{best[k]:.0f}" for k in ("sense", "barriers", "nominal", "strategy", "act")) + " |")
+    out()
+    out("Reproduce: `python benchmarks/torque_step_bench.py` (add `--no-write` to only print).")
+    if not args.no_write:
+        write_section(ROOT / "BENCHMARKS.md", "<!-- torque-bench:start -->", "<!-- torque-bench:end -->",
+                      "\n".join(lines), write=write_text_atomic)
     return 0
 
 
