@@ -243,11 +243,14 @@ class IntermittentSafetyFilter(_FilterBase):
         return self.fall_rate.margin(self.min_off, self.c, self.c_max)
 
     def step_lie(self, t: float, lie: LieData, u_nom: np.ndarray, x: np.ndarray | None = None, *,
-                 screen: float | np.ndarray | None = None) -> FilterStep:
+                 screen: float | np.ndarray | None = None, promotable: np.ndarray | None = None) -> FilterStep:
         """As :meth:`step`, given precomputed barrier data.
 
         ``screen`` overrides the constructor's row-screening threshold for this step (scalar or
-        one per row of ``lie``).
+        one per row of ``lie``). ``promotable`` (bool, one per row; ``None``: every row) limits the
+        promotion to those rows: the others keep the robust condition while the filter is on (a team
+        of arms leaves its inter-arm rows unpromoted, :mod:`isf_robot.core.team`). The trigger still
+        sees every row.
         """
         xs = self._xi(t, lie, u_nom)
         u_nom, xi, xi_min = xs.u_nom, xs.xi, xs.xi_min
@@ -305,6 +308,8 @@ class IntermittentSafetyFilter(_FilterBase):
             rate = (t - self._t_ramp) / self.blend if self._t_ramp is not None else 0.0
             self._t_ramp = t
         promote, ramp = self._ramp(xi, c, _NONE_B if failing is None else failing, rate, lie.names)
+        if promotable is not None:
+            promote &= promotable  # (the ramp's own array, rewritten by its next call)
         b = self.b
         if self.shooter is not None:
             def solve(level: float) -> np.ndarray:

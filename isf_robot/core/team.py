@@ -169,9 +169,11 @@ class CentralFilter:
 
     """
 
-    def __init__(self, strategy: Strategy, blocks: Sequence[slice], names: Sequence[str], period: float) -> None:
+    def __init__(self, strategy: Strategy, blocks: Sequence[slice], names: Sequence[str], period: float, *,
+                 promote_shared: bool = False) -> None:
         _check_blocks(blocks, names)
         self.inner, self.blocks, self.period = strategy, tuple(blocks), float(period)
+        self.promote_shared = promote_shared
         self.uses_rows, self.intermittent = strategy.uses_rows, strategy.intermittent
         self.tallies = [AgentTally(n) for n in names]
         self._M: np.ndarray | None = None
@@ -188,14 +190,20 @@ class CentralFilter:
             tally.reset()
 
     def step_lie(self, t: float, lie: LieData | None, u_nom: np.ndarray, x: Any = None, **kw: Any) -> FilterStep:
-        """The strategy's step; each agent's share of it is recorded."""
-        step = (self.inner.step_lie(t, lie, u_nom, x, **kw) if lie is not None
-                else self.inner.step_lie(t, lie, u_nom))  # type: ignore[arg-type]  # (no rows: NominalStrategy)
-        shared = np.zeros(step.xi.shape, dtype=bool)
-        if lie is not None and step.on and lie.k == step.xi.shape[0]:  # (coordination counts only while on)
+        """The strategy's step (an intermittent one promotes no shared row, see the module docstring); each
+        agent's share of it is recorded."""
+        if lie is None:
+            step = self.inner.step_lie(t, lie, u_nom)  # type: ignore[arg-type]  # (no rows: NominalStrategy)
+            shared = np.zeros(step.xi.shape, dtype=bool)
+        else:
             if self._M is None or self._M.shape[0] != lie.m:
                 self._M = block_matrix(self.blocks, lie.m)
             shared = row_agents(lie.lg, self._M).sum(axis=1) > 1
+            if self.intermittent and not self.promote_shared:
+                kw["promotable"] = ~shared
+            step = self.inner.step_lie(t, lie, u_nom, x, **kw)
+            if not step.on or lie.k != step.xi.shape[0]:  # (coordination counts only while on)
+                shared = np.zeros(step.xi.shape, dtype=bool)
         for b, tally in zip(self.blocks, self.tallies):
             part = FilterStep._of(t, step.u[b], step.u_nom[b], step.on, step.h, step.xi, step.event, step.qp,
                                   margin=step.margin)
@@ -223,13 +231,14 @@ class SharedFilter:
     """
 
     def __init__(self, strategies: Sequence[Strategy], blocks: Sequence[slice], names: Sequence[str],
-                 period: float) -> None:
+                 period: float, *, promote_shared: bool = False) -> None:
         _check_blocks(blocks, names)
         if len(strategies) != len(blocks):
             raise ConfigError(f"a shared filter needs one strategy per agent, got {len(strategies)} for {len(blocks)}")
         self.agents, self.blocks, self.period = tuple(strategies), tuple(blocks), float(period)
         self.uses_rows = any(s.uses_rows for s in strategies)
         self.intermittent = any(s.intermittent for s in strategies)
+        self.promote_shared = promote_shared
         self.tallies = [AgentTally(n) for n in names]
         self.last: list[FilterStep] = []
         self._switch = SwitchCounter()
@@ -273,10 +282,12 @@ class SharedFilter:
         else:
             parts = self.split(lie)
             xi = np.full(lie.k, np.inf)
-            for s, b, (rows, sub, _) in zip(self.agents, self.blocks, parts):
+            for s, b, (rows, sub, shared) in zip(self.agents, self.blocks, parts):
                 extra = dict(kw)
                 if screen is not None:
                     extra["screen"] = screen[rows]
+                if s.intermittent and not self.promote_shared:
+                    extra["promotable"] = ~shared
                 st = s.step_lie(t, sub, u_nom[b], x, **extra)
                 xi[rows] = np.minimum(xi[rows], st.xi)
                 steps.append(st)
