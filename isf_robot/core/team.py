@@ -153,6 +153,35 @@ class AgentTally:
         return AgentResult(self.name, self.metrics.result(), self.steps, self.events, self.time)
 
 
+class OffHold:
+    """Hold an intermittent filter on until its off condition has held for ``hold_s`` seconds.
+
+    Between two arms the distance's gradient can turn where the closest points jump from one feature
+    of a link to another: ``Xi_on`` of that row then flips sign from one control step to the next and
+    the filter would switch off and on within milliseconds. The hold asks the off condition (every
+    ``Xi_on`` at least the margin in force) to have held at every step of the last ``hold_s`` seconds
+    before the filter may switch off; it only keeps the filter on (the robust condition enforced), never
+    off, so it changes nothing in the safety argument. ``hold_s = 0``: no hold.
+    """
+
+    def __init__(self, hold_s: float) -> None:
+        self.hold_s = float(hold_s)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the last failure of the off condition."""
+        self._t_fail = -np.inf
+
+    def __call__(self, t: float) -> bool:
+        """Whether the filter must stay on at ``t`` (the off condition failed within ``hold_s``)."""
+        return self.hold_s > 0.0 and t - self._t_fail < self.hold_s
+
+    def record(self, step: FilterStep) -> None:
+        """Note the step's outcome: an on step whose smallest ``Xi_on`` is below its margin."""
+        if step.on and step.xi.size and float(step.xi.min()) < (step.margin or 0.0):
+            self._t_fail = step.t
+
+
 def _check_blocks(blocks: Sequence[slice], names: Sequence[str]) -> None:
     if len(blocks) != len(names) or len(blocks) < 1:
         raise ConfigError(f"a team needs one name per block of columns, got {len(blocks)} blocks, {len(names)} names")
@@ -170,10 +199,11 @@ class CentralFilter:
     """
 
     def __init__(self, strategy: Strategy, blocks: Sequence[slice], names: Sequence[str], period: float, *,
-                 promote_shared: bool = False) -> None:
+                 promote_shared: bool = False, off_hold: float = 0.0) -> None:
         _check_blocks(blocks, names)
         self.inner, self.blocks, self.period = strategy, tuple(blocks), float(period)
         self.promote_shared = promote_shared
+        self.hold = OffHold(off_hold if strategy.intermittent else 0.0)
         self.uses_rows, self.intermittent = strategy.uses_rows, strategy.intermittent
         self.tallies = [AgentTally(n) for n in names]
         self._M: np.ndarray | None = None
@@ -186,6 +216,7 @@ class CentralFilter:
     def reset(self, t0: float = 0.0) -> None:
         """Start again."""
         self.inner.reset(t0)
+        self.hold.reset()
         for tally in self.tallies:
             tally.reset()
 
@@ -201,7 +232,10 @@ class CentralFilter:
             shared = row_agents(lie.lg, self._M).sum(axis=1) > 1
             if self.intermittent and not self.promote_shared:
                 kw["promotable"] = ~shared
+            if self.hold(t):
+                kw["hold"] = True
             step = self.inner.step_lie(t, lie, u_nom, x, **kw)
+            self.hold.record(step)
             if not step.on or lie.k != step.xi.shape[0]:  # (coordination counts only while on)
                 shared = np.zeros(step.xi.shape, dtype=bool)
         for b, tally in zip(self.blocks, self.tallies):
@@ -231,7 +265,7 @@ class SharedFilter:
     """
 
     def __init__(self, strategies: Sequence[Strategy], blocks: Sequence[slice], names: Sequence[str],
-                 period: float, *, promote_shared: bool = False) -> None:
+                 period: float, *, promote_shared: bool = False, off_hold: float = 0.0) -> None:
         _check_blocks(blocks, names)
         if len(strategies) != len(blocks):
             raise ConfigError(f"a shared filter needs one strategy per agent, got {len(strategies)} for {len(blocks)}")
@@ -239,6 +273,7 @@ class SharedFilter:
         self.uses_rows = any(s.uses_rows for s in strategies)
         self.intermittent = any(s.intermittent for s in strategies)
         self.promote_shared = promote_shared
+        self.holds = [OffHold(off_hold if s.intermittent else 0.0) for s in strategies]
         self.tallies = [AgentTally(n) for n in names]
         self.last: list[FilterStep] = []
         self._switch = SwitchCounter()
@@ -255,6 +290,8 @@ class SharedFilter:
             s.reset(t0)
             tally.reset()
         self._switch.reset()
+        for hold in self.holds:
+            hold.reset()
 
     def split(self, lie: LieData) -> list[tuple[np.ndarray, LieData, np.ndarray]]:
         """Each agent's ``(rows, its Lie data, which of those rows are shared)`` (:func:`agent_lie`)."""
@@ -282,13 +319,16 @@ class SharedFilter:
         else:
             parts = self.split(lie)
             xi = np.full(lie.k, np.inf)
-            for s, b, (rows, sub, shared) in zip(self.agents, self.blocks, parts):
+            for s, b, (rows, sub, shared), hold in zip(self.agents, self.blocks, parts, self.holds):
                 extra = dict(kw)
                 if screen is not None:
                     extra["screen"] = screen[rows]
                 if s.intermittent and not self.promote_shared:
                     extra["promotable"] = ~shared
+                if hold(t):
+                    extra["hold"] = True
                 st = s.step_lie(t, sub, u_nom[b], x, **extra)
+                hold.record(st)
                 xi[rows] = np.minimum(xi[rows], st.xi)
                 steps.append(st)
         for i, (b, st) in enumerate(zip(self.blocks, steps)):
