@@ -160,6 +160,8 @@ class MultiArmSimulation(ArmSimulation):
         coordination: A name of :data:`COORDINATIONS`.
         seed: Episode seed (as :class:`ArmSimulation`; goals jittered per arm).
         nominal: Default :class:`TeamReaching` through the (seeded) goals.
+        off_hold: Seconds an intermittent filter's off condition must hold before it switches off
+            (:class:`~isf_robot.core.team.OffHold`; default :data:`OFF_HOLD_S`, 0: none).
         **kwargs: As :class:`ArmSimulation` (``params``, ``alpha``, ..., ``observers``, ``timing``).
 
     Raises:

@@ -25,6 +25,17 @@ trigger's ``Xi_on``, promotion ``>= b``, screening). Agent ``j``'s motion enters
 through the state (h and its gradient at the current configuration, which every agent senses), never
 through agent ``j``'s command.
 
+*Promotion and the off hold* (both ways, intermittent strategies). Rows shared by several agents are never
+promoted (``promotable`` of :meth:`~isf_robot.core.filters.IntermittentSafetyFilter.step_lie`): they keep
+the robust condition (their share of it) while the filter is on; the agents' own rows (obstacles, joint
+limits, self pairs) are promoted as for one arm. Promoting a shared row asks the pair to open at rate
+``b`` from the moment the filter is on: two arms on crossing paths may then never come closer, while
+passing each other needs them to, so the filter stayed on with the arms held apart until their goals
+timed out (panda_pair, RESULTS.md). ``promote_shared=True`` restores the promotion. The filter switches
+off only when its off condition has held for ``off_hold`` seconds (:class:`OffHold`): a shared row's
+``Xi_on`` can flip sign between control steps where the closest points of two links jump between
+features. Neither change weakens the robust condition, which holds on every row at every on step.
+
 *Safety argument.* The shares of a row sum to 1. If every agent's command meets its share, adding the
 (share i) conditions over ``i`` in ``S`` gives (team): the pair's robust condition holds, so the barrier
 is kept by the same argument as for one filter, up to the robust terms (the tracking-error bound
@@ -58,7 +69,8 @@ from .strategies import Strategy
 from .switches import SwitchCounter
 from .system import LieData
 
-__all__ = ["block_matrix", "row_agents", "agent_lie", "AgentTally", "AgentResult", "CentralFilter", "SharedFilter"]
+__all__ = ["block_matrix", "row_agents", "agent_lie", "AgentTally", "AgentResult", "OffHold", "CentralFilter",
+           "SharedFilter"]
 
 
 def block_matrix(blocks: Sequence[slice], m: int) -> np.ndarray:
@@ -195,6 +207,8 @@ class CentralFilter:
         blocks: Agent i's columns.
         names: Agent names.
         period: Control period [s] (each step's duration in the tallies).
+        promote_shared: Promote rows shared by several agents too (default: only the agents' own rows).
+        off_hold: Seconds the off condition must hold before an intermittent strategy switches off.
 
     """
 
@@ -221,8 +235,10 @@ class CentralFilter:
             tally.reset()
 
     def step_lie(self, t: float, lie: LieData | None, u_nom: np.ndarray, x: Any = None, **kw: Any) -> FilterStep:
-        """The strategy's step (an intermittent one promotes no shared row, see the module docstring); each
-        agent's share of it is recorded."""
+        """The strategy's step; each agent's share of it is recorded.
+
+        An intermittent strategy promotes no shared row and is held on by :class:`OffHold` (module docstring).
+        """
         if lie is None:
             step = self.inner.step_lie(t, lie, u_nom)  # type: ignore[arg-type]  # (no rows: NominalStrategy)
             shared = np.zeros(step.xi.shape, dtype=bool)
@@ -257,6 +273,8 @@ class SharedFilter:
         blocks: Agent i's columns of the stacked input.
         names: Agent names.
         period: Control period [s].
+        promote_shared: As :class:`CentralFilter`.
+        off_hold: As :class:`CentralFilter` (each agent's filter its own hold).
 
     The team's step: the agents' commands stacked, ``on`` when any agent's filter is on (with its own
     switch events), ``xi`` per row the smallest of the agents' ``Xi_on`` of that row (rows that involve
