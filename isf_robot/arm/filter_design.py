@@ -16,7 +16,7 @@ tuned. Both come from numbers the scene already states:
   which is what ``d_bar`` bounds. The horizon covers the shortest off period that is not chatter
   (:data:`~isf_robot.core.metrics.CHATTER_OFF_S`, 0.25 s) and the control steps between two
   rollouts, and no more (a longer one holds the filter on where it pushes far pairs; see
-  :func:`~isf_robot.core.chatter.horizon_for`). Every shipped scene: 0.25 + 5 x 0.002 = 0.26 s.
+  :func:`~isf_robot.core.chatter.horizon_for`). Every shipped one-arm scene: 0.25 + 5 x 0.002 = 0.26 s.
 
 A scene with several arms (``[[arm]]`` tables) gets no predictive off trigger by design: its team filters
 switch off only after the off condition held for a while (:class:`isf_robot.core.team.OffHold`), and the
