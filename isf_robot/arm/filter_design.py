@@ -16,7 +16,12 @@ tuned. Both come from numbers the scene already states:
   which is what ``d_bar`` bounds. The horizon covers the shortest off period that is not chatter
   (:data:`~isf_robot.core.metrics.CHATTER_OFF_S`, 0.25 s) and the control steps between two
   rollouts, and no more (a longer one holds the filter on where it pushes far pairs; see
-  :func:`~isf_robot.core.chatter.horizon_for`). Every shipped scene: 0.25 + 5 x 0.002 = 0.26 s.
+  :func:`~isf_robot.core.chatter.horizon_for`). Every shipped one-arm scene: 0.25 + 5 x 0.002 = 0.26 s.
+
+A scene with several arms (``[[arm]]`` tables) gets no predictive off trigger by design: its team filters
+switch off only after the off condition held for a while (:class:`isf_robot.core.team.OffHold`), and the
+two together made the command jump between control steps, far beyond ``d_bar`` (RESULTS.md, "Arms sharing
+a workspace"). An explicit horizon still applies.
 
 An explicit value (``blend = 0``, ``--horizon 0``) turns either off. ``isf-robot run`` and ``compare``
 report chatter (off periods under 0.25 s) with the change that would fix it
@@ -44,8 +49,8 @@ def designed_options(config: SceneConfig, spec: FilterSpec) -> dict[str, float]:
     out: dict[str, float] = {}
     if spec.blend is None:
         out["blend"] = designed_blend(config)
-    if spec.horizon is None:
-        out["horizon"] = horizon_for(spec.predict_every, config.control.period)
+    if spec.horizon is None:  # (a team of arms: none; its filters are held on by the team's off hold instead)
+        out["horizon"] = 0.0 if config.arms else horizon_for(spec.predict_every, config.control.period)
     return out
 
 

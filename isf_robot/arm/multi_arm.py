@@ -46,6 +46,10 @@ COORDINATIONS = {
 }
 """How the arms of a scene are filtered: name -> one line for ``--help``."""
 
+OFF_HOLD_S = 0.1
+"""An intermittent team filter switches off only after its off condition has held this long [s]
+(:class:`~isf_robot.core.team.OffHold`)."""
+
 
 class _ArmRollout:
     """Arm ``i``'s view of the team's rollout: each point's rows as :func:`agent_lie` splits them.
@@ -156,6 +160,8 @@ class MultiArmSimulation(ArmSimulation):
         coordination: A name of :data:`COORDINATIONS`.
         seed: Episode seed (as :class:`ArmSimulation`; goals jittered per arm).
         nominal: Default :class:`TeamReaching` through the (seeded) goals.
+        off_hold: Seconds an intermittent filter's off condition must hold before it switches off
+            (:class:`~isf_robot.core.team.OffHold`; default :data:`OFF_HOLD_S`, 0: none).
         **kwargs: As :class:`ArmSimulation` (``params``, ``alpha``, ..., ``observers``, ``timing``).
 
     Raises:
@@ -169,7 +175,8 @@ class MultiArmSimulation(ArmSimulation):
     """The state of the last run (its clearance and contacts by kind)."""
 
     def __init__(self, scene: Scene, strategy: str = "isf", *, coordination: str = "central",
-                 seed: int | None = 0, nominal: NominalController | None = None, **kwargs: Any) -> None:
+                 seed: int | None = 0, nominal: NominalController | None = None, off_hold: float = OFF_HOLD_S,
+                 **kwargs: Any) -> None:
         if not scene.arms:
             raise ConfigError(f"scene {scene.name!r} has one arm: run it with ArmSimulation (a scene with "
                               "several arms gives them as [[arm]] tables)")
@@ -184,7 +191,8 @@ class MultiArmSimulation(ArmSimulation):
         self.arm_names = tuple(a.name for a in scene.arms)
         self.geom_arm = geom_arms(scene.arms, np.arange(scene.model.ngeom))
         if coordination == "central":
-            self.strategy = CentralFilter(self.strategy, self.blocks, self.arm_names, self.control_period)
+            self.strategy = CentralFilter(self.strategy, self.blocks, self.arm_names, self.control_period,
+                                          off_hold=off_hold)
             return
         spec, wiring = filter_options(self)
         cache: dict[str, Any] = {}
@@ -195,7 +203,7 @@ class MultiArmSimulation(ArmSimulation):
                 w["rollout"] = _ArmRollout(wiring["rollout"], cache, self.blocks, i)
             per_arm.append(make_strategy(strategy, spec, **w, solver=QPSolver(few_rows=True),
                                          on_infeasible="fallback", fallback=_brake, validate=False))
-        self.strategy = SharedFilter(per_arm, self.blocks, self.arm_names, self.control_period)
+        self.strategy = SharedFilter(per_arm, self.blocks, self.arm_names, self.control_period, off_hold=off_hold)
 
     def start_info(self, duration: float) -> dict[str, Any]:
         """As :meth:`ArmSimulation.start_info`, plus the arms and the coordination."""

@@ -243,11 +243,16 @@ class IntermittentSafetyFilter(_FilterBase):
         return self.fall_rate.margin(self.min_off, self.c, self.c_max)
 
     def step_lie(self, t: float, lie: LieData, u_nom: np.ndarray, x: np.ndarray | None = None, *,
-                 screen: float | np.ndarray | None = None) -> FilterStep:
+                 screen: float | np.ndarray | None = None, promotable: np.ndarray | None = None,
+                 hold: bool = False) -> FilterStep:
         """As :meth:`step`, given precomputed barrier data.
 
         ``screen`` overrides the constructor's row-screening threshold for this step (scalar or
-        one per row of ``lie``).
+        one per row of ``lie``). ``promotable`` (bool, one per row; ``None``: every row) limits the
+        promotion to those rows: the others keep the robust condition while the filter is on (a team
+        of arms leaves its inter-arm rows unpromoted, :mod:`isf_robot.core.team`). The trigger still
+        sees every row. ``hold``: the filter does not switch off at this step (it may switch on; a team
+        holds it on until the off condition has held for a while, :class:`~isf_robot.core.team.OffHold`).
         """
         xs = self._xi(t, lie, u_nom)
         u_nom, xi, xi_min = xs.u_nom, xs.xi, xs.xi_min
@@ -265,7 +270,7 @@ class IntermittentSafetyFilter(_FilterBase):
         held = pred is not None and not pred.ok
         if pred is not None and pred.ok:
             c = gate  # predicted safe over the horizon: off at the lower margin
-        event = trigger.update(t, xi_min, c, not held)
+        event = trigger.update(t, xi_min, c, not (held or hold))
         bound = None
         if event is not None:
             if event.kind == "off":
@@ -305,6 +310,8 @@ class IntermittentSafetyFilter(_FilterBase):
             rate = (t - self._t_ramp) / self.blend if self._t_ramp is not None else 0.0
             self._t_ramp = t
         promote, ramp = self._ramp(xi, c, _NONE_B if failing is None else failing, rate, lie.names)
+        if promotable is not None:
+            promote &= promotable  # (the ramp's own array, rewritten by its next call)
         b = self.b
         if self.shooter is not None:
             def solve(level: float) -> np.ndarray:

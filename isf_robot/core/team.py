@@ -25,6 +25,17 @@ trigger's ``Xi_on``, promotion ``>= b``, screening). Agent ``j``'s motion enters
 through the state (h and its gradient at the current configuration, which every agent senses), never
 through agent ``j``'s command.
 
+*Promotion and the off hold* (both ways, intermittent strategies). Rows shared by several agents are never
+promoted (``promotable`` of :meth:`~isf_robot.core.filters.IntermittentSafetyFilter.step_lie`): they keep
+the robust condition (their share of it) while the filter is on; the agents' own rows (obstacles, joint
+limits, self pairs) are promoted as for one arm. Promoting a shared row asks the pair to open at rate
+``b`` from the moment the filter is on: two arms on crossing paths may then never come closer, while
+passing each other needs them to, so the filter stayed on with the arms held apart until their goals
+timed out (panda_pair, RESULTS.md). ``promote_shared=True`` restores the promotion. The filter switches
+off only when its off condition has held for ``off_hold`` seconds (:class:`OffHold`): a shared row's
+``Xi_on`` can flip sign between control steps where the closest points of two links jump between
+features. Neither change weakens the robust condition, which holds on every row at every on step.
+
 *Safety argument.* The shares of a row sum to 1. If every agent's command meets its share, adding the
 (share i) conditions over ``i`` in ``S`` gives (team): the pair's robust condition holds, so the barrier
 is kept by the same argument as for one filter, up to the robust terms (the tracking-error bound
@@ -58,7 +69,8 @@ from .strategies import Strategy
 from .switches import SwitchCounter
 from .system import LieData
 
-__all__ = ["block_matrix", "row_agents", "agent_lie", "AgentTally", "AgentResult", "CentralFilter", "SharedFilter"]
+__all__ = ["block_matrix", "row_agents", "agent_lie", "AgentTally", "AgentResult", "OffHold", "CentralFilter",
+           "SharedFilter"]
 
 
 def block_matrix(blocks: Sequence[slice], m: int) -> np.ndarray:
@@ -153,6 +165,35 @@ class AgentTally:
         return AgentResult(self.name, self.metrics.result(), self.steps, self.events, self.time)
 
 
+class OffHold:
+    """Hold an intermittent filter on until its off condition has held for ``hold_s`` seconds.
+
+    Between two arms the distance's gradient can turn where the closest points jump from one feature
+    of a link to another: ``Xi_on`` of that row then flips sign from one control step to the next and
+    the filter would switch off and on within milliseconds. The hold asks the off condition (every
+    ``Xi_on`` at least the margin in force) to have held at every step of the last ``hold_s`` seconds
+    before the filter may switch off; it only keeps the filter on (the robust condition enforced), never
+    off, so it changes nothing in the safety argument. ``hold_s = 0``: no hold.
+    """
+
+    def __init__(self, hold_s: float) -> None:
+        self.hold_s = float(hold_s)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the last failure of the off condition."""
+        self._t_fail = -np.inf
+
+    def __call__(self, t: float) -> bool:
+        """Whether the filter must stay on at ``t`` (the off condition failed within ``hold_s``)."""
+        return self.hold_s > 0.0 and t - self._t_fail < self.hold_s
+
+    def record(self, step: FilterStep) -> None:
+        """Note the step's outcome: an on step whose smallest ``Xi_on`` is below its margin."""
+        if step.on and step.xi.size and float(step.xi.min()) < (step.margin or 0.0):
+            self._t_fail = step.t
+
+
 def _check_blocks(blocks: Sequence[slice], names: Sequence[str]) -> None:
     if len(blocks) != len(names) or len(blocks) < 1:
         raise ConfigError(f"a team needs one name per block of columns, got {len(blocks)} blocks, {len(names)} names")
@@ -166,12 +207,17 @@ class CentralFilter:
         blocks: Agent i's columns.
         names: Agent names.
         period: Control period [s] (each step's duration in the tallies).
+        promote_shared: Promote rows shared by several agents too (default: only the agents' own rows).
+        off_hold: Seconds the off condition must hold before an intermittent strategy switches off.
 
     """
 
-    def __init__(self, strategy: Strategy, blocks: Sequence[slice], names: Sequence[str], period: float) -> None:
+    def __init__(self, strategy: Strategy, blocks: Sequence[slice], names: Sequence[str], period: float, *,
+                 promote_shared: bool = False, off_hold: float = 0.0) -> None:
         _check_blocks(blocks, names)
         self.inner, self.blocks, self.period = strategy, tuple(blocks), float(period)
+        self.promote_shared = promote_shared
+        self.hold = OffHold(off_hold if strategy.intermittent else 0.0)
         self.uses_rows, self.intermittent = strategy.uses_rows, strategy.intermittent
         self.tallies = [AgentTally(n) for n in names]
         self._M: np.ndarray | None = None
@@ -184,18 +230,30 @@ class CentralFilter:
     def reset(self, t0: float = 0.0) -> None:
         """Start again."""
         self.inner.reset(t0)
+        self.hold.reset()
         for tally in self.tallies:
             tally.reset()
 
     def step_lie(self, t: float, lie: LieData | None, u_nom: np.ndarray, x: Any = None, **kw: Any) -> FilterStep:
-        """The strategy's step; each agent's share of it is recorded."""
-        step = (self.inner.step_lie(t, lie, u_nom, x, **kw) if lie is not None
-                else self.inner.step_lie(t, lie, u_nom))  # type: ignore[arg-type]  # (no rows: NominalStrategy)
-        shared = np.zeros(step.xi.shape, dtype=bool)
-        if lie is not None and step.on and lie.k == step.xi.shape[0]:  # (coordination counts only while on)
+        """The strategy's step; each agent's share of it is recorded.
+
+        An intermittent strategy promotes no shared row and is held on by :class:`OffHold` (module docstring).
+        """
+        if lie is None:
+            step = self.inner.step_lie(t, lie, u_nom)  # type: ignore[arg-type]  # (no rows: NominalStrategy)
+            shared = np.zeros(step.xi.shape, dtype=bool)
+        else:
             if self._M is None or self._M.shape[0] != lie.m:
                 self._M = block_matrix(self.blocks, lie.m)
             shared = row_agents(lie.lg, self._M).sum(axis=1) > 1
+            if self.intermittent and not self.promote_shared:
+                kw["promotable"] = ~shared
+            if self.hold(t):
+                kw["hold"] = True
+            step = self.inner.step_lie(t, lie, u_nom, x, **kw)
+            self.hold.record(step)
+            if not step.on or lie.k != step.xi.shape[0]:  # (coordination counts only while on)
+                shared = np.zeros(step.xi.shape, dtype=bool)
         for b, tally in zip(self.blocks, self.tallies):
             part = FilterStep._of(t, step.u[b], step.u_nom[b], step.on, step.h, step.xi, step.event, step.qp,
                                   margin=step.margin)
@@ -215,6 +273,8 @@ class SharedFilter:
         blocks: Agent i's columns of the stacked input.
         names: Agent names.
         period: Control period [s].
+        promote_shared: As :class:`CentralFilter`.
+        off_hold: As :class:`CentralFilter` (each agent's filter its own hold).
 
     The team's step: the agents' commands stacked, ``on`` when any agent's filter is on (with its own
     switch events), ``xi`` per row the smallest of the agents' ``Xi_on`` of that row (rows that involve
@@ -223,13 +283,15 @@ class SharedFilter:
     """
 
     def __init__(self, strategies: Sequence[Strategy], blocks: Sequence[slice], names: Sequence[str],
-                 period: float) -> None:
+                 period: float, *, promote_shared: bool = False, off_hold: float = 0.0) -> None:
         _check_blocks(blocks, names)
         if len(strategies) != len(blocks):
             raise ConfigError(f"a shared filter needs one strategy per agent, got {len(strategies)} for {len(blocks)}")
         self.agents, self.blocks, self.period = tuple(strategies), tuple(blocks), float(period)
         self.uses_rows = any(s.uses_rows for s in strategies)
         self.intermittent = any(s.intermittent for s in strategies)
+        self.promote_shared = promote_shared
+        self.holds = [OffHold(off_hold if s.intermittent else 0.0) for s in strategies]
         self.tallies = [AgentTally(n) for n in names]
         self.last: list[FilterStep] = []
         self._switch = SwitchCounter()
@@ -246,6 +308,8 @@ class SharedFilter:
             s.reset(t0)
             tally.reset()
         self._switch.reset()
+        for hold in self.holds:
+            hold.reset()
 
     def split(self, lie: LieData) -> list[tuple[np.ndarray, LieData, np.ndarray]]:
         """Each agent's ``(rows, its Lie data, which of those rows are shared)`` (:func:`agent_lie`)."""
@@ -273,11 +337,16 @@ class SharedFilter:
         else:
             parts = self.split(lie)
             xi = np.full(lie.k, np.inf)
-            for s, b, (rows, sub, _) in zip(self.agents, self.blocks, parts):
+            for s, b, (rows, sub, shared), hold in zip(self.agents, self.blocks, parts, self.holds):
                 extra = dict(kw)
                 if screen is not None:
                     extra["screen"] = screen[rows]
+                if s.intermittent and not self.promote_shared:
+                    extra["promotable"] = ~shared
+                if hold(t):
+                    extra["hold"] = True
                 st = s.step_lie(t, sub, u_nom[b], x, **extra)
+                hold.record(st)
                 xi[rows] = np.minimum(xi[rows], st.xi)
                 steps.append(st)
         for i, (b, st) in enumerate(zip(self.blocks, steps)):
