@@ -58,6 +58,7 @@ from isf_robot.core.exceptions import ConfigError
 
 from .calibration import Calibration, _key, free_scene
 from .dynamics import ArmDynamics, torque_limits
+from .filter_design import designed_kd
 from .nominal import ReachingController
 from .scene import Scene
 from .torque_nominal import TorqueNominal
@@ -114,7 +115,7 @@ def calibrate_torque_d_bar(
     excitation: float = 0.05,
     switch_period: float = 0.2,
     seed: int = 0,
-    kd: float = 40.0,
+    kd: float | None = None,
     alpha_1: float | None = None,
 ) -> Calibration:
     """Measure the torque level's ``d_bar`` [rad/s^2] (see the module docstring).
@@ -128,7 +129,7 @@ def calibrate_torque_d_bar(
         excitation: Random torque offsets as a fraction of the torque limits, >= 0.
         switch_period: Time between offset changes [s], > 0.
         seed: Seed of the offsets.
-        kd: The torque nominal's gain [1/s].
+        kd: The torque nominal's gain [1/s]; default designed (:func:`~isf_robot.arm.filter_design.designed_kd`).
         alpha_1: Inner gain of ``psi`` [1/s] (the hold error's weight); default: the scene's linear ``alpha``.
 
     Returns:
@@ -144,6 +145,7 @@ def calibrate_torque_d_bar(
     alpha_1 = inner_gain(scene.config.filter.alpha) if alpha_1 is None else float(alpha_1)
     if not (np.isfinite(alpha_1) and alpha_1 >= 0):
         raise ConfigError(f"alpha_1 must be a number >= 0 [1/s], got {alpha_1}")
+    kd = designed_kd(scene.config) if kd is None else float(kd)
     key = _key(scene, (id(plant) if plant is not None else None, duration, quantile, factor, excitation,
                        switch_period, seed, kd, alpha_1))
     if key in _CACHE:

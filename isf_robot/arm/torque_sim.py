@@ -17,8 +17,8 @@ nominal, strategy, act; safety judged on the true geometry at every physics step
   off (:func:`~isf_robot.arm.torque_calibration.torque_plant`), held over the control period.
 
 Infeasibility: when no torque within the limits satisfies every robust condition, the arm gets
-the safe fallback ``clip(M (-kd q_dot) + hold)`` (damping toward rest with gravity compensation,
-the torque nominal's law with a zero reference); such steps are counted in ``fallbacks``.
+the safe fallback ``clip(M (-FALLBACK_KD q_dot) + hold)`` (damping toward rest with gravity
+compensation, the torque nominal's law with a zero reference); such steps are counted in ``fallbacks``.
 
 ``d_bar`` [rad/s^2] is the torque level's own, calibrated by
 :func:`~isf_robot.arm.torque_calibration.calibrate_torque_d_bar` (:func:`resolve_torque_params`);
@@ -40,6 +40,7 @@ from isf_robot.core import ClassK, ConfigError, LieData, NonFiniteError, QPSolve
 from isf_robot.core.strategies import make_strategy
 
 from .dynamics import ArmDynamics, DynamicsTerms, torque_limits
+from .filter_design import designed_kd
 from .params import filter_options, resolve_params
 from .records import FilterParams, RunResult
 from .scene import Scene
@@ -49,7 +50,10 @@ from .step_columns import TickValues
 from .torque_calibration import calibrate_torque_d_bar, inner_gain, torque_plant
 from .torque_nominal import TorqueNominal, computed_torque
 
-__all__ = ["TorqueSimulation", "TorqueRunResult", "resolve_torque_params", "run_torque_episode"]
+__all__ = ["TorqueSimulation", "TorqueRunResult", "resolve_torque_params", "run_torque_episode", "FALLBACK_KD"]
+
+FALLBACK_KD = 40.0
+"""Gain [1/s] of the infeasibility fallback's damping toward rest (the first pass's nominal gain)."""
 
 
 def resolve_torque_params(scene: Scene, alpha: float | ClassK | None = None, c: float | None = None,
@@ -112,7 +116,8 @@ class TorqueSimulation(ArmSimulation):
             know (a payload, friction) to see the robust term at work. Its actuators are switched off.
         params: Resolved parameters (:func:`resolve_torque_params`); or ``alpha``, ``c``, ``b``, ``d_bar``.
         alpha_1: Inner gain of ``psi = h_dot + alpha_1 h`` [1/s]; default ``alpha``'s gain (linear alpha).
-        kd: Gain of the torque nominal and of the fallback [1/s].
+        kd: Gain of the torque nominal [1/s]; default designed from the scene
+            (:func:`~isf_robot.arm.filter_design.designed_kd`). The fallback damps with :data:`FALLBACK_KD`.
         self_collision: Barriers for the arm's own non-adjacent link pairs (default True, whatever the
             scene's ``[robot] self_collision`` says; ``None``: the scene's). At the torque level a contact
             between two links of the arm is a force the filter's model has no term for, and ``d_bar`` does
@@ -129,7 +134,7 @@ class TorqueSimulation(ArmSimulation):
     def __init__(self, scene: Scene, strategy: str = "isf", *, plant: mujoco.MjModel | None = None,
                  params: FilterParams | None = None, alpha: float | None = None, c: float | None = None,
                  b: float | None = None, d_bar: float | None = None, alpha_1: float | None = None,
-                 kd: float = 40.0, self_collision: bool | None = True, solver: QPSolver | None = None,
+                 kd: float | None = None, self_collision: bool | None = True, solver: QPSolver | None = None,
                  **kwargs: Any) -> None:
         if params is None:
             params = resolve_torque_params(scene, alpha, c, b, d_bar, calibrate=False)
@@ -147,14 +152,15 @@ class TorqueSimulation(ArmSimulation):
                          strategy, params=params, solver=solver, **kwargs)
         if alpha_1 is None:
             alpha_1 = inner_gain(params.alpha)
-        self.alpha_1, self.kd = float(alpha_1), float(kd)
+        self.alpha_1, self.kd = float(alpha_1), float(designed_kd(scene.config) if kd is None else kd)
         self.dynamics = ArmDynamics(scene.model, scene.dof_adr, own_data=plant is not None)
         self.second_order = SecondOrderRows(self.coll, self.joints, scene.qpos_adr, self.alpha_1,
                                             self._clock if scene.config.moving else None)
-        self.torque_nominal = TorqueNominal(self.nominal, scene.dof_adr, self.tau_max, self.control_period, kd)
+        self.torque_nominal = TorqueNominal(self.nominal, scene.dof_adr, self.tau_max, self.control_period,
+                                           self.kd)
         self.terms: DynamicsTerms | None = None
         self._zero = np.zeros(scene.n_joints)
-        spec, wiring = filter_options(self)
+        spec, wiring = filter_options(self, inner=self.alpha_1)
         self.strategy = make_strategy(strategy, spec, **wiring, solver=solver, u_min=-self.tau_max,
                                       u_max=self.tau_max, on_infeasible="fallback", fallback=self._fallback,
                                       validate=False)
@@ -168,7 +174,8 @@ class TorqueSimulation(ArmSimulation):
     def _fallback(self, t: float, x: Any, lie: LieData, res: Any) -> np.ndarray:
         """No torque within the limits meets every condition: damp toward rest, gravity compensated."""
         assert self.terms is not None  # (set by the episode's sense phase before any strategy step)
-        return computed_torque(self.terms, self._zero, self._zero, x.qvel[self.scene.dof_adr], self.kd, self.tau_max)
+        return computed_torque(self.terms, self._zero, self._zero, x.qvel[self.scene.dof_adr], FALLBACK_KD,
+                               self.tau_max)
 
     def start_info(self, duration: float) -> dict[str, Any]:
         """The velocity level's start information, with the level, ``alpha_1`` and the torque limits."""
