@@ -66,9 +66,10 @@ def test_cbf_keeps_the_margin_with_the_calibrated_d_bar(name: str) -> None:
     assert r.tau_peak_ratio <= 1.0 + 1e-9
 
 
-def test_isf_with_the_designed_nominal_gain_does_not_chatter_on_ur5e(ur5e) -> None:  # type: ignore[no-untyped-def]
+def test_isf_with_the_designed_nominal_gain_keeps_its_off_periods_on_a_ur5e_run(ur5e) -> None:  # type: ignore[no-untyped-def]
     """The torque nominal's designed gain (max_joint_acc / max_joint_speed = 20 /s on the UR5e scene, 40 /s before):
-    every off period of the intermittent filter lasts at least 0.25 s (the Panda scenes do not yet: see RESULTS.md)."""
+    on this run (seed 0, 3 s) every off period lasts at least 0.25 s. Not every episode: over 20 seeds of 8 s the
+    shortest is 2 ms, and the Panda scenes chatter (RESULTS.md, "Torque level")."""
     from isf_robot.arm.filter_design import designed_kd
     from isf_robot.core.metrics import CHATTER_OFF_S
 
