@@ -9,7 +9,9 @@ For every scene and level it runs ``isf-robot compare --level {velocity,torque} 
 ``d_bar`` calibrated as a user gets it) and prints one Markdown table per scene: duty cycle, on
 switches, shortest off period, intervention (in the level's units), goals, time to the last goal,
 model or tracking error against ``d_bar``, collisions (true geometry, every physics step), fallbacks,
-the largest torque against its limit (torque level) and the wall time per simulated second.
+the largest torque against its limit (torque level) and the wall time per simulated second. The torque
+level has the arm's self-collision rows on whatever the scene says
+(:class:`~isf_robot.arm.torque_sim.TorqueSimulation`).
 """
 
 from __future__ import annotations
@@ -54,23 +56,6 @@ HEADER = ["level", "strategy", "duty", "switches", "min off [s]", "intervention"
           "wall / sim s"]
 
 
-def _self_collision_runs(name: str, seeds: int, duration: float) -> dict[str, list[dict]]:
-    """The torque level's runs with the scene's self-collision barriers switched on (the same d_bar)."""
-    import dataclasses
-
-    from isf_robot.arm import load_scene
-    from isf_robot.arm.compare import json_safe
-    from isf_robot.arm.torque_sim import TorqueSimulation, resolve_torque_params
-
-    scene = load_scene(name)
-    c = scene.config
-    on = dataclasses.replace(scene, config=dataclasses.replace(c, robot=dataclasses.replace(c.robot,
-                                                                                             self_collision=True)))
-    params = resolve_torque_params(scene)
-    return {s: [json_safe(TorqueSimulation(on, s, seed=k, params=params).run(duration).as_dict())
-                for k in range(seeds)] for s in STRATEGIES}
-
-
 def main(argv: list[str] | None = None) -> int:
     """Run the comparisons and print the tables (see the module docstring)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -79,8 +64,6 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--scenes", nargs="+", default=list(SCENES))
     ap.add_argument("--json", type=Path, default=None, help="also write every run's JSON here")
-    ap.add_argument("--self-collision", action="store_true",
-                    help="also run the torque level with the scene's self-collision barriers on (a row 'torque+self')")
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore")
     from isf_robot.arm.compare import SceneSpec, compare_strategies
@@ -100,11 +83,6 @@ def main(argv: list[str] | None = None) -> int:
             out[f"{scene}/{level}"] = d
             for s in STRATEGIES:
                 rows.append(_row(level, s, d["results"][s]["episodes"]))
-        if args.self_collision:
-            runs = _self_collision_runs(scene, args.seeds, args.duration)
-            out[f"{scene}/torque+self"] = runs
-            for s in STRATEGIES:
-                rows.append(_row("torque+self", s, runs[s]))
         print(f"### {scene}\n")
         print("| " + " | ".join(HEADER) + " |")
         print("|" + "---|" * len(HEADER))

@@ -35,13 +35,25 @@ from isf_robot.core.chatter import horizon_for
 
 from .config_schema import SceneConfig
 
-__all__ = ["designed_blend", "designed_options", "with_design"]
+__all__ = ["designed_blend", "designed_kd", "designed_options", "with_design"]
 
 
 def designed_blend(config: SceneConfig) -> float:
     """Hand-over time [s]: the nominal's time from rest to its joint-speed cap at its rate limit."""
     g = config.gains
     return g.max_joint_speed / g.max_joint_acc
+
+
+def designed_kd(config: SceneConfig) -> float:
+    """The torque nominal's velocity gain [1/s]: ``max_joint_acc / max_joint_speed`` (``1 / designed_blend``).
+
+    Computed torque asks ``q_ddot = kd (v_ref - q_dot) + a_ref``: with this gain a velocity error up to the
+    nominal's speed cap is corrected at no more than the nominal's own acceleration cap, so when the
+    intermittent filter lets go the nominal torque pulls no harder than the velocity level's nominal may
+    change its command (Panda scenes 10 / 1.5 = 6.7 /s, the UR5e scene 10 / 0.5 = 20 /s; the first pass's
+    40 /s made ``Xi_on`` of the nominal fall fast after every off switch).
+    """
+    return 1.0 / designed_blend(config)
 
 
 def designed_options(config: SceneConfig, spec: FilterSpec) -> dict[str, float]:

@@ -3,7 +3,8 @@
 The same loop as the velocity level (:class:`~isf_robot.arm.sim.ArmSimulation`: sense, barriers,
 nominal, strategy, act; safety judged on the true geometry at every physics step), with:
 
-* **rows**: the second-order barriers ``psi = h_dot + alpha_1 h`` of every near collision pair and
+* **rows**: the second-order barriers ``psi = h_dot + alpha_1 h`` of every near collision pair (the
+  arm's own non-adjacent link pairs included, whatever the scene says: ``self_collision``) and
   joint limit, with their Lie data on ``q_ddot = a0 + Minv tau + d``
   (:mod:`isf_robot.arm.second_order`, :mod:`isf_robot.arm.dynamics`);
 * **nominal**: computed torque on the velocity level's reaching command
@@ -16,8 +17,8 @@ nominal, strategy, act; safety judged on the true geometry at every physics step
   off (:func:`~isf_robot.arm.torque_calibration.torque_plant`), held over the control period.
 
 Infeasibility: when no torque within the limits satisfies every robust condition, the arm gets
-the safe fallback ``clip(M (-kd q_dot) + hold)`` (damping toward rest with gravity compensation,
-the torque nominal's law with a zero reference); such steps are counted in ``fallbacks``.
+the safe fallback ``clip(M (-FALLBACK_KD q_dot) + hold)`` (damping toward rest with gravity
+compensation, the torque nominal's law with a zero reference); such steps are counted in ``fallbacks``.
 
 ``d_bar`` [rad/s^2] is the torque level's own, calibrated by
 :func:`~isf_robot.arm.torque_calibration.calibrate_torque_d_bar` (:func:`resolve_torque_params`);
@@ -35,20 +36,24 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from isf_robot.core import ClassK, ConfigError, LieData, Linear, NonFiniteError, QPSolver
+from isf_robot.core import ClassK, ConfigError, LieData, NonFiniteError, QPSolver
 from isf_robot.core.strategies import make_strategy
 
 from .dynamics import ArmDynamics, DynamicsTerms, torque_limits
+from .filter_design import designed_kd
 from .params import filter_options, resolve_params
 from .records import FilterParams, RunResult
 from .scene import Scene
 from .second_order import SecondOrderRows
 from .sim import ArmSimulation, _Episode
 from .step_columns import TickValues
-from .torque_calibration import calibrate_torque_d_bar, torque_plant
+from .torque_calibration import calibrate_torque_d_bar, inner_gain, torque_plant
 from .torque_nominal import TorqueNominal, computed_torque
 
-__all__ = ["TorqueSimulation", "TorqueRunResult", "resolve_torque_params", "run_torque_episode"]
+__all__ = ["TorqueSimulation", "TorqueRunResult", "resolve_torque_params", "run_torque_episode", "FALLBACK_KD"]
+
+FALLBACK_KD = 40.0
+"""Gain [1/s] of the infeasibility fallback's damping toward rest (the first pass's nominal gain)."""
 
 
 def resolve_torque_params(scene: Scene, alpha: float | ClassK | None = None, c: float | None = None,
@@ -69,10 +74,12 @@ def resolve_torque_params(scene: Scene, alpha: float | ClassK | None = None, c: 
     if d_bar is None and not calibrate:
         raise ConfigError(f"scene {scene.name!r}: the torque level's d_bar [rad/s^2] is not known: pass d_bar=, "
                           "or calibrate=True (runs the torque calibration)")
-    source = "argument" if d_bar is not None else "torque calibration"
-    value = d_bar if d_bar is not None else calibrate_torque_d_bar(scene, plant).d_bar
-    p = resolve_params(scene, alpha, c, b, value, calibrate=False, **{**options, "horizon": 0.0})
-    return dataclasses.replace(p, d_bar_source=source)
+    p = resolve_params(scene, alpha, c, b, 0.0 if d_bar is None else d_bar, calibrate=False,
+                       **{**options, "horizon": 0.0})
+    if d_bar is not None:
+        return dataclasses.replace(p, d_bar_source="argument")
+    cal = calibrate_torque_d_bar(scene, plant, alpha_1=inner_gain(p.alpha))
+    return dataclasses.replace(p, d_bar=cal.d_bar, d_bar_source="torque calibration")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,7 +116,15 @@ class TorqueSimulation(ArmSimulation):
             know (a payload, friction) to see the robust term at work. Its actuators are switched off.
         params: Resolved parameters (:func:`resolve_torque_params`); or ``alpha``, ``c``, ``b``, ``d_bar``.
         alpha_1: Inner gain of ``psi = h_dot + alpha_1 h`` [1/s]; default ``alpha``'s gain (linear alpha).
-        kd: Gain of the torque nominal and of the fallback [1/s].
+        kd: Gain of the torque nominal [1/s]; default designed from the scene
+            (:func:`~isf_robot.arm.filter_design.designed_kd`). The fallback damps with :data:`FALLBACK_KD`.
+        self_collision: Barriers for the arm's own non-adjacent link pairs (default True, whatever the
+            scene's ``[robot] self_collision`` says; ``None``: the scene's). At the torque level a contact
+            between two links of the arm is a force the filter's model has no term for, and ``d_bar`` does
+            not cover it: with the scenes' ``self_collision = false`` the filter's torques pressed link7
+            against link5 on panda_pole and panda_moving (model error 16.8 rad/s^2 against ``d_bar`` 0.53,
+            ``h`` to -6.4 mm). The velocity level keeps the scene's setting: its low-level tracker, not the
+            filter, sets the torques there.
         **kwargs: As :class:`~isf_robot.arm.sim.ArmSimulation` (``seed``, ``observers``, ``timing``, ...).
 
     """
@@ -119,30 +134,33 @@ class TorqueSimulation(ArmSimulation):
     def __init__(self, scene: Scene, strategy: str = "isf", *, plant: mujoco.MjModel | None = None,
                  params: FilterParams | None = None, alpha: float | None = None, c: float | None = None,
                  b: float | None = None, d_bar: float | None = None, alpha_1: float | None = None,
-                 kd: float = 40.0, solver: QPSolver | None = None, **kwargs: Any) -> None:
+                 kd: float | None = None, self_collision: bool | None = True, solver: QPSolver | None = None,
+                 **kwargs: Any) -> None:
         if params is None:
             params = resolve_torque_params(scene, alpha, c, b, d_bar, calibrate=False)
         if params.horizon:
             raise ConfigError("the predictive off trigger (horizon) is not available at the torque level; "
                               "resolve the parameters with resolve_torque_params")
+        if self_collision is not None and self_collision != scene.config.robot.self_collision:
+            c = scene.config
+            scene = dataclasses.replace(scene, config=dataclasses.replace(
+                c, robot=dataclasses.replace(c.robot, self_collision=bool(self_collision))))
         self.filter_scene = scene
         self.tau_max = torque_limits(scene)
         solver = solver if solver is not None else QPSolver(few_rows=True)
         super().__init__(dataclasses.replace(scene, model=torque_plant(scene.model if plant is None else plant)),
                          strategy, params=params, solver=solver, **kwargs)
         if alpha_1 is None:
-            a = params.alpha
-            if not isinstance(a, (int, float, Linear)):
-                raise ConfigError("alpha_1 must be given when alpha is not a linear gain")
-            alpha_1 = a.gain if isinstance(a, Linear) else float(a)
-        self.alpha_1, self.kd = float(alpha_1), float(kd)
+            alpha_1 = inner_gain(params.alpha)
+        self.alpha_1, self.kd = float(alpha_1), float(designed_kd(scene.config) if kd is None else kd)
         self.dynamics = ArmDynamics(scene.model, scene.dof_adr, own_data=plant is not None)
         self.second_order = SecondOrderRows(self.coll, self.joints, scene.qpos_adr, self.alpha_1,
                                             self._clock if scene.config.moving else None)
-        self.torque_nominal = TorqueNominal(self.nominal, scene.dof_adr, self.tau_max, self.control_period, kd)
+        self.torque_nominal = TorqueNominal(self.nominal, scene.dof_adr, self.tau_max, self.control_period,
+                                           self.kd)
         self.terms: DynamicsTerms | None = None
         self._zero = np.zeros(scene.n_joints)
-        spec, wiring = filter_options(self)
+        spec, wiring = filter_options(self, inner=self.alpha_1)
         self.strategy = make_strategy(strategy, spec, **wiring, solver=solver, u_min=-self.tau_max,
                                       u_max=self.tau_max, on_infeasible="fallback", fallback=self._fallback,
                                       validate=False)
@@ -156,7 +174,8 @@ class TorqueSimulation(ArmSimulation):
     def _fallback(self, t: float, x: Any, lie: LieData, res: Any) -> np.ndarray:
         """No torque within the limits meets every condition: damp toward rest, gravity compensated."""
         assert self.terms is not None  # (set by the episode's sense phase before any strategy step)
-        return computed_torque(self.terms, self._zero, self._zero, x.qvel[self.scene.dof_adr], self.kd, self.tau_max)
+        return computed_torque(self.terms, self._zero, self._zero, x.qvel[self.scene.dof_adr], FALLBACK_KD,
+                               self.tau_max)
 
     def start_info(self, duration: float) -> dict[str, Any]:
         """The velocity level's start information, with the level, ``alpha_1`` and the torque limits."""
