@@ -36,10 +36,8 @@ from isf_robot.core.strategies import strategy_info
 from isf_robot.support.parallel import MAX_JOBS, Interrupted, check_backend, run_tasks
 from isf_robot.support.report import format_table
 
-from .compare import EpisodeTask, SceneSpec, json_safe, run_task
-from .params import resolve_params
+from .compare import EpisodeTask, SceneSpec, json_safe, level_params, run_task, simulation_type
 from .records import FilterParams
-from .sim import ArmSimulation
 
 __all__ = ["SweepPoint", "SweepTask", "grid_points", "random_points", "run_sweep", "summarize_point",
            "pareto_front", "goals_time", "format_sweep", "PARAMETERS", "OBJECTIVES", "MAX_SWEEP_EPISODES"]
@@ -138,10 +136,10 @@ def run_sweep_task(task: SweepTask) -> dict[str, Any]:
     return run_task(task.episode)
 
 
-def _params_of(scene: Any, base: FilterParams, point: SweepPoint) -> FilterParams:
+def _params_of(scene: Any, base: FilterParams, point: SweepPoint, level: str = "velocity") -> FilterParams:
     v = dict(point.values)
     every = v.pop("predict_every", None)
-    p = resolve_params(scene, d_bar=base.d_bar, predict_every=None if every is None else int(every), **v)
+    p = level_params(scene, level, d_bar=base.d_bar, predict_every=None if every is None else int(every), **v)
     return p.replace(d_bar_source=base.d_bar_source)
 
 
@@ -210,8 +208,11 @@ ProgressFn = Callable[[int, int, SweepTask, Mapping[str, Any]], None]
 def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: Sequence[int], *,
               duration: float | None = None, jobs: int = 1, d_bar: float | None = None,
               progress: ProgressFn | None = None, backend: str = "processes",
-              address: str | None = None) -> dict[str, Any]:
+              address: str | None = None, level: str = "velocity") -> dict[str, Any]:
     """Run every point on every scene and seed; return the JSON-ready sweep (see :func:`_summary`).
+
+    ``level``: ``"velocity"`` or ``"torque"`` (:func:`~isf_robot.arm.compare.simulation_type`; at the
+    torque level ``d_bar`` is in rad/s^2, calibrated by the torque calibration when not given).
 
     ``backend``/``address``: where the episodes run (:func:`isf_robot.support.parallel.run_tasks`:
     local processes, or Ray); the numbers do not depend on it nor on ``jobs``.
@@ -231,16 +232,18 @@ def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: S
     if n > MAX_SWEEP_EPISODES:
         raise ConfigError(f"{n} episodes asked for; at most {MAX_SWEEP_EPISODES} per sweep")
     check_backend(backend, address)  # a missing Ray extra is said before any episode runs
+    sim_type = simulation_type(level)  # (an unknown level: said before any scene loads)
     tasks: list[SweepTask] = []
     names: list[tuple[str, int]] = []
     for i, spec in enumerate(specs):
         scene = spec.load()
         names.append((scene.name, len(scene.goal_positions)))
-        base = resolve_params(scene, d_bar=d_bar)
+        base = level_params(scene, level, d_bar=d_bar)
         for j, pt in enumerate(points):
-            fp = _params_of(scene, base, pt)
-            ArmSimulation(scene, pt.strategy, seed=int(seeds[0]), params=fp).control_steps(duration)  # validates
-            tasks += [SweepTask(i, j, EpisodeTask(spec, pt.strategy, int(s), duration, {"params": fp})) for s in seeds]
+            fp = _params_of(scene, base, pt, level)
+            sim_type(scene, pt.strategy, seed=int(seeds[0]), params=fp).control_steps(duration)  # validates
+            tasks += [SweepTask(i, j, EpisodeTask(spec, pt.strategy, int(s), duration, {"params": fp}, level))
+                      for s in seeds]
     results: dict[tuple[int, int], list[dict[str, Any]]] = {}
 
     def keep(done: int, total: int, task: SweepTask, r: dict[str, Any]) -> None:
@@ -249,7 +252,10 @@ def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: S
             progress(done, total, task, r)
 
     def summary(partial: bool) -> dict[str, Any]:
-        return _summary(names, points, list(seeds), results, partial)
+        out = _summary(names, points, list(seeds), results, partial)
+        if level != "velocity":  # (the velocity level's output as it was)
+            out["level"] = level
+        return out
 
     try:
         run_tasks(run_sweep_task, tasks, jobs=int(jobs), on_result=keep, backend=backend, address=address)

@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from isf_robot.arm.config_schema import LEVELS  # (no MuJoCo)
 from isf_robot.cli.plot import sweep_figure
 from isf_robot.core.exceptions import ConfigError
 from isf_robot.core.strategies import strategy_info, strategy_names
@@ -59,6 +60,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--address", default=None, metavar="ADDR",
                    help="Ray cluster to join ('auto' or HOST:PORT; every node needs isf-robot installed); "
                         "default with --backend ray: start a local Ray with --jobs CPUs")
+    p.add_argument("--level", choices=LEVELS, default="velocity",
+                   help="what the filter commands: joint velocities (default) or joint torques on the full dynamics "
+                        "(d_bar [rad/s^2], calibrated for it when --d-bar is not given)")
     p.add_argument("--d-bar", type=float, default=None, metavar="D",
                    help="tracking-error bound [rad/s] for every scene (default: each scene's, else calibrated)")
     for name, flag in _FLAGS.items():
@@ -141,6 +145,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     if args.write_config:
         if len(specs) != 1:
             raise ConfigError(f"--write-config writes one scene's [filter]: give one scene, got {len(specs)}")
+        if args.level != "velocity":
+            raise ConfigError("--write-config writes the velocity level's [filter] (d_bar in rad/s); sweep the "
+                              "torque level without it")
         for path in _evidence_paths(args.write_config):
             check_output_path(str(path), "--write-config")
     points = _points(args)
@@ -158,7 +165,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     try:
         sweep = run_sweep(specs, points, seeds, duration=args.duration,
                           jobs=args.jobs, d_bar=args.d_bar, progress=progress, backend=args.backend,
-                          address=args.address)
+                          address=args.address, level=args.level)
     except Interrupted as exc:
         if exc.partial is not None:
             _emit(args, exc.partial)

@@ -114,3 +114,18 @@ def test_every_sweep_parameter_has_its_flag_and_is_a_filter_field() -> None:
     assert tuple(_FLAGS) == PARAMETERS
     assert set(PARAMETERS) <= set(NAMES)
     assert all(flag == "--" + name.replace("_", "-") for name, flag in _FLAGS.items())
+
+
+def test_sweep_at_the_torque_level_runs_that_level_and_says_so(capsys, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    pts = [SweepPoint("cbf"), SweepPoint("isf", {"c": 0.5})]
+    sweep = run_sweep([SceneSpec(name="ur5e_pole")], pts, [0], duration=0.4, d_bar=0.3, level="torque")
+    assert sweep["level"] == "torque"
+    runs = [r for p in sweep["scenes"][0]["points"] for r in p["runs"]]
+    assert len(runs) == 2 and all(r["level"] == "torque" for r in runs)
+    assert all(r["d_bar"] == 0.3 for r in runs)
+    with pytest.raises(ConfigError, match="unknown level"):
+        run_sweep([SceneSpec(name="ur5e_pole")], pts, [0], duration=0.4, d_bar=0.3, level="force")
+    assert main(["sweep", "--scenes", "ur5e_pole", "--level", "torque", "--episodes", "1",
+                 "--write-config", str(tmp_path / "x.toml")]) == 2
+    assert "velocity level" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())  # nothing written
