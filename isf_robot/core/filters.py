@@ -312,14 +312,18 @@ class IntermittentSafetyFilter(_FilterBase):
         promote, ramp = self._ramp(xi, c, _NONE_B if failing is None else failing, rate, lie.names)
         if promotable is not None:
             promote &= promotable  # (the ramp's own array, rewritten by its next call)
-        b = self.b
+        b, solved = self.b, None
         if self.shooter is not None:
+            tried: dict[float, Any] = {}
+
             def solve(level: float) -> np.ndarray:
-                return self._solve_rows(t, x, lie, u_nom, xi, xs.av, promote, ramp, level, c, screen, xs)[0].u
+                r = tried[level] = self._solve_rows(t, x, lie, u_nom, xi, xs.av, promote, ramp, level, c, screen, xs)
+                return r[0].u
 
             b = self.shooter.level(t, x, b, solve, self.alpha, self.d_bar)
-        res, relaxed, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, xs.av, promote, ramp, b, c,
-                                                      screen, xs)
+            solved = tried.get(b)  # (a candidate's solve is the step's when its level is the one in use)
+        res, relaxed, fb, resolved = solved or self._solve_rows(t, x, lie, u_nom, xi, xs.av, promote, ramp, b, c,
+                                                                screen, xs)
         return self._done(FilterStep._of(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names,
                                          resolved, c, bound, ran, held))
 
