@@ -7,16 +7,24 @@ imports and ``ISF_ROBOT_JIT`` is not ``0`` (read when the module defining the fo
 the function itself; :func:`inlined` registers a small helper so that compiled code can call it while
 Python keeps the plain function (for numpy arrays as well as floats). The Python path (the classes,
 scipy's integrator) and the compiled arcs (:mod:`satellite.orbit.arc_kernel`) call the same functions.
+
+The core's formulas (:func:`isf_robot.core.jit.formula`: the robust condition's slack, ``Xi_tau``) are
+compiled into the arcs from the core's own source. A compiled kernel's disk cache is keyed on every
+source file of this package and of :mod:`isf_robot.core` (:func:`isf_robot.core.jit.stamp_sources`), so
+an edit of any formula it calls compiles it afresh instead of loading a stale kernel.
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, TypeVar
 
-from isf_robot.core.jit import jit_enabled, watch_compiles
+import isf_robot.core
+from isf_robot.core.jit import jit_enabled, register_formulas, stamp_sources, watch_compiles
 
-__all__ = ["compiled", "inlined", "plain"]
+__all__ = ["compiled", "kernel", "inlined", "plain"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -29,13 +37,39 @@ def _numba() -> Any:
     except ImportError:  # pragma: no cover (numba is a dependency)
         return None
     watch_compiles()  # (a command's one-line notice when a kernel is compiled: isf_robot.core.jit)
+    register_formulas()  # (the core's formulas imported so far: the satellite's kernels call some)
     return numba
+
+
+def _source_folders() -> tuple[str, ...]:
+    """Every folder of this package's source, then the core's (the same in every process)."""
+    here = Path(__file__).resolve().parent
+    folders = sorted(str(p) for p in here.rglob("*") if p.is_dir() and p.name != "__pycache__")
+    return (str(here), *folders, os.path.dirname(os.path.abspath(isf_robot.core.__file__)))
 
 
 def compiled(fn: F) -> F:
     """``fn`` compiled by numba (cached on disk), or ``fn`` itself without numba or with ``ISF_ROBOT_JIT=0``."""
-    numba = _numba()
-    return fn if numba is None else numba.njit(cache=True, nogil=True)(fn)  # type: ignore[no-any-return]
+    return fn if _numba() is None else kernel(fn)
+
+
+def kernel(fn: F) -> F:
+    """``numba.njit(cache=True, nogil=True)`` of ``fn``, its cache keyed on the sources it may call.
+
+    For the modules that exist only compiled (the arcs: :mod:`satellite.orbit.arc_kernel`); they are
+    imported only when numba is used.
+    """
+    import numba
+
+    register_formulas()
+    got = numba.njit(cache=True, nogil=True)(fn)
+    if not _FOLDERS:
+        _FOLDERS.extend(_source_folders())
+    stamp_sources(got, _FOLDERS)
+    return got  # type: ignore[no-any-return]
+
+
+_FOLDERS: list[str] = []
 
 
 def inlined(fn: F) -> F:

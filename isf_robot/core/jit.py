@@ -20,7 +20,7 @@ from types import ModuleType
 from typing import Any, TextIO
 
 __all__ = ["JIT_ENV", "NOTICE_ENV", "COMPILE_NOTICE", "jit_enabled", "announce_compiles", "watch_compiles",
-           "end_notice", "compiled_here", "formula", "compiled"]
+           "end_notice", "compiled_here", "formula", "compiled", "register_formulas", "stamp_sources"]
 
 JIT_ENV = "ISF_ROBOT_JIT"
 """Environment variable: ``0`` (or ``false``, ``no``, ``off``) turns the compiled kernels off."""
@@ -170,25 +170,24 @@ def compiled(fn: Any) -> Any:
         except ImportError:
             return fn
         watch_compiles()
-        _register_formulas()
+        register_formulas()
         got = _COMPILED[fn] = njit(cache=True, nogil=True)(fn)
-        _stamp_with_its_folder(got, fn)
+        stamp_sources(got, (os.path.dirname(fn.__code__.co_filename),))
     return got
 
 
-def _stamp_with_its_folder(dispatcher: Any, fn: Any) -> None:
-    """Key the kernel's disk cache on every source file of its folder, not only its own.
+def stamp_sources(dispatcher: Any, folders: Sequence[str]) -> None:
+    """Key a kernel's disk cache on every source file of ``folders``, not only the kernel's own file.
 
     numba checks only the file of the compiled function before it loads a cached kernel; the
-    :func:`formula` functions compiled into it live in other files of the same package, and an edit
-    of one of them must not load a stale kernel. (numba's cache internals; left as they are if
-    they moved.)
+    :func:`formula` functions compiled into it live in other files, and an edit of one of them must
+    not load a stale kernel. ``folders`` must be the same in every process (the stamp is compared
+    with the one stored beside the cache). (numba's cache internals; left as they are if they moved.)
     """
-    folder = os.path.dirname(fn.__code__.co_filename)
     try:
-        files = sorted(f for f in os.listdir(folder) if f.endswith(".py"))
-        stamp = tuple((f, os.stat(os.path.join(folder, f)).st_mtime, os.stat(os.path.join(folder, f)).st_size)
-                      for f in files)
+        stamp = tuple((os.path.join(os.path.basename(folder), f), os.stat(os.path.join(folder, f)).st_mtime,
+                       os.stat(os.path.join(folder, f)).st_size)
+                      for folder in folders for f in sorted(os.listdir(folder)) if f.endswith(".py"))
         cache_file = dispatcher._cache._cache_file
         if hasattr(cache_file, "_source_stamp"):
             cache_file._source_stamp = stamp
@@ -196,7 +195,8 @@ def _stamp_with_its_folder(dispatcher: Any, fn: Any) -> None:
         pass
 
 
-def _register_formulas() -> None:
+def register_formulas() -> None:
+    """Make every :func:`formula` defined so far callable from compiled code (needs numba)."""
     from numba.extending import register_jitable
 
     while _FORMULAS:

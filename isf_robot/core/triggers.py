@@ -16,6 +16,7 @@ import numpy as np
 
 from .class_k import ClassK
 from .exceptions import ConfigError
+from .jit import formula
 from .robust import robust_slack
 from .switches import SwitchCounter, SwitchEvent
 from .system import LieData
@@ -70,6 +71,7 @@ def xi_on_scalar(lf: float, lg_u: float, grad_norm: float, h: float, alpha: Clas
     return robust_slack(lf, lg_u, grad_norm, d_bar, alpha(h))
 
 
+@formula
 def xi_tau(dtau_dh: float, lf_h: float) -> float:
     """Maneuver trigger value ``Xi_tau = (1 + tau_p_dot) / 2`` with ``tau_p_dot = tau_p'(h) LF h``.
 

@@ -23,7 +23,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from isf_robot.core import ClassK, UnknownNameError
-from isf_robot.core.triggers import xi_tau as _core_xi_tau
+from isf_robot.core.robust import robust_slack
+from isf_robot.core.triggers import xi_tau
 from satellite.compiled import inlined
 from satellite.orbit.events import RateBound
 from satellite.orbit.model import BAND_INNER, BAND_OUTER, OrbitModel
@@ -86,9 +87,6 @@ TRIGGERS: tuple[str, ...] = tuple(t.value for t in Trigger)
 """Trigger names, in definition order."""
 
 
-xi_tau = inlined(_core_xi_tau)
-"""The core's ``Xi_tau`` (eq. trigger:int_time), callable from the compiled arcs too."""
-
 XI, H, RDOT, CONTACT, XITAU = 0, 1, 2, 3, 4
 """Event kinds of the compiled arcs (:attr:`satellite.orbit.events.Event.code`'s first item)."""
 
@@ -105,10 +103,10 @@ def band_values(y: Any, r_centre: float, h_max: float) -> tuple[Any, Any, Any]:
 def band_xi(lfh: Any, r: Any, r_centre: float, d_bar: float, alpha_h: Any) -> Any:
     """``Xi = LF h - |dh/dx| d_bar + alpha(h)`` on the band, ``|dh/dx| = 2 |r - 2R|`` (paper, eq. greedy_cond).
 
-    The core's robust bound (:func:`isf_robot.core.triggers.xi_on_scalar`) with no input term, for floats
+    The core's robust slack (:func:`isf_robot.core.robust.robust_slack`) with no input term, for floats
     or arrays and compiled code; ``alpha_h`` is ``alpha(h)``.
     """
-    return lfh - 2.0 * abs(r - r_centre) * d_bar + alpha_h
+    return robust_slack(lfh, 0.0, 2.0 * abs(r - r_centre), d_bar, alpha_h)
 
 
 @inlined

@@ -25,9 +25,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from isf_robot.core.jit import watch_compiles
+from satellite.compiled import kernel
 from satellite.orbit.kernel_parts import brent, g_event, g_rate, interp, rhs
 
 watch_compiles()  # (a command's one-line notice when a kernel is compiled: isf_robot.core.jit)
@@ -37,7 +37,7 @@ _STACK = 1024
 _MAX_FOUND = 256
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def _norm(v, scale):  # pragma: no cover (compiled)
     s = 0.0
     for i in range(6):
@@ -46,7 +46,7 @@ def _norm(v, scale):  # pragma: no cover (compiled)
     return math.sqrt(s) / math.sqrt(6.0)
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def _stage(K, s, A, h, y, out):  # pragma: no cover (compiled)
     for c in range(6):
         acc = 0.0
@@ -55,7 +55,7 @@ def _stage(K, s, A, h, y, out):  # pragma: no cover (compiled)
         out[c] = y[c] + acc * h
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def _dense(K, A, C, D, t_old, h, y_old, y_new, f_new, F, tmp, fp, ext, box_o, box_n, coef):  # pragma: no cover
     """The step's interpolant coefficients ``F`` (7, 6) (3 extra evaluations)."""
     for s in range(13, 16):
@@ -73,7 +73,7 @@ def _dense(K, A, C, D, t_old, h, y_old, y_new, f_new, F, tmp, fp, ext, box_o, bo
             F[3 + r, c] = h * acc
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def _grow(a, n):  # pragma: no cover (compiled)
     shape = (max(2 * a.shape[0], n),) + a.shape[1:]
     b = np.empty(shape)
@@ -81,14 +81,14 @@ def _grow(a, n):  # pragma: no cover (compiled)
     return b
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def _active(ga, gb, d):  # pragma: no cover (compiled)
     up = ga <= 0.0 <= gb
     down = ga >= 0.0 >= gb
     return (up and d > 0) or (down and d < 0) or ((up or down) and d == 0)
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def _scan(kind, par, dirn, has_rate, first_only, a, b, ga, gb, ya, yb, h, F, min_dt, bp, cp, env, tp,
           br, nbr_max):  # pragma: no cover (compiled)
     """:func:`satellite.orbit.events.brackets` for one event on one step; brackets into ``br``.
@@ -160,7 +160,7 @@ def _scan(kind, par, dirn, has_rate, first_only, a, b, ga, gb, ya, yb, h, F, min
     return nb, evals
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def arc(t0, t1, y0, rtol, atol, max_step, min_dt, keep_dense, kinds, pars, dirs, terms, rated,
         fp, ext, box_o, box_n, coef, bp, cp, env, tp, A, B, C, E3, E5, D):  # pragma: no cover (compiled)
     """Integrate one arc (see the module docstring).

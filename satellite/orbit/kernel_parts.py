@@ -31,8 +31,8 @@ Packed parameters (float arrays, filled by :mod:`satellite.orbit.fast_arcs`):
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from satellite.compiled import kernel
 from satellite.control.contact import contact_g, contact_rate
 from satellite.control.tau import tau_slope
 from satellite.control.triggers import CONTACT, RDOT, XI, XITAU, H, band_rate, band_values, band_xi, xi_tau
@@ -42,7 +42,7 @@ from satellite.orbit.model import to_body, truth_from_body
 __all__ = ["rhs", "interp", "interp_many", "g_event", "g_rate", "brent", "XI", "H", "RDOT", "CONTACT", "XITAU"]
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def rhs(t, y, out, fp, ext, box_o, box_n, coef):  # pragma: no cover (compiled)
     """Truth flow at ``(t, y)`` into ``out`` (:meth:`satellite.orbit.model.OrbitModel.truth_rhs`'s formulas)."""
     c, s, qx, qy = to_body(fp[0] + fp[1] * t, y[0], y[1])
@@ -56,7 +56,7 @@ def rhs(t, y, out, fp, ext, box_o, box_n, coef):  # pragma: no cover (compiled)
     out[5] = az
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def interp(tq, t_old, h, y_old, F, out):  # pragma: no cover (compiled)
     """DOP853's interpolant (scipy's ``Dop853DenseOutput``) of one step at ``tq`` into ``out``."""
     x = (tq - t_old) / h
@@ -68,7 +68,7 @@ def interp(tq, t_old, h, y_old, F, out):  # pragma: no cover (compiled)
         out[c] = acc + y_old[c]
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def interp_many(tq, seg, ts, hs, y_old, F, out):  # pragma: no cover (compiled)
     """:func:`interp` at times ``tq`` (k,) in the segments ``seg`` (k,) of a dense output, into ``out`` (k, 6)."""
     for n in range(tq.shape[0]):
@@ -76,7 +76,7 @@ def interp_many(tq, seg, ts, hs, y_old, F, out):  # pragma: no cover (compiled)
         interp(tq[n], ts[s], hs[s], y_old[s], F[s], out[n])
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def g_event(kind, par, t, y, bp, cp, env, tp):  # pragma: no cover (compiled)
     """The event function of ``kind`` at ``(t, y)``."""
     if kind == RDOT:
@@ -91,7 +91,7 @@ def g_event(kind, par, t, y, bp, cp, env, tp):  # pragma: no cover (compiled)
     return xi_tau(tau_slope(tp, h), lfh)  # XITAU
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def g_rate(kind, ya, yb, dt, bp, cp, tp):  # pragma: no cover (compiled)
     """Bound on ``|dg/dt|`` over an interval of length ``dt`` with end states ``ya``, ``yb``."""
     if kind == CONTACT:
@@ -99,13 +99,13 @@ def g_rate(kind, ya, yb, dt, bp, cp, tp):  # pragma: no cover (compiled)
     return band_rate(kind, ya, yb, dt, bp[3], bp[4], bp[5], bp[6], bp[0], bp[8], bp[2], tp[0], tp[1])
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def _g_along(kind, par, tq, t_old, h, y_old, F, tmp, bp, cp, env, tp):  # pragma: no cover (compiled)
     interp(tq, t_old, h, y_old, F, tmp)
     return g_event(kind, par, tq, tmp, bp, cp, env, tp)
 
 
-@njit(cache=True, nogil=True)
+@kernel
 def brent(kind, par, xa, xb, t_old, h, y_old, F, bp, cp, env, tp):  # pragma: no cover (compiled)
     """Zero of the event along the step's interpolant in ``[xa, xb]`` (Brent's method; 4 eps tolerances)."""
     tol = 4.0 * 2.220446049250313e-16

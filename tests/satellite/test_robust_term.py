@@ -182,3 +182,21 @@ def test_every_impulse_of_a_run_fires_at_xi_zero_and_leaves_xi_at_least_c(distur
         np.testing.assert_array_equal(j.x_after[:3], j.x_before[:3])
         xi_after = xi_paper(j.x_after, s["R_m"], s["mu"], s["alpha_gain"], s["d_bar"])
         assert xi_after >= s["c"] - POST_TOL, (j.index, xi_after, s["c"])
+
+
+def test_compiled_arcs_key_their_cache_on_the_core_formulas_they_call() -> None:
+    """The arcs' ``Xi`` compiles the core's ``robust_slack``: an edit of the core must not load a stale kernel.
+
+    numba checks only the kernel's own file before loading it from its disk cache; the satellite's kernels
+    are stamped with every source file of the satellite and of the core instead.
+    """
+    pytest.importorskip("numba")
+    from satellite.orbit import kernel_parts
+
+    stamp = kernel_parts.g_event._cache._cache_file._source_stamp
+    names = {entry[0] for entry in stamp}
+    assert {"core/robust.py", "core/triggers.py", "control/triggers.py", "orbit/kernel_parts.py"} <= names
+    import satellite.control.triggers as trig
+    from isf_robot.core.robust import robust_slack
+
+    assert trig.band_xi(1.5, 2.5, 2.0, 0.1, 0.25) == robust_slack(1.5, 0.0, 1.0, 0.1, 0.25)
