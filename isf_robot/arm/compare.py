@@ -39,6 +39,7 @@ __all__ = [
     "compare_strategies",
     "summarize",
     "format_table",
+    "format_levels",
     "json_safe",
     "FILTER_KEYS",
     "simulation_type",
@@ -328,10 +329,7 @@ def format_table(comp: Comparison) -> str:
     ``chatter:`` line per strategy whose episodes had off periods under 0.25 s, with the change that
     would stop it.
     """
-    rows = []
-    for strategy, res in comp.results.items():
-        std = res.get("std", {})
-        rows.append([strategy] + [mean_std_cell(res.get(k), std.get(k), f) for k, _, f in _COLUMNS])
+    rows = [[strategy, *cells] for strategy, cells in _cells(comp)]
     if comp.partial:
         done = ", ".join(f"{s}: {n} of {comp.episodes} episodes finished" for s, n in comp.finished().items())
         title = (f"PARTIAL (interrupted; means over the finished episodes) scene {comp.scene}, seeds "
@@ -341,9 +339,44 @@ def format_table(comp: Comparison) -> str:
                  f"{comp.seeds[0]}..{comp.seeds[-1]} (mean ± std)")
     if comp.level != "velocity":
         title += f"; {comp.level} level"
-    out = _table(["strategy"] + [h for _, h, _ in _COLUMNS], rows, title=title)
+    return _table(["strategy"] + [h for _, h, _ in _COLUMNS], rows, title=title) + _chatter_lines(comp)
+
+
+def format_levels(comps: Sequence[Comparison]) -> str:
+    """One table of a scene compared at several levels (same seeds): a row per level and strategy.
+
+    As :func:`format_table`; the intervention's unit is the level's (below the table).
+    """
+    first = comps[0]
+    rows = [[comp.level, strategy, *cells] for comp in comps for strategy, cells in _cells(comp)]
+    title = (f"scene {first.scene}: {first.episodes} episode(s) per strategy and level, seeds "
+             f"{first.seeds[0]}..{first.seeds[-1]} (mean ± std)")
+    partial = [c for c in comps if c.partial]
+    if partial:
+        done = "; ".join(f"{c.level} " + ", ".join(f"{s}: {n} of {c.episodes}" for s, n in c.finished().items())
+                         for c in comps)
+        title = f"PARTIAL (interrupted; means over the finished episodes) {title}; finished: {done}"
+    out = _table(["level", "strategy"] + [h for _, h, _ in _COLUMNS], rows, title=title)
+    out += ("\nintervention: the integral of |u - u_nom|^2, in rad^2/s at the velocity level (u: joint velocities) "
+            "and N^2 m^2 s at the torque level (u: joint torques); min h on the true geometry at both")
+    return out + "".join(_chatter_lines(c, f"{c.level} ") for c in comps)
+
+
+def _cells(comp: Comparison) -> list[tuple[str, list[str]]]:
+    """Per strategy, its table cells (mean ± std of each column)."""
+    out = []
+    for strategy, res in comp.results.items():
+        std = res.get("std", {})
+        out.append((strategy, [mean_std_cell(res.get(k), std.get(k), f) for k, _, f in _COLUMNS]))
+    return out
+
+
+def _chatter_lines(comp: Comparison, prefix: str = "") -> str:
+    """A ``chatter:`` line per strategy with off periods under 0.25 s in some episode."""
+    out = ""
     for strategy, res in comp.results.items():
         hit = [e["chatter"] for e in res.get("episodes", ()) if e.get("chatter")]
         if hit:
-            out += f"\nchatter: {strategy} in {len(hit)} of {len(res['episodes'])} episodes; first: {hit[0]}"
+            first = hit[0].removeprefix("chatter: ")
+            out += f"\nchatter: {prefix}{strategy} in {len(hit)} of {len(res['episodes'])} episodes; first: {first}"
     return out

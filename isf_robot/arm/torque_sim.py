@@ -37,6 +37,7 @@ import mujoco
 import numpy as np
 
 from isf_robot.core import ClassK, ConfigError, LieData, NonFiniteError, QPSolver
+from isf_robot.core.chatter import chatter_advice
 from isf_robot.core.strategies import make_strategy
 
 from .dynamics import ArmDynamics, DynamicsTerms, torque_limits
@@ -102,8 +103,11 @@ class TorqueRunResult(RunResult):
 
     def as_dict(self) -> dict[str, Any]:
         """:meth:`RunResult.as_dict` with the torque level's figures."""
-        return {**super().as_dict(), "level": self.level, "tau_peak_ratio": self.tau_peak_ratio,
-                "reference_error_q99": self.reference_error_q99}
+        out = {**super().as_dict(), "level": self.level, "tau_peak_ratio": self.tau_peak_ratio,
+               "reference_error_q99": self.reference_error_q99}
+        if "chatter" in out:  # (the velocity level's fix, the predictive off trigger, is not this level's)
+            out["chatter"] = chatter_advice(out, self.params, self.control_period, predictive=False)
+        return out
 
 
 class TorqueSimulation(ArmSimulation):

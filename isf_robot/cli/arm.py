@@ -45,13 +45,15 @@ def _add_scene_args(p: argparse.ArgumentParser, files: bool = True) -> None:
         p.add_argument("--config", metavar="PATH.toml", help="its scene config (with --model)")
 
 
-def _add_filter_args(p: argparse.ArgumentParser) -> None:
+def _add_filter_args(p: argparse.ArgumentParser, several_levels: bool = False) -> None:
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="simulated time per episode [s] (default: the scene's)")
-    p.add_argument("--level", choices=LEVELS, default=None,
+    p.add_argument("--level", choices=LEVELS, default=None, nargs="+" if several_levels else None,
                    help="what the filter commands: joint velocities on q_dot = u + d, or joint torques on the full "
                         "dynamics (second-order barriers; d_bar [rad/s^2] calibrated for it); default: the scene's "
-                        "[filter] level, else velocity")
+                        "[filter] level, else velocity" + ("; two levels (--level velocity torque): both on the "
+                                                           "same seeds, side by side in one table"
+                                                           if several_levels else ""))
     p.add_argument("--control-period", type=float, default=None, metavar="S",
                    help="control period [s], a whole multiple of the physics timestep "
                         "(default: the scene's)")
@@ -187,7 +189,7 @@ def register(subparsers: Any) -> None:
                    help="worker processes (default 1)")
     p.add_argument("--coordination", choices=("central", "decentral"), default=None,
                    help=COORDINATION_HELP + " (default both; episodes run one after another)")
-    _add_filter_args(p)
+    _add_filter_args(p, several_levels=True)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     add_recording_args(p, per_run=True)
@@ -320,9 +322,15 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     from isf_robot.arm.compare import compare_strategies
 
     _check_seed(args)
+    levels = list(dict.fromkeys(args.level or ()))  # (a level named twice runs once)
+    args.level = levels[0] if len(levels) == 1 else None
+    if len(levels) > 1:
+        _check_levels(args)
     spec = _spec(args)
     scene = spec.load()
     check_coordination(args, scene)
+    if len(levels) > 1:
+        return _compare_levels(args, spec, scene, levels)
     params = _params(args, scene)
     if scene.arms:
         return team_compare(args, scene, params)
@@ -337,6 +345,52 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
         for path in write_side_by_side(args.rrd, order=args.filters):
             print(f"side by side: {path}", file=sys.stderr)
+    return 0
+
+
+def _check_levels(args: argparse.Namespace) -> None:
+    """What ``compare`` cannot do at several levels at once (before any scene loads)."""
+    if args.d_bar is not None:
+        raise ConfigError("--d-bar with two levels: its unit is the level's (rad/s at the velocity level, rad/s^2 "
+                          "at the torque level); leave it out (each level takes its own) or compare one level")
+    if args.rrd is not None or args.spawn or args.connect is not None:
+        raise ConfigError("recording compares one level at a time: give one --level with --rrd, --spawn or --connect")
+
+
+def _compare_levels(args: argparse.Namespace, spec: Any, scene: Any, levels: list[str]) -> int:
+    """``compare`` at each level on the same seeds, then one table (JSON: one comparison per level).
+
+    Every level's parameters are resolved (and checked) before the first episode runs. On Ctrl-C
+    or SIGTERM the levels done and the interrupted one's finished episodes are printed (partial).
+    """
+    from isf_robot.arm.compare import compare_strategies, format_levels
+
+    params = {}
+    for level in levels:
+        args.level = level
+        params[level] = _params(args, scene)
+    comps: list[Any] = []
+
+    def show() -> None:
+        if args.json:
+            doc = {"scene": scene.name, "levels": {c.level: c.as_dict() for c in comps}}
+            print(json.dumps(with_schema("isf-robot-compare-levels", doc)), flush=True)
+        else:
+            print(format_levels(comps), flush=True)
+
+    for level in levels:
+        try:
+            comps.append(compare_strategies(spec, args.episodes, strategies=args.filters, duration=args.duration,
+                                            seed0=args.seed, jobs=args.jobs, params=params[level],
+                                            progress=_progress(args.quiet), level=level))
+        except Interrupted as exc:
+            if exc.partial is not None:
+                comps.append(exc.partial)
+            exc.partial = None  # (printed here, with the levels done)
+            if comps:
+                show()
+            raise
+    show()
     return 0
 
 

@@ -28,6 +28,7 @@ __all__ = ["to_jsonable", "format_table", "format_value", "mean_std_cell", "with
 SCHEMAS: dict[str, int] = {
     "isf-robot-run": 1,        # isf-robot run --json: one episode's metrics and parameters
     "isf-robot-compare": 1,    # isf-robot compare/demo --json: per strategy mean, std, episodes
+    "isf-robot-compare-levels": 1,  # isf-robot compare --level velocity torque --json: a compare per level
     "isf-robot-compare-team": 1,  # isf-robot compare --json on several arms: per strategy/way, per-arm means
     "isf-robot-sweep": 1,      # isf-robot sweep --json/--output: per scene and point, summary + runs
     "isf-robot-replay": 1,     # isf-robot replay --json: {"recordings": [...]} for any number of inputs

@@ -163,3 +163,49 @@ def test_torque_nominal_is_computed_torque_on_the_model(pole) -> None:  # type: 
         np.testing.assert_allclose(sim.terms.acceleration(tau), want, atol=1e-9)  # type: ignore[union-attr]
         prev = nom.v_ref.copy()
         ep.act(k, tau)
+
+
+def _figures(results):  # type: ignore[no-untyped-def]
+    """A comparison's per-episode figures without the wall-clock ones."""
+    drop = {"wall_s", "timings", "qp_time_median_us", "solver_time_median_us"}
+    return {s: [{k: v for k, v in e.items() if k not in drop} for e in r["episodes"]] for s, r in results.items()}
+
+
+def test_compare_puts_the_two_levels_side_by_side(capsys) -> None:  # type: ignore[no-untyped-def]
+    """`compare --level velocity torque`: each level's figures as its own compare gives them, in one table."""
+    import json
+
+    from isf_robot.cli import main
+
+    base = ["compare", "--scene", "panda_pole", "--episodes", "1", "--duration", "0.3", "--filters", "cbf", "isf",
+            "--quiet"]
+    assert main([*base, "--level", "velocity", "torque", "--json"]) == 0
+    both = json.loads(capsys.readouterr().out)
+    assert both["schema"].startswith("isf-robot-compare-levels/") and list(both["levels"]) == ["velocity", "torque"]
+    for level in ("velocity", "torque"):
+        assert main([*base, "--level", level, "--json"]) == 0
+        one = json.loads(capsys.readouterr().out)
+        assert _figures(both["levels"][level]["results"]) == _figures(one["results"]), level
+    assert both["levels"]["torque"]["level"] == "torque" and "level" not in both["levels"]["velocity"]
+
+    assert main([*base, "--level", "velocity", "torque"]) == 0
+    table = capsys.readouterr().out.splitlines()
+    rows = [line.split()[:2] for line in table if line.split()[:1] in (["velocity"], ["torque"])]
+    assert rows == [["velocity", "cbf"], ["velocity", "isf"], ["torque", "cbf"], ["torque", "isf"]]
+    assert any("N^2 m^2 s at the torque level" in line for line in table)
+    # the torque level's chatter line names no option that level refuses
+    for line in table:
+        if line.startswith("chatter: torque"):
+            assert "--horizon" not in line and "no predictive off trigger" in line
+
+
+@pytest.mark.parametrize("extra, what", [
+    (["--d-bar", "0.1"], "--d-bar with two levels"),
+    (["--rrd", "out"], "recording compares one level at a time"),
+])
+def test_compare_two_levels_refuses_what_has_a_level_of_its_own(capsys, extra, what) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.cli import main
+
+    assert main(["compare", "--scene", "panda_pole", "--level", "velocity", "torque", *extra]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and what in err[0]
