@@ -209,3 +209,45 @@ def test_compare_two_levels_refuses_what_has_a_level_of_its_own(capsys, extra, w
     assert main(["compare", "--scene", "panda_pole", "--level", "velocity", "torque", *extra]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and what in err[0]
+
+
+def test_the_torque_levels_trigger_with_a_fake_clock(pole) -> None:  # type: ignore[no-untyped-def]
+    """The torque level's own filter (its wiring, torque limits and options), driven by hand at irregular times.
+
+    One ``psi`` row whose ``Xi_on`` under the nominal torque is set by its drift term: on at the first tick
+    with ``Xi_on <= 0``, off at the first tick with ``Xi_on >= c``, the nominal torque untouched while off,
+    every switch stamped with the fake clock and the periods' lengths taken from it, the robust condition
+    met while on.
+    """
+    from isf_robot.core import LieData
+
+    sim = TorqueSimulation(pole, "isf", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR))
+    f, p = sim.strategy, sim.params
+    f.reset(0.0)
+    n = pole.n_joints
+    lg = np.zeros((1, n))
+    lg[0, 0] = 1.0 / 40.0  # (the row's Lg psi: a joint's inverse inertia, [m/s^2 per N m])
+    u_nom = np.full(n, 2.0)
+    psi = 0.05
+    base = float((lg @ u_nom)[0]) - D_BAR * 1.0 + float(p.class_k(np.array([psi]))[0])  # Xi_on with lf = 0
+    times = np.cumsum(np.r_[0.0, np.random.default_rng(3).uniform(0.002, 0.012, 74)])  # irregular ticks [s]
+    wanted = np.r_[np.full(10, 0.3), np.full(15, -0.2), np.full(10, 0.5 * p.c), np.full(10, 2.0 * p.c),
+                   np.full(30, 0.4)]  # Xi_on at each tick: safe, needs the filter, between 0 and c, above c
+    events, was_on, last_off = [], False, -np.inf
+    for t, xi in zip(times, wanted):
+        lie = LieData(h=np.array([psi]), lf=np.array([xi - base]), lg=lg, grad_norm=np.array([1.0]))
+        step = f.step_lie(float(t), lie, u_nom)
+        if step.event is not None:
+            events.append(step.event)
+            last_off = t if step.event.kind == "off" else last_off
+        if not step.on and t - last_off >= p.blend:  # (after the hand-over back to the nominal)
+            np.testing.assert_array_equal(step.u, u_nom)
+        else:  # the robust condition at the command applied
+            assert float(lie.lf[0] + lie.lg[0] @ step.u - D_BAR + p.class_k(lie.h)[0]) >= -1e-9
+            assert np.all(np.abs(step.u) <= sim.tau_max + 1e-9)
+        assert step.on == (xi <= 0.0 if not was_on else xi < p.c), (t, xi, was_on)
+        was_on = step.on
+    t_on, t_off = float(times[10]), float(times[35])
+    assert [(e.kind, e.t) for e in events] == [("on", t_on), ("off", t_off)]
+    assert times[-1] - t_off > p.blend  # (the last ticks checked the nominal torque exactly)
+    assert events[1].duration_s == pytest.approx(t_off - t_on, abs=1e-12)
