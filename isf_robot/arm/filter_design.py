@@ -12,9 +12,10 @@ tuned. Both come from numbers the scene already states:
 * **Predictive off trigger** ``horizon = CHATTER_OFF_S + predict_every * period``
   (:func:`isf_robot.core.chatter.horizon_for`, with the scene's ``[control] period``): the filter
   turns off only when the nominal, rolled forward this long on the reduced model, keeps every
-  ``Xi_on > 0``. An off period shorter than the horizon then needs the arm to leave the rollout,
-  which is what ``d_bar`` bounds. The horizon covers the shortest off period that is not chatter
-  (:data:`~isf_robot.core.metrics.CHATTER_OFF_S`, 0.25 s) and the control steps between two
+  ``Xi_on > 0`` (at the torque level: the torque nominal's closed loop and the ``psi`` rows,
+  :class:`~isf_robot.arm.torque_rollout.TorqueRollout`). An off period shorter than the horizon then needs
+  the arm to leave the rollout, which is what ``d_bar`` bounds. The horizon covers the shortest off period
+  that is not chatter (:data:`~isf_robot.core.metrics.CHATTER_OFF_S`, 0.25 s) and the control steps between two
   rollouts, and no more (a longer one holds the filter on where it pushes far pairs; see
   :func:`~isf_robot.core.chatter.horizon_for`). Every shipped one-arm scene: 0.25 + 5 x 0.002 = 0.26 s.
 

@@ -12,6 +12,7 @@ which runs simulations).
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -76,7 +77,8 @@ def resolve_params(
     return FilterParams(**fields, d_bar_source=source)
 
 
-def filter_options(sim: Any, inner: float = 0.0) -> tuple[FilterParams, dict[str, Any]]:
+def filter_options(sim: Any, inner: float = 0.0,
+                   rollout: Callable[[float], Any] | None = None) -> tuple[FilterParams, dict[str, Any]]:
     """The strategy's parameters and wiring for ``sim``, an :class:`~isf_robot.arm.ArmSimulation` being built.
 
     With ``min_off`` the designed margin is capped at ``alpha(cutoff - margin)`` too (a larger one
@@ -84,7 +86,7 @@ def filter_options(sim: Any, inner: float = 0.0) -> tuple[FilterParams, dict[str
     level's ``psi = h_dot + inner h``, whose value at the cut-off is ``inner (cutoff - margin)``); with a
     horizon, the wiring holds the rollout of the nominal on the reduced model
     (:class:`~isf_robot.arm.rollout.NominalRollout`), and with ``shoot`` the shooting's rollout (the same,
-    over ``shoot`` seconds).
+    over ``shoot`` seconds). ``rollout(horizon)``: the level's own rollout instead (the torque level's).
     """
     p: FilterParams = sim.params
     if not sim.info.intermittent:
@@ -95,6 +97,7 @@ def filter_options(sim: Any, inner: float = 0.0) -> tuple[FilterParams, dict[str
         p = p.replace(c_max=max(p.c, min(p.c_max, p.class_k(cutoff_h))))
     for key, horizon in (("rollout", p.horizon), ("shoot_rollout", p.shoot)):
         if horizon > 0:
-            wiring[key] = NominalRollout(sim.scene, sim.nominal, sim.coll, sim.joints, sim.control_period,
-                                         sim.setup.time_offset, horizon)
+            wiring[key] = (rollout(horizon) if rollout is not None else
+                           NominalRollout(sim.scene, sim.nominal, sim.coll, sim.joints, sim.control_period,
+                                          sim.setup.time_offset, horizon))
     return p, wiring

@@ -11,8 +11,10 @@ nominal, strategy, act; safety judged on the true geometry at every physics step
   (:mod:`isf_robot.arm.torque_nominal`);
 * **strategy**: the core's strategies, unchanged (``step_lie`` on the ``psi`` rows), with the arm's
   torque limits as input bounds; ``alpha`` is the outer class-K function of ``psi``, ``c`` and ``b``
-  are in ``psi``'s units ([m/s], [m/s^2]); the predictive off trigger (``horizon``) is not available
-  at this level (its rollout is the velocity level's) and is off;
+  are in ``psi``'s units ([m/s], [m/s^2]); the predictive off trigger (``horizon``, designed as at the
+  velocity level) rolls the torque nominal's closed loop forward
+  (:class:`~isf_robot.arm.torque_rollout.TorqueRollout`); maneuvers by shooting (``shoot``) are the
+  velocity level's only;
 * **act**: the torque goes in ``qfrc_applied`` of a copy of the model with its actuators switched
   off (:func:`~isf_robot.arm.torque_calibration.torque_plant`), held over the control period.
 
@@ -37,7 +39,6 @@ import mujoco
 import numpy as np
 
 from isf_robot.core import ClassK, ConfigError, LieData, NonFiniteError, QPSolver
-from isf_robot.core.chatter import chatter_advice
 from isf_robot.core.strategies import make_strategy
 
 from .dynamics import ArmDynamics, DynamicsTerms, torque_limits
@@ -50,6 +51,7 @@ from .sim import ArmSimulation, _Episode
 from .step_columns import TickValues
 from .torque_calibration import calibrate_torque_d_bar, inner_gain, torque_plant
 from .torque_nominal import TorqueNominal, computed_torque
+from .torque_rollout import TorqueRollout
 
 __all__ = ["TorqueSimulation", "TorqueRunResult", "resolve_torque_params", "run_torque_episode", "FALLBACK_KD"]
 
@@ -60,23 +62,21 @@ FALLBACK_KD = 40.0
 def resolve_torque_params(scene: Scene, alpha: float | ClassK | None = None, c: float | None = None,
                           b: float | None = None, d_bar: float | None = None, *, calibrate: bool = True,
                           plant: mujoco.MjModel | None = None, **options: Any) -> FilterParams:
-    """The torque level's filter parameters: as :func:`~isf_robot.arm.params.resolve_params`, ``horizon = 0``.
+    """The torque level's filter parameters: as :func:`~isf_robot.arm.params.resolve_params` (the same design).
 
     ``d_bar`` [rad/s^2]: the argument, else the torque calibration on ``plant`` (the scene's ``[filter]
     d_bar`` is the velocity level's, in [rad/s], and is not used).
 
     Raises:
-        ConfigError: As ``resolve_params``; ``d_bar`` not given and ``calibrate`` False; a ``horizon > 0``.
+        ConfigError: As ``resolve_params``; ``d_bar`` not given and ``calibrate`` False; a ``shoot > 0``.
 
     """
-    if options.get("horizon"):
-        raise ConfigError("the predictive off trigger (horizon) is not available at the torque level; "
-                          "give horizon = 0")
+    if options.get("shoot"):
+        raise ConfigError("maneuvers by shooting (shoot) are not available at the torque level; give shoot = 0")
     if d_bar is None and not calibrate:
         raise ConfigError(f"scene {scene.name!r}: the torque level's d_bar [rad/s^2] is not known: pass d_bar=, "
                           "or calibrate=True (runs the torque calibration)")
-    p = resolve_params(scene, alpha, c, b, 0.0 if d_bar is None else d_bar, calibrate=False,
-                       **{**options, "horizon": 0.0})
+    p = resolve_params(scene, alpha, c, b, 0.0 if d_bar is None else d_bar, calibrate=False, **options)
     if d_bar is not None:
         return dataclasses.replace(p, d_bar_source="argument")
     cal = calibrate_torque_d_bar(scene, plant, alpha_1=inner_gain(p.alpha))
@@ -103,11 +103,8 @@ class TorqueRunResult(RunResult):
 
     def as_dict(self) -> dict[str, Any]:
         """:meth:`RunResult.as_dict` with the torque level's figures."""
-        out = {**super().as_dict(), "level": self.level, "tau_peak_ratio": self.tau_peak_ratio,
-               "reference_error_q99": self.reference_error_q99}
-        if "chatter" in out:  # (the velocity level's fix, the predictive off trigger, is not this level's)
-            out["chatter"] = chatter_advice(out, self.params, self.control_period, predictive=False)
-        return out
+        return {**super().as_dict(), "level": self.level, "tau_peak_ratio": self.tau_peak_ratio,
+                "reference_error_q99": self.reference_error_q99}
 
 
 class TorqueSimulation(ArmSimulation):
@@ -142,9 +139,8 @@ class TorqueSimulation(ArmSimulation):
                  **kwargs: Any) -> None:
         if params is None:
             params = resolve_torque_params(scene, alpha, c, b, d_bar, calibrate=False)
-        if params.horizon:
-            raise ConfigError("the predictive off trigger (horizon) is not available at the torque level; "
-                              "resolve the parameters with resolve_torque_params")
+        if params.shoot:
+            raise ConfigError("maneuvers by shooting (shoot) are not available at the torque level; give shoot = 0")
         if self_collision is not None and self_collision != scene.config.robot.self_collision:
             c = scene.config
             scene = dataclasses.replace(scene, config=dataclasses.replace(
@@ -164,7 +160,9 @@ class TorqueSimulation(ArmSimulation):
                                            self.kd)
         self.terms: DynamicsTerms | None = None
         self._zero = np.zeros(scene.n_joints)
-        spec, wiring = filter_options(self, inner=self.alpha_1)
+        spec, wiring = filter_options(self, inner=self.alpha_1, rollout=lambda horizon: TorqueRollout(
+            self.scene, self.nominal, self.coll, self.joints, self.control_period, self.setup.time_offset,
+            horizon, self.kd, self.alpha_1))
         self.strategy = make_strategy(strategy, spec, **wiring, solver=solver, u_min=-self.tau_max,
                                       u_max=self.tau_max, on_infeasible="fallback", fallback=self._fallback,
                                       validate=False)

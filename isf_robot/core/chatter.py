@@ -64,18 +64,12 @@ def chatter_risk(spec: FilterSpec, period: float) -> str | None:
             + _fix(spec, need))
 
 
-def chatter_advice(metrics: Mapping[str, Any], spec: FilterSpec, period: float, *,
-                   predictive: bool = True) -> str | None:
-    """One line on a run's chatter (its ``short_offs`` and ``min_off_s``) with the fix, or ``None`` when it had none.
-
-    ``predictive``: whether the filter can take the predictive off trigger (the arm's torque level
-    cannot): without it the line says so instead of naming an option the filter would refuse.
-    """
+def chatter_advice(metrics: Mapping[str, Any], spec: FilterSpec, period: float) -> str | None:
+    """One line on a run's chatter (its ``short_offs`` and ``min_off_s``) with the fix, or ``None`` when it had none."""
     n = metrics.get("short_offs") or 0
     if not n:
         return None
     shortest = metrics.get("min_off_s")
     at = f" (shortest {shortest:.3f} s)" if shortest is not None else ""
-    fix = (_fix(spec, horizon_for(spec.predict_every, period)) if predictive else
-           "this filter has no predictive off trigger, the option that stops it elsewhere")
-    return f"chatter: {n:g} off period{'s' if n != 1 else ''} under {CHATTER_OFF_S:g} s{at}; " + fix
+    return (f"chatter: {n:g} off period{'s' if n != 1 else ''} under {CHATTER_OFF_S:g} s{at}; "
+            + _fix(spec, horizon_for(spec.predict_every, period)))

@@ -58,14 +58,3 @@ def test_risk_from_the_parameters_alone() -> None:
     assert risk is not None and "horizon = 0.3" in risk
     assert "turn on the predictive off trigger" in (chatter_risk(FilterSpec(), 0.002) or "")
 
-
-def test_the_advice_without_a_predictive_trigger_names_no_option_it_lacks() -> None:
-    """A filter that cannot take the predictive off trigger (the arm's torque level) is not told to turn it on."""
-    spec = FilterSpec()
-    m = {"short_offs": 3, "min_off_s": 0.012}
-    with_it = chatter_advice(m, spec, 0.002)
-    without = chatter_advice(m, spec, 0.002, predictive=False)
-    assert with_it is not None and "--horizon" in with_it
-    assert without is not None and "--horizon" not in without and "no predictive off trigger" in without
-    assert without.startswith("chatter: 3 off periods under 0.25 s (shortest 0.012 s)")
-    assert chatter_advice({"short_offs": 0}, spec, 0.002, predictive=False) is None

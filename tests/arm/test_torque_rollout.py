@@ -1,0 +1,112 @@
+"""The torque level's predictive off trigger: the torque nominal's closed loop rolled forward, and what it buys."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from isf_robot.arm import load_scene
+from isf_robot.arm.torque_rollout import TorqueRollout
+from isf_robot.arm.torque_sim import TorqueSimulation, resolve_torque_params
+from isf_robot.core import ConfigError
+
+D_BAR = 0.6  # [rad/s^2] (about panda_pole's calibrated figure; passed so that no test calibrates)
+
+
+class ConstantReference:
+    """A velocity reference that is the same everywhere, with the snapshot/restore a rollout needs."""
+
+    def __init__(self, v: np.ndarray) -> None:
+        self.v, self.calls, self.state = v, 0, 0
+
+    def __call__(self, t: float, data: mujoco.MjData) -> np.ndarray:
+        self.calls += 1
+        self.state += 1
+        return self.v.copy()
+
+    def snapshot(self) -> int:
+        return self.state
+
+    def restore(self, saved: int) -> None:
+        self.state = saved
+
+
+@pytest.fixture(scope="module")
+def pole():  # type: ignore[no-untyped-def]
+    return load_scene("panda_pole")
+
+
+def test_the_rollout_is_the_closed_loop_of_computed_torque(pole) -> None:  # type: ignore[no-untyped-def]
+    """Known answer on the joint-limit rows: ``q_dot = v_ref + e0 exp(-kd s)``, ``q`` its Euler sum, ``psi`` and its rate.
+
+    A joint-limit row ``h = +-q_i + offset`` has ``psi = +-q_dot_i + alpha_1 h``; with a constant reference the
+    rollout's states are known in closed form, and each point's ``Lf`` is the forward difference of ``psi``.
+    """
+    sim = TorqueSimulation(pole, "isf", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR, horizon=0.0))
+    n = pole.n_joints
+    v_ref = np.linspace(-0.2, 0.3, n)
+    ref = ConstantReference(v_ref)
+    kd, a1, horizon = 6.0, 5.0, 0.2
+    roll = TorqueRollout(pole, ref, sim.coll, sim.joints, 0.002, 0.0, horizon, kd, a1, points=10)
+    data = mujoco.MjData(pole.model)
+    data.qpos[pole.qpos_adr] = pole.home if getattr(pole, "home", None) is not None else 0.1
+    data.qvel[pole.dof_adr] = v_ref + 0.5  # (a velocity error of 0.5 rad/s on every joint)
+    mujoco.mj_forward(pole.model, data)
+    pts = roll(1.0, data)
+    dt = roll.dt
+    assert dt == pytest.approx(0.02) and len(pts) == roll.n == 10
+    assert ref.state == 0  # (the reference's state put back)
+    q, e = data.qpos[pole.qpos_adr].copy(), np.full(n, 0.5)
+    states = []
+    for _ in range(roll.n + 1):
+        states.append((q.copy(), v_ref + e))
+        q = q + dt * (v_ref + e)
+        e = e * math.exp(-kd * dt)
+    sign, offset = sim.joints.tables[1], sim.joints.tables[2]
+    col = np.repeat(np.arange(n), 2)  # (every Panda joint is limited: rows j:min, j:max)
+    names = sim.joints.names
+
+    def psi(j: int) -> np.ndarray:
+        qj, vj = states[j]
+        return sign * vj[col] + a1 * (sign * qj[col] + offset)
+
+    for j, (s, lie, u) in enumerate(pts):
+        assert s == pytest.approx(j * dt) and not u.any() and not lie.lg.any()
+        at = [lie.names.index(name) for name in names]
+        np.testing.assert_allclose(lie.h[at], psi(j), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(lie.lf[at], (psi(j + 1) - psi(j)) / dt, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(lie.grad_norm[at], 1.0)
+
+
+def test_rollout_input_errors(pole) -> None:  # type: ignore[no-untyped-def]
+    sim = TorqueSimulation(pole, "isf", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR, horizon=0.0))
+    ref = ConstantReference(np.zeros(pole.n_joints))
+    with pytest.raises(ConfigError, match="horizon"):
+        TorqueRollout(pole, ref, sim.coll, sim.joints, 0.002, 0.0, 0.0, 6.0, 5.0)
+    with pytest.raises(ConfigError, match="kd"):
+        TorqueRollout(pole, ref, sim.coll, sim.joints, 0.002, 0.0, 0.3, -1.0, 5.0)
+    roll = TorqueRollout(pole, ref, sim.coll, sim.joints, 0.002, 0.0, 0.3, 6.0, 5.0)
+    with pytest.raises(ConfigError, match="shooting"):
+        roll(0.0, mujoco.MjData(pole.model), first=np.zeros(pole.n_joints))
+    with pytest.raises(ConfigError, match="MjData"):
+        roll(0.0, np.zeros(3))
+
+
+def test_the_predictive_trigger_stops_the_torque_levels_chatter(pole) -> None:  # type: ignore[no-untyped-def]
+    """panda_pole, torque level, seed 0: without the rollout the filter switches off for milliseconds at a time;
+    with the designed horizon every off period is a real one (>= 0.25 s), the arm safe and the filter on less than
+    the standard filter."""
+    designed = resolve_torque_params(pole, d_bar=D_BAR)
+    assert designed.horizon == pytest.approx(0.26)  # (the velocity level's rule: 0.25 + 5 x 0.002)
+    runs = {name: TorqueSimulation(pole, strategy, seed=0, params=params).run(4.0).as_dict()
+            for name, strategy, params in (
+                ("cbf", "cbf", designed), ("isf", "isf", designed),
+                ("isf without", "isf", resolve_torque_params(pole, d_bar=D_BAR, horizon=0.0)))}
+    without, isf, cbf = runs["isf without"], runs["isf"], runs["cbf"]
+    assert without["short_offs"] >= 1 and without["min_off_s"] < 0.05
+    assert isf["short_offs"] == 0 and isf["chatter"] is None
+    assert isf["collisions"] == 0 and isf["min_barrier"] > 0 and isf["tau_peak_ratio"] <= 1 + 1e-9
+    assert isf["duty_cycle"] < cbf["duty_cycle"]
