@@ -404,3 +404,85 @@ def test_a_team_gets_no_predictive_off_trigger_by_design() -> None:
     assert resolve_params(pair, d_bar=0.1).horizon == 0.0  # the off hold instead (tracking error, RESULTS.md)
     assert resolve_params(pair, d_bar=0.1, horizon=0.3).horizon == 0.3
     assert resolve_params(load_scene("panda_pole"), d_bar=0.1).horizon > 0.0  # one arm: as before
+
+
+@pytest.mark.parametrize("coordination", ["central", "decentral"])
+def test_each_arms_series_read_back_give_its_figures(capsys, two_arm_files, tmp_path: Path, coordination) -> None:  # type: ignore[no-untyped-def]
+    """Each arm's logged mode, correction and barrier series give back the run's per-arm figures."""
+    pytest.importorskip("rerun")
+    from isf_robot.cli import main
+    from isf_robot.core.metrics import compute_metrics
+    from isf_robot.record import read_columns, read_rrd, replay_metrics
+
+    rrd = tmp_path / f"pair_{coordination}.rrd"
+    assert main(["run", *two_arm_files, "--filter", "isf", "--coordination", coordination, "--duration", "3",
+                 "--rrd", str(rrd), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    n, T = d["control_steps"], d["control_period"]
+    (log,) = read_rrd(rrd)
+    assert list(log.arms) == ["a", "b"]
+    per_arm_min = []
+    for arm in d["arms"]:
+        name = arm["name"]
+        on = read_columns(rrd, f"/arms/{name}/mode", ["Scalars:scalars"])["Scalars:scalars"]
+        corr = read_columns(rrd, f"/arms/{name}/correction_norm", ["Scalars:scalars"])["Scalars:scalars"]
+        hmin = read_columns(rrd, f"/arms/{name}/barrier_min", ["Scalars:scalars"])["Scalars:scalars"]
+        assert on.shape == corr.shape == hmin.shape == (n,)
+        assert set(np.unique(on)) <= {0.0, 1.0}
+        assert float(np.mean(on)) == pytest.approx(arm["duty_cycle"], abs=1e-12)
+        assert int(np.sum(np.diff(np.concatenate(([0.0], on))) > 0)) == arm["on_switches"]
+        assert float(np.sum(corr ** 2) * T) == pytest.approx(arm["intervention"], rel=1e-9, abs=1e-12)
+        cols = log.arms[name]  # the arm's replay columns: every figure of the run, recomputed
+        again = compute_metrics(cols["t"], cols["dt"], cols["on"], cols["intervention_rate"], cols["qp_solved"])
+        for key in ("duty_cycle", "on_switches", "min_off_s", "mean_off_s", "intervention", "short_offs"):
+            assert again.as_dict()[key] == arm[key], (name, key)
+        ee = read_columns(rrd, f"/world/arms/{name}/ee", ["Points3D:positions"])["Points3D:positions"]
+        assert ee.shape == (n, 1, 3) or ee.shape == (n, 3)
+        per_arm_min.append(float(hmin.min()))
+    if coordination == "central":  # one filter: every arm's mode is its mode
+        np.testing.assert_array_equal(log.arms["a"]["on"], log.steps["on"])
+    else:  # the team is on when any arm's filter is on
+        np.testing.assert_array_equal(log.arms["a"]["on"] | log.arms["b"]["on"], log.steps["on"])
+    assert sum(a["duty_cycle"] > 0 for a in d["arms"]) >= 1
+    # every collision pair is some arm's: the smallest of the arms' minima is the run's clearance at the ticks
+    assert min(per_arm_min) == pytest.approx(min(d["clearance"].values()), abs=1e-12)
+    assert replay_metrics(log)["arms"][1]["duty_cycle"] == d["arms"][1]["duty_cycle"]
+
+
+def test_replay_of_a_team_recording_prints_each_arm(capsys, two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    pytest.importorskip("rerun")
+    from isf_robot.cli import main
+
+    rrd = tmp_path / "pair.rrd"
+    assert main(["run", *two_arm_files, "--filter", "isf", "--coordination", "decentral", "--duration", "2",
+                 "--rrd", str(rrd), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert main(["replay", str(rrd)]) == 0
+    out = capsys.readouterr().out
+    assert "per arm:" in out
+    header = next(ln for ln in out.splitlines()[out.splitlines().index(next(
+        ln for ln in out.splitlines() if ln.endswith("per arm:"))):] if ln.startswith("metric"))
+    assert header.split()[1:] == ["a", "b"]
+    assert main(["replay", str(rrd), "--json"]) == 0
+    m = json.loads(capsys.readouterr().out)["recordings"][0]["metrics"]
+    assert m["duty_cycle"] == d["duty_cycle"] and m["intervention"] == pytest.approx(d["intervention"], rel=1e-12)
+    assert [(a["name"], a["duty_cycle"], a["on_switches"]) for a in m["arms"]] == [
+        (a["name"], a["duty_cycle"], a["on_switches"]) for a in d["arms"]]
+
+
+def test_team_blueprint_has_a_tab_per_arm() -> None:
+    pytest.importorskip("rerun")
+    from isf_robot.record.blueprints import team_blueprint
+    from isf_robot.record.errors import RecordError
+
+    def tabs(x):  # type: ignore[no-untyped-def]
+        if type(x).__name__ == "Tabs":
+            return [[v.origin for v in tab.contents] for tab in x.contents]
+        return next((t for y in (getattr(x, "contents", None) or []) if not isinstance(y, str)
+                     for t in [tabs(y)] if t), None)
+
+    bp = team_blueprint(["left", "right"], duration_s=2.0, c=0.05)
+    assert tabs(bp.root_container) == [[f"/arms/{a}/{s}" for s in ("mode", "barrier_min", "correction_norm")]
+                                       for a in ("left", "right")]
+    with pytest.raises(RecordError, match="at least one arm"):
+        team_blueprint([])
