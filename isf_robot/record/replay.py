@@ -90,7 +90,8 @@ class RunLog:
     @property
     def label(self) -> str:
         """Short label for tables: strategy/episode when known, else the file stem."""
-        parts = [str(self.info[k]) for k in ("scene", "strategy", "trigger") if self.info.get(k) is not None]
+        parts = [str(self.info[k]) for k in ("scene", "strategy", "trigger", "coordination")
+                 if self.info.get(k) is not None]
         for k in ("episode", "seed"):
             if self.info.get(k) is not None:
                 parts.append(f"{k[:2] if k == 'episode' else k}{self.info[k]}")

@@ -486,3 +486,72 @@ def test_team_blueprint_has_a_tab_per_arm() -> None:
                                        for a in ("left", "right")]
     with pytest.raises(RecordError, match="at least one arm"):
         team_blueprint([])
+
+
+def test_plot_draws_a_team_recording_per_arm(capsys, two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """``plot`` on a team recording: the team's row and a row per arm, each from that arm's logged series."""
+    pytest.importorskip("rerun")
+    pytest.importorskip("matplotlib")
+    from isf_robot.cli import main
+    from isf_robot.plots import RunSeries, team_run_figure
+    from isf_robot.record import read_rrd
+    from isf_robot.record.figure_data import arm_series, team_arm_series
+
+    rrd = tmp_path / "pair.rrd"
+    assert main(["run", *two_arm_files, "--filter", "isf", "--coordination", "decentral", "--duration", "3",
+                 "--rrd", str(rrd), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    png = tmp_path / "team.png"
+    assert main(["plot", str(rrd), "-o", str(png)]) == 0
+    assert png.stat().st_size > 1000 and "team run" in capsys.readouterr().err
+    (log,) = read_rrd(rrd)
+    arms = [RunSeries(**a) for a in team_arm_series(log)]
+    team = RunSeries(**arm_series(log))
+    fig = team_run_figure(team, arms, list(log.arms))
+    axes = fig.get_axes()
+    assert len(axes) == 1 + 2 * len(arms)
+    for i, (arm, run) in enumerate(zip(d["arms"], arms)):
+        assert float(np.mean(run.on)) == pytest.approx(arm["duty_cycle"], abs=1e-12)
+        assert len(run.intervals) == arm["on_switches"] + (1 if run.on[0] else 0)
+        h_line = axes[1 + 2 * i].get_lines()[0]
+        np.testing.assert_array_equal(h_line.get_ydata(), run.h)  # the arm's own barrier series, as logged
+        assert axes[1 + 2 * i].get_title(loc="left").startswith(f"{arm['name']}: duty cycle")
+
+
+def test_plot_draws_a_team_comparison_per_arm(capsys, two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """``compare --rrd DIR`` on a team writes a recording per run; ``plot`` draws each arm per way, as does its JSON."""
+    pytest.importorskip("rerun")
+    pytest.importorskip("matplotlib")
+    from isf_robot.cli import main
+    from isf_robot.plots import TeamBars
+    from isf_robot.record import read_many
+    from isf_robot.record.figure_data import team_bars
+
+    out = tmp_path / "cmp"
+    assert main(["compare", *two_arm_files, "--filters", "cbf", "isf", "--episodes", "1", "--duration", "2",
+                 "--rrd", str(out), "--json", "--quiet"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    files = sorted(p.name for p in out.glob("*.rrd"))
+    assert files == [f"two_arms-{s}-{w}-seed0.rrd" for s in ("cbf", "isf") for w in ("central", "decentral")]
+    bars = [TeamBars(**b) for b in team_bars(read_many([out]), ["cbf", "isf"])]
+    assert [b.group for b in bars] == ["cbf/central", "cbf/decentral", "isf/central", "isf/decentral"]
+    for b in bars:  # each arm's replayed figures are the compare's (one episode: the means)
+        row = d["results"][b.group]["arms"]
+        assert b.arms == ("a", "b")
+        np.testing.assert_allclose(b.duty_cycle[0], [a["duty_cycle"] for a in row], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(b.intervention[0], [a["intervention"] for a in row], rtol=1e-9)
+    png = tmp_path / "cmp.png"
+    assert main(["plot", str(out), "-o", str(png)]) == 0
+    assert png.stat().st_size > 1000 and "4 way(s) of filtering" in capsys.readouterr().err
+    doc = tmp_path / "cmp.json"
+    doc.write_text(json.dumps(d))
+    svg = tmp_path / "cmp.svg"
+    assert main(["plot", str(doc), "-o", str(svg)]) == 0
+    assert svg.stat().st_size > 1000
+    mixed = list(out.glob("*.rrd"))[:1]
+    single = tmp_path / "one.rrd"
+    assert main(["run", "--scene", "planar", "--duration", "0.2", "--d-bar", "0.1", "--rrd", str(single)]) == 0
+    capsys.readouterr()
+    assert main(["plot", str(mixed[0]), str(single), "-o", str(png)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "one kind at a time" in err
