@@ -555,3 +555,51 @@ def test_plot_draws_a_team_comparison_per_arm(capsys, two_arm_files, tmp_path: P
     assert main(["plot", str(mixed[0]), str(single), "-o", str(png)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "one kind at a time" in err
+
+
+def test_sweep_runs_a_team_each_way_with_each_arms_figures(capsys, two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """A tiny sweep of a team: every point once per way of filtering; each arm's figures are those of `run`."""
+    from isf_robot.cli import main
+
+    assert main(["sweep", *two_arm_files, "--filters", "isf", "--c", "0.02,0.1", "--episodes", "1",
+                 "--duration", "2", "--json", "--quiet"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    (sc,) = doc["scenes"]
+    labels = [r["label"] for r in sc["points"]]
+    assert labels == ["isf/central c=0.02", "isf/decentral c=0.02", "isf/central c=0.1", "isf/decentral c=0.1"]
+    for r in sc["points"]:
+        assert r["coordination"] in ("central", "decentral") and [a["name"] for a in r["arms"]] == ["a", "b"]
+        assert r["violations"] == 0
+        (run,) = r["runs"]
+        assert r["duty_cycle"] == run["duty_cycle"]  # the team's: a filter on
+        assert max(a["duty_cycle"] for a in r["arms"]) <= r["duty_cycle"] + 1e-12
+    # the same episode through `run`: each arm's figures are the sweep's
+    row = sc["points"][3]
+    assert main(["run", *two_arm_files, "--filter", "isf", "--coordination", "decentral", "--c", "0.1",
+                 "--duration", "2", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert sum(a["duty_cycle"] for a in d["arms"]) > 0  # the filters acted
+    for a, b in zip(row["arms"], d["arms"]):
+        assert (a["name"], a["duty_cycle"], a["on_switches"], a["min_off_all_s"]) == (
+            b["name"], b["duty_cycle"], b["on_switches"], b["min_off_s"])
+        assert a["intervention"] == pytest.approx(b["intervention"], rel=1e-12)
+    # the text output: the Pareto table and the per-arm table
+    assert main(["sweep", *two_arm_files, "--filters", "cbf", "--episodes", "1", "--duration", "1",
+                 "--coordination", "central", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "cbf/central" in out and "per arm" in out and "cbf/decentral" not in out
+    assert sum(ln.split()[1:2] in (["a"], ["b"]) for ln in out.splitlines() if ln.startswith("cbf/central")) == 2
+
+
+def test_sweep_refusals_on_teams_are_one_line(capsys, two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.cli import main
+
+    for argv, words in (
+        ([*two_arm_files, "--write-config", str(tmp_path / "f.toml")], ("--write-config", "2 arms")),
+        (["--scenes", "planar", "--coordination", "central", "--d-bar", "0.1"], ("several arms", "planar")),
+        ([*two_arm_files, "--level", "torque"], ("torque", "2 arms")),
+    ):
+        assert main(["sweep", *argv, "--episodes", "1", "--duration", "0.2", "--quiet"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and all(w in err for w in words), err
+    assert not (tmp_path / "f.toml").exists()
