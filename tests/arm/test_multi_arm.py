@@ -603,3 +603,22 @@ def test_sweep_refusals_on_teams_are_one_line(capsys, two_arm_files, tmp_path: P
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and all(w in err for w in words), err
     assert not (tmp_path / "f.toml").exists()
+
+
+def test_render_takes_the_coordination(two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    out = tmp_path / "pair.png"
+    proc = subprocess.run([sys.executable, "-m", "isf_robot.cli", "render", *two_arm_files, "--filter", "isf",
+                           "--coordination", "decentral", "--duration", "0.2", "-o", str(out), "--width", "96",
+                           "--height", "72"], capture_output=True, text=True, env=env, timeout=300)
+    if proc.returncode == 2 and "offscreen rendering is not available" in proc.stderr:
+        pytest.skip(f"no offscreen OpenGL here: {proc.stderr.strip()}")
+    assert proc.returncode == 0, proc.stderr
+    assert out.stat().st_size > 0 and "isf decentral, seed 0" in proc.stderr
+    proc = subprocess.run([sys.executable, "-m", "isf_robot.cli", "render", "--scene", "planar", "--coordination",
+                           "central", "-o", str(out)], capture_output=True, text=True, env=env, timeout=300)
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1 and "several arms" in proc.stderr
