@@ -7,6 +7,9 @@ arm recorder sends the arm layout again with the camera framed on the arm's work
 (:func:`arm_blueprint` with ``eye``), and the satellite recorder sends its layout with the
 time axes spanning the whole run (:func:`satellite_blueprint` with ``duration_s``).
 
+:func:`team_blueprint` is the arm layout of a team run (several arms): the team's barrier and ``Xi_on``
+plots above a tab per arm (its mode, the smallest barrier of its pairs, its correction).
+
 :func:`compare_blueprint` lays the recordings of one ``compare`` side by side: one column per
 strategy (barrier, mode, command correction), for recordings opened together in one viewer.
 """
