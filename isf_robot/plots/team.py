@@ -140,7 +140,7 @@ def team_compare_figure(bars: Sequence[TeamBars], title: str = "") -> Any:
     axes = fig.subplots(2, 2).ravel()
     spec = (("duty_cycle", "duty cycle"), ("on_switches", "on switches"),
             ("intervention", "intervention \u222b|u \u2212 u_nom|\u00b2 dt [rad\u00b2/s]"),
-            ("min_off_s", f"shortest off period [s] (chatter below {CHATTER_S:g} s)"))
+            ("min_off_s", f"shortest off period [s] (chatter below {CHATTER_S:g} s; none: no off period ended)"))
     x = np.arange(len(bars))
     width = 0.8 / len(arms)
     for ax, (name, label) in zip(axes, spec):
