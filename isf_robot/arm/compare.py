@@ -24,6 +24,7 @@ from isf_robot.support.report import format_table as _table
 from isf_robot.support.report import mean_std_cell, to_jsonable
 
 from .config_schema import LEVELS
+from .multi_arm import MultiArmSimulation
 from .params import resolve_params
 from .records import FilterParams
 from .scene import Scene, load_scene, load_scene_from_files
@@ -105,6 +106,9 @@ class EpisodeTask:
             resolved :class:`FilterParams`, ``control_period``, ``observers``, ...).
         level: ``"velocity"`` (:class:`~isf_robot.arm.ArmSimulation`) or ``"torque"``
             (:class:`~isf_robot.arm.torque_sim.TorqueSimulation`).
+        coordination: A scene with several arms: how they are filtered (``central`` or ``decentral``,
+            :class:`~isf_robot.arm.multi_arm.MultiArmSimulation`; the result adds each arm's figures);
+            ``None`` for one arm.
 
     """
 
@@ -114,6 +118,7 @@ class EpisodeTask:
     duration: float | None
     params: Mapping[str, Any] = field(default_factory=dict)
     level: str = "velocity"
+    coordination: str | None = None
 
 
 def simulation_type(level: str) -> type[ArmSimulation]:
@@ -140,6 +145,9 @@ def run_task(task: EpisodeTask) -> dict[str, Any]:
     kwargs = dict(task.params)
     if not isinstance(kwargs.get("params"), FilterParams):
         kwargs["params"] = level_params(scene, task.level, *(kwargs.pop(k, None) for k in FILTER_KEYS))
+    if task.coordination is not None:
+        team = MultiArmSimulation(scene, task.strategy, coordination=task.coordination, seed=task.seed, **kwargs)
+        return json_safe(team.run_team(task.duration).as_dict())
     res = simulation_type(task.level)(scene, task.strategy, seed=task.seed, **kwargs).run(task.duration)
     return json_safe(res.as_dict())
 

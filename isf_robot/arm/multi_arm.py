@@ -36,6 +36,8 @@ from .params import filter_options
 from .records import RunResult
 from .scene import Scene
 from .sim import ArmSimulation
+from .step_columns import TickValues
+from .team_columns import TeamStepColumns
 from .team_nominal import TeamReaching
 
 __all__ = ["COORDINATIONS", "TeamReaching", "MultiArmSimulation", "ArmRunResult", "run_team"]
@@ -104,6 +106,26 @@ class _TeamEpisode(ArmSimulation.episode):  # type: ignore[name-defined,misc,val
                 self.contacts["self" if a1 == a2 else "arm-arm"] += 1
             elif (a1 >= 0 and self._obstacle[con.geom2]) or (a2 >= 0 and self._obstacle[con.geom1]):
                 self.contacts["arm-obstacle"] += 1
+
+    def block(self, capacity: int) -> TeamStepColumns:
+        """An empty block of ``capacity`` steps with each arm's columns (:class:`TeamStepColumns`)."""
+        sim = self.sim
+        goals = sim.nominal.goal_positions if isinstance(sim.nominal, TeamReaching) else None
+        return TeamStepColumns(capacity, len(sim.scene.qpos_adr), sim.names, sim.coll.pairs.k, self.model.nmocap,
+                               sim.control_period, sim.arm_names, sim.coll.h_far, goals)
+
+    def write(self, block: Any, t: float, step: Any, values: TickValues) -> None:
+        """The step's row, then each arm's mode, end effector and goal."""
+        super().write(block, t, step, values)
+        sim, data = self.sim, self.data
+        ee = [data.site_xpos[a.ee_site_id] for a in sim.scene.arms]
+        nominal = sim.nominal
+        goals: list[np.ndarray | None] = [None] * len(ee)
+        if isinstance(nominal, TeamReaching):
+            for j, c in enumerate(nominal.arms):
+                gi = c.goal_index
+                goals[j] = c.goal_positions[gi] if 0 <= gi < len(c.goal_positions) else None
+        block.write_arms(sim.strategy.agent_modes(), ee, goals)
 
     def barriers(self) -> tuple[Any, LieData | None]:
         values, lie = super().barriers()
@@ -206,9 +228,15 @@ class MultiArmSimulation(ArmSimulation):
         self.strategy = SharedFilter(per_arm, self.blocks, self.arm_names, self.control_period, off_hold=off_hold)
 
     def start_info(self, duration: float) -> dict[str, Any]:
-        """As :meth:`ArmSimulation.start_info`, plus the arms and the coordination."""
+        """As :meth:`ArmSimulation.start_info`, plus the arms and the coordination.
+
+        Also each arm's columns of the input (``arm_joints``, ``(start, stop)``) and each collision pair's arms
+        (``pair_arms``, ``(arm of geom 1, arm of geom 2)``, -1 for a geom of no arm).
+        """
+        pairs = self.coll.pairs
         return {**super().start_info(duration), "coordination": self.coordination, "arms": list(self.arm_names),
-                "arm_joints": [(b.start, b.stop) for b in self.blocks]}
+                "arm_joints": [(b.start, b.stop) for b in self.blocks],
+                "pair_arms": np.stack((self.geom_arm[pairs.geom1], self.geom_arm[pairs.geom2]), axis=1).tolist()}
 
     def run_team(self, duration: float | None = None) -> ArmRunResult:
         """Run (as :meth:`ArmSimulation.run`) and gather each arm's figures."""

@@ -12,6 +12,13 @@ figures the issue's targets need (shortest off period over all episodes, violati
 ``d_bar`` in use covered the tracking error in every episode); :func:`pareto_front` marks the points
 no other point beats on every objective of :data:`OBJECTIVES` at once.
 
+A scene with several arms (``[[arm]]`` tables) runs each point once per way of filtering (``central``,
+``decentral``: :func:`team_points`, the label ``isf/central c=0.1``) through
+:class:`~isf_robot.arm.multi_arm.MultiArmSimulation`; its rows are the team's figures (duty: a filter on;
+violations: collision steps plus penetrating contacts) plus each arm's (``arms``: its own filter's duty,
+switches and shortest off period, its intervention, goals and coordination; :func:`summarize_arms`), and
+each row's ratios to cbf are to cbf of the same way of filtering.
+
 Time to complete the goals (``goals_time_s``): the scene's goal sequence has ``n`` goals and every
 episode reports the time of each arrival (``goal_times_s``). Per scene, ``k`` (``goals_time_k``)
 is ``n`` if every episode of every point reached ``n`` goals, else the fewest arrivals any episode
@@ -31,15 +38,17 @@ from typing import Any
 
 import numpy as np
 
-from isf_robot.core import ConfigError
+from isf_robot.core import ConfigError, UnknownNameError
 from isf_robot.core.strategies import strategy_info
 from isf_robot.support.parallel import MAX_JOBS, Interrupted, check_backend, run_tasks
 from isf_robot.support.report import format_table
 
 from .compare import EpisodeTask, SceneSpec, json_safe, level_params, run_task, simulation_type
+from .multi_arm import COORDINATIONS, MultiArmSimulation
 from .records import FilterParams
 
 __all__ = ["SweepPoint", "SweepTask", "grid_points", "random_points", "run_sweep", "summarize_point",
+           "summarize_arms", "team_points",
            "pareto_front", "goals_time", "format_sweep", "PARAMETERS", "OBJECTIVES", "MAX_SWEEP_EPISODES"]
 
 PARAMETERS = ("alpha", "c", "b", "min_off", "c_max", "blend", "horizon", "predict_every", "c_pred", "shoot")
@@ -62,12 +71,24 @@ class SweepPoint:
 
     strategy: str
     values: Mapping[str, float] = field(default_factory=dict)
+    coordination: str | None = None
+    """A scene with several arms: ``central`` or ``decentral`` (``None``: one arm)."""
 
     @property
     def label(self) -> str:
-        """``strategy k=v ...`` (the values in :data:`PARAMETERS` order)."""
+        """``strategy[/coordination] k=v ...`` (the values in :data:`PARAMETERS` order)."""
         parts = [f"{k}={self.values[k]:g}" for k in PARAMETERS if k in self.values]
-        return " ".join([self.strategy] + parts)
+        head = self.strategy if self.coordination is None else f"{self.strategy}/{self.coordination}"
+        return " ".join([head] + parts)
+
+
+def team_points(points: Sequence[SweepPoint], coordinations: Sequence[str]) -> list[SweepPoint]:
+    """The points of a scene with several arms: each point once per way of filtering (``nominal``: once)."""
+    out = []
+    for pt in points:
+        ways = coordinations if strategy_info(pt.strategy).filters else coordinations[:1]
+        out += [SweepPoint(pt.strategy, pt.values, way) for way in ways]
+    return out
 
 
 def _check_values(name: str, values: Sequence[float]) -> None:
@@ -124,11 +145,13 @@ def random_points(strategies: Sequence[str], ranges: Mapping[str, tuple[float, f
 
 @dataclass(frozen=True)
 class SweepTask:
-    """One episode of a sweep (picklable): the scene's index, the point's index and the episode."""
+    """One episode of a sweep (picklable): the scene's index, the point's index (among the scene's) and the episode."""
 
     scene: int
     point: int
     episode: EpisodeTask
+    label: str = ""
+    """The point's label (:attr:`SweepPoint.label`)."""
 
 
 def run_sweep_task(task: SweepTask) -> dict[str, Any]:
@@ -158,12 +181,29 @@ def summarize_point(runs: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
         episodes=len(runs),
         min_off_all_s=min(offs) if offs else None,  # the shortest complete off period of any episode
         off_bound_min_s=min(bounds) if bounds else None,
-        violations=int(sum(int(r["collisions"]) for r in runs)),
+        # (a team's: collision steps plus penetrating contacts of any kind)
+        violations=int(sum(int(r.get("violations", r["collisions"])) for r in runs)),
         min_barrier=min(float(r["min_barrier"]) for r in runs) if runs else None,
         d_bar=runs[0]["d_bar"] if runs else None,
         d_bar_covered_all=all(bool(r["d_bar_covered"]) for r in runs),
         seeds=sorted(int(r["seed"]) for r in runs),
     )
+    if runs and runs[0].get("arms"):
+        out["arms"] = summarize_arms(runs)
+    return out
+
+
+def summarize_arms(runs: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """A team's episodes: each arm's means (duty, switches, intervention, goals, coordination) and shortest off."""
+    out = []
+    for i, first in enumerate(runs[0]["arms"]):
+        arms = [r["arms"][i] for r in runs]
+        offs = [a["min_off_s"] for a in arms if a.get("min_off_s") is not None]
+        row: dict[str, Any] = {"name": first["name"], "min_off_all_s": min(offs) if offs else None}
+        for key in ("duty_cycle", "on_switches", "intervention", "goals_reached", "goals_missed",
+                    "coordination_steps", "coordination_events"):
+            row[key] = float(np.mean([float(a[key]) for a in arms]))
+        out.append(row)
     return out
 
 
@@ -208,11 +248,16 @@ ProgressFn = Callable[[int, int, SweepTask, Mapping[str, Any]], None]
 def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: Sequence[int], *,
               duration: float | None = None, jobs: int = 1, d_bar: float | None = None,
               progress: ProgressFn | None = None, backend: str = "processes",
-              address: str | None = None, level: str = "velocity") -> dict[str, Any]:
+              address: str | None = None, level: str = "velocity",
+              coordinations: Sequence[str] | None = None) -> dict[str, Any]:
     """Run every point on every scene and seed; return the JSON-ready sweep (see :func:`_summary`).
 
     ``level``: ``"velocity"`` or ``"torque"`` (:func:`~isf_robot.arm.compare.simulation_type`; at the
     torque level ``d_bar`` is in rad/s^2, calibrated by the torque calibration when not given).
+
+    ``coordinations``: on a scene with several arms, each point runs once per way of filtering
+    (:data:`~isf_robot.arm.multi_arm.COORDINATIONS`, default every way; :func:`team_points`), and its
+    row adds each arm's figures (``arms``, :func:`summarize_arms`). Scenes of one arm ignore it.
 
     ``backend``/``address``: where the episodes run (:func:`isf_robot.support.parallel.run_tasks`:
     local processes, or Ray); the numbers do not depend on it nor on ``jobs``.
@@ -233,17 +278,36 @@ def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: S
         raise ConfigError(f"{n} episodes asked for; at most {MAX_SWEEP_EPISODES} per sweep")
     check_backend(backend, address)  # a missing Ray extra is said before any episode runs
     sim_type = simulation_type(level)  # (an unknown level: said before any scene loads)
+    ways = list(COORDINATIONS) if coordinations is None else list(coordinations)
+    for way in ways:
+        if way not in COORDINATIONS:
+            raise UnknownNameError("coordination", way, list(COORDINATIONS))
+    if not ways:
+        raise ConfigError("no coordination")
     tasks: list[SweepTask] = []
     names: list[tuple[str, int]] = []
+    scene_points: list[list[SweepPoint]] = []
     for i, spec in enumerate(specs):
         scene = spec.load()
         names.append((scene.name, len(scene.goal_positions)))
+        if scene.arms and level != "velocity":
+            raise ConfigError(f"the {level} level runs a scene with one arm; {scene.name} has {len(scene.arms)} "
+                              "arms (sweep it at the velocity level)")
+        pts = team_points(points, ways) if scene.arms else list(points)
+        scene_points.append(pts)
         base = level_params(scene, level, d_bar=d_bar)
-        for j, pt in enumerate(points):
+        for j, pt in enumerate(pts):
             fp = _params_of(scene, base, pt, level)
-            sim_type(scene, pt.strategy, seed=int(seeds[0]), params=fp).control_steps(duration)  # validates
-            tasks += [SweepTask(i, j, EpisodeTask(spec, pt.strategy, int(s), duration, {"params": fp}, level))
-                      for s in seeds]
+            if pt.coordination is not None:  # validates
+                MultiArmSimulation(scene, pt.strategy, coordination=pt.coordination, seed=int(seeds[0]),
+                                   params=fp).control_steps(duration)
+            else:
+                sim_type(scene, pt.strategy, seed=int(seeds[0]), params=fp).control_steps(duration)
+            tasks += [SweepTask(i, j, EpisodeTask(spec, pt.strategy, int(s), duration, {"params": fp}, level,
+                                                  pt.coordination), pt.label) for s in seeds]
+    if coordinations is not None and not any(pt.coordination for pts in scene_points for pt in pts):
+        raise ConfigError("--coordination needs a scene with several arms ([[arm]] tables); "
+                          f"{', '.join(n for n, _ in names)} {'has' if len(names) == 1 else 'have'} one")
     results: dict[tuple[int, int], list[dict[str, Any]]] = {}
 
     def keep(done: int, total: int, task: SweepTask, r: dict[str, Any]) -> None:
@@ -252,7 +316,7 @@ def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: S
             progress(done, total, task, r)
 
     def summary(partial: bool) -> dict[str, Any]:
-        out = _summary(names, points, list(seeds), results, partial)
+        out = _summary(names, scene_points, list(seeds), results, partial)
         if level != "velocity":  # (the velocity level's output as it was)
             out["level"] = level
         return out
@@ -265,20 +329,24 @@ def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: S
     return summary(False)
 
 
-def _summary(names: list[tuple[str, int]], points: Sequence[SweepPoint], seeds: list[int],
+def _summary(names: list[tuple[str, int]], scene_points: Sequence[Sequence[SweepPoint]], seeds: list[int],
              results: Mapping[tuple[int, int], list[dict[str, Any]]], partial: bool) -> dict[str, Any]:
     scenes = []
     for i, (name, n_goals) in enumerate(names):
+        points = scene_points[i]
         rows = []
         done = [(pt, sorted(runs, key=lambda r: r["seed"])) for j, pt in enumerate(points)
                 if (runs := results.get((i, j)))]
         goal_k, times = goals_time([runs for _, runs in done], n_goals)
         for (pt, runs), t in zip(done, times):
             rows.append({"strategy": pt.strategy, "values": dict(pt.values), "label": pt.label,
+                         **({} if pt.coordination is None else {"coordination": pt.coordination}),
                          **summarize_point(runs), **t, "runs": runs})
-        cbf = next((r for r in rows if r["strategy"] == "cbf"), None)
         for r, on in zip(rows, pareto_front(rows)):
             r["pareto"] = on
+            # the standard filter of the same coordination (a team's central and decentral rows: each its own)
+            cbf = next((c for c in rows if c["strategy"] == "cbf" and c.get("coordination") == r.get("coordination")),
+                       None)
             if cbf is not None:
                 r["vs_cbf"] = {k: (None if r[k] is None or not cbf[k] else r[k] / cbf[k])
                                for k in ("duty_cycle", "on_switches", "intervention")}
@@ -326,4 +394,16 @@ def format_sweep(sweep: Mapping[str, Any]) -> str:
                  f"{sc.get('goals', '-')} [s]; * Pareto front)")
         out.append(format_table(["point"] + (["runs"] if sweep["partial"] else []) + [h for _, h, _ in _COLUMNS]
                                 + ["duty/cbf", "sw/cbf", "int/cbf", "d_bar ok"], rows, title=title))
+        arm_rows = [[r["label"], a["name"]] + [_cell(a.get(k), f) for k, _, f in _ARM_COLUMNS]
+                    for r in sc["points"] for a in r.get("arms") or ()]
+        if arm_rows:
+            out.append(format_table(["point", "arm"] + [h for _, h, _ in _ARM_COLUMNS], arm_rows,
+                                    title=f"scene {sc['scene']}, per arm (its own filter's duty, switches and "
+                                          "off periods; intervention over its joints; means, min off: shortest)"))
     return "\n\n".join(out)
+
+
+_ARM_COLUMNS = (("duty_cycle", "duty", ".3f"), ("on_switches", "switches", ".1f"),
+                ("min_off_all_s", "min off [s]", ".3f"), ("intervention", "interv.", ".3f"),
+                ("goals_reached", "goals", ".2f"), ("coordination_steps", "coord. steps", ".0f"),
+                ("coordination_events", "coord. events", ".1f"))

@@ -3,7 +3,9 @@
 :mod:`isf_robot.cli.arm` hands a multi-arm scene here: the run goes through
 :class:`~isf_robot.arm.multi_arm.MultiArmSimulation` with ``--coordination`` (``central`` or
 ``decentral``), and the output has one line per arm (duty cycle, switches, shortest off period,
-intervention, goals, coordination steps and events) under the team's safety figures.
+intervention, goals, coordination steps and events) under the team's safety figures. ``compare --rrd DIR``
+writes a recording per run (``<scene>-<strategy>-<coordination>-seed<seed>.rrd``), which ``replay`` and
+``plot`` read per arm.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from isf_robot.core.exceptions import ConfigError
+from isf_robot.record.options import make_observer
 from isf_robot.support.report import format_value, to_jsonable, with_schema
 
 __all__ = ["COORDINATION_HELP", "check_coordination", "team_simulation", "team_report", "team_compare"]
@@ -72,6 +75,9 @@ def team_compare(args: argparse.Namespace, scene: Any, params: dict[str, Any]) -
     from isf_robot.arm.multi_arm import COORDINATIONS, MultiArmSimulation
 
     ways = [args.coordination] if args.coordination else list(COORDINATIONS)
+    obs = make_observer(args, "arm")  # --rrd DIR: a recording per run, <scene>-<strategy>-<coordination>-seed<seed>.rrd
+    if obs is not None:
+        params = {**params, "observers": [obs]}
     rows: dict[str, Any] = {}
     for strategy in args.filters:
         for way in (ways if strategy != "nominal" else ways[:1]):
@@ -92,6 +98,9 @@ def team_compare(args: argparse.Namespace, scene: Any, params: dict[str, Any]) -
                 "arms": [_arm_means([r.arms[i] for r in runs]) for i in range(len(runs[0].arms))],
             }
     out = {"scene": scene.name, "episodes": args.episodes, "seed0": args.seed, "results": rows}
+    paths = getattr(obs, "paths", None)
+    if paths:
+        print(f"recordings: {len(paths)} file(s) in {args.rrd}", file=sys.stderr)
     if args.json:
         print(json.dumps(with_schema("isf-robot-compare-team", to_jsonable(out))))
         return 0

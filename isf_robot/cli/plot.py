@@ -11,7 +11,12 @@ What is drawn follows from the inputs:
   star at each trigger over the first ``--hours`` (150, as in the paper);
 * a tau file (``isf-satellite tau --out``): the samples, medians and the fitted ``tau_p``;
 * a sweep file (``isf-robot sweep --output``): duty cycle vs intervention per scene, the Pareto
-  front marked, cbf as the reference.
+  front marked, cbf as the reference;
+* a team recording (a scene with several arms, ``run --rrd``): the team's ``min h`` above a row per
+  arm (the smallest barrier of its pairs with its own on-intervals shaded, ``|u_i - u_nom,i|``);
+* several team recordings (``compare --rrd DIR`` on a team scene) or a team's ``compare --json``
+  output: grouped bars of each arm's duty cycle, on switches, intervention and shortest off period
+  per way of filtering (``isf/central``, ``isf/decentral``, ...).
 
 matplotlib is the optional ``plots`` extra; without it the command says which extra to install.
 """
@@ -40,7 +45,7 @@ def register(sub: Any) -> None:
                     "`compare --rrd` directory), a satellite run (its recording) or a tau file "
                     "(`isf-satellite tau --out`) with matplotlib.")
     p.add_argument("inputs", nargs="+", type=Path, metavar="INPUT",
-                   help=".rrd recordings, directories of them, or one tau or sweep .json file")
+                   help=".rrd recordings, directories of them, or one tau, sweep or team compare .json file")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="PATH",
                    help="figure file: .png, .svg or .pdf")
     p.add_argument("--hours", type=float, default=150.0,
@@ -59,7 +64,8 @@ def handle(args: argparse.Namespace) -> int:
         raise ConfigError(f"--hours must be a positive number, got {args.hours:g}")
     if any(p.suffix.lower() == ".json" for p in args.inputs):
         if len(args.inputs) != 1:
-            raise ConfigError("a tau or sweep file is drawn alone: give one .json file, or .rrd recordings")
+            raise ConfigError("a tau, sweep or team compare file is drawn alone: give one .json file, or .rrd "
+                          "recordings")
         fig, what = _json(args.inputs[0])
     else:
         fig, what = _recordings(args)
@@ -86,6 +92,12 @@ def _recordings(args: argparse.Namespace) -> tuple[Any, str]:
         return satellite_figure(orbit, args.hours), f"satellite run ({orbit.impulse_t_h.size} impulses in all)"
     if kind != "arm":
         raise ConfigError(f"cannot plot a {kind!r} recording; valid: arm or satellite recordings, or a tau file")
+    teams = [log for log in logs if log.arms]
+    if teams and len(teams) != len(logs):
+        raise ConfigError(f"the inputs mix {len(teams)} team recording(s) (several arms) with {len(logs) - len(teams)} "
+                          "of one arm; plot one kind at a time")
+    if teams:
+        return _team_recordings(args, logs)
     if len(logs) == 1:
         run = RunSeries(**arm_series(logs[0]))
         return run_figure(run), f"run {run.label}"
@@ -99,6 +111,43 @@ def _recordings(args: argparse.Namespace) -> tuple[Any, str]:
     return compare_figure(runs, bars, title), f"comparison of {len(bars)} strategies over {len(logs)} recordings"
 
 
+def _team_recordings(args: argparse.Namespace, logs: list[Any]) -> tuple[Any, str]:
+    """One team recording: a row per arm; several: each arm's figures per way of filtering."""
+    from isf_robot.core.strategies import strategy_names
+    from isf_robot.plots import RunSeries, TeamBars, team_compare_figure, team_run_figure
+    from isf_robot.record.figure_data import arm_series, team_arm_series, team_bars
+
+    if len(logs) == 1:
+        log = logs[0]
+        team = RunSeries(**{**arm_series(log), "xi_t": np.zeros(0), "xi": np.zeros(0)})
+        arms = [RunSeries(**a) for a in team_arm_series(log)]
+        return team_run_figure(team, arms, list(log.arms)), f"team run {team.label}, {len(arms)} arms"
+    scenes = sorted({str(log.info.get("scene", "?")) for log in logs})
+    if len(scenes) > 1:
+        raise ConfigError(f"team recordings of one scene at a time, got {', '.join(scenes)}")
+    bars = [TeamBars(**b) for b in team_bars(logs, strategy_names())]
+    title = args.title if args.title is not None else f"scene {scenes[0]}, per arm"
+    return team_compare_figure(bars, title), (f"per-arm comparison of {len(bars)} way(s) of filtering over "
+                                              f"{len(logs)} recordings")
+
+
+def _team_compare(doc: dict[str, Any], path: Path) -> tuple[Any, str]:
+    """The output of ``compare --json`` on a team scene: each arm's means per way of filtering."""
+    from isf_robot.plots import TeamBars, team_compare_figure
+
+    try:
+        bars = []
+        for group, row in doc["results"].items():
+            arms = row["arms"]
+            bars.append(TeamBars(group, tuple(str(a["name"]) for a in arms), **{
+                k: np.array([[np.nan if a.get(k) is None else float(a[k]) for a in arms]])
+                for k in TeamBars.FIELDS}))
+        title = f"scene {doc['scene']}, per arm (means over {int(doc['episodes'])} episode(s))"
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise ConfigError(f"{path}: not the output of `isf-robot compare --json` on a team scene ({exc})") from None
+    return team_compare_figure(bars, title), f"per-arm comparison of {len(bars)} way(s) of filtering"
+
+
 def _json(path: Path) -> tuple[Any, str]:
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
@@ -106,6 +155,8 @@ def _json(path: Path) -> tuple[Any, str]:
         raise ConfigError(f"{path}: cannot read JSON ({exc})") from None
     if isinstance(doc, dict) and str(doc.get("schema", "")).startswith("isf-robot-sweep/"):
         return sweep_figure(doc)
+    if isinstance(doc, dict) and str(doc.get("schema", "")).startswith("isf-robot-compare-team/"):
+        return _team_compare(doc, path)
     return _tau(path)
 
 

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from isf_robot.cli.arm import _add_filter_args, _add_scene_args, _check_seed, _params, _simulation, _spec
+from isf_robot.cli.arm_team import COORDINATION_HELP, check_coordination
 from isf_robot.core.strategies import strategy_names
 
 __all__ = ["register", "handle"]
@@ -32,6 +33,7 @@ def register(sub: Any) -> None:
     _add_scene_args(p)
     p.add_argument("--filter", choices=strategy_names(), default="isf", help="strategy (default isf)")
     p.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
+    p.add_argument("--coordination", choices=("central", "decentral"), default=None, help=COORDINATION_HELP)
     _add_filter_args(p)
     p.add_argument("-o", "--output", type=Path, required=True, metavar="PATH",
                    help="output file: .gif, .mp4 (needs the 'video' extra) or .png (one frame)")
@@ -74,6 +76,7 @@ def handle(args: argparse.Namespace) -> int:
     video = VideoRecorder(args.output, fps=args.fps, width=args.width, height=args.height, speed=args.speed,
                           at=args.at, view=view, show_collision=args.show_collision)
     scene = _spec(args).load()
+    check_coordination(args, scene)
     if view.camera is not None:
         camera_id(scene.model, view.camera)  # an unknown name fails before the episode runs
     sim = _simulation(args, scene, observers=[video], **_params(args, scene))
@@ -82,7 +85,8 @@ def handle(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - wall
     n = len(video.frame_times)
     rate = n / video.render_s if video.render_s > 0 else float("nan")
+    way = f" {sim.coordination}" if scene.arms else ""
     print(f"wrote {args.output}: {n} frame(s) of {args.width} x {args.height} from {res.metrics.duration_s:.2f} s "
-          f"simulated ({scene.name}, {args.filter}, seed {args.seed}); rendering {rate:.1f} frames/s, "
+          f"simulated ({scene.name}, {args.filter}{way}, seed {args.seed}); rendering {rate:.1f} frames/s, "
           f"{wall:.2f} s in all", file=sys.stderr)
     return 0

@@ -4,7 +4,9 @@ Each recording's duty-cycle metrics are recomputed with
 :func:`isf_robot.core.metrics.compute_metrics` from its logged per-step columns. One file
 prints a list of metrics; several (or a file holding several recordings, or a directory of
 ``.rrd`` files) print a side-by-side table, and below it the versions and settings each was
-recorded with. ``--json`` prints one shape whatever the number of inputs:
+recorded with. A team recording (several arms) adds a table of each arm's figures (its own filter's
+duty cycle, switches and off periods, its intervention, the smallest barrier of its pairs at the ticks).
+``--json`` prints one shape whatever the number of inputs:
 ``{"schema": "isf-robot-replay/1", "recordings": [{"file", "recording_id", "label", "kind",
 "versions", "info", "metrics"}, ...]}`` (``metrics`` holds the same keys as the run's own
 ``--json`` for those figures).
@@ -53,6 +55,10 @@ def handle(args: argparse.Namespace) -> int:
         return 2 if bad else 0
     labels = _unique_labels([log.label for log, _ in results], [log.path.stem for log, _ in results])
     print(format_table(list(zip(labels, [m for _, m in results]))))
+    for lab, (_, m) in zip(labels, results):  # a team recording: each arm's figures
+        if m.get("arms"):
+            print(f"\n{lab}, per arm:")
+            print(format_table([(a["name"], a) for a in m["arms"]]))
     print("\nrecorded with:")
     for lab, (log, _) in zip(labels, results):
         print(f"  {lab}: {describe_recording(log.info)}")

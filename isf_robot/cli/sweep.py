@@ -8,7 +8,8 @@ both. Progress goes to stderr; ``--json`` prints the whole sweep (every episode'
 result) and ``--output PATH.json`` writes it atomically. Ctrl-C stops the workers and prints (and
 writes) what finished, marked partial. ``--model/--config`` sweep the user's own arm, and
 ``--write-config PATH.toml`` writes the chosen ``[filter]`` table with its evidence beside it
-(:mod:`isf_robot.arm.tune`).
+(:mod:`isf_robot.arm.tune`). A scene with several arms runs each point once per way of filtering
+(``--coordination`` to keep one) and adds a table of each arm's figures; ``--write-config`` refuses it.
 """
 
 from __future__ import annotations
@@ -63,6 +64,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--level", choices=LEVELS, default="velocity",
                    help="what the filter commands: joint velocities (default) or joint torques on the full dynamics "
                         "(d_bar [rad/s^2], calibrated for it when --d-bar is not given)")
+    p.add_argument("--coordination", choices=("central", "decentral"), default=None,
+                   help="scenes with several arms: sweep this way of filtering only (default: both, each point "
+                        "once per way; central: one filter over every arm's joints, decentral: one per arm)")
     p.add_argument("--d-bar", type=float, default=None, metavar="D",
                    help="tracking-error bound [rad/s] for every scene (default: each scene's, else calibrated)")
     for name, flag in _FLAGS.items():
@@ -148,6 +152,11 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         if args.level != "velocity":
             raise ConfigError("--write-config writes the velocity level's [filter] (d_bar in rad/s); sweep the "
                               "torque level without it")
+        scene = specs[0].load()
+        if scene.arms:
+            raise ConfigError(f"--write-config chooses one arm's [filter] by its off periods; {scene.name} has "
+                              f"{len(scene.arms)} arms, whose [filter] serves both ways of filtering: sweep it "
+                              "without --write-config and read the per-arm table")
         for path in _evidence_paths(args.write_config):
             check_output_path(str(path), "--write-config")
     points = _points(args)
@@ -158,14 +167,15 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
     def progress(done: int, total: int, task: Any, r: Any) -> None:
         if not args.quiet:
-            print(f"[{done}/{total}] {r['scene']} {points[task.point].label} seed {r['seed']}: duty "
+            print(f"[{done}/{total}] {r['scene']} {task.label or points[task.point].label} seed {r['seed']}: duty "
                   f"{r['duty_cycle']:.3f}, switches {r['on_switches']}, {r['wall_s']:.2f} s",
                   file=sys.stderr, flush=True)
 
     try:
         sweep = run_sweep(specs, points, seeds, duration=args.duration,
                           jobs=args.jobs, d_bar=args.d_bar, progress=progress, backend=args.backend,
-                          address=args.address, level=args.level)
+                          address=args.address, level=args.level,
+                          coordinations=[args.coordination] if args.coordination else None)
     except Interrupted as exc:
         if exc.partial is not None:
             _emit(args, exc.partial)

@@ -221,6 +221,7 @@ class CentralFilter:
         self.uses_rows, self.intermittent = strategy.uses_rows, strategy.intermittent
         self.tallies = [AgentTally(n) for n in names]
         self._M: np.ndarray | None = None
+        self._last: FilterStep | None = None
 
     @property
     def on(self) -> bool:
@@ -231,6 +232,7 @@ class CentralFilter:
         """Start again."""
         self.inner.reset(t0)
         self.hold.reset()
+        self._last = None
         for tally in self.tallies:
             tally.reset()
 
@@ -258,7 +260,14 @@ class CentralFilter:
             part = FilterStep._of(t, step.u[b], step.u_nom[b], step.on, step.h, step.xi, step.event, step.qp,
                                   margin=step.margin)
             tally.add(part, shared, self.period)
+        self._last = step
         return step
+
+    def agent_modes(self) -> list[tuple[bool, bool]]:
+        """Each agent's ``(on, QP solved)`` at the last step (one filter: the same for every agent)."""
+        st = self._last
+        mode = (False, False) if st is None else (bool(st.on), st.qp is not None)
+        return [mode] * len(self.tallies)
 
     def agent_results(self) -> list[AgentResult]:
         """Each agent's figures."""
@@ -359,6 +368,12 @@ class SharedFilter:
         return FilterStep._of(t, u, u_nom, on, lie.h if lie is not None else xi, xi, event, qp,
                               tuple(r for st in steps for r in st.relaxed), any(st.fallback for st in steps),
                               lie.names if lie is not None else (), any(st.resolved for st in steps))
+
+    def agent_modes(self) -> list[tuple[bool, bool]]:
+        """Each agent's ``(on, QP solved)`` at the last step (its own filter's)."""
+        if not self.last:
+            return [(False, False)] * len(self.tallies)
+        return [(bool(st.on), st.qp is not None) for st in self.last]
 
     def agent_results(self) -> list[AgentResult]:
         """Each agent's figures."""

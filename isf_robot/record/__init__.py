@@ -11,9 +11,9 @@ Public API:
 * :class:`ArmRecorder` (MuJoCo geometry and poses, barriers, commands, witness segments) and
   :class:`SatelliteRecorder` (body, band, trajectory, triggers, impulses).
 * :class:`PerRunRecorder`: one recording file per run (picklable; for ``compare``).
-* :func:`arm_blueprint`, :func:`satellite_blueprint`, :func:`blueprint_for`.
-* :func:`read_rrd`, :func:`read_many`, :func:`replay_metrics`, :func:`format_table`,
-  :class:`RunLog`.
+* :func:`arm_blueprint`, :func:`team_blueprint`, :func:`satellite_blueprint`, :func:`blueprint_for`.
+* :func:`read_rrd`, :func:`read_many`, :func:`replay_metrics`, :func:`arm_metrics` (each arm of a team
+  recording), :func:`format_table`, :class:`RunLog`.
 * :func:`add_recording_args`, :func:`make_observer`: the ``--rrd`` / ``--spawn`` glue.
 
 Names load on first use, so importing this package (as the CLI does to register
@@ -31,8 +31,9 @@ _EXPORTS: dict[str, str] = {
     "PerRunRecorder": "options",
     "RerunRecorder": "recorder", "SatelliteRecorder": "satellite", "ArmRecorder": "arm",
     "arm_blueprint": "blueprints", "satellite_blueprint": "blueprints", "generic_blueprint": "blueprints",
-    "blueprint_for": "blueprints",
-    "METRIC_KEYS": "replay", "RunLog": "replay", "format_table": "replay", "impulse_metrics": "replay",
+    "blueprint_for": "blueprints", "team_blueprint": "blueprints",
+    "METRIC_KEYS": "replay", "arm_metrics": "replay", "RunLog": "replay", "format_table": "replay",
+    "impulse_metrics": "replay",
     "read_many": "replay", "read_rrd": "replay", "read_columns": "replay", "replay_metrics": "replay",
     "close_stream": "stream", "find_viewer": "stream", "open_stream": "stream",
 }

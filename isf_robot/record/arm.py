@@ -19,6 +19,10 @@ Logged, besides the base recorder's replay columns, mode and events:
   ``/plots/joints/correction``: ``u - u_nom`` per joint; ``/plots/joints/command/nominal`` and
   ``/plots/joints/command/filtered``: ``u_nom`` and ``u`` per joint [rad/s].
 
+A team run (start info with ``arms``: :class:`~isf_robot.arm.multi_arm.MultiArmSimulation`) adds each
+arm's series and replay columns (``/arms/<name>/...``, ``/replay/arms/<name>``, :mod:`isf_robot.record.team`)
+and opens on the team layout (:func:`~isf_robot.record.blueprints.team_blueprint`, a tab per arm).
+
 Replay row: ``t``, ``dt``, ``on``, ``|u - u_nom|^2``, ``qp_solved`` from the record, and
 ``min_barrier`` the true-geometry minimum of ``dist - margin`` over the step's physics steps:
 the smaller of the tick's collision barriers (``h[:n_collision]``) and ``dist_min - margin``
@@ -46,12 +50,13 @@ import rerun as rr
 from isf_robot.core.sums import row_sq_sums, sq_sum
 
 from .arm_columns import closest_witness, goal_columns, norm_columns, strip_array, witness_columns
-from .blueprints import arm_blueprint, camera_for
+from .blueprints import arm_blueprint, camera_for, team_blueprint
 from .buffer import TIMELINE, Channel
 from .errors import RecordError
 from .mjgeometry import MujocoDrawing
 from .recorder import RerunRecorder, finite_scalars, value_columns
 from .schema import STEPS, TERMINAL
+from .team import TeamSeries
 
 __all__ = ["ArmRecorder"]
 
@@ -107,6 +112,7 @@ class ArmRecorder(RerunRecorder):
         self._trail_tail = np.zeros((0, 3))
         self._names: tuple[str, ...] = ()
         self._qpos_adr: Any = None
+        self.team: TeamSeries | None = None
         self._derived = self._derived_entities()
 
     @property
@@ -134,6 +140,7 @@ class ArmRecorder(RerunRecorder):
         self._qpos_adr = MujocoDrawing.index(info["qpos_adr"])
         c = info.get("c")
         self.c = float(c) if isinstance(c, (int, float)) else math.nan
+        self.team = TeamSeries.from_info(info)
 
     def versions(self) -> dict[str, str]:
         """isf_robot, rerun and MuJoCo versions."""
@@ -189,6 +196,8 @@ class ArmRecorder(RerunRecorder):
                 stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=out[0])], columns=out[1])
         stream.send_columns("/world/witness", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
                             columns=witness_columns(*closest_witness(b, n, min(self.closest, 3))))
+        if self.team is not None:
+            self.team.send(stream, t, a["dt"], b, a["h"][:, :self._n_collision], u, u_nom)
         assert self.drawing is not None
         self.drawing.send_poses(stream, t, self._qpos_adr, b.q[:n], b.mocap_pos[:n], b.mocap_quat[:n])
         self.drawing.send_tint(stream, t, a["on"])
@@ -326,8 +335,13 @@ class ArmRecorder(RerunRecorder):
         centre, radius = self.drawing.workspace()
         eye, target = camera_for(centre, radius)
         duration = info.get("duration")
-        rec.send_blueprint(arm_blueprint(eye, target, float(duration) if isinstance(duration, (int, float))
-                                         else None, c=self.c), make_active=True, make_default=True)
+        span = float(duration) if isinstance(duration, (int, float)) else None
+        if self.team is not None:
+            self.team.log_static(rec)
+            blueprint = team_blueprint(self.team.names, eye, target, span, c=self.c)
+        else:
+            blueprint = arm_blueprint(eye, target, span, c=self.c)
+        rec.send_blueprint(blueprint, make_active=True, make_default=True)
 
     # -- per step ------------------------------------------------------------------------
     def on_steps(self, block: Any) -> None:

@@ -7,6 +7,9 @@ arm recorder sends the arm layout again with the camera framed on the arm's work
 (:func:`arm_blueprint` with ``eye``), and the satellite recorder sends its layout with the
 time axes spanning the whole run (:func:`satellite_blueprint` with ``duration_s``).
 
+:func:`team_blueprint` is the arm layout of a team run (several arms): the team's barrier and ``Xi_on``
+plots above a tab per arm (its mode, the smallest barrier of its pairs, its correction).
+
 :func:`compare_blueprint` lays the recordings of one ``compare`` side by side: one column per
 strategy (barrier, mode, command correction), for recordings opened together in one viewer.
 """
@@ -16,13 +19,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+import rerun as rr
 import rerun.blueprint as rrb
 
 from .errors import RecordError
-from .schema import EVENT_LOG, PLOTS, WORLD
+from .schema import ARMS, EVENT_LOG, PLOTS, WORLD
 
-__all__ = ["arm_blueprint", "satellite_blueprint", "generic_blueprint", "blueprint_for", "compare_blueprint",
-           "camera_for"]
+__all__ = ["arm_blueprint", "team_blueprint", "satellite_blueprint", "generic_blueprint", "blueprint_for",
+           "compare_blueprint", "camera_for"]
 
 TIMELINE = "sim_time"
 
@@ -97,6 +101,43 @@ def arm_blueprint(eye: Sequence[float] | None = None, target: Sequence[float] | 
     left = rrb.Vertical(
         rrb.Spatial3DView(origin=WORLD, name="scene (robot orange while the filter is on)",
                           eye_controls=eye_controls),
+        rrb.TextLogView(origin=EVENT_LOG, name="switch events"),
+        row_shares=[4, 1],
+    )
+    return rrb.Blueprint(rrb.Horizontal(left, right, column_shares=[3, 2]), _time_panel(), collapse_panels=False)
+
+
+def team_blueprint(arms: Sequence[str], eye: Sequence[float] | None = None, target: Sequence[float] | None = None,
+                   duration_s: float | None = None, c: float | None = None) -> rrb.Blueprint:
+    """Team layout (several arms): the scene in 3-D (left); the team's h and Xi_on, then a tab per arm (right).
+
+    Each arm's tab stacks its filter mode, the smallest barrier of its collision pairs and ``|u_i - u_nom,i|``
+    (``/arms/<name>/...``, :mod:`isf_robot.record.team`). Arguments as :func:`arm_blueprint`.
+    """
+    if not arms:
+        raise RecordError("team_blueprint needs at least one arm")
+    eye_controls = None
+    if eye is not None and target is not None:
+        eye_controls = rrb.EyeControls3D(position=list(map(float, eye)), look_target=list(map(float, target)),
+                                         eye_up=[0.0, 0.0, 1.0])
+    span = _whole_run(duration_s)
+    tabs = []
+    for name in arms:
+        base = f"{ARMS}/{rr.escape_entity_path_part(str(name))}"
+        tabs.append(rrb.Vertical(
+            rrb.TimeSeriesView(origin=f"{base}/mode", name=f"{name}: filter mode (1 = on)", **span),
+            rrb.TimeSeriesView(origin=f"{base}/barrier_min", name=f"{name}: min h of its pairs [m]", **span),
+            rrb.TimeSeriesView(origin=f"{base}/correction_norm", name=f"{name}: |u - u_nom| [rad/s]", **span),
+            row_shares=[1, 2, 2], name=str(name),
+        ))
+    right = rrb.Vertical(
+        rrb.TimeSeriesView(origin=f"{PLOTS}/barrier", name="team: barrier h [m] (closest pairs, min)", **span),
+        rrb.TimeSeriesView(origin=f"{PLOTS}/xi", name="team: min Xi_on with 0 and c", **span, **_xi_axis(c)),
+        rrb.Tabs(*tabs, name="per arm"),
+        row_shares=[2, 1, 4],
+    )
+    left = rrb.Vertical(
+        rrb.Spatial3DView(origin=WORLD, name="scene (robots orange while a filter is on)", eye_controls=eye_controls),
         rrb.TextLogView(origin=EVENT_LOG, name="switch events"),
         row_shares=[4, 1],
     )

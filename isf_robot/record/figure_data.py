@@ -16,15 +16,16 @@ from rerun.chunk import RrdReader
 
 from .columns import read_columns
 from .errors import RecordingReadError
-from .replay import RunLog, replay_metrics
+from .replay import RunLog, arm_metrics, replay_metrics
 
-__all__ = ["arm_series", "satellite_series", "strategy_bars", "run_label"]
+__all__ = ["arm_series", "satellite_series", "strategy_bars", "run_label", "team_arm_series", "team_bars",
+           "team_group"]
 
 
 def run_label(log: RunLog) -> str:
     """``"<scene> <strategy> seed <seed>"`` (the parts the recording knows)."""
     info = log.info
-    parts = [str(info[k]) for k in ("scene", "strategy", "trigger") if info.get(k) is not None]
+    parts = [str(info[k]) for k in ("scene", "strategy", "trigger", "coordination") if info.get(k) is not None]
     if info.get("seed") is not None:
         parts.append(f"seed {info['seed']}")
     return " ".join(parts) or log.path.stem
@@ -102,4 +103,58 @@ def strategy_bars(logs: Sequence[RunLog], order: Sequence[str] = ()) -> list[dic
         ms = groups[name]
         out.append({"strategy": name, **{k: np.array([float(m[k]) if m.get(k) is not None else np.nan for m in ms])
                                          for k in ("duty_cycle", "on_switches", "intervention", "min_barrier")}})
+    return out
+
+
+def team_group(log: RunLog) -> str:
+    """``<strategy>/<coordination>`` of a team recording (``nominal`` alone: it filters nothing)."""
+    strategy = str(log.info.get("strategy", "?"))
+    way = log.info.get("coordination")
+    return strategy if strategy == "nominal" or way is None else f"{strategy}/{way}"
+
+
+def team_arm_series(log: RunLog) -> list[dict[str, Any]]:
+    """Fields of :class:`isf_robot.plots.RunSeries` per arm of a team recording (:attr:`RunLog.arms`).
+
+    Per arm: ``h`` the smallest barrier of the arm's pairs at each tick, ``on`` its own filter's mode,
+    ``correction`` ``|u_i - u_nom,i|`` (the square root of its logged ``intervention_rate``).
+    """
+    if not log.arms:
+        raise RecordingReadError(log.path, f"recording {log.recording_id!r} is not a team run (no per-arm columns)")
+    out = []
+    for name, a in log.arms.items():
+        out.append({"label": f"{run_label(log)} {name}", "strategy": str(log.info.get("strategy", "?")),
+                    "t": a["t"], "dt": a["dt"], "h": a["min_barrier"], "on": a["on"],
+                    "correction": np.sqrt(np.asarray(a["intervention_rate"], dtype=float))})
+    return out
+
+
+def team_bars(logs: Sequence[RunLog], order: Sequence[str] = ()) -> list[dict[str, Any]]:
+    """Fields of :class:`isf_robot.plots.TeamBars` per way of filtering (:func:`team_group`).
+
+    Each episode's per-arm figures are replayed from its recording (:func:`~isf_robot.record.replay.arm_metrics`).
+
+    Args:
+        logs: Team recordings of one scene (any strategies, coordinations and seeds).
+        order: Strategies first in this order, central before decentral; others follow in order of appearance.
+
+    """
+    groups: dict[str, list[list[dict[str, Any]]]] = {}
+    arms: dict[str, tuple[str, ...]] = {}
+    for log in logs:
+        g = team_group(log)
+        m = arm_metrics(log)
+        groups.setdefault(g, []).append(m)
+        arms.setdefault(g, tuple(a["name"] for a in m))
+    rank = {s: i for i, s in enumerate(order)}
+    ways = {"central": 0, "decentral": 1}
+    seen = list(groups)
+    names = sorted(groups, key=lambda g: (rank.get(g.split("/")[0], len(rank)),
+                                          ways.get(g.partition("/")[2], len(ways)), seen.index(g)))
+    out = []
+    for g in names:
+        eps = groups[g]
+        out.append({"group": g, "arms": arms[g], **{
+            k: np.array([[float(a[k]) if a.get(k) is not None else np.nan for a in ep] for ep in eps])
+            for k in ("duty_cycle", "on_switches", "intervention", "min_off_s")}})
     return out

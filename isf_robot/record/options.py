@@ -197,10 +197,12 @@ def _pick(context: dict[str, Any], keys: tuple[str, ...]) -> dict[str, Any]:
 
 
 def run_name(info: Mapping[str, Any]) -> str:
-    """Name of a run from its ``on_start`` info: ``[<scene>-]<strategy or trigger>-seed<seed>``."""
+    """Name of a run from its ``on_start`` info: ``[<scene>-]<strategy or trigger>[-<coordination>]-seed<seed>``."""
     head = str(info.get("strategy") or info.get("trigger") or "run")
     if info.get("scene"):
         head = f"{info['scene']}-{head}"
+    if info.get("coordination"):  # a team run: central and decentral runs of one seed get files of their own
+        head = f"{head}-{info['coordination']}"
     seed = info.get("seed")
     return f"{head}-seed{seed}" if seed is not None else str(head)
 

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 import pyarrow as pa
+import rerun as rr
 from rerun.chunk import RrdReader
 
 from isf_robot.core.metrics import compute_metrics
@@ -38,6 +39,7 @@ __all__ = [
     "read_many",
     "read_columns",
     "replay_metrics",
+    "arm_metrics",
     "impulse_metrics",
     "format_table",
     "METRIC_KEYS",
@@ -68,6 +70,8 @@ class RunLog:
             ``dv_y``, ``dv_z``, ``h_after``, ``xi_after``, ``interval_s``), in time order.
         terminal: True-geometry barrier of the final state when the loop's last check set
             the run's minimum (arm runs), shape (0,) or (1,).
+        arms: Team runs (several arms): each arm's replay columns by name, in the team's order
+            (as ``steps``; ``min_barrier`` the smallest barrier of the arm's pairs at the tick); empty otherwise.
 
     """
 
@@ -81,11 +85,13 @@ class RunLog:
     events: dict[str, np.ndarray] = field(default_factory=dict)
     impulses: dict[str, np.ndarray] = field(default_factory=dict)
     terminal: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    arms: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
 
     @property
     def label(self) -> str:
         """Short label for tables: strategy/episode when known, else the file stem."""
-        parts = [str(self.info[k]) for k in ("scene", "strategy", "trigger") if self.info.get(k) is not None]
+        parts = [str(self.info[k]) for k in ("scene", "strategy", "trigger", "coordination")
+                 if self.info.get(k) is not None]
         for k in ("episode", "seed"):
             if self.info.get(k) is not None:
                 parts.append(f"{k[:2] if k == 'episode' else k}{self.info[k]}")
@@ -134,9 +140,10 @@ def _static_value(batches: list[pa.RecordBatch], name: str) -> Any:
 def _read_store(path: Path, reader: RrdReader, entry: Any) -> RunLog:
     by_entity: dict[str, list[pa.RecordBatch]] = {}
     wanted = {schema.INFO, schema.SUMMARY, schema.STEPS, schema.EVENTS, schema.IMPULSES, schema.TERMINAL}
+    arm_prefix = schema.ARM_STEPS + "/"
     for chunk in reader.stream(store=entry):
         ep = chunk.entity_path
-        if ep in wanted:
+        if ep in wanted or ep.startswith(arm_prefix):
             by_entity.setdefault(ep, []).append(chunk.to_record_batch())
     info_batches = by_entity.get(schema.INFO, [])
     if not info_batches or schema.STEPS not in by_entity:
@@ -154,6 +161,7 @@ def _read_store(path: Path, reader: RrdReader, entry: Any) -> RunLog:
         events = _collect(by_entity.get(schema.EVENTS, []), schema.EVENT_FIELDS)
         impulses = _collect(by_entity.get(schema.IMPULSES, []), schema.IMPULSE_FIELDS)
         terminal = _collect(by_entity.get(schema.TERMINAL, []), ("min_barrier",))["min_barrier"]
+        arms = _arm_steps(by_entity, info.get("arms") or ())
     except (ValueError, pa.ArrowException) as exc:
         raise RecordingReadError(path, f"malformed replay columns: {exc}") from exc
     order = np.argsort(steps["t"], kind="stable")
@@ -176,8 +184,28 @@ def _read_store(path: Path, reader: RrdReader, entry: Any) -> RunLog:
             path, f"recording {entry.recording_id!r} is truncated: {steps['t'].size} of {int(expected)} "
             "logged steps could be read"
         )
+    for name, cols in arms.items():
+        if cols["t"].size != steps["t"].size:
+            raise RecordingReadError(path, f"recording {entry.recording_id!r}: arm {name!r} has "
+                                     f"{cols['t'].size} logged steps, the team {steps['t'].size}")
     return RunLog(path, entry.application_id, entry.recording_id, str(kind), info, summary, steps, events,
-                  impulses, np.asarray(terminal, dtype=float))
+                  impulses, np.asarray(terminal, dtype=float), arms)
+
+
+def _arm_steps(by_entity: dict[str, list[pa.RecordBatch]], names: Sequence[str]) -> dict[str, dict[str, np.ndarray]]:
+    """Each arm's replay columns (``/replay/arms/<name>``), in time order, by name in the team's order."""
+    out: dict[str, dict[str, np.ndarray]] = {}
+    for name in names:
+        batches = by_entity.get(f"{schema.ARM_STEPS}/{rr.escape_entity_path_part(str(name))}")
+        if not batches:
+            continue
+        cols = _collect(batches, schema.STEP_FIELDS)
+        order = np.argsort(cols["t"], kind="stable")
+        cols = {k: v[order] for k, v in cols.items()}
+        cols["on"] = cols["on"].astype(bool)
+        cols["qp_solved"] = cols["qp_solved"].astype(bool)
+        out[str(name)] = cols
+    return out
 
 
 def read_rrd(path: str | Path) -> list[RunLog]:
@@ -281,7 +309,8 @@ def replay_metrics(log: RunLog) -> dict[str, Any]:
     Returns:
         Arm (and other sampled-data) runs: the fields of
         :class:`~isf_robot.core.metrics.DutyCycleMetrics` plus ``min_barrier`` (minimum of the
-        logged true-geometry minima). Impulsive (satellite) runs: only the figures that apply to
+        logged true-geometry minima); a team run (several arms) adds ``arms``, each arm's figures
+        (:func:`arm_metrics`). Impulsive (satellite) runs: only the figures that apply to
         them, :func:`impulse_metrics` (from the logged impulses), ``min_barrier`` and
         :data:`RUN_FIGURES` as the run computed them on its whole trajectory (from the logged
         summary; ``min_barrier_source`` says ``"run"``, or ``"samples"`` when a summary lacks
@@ -303,6 +332,22 @@ def replay_metrics(log: RunLog) -> dict[str, Any]:
     m = compute_metrics(s["t"], s["dt"], s["on"], s["intervention_rate"], s["qp_solved"])
     out = m.as_dict()
     out["min_barrier"] = _min_or_none(np.concatenate([s["min_barrier"], log.terminal]))
+    if log.arms:
+        out["arms"] = arm_metrics(log)
+    return out
+
+
+def arm_metrics(log: RunLog) -> list[dict[str, Any]]:
+    """Each arm's figures of a team recording, recomputed from its replay columns (empty for one arm).
+
+    Per arm: ``name``, the fields of :class:`~isf_robot.core.metrics.DutyCycleMetrics` (its own filter's
+    duty cycle, switches, off periods, and the intervention over its own joints), and ``min_barrier``
+    (the smallest barrier of its collision pairs at the control ticks).
+    """
+    out = []
+    for name, a in log.arms.items():
+        m = compute_metrics(a["t"], a["dt"], a["on"], a["intervention_rate"], a["qp_solved"])
+        out.append({"name": name, **m.as_dict(), "min_barrier": _min_or_none(a["min_barrier"])})
     return out
 
 

@@ -19,6 +19,12 @@ Layout of a recording (every time-varying entity is on the ``sim_time`` timeline
 ``/replay/events``
     One row per switch or jump event: ``t``, ``kind``, ``index``, ``xi`` (``Xi`` at the
     event), ``duration_s`` (NaN when undefined).
+``/replay/arms/<name>``
+    Team runs only (several arms): each arm's replay columns, as :data:`STEPS` with the arm's own
+    mode, ``|u_i - u_nom,i|^2`` and QP, and ``min_barrier`` the smallest barrier of the arm's collision
+    pairs at the control tick (:mod:`isf_robot.record.team`).
+``/arms/<name>/...``
+    Team runs only: each arm's time series (mode, ``|u_i - u_nom,i|``, smallest barrier of its pairs).
 ``/events``
     The same events as a text log.
 ``/plots/...``
@@ -32,7 +38,7 @@ from __future__ import annotations
 
 __all__ = [
     "INFO", "SUMMARY", "STEPS", "EVENTS", "EVENT_LOG", "STEP_FIELDS", "EVENT_FIELDS",
-    "PLOTS", "WORLD", "IMPULSES", "IMPULSE_FIELDS", "TERMINAL",
+    "PLOTS", "WORLD", "IMPULSES", "IMPULSE_FIELDS", "TERMINAL", "ARMS", "ARM_STEPS",
 ]
 
 INFO = "/run/info"
@@ -44,6 +50,8 @@ TERMINAL = "/replay/terminal"
 EVENT_LOG = "/events"
 PLOTS = "/plots"
 WORLD = "/world"
+ARMS = "/arms"
+ARM_STEPS = "/replay/arms"
 
 STEP_FIELDS: tuple[str, ...] = ("t", "dt", "on", "intervention_rate", "qp_solved", "min_barrier")
 """Columns of :data:`STEPS`, in order."""

@@ -404,3 +404,221 @@ def test_a_team_gets_no_predictive_off_trigger_by_design() -> None:
     assert resolve_params(pair, d_bar=0.1).horizon == 0.0  # the off hold instead (tracking error, RESULTS.md)
     assert resolve_params(pair, d_bar=0.1, horizon=0.3).horizon == 0.3
     assert resolve_params(load_scene("panda_pole"), d_bar=0.1).horizon > 0.0  # one arm: as before
+
+
+@pytest.mark.parametrize("coordination", ["central", "decentral"])
+def test_each_arms_series_read_back_give_its_figures(capsys, two_arm_files, tmp_path: Path, coordination) -> None:  # type: ignore[no-untyped-def]
+    """Each arm's logged mode, correction and barrier series give back the run's per-arm figures."""
+    pytest.importorskip("rerun")
+    from isf_robot.cli import main
+    from isf_robot.core.metrics import compute_metrics
+    from isf_robot.record import read_columns, read_rrd, replay_metrics
+
+    rrd = tmp_path / f"pair_{coordination}.rrd"
+    assert main(["run", *two_arm_files, "--filter", "isf", "--coordination", coordination, "--duration", "3",
+                 "--rrd", str(rrd), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    n, T = d["control_steps"], d["control_period"]
+    (log,) = read_rrd(rrd)
+    assert list(log.arms) == ["a", "b"]
+    per_arm_min = []
+    for arm in d["arms"]:
+        name = arm["name"]
+        on = read_columns(rrd, f"/arms/{name}/mode", ["Scalars:scalars"])["Scalars:scalars"]
+        corr = read_columns(rrd, f"/arms/{name}/correction_norm", ["Scalars:scalars"])["Scalars:scalars"]
+        hmin = read_columns(rrd, f"/arms/{name}/barrier_min", ["Scalars:scalars"])["Scalars:scalars"]
+        assert on.shape == corr.shape == hmin.shape == (n,)
+        assert set(np.unique(on)) <= {0.0, 1.0}
+        assert float(np.mean(on)) == pytest.approx(arm["duty_cycle"], abs=1e-12)
+        assert int(np.sum(np.diff(np.concatenate(([0.0], on))) > 0)) == arm["on_switches"]
+        assert float(np.sum(corr ** 2) * T) == pytest.approx(arm["intervention"], rel=1e-9, abs=1e-12)
+        cols = log.arms[name]  # the arm's replay columns: every figure of the run, recomputed
+        again = compute_metrics(cols["t"], cols["dt"], cols["on"], cols["intervention_rate"], cols["qp_solved"])
+        for key in ("duty_cycle", "on_switches", "min_off_s", "mean_off_s", "intervention", "short_offs"):
+            assert again.as_dict()[key] == arm[key], (name, key)
+        ee = read_columns(rrd, f"/world/arms/{name}/ee", ["Points3D:positions"])["Points3D:positions"]
+        assert ee.shape == (n, 1, 3) or ee.shape == (n, 3)
+        per_arm_min.append(float(hmin.min()))
+    if coordination == "central":  # one filter: every arm's mode is its mode
+        np.testing.assert_array_equal(log.arms["a"]["on"], log.steps["on"])
+    else:  # the team is on when any arm's filter is on
+        np.testing.assert_array_equal(log.arms["a"]["on"] | log.arms["b"]["on"], log.steps["on"])
+    assert sum(a["duty_cycle"] > 0 for a in d["arms"]) >= 1
+    # every collision pair is some arm's: the smallest of the arms' minima is the run's clearance at the ticks
+    assert min(per_arm_min) == pytest.approx(min(d["clearance"].values()), abs=1e-12)
+    assert replay_metrics(log)["arms"][1]["duty_cycle"] == d["arms"][1]["duty_cycle"]
+
+
+def test_replay_of_a_team_recording_prints_each_arm(capsys, two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    pytest.importorskip("rerun")
+    from isf_robot.cli import main
+
+    rrd = tmp_path / "pair.rrd"
+    assert main(["run", *two_arm_files, "--filter", "isf", "--coordination", "decentral", "--duration", "2",
+                 "--rrd", str(rrd), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert main(["replay", str(rrd)]) == 0
+    out = capsys.readouterr().out
+    assert "per arm:" in out
+    header = next(ln for ln in out.splitlines()[out.splitlines().index(next(
+        ln for ln in out.splitlines() if ln.endswith("per arm:"))):] if ln.startswith("metric"))
+    assert header.split()[1:] == ["a", "b"]
+    assert main(["replay", str(rrd), "--json"]) == 0
+    m = json.loads(capsys.readouterr().out)["recordings"][0]["metrics"]
+    assert m["duty_cycle"] == d["duty_cycle"] and m["intervention"] == pytest.approx(d["intervention"], rel=1e-12)
+    assert [(a["name"], a["duty_cycle"], a["on_switches"]) for a in m["arms"]] == [
+        (a["name"], a["duty_cycle"], a["on_switches"]) for a in d["arms"]]
+
+
+def test_team_blueprint_has_a_tab_per_arm() -> None:
+    pytest.importorskip("rerun")
+    from isf_robot.record.blueprints import team_blueprint
+    from isf_robot.record.errors import RecordError
+
+    def tabs(x):  # type: ignore[no-untyped-def]
+        if type(x).__name__ == "Tabs":
+            return [[v.origin for v in tab.contents] for tab in x.contents]
+        return next((t for y in (getattr(x, "contents", None) or []) if not isinstance(y, str)
+                     for t in [tabs(y)] if t), None)
+
+    bp = team_blueprint(["left", "right"], duration_s=2.0, c=0.05)
+    assert tabs(bp.root_container) == [[f"/arms/{a}/{s}" for s in ("mode", "barrier_min", "correction_norm")]
+                                       for a in ("left", "right")]
+    with pytest.raises(RecordError, match="at least one arm"):
+        team_blueprint([])
+
+
+def test_plot_draws_a_team_recording_per_arm(capsys, two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """``plot`` on a team recording: the team's row and a row per arm, each from that arm's logged series."""
+    pytest.importorskip("rerun")
+    pytest.importorskip("matplotlib")
+    from isf_robot.cli import main
+    from isf_robot.plots import RunSeries, team_run_figure
+    from isf_robot.record import read_rrd
+    from isf_robot.record.figure_data import arm_series, team_arm_series
+
+    rrd = tmp_path / "pair.rrd"
+    assert main(["run", *two_arm_files, "--filter", "isf", "--coordination", "decentral", "--duration", "3",
+                 "--rrd", str(rrd), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    png = tmp_path / "team.png"
+    assert main(["plot", str(rrd), "-o", str(png)]) == 0
+    assert png.stat().st_size > 1000 and "team run" in capsys.readouterr().err
+    (log,) = read_rrd(rrd)
+    arms = [RunSeries(**a) for a in team_arm_series(log)]
+    team = RunSeries(**arm_series(log))
+    fig = team_run_figure(team, arms, list(log.arms))
+    axes = fig.get_axes()
+    assert len(axes) == 1 + 2 * len(arms)
+    for i, (arm, run) in enumerate(zip(d["arms"], arms)):
+        assert float(np.mean(run.on)) == pytest.approx(arm["duty_cycle"], abs=1e-12)
+        assert len(run.intervals) == arm["on_switches"] + (1 if run.on[0] else 0)
+        h_line = axes[1 + 2 * i].get_lines()[0]
+        np.testing.assert_array_equal(h_line.get_ydata(), run.h)  # the arm's own barrier series, as logged
+        assert axes[1 + 2 * i].get_title(loc="left").startswith(f"{arm['name']}: duty cycle")
+
+
+def test_plot_draws_a_team_comparison_per_arm(capsys, two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """``compare --rrd DIR`` on a team writes a recording per run; ``plot`` draws each arm per way, as does its JSON."""
+    pytest.importorskip("rerun")
+    pytest.importorskip("matplotlib")
+    from isf_robot.cli import main
+    from isf_robot.plots import TeamBars
+    from isf_robot.record import read_many
+    from isf_robot.record.figure_data import team_bars
+
+    out = tmp_path / "cmp"
+    assert main(["compare", *two_arm_files, "--filters", "cbf", "isf", "--episodes", "1", "--duration", "2",
+                 "--rrd", str(out), "--json", "--quiet"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    files = sorted(p.name for p in out.glob("*.rrd"))
+    assert files == [f"two_arms-{s}-{w}-seed0.rrd" for s in ("cbf", "isf") for w in ("central", "decentral")]
+    bars = [TeamBars(**b) for b in team_bars(read_many([out]), ["cbf", "isf"])]
+    assert [b.group for b in bars] == ["cbf/central", "cbf/decentral", "isf/central", "isf/decentral"]
+    for b in bars:  # each arm's replayed figures are the compare's (one episode: the means)
+        row = d["results"][b.group]["arms"]
+        assert b.arms == ("a", "b")
+        np.testing.assert_allclose(b.duty_cycle[0], [a["duty_cycle"] for a in row], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(b.intervention[0], [a["intervention"] for a in row], rtol=1e-9)
+    png = tmp_path / "cmp.png"
+    assert main(["plot", str(out), "-o", str(png)]) == 0
+    assert png.stat().st_size > 1000 and "4 way(s) of filtering" in capsys.readouterr().err
+    doc = tmp_path / "cmp.json"
+    doc.write_text(json.dumps(d))
+    svg = tmp_path / "cmp.svg"
+    assert main(["plot", str(doc), "-o", str(svg)]) == 0
+    assert svg.stat().st_size > 1000
+    mixed = list(out.glob("*.rrd"))[:1]
+    single = tmp_path / "one.rrd"
+    assert main(["run", "--scene", "planar", "--duration", "0.2", "--d-bar", "0.1", "--rrd", str(single)]) == 0
+    capsys.readouterr()
+    assert main(["plot", str(mixed[0]), str(single), "-o", str(png)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "one kind at a time" in err
+
+
+def test_sweep_runs_a_team_each_way_with_each_arms_figures(capsys, two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """A tiny sweep of a team: every point once per way of filtering; each arm's figures are those of `run`."""
+    from isf_robot.cli import main
+
+    assert main(["sweep", *two_arm_files, "--filters", "isf", "--c", "0.02,0.1", "--episodes", "1",
+                 "--duration", "2", "--json", "--quiet"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    (sc,) = doc["scenes"]
+    labels = [r["label"] for r in sc["points"]]
+    assert labels == ["isf/central c=0.02", "isf/decentral c=0.02", "isf/central c=0.1", "isf/decentral c=0.1"]
+    for r in sc["points"]:
+        assert r["coordination"] in ("central", "decentral") and [a["name"] for a in r["arms"]] == ["a", "b"]
+        assert r["violations"] == 0
+        (run,) = r["runs"]
+        assert r["duty_cycle"] == run["duty_cycle"]  # the team's: a filter on
+        assert max(a["duty_cycle"] for a in r["arms"]) <= r["duty_cycle"] + 1e-12
+    # the same episode through `run`: each arm's figures are the sweep's
+    row = sc["points"][3]
+    assert main(["run", *two_arm_files, "--filter", "isf", "--coordination", "decentral", "--c", "0.1",
+                 "--duration", "2", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert sum(a["duty_cycle"] for a in d["arms"]) > 0  # the filters acted
+    for a, b in zip(row["arms"], d["arms"]):
+        assert (a["name"], a["duty_cycle"], a["on_switches"], a["min_off_all_s"]) == (
+            b["name"], b["duty_cycle"], b["on_switches"], b["min_off_s"])
+        assert a["intervention"] == pytest.approx(b["intervention"], rel=1e-12)
+    # the text output: the Pareto table and the per-arm table
+    assert main(["sweep", *two_arm_files, "--filters", "cbf", "--episodes", "1", "--duration", "1",
+                 "--coordination", "central", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "cbf/central" in out and "per arm" in out and "cbf/decentral" not in out
+    assert sum(ln.split()[1:2] in (["a"], ["b"]) for ln in out.splitlines() if ln.startswith("cbf/central")) == 2
+
+
+def test_sweep_refusals_on_teams_are_one_line(capsys, two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.cli import main
+
+    for argv, words in (
+        ([*two_arm_files, "--write-config", str(tmp_path / "f.toml")], ("--write-config", "2 arms")),
+        (["--scenes", "planar", "--coordination", "central", "--d-bar", "0.1"], ("several arms", "planar")),
+        ([*two_arm_files, "--level", "torque"], ("torque", "2 arms")),
+    ):
+        assert main(["sweep", *argv, "--episodes", "1", "--duration", "0.2", "--quiet"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and all(w in err for w in words), err
+    assert not (tmp_path / "f.toml").exists()
+
+
+def test_render_takes_the_coordination(two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    out = tmp_path / "pair.png"
+    proc = subprocess.run([sys.executable, "-m", "isf_robot.cli", "render", *two_arm_files, "--filter", "isf",
+                           "--coordination", "decentral", "--duration", "0.2", "-o", str(out), "--width", "96",
+                           "--height", "72"], capture_output=True, text=True, env=env, timeout=300)
+    if proc.returncode == 2 and "offscreen rendering is not available" in proc.stderr:
+        pytest.skip(f"no offscreen OpenGL here: {proc.stderr.strip()}")
+    assert proc.returncode == 0, proc.stderr
+    assert out.stat().st_size > 0 and "isf decentral, seed 0" in proc.stderr
+    proc = subprocess.run([sys.executable, "-m", "isf_robot.cli", "render", "--scene", "planar", "--coordination",
+                           "central", "-o", str(out)], capture_output=True, text=True, env=env, timeout=300)
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1 and "several arms" in proc.stderr
