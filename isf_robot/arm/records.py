@@ -141,6 +141,10 @@ class RunResult:
         wall_s: Wall time of :meth:`ArmSimulation.run` [s] (setup of the episode and the loop;
             not the construction, calibration or scene loading).
         timings: Wall time per phase [s] when timing was requested, else empty.
+        maneuvers: With maneuvers by shooting (``shoot > 0``): ``(choices, raised)``, how many times the
+            filter chose its push level and how many of those chose one above ``b``
+            (:class:`~isf_robot.core.shooting.ManeuverShooter`); ``shoot_choices`` and ``shoot_raised``
+            in :meth:`as_dict`. ``None`` without shooting.
 
     The fields of ``metrics``, ``stats`` and ``params`` read as attributes of the result too
     (``result.duty_cycle``), and :meth:`as_dict` flattens them into one JSON object.
@@ -165,6 +169,7 @@ class RunResult:
     wall_s: float
     timings: Mapping[str, float] = dataclasses.field(default_factory=dict)
     goal_times: tuple[float, ...] = ()
+    maneuvers: tuple[int, int] | None = None
 
     def __getattr__(self, name: str) -> Any:
         for part in ("metrics", "stats", "params"):
@@ -194,6 +199,8 @@ class RunResult:
                    d_bar_covered=bool(self.tracking_error_q99 <= self.params.d_bar))
         if strategy_info(self.filter).intermittent:
             out["chatter"] = chatter_advice(m, self.params, self.control_period)
+        if self.maneuvers is not None:
+            out["shoot_choices"], out["shoot_raised"] = self.maneuvers
         out.update(st)
         out.update(wall_s=self.wall_s, timings=dict(self.timings))
         return out

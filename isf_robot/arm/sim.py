@@ -396,7 +396,14 @@ class _Episode:
             goals_missed=sim.nominal.goals_missed, control_period=sim.control_period,
             timestep=sim.timestep, tracking_error_q99=float(np.quantile(self.track_err, 0.99)),
             wall_s=wall, timings=timings, goal_times=tuple(getattr(sim.nominal, "goal_times", ())),
+            maneuvers=_maneuvers(sim.strategy),
         )
+
+
+def _maneuvers(strategy: Any) -> tuple[int, int] | None:
+    """``(choices, raised)`` of an intermittent filter's maneuvers by shooting, ``None`` without them."""
+    shooter = getattr(strategy, "shooter", None)
+    return None if shooter is None else (int(shooter.choices), int(shooter.raised))
 
 
 ArmSimulation.episode = _Episode

@@ -266,6 +266,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         ("largest command step at a switch", d["switch_jump_max"]),
         ("designed off bound [s]", d["off_bound_min_s"]),
     ]
+    if "shoot_choices" in d:  # (maneuvers by shooting: how often the push level was chosen, and raised above b)
+        rows += [("maneuver level choices", d["shoot_choices"]), ("  of them above b", d["shoot_raised"])]
     if torque:  # (the same figures in the torque level's units)
         rows = [(k.replace("[rad^2/s]", "[N^2 m^2 s]").replace("[rad/s]", "[rad/s^2]").replace(
             "tracking error", "model error").replace("(braking)", "(damping to rest)"), v) for k, v in rows]

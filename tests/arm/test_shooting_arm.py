@@ -99,6 +99,12 @@ def test_a_shooting_run_is_safe_and_chooses() -> None:
     shooter = sim.strategy.shooter
     assert shooter.choices > 0 and len(shooter.last_tau) == 3
     assert res.params.shoot == 0.5 and res.as_dict()["shoot"] == 0.5
+    # the run reports the choices: how many, and how many raised the push above b
+    d = res.as_dict()
+    assert (d["shoot_choices"], d["shoot_raised"]) == (shooter.choices, shooter.raised)
+    assert 0 <= d["shoot_raised"] <= d["shoot_choices"]
+    plain = ArmSimulation(scene, "isf", seed=1, params=resolve_params(scene, d_bar=0.05, calibrate=False)).run(0.2)
+    assert "shoot_choices" not in plain.as_dict()
 
 
 def test_the_command_line_takes_shoot_and_refuses_a_bad_one(capsys) -> None:  # type: ignore[no-untyped-def]
