@@ -44,6 +44,11 @@ _LEAST_CUT = 1e-5
 regularisation pulls a feasible problem's rows about 1e-6 off; :meth:`QPSolver.least_violation`)."""
 _INF = 1e30  # "no bound" for the solvers
 
+_PROXQP_INNER = 50
+"""ProxQP's inner iterations per outer one. Its default (1500) let a filter solve on rows of scale 1e-12 run
+4e5 iterations (1.2 s; 5 s at 1e-155) before giving up; well-scaled filter problems need a few per outer
+iteration (``tests/core/test_qp.py``). A solve stopped at the limit is "unsolved", as at ``max_iter``."""
+
 
 class _Workspace:
     """A ProxQP dense workspace and whether it has been initialised."""
@@ -270,6 +275,7 @@ class QPSolver:
             s.eps_duality_gap_abs = self.eps_abs
             s.eps_duality_gap_rel = 0.0
             s.max_iter = self.max_iter
+            s.max_iter_in = _PROXQP_INNER
             s.initial_guess = proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
             qp = _Workspace(qp, m, k)
             self._cache[key] = qp

@@ -1,3 +1,5 @@
+import warnings
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -192,3 +194,25 @@ def test_least_violation_matches_a_brute_force_minimum() -> None:
             return (np.maximum(lb / n - (v @ A.T) / n, 0.0) ** 2).sum(axis=-1)
 
         assert cost(u) <= cost(U).min() + 1e-9
+
+
+def test_proxqp_work_is_bounded_on_vanishing_rows() -> None:
+    """Rows of scale 1e-12 (a gradient that all but vanishes) with the bounds in play: ProxQP gives up within its
+    iteration limits (its default inner limit let it run 4e5 iterations, over a second, per solve), and the
+    filter's answer is the documented one: a command within the bounds meeting every row, or a marked fallback."""
+    rng = np.random.default_rng(0)
+    lo, hi = -np.full(3, 2.0), np.full(3, 2.0)
+    solver = QPSolver(backend="proxsuite", closed_form=False)
+    for _ in range(6):
+        lie = LieData(rng.uniform(0, 1, 3), rng.normal(size=3), rng.normal(size=(3, 3)) * 1e-12,
+                      np.abs(rng.normal(size=3)))
+        f = SafetyFilter(Linear(2.0), 0.05, u_min=lo, u_max=hi, solver=solver, on_infeasible="fallback")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", IsfWarning)
+            step = f.step_lie(0.0, lie, rng.normal(size=3) * 3.0)
+        assert step.qp is not None and step.qp.iterations <= solver.max_iter * 60
+        u = step.u
+        assert np.all(np.isfinite(u)) and np.all(u >= lo - 1e-9) and np.all(u <= hi + 1e-9)
+        if not step.fallback:
+            slack = lie.lf + lie.lg @ u - lie.grad_norm * 0.05 + 2.0 * lie.h
+            assert np.all(slack >= -1e-9)
