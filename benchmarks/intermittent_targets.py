@@ -49,7 +49,7 @@ from isf_robot.support.report import with_schema  # noqa: E402
 
 SCENES = ("panda_pole", "panda_shelf", "panda_moving", "panda_servo", "ur5e_pole")
 VENDOR_DIR = ROOT / "benchmarks" / "vendor_arms"
-VENDOR = ("vendor_panda_servo", "vendor_ur5e_torque")
+VENDOR = ("vendor_panda_servo", "vendor_panda_position", "vendor_ur5e_torque")
 """The vendor-style arms of ``--vendor``: ``VENDOR_DIR/<name>.xml`` and ``.toml``."""
 
 

@@ -342,7 +342,7 @@ def test_the_guides_ur5e_figures_are_the_models() -> None:
     assert round(100 * cal.d_bar / sc.config.gains.max_joint_speed) == int(m.group(3))
 
 
-@pytest.mark.parametrize("name", ["vendor_panda_servo", "vendor_ur5e_torque"])
+@pytest.mark.parametrize("name", ["vendor_panda_servo", "vendor_panda_position", "vendor_ur5e_torque"])
 def test_the_benchmarks_vendor_arms_are_inits_configs(name: str) -> None:
     """benchmarks/vendor_arms: collision meshes, servos or motors, friction, armature; the config is init's."""
     folder = Path(__file__).resolve().parents[2] / "benchmarks" / "vendor_arms"
@@ -361,7 +361,7 @@ def test_the_benchmarks_vendor_arms_are_inits_configs(name: str) -> None:
     assert model.nmesh == len(sc.robot_geom_ids)
     assert np.all(model.dof_frictionloss[sc.dof_adr] > 0) and np.all(model.dof_armature[sc.dof_adr] > 0)
     kinds = {int(model.actuator_biastype[a]) for a in sc.actuator_ids}
-    servo = name.endswith("servo")
+    servo = "panda" in name
     assert kinds == {int(mujoco.mjtBias.mjBIAS_AFFINE if servo else mujoco.mjtBias.mjBIAS_NONE)}
     assert [model.geom(g).name for g in sc.obstacle_geom_ids] == ["pole", "ball"] and len(sc.goal_positions) == 3
     assert check_scene(sc) == []  # no contact at home, speeds within the actuators, ccd_tolerance tight
