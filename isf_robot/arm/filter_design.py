@@ -14,8 +14,9 @@ tuned. Both come from numbers the scene already states:
   and velocity servos. A hand-over shorter than it changes the servo's target faster than the servo
   follows, and the tracking error leaves ``d_bar``: on the vendor-style arm
   ``benchmarks/vendor_arms/vendor_panda_position`` (undamped servos, kv / kp = 0.15 s, max_joint_speed
-  0.17) a 0.017 s hand-over gave a tracking error q99 of 0.035 rad/s against ``d_bar`` 0.015 and off
-  periods down to 0.1 s; 0.15 s gave 0.008-0.011 and off periods of 0.36 s or more (RESULTS.md).
+  0.17), over 20 seeds, a 0.017 s hand-over gave a tracking error q99 of 0.035 rad/s against ``d_bar``
+  0.015 in every episode and off periods down to 0.098 s; 0.15 s keeps it within ``d_bar`` in every
+  episode (worst 0.013) and every off period at 0.356 s or more (RESULTS.md).
   (Panda scenes: 1.5 / 10 = 0.15 s, panda_servo's lead 0.10 s below it; the UR5e scene: its servos'
   lead 400 / 2000 = 0.2 s above 0.5 / 10 = 0.05 s.)
 * **Predictive off trigger** ``horizon = CHATTER_OFF_S + predict_every * period``
