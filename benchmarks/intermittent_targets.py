@@ -3,6 +3,7 @@
     nice -n 19 python benchmarks/intermittent_targets.py [--episodes 20] [--jobs 2] \
         [--scenes panda_pole panda_shelf panda_moving panda_servo ur5e_pole] [--json sweep.json] \
         [--backend processes|ray] [--marker intermittent_targets] [--no-write] [--shoot S]
+    nice -n 19 python benchmarks/intermittent_targets.py --vendor [--episodes 20] [--jobs 2] [--no-write]
 
 Runs ``cbf`` and ``isf`` with every scene's shipped parameters (no scene sets the intermittent
 options: the hand-over and the predictive horizon are designed from the scene,
@@ -13,6 +14,10 @@ the ``<!-- MARKER:start -->`` / ``<!-- MARKER:end -->`` markers (``--no-write``:
 ``--json`` also writes the whole sweep (every episode) for ``isf-robot plot pareto``.
 ``--shoot S``: the isf runs with maneuvers by shooting over ``S`` seconds (:mod:`isf_robot.core.shooting`),
 written under the marker ``shooting_targets`` unless ``--marker`` names another.
+``--vendor``: instead of the shipped scenes, the arms written here the way vendors ship them
+(:data:`VENDOR`, ``benchmarks/vendor_arms/``: collision meshes, position servos or torque motors, joint
+friction and armature; each config is what ``isf-robot init`` writes, with no ``[filter]``), written
+under the marker ``intermittent_targets_vendor`` unless ``--marker`` names another.
 
 Targets: duty <= 0.6x cbf; on-switches <= 1.5x cbf; shortest off period >= 0.25 s in every
 episode; goals >= cbf's (mean, within 0.1); time to the goals <= cbf's + 5 % (the sweep's
@@ -43,6 +48,14 @@ from isf_robot.support.files import write_text_atomic  # noqa: E402
 from isf_robot.support.report import with_schema  # noqa: E402
 
 SCENES = ("panda_pole", "panda_shelf", "panda_moving", "panda_servo", "ur5e_pole")
+VENDOR_DIR = ROOT / "benchmarks" / "vendor_arms"
+VENDOR = ("vendor_panda_servo", "vendor_panda_position", "vendor_ur5e_torque")
+"""The vendor-style arms of ``--vendor``: ``VENDOR_DIR/<name>.xml`` and ``.toml``."""
+
+
+def vendor_specs(names: list[str] | tuple[str, ...] = VENDOR) -> list[SceneSpec]:
+    """The :class:`SceneSpec` of each vendor-style arm (by file, in any process)."""
+    return [SceneSpec(model=str(VENDOR_DIR / f"{n}.xml"), config=str(VENDOR_DIR / f"{n}.toml")) for n in names]
 
 
 def _f(v: Any, fmt: str = ".3f") -> str:
@@ -94,8 +107,9 @@ def targets(cbf: dict[str, Any], isf: dict[str, Any], k: Any = "?") -> list[tupl
     return out
 
 
-def report(sweep: dict[str, Any], command: str, load: tuple[float, float, float], wall: float) -> str:
-    """The RESULTS.md section: the sweep tables and the targets table."""
+def report(sweep: dict[str, Any], command: str, load: tuple[float, float, float], wall: float,
+           params: str = "shipped parameters") -> str:
+    """The RESULTS.md section: the sweep tables and the targets table (``params``: what the scenes ran with)."""
     per = {}
     for sc in sweep["scenes"]:
         rows = {r["strategy"]: r for r in sc["points"]}
@@ -106,7 +120,7 @@ def report(sweep: dict[str, Any], command: str, load: tuple[float, float, float]
             f"(load average before {load[0]:.2f}, {wall / 60:.1f} min)" if wall > 0 else
             "Tables of earlier runs of this script (--json files given to --merge, every episode kept there)")
     lines = [f"{when}, seeds {sweep['seeds'][0]}-{sweep['seeds'][-1]} per scene, each scene's full episode "
-             "length and shipped parameters:",
+             f"length and {params}:",
              "", "```", command, "```", "", "```", format_sweep(sweep), "```", ""]
     if names:
         lines += ["| target | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
@@ -129,12 +143,21 @@ def main() -> None:
                                                    "with --shoot shooting_targets)")
     ap.add_argument("--shoot", type=float, default=0.0, metavar="S",
                     help="isf with maneuvers by shooting over S seconds (default 0: off)")
+    ap.add_argument("--vendor", action="store_true",
+                    help="the vendor-style arms of benchmarks/vendor_arms instead of the shipped scenes "
+                         "(--scenes then names them: " + ", ".join(VENDOR) + ")")
     ap.add_argument("--no-write", action="store_true")
     ap.add_argument("--merge", nargs="*", default=[], metavar="PATH",
                     help="sweep JSON files (--json of earlier runs) whose scenes join the report; "
                          "with --episodes 0 nothing new runs")
     args = ap.parse_args()
-    marker = args.marker or ("shooting_targets" if args.shoot else "intermittent_targets")
+    marker = args.marker or ("shooting_targets" if args.shoot else
+                             "intermittent_targets_vendor" if args.vendor else "intermittent_targets")
+    if args.vendor:
+        names = [n for n in args.scenes if n not in SCENES] or list(VENDOR)
+        specs = vendor_specs(names)
+    else:
+        specs = [SceneSpec(name=n) for n in args.scenes]
     isf = SweepPoint("isf", {"shoot": args.shoot} if args.shoot else {})
     load = os.getloadavg()
     t0 = time.perf_counter()
@@ -148,7 +171,7 @@ def main() -> None:
 
     sweep: dict[str, Any] = {"partial": False, "seeds": list(range(args.episodes)), "scenes": []}
     if args.episodes > 0:
-        sweep = run_sweep([SceneSpec(name=n) for n in args.scenes], [SweepPoint("cbf"), isf],
+        sweep = run_sweep(specs, [SweepPoint("cbf"), isf],
                           list(range(args.episodes)), duration=args.duration, jobs=args.jobs, progress=progress,
                           **kw)
     for path in args.merge:  # earlier runs' scenes (a scene run here wins)
@@ -160,7 +183,9 @@ def main() -> None:
     if args.json:
         write_text_atomic(args.json, json.dumps(with_schema("isf-robot-sweep", sweep), indent=1) + "\n")
     cmd = "nice -n 19 python benchmarks/intermittent_targets.py " + " ".join(sys.argv[1:])
-    body = report(sweep, cmd.strip(), load, wall)
+    params = ("the library's defaults (no [filter] table: FilterSpec's defaults, d_bar calibrated, hand-over "
+              "and horizon designed from the scene)" if args.vendor else "shipped parameters")
+    body = report(sweep, cmd.strip(), load, wall, params)
     print(body)
     if not args.no_write:
         write_section(ROOT / "RESULTS.md", f"<!-- {marker}:start -->", f"<!-- {marker}:end -->", body,

@@ -1,13 +1,14 @@
 """The per-scene tables of RESULTS.md ("Three strategies on each shipped scene"), regenerated.
 
     nice -n 19 python benchmarks/scene_tables.py [--episodes 20] [--jobs 2] \
-        [--scenes panda_pole panda_shelf panda_moving panda_servo ur5e_pole] [--no-write]
+        [--scenes panda_pole panda_shelf panda_moving panda_servo ur5e_pole] [--replace] [--no-write]
 
 Runs ``isf-robot compare --scene S --episodes N --jobs K`` for every scene (nominal, cbf and isf on
 seeds 0..N-1, each scene's shipped files and parameters) and writes, per scene, the comparison table
 and the worst-episode table between the ``<!-- scene_tables:start -->`` / ``<!-- scene_tables:end -->``
 markers of RESULTS.md (``--no-write``: print only). The figures other than wall times do not depend
-on the machine.
+on the machine. ``--replace``: only the named scenes' tables are measured and replaced, the others
+kept as they are, and the section's first line says when the named ones were measured.
 """
 
 from __future__ import annotations
@@ -49,11 +50,35 @@ def worst_table(results: dict[str, Any]) -> list[str]:
     return lines
 
 
+def replaced(path: Path, scenes: list[str], parts: list[str], head: str) -> str:
+    """The section of ``path`` with the ``### <scene>:`` tables of ``scenes`` replaced by ``parts``.
+
+    The first line of the section (when the rest was measured) is kept, followed by ``head`` naming the
+    scenes measured here.
+    """
+    text = path.read_text(encoding="utf-8")
+    old = text.split(START, 1)[1].split(END, 1)[0].strip("\n")
+    first, _, rest = old.partition("\n")
+    blocks = ["### " + b for b in rest.split("\n### ")[1:]] if rest.lstrip().startswith("### ") else []
+    new = {}
+    for line in "\n".join(parts).split("\n### ")[0:]:
+        name = line.removeprefix("### ").split(":", 1)[0]
+        new[name] = ("### " + line.removeprefix("### ")).rstrip()
+    out = [new.get(b.removeprefix("### ").split(":", 1)[0], b.rstrip()) for b in blocks]
+    have = {b.removeprefix("### ").split(":", 1)[0] for b in blocks}
+    out += [v for k, v in new.items() if k not in have]
+    note = (head.replace(" by `", f" ({', '.join(scenes)} only) by `", 1).rstrip("`.")
+            + f" --scenes {' '.join(scenes)} --replace`.")
+    return "\n".join([first, note, "", "\n\n".join(out)]).rstrip()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--episodes", type=int, default=20)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--scenes", nargs="+", default=list(SCENES))
+    ap.add_argument("--replace", action="store_true",
+                    help="replace only these scenes' tables in the section, keep the others")
     ap.add_argument("--no-write", action="store_true", help="print only")
     args = ap.parse_args()
     load, t0 = os.getloadavg(), time.perf_counter()
@@ -71,6 +96,8 @@ def main() -> None:
             f"(load average before {load[0]:.2f}, {wall / 60:.1f} min) by `python benchmarks/scene_tables.py "
             f"--episodes {args.episodes} --jobs {args.jobs}`.")
     body = "\n".join([head, "", *parts]).rstrip()
+    if args.replace:
+        body = replaced(ROOT / "RESULTS.md", args.scenes, parts, head)
     print(body)
     if not args.no_write:
         write_section(ROOT / "RESULTS.md", START, END, body, write_text_atomic)

@@ -2,7 +2,8 @@
 
     nice -n 19 python benchmarks/stress_bench.py [--episodes 1000] [--duration 3] [--jobs 2]
         [--scenes panda_pole panda_shelf panda_moving panda_servo] [--strategies cbf isf]
-        [--seed 0] [--output stress.json] [--no-write]
+        [--seed 0] [--defaults] [--output stress.json] [--no-write] [--marker NAME]
+    python benchmarks/stress_bench.py --report stress.json [--no-write] [--marker NAME]
 
 ``--episodes`` episodes per strategy, spread evenly over the scenes. Episode ``i`` of a scene is one
 random draw (:func:`draw`), from the generator seeded with ``(seed, scene index, i)``, so every strategy
@@ -18,6 +19,18 @@ the same draws. The ranges (:data:`RANGES`):
   ``c`` in [0.02, 0.15], ``b`` in [0.005, 0.05], ``blend`` in [0, 0.1] s, ``horizon`` in
   [0.1, 0.4] s with probability 3/4 (else no predictive off trigger) and, when there is a horizon,
   ``c_pred`` in [0.005, c] with probability 1/2; ``d_bar`` the scene's calibrated value.
+
+``--defaults``: the same draws (the same generator, so the same offsets, goals and ``alpha``), but the
+isf runs with the library's defaults: the scene's ``[filter]`` values for ``c``, ``b`` (and no ``c_pred``),
+the hand-over and predictive horizon designed from the scene (:mod:`isf_robot.arm.filter_design`). Only
+the scene perturbations and ``alpha`` (both strategies, the same value) are random. Written under the marker
+``stress_bench_defaults`` (else ``stress_bench``; ``--marker`` names another).
+
+Below the table, isf against cbf per scene and over all scenes: the ratios of the means (duty,
+on-switches, intervention), goals (difference of the means), time to the k-th goal (:func:`goals_time`:
+the same k for both strategies of a scene, an episode with fewer arrivals counting its whole duration),
+and the isf episodes with an off period under 0.25 s. ``--report PATH`` renders the section again from an
+``--output`` file without running anything.
 
 Safety is judged on the true geometry at every physics step (:mod:`isf_robot.arm.monitor`): a
 violation is a physics step with some pair's ``distance - margin < 0``. An episode that raises an
@@ -52,11 +65,11 @@ from isf_robot.arm import ArmSimulation, Scene, load_scene  # noqa: E402
 from isf_robot.arm.compare import json_safe  # noqa: E402
 from isf_robot.arm.episode import episode_setup  # noqa: E402
 from isf_robot.arm.params import resolve_params  # noqa: E402
+from isf_robot.arm.sweep import goals_time  # noqa: E402
 from isf_robot.core.exceptions import IsfError  # noqa: E402
 from isf_robot.support.files import write_text_atomic  # noqa: E402
 from isf_robot.support.parallel import Interrupted, Terminated, run_tasks  # noqa: E402
 
-START, END = "<!-- stress_bench:start -->", "<!-- stress_bench:end -->"
 SCENES = ("panda_pole", "panda_shelf", "panda_moving", "panda_servo")
 RANGES: dict[str, Any] = {
     "obstacle_offset_m": 0.05, "goal_offset_m": 0.08, "alpha": (2.0, 10.0), "c": (0.02, 0.15),
@@ -67,7 +80,11 @@ MAX_REDRAWS = 20
 
 
 def draw(scene: Scene, seed: int, scene_index: int, i: int) -> dict[str, Any]:
-    """The random draw of episode ``i`` of a scene: offsets, goals and filter parameters (plain values)."""
+    """The random draw of episode ``i`` of a scene: offsets, goals and filter parameters (plain values).
+
+    The isf parameters are drawn in both modes (``--defaults`` ignores them), so both modes draw the
+    same offsets, goals and ``alpha`` for an episode.
+    """
     rng = np.random.default_rng([seed, scene_index, i])
     r = RANGES
     units = _obstacle_units(scene)
@@ -140,9 +157,11 @@ def run_one(task: dict[str, Any]) -> dict[str, Any]:
         out.update(failure=f"no safe start in {MAX_REDRAWS} draws", wall_s=time.perf_counter() - t0)
         return out
     assert d is not None
-    values = dict(d["isf"]) if task["strategy"] == "isf" else {}
+    values = dict(d["isf"]) if task["strategy"] == "isf" and not task.get("defaults") else {}
     try:
         params = resolve_params(scene, alpha=d["alpha"], d_bar=task["d_bar"], **values)
+        if task["strategy"] == "isf" and task.get("defaults"):  # what the library chose, for the record
+            values = {k: getattr(params, k) for k in ("c", "b", "blend", "horizon", "c_pred")}
         res = ArmSimulation(scene, task["strategy"], seed=task["index"], params=params).run(task["duration"])
         out.update(json_safe(res.as_dict()))
         out.pop("timings", None)
@@ -204,8 +223,98 @@ def table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+def ratios(results: list[dict[str, Any]], scenes: list[str], n_goals: dict[str, int]) -> list[dict[str, Any]]:
+    """isf against cbf per scene (and ``all``): ratios of the means, goals, time to the k-th goal, short offs.
+
+    The time to the k-th goal is :func:`~isf_robot.arm.sweep.goals_time` over both strategies' episodes of a
+    scene (k the same for both); over all scenes, the mean of the scenes' times weighted by episodes.
+    """
+    out = []
+    times: dict[str, dict[str, Any]] = {}
+    for sc in scenes:
+        pts = [[r for r in results if r["scene"] == sc and r["strategy"] == st and "failure" not in r]
+               for st in ("cbf", "isf")]
+        if all(pts):
+            k, (tc, ti) = goals_time(pts, n_goals.get(sc, 1))
+            times[sc] = {"k": k, "cbf": tc["goals_time_s"], "isf": ti["goals_time_s"], "n": len(pts[1])}
+    for sc in scenes + ["all"]:
+        pts = [[r for r in results if r["strategy"] == st and (sc == "all" or r["scene"] == sc) and "failure" not in r]
+               for st in ("cbf", "isf")]
+        if not all(pts):
+            continue
+        cbf, isf = pts
+
+        def m(rows_: list[dict[str, Any]], key: str) -> float:
+            return statistics.fmean(float(r[key]) for r in rows_)
+
+        row: dict[str, Any] = {"scene": sc, "episodes": len(isf)}
+        for key, name in (("duty_cycle", "duty"), ("on_switches", "switches"), ("intervention", "intervention")):
+            a, b = m(isf, key), m(cbf, key)
+            row[name] = a / b if b > 0 else float("nan")
+        row["goals_isf"], row["goals_cbf"] = m(isf, "goals_reached"), m(cbf, "goals_reached")
+        use = [times[s] for s in (scenes if sc == "all" else [sc]) if s in times]
+        if use:
+            n = sum(t["n"] for t in use)
+            tc = sum(t["cbf"] * t["n"] for t in use) / n
+            ti = sum(t["isf"] * t["n"] for t in use) / n
+            row.update(time_cbf=tc, time_isf=ti, time=ti / tc if tc > 0 else float("nan"),
+                       k=use[0]["k"] if len(use) == 1 else None)
+        offs = [float(r["min_off_s"]) for r in isf if r.get("min_off_s") is not None]
+        row["short_off_episodes"] = sum(1 for v in offs if v < 0.25)
+        row["min_off_s"] = min(offs) if offs else float("nan")
+        row["violation_episodes"] = sum(1 for r in isf if int(r["collisions"]) > 0)
+        out.append(row)
+    return out
+
+
+def ratio_table(rows: list[dict[str, Any]]) -> str:
+    head = ("| scene | isf episodes | duty isf/cbf (target <= 0.6) | on-switches isf/cbf (<= 1.5) | "
+            "intervention isf/cbf (<= 1.2) | goals isf vs cbf (>= cbf - 0.1) | time to k-th goal isf/cbf "
+            "(<= 1.05) | isf episodes with an off period < 0.25 s (target 0) | isf violation episodes |")
+    lines = [head, "|" + "---|" * (head.count("|") - 1)]
+    for r in rows:
+        if "time" in r:
+            k = f"k = {r['k']}: " if r.get("k") else ""
+            t = f"{r['time']:.3f} ({k}{r['time_isf']:.2f} vs {r['time_cbf']:.2f} s)"
+        else:
+            t = "-"
+        lines.append(
+            f"| {r['scene']} | {r['episodes']} | {_fmt(r['duty'], '.2f')} | {_fmt(r['switches'], '.2f')} | "
+            f"{_fmt(r['intervention'], '.2f')} | {r['goals_isf']:.2f} vs {r['goals_cbf']:.2f} | {t} | "
+            f"{r['short_off_episodes']} (shortest {_fmt(r['min_off_s'], '.3f')} s) | {r['violation_episodes']} |")
+    return "\n".join(lines)
+
+
 def _terminated(signum: int, frame: Any) -> None:
     raise Terminated()
+
+
+def render(payload: dict[str, Any]) -> str:
+    """The RESULTS.md section of a run (``payload``: what ``--output`` writes)."""
+    a = payload["args"]
+    results = payload["episodes"]
+    rows = summarize(results, list(a["scenes"]), list(a["strategies"]))
+    cmd = ("nice -n 19 python benchmarks/stress_bench.py " + " ".join(
+        [f"--episodes {a['episodes']}", f"--duration {a['duration']:g}", f"--jobs {a['jobs']}",
+         "--scenes " + " ".join(a["scenes"]), "--strategies " + " ".join(a["strategies"]), f"--seed {a['seed']}"]
+        + (["--defaults"] if a.get("defaults") else [])))
+    mode = ("isf with the library's defaults (the scene's `[filter]` values, hand-over and horizon designed "
+            "from the scene; isf parameters as used: " + "; ".join(
+                f"{sc} " + ", ".join(f"{k} {v:g}" for k, v in payload["isf_defaults"][sc].items() if v is not None)
+                for sc in a["scenes"] if sc in payload.get("isf_defaults", {})) + ")"
+            if a.get("defaults") else "isf parameters drawn at random (ranges: see the script's docstring)")
+    body = [
+        "", f"`{cmd}`", "",
+        f"Started {payload['started']} on {payload['cpu']} ({payload['cpus']} logical CPUs, shared), "
+        f"{len(results)} of {payload['tasks']} episodes{' (interrupted: partial)' if payload['partial'] else ''}, "
+        f"{a['duration']:g} s each, {payload['wall_s'] / 60:.1f} min wall in all, load average at the end "
+        f"{payload['load_end']:.1f}. d_bar per scene (calibrated): "
+        + ", ".join(f"{k} {v:.4f}" for k, v in payload["d_bar"].items()) + f" rad/s. Mode: {mode}.",
+        "", table(rows), ""]
+    if "cbf" in a["strategies"] and "isf" in a["strategies"]:
+        body += ["isf against cbf on the same draws (means over the episodes; the targets in brackets):", "",
+                 ratio_table(ratios(results, list(a["scenes"]), payload.get("n_goals", {}))), ""]
+    return "\n".join(body)
 
 
 def main() -> None:
@@ -216,18 +325,31 @@ def main() -> None:
     ap.add_argument("--scenes", nargs="+", default=list(SCENES))
     ap.add_argument("--strategies", nargs="+", default=["cbf", "isf"])
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--defaults", action="store_true",
+                    help="isf with the library's defaults; only the scene perturbations and alpha are drawn")
     ap.add_argument("--output", type=Path, default=None, help="write every episode's result here (JSON)")
+    ap.add_argument("--report", type=Path, default=None, metavar="PATH",
+                    help="render the section from an --output file of an earlier run (runs nothing)")
+    ap.add_argument("--marker", default=None,
+                    help="RESULTS.md section (default stress_bench, with --defaults stress_bench_defaults)")
     ap.add_argument("--no-write", action="store_true", help="do not write RESULTS.md")
     args = ap.parse_args()
+    if args.report is not None:
+        payload = json.loads(args.report.read_text(encoding="utf-8"))
+        _write(payload, args.marker or _marker(payload["args"].get("defaults")), args.no_write)
+        return
     # Ctrl-C and SIGTERM stop the batch even when started in the background (where SIGINT is ignored)
     signal.signal(signal.SIGINT, signal.default_int_handler)
     signal.signal(signal.SIGTERM, _terminated)
     if args.episodes < 1 or not (args.duration > 0) or args.jobs < 1:
         ap.error("--episodes and --jobs must be >= 1 and --duration > 0")
     per_scene = -(-args.episodes // len(args.scenes))
-    d_bars = {sc: resolve_params(load_scene(sc)).d_bar for sc in args.scenes}  # calibrated once per scene
+    bases = {sc: load_scene(sc) for sc in args.scenes}
+    d_bars = {sc: resolve_params(bases[sc]).d_bar for sc in args.scenes}  # calibrated once per scene
+    defaults = {sc: {k: getattr(p, k) for k in ("c", "b", "blend", "horizon", "c_pred")}
+                for sc, p in ((sc, resolve_params(bases[sc], d_bar=d_bars[sc])) for sc in args.scenes)}
     tasks = [{"scene": sc, "scene_index": j, "strategy": st, "index": i, "seed": args.seed,
-              "duration": args.duration, "d_bar": d_bars[sc]}
+              "duration": args.duration, "d_bar": d_bars[sc], "defaults": args.defaults}
              for i in range(per_scene) for j, sc in enumerate(args.scenes) for st in args.strategies]
     t0 = time.time()
     started = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
@@ -249,29 +371,30 @@ def main() -> None:
         done, partial = exc.done, True
         print(f"interrupted: keeping {len(done)} finished episode(s)", file=sys.stderr)
     results = [r for _, r in done]
-    wall = time.time() - t0
-    rows = summarize(results, list(args.scenes), list(args.strategies))
-    load = os.getloadavg()
+    payload = {
+        "schema": "isf-robot-stress/2", "partial": partial, "ranges": RANGES,
+        "args": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
+        "d_bar": d_bars, "isf_defaults": defaults, "n_goals": {sc: len(b.goal_positions) for sc, b in bases.items()},
+        "tasks": len(tasks), "started": started, "cpu": cpu_model(), "cpus": os.cpu_count(),
+        "wall_s": time.time() - t0, "load_end": os.getloadavg()[0],
+        "summary": summarize(results, list(args.scenes), list(args.strategies)), "episodes": results}
     if args.output is not None:
-        write_text_atomic(args.output, json.dumps(
-            {"schema": "isf-robot-stress/1", "partial": partial, "ranges": RANGES, "args": {
-                k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
-             "d_bar": d_bars, "wall_s": wall, "summary": rows, "episodes": results}, indent=1))
-    cmd = ("nice -n 19 python benchmarks/stress_bench.py " + " ".join(
-        [f"--episodes {args.episodes}", f"--duration {args.duration:g}", f"--jobs {args.jobs}",
-         "--scenes " + " ".join(args.scenes), "--strategies " + " ".join(args.strategies), f"--seed {args.seed}"]))
-    body = "\n".join([
-        "", f"`{cmd}`", "",
-        f"Started {started} on {cpu_model()} ({os.cpu_count()} logical CPUs, shared), {len(results)} of "
-        f"{len(tasks)} episodes{' (interrupted: partial)' if partial else ''}, {args.duration:g} s each, "
-        f"{wall / 60:.1f} min wall in all, load average at the end {load[0]:.1f}. d_bar per scene (calibrated): "
-        + ", ".join(f"{k} {v:.4f}" for k, v in d_bars.items()) + " rad/s. Ranges: see the script's docstring.",
-        "", table(rows), ""])
-    print(body)
-    if not args.no_write:
-        write_section(ROOT / "RESULTS.md", START, END, body, write_text_atomic)
+        write_text_atomic(args.output, json.dumps(json_safe(payload), indent=1))
+    _write(payload, args.marker or _marker(args.defaults), args.no_write)
     if partial:
         sys.exit(130)
+
+
+def _marker(defaults: bool | None) -> str:
+    return "stress_bench_defaults" if defaults else "stress_bench"
+
+
+def _write(payload: dict[str, Any], marker: str, no_write: bool) -> None:
+    body = render(payload)
+    print(body)
+    if not no_write:
+        write_section(ROOT / "RESULTS.md", f"<!-- {marker}:start -->", f"<!-- {marker}:end -->", body,
+                      write_text_atomic)
 
 
 if __name__ == "__main__":

@@ -33,7 +33,7 @@ from isf_robot.core.chatter import chatter_risk
 from .actuation import actuator_info, speed_bound
 from .arms import geom_arms
 from .calibration import Calibration, calibrate_d_bar
-from .filter_design import with_design
+from .filter_design import servo_lead, with_design
 from .one_arm import arm_scene
 from .pairs import collision_pairs
 from .records import FilterParams
@@ -319,7 +319,7 @@ def filter_findings(scene: Scene) -> list[Finding]:
 
     Reported by ``isf-robot check``, not before every run (a standard filter's run does not use them).
     """
-    risk = chatter_risk(with_design(scene.config), scene.config.control.period)
+    risk = chatter_risk(with_design(scene.config, lead=servo_lead(scene)), scene.config.control.period)
     return [] if risk is None else [Finding("chatter-risk", f"[filter]: {risk}")]
 
 

@@ -20,7 +20,7 @@ import numpy as np
 from isf_robot.core import ClassK, ConfigError, FilterSpec, Linear
 
 from .calibration import calibrate_d_bar
-from .filter_design import with_design
+from .filter_design import servo_lead, with_design
 from .records import FilterParams
 from .rollout import NominalRollout
 from .scene import Scene
@@ -36,6 +36,7 @@ def resolve_params(
     d_bar: float | None = None,
     *,
     calibrate: bool = True,
+    servos: bool = True,
     **options: Any,
 ) -> FilterParams:
     """The filter parameters of a run on ``scene``: arguments first, then ``[filter]`` of the config.
@@ -48,6 +49,9 @@ def resolve_params(
         d_bar: Tracking-error bound [rad/s]; default ``[filter] d_bar`` when positive, else
             calibrated (when ``calibrate``).
         calibrate: Allow the calibration run.
+        servos: The arm's position servos drive the joints (the velocity level), so the designed hand-over
+            is no shorter than their time constant (:func:`~isf_robot.arm.filter_design.servo_lead`);
+            ``False`` for a level that drives the joints by torque with the actuators off.
         **options: Any other field of :class:`~isf_robot.core.FilterSpec` (``min_off``, ``c_max``,
             ``blend``, ``horizon``, ``predict_every``, ``c_pred``, ...); ``None``: the scene's. A
             ``blend`` or ``horizon`` that neither gives is designed from the scene
@@ -60,7 +64,7 @@ def resolve_params(
     """
     given = {"alpha": alpha.gain if isinstance(alpha, Linear) else alpha, "c": c, "b": b, **options}
     spec = FilterSpec.from_mapping(given, scene.config.filter)
-    spec = with_design(scene.config, spec)
+    spec = with_design(scene.config, spec, servo_lead(scene) if servos else 0.0)
     if spec.c_pred and not spec.horizon > 0:
         raise ConfigError("filter parameter c_pred needs the predictive off trigger: a horizon > 0 [s]")
     fields = {f.name: getattr(spec, f.name) for f in dataclasses.fields(FilterSpec)}

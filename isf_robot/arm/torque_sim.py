@@ -64,6 +64,9 @@ def resolve_torque_params(scene: Scene, alpha: float | ClassK | None = None, c: 
                           plant: mujoco.MjModel | None = None, **options: Any) -> FilterParams:
     """The torque level's filter parameters: as :func:`~isf_robot.arm.params.resolve_params` (the same design).
 
+    The designed hand-over is the nominal's ramp time alone (``servos=False``: this level drives the joints
+    by torque with the actuators off, so their servo time constant does not apply).
+
     ``d_bar`` [rad/s^2]: the argument, else the torque calibration on ``plant`` (the scene's ``[filter]
     d_bar`` is the velocity level's, in [rad/s], and is not used).
 
@@ -76,7 +79,8 @@ def resolve_torque_params(scene: Scene, alpha: float | ClassK | None = None, c: 
     if d_bar is None and not calibrate:
         raise ConfigError(f"scene {scene.name!r}: the torque level's d_bar [rad/s^2] is not known: pass d_bar=, "
                           "or calibrate=True (runs the torque calibration)")
-    p = resolve_params(scene, alpha, c, b, 0.0 if d_bar is None else d_bar, calibrate=False, **options)
+    p = resolve_params(scene, alpha, c, b, 0.0 if d_bar is None else d_bar, calibrate=False, servos=False,
+                       **options)  # (the actuators are off: no servo lead in the hand-over)
     if d_bar is not None:
         return dataclasses.replace(p, d_bar_source="argument")
     cal = calibrate_torque_d_bar(scene, plant, alpha_1=inner_gain(p.alpha))

@@ -77,7 +77,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
 def _cmd_check(args: argparse.Namespace) -> int:
     from isf_robot.arm.calibration import calibrate_d_bar
     from isf_robot.arm.diagnostics import check_calibration, check_scene, filter_findings, speed_bounds
-    from isf_robot.arm.filter_design import designed_options, with_design
+    from isf_robot.arm.filter_design import designed_blend, designed_options, servo_lead, with_design
 
     scene = _spec(args).load()
     findings = check_scene(scene)
@@ -95,10 +95,14 @@ def _cmd_check(args: argparse.Namespace) -> int:
           + f" (max_joint_speed = {scene.config.gains.max_joint_speed:g}; damping: (F - gravity) / damping, the "
             "steady speed, checked; servo kv: (F - gravity) / kv on an undamped joint, the largest velocity step "
             "the servo answers unsaturated, init's conservative suggestion)")
-    spec, named = with_design(scene.config), designed_options(scene.config, scene.config.filter)
+    lead = servo_lead(scene)
+    spec, named = with_design(scene.config, lead=lead), designed_options(scene.config, scene.config.filter, lead)
+    by_lead = "blend" in named and lead > designed_blend(scene.config)
     print(f"  intermittent filter: hand-over blend = {spec.blend:.3g} s, predictive horizon = {spec.horizon:.3g} s"
-          + (f" ({' and '.join(sorted(named))} designed from [gains] max_joint_speed / max_joint_acc and "
-             "[control] period; models/README.md)" if named else " (from [filter])"))
+          + (f" ({' and '.join(sorted(named))} designed from "
+             + ("the position servos' time constant (gear^2 kv + damping) / (gear^2 kp)" if by_lead else
+                "[gains] max_joint_speed / max_joint_acc")
+             + " and [control] period; models/README.md)" if named else " (from [filter])"))
     findings += filter_findings(scene)
     if not args.no_calibration:
         cal = calibrate_d_bar(scene)

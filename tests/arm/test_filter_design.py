@@ -12,7 +12,7 @@ import pytest
 
 from isf_robot.arm import build_scene
 from isf_robot.arm.diagnostics import filter_findings
-from isf_robot.arm.filter_design import designed_blend, designed_options
+from isf_robot.arm.filter_design import designed_blend, designed_options, servo_lead
 from isf_robot.arm.params import resolve_params
 from isf_robot.cli import main
 from isf_robot.core import FilterSpec
@@ -102,3 +102,85 @@ def test_run_and_compare_report_chatter_with_the_fix(capsys) -> None:  # type: i
     out = capsys.readouterr().out
     assert "offs < 0.25 s" in out and "chatter: isf in 1 of 1 episodes" in out
     assert "chatter: cbf" not in out  # the standard filter has no off periods to guard
+
+
+# The same two joints written the way vendors ship servo arms: <position> servos (kp, kv, forcerange from a
+# default class), joint armature and friction, a convex-mesh obstacle.
+SERVO_ARM = """
+<mujoco>
+  <compiler angle="radian"/>
+  <option timestep="0.001"/>
+  <default><joint armature="0.05" frictionloss="0.2" DAMPING/><position kp="300" kv="45" forcerange="-40 40" GEAR/></default>
+  <asset><mesh name="wall" vertex="0.3 0.3 -0.1 0.4 0.3 -0.1 0.3 0.4 -0.1 0.4 0.4 -0.1 0.3 0.3 0.1 0.4 0.3 0.1
+                                    0.3 0.4 0.1 0.4 0.4 0.1"/></asset>
+  <worldbody>
+    <body name="base">
+      <body name="l1">
+        <joint name="j1" axis="0 0 1" range="-3 3"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+        <body name="l2" pos="0.3 0 0">
+          <joint name="j2" axis="0 0 1" range="-3 3"/>
+          <geom type="capsule" fromto="0 0 0 0.25 0 0" size="0.03"/>
+          <site name="tip" pos="0.25 0 0"/>
+        </body>
+      </body>
+    </body>
+    <body name="obstacles"><geom name="wall" type="mesh" mesh="wall"/></body>
+    <site name="goal_a" pos="0.2 0.45 0"/>
+  </worldbody>
+  <actuator><position joint="j1"/><ACT2/></actuator>
+</mujoco>
+"""
+
+
+def _servo_scene(damping: float = 0.0, gear: float = 1.0, act2: str = '<position joint="j2" kp="300" kv="30"/>',
+                 gains: dict | None = None, filt: dict | None = None):  # type: ignore[no-untyped-def]
+    xml = (SERVO_ARM.replace("DAMPING", f'damping="{damping:g}"').replace("GEAR", f'gear="{gear:g}"')
+           .replace("<ACT2/>", act2))
+    cfg = {"robot": {"subtree": "base", "ee_site": "tip", "home": [0.0, 0.3]}, "obstacles": {"bodies": ["obstacles"]},
+           "task": {"goals": [{"site": "goal_a"}]}, "gains": gains or {"max_joint_speed": 0.3},
+           "control": {"period": 0.002}, "filter": {"d_bar": 0.01, **(filt or {})}}
+    return build_scene(mujoco.MjModel.from_xml_string(xml), cfg)
+
+
+def test_the_hand_over_is_no_shorter_than_the_slowest_position_servo() -> None:
+    # undamped servos: the lead is kv / kp, the slowest joint's (45 / 300 = 0.15 s against 30 / 300 = 0.1 s),
+    # above the nominal's ramp time 0.3 / 10 = 0.03 s
+    sc = _servo_scene()
+    assert servo_lead(sc) == pytest.approx(0.15)
+    assert resolve_params(sc).blend == pytest.approx(0.15)
+    # the tracker's lead is the same number: (gear^2 kv + damping) / (gear^2 kp) per joint
+    from isf_robot.arm.actuation import ServoTracker, arm_actuators
+
+    tr = ServoTracker(sc, arm_actuators(sc))
+    assert servo_lead(sc) == pytest.approx(float(tr.lead.max()))
+    # the torque level drives the joints by torque with the actuators off: the nominal's ramp time alone
+    from isf_robot.arm.torque_sim import resolve_torque_params
+
+    assert resolve_torque_params(sc, d_bar=1.0).blend == pytest.approx(0.3 / 10.0)
+    # joint damping adds to kv; a gear enters squared in both
+    assert servo_lead(_servo_scene(damping=3.0)) == pytest.approx((45 + 3) / 300)
+    assert servo_lead(_servo_scene(damping=3.0, gear=2.0)) == pytest.approx((4 * 45 + 3) / (4 * 300))
+    # a nominal that ramps slower than the servos: its own ramp time stays the hand-over
+    slow = _servo_scene(gains={"max_joint_speed": 2.0})
+    assert resolve_params(slow).blend == pytest.approx(2.0 / 10.0)
+    # a torque motor or a velocity servo has no lead (only the position servo on j1 counts)
+    for act2 in ('<motor joint="j2" ctrlrange="-10 10"/>', '<velocity joint="j2" kv="20"/>'):
+        assert servo_lead(_servo_scene(act2=act2)) == pytest.approx(0.15)
+    assert servo_lead(_scene()) == 0.0  # velocity servos only
+    # a scene or a run that names blend keeps its own
+    assert resolve_params(_servo_scene(filt={"blend": 0.05})).blend == 0.05
+    assert resolve_params(sc, blend=0.0).blend == 0.0
+
+
+def test_check_says_when_the_servos_set_the_hand_over(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    xml = SERVO_ARM.replace(" DAMPING", "").replace(" GEAR", "").replace("<ACT2/>", '<position joint="j2"/>')
+    (tmp_path / "arm.xml").write_text(xml)
+    (tmp_path / "arm.toml").write_text(
+        '[scene]\nname = "servo_arm"\nmodel = "arm.xml"\n[robot]\nsubtree = "base"\nee_site = "tip"\n'
+        'home = [0.0, 0.3]\n[obstacles]\nbodies = ["obstacles"]\n[[task.goals]]\nsite = "goal_a"\n'
+        '[gains]\nmax_joint_speed = 0.3\n[control]\nperiod = 0.002\n')
+    assert main(["check", "--model", str(tmp_path / "arm.xml"), "--config", str(tmp_path / "arm.toml"),
+                 "--no-calibration"]) == 0
+    out = capsys.readouterr().out
+    assert "hand-over blend = 0.15 s" in out and "the position servos' time constant" in out

@@ -340,3 +340,28 @@ def test_the_guides_ur5e_figures_are_the_models() -> None:
     assert max(cal.saturation) == 0.0
     assert round(cal.d_bar, 3) == float(m.group(2))
     assert round(100 * cal.d_bar / sc.config.gains.max_joint_speed) == int(m.group(3))
+
+
+@pytest.mark.parametrize("name", ["vendor_panda_servo", "vendor_panda_position", "vendor_ur5e_torque"])
+def test_the_benchmarks_vendor_arms_are_inits_configs(name: str) -> None:
+    """benchmarks/vendor_arms: collision meshes, servos or motors, friction, armature; the config is init's."""
+    folder = Path(__file__).resolve().parents[2] / "benchmarks" / "vendor_arms"
+    xml, toml = folder / f"{name}.xml", folder / f"{name}.toml"
+    text = toml.read_text()
+    cfg = tomllib.loads(text)
+    assert "filter" not in cfg  # the library's defaults
+    # init's output, with only the header comment and the scene description filled in
+    body = text.split("\n", 4)[4]
+    desc = f'description = "{cfg["scene"]["description"]}"'
+    assert body.replace(desc, f'description = "{name}: starter config (edit me)"') == starter_toml(xml)
+    sc = load_scene_from_files(xml, toml)
+    model = sc.model
+    robot_types = {int(model.geom_type[g]) for g in sc.robot_geom_ids}
+    assert robot_types == {int(mujoco.mjtGeom.mjGEOM_MESH)}
+    assert model.nmesh == len(sc.robot_geom_ids)
+    assert np.all(model.dof_frictionloss[sc.dof_adr] > 0) and np.all(model.dof_armature[sc.dof_adr] > 0)
+    kinds = {int(model.actuator_biastype[a]) for a in sc.actuator_ids}
+    servo = "panda" in name
+    assert kinds == {int(mujoco.mjtBias.mjBIAS_AFFINE if servo else mujoco.mjtBias.mjBIAS_NONE)}
+    assert [model.geom(g).name for g in sc.obstacle_geom_ids] == ["pole", "ball"] and len(sc.goal_positions) == 3
+    assert check_scene(sc) == []  # no contact at home, speeds within the actuators, ccd_tolerance tight
