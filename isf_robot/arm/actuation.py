@@ -37,7 +37,7 @@ from .scene import Scene
 from .tracking_law import tracking_error
 
 __all__ = ["ActuatorInfo", "actuator_info", "Actuation", "ServoTracker", "make_actuation", "tracking_step", "KINDS",
-           "speed_bound"]
+           "speed_bound", "servo_lead"]
 
 KINDS = ("torque", "position", "velocity")
 """Actuator kinds the adapters support."""
@@ -352,3 +352,24 @@ def tracking_step(tracker: Actuation, dof_adr: np.ndarray) -> Callable[[mujoco.M
         return err
 
     return step
+
+
+def servo_lead(scene: Scene) -> float:
+    """The time constant of the arm's slowest position servo [s]: ``(gear^2 kv + damping) / (gear^2 kp)``.
+
+    The largest over the arm joints driven by a position servo (``<position>``, or ``<general>`` with
+    ``biasprm = "0 -kp -kv"``) of the lead :class:`~isf_robot.arm.actuation.ServoTracker` gives the servo's
+    target; 0 when no joint has one (torque motors, velocity servos, an actuator of no supported kind).
+    """
+    m, out = scene.model, 0.0
+    for i, a in enumerate(scene.actuator_ids):
+        if a < 0:
+            continue
+        try:
+            info = actuator_info(m, int(a))
+        except ConfigError:
+            continue
+        if info.kind == "position" and info.kp > 0:
+            g2 = info.gear ** 2
+            out = max(out, (g2 * info.kv + float(m.dof_damping[scene.dof_adr[i]])) / (g2 * info.kp))
+    return out

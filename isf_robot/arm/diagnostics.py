@@ -30,10 +30,10 @@ import numpy as np
 
 from isf_robot.core.chatter import chatter_risk
 
-from .actuation import actuator_info, speed_bound
+from .actuation import actuator_info, servo_lead, speed_bound
 from .arms import geom_arms
 from .calibration import Calibration, calibrate_d_bar
-from .filter_design import servo_lead, with_design
+from .filter_design import with_design
 from .one_arm import arm_scene
 from .pairs import collision_pairs
 from .records import FilterParams

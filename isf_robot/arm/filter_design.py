@@ -8,11 +8,12 @@ tuned. Both come from numbers the scene already states:
   time the nominal controller itself takes to go from rest to its speed cap under its own rate limit
   (``[gains]``): a switch hands the command over no faster than the nominal is allowed to change it,
   so the low-level tracker sees no step it would not see from the nominal, and the tracking error
-  stays within what ``d_bar`` was calibrated on. The second (:func:`servo_lead`) is the time constant
-  of the slowest position servo of the arm, ``(gear^2 kv + damping) / (gear^2 kp)``, the lead the
-  servo tracker gives its target (:class:`~isf_robot.arm.actuation.ServoTracker`); 0 for torque motors
-  and velocity servos. A hand-over shorter than it changes the servo's target faster than the servo
-  follows, and the tracking error leaves ``d_bar``: on the vendor-style arm
+  stays within what ``d_bar`` was calibrated on. The second
+  (:func:`~isf_robot.arm.actuation.servo_lead`) is the time constant of the slowest position servo of
+  the arm, ``(gear^2 kv + damping) / (gear^2 kp)``, the lead the servo tracker gives its target
+  (:class:`~isf_robot.arm.actuation.ServoTracker`); 0 for torque motors and velocity servos. A
+  hand-over shorter than it changes the servo's target faster than the servo follows, and the tracking
+  error leaves ``d_bar``: on the vendor-style arm
   ``benchmarks/vendor_arms/vendor_panda_position`` (undamped servos, kv / kp = 0.15 s, max_joint_speed
   0.17), over 20 seeds, a 0.017 s hand-over gave a tracking error q99 of 0.035 rad/s against ``d_bar``
   0.015 in every episode and off periods down to 0.098 s; 0.15 s keeps it within ``d_bar`` in every
@@ -41,46 +42,18 @@ report chatter (off periods under 0.25 s) with the change that would fix it
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
-from isf_robot.core import ConfigError, FilterSpec
+from isf_robot.core import FilterSpec
 from isf_robot.core.chatter import horizon_for
 
 from .config_schema import SceneConfig
 
-if TYPE_CHECKING:
-    from .scene import Scene
-
-__all__ = ["designed_blend", "designed_kd", "designed_options", "servo_lead", "with_design"]
+__all__ = ["designed_blend", "designed_kd", "designed_options", "with_design"]
 
 
 def designed_blend(config: SceneConfig) -> float:
     """Hand-over time [s]: the nominal's time from rest to its joint-speed cap at its rate limit."""
     g = config.gains
     return g.max_joint_speed / g.max_joint_acc
-
-
-def servo_lead(scene: Scene) -> float:
-    """The time constant of the arm's slowest position servo [s]: ``(gear^2 kv + damping) / (gear^2 kp)``.
-
-    The largest over the arm joints driven by a position servo (``<position>``, or ``<general>`` with
-    ``biasprm = "0 -kp -kv"``) of the lead :class:`~isf_robot.arm.actuation.ServoTracker` gives the servo's
-    target; 0 when no joint has one (torque motors, velocity servos, an actuator of no supported kind).
-    """
-    from .actuation import actuator_info  # (actuation imports the scene module; this module must not)
-
-    m, out = scene.model, 0.0
-    for i, a in enumerate(scene.actuator_ids):
-        if a < 0:
-            continue
-        try:
-            info = actuator_info(m, int(a))
-        except ConfigError:
-            continue
-        if info.kind == "position" and info.kp > 0:
-            g2 = info.gear ** 2
-            out = max(out, (g2 * info.kv + float(m.dof_damping[scene.dof_adr[i]])) / (g2 * info.kp))
-    return out
 
 
 def designed_kd(config: SceneConfig) -> float:
@@ -98,7 +71,7 @@ def designed_kd(config: SceneConfig) -> float:
 def designed_options(config: SceneConfig, spec: FilterSpec, lead: float = 0.0) -> dict[str, float]:
     """``blend`` and ``horizon`` for each of the two that ``spec`` leaves to the design (``None``).
 
-    ``lead``: the arm's :func:`servo_lead` [s] (the hand-over is no shorter).
+    ``lead``: the arm's :func:`~isf_robot.arm.actuation.servo_lead` [s] (the hand-over is no shorter).
     """
     out: dict[str, float] = {}
     if spec.blend is None:
@@ -111,7 +84,7 @@ def designed_options(config: SceneConfig, spec: FilterSpec, lead: float = 0.0) -
 def with_design(config: SceneConfig, spec: FilterSpec | None = None, lead: float = 0.0) -> FilterSpec:
     """``spec`` (default: the scene's ``[filter]``) with what it leaves to the design filled in.
 
-    ``lead``: the arm's :func:`servo_lead` [s] (pass ``servo_lead(scene)``; 0: no position servos).
+    ``lead``: the arm's :func:`~isf_robot.arm.actuation.servo_lead` [s] (0: no position servos).
     """
     spec = config.filter if spec is None else spec
     return spec.replace(**designed_options(config, spec, lead))

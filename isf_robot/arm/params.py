@@ -19,8 +19,9 @@ import numpy as np
 
 from isf_robot.core import ClassK, ConfigError, FilterSpec, Linear
 
+from .actuation import servo_lead
 from .calibration import calibrate_d_bar
-from .filter_design import servo_lead, with_design
+from .filter_design import with_design
 from .records import FilterParams
 from .rollout import NominalRollout
 from .scene import Scene
@@ -50,7 +51,7 @@ def resolve_params(
             calibrated (when ``calibrate``).
         calibrate: Allow the calibration run.
         servos: The arm's position servos drive the joints (the velocity level), so the designed hand-over
-            is no shorter than their time constant (:func:`~isf_robot.arm.filter_design.servo_lead`);
+            is no shorter than their time constant (:func:`~isf_robot.arm.actuation.servo_lead`);
             ``False`` for a level that drives the joints by torque with the actuators off.
         **options: Any other field of :class:`~isf_robot.core.FilterSpec` (``min_off``, ``c_max``,
             ``blend``, ``horizon``, ``predict_every``, ``c_pred``, ...); ``None``: the scene's. A

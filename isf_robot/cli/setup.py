@@ -75,9 +75,10 @@ def _cmd_init(args: argparse.Namespace) -> int:
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
+    from isf_robot.arm.actuation import servo_lead
     from isf_robot.arm.calibration import calibrate_d_bar
     from isf_robot.arm.diagnostics import check_calibration, check_scene, filter_findings, speed_bounds
-    from isf_robot.arm.filter_design import designed_blend, designed_options, servo_lead, with_design
+    from isf_robot.arm.filter_design import designed_blend, designed_options, with_design
 
     scene = _spec(args).load()
     findings = check_scene(scene)

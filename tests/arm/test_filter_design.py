@@ -11,8 +11,9 @@ import mujoco
 import pytest
 
 from isf_robot.arm import build_scene
+from isf_robot.arm.actuation import servo_lead
 from isf_robot.arm.diagnostics import filter_findings
-from isf_robot.arm.filter_design import designed_blend, designed_options, servo_lead
+from isf_robot.arm.filter_design import designed_blend, designed_options
 from isf_robot.arm.params import resolve_params
 from isf_robot.cli import main
 from isf_robot.core import FilterSpec
