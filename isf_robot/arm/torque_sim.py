@@ -215,16 +215,23 @@ class _TorqueEpisode(_Episode):
             self.track_err[j] = float(np.linalg.norm((self.data.qvel[self._dofs] - v0) / sim.control_period - pred))
 
     def barriers(self) -> tuple[TickValues | None, LieData | None]:
-        """The ``psi`` rows and the tick's safety accounting on the true geometry."""
+        """The ``psi`` rows and the tick's safety accounting on the true geometry.
+
+        A strategy without rows (the nominal) gets the accounting only: no ``psi``, so no central differences.
+        """
         sim = self.sim
         assert sim.terms is not None
-        psi, tick = sim.second_order.tick(self.data, self._t, sim.terms, self.lin, coherence=self.coherence,
-                                          witness=self.recording)
+        if self.uses_rows:
+            psi, tick = sim.second_order.tick(self.data, self._t, sim.terms, self.lin, coherence=self.coherence,
+                                              witness=self.recording)
+        else:
+            psi, tick = None, sim.coll.lie_rows(self.data, sim.joints, self.lin, coherence=self.coherence,
+                                                witness=self.recording)
         lie, idx, row_list, h_min, dist_min, jmin, wit = tick
         values = TickValues(idx, lie.h, wit) if self.recording else None
         self.dmin = self.monitor.tick_min(min(h_min, self._h_far_min), row_list, dist_min, idx)
         self.min_joint = min(self.min_joint, jmin)
-        return values, (psi if self.uses_rows else None)
+        return values, psi
 
     def nominal(self, t: float) -> np.ndarray:
         """The nominal torque at the tick."""
