@@ -27,6 +27,7 @@ from typing import Any, NoReturn
 
 from isf_robot.core.exceptions import IsfError
 from isf_robot.core.jit import announce_compiles, end_notice
+from isf_robot.support.messages import one_line_warnings
 from isf_robot.support.parallel import Interrupted, Terminated
 
 __all__ = ["EXIT_USAGE", "EXIT_INTERRUPTED", "EXIT_TERMINATED", "run_handler", "parse_command", "one_line",
@@ -104,6 +105,7 @@ def run_handler(prog: str, handler: Handler, args: argparse.Namespace) -> int:
     """Run ``handler(args)`` and turn the errors above into messages and exit statuses."""
     where = f"{prog} {getattr(args, 'command', None) or ''}".rstrip()
     marker = announce_compiles(prog)  # (a first run that compiles the kernels says so, once)
+    restore_warnings = one_line_warnings(where)  # (the project's warnings as "<where>: warning: ...", workers too)
     previous = signal.signal(signal.SIGTERM, _raise_terminated)
     _deferred_record_errors()  # none belongs to this command yet (an earlier in-process one kept them)
     try:
@@ -131,4 +133,5 @@ def run_handler(prog: str, handler: Handler, args: argparse.Namespace) -> int:
     finally:
         _deferred_record_errors()  # an interrupted command's failed recordings are not reported later
         signal.signal(signal.SIGTERM, previous)
+        restore_warnings()
         end_notice(marker)

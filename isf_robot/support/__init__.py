@@ -6,6 +6,7 @@
 * :mod:`~isf_robot.support.report`: JSON cleaning, the schema tag of every JSON document, plain-text
   tables.
 * :mod:`~isf_robot.support.extras`: how a message names an optional extra.
+* :mod:`~isf_robot.support.messages`: the commands' warnings as one line each, workers included.
 
 Imported by the arm, the satellite, the recorders, the plots and the command lines; it imports from
 the project only the core's exceptions (:mod:`isf_robot.core.exceptions`), and the core imports nothing
@@ -24,6 +25,7 @@ _EXPORTS: dict[str, str] = {
     "to_jsonable": "report", "format_table": "report", "format_value": "report", "mean_std_cell": "report",
     "with_schema": "report", "schema_id": "report", "SCHEMAS": "report",
     "EXTRAS": "extras", "install_hint": "extras",
+    "one_line_warnings": "messages", "WARN_ENV": "messages",
 }
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())

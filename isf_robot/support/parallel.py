@@ -33,6 +33,7 @@ from typing import Any, TypeVar
 from isf_robot.core.exceptions import ConfigError, IsfError
 
 from .extras import install_hint
+from .messages import one_line_warnings
 
 __all__ = ["Interrupted", "Terminated", "run_tasks", "MAX_JOBS", "BACKENDS", "check_backend"]
 
@@ -72,6 +73,7 @@ class Interrupted(KeyboardInterrupt):
 def _worker_init() -> None:
     # The parent decides: it terminates the workers on Ctrl-C / SIGTERM.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    one_line_warnings()  # (as the command that started this worker prints them, if it does)
 
 
 def _indexed(fn: Callable[[Any], Any], item: tuple[int, Any]) -> tuple[int, Any]:
