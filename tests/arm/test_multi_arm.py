@@ -622,3 +622,12 @@ def test_render_takes_the_coordination(two_arm_files, tmp_path: Path) -> None:  
     proc = subprocess.run([sys.executable, "-m", "isf_robot.cli", "render", "--scene", "planar", "--coordination",
                            "central", "-o", str(out)], capture_output=True, text=True, env=env, timeout=300)
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1 and "several arms" in proc.stderr
+
+
+def test_check_on_a_team_names_the_team_design_not_a_horizon() -> None:
+    """A team's filters have no predictive off trigger by design: `check` says so rather than advising one."""
+    from isf_robot.arm.diagnostics import filter_findings
+
+    found = filter_findings(load_scene("panda_pair"))
+    assert [f.code for f in found] == ["chatter-risk"]
+    assert "off hold" in found[0].message and "--horizon" not in found[0].message
