@@ -175,3 +175,20 @@ def test_ctrl_c_while_importing_commands_is_one_line(cli: str, module: str, prog
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 130, proc.stderr
     assert "Traceback" not in proc.stderr and proc.stderr.strip() == f"{prog}: interrupted"
+
+
+def test_compare_at_two_levels_stopped_in_the_second_keeps_the_first_and_the_finished() -> None:
+    """Ctrl-C while `compare --level velocity torque` runs its second level: the first level's comparison
+    and the second's finished episodes are printed (the interrupted one marked partial), exit 130."""
+    proc = _start(ROBOT + ["compare", "--scene", "planar", "--level", "velocity", "torque", "--episodes", "3",
+                           "--duration", "6", "--filters", "nominal", "--json"])
+    _wait_for_line(proc, "] torque nominal seed 0")  # the second level's first episode finished
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and err.strip().endswith("interrupted")
+    doc = json.loads(out)
+    assert doc["schema"].startswith("isf-robot-compare-levels/")
+    velocity, torque = doc["levels"]["velocity"], doc["levels"]["torque"]
+    assert velocity["partial"] is False and len(velocity["results"]["nominal"]["episodes"]) == 3
+    assert torque["partial"] is True and 1 <= len(torque["results"]["nominal"]["episodes"]) < 3

@@ -285,12 +285,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _progress(quiet: bool) -> Any:
+def _progress(quiet: bool, label: str = "") -> Any:
     if quiet:
         return None
 
     def report(done: int, total: int, task: Any, r: Any) -> None:
-        print(f"[{done}/{total}] {task.strategy} seed {task.seed}: duty "
+        print(f"[{done}/{total}] {label}{task.strategy} seed {task.seed}: duty "
               f"{r['duty_cycle']:.3f}, min h {format_value(r['min_barrier'])} m, "
               f"{r['collisions']} collision steps, {r['wall_s']:.2f} s", file=sys.stderr,
               flush=True)
@@ -384,7 +384,7 @@ def _compare_levels(args: argparse.Namespace, spec: Any, scene: Any, levels: lis
         try:
             comps.append(compare_strategies(spec, args.episodes, strategies=args.filters, duration=args.duration,
                                             seed0=args.seed, jobs=args.jobs, params=params[level],
-                                            progress=_progress(args.quiet), level=level))
+                                            progress=_progress(args.quiet, f"{level} "), level=level))
         except Interrupted as exc:
             if exc.partial is not None:
                 comps.append(exc.partial)
