@@ -81,6 +81,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"[{scene} {level}: {time.perf_counter() - t0:.0f} s]", file=sys.stderr, flush=True)
             d = comp.as_dict()
             out[f"{scene}/{level}"] = d
+            if args.json is not None:  # after every comparison, so a long run that is cut short keeps what it has
+                args.json.write_text(json.dumps(out))
             for s in STRATEGIES:
                 rows.append(_row(level, s, d["results"][s]["episodes"]))
         print(f"### {scene}\n")
@@ -89,8 +91,6 @@ def main(argv: list[str] | None = None) -> int:
         for r in rows:
             print("| " + " | ".join(r) + " |")
         print(flush=True)
-    if args.json is not None:
-        args.json.write_text(json.dumps(out))
     return 0
 
 
