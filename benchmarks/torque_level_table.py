@@ -3,6 +3,7 @@
 Usage::
 
     python benchmarks/torque_level_table.py [--seeds N] [--duration S] [--jobs K] [--json PATH]
+                                            [--levels velocity torque] [--tables-from PATH ...]
 
 For every scene and level it runs ``isf-robot compare --level {velocity,torque} --filters nominal cbf isf``
 (the same library call, :func:`isf_robot.arm.compare.compare_strategies`, seeds 0 .. N-1, each level's
@@ -11,7 +12,12 @@ switches, shortest off period, intervention (in the level's units), goals, time 
 model or tracking error against ``d_bar``, collisions (true geometry, every physics step), fallbacks,
 the largest torque against its limit (torque level) and the wall time per simulated second. The torque
 level has the arm's self-collision rows on whatever the scene says
-(:class:`~isf_robot.arm.torque_sim.TorqueSimulation`).
+(:class:`~isf_robot.arm.torque_sim.TorqueSimulation`). Below each table: per level and filter, the
+shortest off period of each episode (worst, median) and the episodes where it is under 0.25 s.
+
+``--levels torque`` runs one level only; ``--tables-from A.json B.json`` runs nothing and prints the
+tables from saved ``--json`` files (a later file's ``scene/level`` entries replace an earlier one's:
+the velocity rows of one run with the torque rows of another).
 """
 
 from __future__ import annotations
@@ -51,6 +57,16 @@ def _row(level: str, strategy: str, runs: list[dict]) -> list[str]:
             str(sum(r["fallbacks"] for r in runs)), f(worst("tau_peak_ratio", max), ".2f"), f(wall, ".2f")]
 
 
+def _offs(level: str, strategy: str, runs: list[dict]) -> str:
+    """Each episode's shortest off period: the worst, the median, the episodes under 0.25 s."""
+    per = sorted(r["min_off_s"] for r in runs if r.get("min_off_s") is not None)
+    if not per:
+        return f"{level} {strategy}: no complete off period"
+    short = sum(x < 0.25 for x in per)
+    return (f"{level} {strategy}: shortest off per episode worst {per[0]:.3f} s, median {per[len(per) // 2]:.3f} s, "
+            f"under 0.25 s in {short} of {len(runs)} episodes")
+
+
 HEADER = ["level", "strategy", "duty", "switches", "min off [s]", "intervention", "goals", "last goal [s]",
           "error q99 / d_bar (covered)", "collision steps", "min h [m]", "fallbacks", "max tau/limit",
           "wall / sim s"]
@@ -64,7 +80,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--scenes", nargs="+", default=list(SCENES))
     ap.add_argument("--json", type=Path, default=None, help="also write every run's JSON here")
+    ap.add_argument("--levels", nargs="+", default=list(LEVELS), choices=LEVELS)
+    ap.add_argument("--tables-from", nargs="+", type=Path, default=None,
+                    help="run nothing: print the tables from these --json files (later files win)")
     args = ap.parse_args(argv)
+    if args.tables_from:
+        saved: dict[str, dict] = {}
+        for path in args.tables_from:
+            saved.update(json.loads(path.read_text()))
+        scenes = [s for s in args.scenes if any(f"{s}/{lv}" in saved for lv in LEVELS)]
+        for scene in scenes:
+            _table(scene, {lv: saved[f"{scene}/{lv}"] for lv in LEVELS if f"{scene}/{lv}" in saved})
+        return 0
     warnings.simplefilter("ignore")
     from isf_robot.arm.compare import SceneSpec, compare_strategies
 
@@ -73,25 +100,32 @@ def main(argv: list[str] | None = None) -> int:
           "(velocity) or model error |q_ddot - (a0 + Minv tau)| [rad/s^2] (torque), q99 per episode (mean) against "
           "d_bar; intervention in [rad^2/s] (velocity) or [N^2 m^2 s] (torque)\n")
     for scene in args.scenes:
-        rows = []
-        for level in LEVELS:
+        done = {}
+        for level in args.levels:
             t0 = time.perf_counter()
             comp = compare_strategies(SceneSpec(name=scene), args.seeds, strategies=list(STRATEGIES),
                                       duration=args.duration, jobs=args.jobs, level=level)
             print(f"[{scene} {level}: {time.perf_counter() - t0:.0f} s]", file=sys.stderr, flush=True)
-            d = comp.as_dict()
-            out[f"{scene}/{level}"] = d
-            for s in STRATEGIES:
-                rows.append(_row(level, s, d["results"][s]["episodes"]))
-        print(f"### {scene}\n")
-        print("| " + " | ".join(HEADER) + " |")
-        print("|" + "---|" * len(HEADER))
-        for r in rows:
-            print("| " + " | ".join(r) + " |")
-        print(flush=True)
-    if args.json is not None:
-        args.json.write_text(json.dumps(out))
+            done[level] = out[f"{scene}/{level}"] = comp.as_dict()
+            if args.json is not None:  # after every comparison, so a long run that is cut short keeps what it has
+                args.json.write_text(json.dumps(out))
+        _table(scene, done)
     return 0
+
+
+def _table(scene: str, by_level: dict[str, dict]) -> None:
+    """Print one scene's table (the levels in ``by_level``) and its off-period lines."""
+    print(f"### {scene}\n")
+    print("| " + " | ".join(HEADER) + " |")
+    print("|" + "---|" * len(HEADER))
+    for level, d in by_level.items():
+        for s in STRATEGIES:
+            print("| " + " | ".join(_row(level, s, d["results"][s]["episodes"])) + " |")
+    print()
+    for level, d in by_level.items():
+        for s in STRATEGIES[1:]:
+            print(f"* {_offs(level, s, d['results'][s]['episodes'])}")
+    print(flush=True)
 
 
 if __name__ == "__main__":

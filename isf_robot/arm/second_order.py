@@ -26,6 +26,14 @@ dynamics, in [rad/s^2]), and ``dpsi/dq_dot = J``; so ``|dpsi/dx|`` restricted to
 coordinates is ``|J|`` and the robust condition reads
 ``Lf psi + Lg psi tau - |J| d_bar >= -alpha(psi)`` (the core's rows, unchanged).
 
+**Moving obstacles that reverse** (``approaching=True``, the torque level's setting): a moving obstacle's
+part of ``h_dot``, ``dh/dt``, jumps when its velocity reverses at once (the ``linear_bounce`` paths), and with it
+``psi``: no torque answers a jump. On panda_moving a bounce dropped the hand's ``psi`` from +0.28 to -0.25 m/s
+with 2.7 cm left to the margin, and the arm crossed it (``RESULTS.md``, "Torque level"). With the option the rows
+use ``phi = J q_dot - |dh/dt|`` (the obstacle's part taken as approaching whichever way it moves), which a
+reversal leaves continuous and which is never above ``h_dot``, so ``psi >= 0`` still keeps ``h >= 0``; for an
+approaching obstacle the rows are the exact ones. Static obstacles have ``dh/dt = 0``: their rows do not change.
+
 ``psi >= 0`` for all time keeps ``h >= 0`` when ``h >= 0`` at the start (``h_dot >= -alpha_1 h``).
 An arm at rest starts with ``psi = alpha_1 h``. A pair beyond the broad-phase cut-off has
 ``h = cutoff - margin``, ``J = 0``, so ``psi = alpha_1 (cutoff - margin)``: when it enters the
@@ -91,11 +99,14 @@ class SecondOrderRows:
         alpha_1: The inner gain of ``psi = h_dot + alpha_1 h`` [1/s], > 0.
         obstacles: Moving obstacles' clock (:data:`ObstacleClock`); ``None``: static obstacles.
         eps: Step of the central difference of ``phi`` [s], > 0.
+        approaching: ``phi = J q_dot - |dh/dt|`` (module docstring, "Moving obstacles that reverse"); default the
+            exact ``phi = h_dot``.
 
     """
 
     def __init__(self, coll: CollisionBarriers, joints: JointLimitBarriers, qpos_adr: Sequence[int] | np.ndarray,
-                 alpha_1: float, obstacles: ObstacleClock | None = None, eps: float = 1e-4) -> None:
+                 alpha_1: float, obstacles: ObstacleClock | None = None, eps: float = 1e-4,
+                 approaching: bool = False) -> None:
         if not (np.isfinite(alpha_1) and alpha_1 > 0):
             raise ConfigError(f"alpha_1 must be a positive number [1/s], got {alpha_1}")
         if not (np.isfinite(eps) and eps > 0):
@@ -104,6 +115,7 @@ class SecondOrderRows:
         self.qadr = np.asarray(qpos_adr, dtype=np.int64)
         self.alpha_1, self.eps = float(alpha_1), float(eps)
         self.obstacles = obstacles
+        self.approaching = bool(approaching)
         self._scratch = mujoco.MjData(coll.model)
         # The same pairs with a cut-off a little further out for the differences: a pair near at the state stays
         # within it at q -+ eps q_dot (else its saturated value, with zero gradient, would make a false kink).
@@ -133,7 +145,8 @@ class SecondOrderRows:
             at[near.rows] = -1
             if np.any(sel < 0):  # (cannot happen within PROBE_REACH of the cut-off; said rather than assumed)
                 raise ConfigError(f"pairs {rows[sel < 0].tolist()} left the probe's reach within eps = {e} s")
-            out.append(near.grad[sel] @ q_dot + near.dhdt[sel])
+            dhdt = near.dhdt[sel]
+            out.append(near.grad[sel] @ q_dot + (-np.abs(dhdt) if self.approaching else dhdt))
         return (out[0] - out[1]) / (2.0 * e)
 
     def tick(self, data: mujoco.MjData, t: float, terms: DynamicsTerms, lin: np.ndarray | None = None, *,
@@ -151,6 +164,8 @@ class SecondOrderRows:
         tick = self.coll.lie_rows(data, self.joints, lin, coherence=coherence, witness=witness)  # type: ignore[arg-type]
         lie, idx = tick[0], tick[1]
         h, grad, dhdt = lie.h.copy(), lie.lg.copy(), lie.lf.copy()  # (the compiled path reuses its buffers)
+        if self.approaching:
+            dhdt = -np.abs(dhdt)
         q_dot = data.qvel[self.coll.dof_adr]
         dphi = np.zeros(h.shape[0])
         dphi[:idx.size] = self.phi_rate(data, t, idx, q_dot)

@@ -20,6 +20,15 @@ so that the core's ``Xi_on`` (:func:`~isf_robot.core.robust.robust_slack`) at th
 distance are needed (the central differences of the tick's rows are not repeated at every point). A pair
 entering or leaving the broad-phase cut-off between two points has no rate there (its ``psi`` jumps from
 the far value ``alpha_1 (cutoff - margin)`` by its approach speed): it counts from the next point on.
+With ``approaching`` the moving obstacles' part of ``phi`` is ``-|dh/dt|``, as in the filter's rows
+(:class:`~isf_robot.arm.second_order.SecondOrderRows`).
+
+The step is the control period (``horizon / T`` points, 130 on the shipped scenes): the forward difference
+is the rate of ``psi`` over ``dt``, and ``Xi_on`` at ``s_j`` pairs it with ``psi`` at the start of the step, so a
+coarse step reads a falling ``psi`` late. With the velocity level's ``horizon / 10`` (26 ms), on panda_shelf
+(seeds 0-2, 8 s) the predicted ``Xi_on`` at the off switches was above the tick's own by 0.10 on average (at
+most 0.43); with one point per control period by 0.03 (at most 0.33), and fewer off periods end early
+(``RESULTS.md``, "Torque level").
 
 Cost per rollout: ``points + 1`` evaluations of the reaching command, the kinematics and the rows on a
 scratch ``MjData``; the filter runs a rollout at most once every ``predict_every`` control steps, and
@@ -39,7 +48,6 @@ from isf_robot.core import ConfigError, LieData
 
 from .collision import CollisionBarriers
 from .joint_limits import JointLimitBarriers
-from .rollout import MAX_POINTS
 from .scene import Scene
 
 __all__ = ["TorqueRollout"]
@@ -59,15 +67,21 @@ class TorqueRollout:
         horizon: Prediction horizon [s], > 0.
         kd: The torque nominal's velocity gain [1/s], > 0.
         alpha_1: The inner gain of ``psi`` [1/s], > 0.
-        points: Largest number of predicted points; the step is ``max(control period, horizon / points)``.
+        points: Largest number of predicted points; the step is ``max(control period, horizon / points)``;
+            ``None`` (default): one point per control period (module docstring).
+        approaching: The rows' ``phi = J q_dot - |dh/dt|`` (the filter's rows at the torque level); default ``h_dot``.
 
     """
 
     def __init__(self, scene: Scene, nominal: Any, coll: CollisionBarriers, joints: JointLimitBarriers,
                  control_period: float, time_offset: float, horizon: float, kd: float, alpha_1: float,
-                 points: int = MAX_POINTS) -> None:
+                 points: int | None = None, approaching: bool = False) -> None:
         if not (math.isfinite(horizon) and horizon > 0):
             raise ConfigError(f"rollout horizon must be > 0 [s], got {horizon}")
+        if not (math.isfinite(control_period) and control_period > 0):
+            raise ConfigError(f"rollout control period must be > 0 [s], got {control_period}")
+        if points is None:
+            points = max(1, int(math.ceil(float(horizon) / float(control_period) - 1e-9)))
         if int(points) != points or points < 1:
             raise ConfigError(f"rollout points must be a whole number >= 1, got {points}")
         for name, v in (("kd", kd), ("alpha_1", alpha_1)):
@@ -81,6 +95,7 @@ class TorqueRollout:
         self.n = max(1, int(math.ceil(float(horizon) / self.dt - 1e-9)))
         self.decay = math.exp(-float(kd) * self.dt)
         self.moving = len(scene.config.moving) > 0
+        self.approaching = bool(approaching)
         self._data = mujoco.MjData(scene.model)
         self._qadr = np.asarray(scene.qpos_adr, dtype=np.int64)
         self._dofs = np.asarray(scene.dof_adr, dtype=np.int64)
@@ -97,7 +112,8 @@ class TorqueRollout:
         """
         lie, idx = self.coll.lie_rows(self._data, self.joints, lin)[:2]
         keys = np.concatenate((np.asarray(idx, dtype=np.int64), self._kc + np.arange(lie.h.size - len(idx))))
-        psi = lie.lg @ v + lie.lf + self.alpha_1 * lie.h
+        dhdt = -np.abs(lie.lf) if self.approaching else lie.lf
+        psi = lie.lg @ v + dhdt + self.alpha_1 * lie.h
         return keys, psi, np.array(lie.grad_norm, dtype=float)
 
     def __call__(self, t: float, x: Any,

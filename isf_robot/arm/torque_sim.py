@@ -6,7 +6,9 @@ nominal, strategy, act; safety judged on the true geometry at every physics step
 * **rows**: the second-order barriers ``psi = h_dot + alpha_1 h`` of every near collision pair (the
   arm's own non-adjacent link pairs included, whatever the scene says: ``self_collision``) and
   joint limit, with their Lie data on ``q_ddot = a0 + Minv tau + d``
-  (:mod:`isf_robot.arm.second_order`, :mod:`isf_robot.arm.dynamics`);
+  (:mod:`isf_robot.arm.second_order`, :mod:`isf_robot.arm.dynamics`); a moving obstacle's part of
+  ``h_dot`` is taken as approaching (``approaching=True``: a bouncing obstacle's reversal would make
+  ``psi`` jump);
 * **nominal**: computed torque on the velocity level's reaching command
   (:mod:`isf_robot.arm.torque_nominal`);
 * **strategy**: the core's strategies, unchanged (``step_lie`` on the ``psi`` rows), with the arm's
@@ -159,14 +161,14 @@ class TorqueSimulation(ArmSimulation):
         self.alpha_1, self.kd = float(alpha_1), float(designed_kd(scene.config) if kd is None else kd)
         self.dynamics = ArmDynamics(scene.model, scene.dof_adr, own_data=plant is not None)
         self.second_order = SecondOrderRows(self.coll, self.joints, scene.qpos_adr, self.alpha_1,
-                                            self._clock if scene.config.moving else None)
+                                            self._clock if scene.config.moving else None, approaching=True)
         self.torque_nominal = TorqueNominal(self.nominal, scene.dof_adr, self.tau_max, self.control_period,
                                            self.kd)
         self.terms: DynamicsTerms | None = None
         self._zero = np.zeros(scene.n_joints)
         spec, wiring = filter_options(self, inner=self.alpha_1, rollout=lambda horizon: TorqueRollout(
             self.scene, self.nominal, self.coll, self.joints, self.control_period, self.setup.time_offset,
-            horizon, self.kd, self.alpha_1))
+            horizon, self.kd, self.alpha_1, approaching=True))
         self.strategy = make_strategy(strategy, spec, **wiring, solver=solver, u_min=-self.tau_max,
                                       u_max=self.tau_max, on_infeasible="fallback", fallback=self._fallback,
                                       validate=False)

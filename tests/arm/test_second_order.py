@@ -187,3 +187,51 @@ def test_rows_validate_their_gains() -> None:
 def test_torque_limits_of_the_shipped_arms() -> None:
     assert torque_limits(load_scene("panda_pole")).tolist() == [87.0] * 4 + [12.0] * 3
     assert torque_limits(load_scene("ur5e_pole")).tolist() == [150.0] * 3 + [28.0] * 3
+
+
+def test_approaching_rows_take_the_obstacles_part_as_approaching() -> None:
+    """``approaching=True`` (the torque level's rows): ``phi = J q_dot - |dh/dt|``.
+
+    panda_moving's ball reverses at once at the ends of its bounce. The exact rows' ``psi`` moves by ``2 |dh/dt|``
+    when the ball's velocity is reversed; the approaching rows' does not, is never above the exact one, equals it
+    (and its ``Lf``) where the ball approaches, and static rows are the same in both.
+    """
+    sc = integration_scene("panda_moving")
+    model = sc.model
+    coll, joints = CollisionBarriers.from_scene(sc), JointLimitBarriers.from_scene(sc)
+
+    def clock(d, t):  # type: ignore[no-untyped-def]
+        sc.set_moving_obstacles(d, t)
+        return sc.mocap_velocities(t)[0]
+
+    exact = SecondOrderRows(coll, joints, sc.qpos_adr, ALPHA_1, clock)
+    worst = SecondOrderRows(coll, joints, sc.qpos_adr, ALPHA_1, clock, approaching=True)
+    dyn = ArmDynamics(model, sc.dof_adr)
+    rng = np.random.default_rng(11)
+    d = mujoco.MjData(model)
+    seen = {"approaching": 0, "receding": 0}
+    for _ in range(400):
+        d.qpos[sc.qpos_adr] = sc.home + rng.uniform(-0.4, 0.4, sc.n_joints)
+        d.qvel[sc.dof_adr] = rng.uniform(-0.8, 0.8, sc.n_joints)
+        d.time = float(rng.uniform(0.0, 6.0))
+        lin = clock(d, d.time)
+        mujoco.mj_forward(model, d)
+        terms = dyn.terms(d)
+        pe, tick = exact.tick(d, d.time, terms, lin)
+        pw, _ = worst.tick(d, d.time, terms, lin)
+        pe_rev, _ = exact.tick(d, d.time, terms, -lin)
+        pw_rev, _ = worst.tick(d, d.time, terms, -lin)
+        x = tick[0].lf  # the rows' dh/dt (the ball's part of h_dot; 0 for the static rows and the joint limits)
+        np.testing.assert_allclose(pw.h, pe.h - (x + np.abs(x)), atol=1e-12)
+        assert np.all(pw.h <= pe.h + 1e-12)
+        np.testing.assert_allclose(pw_rev.h, pw.h, atol=1e-12)  # (the reversal leaves them as they are)
+        np.testing.assert_allclose(pe_rev.h - pe.h, -2.0 * x, atol=1e-12)
+        static = x == 0.0
+        np.testing.assert_array_equal(pw.h[static], pe.h[static])
+        came = x < -1e-3
+        np.testing.assert_allclose(pw.lf[came], pe.lf[came], rtol=1e-6, atol=1e-6)
+        seen["approaching"] += int(came.sum())
+        seen["receding"] += int((x > 1e-3).sum())
+        if min(seen.values()) >= 2:
+            break
+    assert min(seen.values()) >= 2

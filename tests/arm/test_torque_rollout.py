@@ -110,3 +110,26 @@ def test_the_predictive_trigger_stops_the_torque_levels_chatter(pole) -> None:  
     assert isf["short_offs"] == 0 and isf["chatter"] is None
     assert isf["collisions"] == 0 and isf["min_barrier"] > 0 and isf["tau_peak_ratio"] <= 1 + 1e-9
     assert isf["duty_cycle"] < cbf["duty_cycle"]
+
+
+def test_the_default_step_is_one_control_period(pole) -> None:  # type: ignore[no-untyped-def]
+    """Without ``points`` the rollout predicts at every control tick of the horizon (0.26 s: 130 points of 2 ms).
+
+    At rest with a zero reference nothing moves: every point's rows are the state's, with a zero rate.
+    """
+    sim = TorqueSimulation(pole, "isf", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR, horizon=0.0))
+    ref = ConstantReference(np.zeros(pole.n_joints))
+    roll = TorqueRollout(pole, ref, sim.coll, sim.joints, 0.002, 0.0, 0.26, 6.0, 5.0)
+    assert roll.dt == pytest.approx(0.002) and roll.n == 130
+    data = mujoco.MjData(pole.model)
+    data.qpos[pole.qpos_adr] = pole.home
+    mujoco.mj_forward(pole.model, data)
+    pts = roll(0.0, data)
+    np.testing.assert_allclose([s for s, _, _ in pts], 0.002 * np.arange(130), atol=1e-12)
+    first = pts[0][1]
+    for _, lie, _ in pts:
+        assert lie.names == first.names
+        np.testing.assert_allclose(lie.h, first.h, atol=1e-12)
+        np.testing.assert_allclose(lie.lf, 0.0, atol=1e-9)
+    with pytest.raises(ConfigError, match="control period"):
+        TorqueRollout(pole, ref, sim.coll, sim.joints, 0.0, 0.0, 0.26, 6.0, 5.0)
