@@ -94,6 +94,12 @@ def main(argv: list[str] | None = None) -> int:
             out(f"| {level} | {strategy} | {total:.0f} | {control:.0f} | {control / mj:.1f} | "
                 + " | ".join(f"{best[k]:.0f}" for k in ("sense", "barriers", "nominal", "strategy", "act")) + " |")
     out()
+    tp = levels[1][2]
+    out(f"Both isf rows run their designed predictive off trigger (horizon {tp.horizon:g} s, a rollout at most every "
+        f"{tp.predict_every} steps while the off condition holds): at the torque level the rollout has one point per "
+        "control period (`isf_robot/arm/torque_rollout.py`), which is most of that row's strategy phase; the "
+        "velocity level's has at most 10. The torque nominal keeps only the tick's safety accounting (no rows).")
+    out()
     out("Reproduce: `python benchmarks/torque_step_bench.py` (add `--no-write` to only print).")
     if not args.no_write:
         write_section(ROOT / "BENCHMARKS.md", "<!-- torque-bench:start -->", "<!-- torque-bench:end -->",
