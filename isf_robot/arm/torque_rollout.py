@@ -99,9 +99,10 @@ class TorqueRollout:
         self._data = mujoco.MjData(scene.model)
         self._qadr = np.asarray(scene.qpos_adr, dtype=np.int64)
         self._dofs = np.asarray(scene.dof_adr, dtype=np.int64)
-        self._psi_far = self.alpha_1 * coll.h_far
         self._kc = coll.pairs.k
-        self._names = (*coll.pairs.names, *joints.names)
+        self._joint_keys = self._kc + np.arange(len(joints.names), dtype=np.int64)
+        self._names = np.array([*coll.pairs.names, *joints.names], dtype=object)  # (a row's name by its key)
+        self._at = np.full(self._names.size, -1, dtype=np.int64)  # (key -> its row at the next point; -1: absent)
         self._u0 = np.zeros(self._dofs.size)
         self.calls = 0
 
@@ -111,7 +112,7 @@ class TorqueRollout:
         Keys: a near pair's index, then ``k_c + i`` for joint limit ``i`` (the same row at every point).
         """
         lie, idx = self.coll.lie_rows(self._data, self.joints, lin)[:2]
-        keys = np.concatenate((np.asarray(idx, dtype=np.int64), self._kc + np.arange(lie.h.size - len(idx))))
+        keys = np.concatenate((np.asarray(idx, dtype=np.int64), self._joint_keys))
         dhdt = -np.abs(lie.lf) if self.approaching else lie.lf
         psi = lie.lg @ v + dhdt + self.alpha_1 * lie.h
         return keys, psi, np.array(lie.grad_norm, dtype=float)
@@ -152,10 +153,16 @@ class TorqueRollout:
         finally:
             self.nominal.restore(saved)
         out = []
+        at, m = self._at, self._u0.size
         for j in range(self.n):
             (k0, p0, g0), (k1, p1, _) = rows[j], rows[j + 1]
-            both, i0, i1 = np.intersect1d(k0, k1, assume_unique=True, return_indices=True)
-            lie = LieData(h=p0[i0], lf=(p1[i1] - p0[i0]) / dt, lg=np.zeros((both.size, self._u0.size)),
-                          grad_norm=g0[i0], names=tuple(self._names[k] for k in both.tolist()))
+            at[k1] = np.arange(k1.size)  # (the rows present at both points, in point j's order: ascending keys)
+            nxt = at[k0]
+            at[k1] = -1
+            i0 = np.flatnonzero(nxt >= 0)
+            i1 = nxt[i0]
+            h0 = p0[i0]
+            lie = LieData._of(h0, (p1[i1] - h0) / dt, np.zeros((i0.size, m)), g0[i0],
+                              tuple(self._names[k0[i0]].tolist()))
             out.append((j * dt, lie, self._u0))
         return out
