@@ -84,11 +84,19 @@ class Calibration:
 
 
 _CACHE: dict[tuple[Any, ...], Calibration] = {}
+_OTHER_CACHES: list[dict[Any, Any]] = []
 
 
 def clear_calibration_cache() -> None:
-    """Forget every cached calibration."""
+    """Forget every cached calibration (this module's and the other calibrations' registered with it)."""
     _CACHE.clear()
+    for cache in _OTHER_CACHES:
+        cache.clear()
+
+
+def register_cache(cache: dict[Any, Any]) -> None:
+    """Have :func:`clear_calibration_cache` clear ``cache`` too (the torque level's calibration cache)."""
+    _OTHER_CACHES.append(cache)
 
 
 def _key(scene: Scene, params: tuple[Any, ...]) -> tuple[Any, ...]:

@@ -35,7 +35,7 @@ from .nominal import NominalController
 from .params import filter_options
 from .records import RunResult
 from .scene import Scene
-from .sim import ArmSimulation
+from .sim import ArmSimulation, _brake
 from .step_columns import TickValues
 from .team_columns import TeamStepColumns
 from .team_nominal import TeamReaching
@@ -64,8 +64,8 @@ class _ArmRollout:
         self.M = block_matrix(blocks, blocks[-1].stop)
 
     def __call__(self, t: float, x: Any) -> list[tuple[float, LieData, np.ndarray]]:
-        if self.cache.get("t") != t:
-            self.cache.update(t=t, points=list(self.rollout(t, x)))
+        if self.cache.get("t") != t or self.cache.get("x") is not x:  # (x: the episode's data; a new run, new data)
+            self.cache.update(t=t, x=x, points=list(self.rollout(t, x)))
         b, out = self.blocks[self.i], []
         for s, lie, u in self.cache["points"]:
             inv = row_agents(lie.lg, self.M)
@@ -74,24 +74,20 @@ class _ArmRollout:
         return out
 
 
-def _brake(t: float, x: Any, lie: LieData, res: Any) -> np.ndarray:
-    """An arm's fallback when no command meets its rows: stop (u = 0), as :class:`ArmSimulation`'s."""
-    return np.zeros(lie.m)
-
-
 class _TeamEpisode(ArmSimulation.episode):  # type: ignore[name-defined,misc,valid-type]
     """The run's phases, plus the clearance by kind at each tick and penetrating contacts by kind."""
 
     def __init__(self, sim: MultiArmSimulation, n_ctrl: int) -> None:
         super().__init__(sim, n_ctrl)
-        self.kind_min = {"arm-arm": math.inf, "arm-obstacle": math.inf}
+        self.kind_min = {"arm-arm": math.inf, "arm-obstacle": math.inf, "self": math.inf}
         self.contacts = {"arm-arm": 0, "arm-obstacle": 0, "self": 0}
         self._arm_of = sim.geom_arm
         self._obstacle = np.zeros(sim.scene.model.ngeom, dtype=bool)
         self._obstacle[sim.scene.obstacle_geom_ids] = True
         pairs = sim.coll.pairs
-        self._between = self._arm_of[pairs.geom1] != self._arm_of[pairs.geom2]
-        self._between &= (self._arm_of[pairs.geom1] >= 0) & (self._arm_of[pairs.geom2] >= 0)
+        a1, a2 = self._arm_of[pairs.geom1], self._arm_of[pairs.geom2]
+        both = (a1 >= 0) & (a2 >= 0)
+        self._pair_kind = (("arm-arm", both & (a1 != a2)), ("self", both & (a1 == a2)), ("arm-obstacle", ~both))
         sim.last_episode = self
 
     def sense(self, k: int) -> None:
@@ -129,11 +125,11 @@ class _TeamEpisode(ArmSimulation.episode):  # type: ignore[name-defined,misc,val
 
     def barriers(self) -> tuple[Any, LieData | None]:
         values, lie = super().barriers()
-        rows = self.monitor.rows  # (the pairs within the cut-off at this tick: the first rows of lie, in order)
-        if lie is not None and len(rows):
-            h = lie.h[:len(rows)]
-            between = self._between[np.asarray(rows)]
-            for kind, sel in (("arm-arm", between), ("arm-obstacle", ~between)):
+        rows = self.monitor.rows  # (the pairs within the cut-off at this tick: the first rows of tick_h, in order)
+        if len(rows):  # (every strategy, the nominal's too: its tick_h holds the same pairs)
+            h, idx = self.tick_h[:len(rows)], np.asarray(rows)
+            for kind, of_kind in self._pair_kind:
+                sel = of_kind[idx]
                 if sel.any():
                     v = float(h[sel].min())
                     if v < self.kind_min[kind]:
@@ -151,7 +147,8 @@ class ArmRunResult:
         arms: Per arm: name, duty cycle, switches, off periods, intervention (over its own joints), goals,
             coordination steps and events. Centrally filtered, the duty, switches and off periods are the one
             filter's (the same for every arm); per arm, they are the arm's own filter's.
-        clearance: Smallest barrier value at the control ticks by kind (``arm-arm``, ``arm-obstacle``) [m].
+        clearance: Smallest barrier value at the control ticks by kind (``arm-arm``, ``arm-obstacle``, ``self``:
+            an arm's own link pairs) [m]; ``inf`` when no pair of that kind came within the cut-off.
         contacts: Penetrating MuJoCo contacts at the control ticks by kind (``arm-arm``, ``arm-obstacle``, ``self``).
 
     """
@@ -207,6 +204,9 @@ class MultiArmSimulation(ArmSimulation):
         if nominal is None:
             goals = episode_setup(scene, seed).goals if seed is not None else scene.goal_positions
             nominal = TeamReaching(scene, goals=goals)
+        if not isinstance(nominal, TeamReaching):
+            raise ConfigError(f"a scene with several arms runs a TeamReaching nominal (one per arm), got "
+                              f"{type(nominal).__name__}")
         super().__init__(scene, strategy, seed=seed, nominal=nominal, **kwargs)
         self.coordination = coordination
         self.blocks = tuple(a.joints for a in scene.arms)
@@ -223,8 +223,9 @@ class MultiArmSimulation(ArmSimulation):
             w = dict(wiring)
             if "rollout" in w:
                 w["rollout"] = _ArmRollout(wiring["rollout"], cache, self.blocks, i)
-            per_arm.append(make_strategy(strategy, spec, **w, solver=QPSolver(few_rows=True),
-                                         on_infeasible="fallback", fallback=_brake, validate=False))
+            solver = kwargs.get("solver") or QPSolver(few_rows=True)  # (a given solver serves every arm, in turn)
+            per_arm.append(make_strategy(strategy, spec, **w, solver=solver, on_infeasible="fallback",
+                                         fallback=_brake, validate=False))
         self.strategy = SharedFilter(per_arm, self.blocks, self.arm_names, self.control_period, off_hold=off_hold)
 
     def start_info(self, duration: float) -> dict[str, Any]:
@@ -244,8 +245,8 @@ class MultiArmSimulation(ArmSimulation):
         ep = self.last_episode
         arms = []
         for res, nom in zip(self.strategy.agent_results(), self.nominal.arms):  # type: ignore[attr-defined]
-            arms.append({"name": res.name, **res.metrics.as_dict(), "coordination_steps": res.coordination_steps,
-                         "coordination_events": res.coordination_events, "coordination_s": res.coordination_s,
+            d = res.as_dict()
+            arms.append({"name": d.pop("name"), **d.pop("metrics"), **d,
                          "goals_reached": nom.goals_reached, "goals_missed": nom.goals_missed})
         return ArmRunResult(run, self.coordination, tuple(arms), dict(ep.kind_min), dict(ep.contacts))
 

@@ -312,19 +312,22 @@ class _Episode:
         """The tick's rows (the pairs within the cut-off, the joint limits) and its safety accounting.
 
         Returns the tick's barrier values for a record (``None`` when nothing records) and the Lie
-        data (``None`` for a strategy without rows).
+        data (``None`` for a strategy without rows). ``tick_h`` keeps the tick's ``h`` (the near pairs',
+        in ``monitor.rows`` order, then the joint limits') whatever the strategy.
         """
         sim = self.sim
         if self.uses_rows:  # (the rows in one pass, without the NearPairs; witness points only for a record)
             lie, idx, row_list, h_min, dist_min, jmin, wit = sim.coll.lie_rows(
                 self.data, sim.joints, self.lin, coherence=self.coherence, witness=self.recording)
             values = TickValues(idx, lie.h, wit) if self.recording else None
+            self.tick_h = lie.h
         else:
             rows = sim.coll.rows(self.data, sim.joints, self.lin, witness=self.recording, coherence=self.coherence)
             near = rows.near
             idx, row_list, h_min, dist_min, jmin = near.rows, near.row_list, near.h_min, near.dist_min, rows.joint_min
             values = TickValues(idx, rows.h, near.witness) if self.recording else None
             lie = None
+            self.tick_h = rows.h
         self.dmin = self.monitor.tick_min(min(h_min, self._h_far_min), row_list, dist_min, idx)
         self.min_joint = min(self.min_joint, jmin)  # (jmin when smaller)
         return values, lie

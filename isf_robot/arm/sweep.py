@@ -308,6 +308,9 @@ def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: S
     if coordinations is not None and not any(pt.coordination for pts in scene_points for pt in pts):
         raise ConfigError("--coordination needs a scene with several arms ([[arm]] tables); "
                           f"{', '.join(n for n, _ in names)} {'has' if len(names) == 1 else 'have'} one")
+    if len(tasks) > MAX_SWEEP_EPISODES:  # (a team scene runs each point once per way of filtering)
+        raise ConfigError(f"{len(tasks)} episodes asked for (a scene with several arms runs each point once per "
+                          f"way of filtering); at most {MAX_SWEEP_EPISODES} per sweep")
     results: dict[tuple[int, int], list[dict[str, Any]]] = {}
 
     def keep(done: int, total: int, task: SweepTask, r: dict[str, Any]) -> None:

@@ -56,7 +56,7 @@ import numpy as np
 from isf_robot.core import Linear
 from isf_robot.core.exceptions import ConfigError
 
-from .calibration import Calibration, _key, free_scene
+from .calibration import Calibration, _key, free_scene, register_cache
 from .dynamics import ArmDynamics, torque_limits
 from .filter_design import designed_kd
 from .nominal import ReachingController
@@ -65,7 +65,9 @@ from .torque_nominal import TorqueNominal
 
 __all__ = ["calibrate_torque_d_bar", "torque_plant", "TorqueCalibration", "inner_gain"]
 
-_CACHE: dict[tuple[Any, ...], TorqueCalibration] = {}
+_CACHE: dict[tuple[Any, ...], tuple[mujoco.MjModel | None, TorqueCalibration]] = {}
+"""Calibrations by scene files and arguments, each with the plant it ran on (a hit needs that very plant)."""
+register_cache(_CACHE)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -146,10 +148,11 @@ def calibrate_torque_d_bar(
     if not (np.isfinite(alpha_1) and alpha_1 >= 0):
         raise ConfigError(f"alpha_1 must be a number >= 0 [1/s], got {alpha_1}")
     kd = designed_kd(scene.config) if kd is None else float(kd)
-    key = _key(scene, (id(plant) if plant is not None else None, duration, quantile, factor, excitation,
-                       switch_period, seed, kd, alpha_1))
-    if key in _CACHE:
-        return _CACHE[key]
+    key = _key(scene, (plant is not None, duration, quantile, factor, excitation, switch_period, seed, kd, alpha_1))
+    use_cache = scene.xml_path is not None  # (a scene built in memory has no file to key on)
+    hit = _CACHE.get(key) if use_cache else None
+    if hit is not None and hit[0] is plant:  # (the entry keeps its plant: an identity, not a reusable id())
+        return hit[1]
     free = free_scene(scene, torque_plant(scene.model if plant is None else plant))
     model = free.model
     data = free.make_data(0.0)
@@ -190,5 +193,6 @@ def calibrate_torque_d_bar(
                       saturation=tuple(float(x) for x in sat / n_ctrl), joint_names=scene.joint_names,
                       friction_fed_forward=False, alpha_1=alpha_1,
                       model_error_q99=q_model, hold_error_q99=q_hold)
-    _CACHE[key] = cal
+    if use_cache:
+        _CACHE[key] = (plant, cal)
     return cal

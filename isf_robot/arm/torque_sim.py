@@ -63,14 +63,16 @@ FALLBACK_KD = 40.0
 
 def resolve_torque_params(scene: Scene, alpha: float | ClassK | None = None, c: float | None = None,
                           b: float | None = None, d_bar: float | None = None, *, calibrate: bool = True,
-                          plant: mujoco.MjModel | None = None, **options: Any) -> FilterParams:
+                          plant: mujoco.MjModel | None = None, kd: float | None = None,
+                          **options: Any) -> FilterParams:
     """The torque level's filter parameters: as :func:`~isf_robot.arm.params.resolve_params` (the same design).
 
     The designed hand-over is the nominal's ramp time alone (``servos=False``: this level drives the joints
     by torque with the actuators off, so their servo time constant does not apply).
 
-    ``d_bar`` [rad/s^2]: the argument, else the torque calibration on ``plant`` (the scene's ``[filter]
-    d_bar`` is the velocity level's, in [rad/s], and is not used).
+    ``d_bar`` [rad/s^2]: the argument, else the torque calibration on ``plant`` with the torque nominal's
+    gain ``kd`` (default designed; give the run's own when it sets one) (the scene's ``[filter] d_bar`` is
+    the velocity level's, in [rad/s], and is not used).
 
     Raises:
         ConfigError: As ``resolve_params``; ``d_bar`` not given and ``calibrate`` False; a ``shoot > 0``.
@@ -85,7 +87,7 @@ def resolve_torque_params(scene: Scene, alpha: float | ClassK | None = None, c: 
                        **options)  # (the actuators are off: no servo lead in the hand-over)
     if d_bar is not None:
         return dataclasses.replace(p, d_bar_source="argument")
-    cal = calibrate_torque_d_bar(scene, plant, alpha_1=inner_gain(p.alpha))
+    cal = calibrate_torque_d_bar(scene, plant, alpha_1=inner_gain(p.alpha), kd=kd)
     return dataclasses.replace(p, d_bar=cal.d_bar, d_bar_source="torque calibration")
 
 
@@ -285,5 +287,6 @@ def run_torque_episode(scene: Scene, strategy: str = "isf", duration: float | No
                        d_bar: float | None = None, plant: mujoco.MjModel | None = None,
                        **kwargs: Any) -> RunResult:
     """Resolve the torque level's parameters (calibrating ``d_bar`` if needed), then run one episode."""
-    params = kwargs.pop("params", None) or resolve_torque_params(scene, alpha, c, b, d_bar, plant=plant)
+    params = kwargs.pop("params", None) or resolve_torque_params(scene, alpha, c, b, d_bar, plant=plant,
+                                                                 kd=kwargs.get("kd"))
     return TorqueSimulation(scene, strategy, seed=seed, params=params, plant=plant, **kwargs).run(duration)

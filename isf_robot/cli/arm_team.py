@@ -62,8 +62,8 @@ def team_report(args: argparse.Namespace, sim: Any) -> int:
     print(f"scene {d['scene']}, filter {d['filter']} ({coordination}), seed {d['seed']}: {d['duration_s']:.3f} s "
           f"simulated, {d['control_steps']} control steps in {d['wall_s']:.2f} s")
     print(f"  min barrier [m] (true geometry)  {format_value(d['min_barrier'])}; collision steps {d['collisions']}; "
-          f"clearance at ticks: arm-arm {format_value(r.clearance['arm-arm'])}, arm-obstacle "
-          f"{format_value(r.clearance['arm-obstacle'])}; penetrating contacts {r.contacts}")
+          "clearance at ticks: " + ", ".join(f"{k} {format_value(v)}" for k, v in r.clearance.items())
+          + f"; penetrating contacts {r.contacts}")
     print(f"  team duty {d['duty_cycle']:.3f}, QP solves {d['qp_solves']}, fallbacks {d['fallbacks']}, "
           f"d_bar {format_value(d['d_bar'])} rad/s")
     print("\n".join(_arm_lines(r)))

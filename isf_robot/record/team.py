@@ -92,9 +92,12 @@ class TeamSeries:
         """Each arm's columns of a block's first ``n`` rows (``h``: the collision pairs' barrier values, (n, k))."""
         if not hasattr(b, "arm_on"):
             raise RecordError("a team run's recorder needs each arm's columns (TeamStepColumns); the block has none")
+        if self.member.shape[0] != h.shape[1]:
+            raise RecordError(f"the block has {h.shape[1]} collision pairs, the run's start info "
+                              f"{self.member.shape[0]}")
         out = []
         for i, cols in enumerate(self.joints):
-            sel = self.member[:, i] if self.member.shape[0] == h.shape[1] else np.zeros(h.shape[1], dtype=bool)
+            sel = self.member[:, i]
             hmin = h[:, sel].min(axis=1) if sel.any() else np.full(n, np.nan)
             out.append({
                 "on": b.arm_on[:n, i].copy(), "qp_solved": b.arm_qp[:n, i].copy(),

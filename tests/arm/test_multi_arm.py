@@ -201,6 +201,11 @@ def test_shares_meet_the_pair_condition(rng) -> None:  # type: ignore[no-untyped
 def test_team_run_is_safe_and_its_arm_figures_add_up(two_arms, coordination) -> None:  # type: ignore[no-untyped-def]
     nominal = run_team(two_arms, "nominal", coordination, duration=3.0, seed=0)
     assert nominal.contacts["arm-arm"] > 0 or nominal.run.collisions > 0  # the tasks cross: the arms collide
+    # the nominal's clearance by kind is measured too (it has no rows of its own): at the ticks, never below the
+    # run's true-geometry minimum over every physics step, and the arm-arm pairs the closest on this crossing
+    assert np.isfinite(nominal.clearance["arm-arm"]) and np.isfinite(nominal.clearance["arm-obstacle"])
+    assert min(nominal.clearance.values()) >= nominal.run.min_barrier - 1e-12
+    assert nominal.clearance["arm-arm"] == min(nominal.clearance.values())
     for strategy in ("cbf", "isf"):
         r = run_team(two_arms, strategy, coordination, duration=3.0, seed=0)
         assert r.violations == 0 and r.run.collisions == 0 and r.run.fallbacks == 0, (strategy, r.contacts)
@@ -386,6 +391,17 @@ def test_team_promotes_no_shared_row_and_holds_off() -> None:
         assert 0.01 <= first_off <= 0.014  # the off condition held since 0.002: off once it held 0.01 s
     hold = OffHold(0.1)
     assert not hold(0.0)
+    # a failure of the off condition at t = 1 holds the filter on for 0.1 s after it, and only a failure does
+    from types import SimpleNamespace as NS
+
+    hold.record(NS(t=1.0, on=True, xi=np.array([0.2, 0.01]), margin=0.05))
+    assert hold(1.0) and hold(1.099) and not hold(1.1)
+    hold.record(NS(t=1.2, on=True, xi=np.array([0.2, 0.06]), margin=0.05))  # (every Xi_on above the margin)
+    hold.record(NS(t=1.3, on=False, xi=np.array([-1.0]), margin=0.05))  # (an off step is no failure)
+    assert not hold(1.35)
+    never = OffHold(0.0)
+    never.record(NS(t=1.0, on=True, xi=np.array([-1.0]), margin=0.05))
+    assert not never(1.0)
 
 
 def test_isf_team_passes_the_head_on_crossing() -> None:
@@ -445,7 +461,8 @@ def test_each_arms_series_read_back_give_its_figures(capsys, two_arm_files, tmp_
         np.testing.assert_array_equal(log.arms["a"]["on"] | log.arms["b"]["on"], log.steps["on"])
     assert sum(a["duty_cycle"] > 0 for a in d["arms"]) >= 1
     # every collision pair is some arm's: the smallest of the arms' minima is the run's clearance at the ticks
-    assert min(per_arm_min) == pytest.approx(min(d["clearance"].values()), abs=1e-12)
+    measured = [v for v in d["clearance"].values() if v is not None]  # (JSON: a kind with no pair in reach is null)
+    assert min(per_arm_min) == pytest.approx(min(measured), abs=1e-12)
     assert replay_metrics(log)["arms"][1]["duty_cycle"] == d["arms"][1]["duty_cycle"]
 
 
@@ -631,3 +648,18 @@ def test_check_on_a_team_names_the_team_design_not_a_horizon() -> None:
     found = filter_findings(load_scene("panda_pair"))
     assert [f.code for f in found] == ["chatter-risk"]
     assert "off hold" in found[0].message and "--horizon" not in found[0].message
+
+
+def test_a_team_simulation_runs_again_the_same_and_takes_the_given_solver(two_arms) -> None:  # type: ignore[no-untyped-def]
+    """A second run of the same simulation object gives the first's figures (nothing kept from the first run's
+    rollouts), and a decentral team's arms use the solver it was given."""
+    solver = QPSolver(few_rows=True)
+    from isf_robot.arm import resolve_params
+
+    params = resolve_params(two_arms, d_bar=0.1, horizon=0.1, calibrate=False)  # (with a rollout shared by the arms)
+    sim = MultiArmSimulation(two_arms, "isf", coordination="decentral", seed=0, params=params, solver=solver)
+    assert all(f.solver is solver for f in sim.strategy.agents)
+    first, second = sim.run_team(1.5), sim.run_team(1.5)
+    assert first.arms == second.arms and first.clearance == second.clearance
+    with pytest.raises(ConfigError, match="TeamReaching"):
+        MultiArmSimulation(two_arms, "isf", nominal=object(), d_bar=0.1)  # type: ignore[arg-type]

@@ -132,15 +132,22 @@ def integration_scene(name: str):  # type: ignore[no-untyped-def]
     return dataclasses.replace(scene, model=model)
 
 
+def moving_clock(sc):  # type: ignore[no-untyped-def]
+    """The scene's moving obstacles at time ``t`` in ``d`` and their velocities (an ObstacleClock)."""
+
+    def clock(d, t):  # type: ignore[no-untyped-def]
+        sc.set_moving_obstacles(d, t)
+        return sc.mocap_velocities(t)[0]
+
+    return clock
+
+
 def test_moving_obstacle_rows_match_the_integrated_motion() -> None:
     """dh/dt and its rate along the obstacle's path (panda_moving: a mocap ball on a linear bouncing path)."""
     sc = integration_scene("panda_moving")
     model = sc.model
     coll, joints = CollisionBarriers.from_scene(sc), JointLimitBarriers.from_scene(sc)
-
-    def clock(d, t):  # type: ignore[no-untyped-def]
-        sc.set_moving_obstacles(d, t)
-        return sc.mocap_velocities(t)[0]
+    clock = moving_clock(sc)
 
     rows = SecondOrderRows(coll, joints, sc.qpos_adr, ALPHA_1, clock)
     rng = np.random.default_rng(7)
@@ -199,10 +206,7 @@ def test_approaching_rows_take_the_obstacles_part_as_approaching() -> None:
     sc = integration_scene("panda_moving")
     model = sc.model
     coll, joints = CollisionBarriers.from_scene(sc), JointLimitBarriers.from_scene(sc)
-
-    def clock(d, t):  # type: ignore[no-untyped-def]
-        sc.set_moving_obstacles(d, t)
-        return sc.mocap_velocities(t)[0]
+    clock = moving_clock(sc)
 
     exact = SecondOrderRows(coll, joints, sc.qpos_adr, ALPHA_1, clock)
     worst = SecondOrderRows(coll, joints, sc.qpos_adr, ALPHA_1, clock, approaching=True)

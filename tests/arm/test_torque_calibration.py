@@ -79,3 +79,35 @@ def test_isf_with_the_designed_nominal_gain_keeps_its_off_periods_on_a_ur5e_run(
     r = sim.run(3.0)
     assert r.on_switches >= 1 and r.min_off_s is not None and r.min_off_s >= CHATTER_OFF_S
     assert r.collisions == 0 and r.min_barrier > 0.0
+
+
+def test_the_calibration_cache_keeps_each_plant_its_own(ur5e) -> None:  # type: ignore[no-untyped-def]
+    """A cached calibration is handed back only for the very plant it ran on: a plant with a payload made after
+    another was freed (whose id() Python may reuse) is calibrated afresh; clear_calibration_cache forgets them."""
+    import copy
+
+    from isf_robot.arm.calibration import clear_calibration_cache
+
+    light = copy.deepcopy(ur5e.model)
+    first = calibrate_torque_d_bar(ur5e, light, duration=0.4)
+    assert calibrate_torque_d_bar(ur5e, light, duration=0.4) is first  # (the same plant: the cached one)
+    del light
+    heavy = copy.deepcopy(ur5e.model)
+    hand = int(heavy.site_bodyid[ur5e.ee_site_id]) if ur5e.ee_site_id >= 0 else int(ur5e.ee_body_id)
+    heavy.body_mass[hand] += 3.0  # (a payload on the hand: the filter's model no longer matches the plant)
+    loaded = calibrate_torque_d_bar(ur5e, heavy, duration=0.4)
+    assert loaded is not first and loaded.model_error_q99 > 10 * first.model_error_q99 + 1e-6
+    clear_calibration_cache()
+    assert calibrate_torque_d_bar(ur5e, heavy, duration=0.4) is not loaded
+
+
+def test_the_torque_parameters_calibrate_with_the_runs_own_gain(ur5e) -> None:  # type: ignore[no-untyped-def]
+    """resolve_torque_params(kd=) calibrates d_bar for that nominal gain, not the designed one."""
+    from isf_robot.arm.filter_design import designed_kd
+
+    designed = resolve_torque_params(ur5e)
+    same = resolve_torque_params(ur5e, kd=designed_kd(ur5e.config))
+    other = resolve_torque_params(ur5e, kd=3.0 * designed_kd(ur5e.config))
+    assert same.d_bar == designed.d_bar
+    assert other.d_bar == calibrate_torque_d_bar(ur5e, alpha_1=inner_gain(ur5e.config.filter.alpha),
+                                                 kd=3.0 * designed_kd(ur5e.config)).d_bar != designed.d_bar

@@ -52,7 +52,7 @@ def test_the_rollout_is_the_closed_loop_of_computed_torque(pole) -> None:  # typ
     kd, a1, horizon = 6.0, 5.0, 0.2
     roll = TorqueRollout(pole, ref, sim.coll, sim.joints, 0.002, 0.0, horizon, kd, a1, points=10)
     data = mujoco.MjData(pole.model)
-    data.qpos[pole.qpos_adr] = pole.home if getattr(pole, "home", None) is not None else 0.1
+    data.qpos[pole.qpos_adr] = pole.home
     data.qvel[pole.dof_adr] = v_ref + 0.5  # (a velocity error of 0.5 rad/s on every joint)
     mujoco.mj_forward(pole.model, data)
     pts = roll(1.0, data)
