@@ -192,3 +192,17 @@ def test_compare_at_two_levels_stopped_in_the_second_keeps_the_first_and_the_fin
     velocity, torque = doc["levels"]["velocity"], doc["levels"]["torque"]
     assert velocity["partial"] is False and len(velocity["results"]["nominal"]["episodes"]) == 3
     assert torque["partial"] is True and 1 <= len(torque["results"]["nominal"]["episodes"]) < 3
+
+
+def test_team_compare_stopped_keeps_the_finished_episodes() -> None:
+    """Ctrl-C during `compare` on a scene with several arms (two workers): the finished episodes, marked partial."""
+    proc = _start(ROBOT + ["compare", "--scene", "panda_pair", "--filters", "isf", "--episodes", "3",
+                           "--coordination", "central", "--duration", "4", "--jobs", "2", "--d-bar", "0.12", "--json"])
+    _wait_for_line(proc, "[1/3]")
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and err.strip().endswith("interrupted")
+    doc = json.loads(out)
+    assert doc["partial"] is True and 1 <= doc["results"]["isf/central"]["episodes"] < 3
+    assert _left_behind(proc.pid) == [], "worker or resource-tracker processes left behind"

@@ -188,7 +188,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--jobs", type=int, default=1, metavar="K",
                    help="worker processes (default 1)")
     p.add_argument("--coordination", choices=("central", "decentral"), default=None,
-                   help=COORDINATION_HELP + " (default both; episodes run one after another)")
+                   help=COORDINATION_HELP + " (default both)")
     _add_filter_args(p, several_levels=True)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -335,7 +335,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         return _compare_levels(args, spec, scene, levels)
     params = _params(args, scene)
     if scene.arms:
-        return team_compare(args, scene, params)
+        return team_compare(args, spec, scene, params)
     obs = make_observer(args, "arm")
     comp = compare_strategies(spec, args.episodes, strategies=args.filters,
                               duration=args.duration, seed0=args.seed, jobs=args.jobs,

@@ -19,6 +19,7 @@ import numpy as np
 
 from isf_robot.core.exceptions import ConfigError
 from isf_robot.record.options import make_observer
+from isf_robot.support.parallel import Interrupted, run_tasks
 from isf_robot.support.report import format_value, to_jsonable, with_schema
 
 __all__ = ["COORDINATION_HELP", "check_coordination", "team_simulation", "team_report", "team_compare"]
@@ -70,50 +71,77 @@ def team_report(args: argparse.Namespace, sim: Any) -> int:
     return 0
 
 
-def team_compare(args: argparse.Namespace, scene: Any, params: dict[str, Any]) -> int:
-    """Every strategy x coordination on the same seeds: the team's violations and each arm's means."""
-    from isf_robot.arm.multi_arm import COORDINATIONS, MultiArmSimulation
+def team_compare(args: argparse.Namespace, spec: Any, scene: Any, params: dict[str, Any]) -> int:
+    """Every strategy x coordination on the same seeds: the team's violations and each arm's means.
+
+    The episodes run as ``compare``'s do (:func:`~isf_robot.support.parallel.run_tasks` over
+    :class:`~isf_robot.arm.compare.EpisodeTask` with its ``coordination``; ``--jobs`` worker processes). On
+    Ctrl-C or SIGTERM the episodes that finished are printed, marked partial.
+    """
+    from isf_robot.arm.compare import EpisodeTask, run_task
+    from isf_robot.arm.multi_arm import COORDINATIONS
 
     ways = [args.coordination] if args.coordination else list(COORDINATIONS)
     obs = make_observer(args, "arm")  # --rrd DIR: a recording per run, <scene>-<strategy>-<coordination>-seed<seed>.rrd
     if obs is not None:
         params = {**params, "observers": [obs]}
-    rows: dict[str, Any] = {}
-    for strategy in args.filters:
-        for way in (ways if strategy != "nominal" else ways[:1]):
-            runs = []
-            for seed in range(args.seed, args.seed + args.episodes):
-                r = MultiArmSimulation(scene, strategy, coordination=way, seed=seed, **params).run_team(args.duration)
-                runs.append(r)
-                if not args.quiet:
-                    print(f"[{strategy} {way} seed {seed}] violations {r.violations}, min h "
-                          f"{format_value(r.run.min_barrier)} m, {r.run.wall_s:.2f} s", file=sys.stderr, flush=True)
-            key = f"{strategy}/{way}" if strategy != "nominal" else strategy
-            rows[key] = {
-                "violations": sum(r.violations for r in runs),
-                "collision_steps": sum(r.run.collisions for r in runs),
-                "contacts": {k: sum(r.contacts[k] for r in runs) for k in runs[0].contacts},
-                "min_barrier": min(r.run.min_barrier for r in runs),
-                "step_us": float(np.mean([r.run.wall_s / max(1, r.run.metrics.control_steps) * 1e6 for r in runs])),
-                "arms": [_arm_means([r.arms[i] for r in runs]) for i in range(len(runs[0].arms))],
-            }
-    out = {"scene": scene.name, "episodes": args.episodes, "seed0": args.seed, "results": rows}
+    keys = [(s, way) for s in args.filters for way in (ways if s != "nominal" else ways[:1])]
+    seeds = range(args.seed, args.seed + args.episodes)
+    tasks = [EpisodeTask(spec, s, seed, args.duration, params, "velocity", way) for s, way in keys for seed in seeds]
+    done: dict[tuple[str, str, int], dict[str, Any]] = {}
+
+    def keep(n: int, total: int, task: Any, r: dict[str, Any]) -> None:
+        done[(task.strategy, task.coordination, task.seed)] = r
+        if not args.quiet:
+            print(f"[{n}/{total}] {task.strategy} {task.coordination} seed {task.seed}: violations "
+                  f"{r['violations']}, min h {format_value(r['min_barrier'])} m, {r['wall_s']:.2f} s",
+                  file=sys.stderr, flush=True)
+
+    try:
+        run_tasks(run_task, tasks, jobs=int(args.jobs), on_result=keep)
+    except Interrupted:
+        _print_team(args, scene, keys, seeds, done, partial=True)
+        raise
     paths = getattr(obs, "paths", None)
     if paths:
         print(f"recordings: {len(paths)} file(s) in {args.rrd}", file=sys.stderr)
+    _print_team(args, scene, keys, seeds, done, partial=False)
+    return 0
+
+
+def _print_team(args: argparse.Namespace, scene: Any, keys: list[tuple[str, str]], seeds: range,
+                done: dict[tuple[str, str, int], dict[str, Any]], partial: bool) -> None:
+    """The team comparison of the episodes in ``done`` (JSON or text)."""
+    rows: dict[str, Any] = {}
+    for strategy, way in keys:
+        runs = [done[(strategy, way, seed)] for seed in seeds if (strategy, way, seed) in done]
+        if not runs:
+            continue
+        rows[f"{strategy}/{way}" if strategy != "nominal" else strategy] = {
+            "episodes": len(runs),
+            "violations": sum(r["violations"] for r in runs),
+            "collision_steps": sum(r["collisions"] for r in runs),
+            "contacts": {k: sum(r["contacts"][k] for r in runs) for k in runs[0]["contacts"]},
+            "min_barrier": min(r["min_barrier"] for r in runs),
+            "step_us": float(np.mean([r["wall_s"] / max(1, r["control_steps"]) * 1e6 for r in runs])),
+            "arms": [_arm_means([r["arms"][i] for r in runs]) for i in range(len(runs[0]["arms"]))],
+        }
+    out = {"scene": scene.name, "episodes": args.episodes, "seed0": args.seed, "partial": partial, "results": rows}
     if args.json:
-        print(json.dumps(with_schema("isf-robot-compare-team", to_jsonable(out))))
-        return 0
-    print(f"scene {scene.name}: {args.episodes} episodes from seed {args.seed} (means per arm; violations summed)")
+        print(json.dumps(with_schema("isf-robot-compare-team", to_jsonable(out))), flush=True)
+        return
+    head = "PARTIAL (interrupted; means over the finished episodes) " if partial else ""
+    print(f"{head}scene {scene.name}: {args.episodes} episodes from seed {args.seed} (means per arm; violations "
+          "summed)")
     for key, row in rows.items():
         print(f"{key}: violations {row['violations']} (collision steps {row['collision_steps']}, contacts "
-              f"{row['contacts']}), min barrier {format_value(row['min_barrier'])} m, {row['step_us']:.0f} us/step")
+              f"{row['contacts']}), min barrier {format_value(row['min_barrier'])} m, {row['step_us']:.0f} us/step"
+              + (f" ({row['episodes']} episodes)" if partial else ""))
         for a in row["arms"]:
             print(f"  {a['name']:<8} duty {a['duty_cycle']:.3f}  on switches {a['on_switches']:.1f}  min off "
                   f"{format_value(a['min_off_s'])} s  intervention {a['intervention']:.3f}  goals "
                   f"{a['goals_reached']:.1f} (missed {a['goals_missed']:.1f})  coordination "
-                  f"{a['coordination_steps']:.0f} steps / {a['coordination_events']:.1f} events")
-    return 0
+                  f"{a['coordination_steps']:.0f} steps / {a['coordination_events']:.1f} events", flush=True)
 
 
 def _arm_means(arms: list[dict[str, Any]]) -> dict[str, Any]:

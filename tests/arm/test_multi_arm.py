@@ -279,6 +279,14 @@ def test_compare_runs_each_way_on_the_same_seeds(capsys, two_arm_files) -> None:
     d = json.loads(capsys.readouterr().out)
     assert set(d["results"]) == {"cbf/central", "cbf/decentral", "isf/central", "isf/decentral"}
     assert all(r["violations"] == 0 and len(r["arms"]) == 2 for r in d["results"].values())
+    # --jobs 2: the same episodes in worker processes, the same figures (only the wall time per step differs)
+    assert main(["compare", *two_arm_files, "--filters", "cbf", "isf", "--episodes", "1", "--duration", "1",
+                 "--json", "--quiet", "--jobs", "2"]) == 0
+    par = json.loads(capsys.readouterr().out)
+    assert d["partial"] is False and par["partial"] is False
+    for key, row in d["results"].items():
+        assert {k: v for k, v in par["results"][key].items() if k != "step_us"} == \
+            {k: v for k, v in row.items() if k != "step_us"}, key
 
 
 def test_coordination_on_one_arm_is_a_one_line_error(capsys) -> None:  # type: ignore[no-untyped-def]
