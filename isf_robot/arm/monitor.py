@@ -86,6 +86,13 @@ class SafetyMonitor:
             self.min_h = h_min
         return dist_min if rows else math.inf
 
+    def rows_array(self) -> np.ndarray:
+        """The pairs within the cut-off at the last tick (:attr:`rows`) as an int64 array (made once per tick)."""
+        ra = self._rows_arr
+        if ra is None:
+            ra = self._rows_arr = np.array(self.rows, dtype=np.int64)
+        return ra
+
     def substep(self, data: mujoco.MjData, bound: float = -math.inf, tracker: Actuation | None = None) -> float:
         """Check the pairs near at the last tick; return their smallest distance.
 
@@ -116,9 +123,7 @@ class SafetyMonitor:
         if self._kernel is not None:
             if data is not self._data:
                 self._data, self._daddr = data, data._address
-            ra = self._rows_arr
-            if ra is None:
-                ra = self._rows_arr = np.array(rows, dtype=np.int64)
+            ra = self.rows_array()
             if fused is not None:
                 k, ptrs, buf, n, nv = fused
                 step_h, step_d = k["monitor_apply"](self._maddr, self._daddr, ra, self._g1, self._g2, self._margin,

@@ -42,6 +42,9 @@ from .team_nominal import TeamReaching
 
 __all__ = ["COORDINATIONS", "TeamReaching", "MultiArmSimulation", "ArmRunResult", "run_team"]
 
+CLEARANCE_KINDS = ("arm-arm", "arm-obstacle", "self")
+"""The kinds of pairs a team run reports by: between two arms, an arm and an obstacle, an arm's own links."""
+
 COORDINATIONS = {
     "central": "one filter over every arm's joints (inter-arm rows solved together)",
     "decentral": "one filter per arm; each takes an equal share of every inter-arm row",
@@ -79,21 +82,24 @@ class _TeamEpisode(ArmSimulation.episode):  # type: ignore[name-defined,misc,val
 
     def __init__(self, sim: MultiArmSimulation, n_ctrl: int) -> None:
         super().__init__(sim, n_ctrl)
-        self.kind_min = {"arm-arm": math.inf, "arm-obstacle": math.inf, "self": math.inf}
-        self.contacts = {"arm-arm": 0, "arm-obstacle": 0, "self": 0}
+        self.contacts = {kind: 0 for kind in CLEARANCE_KINDS}
         self._arm_of = sim.geom_arm
         self._obstacle = np.zeros(sim.scene.model.ngeom, dtype=bool)
         self._obstacle[sim.scene.obstacle_geom_ids] = True
         pairs = sim.coll.pairs
         a1, a2 = self._arm_of[pairs.geom1], self._arm_of[pairs.geom2]
         both = (a1 >= 0) & (a2 >= 0)
-        self._pair_kind = (("arm-arm", both & (a1 != a2)), ("self", both & (a1 == a2)), ("arm-obstacle", ~both))
+        self._pair_kind = np.where(both, np.where(a1 != a2, 0, 2), 1)  # (an index of CLEARANCE_KINDS per pair)
+        self._kind_min = np.full(len(CLEARANCE_KINDS), math.inf)
+        self._kind_tick = np.empty(len(CLEARANCE_KINDS))
         sim.last_episode = self
 
     def sense(self, k: int) -> None:
         super().sense(k)
         data = self.data
-        for c in range(data.ncon):  # (mj_step1 ran the collision detection: contacts that penetrate)
+        if not data.ncon or not (data.contact.dist < 0.0).any():  # (mj_step1 ran the collision detection)
+            return
+        for c in range(data.ncon):  # (the contacts that penetrate)
             con = data.contact[c]
             if con.dist >= 0.0:
                 continue
@@ -125,16 +131,19 @@ class _TeamEpisode(ArmSimulation.episode):  # type: ignore[name-defined,misc,val
 
     def barriers(self) -> tuple[Any, LieData | None]:
         values, lie = super().barriers()
-        rows = self.monitor.rows  # (the pairs within the cut-off at this tick: the first rows of tick_h, in order)
-        if len(rows):  # (every strategy, the nominal's too: its tick_h holds the same pairs)
-            h, idx = self.tick_h[:len(rows)], np.asarray(rows)
-            for kind, of_kind in self._pair_kind:
-                sel = of_kind[idx]
-                if sel.any():
-                    v = float(h[sel].min())
-                    if v < self.kind_min[kind]:
-                        self.kind_min[kind] = v
+        monitor = self.monitor
+        if len(monitor.rows):  # (every strategy, the nominal's too: tick_h holds the pairs within the cut-off first)
+            rows = monitor.rows_array()
+            tick = self._kind_tick
+            tick.fill(math.inf)
+            np.minimum.at(tick, self._pair_kind[rows], self.tick_h[:rows.size])
+            np.minimum(self._kind_min, tick, out=self._kind_min)
         return values, lie
+
+    @property
+    def kind_min(self) -> dict[str, float]:
+        """Smallest barrier value at the control ticks so far, by kind of pair (:data:`CLEARANCE_KINDS`) [m]."""
+        return dict(zip(CLEARANCE_KINDS, self._kind_min.tolist()))
 
 
 @dataclasses.dataclass(frozen=True)

@@ -57,7 +57,7 @@ communicate.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -69,8 +69,8 @@ from .strategies import Strategy
 from .switches import SwitchCounter
 from .system import LieData
 
-__all__ = ["block_matrix", "row_agents", "agent_lie", "AgentTally", "AgentResult", "OffHold", "CentralFilter",
-           "SharedFilter"]
+__all__ = ["block_matrix", "row_agents", "agent_lie", "Coordination", "AgentTally", "AgentResult", "BlockIntervention",
+           "SharedRows", "OffHold", "CentralFilter", "SharedFilter"]
 
 
 def block_matrix(blocks: Sequence[slice], m: int) -> np.ndarray:
@@ -135,8 +135,31 @@ class AgentResult:
         return asdict(self)
 
 
+class Coordination:
+    """Control steps at which an agent needed the others (module docstring): count, rising edges, time."""
+
+    def __init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything."""
+        self.steps = self.events = 0
+        self.time = 0.0
+        self._was = False
+
+    def add(self, step: FilterStep, shared: np.ndarray, dt: float) -> None:
+        """Count the step if its filter is on and a row of ``shared`` (bool, like ``step.xi``) is below the margin."""
+        need = bool(step.on) and bool(shared.any()) and bool(
+            np.any(step.xi[shared] < (step.margin if step.margin is not None else 0.0)))
+        if need:
+            self.steps += 1
+            self.time += dt
+            self.events += not self._was
+        self._was = need
+
+
 class AgentTally:
-    """Per-agent accounting: its filter steps into a :class:`MetricsAccumulator`, and its coordination."""
+    """Per-agent accounting: its filter steps into a :class:`MetricsAccumulator`, and its :class:`Coordination`."""
 
     def __init__(self, name: str) -> None:
         self.name = name
@@ -145,24 +168,118 @@ class AgentTally:
     def reset(self) -> None:
         """Forget everything."""
         self.metrics = MetricsAccumulator()
-        self.steps = self.events = 0
-        self.time = 0.0
-        self._was = False
+        self.coordination = Coordination()
 
     def add(self, step: FilterStep, shared: np.ndarray, dt: float) -> None:
         """Record the agent's step (``shared``: which of its rows involve another agent, shape like ``step.xi``)."""
         self.metrics.add_step(step, dt)
-        margin = step.margin if step.margin is not None else 0.0
-        need = bool(step.on) and bool(np.any(step.xi[shared] < margin))
-        if need:
-            self.steps += 1
-            self.time += dt
-            self.events += not self._was
-        self._was = need
+        self.coordination.add(step, shared, dt)
 
     def result(self) -> AgentResult:
         """The figures so far."""
-        return AgentResult(self.name, self.metrics.result(), self.steps, self.events, self.time)
+        c = self.coordination
+        return AgentResult(self.name, self.metrics.result(), c.steps, c.events, c.time)
+
+
+class BlockIntervention:
+    """Each agent's intervention ``sum_k |u_k - u_nom,k|^2 dt_k`` over its own columns of the stacked command.
+
+    The differences are kept by reference and summed per agent every ``chunk`` steps (one product for
+    all of them), so a step costs one subtraction and a list append.
+    """
+
+    def __init__(self, blocks: Sequence[slice], chunk: int = 1024) -> None:
+        self.blocks, self.chunk = tuple(blocks), int(chunk)
+        self._M = block_matrix(self.blocks, max(b.stop for b in self.blocks))
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything."""
+        self.sums = np.zeros(len(self.blocks))
+        self._d: list[np.ndarray] = []
+        self._dt: list[float] = []
+
+    def add(self, u: np.ndarray, u_nom: np.ndarray, dt: float) -> None:
+        """One step's commands (a command that is ``u_nom`` itself adds nothing)."""
+        if u is u_nom:
+            return
+        self._d.append(u - u_nom)
+        self._dt.append(dt)
+        if len(self._d) >= self.chunk:
+            self._sum()
+
+    def _sum(self) -> None:
+        if self._d:
+            d = np.array(self._d)
+            self.sums += (np.asarray(self._dt) @ (d * d)) @ self._M
+            self._d.clear()
+            self._dt.clear()
+
+    def result(self) -> np.ndarray:
+        """Per agent, the intervention so far, shape (a,)."""
+        self._sum()
+        return self.sums.copy()
+
+
+class SharedRows:
+    """Which rows involve several agents (:func:`row_agents`), kept per set of row names.
+
+    A row's agents follow from which bodies its pair joins, so rows with the same names (the tuple
+    :class:`LieData` shares between ticks with the same near pairs) are looked at once. Rows without
+    names are looked at every time.
+    """
+
+    LIMIT = 4096
+    """Most sets of names kept (the cache is emptied when full)."""
+
+    def __init__(self, blocks: Sequence[slice]) -> None:
+        self.blocks = tuple(blocks)
+        self._M: np.ndarray | None = None
+        self._cache: dict[tuple[str, ...], _Involved] = {}
+
+    def __call__(self, lie: LieData) -> _Involved:
+        """The agents of each row of ``lie`` (:class:`_Involved`)."""
+        key = lie.names
+        if key:
+            hit = self._cache.get(key)
+            if hit is not None and hit.count.shape[0] == lie.k:
+                return hit
+        if self._M is None or self._M.shape[0] != lie.m:
+            self._M = block_matrix(self.blocks, lie.m)
+        inv = row_agents(lie.lg, self._M)
+        count = inv.sum(axis=1)
+        out = _Involved(inv, count, count > 1)
+        if key:
+            if len(self._cache) >= self.LIMIT:
+                self._cache.clear()
+            self._cache[key] = out
+        return out
+
+
+class _Involved:
+    """The agents of a set of rows.
+
+    ``inv``: :func:`row_agents`, shape (k, a); ``count``: how many agents each row involves, shape (k,);
+    ``shared``: ``count > 1``; :attr:`parts` (made at the first use): per agent, ``(its rows, its share of each,
+    which of them are shared)``.
+    """
+
+    __slots__ = ("inv", "count", "shared", "_parts")
+
+    def __init__(self, inv: np.ndarray, count: np.ndarray, shared: np.ndarray) -> None:
+        self.inv, self.count, self.shared = inv, count, shared
+        self._parts: tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...] | None = None
+
+    @property
+    def parts(self) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]:
+        """Per agent ``(rows, share, shared)`` (see the class docstring)."""
+        if self._parts is None:
+            out = []
+            for i in range(self.inv.shape[1]):
+                rows = np.flatnonzero(self.inv[:, i])
+                out.append((rows, 1.0 / self.count[rows], self.shared[rows]))
+            self._parts = tuple(out)
+        return self._parts
 
 
 class OffHold:
@@ -216,11 +333,14 @@ class CentralFilter:
                  promote_shared: bool = False, off_hold: float = 0.0) -> None:
         _check_blocks(blocks, names)
         self.inner, self.blocks, self.period = strategy, tuple(blocks), float(period)
+        self.names = tuple(names)
         self.promote_shared = promote_shared
         self.hold = OffHold(off_hold if strategy.intermittent else 0.0)
         self.uses_rows, self.intermittent = strategy.uses_rows, strategy.intermittent
-        self.tallies = [AgentTally(n) for n in names]
-        self._M: np.ndarray | None = None
+        self.shared_rows = SharedRows(self.blocks)
+        self.metrics = MetricsAccumulator()  # (the one filter's figures: every agent's but the intervention)
+        self.intervention = BlockIntervention(self.blocks)
+        self.coordination = Coordination()  # (one filter: every agent needs the others at the same steps)
         self._last: FilterStep | None = None
 
     @property
@@ -233,33 +353,31 @@ class CentralFilter:
         self.inner.reset(t0)
         self.hold.reset()
         self._last = None
-        for tally in self.tallies:
-            tally.reset()
+        self.metrics = MetricsAccumulator()
+        self.intervention.reset()
+        self.coordination.reset()
 
     def step_lie(self, t: float, lie: LieData | None, u_nom: np.ndarray, x: Any = None, **kw: Any) -> FilterStep:
-        """The strategy's step; each agent's share of it is recorded.
+        """The strategy's step, accounted for every agent.
 
         An intermittent strategy promotes no shared row and is held on by :class:`OffHold` (module docstring).
         """
         if lie is None:
             step = self.inner.step_lie(t, lie, u_nom)  # type: ignore[arg-type]  # (no rows: NominalStrategy)
-            shared = np.zeros(step.xi.shape, dtype=bool)
+            shared = _NONE_SHARED
         else:
-            if self._M is None or self._M.shape[0] != lie.m:
-                self._M = block_matrix(self.blocks, lie.m)
-            shared = row_agents(lie.lg, self._M).sum(axis=1) > 1
+            shared = self.shared_rows(lie).shared
             if self.intermittent and not self.promote_shared:
                 kw["promotable"] = ~shared
             if self.hold(t):
                 kw["hold"] = True
             step = self.inner.step_lie(t, lie, u_nom, x, **kw)
             self.hold.record(step)
-            if not step.on or lie.k != step.xi.shape[0]:  # (coordination counts only while on)
-                shared = np.zeros(step.xi.shape, dtype=bool)
-        for b, tally in zip(self.blocks, self.tallies):
-            part = FilterStep._of(t, step.u[b], step.u_nom[b], step.on, step.h, step.xi, step.event, step.qp,
-                                  margin=step.margin)
-            tally.add(part, shared, self.period)
+            if lie.k != step.xi.shape[0]:
+                shared = _NONE_SHARED
+        self.metrics.add_step(step, self.period)
+        self.intervention.add(step.u, step.u_nom, self.period)
+        self.coordination.add(step, shared, self.period)
         self._last = step
         return step
 
@@ -267,11 +385,16 @@ class CentralFilter:
         """Each agent's ``(on, QP solved)`` at the last step (one filter: the same for every agent)."""
         st = self._last
         mode = (False, False) if st is None else (bool(st.on), st.qp is not None)
-        return [mode] * len(self.tallies)
+        return [mode] * len(self.blocks)
 
     def agent_results(self) -> list[AgentResult]:
-        """Each agent's figures."""
-        return [t.result() for t in self.tallies]
+        """Each agent's figures: the filter's duty cycle, switches and periods, its own intervention."""
+        team, c = self.metrics.result(), self.coordination
+        return [AgentResult(n, replace(team, intervention=float(v)), c.steps, c.events, c.time)
+                for n, v in zip(self.names, self.intervention.result())]
+
+
+_NONE_SHARED = np.zeros(0, dtype=bool)
 
 
 class SharedFilter:
@@ -304,7 +427,7 @@ class SharedFilter:
         self.tallies = [AgentTally(n) for n in names]
         self.last: list[FilterStep] = []
         self._switch = SwitchCounter()
-        self._M: np.ndarray | None = None
+        self.shared_rows = SharedRows(self.blocks)
 
     @property
     def on(self) -> bool:
@@ -322,16 +445,8 @@ class SharedFilter:
 
     def split(self, lie: LieData) -> list[tuple[np.ndarray, LieData, np.ndarray]]:
         """Each agent's ``(rows, its Lie data, which of those rows are shared)`` (:func:`agent_lie`)."""
-        if self._M is None or self._M.shape[0] != lie.m:
-            self._M = block_matrix(self.blocks, lie.m)
-        inv = row_agents(lie.lg, self._M)
-        count = inv.sum(axis=1)
-        out = []
-        for i, b in enumerate(self.blocks):
-            rows = np.flatnonzero(inv[:, i])
-            share = 1.0 / count[rows]
-            out.append((rows, agent_lie(lie, b, rows, share), count[rows] > 1))
-        return out
+        return [(rows, agent_lie(lie, b, rows, share), shared)
+                for b, (rows, share, shared) in zip(self.blocks, self.shared_rows(lie).parts)]
 
     def step_lie(self, t: float, lie: LieData | None, u_nom: np.ndarray, x: Any = None,
                  screen: np.ndarray | None = None, **kw: Any) -> FilterStep:

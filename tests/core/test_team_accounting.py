@@ -1,0 +1,92 @@
+"""The team filters' accounting: per-agent intervention, shared rows kept per set of names, coordination."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from isf_robot.core import LieData
+from isf_robot.core.step import FilterStep
+from isf_robot.core.team import BlockIntervention, Coordination, SharedRows, row_agents
+
+BLOCKS = (slice(0, 2), slice(2, 5))
+
+
+@pytest.mark.parametrize("chunk", [1, 3, 1024])
+def test_block_intervention_is_each_agents_sum_of_squares_times_dt(chunk: int) -> None:
+    rng = np.random.default_rng(0)
+    acc = BlockIntervention(BLOCKS, chunk=chunk)
+    want = np.zeros(2)
+    for k in range(10):
+        u_nom = rng.normal(size=5)
+        dt = 0.001 * (1 + k % 3)  # (steps of different length)
+        if k % 4 == 0:  # the filter passes the nominal through: nothing added
+            acc.add(u_nom, u_nom, dt)
+            continue
+        u = u_nom + rng.normal(size=5)
+        acc.add(u, u_nom, dt)
+        d = u - u_nom
+        want += dt * np.array([np.sum(d[:2] ** 2), np.sum(d[2:] ** 2)])
+    np.testing.assert_allclose(acc.result(), want, rtol=1e-13)
+    np.testing.assert_allclose(acc.result(), want, rtol=1e-13)  # (reading twice adds nothing)
+    acc.reset()
+    np.testing.assert_array_equal(acc.result(), [0.0, 0.0])
+
+
+def _lie(lg: np.ndarray, names: tuple[str, ...]) -> LieData:
+    k = lg.shape[0]
+    return LieData._of(np.ones(k), np.zeros(k), lg, np.linalg.norm(lg, axis=1), names)
+
+
+def test_shared_rows_match_row_agents_and_are_kept_per_names() -> None:
+    rng = np.random.default_rng(1)
+    lg = rng.normal(size=(3, 5))
+    lg[0, 2:] = 0.0  # row 0: agent 0 only
+    lg[1, :2] = 0.0  # row 1: agent 1 only; row 2: both
+    shared = SharedRows(BLOCKS)
+    names = ("a|x", "b|y", "a|b")
+    inv = shared(_lie(lg, names))
+    np.testing.assert_array_equal(inv.inv, row_agents(lg, BLOCKS))
+    np.testing.assert_array_equal(inv.shared, [False, False, True])
+    rows, share, sh = inv.parts[1]
+    np.testing.assert_array_equal(rows, [1, 2])
+    np.testing.assert_array_equal(share, [1.0, 0.5])
+    np.testing.assert_array_equal(sh, [False, True])
+    # the same names at another state: the same answer without looking again
+    again = shared(_lie(rng.normal(size=(3, 5)), tuple(names)))
+    assert again is inv
+    # other names, or rows without names: looked at
+    other = shared(_lie(lg[::-1].copy(), ("a|b", "b|y", "a|x")))
+    np.testing.assert_array_equal(other.shared, [True, False, False])
+    nameless = shared(_lie(lg[[2]], ()))
+    np.testing.assert_array_equal(nameless.shared, [True])
+    assert shared(_lie(lg[[0]], ())) is not nameless
+
+
+def _step(t: float, on: bool, xi: list[float], margin: float | None) -> FilterStep:
+    u = np.zeros(5)
+    return FilterStep._of(t, u, u, on, np.ones(len(xi)), np.asarray(xi, dtype=float), margin=margin)
+
+
+def test_coordination_counts_on_steps_with_a_shared_row_below_the_margin() -> None:
+    c = Coordination()
+    shared = np.array([False, True])
+    dt = 0.002
+    seq = [
+        (False, [-1.0, -1.0]),  # off: never counted
+        (True, [-1.0, 0.5]),  # on, but only the own row below the margin
+        (True, [1.0, 0.05]),  # shared row below the margin 0.1: counted (an event)
+        (True, [1.0, 0.0]),  # still: counted, no new event
+        (True, [1.0, 0.2]),  # above: not counted
+        (True, [1.0, -0.3]),  # again: counted, a second event
+    ]
+    for i, (on, xi) in enumerate(seq):
+        c.add(_step(i * dt, on, xi, 0.1), shared, dt)
+    assert (c.steps, c.events) == (3, 2)
+    assert c.time == pytest.approx(3 * dt)
+    c.add(_step(1.0, True, [1.0, -1.0], None), np.zeros(2, dtype=bool), dt)  # no shared row: never
+    assert c.steps == 3
+    c.add(_step(1.1, True, [1.0, -0.01], None), shared, dt)  # no margin given: 0
+    assert (c.steps, c.events) == (4, 3)
+    c.reset()
+    assert (c.steps, c.events, c.time) == (0, 0, 0.0)
