@@ -8,6 +8,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
 import pytest
 
 BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
@@ -61,6 +62,41 @@ def test_stress_defaults_draw_the_same_scene_and_alpha(bench) -> None:  # type: 
     assert d != st.draw(sc, 0, 0, 8)
     # the isf values are drawn in both modes (so the rest of the draw is the mode's too); --defaults ignores them
     assert set(d["isf"]) >= {"c", "b", "blend", "horizon"} and 2.0 <= d["alpha"] <= 10.0
+
+
+def test_stress_start_slack_is_the_robust_condition_at_rest(bench) -> None:  # type: ignore[no-untyped-def]
+    import mujoco
+
+    from isf_robot.arm import load_scene
+    from isf_robot.arm.collision import CollisionBarriers
+    from isf_robot.arm.episode import EpisodeSetup, episode_setup
+    from isf_robot.arm.joint_limits import JointLimitBarriers
+
+    st = bench["stress"]
+    sc = load_scene("panda_pole")
+    setup = episode_setup(sc, 0)
+    data = mujoco.MjData(sc.model)
+    data.qpos[sc.qpos_adr] = setup.q0
+    mujoco.mj_forward(sc.model, data)
+    near = CollisionBarriers.from_scene(sc).near(data)
+    joints = JointLimitBarriers.from_scene(sc)
+    alpha, d_bar = 5.0, 0.04
+    # static obstacles: Lf h = 0, so each row's slack is alpha h - |dh/dq| d_bar
+    want = min(np.min(alpha * near.h - np.linalg.norm(near.grad, axis=1) * d_bar),
+               np.min(alpha * joints.values(data) - np.linalg.norm(joints.grad, axis=1) * d_bar))
+    assert st.start_slack(sc, setup, alpha, d_bar) == pytest.approx(float(want), rel=1e-12)
+    assert st.start_slack(sc, setup, alpha, 10.0) < st.start_slack(sc, setup, alpha, 0.0)  # d_bar enters as -|J| d_bar
+    near_far = EpisodeSetup(q0=setup.q0, goals=setup.goals, time_offset=setup.time_offset)
+    assert st.start_slack(sc, near_far, alpha, 0.0) > 0.0  # at rest, without disturbance, a safe start is robust
+    # panda_moving draw 109: the ball closes in on an arm at rest 1.2 mm outside the margin; the draw is made again
+    moving = load_scene("panda_moving")
+    d_bar_m = 0.0445
+    d = st.draw(moving, 0, 2, 109)
+    scene = st.perturbed(load_scene("panda_moving"), d)
+    assert st.start_slack(scene, episode_setup(scene, 109), d["alpha"], d_bar_m) < -0.1
+    r = st.run_one({"scene": "panda_moving", "scene_index": 2, "strategy": "cbf", "index": 109, "seed": 0,
+                    "duration": 0.05, "d_bar": d_bar_m, "defaults": True})
+    assert r["redraws_at_rest"] >= 1 and "failure" not in r
 
 
 def test_targets_vendor_arms_are_files_with_configs(bench) -> None:  # type: ignore[no-untyped-def]
