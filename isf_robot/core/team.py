@@ -46,12 +46,12 @@ the work. An agent whose QP has no solution brakes (``u_i = 0``; the adapter's f
 one filter): braking meets the agent's share of every row whose bound is <= 0 (a row that holds without
 input) and of no other, so a fallback is reported, never hidden.
 
-**Coordination** (:class:`AgentTally`): an agent *needs the other agents* at a step when its filter is
-on and a row it shares with another agent is in play: that row's ``Xi_on`` under the nominal is below
-the margin in force (the intermittent filter's ``c``, or 0 for the standard filter, where the nominal
-would break the row's condition). At such steps a centralised implementation must solve the agents'
-commands together; counting them (steps, and rising edges as events) says how often the team needs to
-communicate.
+**Coordination** (:class:`Coordination`): an agent *needs the other agents* at a step when its filter
+(centrally: the one filter) is on and a row it shares with another agent is in play: that row's ``Xi_on``
+under the nominal is below the margin in force (the intermittent filter's ``c``, or 0 for the standard
+filter, where the nominal would break the row's condition). At such steps a centralised implementation
+must solve the agents' commands together; counting them (steps, and rising edges as events) says how
+often the team needs to communicate.
 """
 
 from __future__ import annotations
@@ -136,26 +136,53 @@ class AgentResult:
 
 
 class Coordination:
-    """Control steps at which an agent needed the others (module docstring): count, rising edges, time."""
+    """Control steps at which each agent needed the others (module docstring): counts, rising edges, time."""
 
-    def __init__(self) -> None:
+    def __init__(self, agents: int = 1) -> None:
+        self.agents = int(agents)
         self.reset()
 
     def reset(self) -> None:
         """Forget everything."""
-        self.steps = self.events = 0
-        self.time = 0.0
-        self._was = False
+        a = self.agents
+        self.steps, self.events = np.zeros(a, dtype=np.int64), np.zeros(a, dtype=np.int64)
+        self.time = np.zeros(a)
+        self._was = np.zeros(a, dtype=bool)
 
-    def add(self, step: FilterStep, shared: np.ndarray, dt: float) -> None:
-        """Count the step if its filter is on and a row of ``shared`` (bool, like ``step.xi``) is below the margin."""
-        need = bool(step.on) and bool(shared.any()) and bool(
-            np.any(step.xi[shared] < (step.margin if step.margin is not None else 0.0)))
-        if need:
-            self.steps += 1
-            self.time += dt
-            self.events += not self._was
-        self._was = need
+    @staticmethod
+    def needs(step: FilterStep, shared: np.ndarray, involves: np.ndarray | None = None) -> np.ndarray:
+        """Which agents need the others at ``step``: its filter is on and one of their shared rows is below the margin.
+
+        Args:
+            step: The filter's step (``on``, ``xi``, ``margin``: ``None`` counts as 0).
+            shared: Which rows involve several agents, bool like ``step.xi``.
+            involves: The rows' agents (:func:`row_agents`, shape (k, a)); ``None``: one agent, whose rows these are.
+
+        Returns:
+            Shape (a,) bool (a = 1 without ``involves``).
+
+        """
+        a = 1 if involves is None else involves.shape[1]
+        if not step.on or not shared.any():
+            return np.zeros(a, dtype=bool)
+        hot = shared & (step.xi < (step.margin if step.margin is not None else 0.0))
+        if involves is None:
+            return np.array([hot.any()])
+        return (involves & hot[:, None]).any(axis=0)
+
+    def add(self, need: np.ndarray, dt: float) -> None:
+        """Count a step of ``dt`` seconds for the agents in ``need`` (bool, shape (a,))."""
+        if need.any():
+            self.steps += need
+            self.time[need] += dt
+            self.events += need & ~self._was
+            self._was = need.copy()
+        elif self._was.any():
+            self._was[:] = False
+
+    def of(self, i: int) -> tuple[int, int, float]:
+        """Agent ``i``'s ``(steps, events, seconds)``."""
+        return int(self.steps[i]), int(self.events[i]), float(self.time[i])
 
 
 class AgentTally:
@@ -173,12 +200,11 @@ class AgentTally:
     def add(self, step: FilterStep, shared: np.ndarray, dt: float) -> None:
         """Record the agent's step (``shared``: which of its rows involve another agent, shape like ``step.xi``)."""
         self.metrics.add_step(step, dt)
-        self.coordination.add(step, shared, dt)
+        self.coordination.add(Coordination.needs(step, shared), dt)
 
     def result(self) -> AgentResult:
         """The figures so far."""
-        c = self.coordination
-        return AgentResult(self.name, self.metrics.result(), c.steps, c.events, c.time)
+        return AgentResult(self.name, self.metrics.result(), *self.coordination.of(0))
 
 
 class BlockIntervention:
@@ -340,8 +366,9 @@ class CentralFilter:
         self.shared_rows = SharedRows(self.blocks)
         self.metrics = MetricsAccumulator()  # (the one filter's figures: every agent's but the intervention)
         self.intervention = BlockIntervention(self.blocks)
-        self.coordination = Coordination()  # (one filter: every agent needs the others at the same steps)
+        self.coordination = Coordination(len(self.blocks))
         self._last: FilterStep | None = None
+        self._nobody = np.zeros(len(self.blocks), dtype=bool)
 
     @property
     def on(self) -> bool:
@@ -364,20 +391,19 @@ class CentralFilter:
         """
         if lie is None:
             step = self.inner.step_lie(t, lie, u_nom)  # type: ignore[arg-type]  # (no rows: NominalStrategy)
-            shared = _NONE_SHARED
+            need = self._nobody
         else:
-            shared = self.shared_rows(lie).shared
+            rows = self.shared_rows(lie)
             if self.intermittent and not self.promote_shared:
-                kw["promotable"] = ~shared
+                kw["promotable"] = ~rows.shared
             if self.hold(t):
                 kw["hold"] = True
             step = self.inner.step_lie(t, lie, u_nom, x, **kw)
             self.hold.record(step)
-            if lie.k != step.xi.shape[0]:
-                shared = _NONE_SHARED
+            need = Coordination.needs(step, rows.shared, rows.inv) if lie.k == step.xi.shape[0] else self._nobody
         self.metrics.add_step(step, self.period)
         self.intervention.add(step.u, step.u_nom, self.period)
-        self.coordination.add(step, shared, self.period)
+        self.coordination.add(need, self.period)
         self._last = step
         return step
 
@@ -389,12 +415,9 @@ class CentralFilter:
 
     def agent_results(self) -> list[AgentResult]:
         """Each agent's figures: the filter's duty cycle, switches and periods, its own intervention."""
-        team, c = self.metrics.result(), self.coordination
-        return [AgentResult(n, replace(team, intervention=float(v)), c.steps, c.events, c.time)
-                for n, v in zip(self.names, self.intervention.result())]
-
-
-_NONE_SHARED = np.zeros(0, dtype=bool)
+        team = self.metrics.result()
+        return [AgentResult(n, replace(team, intervention=float(v)), *self.coordination.of(i))
+                for i, (n, v) in enumerate(zip(self.names, self.intervention.result()))]
 
 
 class SharedFilter:

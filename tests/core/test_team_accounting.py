@@ -81,12 +81,28 @@ def test_coordination_counts_on_steps_with_a_shared_row_below_the_margin() -> No
         (True, [1.0, -0.3]),  # again: counted, a second event
     ]
     for i, (on, xi) in enumerate(seq):
-        c.add(_step(i * dt, on, xi, 0.1), shared, dt)
-    assert (c.steps, c.events) == (3, 2)
-    assert c.time == pytest.approx(3 * dt)
-    c.add(_step(1.0, True, [1.0, -1.0], None), np.zeros(2, dtype=bool), dt)  # no shared row: never
-    assert c.steps == 3
-    c.add(_step(1.1, True, [1.0, -0.01], None), shared, dt)  # no margin given: 0
-    assert (c.steps, c.events) == (4, 3)
+        c.add(Coordination.needs(_step(i * dt, on, xi, 0.1), shared), dt)
+    steps, events, time = c.of(0)
+    assert (steps, events) == (3, 2)
+    assert time == pytest.approx(3 * dt)
+    c.add(Coordination.needs(_step(1.0, True, [1.0, -1.0], None), np.zeros(2, dtype=bool)), dt)  # no shared row
+    assert c.of(0)[0] == 3
+    c.add(Coordination.needs(_step(1.1, True, [1.0, -0.01], None), shared), dt)  # no margin given: 0
+    assert c.of(0)[:2] == (4, 3)
     c.reset()
-    assert (c.steps, c.events, c.time) == (0, 0, 0.0)
+    assert c.of(0) == (0, 0, 0.0)
+
+
+def test_central_coordination_counts_an_agent_only_for_rows_it_shares() -> None:
+    """Three agents, one filter: a row between agents 0 and 1 below the margin is not agent 2's need."""
+    involves = np.array([[True, True, False],  # row 0: agents 0 and 1
+                         [False, True, True],  # row 1: agents 1 and 2
+                         [False, False, True]])  # row 2: agent 2 alone
+    shared = involves.sum(axis=1) > 1
+    c = Coordination(3)
+    c.add(Coordination.needs(_step(0.0, True, [-0.1, 0.5, -1.0], 0.05), shared, involves), 0.002)
+    assert [c.of(i)[0] for i in range(3)] == [1, 1, 0]  # (row 2 is below too, but agent 2 shares it with nobody)
+    c.add(Coordination.needs(_step(0.002, True, [0.5, -0.1, 0.5], 0.05), shared, involves), 0.002)
+    assert [c.of(i)[:2] for i in range(3)] == [(1, 1), (2, 1), (1, 1)]
+    c.add(Coordination.needs(_step(0.004, False, [-0.5, -0.5, -0.5], 0.05), shared, involves), 0.002)  # off
+    assert [c.of(i)[0] for i in range(3)] == [1, 2, 1]
