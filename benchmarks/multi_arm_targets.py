@@ -1,7 +1,7 @@
 """Arms sharing a workspace: violations, per-arm duty against cbf, off periods and step cost.
 
     nice -n 19 python benchmarks/multi_arm_targets.py [--episodes 20] [--jobs 2] \
-        [--scenes panda_pair panda_quad] [--cost-seeds 3] [--marker multi_arm] [--cost-only] [--no-write]
+        [--scenes panda_pair panda_quad] [--cost-seeds 3] [--marker multi_arm] [--cost-only | --no-cost] [--no-write]
 
 For each scene with several arms, ``cbf`` and ``isf`` with each coordination (``central``: one filter over
 every arm's joints; ``decentral``: one filter per arm with an equal share of each inter-arm row) on seeds
@@ -17,7 +17,8 @@ the scenes with several arms, each strategy and coordination. Run it alone on a 
 
 Writes the outcome tables into RESULTS.md between ``<!-- MARKER:start -->`` and ``<!-- MARKER:end -->``, and
 the step cost into BENCHMARKS.md between ``<!-- team-step:start -->`` and ``<!-- team-step:end -->`` with the
-machine, the load and the date (``--cost-only``: the step cost alone; ``--no-write``: print only).
+machine, the load and the date (``--cost-only``: the step cost alone; ``--no-cost``: the tables alone;
+``--no-write``: print only).
 """
 
 from __future__ import annotations
@@ -106,6 +107,7 @@ def main() -> int:
     ap.add_argument("--cost-seeds", type=int, default=3)
     ap.add_argument("--marker", default="multi_arm")
     ap.add_argument("--cost-only", action="store_true", help="measure the step cost only (BENCHMARKS.md)")
+    ap.add_argument("--no-cost", action="store_true", help="the outcome tables only (RESULTS.md)")
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args()
 
@@ -124,6 +126,8 @@ def main() -> int:
         print(body)
         if not args.no_write:
             write_section(ROOT / "RESULTS.md", f"<!-- {args.marker}:start -->", f"<!-- {args.marker}:end -->", body)
+    if args.no_cost:
+        return 0
     cost = step_cost(args.scenes, args.cost_seeds)
     print(cost)
     if not args.no_write:
