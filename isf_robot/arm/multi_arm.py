@@ -27,7 +27,7 @@ import numpy as np
 
 from isf_robot.core import ConfigError, LieData, QPSolver, UnknownNameError
 from isf_robot.core.strategies import make_strategy
-from isf_robot.core.team import CentralFilter, SharedFilter, agent_lie, block_matrix, row_agents
+from isf_robot.core.team import CentralFilter, SharedFilter, SharedRows, agent_lie
 
 from .arms import geom_arms
 from .episode import episode_setup
@@ -64,16 +64,15 @@ class _ArmRollout:
 
     def __init__(self, rollout: Any, cache: dict[str, Any], blocks: tuple[slice, ...], i: int) -> None:
         self.rollout, self.cache, self.blocks, self.i = rollout, cache, blocks, i
-        self.M = block_matrix(blocks, blocks[-1].stop)
+        self.shared_rows = SharedRows(blocks)
 
     def __call__(self, t: float, x: Any) -> list[tuple[float, LieData, np.ndarray]]:
         if self.cache.get("t") != t or self.cache.get("x") is not x:  # (x: the episode's data; a new run, new data)
             self.cache.update(t=t, x=x, points=list(self.rollout(t, x)))
         b, out = self.blocks[self.i], []
         for s, lie, u in self.cache["points"]:
-            inv = row_agents(lie.lg, self.M)
-            rows = np.flatnonzero(inv[:, self.i])
-            out.append((s, agent_lie(lie, b, rows, 1.0 / inv[rows].sum(axis=1)), np.asarray(u)[b]))
+            rows, share, _ = self.shared_rows(lie).parts[self.i]
+            out.append((s, agent_lie(lie, b, rows, share), np.asarray(u)[b]))
         return out
 
 
