@@ -193,15 +193,19 @@ def summarize_point(runs: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def summarize_arms(runs: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
-    """A team's episodes: each arm's means (duty, switches, intervention, goals, coordination) and shortest off."""
+def summarize_arms(runs: Sequence[Mapping[str, Any]], min_off_key: str = "min_off_all_s") -> list[dict[str, Any]]:
+    """A team's episodes: each arm's means and its shortest off period of all episodes.
+
+    Means of the duty, switches, intervention, goals, coordination and short off periods; the shortest off
+    period under ``min_off_key`` (``compare`` names it ``min_off_s``).
+    """
     out = []
     for i, first in enumerate(runs[0]["arms"]):
         arms = [r["arms"][i] for r in runs]
         offs = [a["min_off_s"] for a in arms if a.get("min_off_s") is not None]
-        row: dict[str, Any] = {"name": first["name"], "min_off_all_s": min(offs) if offs else None}
+        row: dict[str, Any] = {"name": first["name"], min_off_key: min(offs) if offs else None}
         for key in ("duty_cycle", "on_switches", "intervention", "goals_reached", "goals_missed",
-                    "coordination_steps", "coordination_events"):
+                    "coordination_steps", "coordination_events", "short_offs"):
             row[key] = float(np.mean([float(a[key]) for a in arms]))
         out.append(row)
     return out

@@ -112,6 +112,8 @@ def team_compare(args: argparse.Namespace, spec: Any, scene: Any, params: dict[s
 def _print_team(args: argparse.Namespace, scene: Any, keys: list[tuple[str, str]], seeds: range,
                 done: dict[tuple[str, str, int], dict[str, Any]], partial: bool) -> None:
     """The team comparison of the episodes in ``done`` (JSON or text)."""
+    from isf_robot.arm.sweep import summarize_arms
+
     rows: dict[str, Any] = {}
     for strategy, way in keys:
         runs = [done[(strategy, way, seed)] for seed in seeds if (strategy, way, seed) in done]
@@ -124,7 +126,7 @@ def _print_team(args: argparse.Namespace, scene: Any, keys: list[tuple[str, str]
             "contacts": {k: sum(r["contacts"][k] for r in runs) for k in runs[0]["contacts"]},
             "min_barrier": min(r["min_barrier"] for r in runs),
             "step_us": float(np.mean([r["wall_s"] / max(1, r["control_steps"]) * 1e6 for r in runs])),
-            "arms": [_arm_means([r["arms"][i] for r in runs]) for i in range(len(runs[0]["arms"]))],
+            "arms": summarize_arms(runs, min_off_key="min_off_s"),
         }
     out = {"scene": scene.name, "episodes": args.episodes, "seed0": args.seed, "partial": partial, "results": rows}
     if args.json:
@@ -144,11 +146,3 @@ def _print_team(args: argparse.Namespace, scene: Any, keys: list[tuple[str, str]
                   f"{a['coordination_steps']:.0f} steps / {a['coordination_events']:.1f} events", flush=True)
 
 
-def _arm_means(arms: list[dict[str, Any]]) -> dict[str, Any]:
-    """One arm's figures over episodes: means, and the shortest off period of all."""
-    offs = [a["min_off_s"] for a in arms if a["min_off_s"] is not None]
-    out: dict[str, Any] = {"name": arms[0]["name"], "min_off_s": min(offs) if offs else None}
-    for key in ("duty_cycle", "on_switches", "intervention", "goals_reached", "goals_missed",
-                "coordination_steps", "coordination_events", "short_offs"):
-        out[key] = float(np.mean([a[key] for a in arms]))
-    return out
