@@ -64,7 +64,7 @@ class TeamBars:
         shape: tuple[int, ...] | None = None
         for name in self.FIELDS:
             v = np.asarray(getattr(self, name), dtype=float)
-            v = v.reshape(-1, len(arms)) if v.size and v.size % len(arms) == 0 else v
+            v = v.reshape(1, -1) if v.ndim == 1 and v.size == len(arms) else v  # (one episode)
             if v.ndim != 2 or v.shape[1] != len(arms) or v.shape[0] == 0:
                 raise ConfigError(f"{self.group!r}: {name} must have shape (episodes, {len(arms)}), got {v.shape}")
             if shape is not None and v.shape != shape:
