@@ -26,8 +26,9 @@ from typing import Any
 import numpy as np
 
 from isf_robot.core import ConfigError, LieData, QPSolver, UnknownNameError
+from isf_robot.core.shares import SharedRows, agent_lie
 from isf_robot.core.strategies import make_strategy
-from isf_robot.core.team import CentralFilter, SharedFilter, SharedRows, agent_lie
+from isf_robot.core.team import CentralFilter, SharedFilter
 
 from .arms import geom_arms
 from .episode import episode_setup

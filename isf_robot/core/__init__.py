@@ -33,7 +33,7 @@ _EXPORTS: dict[str, str] = {
     "lie_data": "system",
     "OnOffTrigger": "triggers", "xi_on": "triggers", "xi_tau": "triggers",
     "CentralFilter": "team", "SharedFilter": "team", "AgentTally": "team", "AgentResult": "team",
-    "row_agents": "team", "agent_lie": "team", "block_matrix": "team",
+    "row_agents": "shares", "agent_lie": "shares", "block_matrix": "shares", "SharedRows": "shares",
 }
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())

@@ -16,8 +16,9 @@ from isf_robot.arm.multi_arm import MultiArmSimulation, run_team
 from isf_robot.arm.one_arm import arm_scene
 from isf_robot.arm.team_nominal import TeamReaching
 from isf_robot.core import ConfigError, FilterSpec, LieData, QPSolver, UnknownNameError
+from isf_robot.core.shares import row_agents
 from isf_robot.core.strategies import make_strategy
-from isf_robot.core.team import CentralFilter, OffHold, SharedFilter, row_agents
+from isf_robot.core.team import CentralFilter, OffHold, SharedFilter
 
 
 def _arm(p: str, x: float, yaw: float) -> str:

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from isf_robot.core import LieData
+from isf_robot.core.shares import SharedRows, row_agents
 from isf_robot.core.step import FilterStep
-from isf_robot.core.team import BlockIntervention, Coordination, SharedRows, row_agents
+from isf_robot.core.team import BlockIntervention, Coordination
 
 BLOCKS = (slice(0, 2), slice(2, 5))
 

@@ -1,0 +1,118 @@
+"""Which agents each row of a team's filter involves, and each agent's share of a row it shares.
+
+The input is the agents' inputs stacked, ``u = (u_1, ..., u_a)``; agent ``i`` owns the columns
+``blocks[i]`` of every row's ``Lg h``. A row *involves* agent ``i`` when its ``Lg h`` has a non-zero
+entry in agent ``i``'s columns (:func:`row_agents`). Agent ``i``'s share of a row that involves the agents
+``S`` is ``s_i = 1 / |S|``, and its row is ``(h, lf, lg_i / s_i, |dh/dx|)`` (:func:`agent_lie`): the
+decentralised filter's split of the robust condition (:mod:`isf_robot.core.team`, whose docstring states
+the safety argument). :class:`SharedRows` keeps the answer per set of row names.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from .system import LieData
+
+__all__ = ["block_matrix", "row_agents", "agent_lie", "SharedRows"]
+
+
+def block_matrix(blocks: Sequence[slice], m: int) -> np.ndarray:
+    """``M[j, i] = 1`` when column j is agent i's, shape (m, a): ``|Lg h| M > 0`` is :func:`row_agents`."""
+    M = np.zeros((m, len(blocks)))
+    for i, b in enumerate(blocks):
+        M[b, i] = 1.0
+    return M
+
+
+def row_agents(lg: np.ndarray, blocks: Sequence[slice] | np.ndarray) -> np.ndarray:
+    """Which agents each row involves: ``out[r, i]`` when row r's ``Lg h`` is non-zero in agent i's columns.
+
+    Args:
+        lg: ``Lg h``, shape (k, m).
+        blocks: Agent i's columns, slices covering ``0..m`` without overlap; or their :func:`block_matrix`
+            (computed once by a caller that asks every step).
+
+    Returns:
+        Shape (k, a), bool.
+
+    """
+    M = blocks if isinstance(blocks, np.ndarray) else block_matrix(blocks, lg.shape[1])
+    return np.abs(lg) @ M > 0.0
+
+
+def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray) -> LieData:
+    """Agent's rows: ``(h, lf, lg[:, block] / share, |dh/dx|)`` of the rows ``rows`` (see the module docstring).
+
+    Args:
+        lie: The team's rows.
+        block: The agent's columns.
+        rows: Indices of the rows that involve the agent, shape (k_i,).
+        share: The agent's share of each of those rows, in (0, 1], shape (k_i,).
+
+    """
+    names = tuple(lie.names[r] for r in rows) if lie.names else ()
+    return LieData._of(lie.h[rows], lie.lf[rows], lie.lg[rows, block] / share[:, None], lie.grad_norm[rows], names)
+
+
+class SharedRows:
+    """Which rows involve several agents (:func:`row_agents`), kept per set of row names.
+
+    A row's agents follow from which bodies its pair joins, so rows with the same names (the tuple
+    :class:`LieData` shares between ticks with the same near pairs) are looked at once. Rows without
+    names are looked at every time.
+    """
+
+    LIMIT = 4096
+    """Most sets of names kept (the cache is emptied when full)."""
+
+    def __init__(self, blocks: Sequence[slice]) -> None:
+        self.blocks = tuple(blocks)
+        self._M: np.ndarray | None = None
+        self._cache: dict[tuple[str, ...], _Involved] = {}
+
+    def __call__(self, lie: LieData) -> _Involved:
+        """The agents of each row of ``lie`` (:class:`_Involved`)."""
+        key = lie.names
+        if key:
+            hit = self._cache.get(key)
+            if hit is not None and hit.count.shape[0] == lie.k:
+                return hit
+        if self._M is None or self._M.shape[0] != lie.m:
+            self._M = block_matrix(self.blocks, lie.m)
+        inv = row_agents(lie.lg, self._M)
+        count = inv.sum(axis=1)
+        out = _Involved(inv, count, count > 1)
+        if key:
+            if len(self._cache) >= self.LIMIT:
+                self._cache.clear()
+            self._cache[key] = out
+        return out
+
+
+class _Involved:
+    """The agents of a set of rows.
+
+    ``inv``: :func:`row_agents`, shape (k, a); ``count``: how many agents each row involves, shape (k,);
+    ``shared``: ``count > 1``; :attr:`parts` (made at the first use): per agent, ``(its rows, its share of each,
+    which of them are shared)``.
+    """
+
+    __slots__ = ("inv", "count", "shared", "_parts")
+
+    def __init__(self, inv: np.ndarray, count: np.ndarray, shared: np.ndarray) -> None:
+        self.inv, self.count, self.shared = inv, count, shared
+        self._parts: tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...] | None = None
+
+    @property
+    def parts(self) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]:
+        """Per agent ``(rows, share, shared)`` (see the class docstring)."""
+        if self._parts is None:
+            out = []
+            for i in range(self.inv.shape[1]):
+                rows = np.flatnonzero(self.inv[:, i])
+                out.append((rows, 1.0 / self.count[rows], self.shared[rows]))
+            self._parts = tuple(out)
+        return self._parts
