@@ -43,7 +43,8 @@ def row_agents(lg: np.ndarray, blocks: Sequence[slice] | np.ndarray) -> np.ndarr
     return np.abs(lg) @ M > 0.0
 
 
-def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray) -> LieData:
+def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray,
+              names: tuple[str, ...] | None = None) -> LieData:
     """Agent's rows: ``(h, lf, lg[:, block] / share, |dh/dx|)`` of the rows ``rows`` (see the module docstring).
 
     Args:
@@ -51,9 +52,12 @@ def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray) -
         block: The agent's columns.
         rows: Indices of the rows that involve the agent, shape (k_i,).
         share: The agent's share of each of those rows, in (0, 1], shape (k_i,).
+        names: Those rows' names, if at hand (:attr:`_Involved.parts` keeps one tuple per set of names, so
+            that what is kept per names object downstream, e.g. the hand-over's weights, is found again).
 
     """
-    names = tuple(lie.names[r] for r in rows) if lie.names else ()
+    if names is None:
+        names = tuple(lie.names[r] for r in rows) if lie.names else ()
     return LieData._of(lie.h[rows], lie.lf[rows], lie.lg[rows, block] / share[:, None], lie.grad_norm[rows], names)
 
 
@@ -84,7 +88,7 @@ class SharedRows:
             self._M = block_matrix(self.blocks, lie.m)
         inv = row_agents(lie.lg, self._M)
         count = inv.sum(axis=1)
-        out = _Involved(inv, count, count > 1)
+        out = _Involved(inv, count, count > 1, key)
         if key:
             if len(self._cache) >= self.LIMIT:
                 self._cache.clear()
@@ -97,22 +101,23 @@ class _Involved:
 
     ``inv``: :func:`row_agents`, shape (k, a); ``count``: how many agents each row involves, shape (k,);
     ``shared``: ``count > 1``; :attr:`parts` (made at the first use): per agent, ``(its rows, its share of each,
-    which of them are shared)``.
+    which of them are shared, their names)``.
     """
 
-    __slots__ = ("inv", "count", "shared", "_parts")
+    __slots__ = ("inv", "count", "shared", "names", "_parts")
 
-    def __init__(self, inv: np.ndarray, count: np.ndarray, shared: np.ndarray) -> None:
-        self.inv, self.count, self.shared = inv, count, shared
-        self._parts: tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...] | None = None
+    def __init__(self, inv: np.ndarray, count: np.ndarray, shared: np.ndarray, names: tuple[str, ...] = ()) -> None:
+        self.inv, self.count, self.shared, self.names = inv, count, shared, names
+        self._parts: tuple[tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...]], ...] | None = None
 
     @property
-    def parts(self) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]:
-        """Per agent ``(rows, share, shared)`` (see the class docstring)."""
+    def parts(self) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...]], ...]:
+        """Per agent ``(rows, share, shared, names)`` (see the class docstring)."""
         if self._parts is None:
             out = []
             for i in range(self.inv.shape[1]):
                 rows = np.flatnonzero(self.inv[:, i])
-                out.append((rows, 1.0 / self.count[rows], self.shared[rows]))
+                names = tuple(self.names[r] for r in rows.tolist()) if self.names else ()
+                out.append((rows, 1.0 / self.count[rows], self.shared[rows], names))
             self._parts = tuple(out)
         return self._parts

@@ -370,8 +370,8 @@ class SharedFilter:
 
     def split(self, lie: LieData) -> list[tuple[np.ndarray, LieData, np.ndarray]]:
         """Each agent's ``(rows, its Lie data, which of those rows are shared)`` (:func:`~.shares.agent_lie`)."""
-        return [(rows, agent_lie(lie, b, rows, share), shared)
-                for b, (rows, share, shared) in zip(self.blocks, self.shared_rows(lie).parts)]
+        return [(rows, agent_lie(lie, b, rows, share, names), shared)
+                for b, (rows, share, shared, names) in zip(self.blocks, self.shared_rows(lie).parts)]
 
     def step_lie(self, t: float, lie: LieData | None, u_nom: np.ndarray, x: Any = None,
                  screen: np.ndarray | None = None, **kw: Any) -> FilterStep:

@@ -49,7 +49,8 @@ def test_shared_rows_match_row_agents_and_are_kept_per_names() -> None:
     inv = shared(_lie(lg, names))
     np.testing.assert_array_equal(inv.inv, row_agents(lg, BLOCKS))
     np.testing.assert_array_equal(inv.shared, [False, False, True])
-    rows, share, sh = inv.parts[1]
+    rows, share, sh, names_1 = inv.parts[1]
+    assert names_1 == ("b|y", "a|b") and inv.parts[1][3] is names_1  # (one names tuple per set of names)
     np.testing.assert_array_equal(rows, [1, 2])
     np.testing.assert_array_equal(share, [1.0, 0.5])
     np.testing.assert_array_equal(sh, [False, True])
