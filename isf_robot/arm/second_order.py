@@ -67,7 +67,8 @@ are at time ``t`` (writes ``data.mocap_pos``) and returns their velocities (``No
 
 
 def psi_lie(h: np.ndarray, grad: np.ndarray, dhdt: np.ndarray, dphi: np.ndarray, q_dot: np.ndarray,
-            terms: DynamicsTerms, alpha_1: float, names: tuple[str, ...] = ()) -> LieData:
+            terms: DynamicsTerms, alpha_1: float, names: tuple[str, ...] = (),
+            grad_norm: np.ndarray | None = None) -> LieData:
     """The Lie data of ``psi = J q_dot + dh/dt + alpha_1 h`` on the full dynamics (module docstring).
 
     Args:
@@ -79,6 +80,7 @@ def psi_lie(h: np.ndarray, grad: np.ndarray, dhdt: np.ndarray, dphi: np.ndarray,
         terms: The dynamics' terms at the state.
         alpha_1: The inner gain [1/s], > 0.
         names: Row names.
+        grad_norm: ``|J|`` per row when known (the velocity level's rows carry it); ``None``: computed here.
 
     Returns:
         ``LieData(h=psi, lf=Lf psi, lg=Lg psi, grad_norm=|J|)``.
@@ -86,7 +88,7 @@ def psi_lie(h: np.ndarray, grad: np.ndarray, dhdt: np.ndarray, dphi: np.ndarray,
     """
     phi = grad @ q_dot + dhdt
     return LieData._of(phi + alpha_1 * h, dphi + grad @ terms.a0 + alpha_1 * phi, grad @ terms.minv,
-                       np.linalg.norm(grad, axis=1), names)
+                       np.linalg.norm(grad, axis=1) if grad_norm is None else grad_norm, names)
 
 
 class SecondOrderRows:
@@ -129,12 +131,13 @@ class SecondOrderRows:
         if rows.size == 0:
             return np.zeros(0)
         model, s, e = self.coll.model, self._scratch, self.eps
+        s.qpos[:] = data.qpos  # (once: each difference writes the arm's entries, the clock the moving obstacles')
+        s.mocap_pos[:] = data.mocap_pos
+        s.mocap_quat[:] = data.mocap_quat
+        q = data.qpos[self.qadr]
         out = []
         for sign in (1.0, -1.0):
-            s.qpos[:] = data.qpos
-            s.qpos[self.qadr] += sign * e * q_dot
-            s.mocap_pos[:] = data.mocap_pos
-            s.mocap_quat[:] = data.mocap_quat
+            s.qpos[self.qadr] = q + sign * e * q_dot
             lin = self.obstacles(s, t + sign * e) if self.obstacles is not None else None
             mujoco.mj_kinematics(model, s)
             mujoco.mj_comPos(model, s)
@@ -163,10 +166,9 @@ class SecondOrderRows:
         """
         tick = self.coll.lie_rows(data, self.joints, lin, coherence=coherence, witness=witness)  # type: ignore[arg-type]
         lie, idx = tick[0], tick[1]
-        h, grad, dhdt = lie.h.copy(), lie.lg.copy(), lie.lf.copy()  # (the compiled path reuses its buffers)
-        if self.approaching:
-            dhdt = -np.abs(dhdt)
+        # (no copies: the rows' arrays are the tick's own, never handed out again, and only read here)
+        dhdt = -np.abs(lie.lf) if self.approaching else lie.lf
         q_dot = data.qvel[self.coll.dof_adr]
-        dphi = np.zeros(h.shape[0])
+        dphi = np.zeros(lie.h.shape[0])
         dphi[:idx.size] = self.phi_rate(data, t, idx, q_dot)
-        return psi_lie(h, grad, dhdt, dphi, q_dot, terms, self.alpha_1, lie.names), tick
+        return psi_lie(lie.h, lie.lg, dhdt, dphi, q_dot, terms, self.alpha_1, lie.names, lie.grad_norm), tick
