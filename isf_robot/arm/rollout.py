@@ -48,12 +48,28 @@ from .nominal import ReachingController
 from .paths import path_track
 from .scene import Scene
 
-__all__ = ["NominalRollout", "MAX_POINTS"]
+__all__ = ["NominalRollout", "MAX_POINTS", "obstacle_tracks"]
 
 _NO_IDS, _NO_POS, _NO_LINS = np.zeros(0, np.int64), np.zeros((0, 0, 3)), np.zeros((0, 0))
 
 MAX_POINTS = 10
 """Default largest number of predicted points per rollout (the integration step grows with the horizon)."""
+
+
+def obstacle_tracks(scene: Scene, times: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    """The moving obstacles' places (n, p, 3) and every mocap body's linear velocity (n, nmocap, 3) at ``times``.
+
+    Places in the order of ``scene.moving_mocap_ids``; through :func:`~isf_robot.arm.paths.path_track` (a track's
+    numbers are those of each time alone: ``Scene.set_moving_obstacles``/``mocap_velocities``, one call per time).
+    """
+    ts = np.array(times, dtype=float)
+    mids = scene.moving_mocap_ids
+    mpos, lins = np.empty((ts.size, len(mids), 3)), np.zeros((ts.size, int(scene.model.nmocap), 3))
+    for r, mv in enumerate(scene.config.moving):
+        pos, vel = path_track(mv.path, ts)
+        mpos[:, r] = pos
+        lins[:, mids[r]] = vel
+    return mpos, lins
 
 
 class NominalRollout:
@@ -170,17 +186,10 @@ class NominalRollout:
     def _tracks(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The moving obstacles' places (n, p, 3) and every mocap body's velocity (n, nmocap * 3) at the points' times.
 
-        The times ``t + s + offset`` of the loop's points, through :func:`~isf_robot.arm.paths.path_track` (a
-        track's numbers are those of each time alone: ``Scene.set_moving_obstacles``/``mocap_velocities``).
+        The times ``t + s + offset`` of the loop's points (:func:`obstacle_tracks`).
         """
-        times = np.array([t + s + self.offset for s in self._s])
-        n, nmocap = times.size, self._nmocap
-        mpos, lins = np.empty((n, self._mids.size, 3)), np.zeros((n, nmocap, 3))
-        for r, mv in enumerate(self.scene.config.moving):
-            pos, vel = path_track(mv.path, times)
-            mpos[:, r] = pos
-            lins[:, self._mids[r]] = vel
-        return mpos, lins.reshape(n, nmocap * 3)
+        mpos, lins = obstacle_tracks(self.scene, [t + s + self.offset for s in self._s])
+        return mpos, lins.reshape(len(self._s), self._nmocap * 3)
 
     def _key_names(self, pairs: tuple[str, ...], joints: tuple[str, ...]) -> tuple[str, ...]:
         """The names of the rows' keys (the pairs', then the joints'), kept while those names are the same objects."""

@@ -30,9 +30,12 @@ coarse step reads a falling ``psi`` late. With the velocity level's ``horizon / 
 most 0.43); with one point per control period by 0.03 (at most 0.33), and fewer off periods end early
 (``RESULTS.md``, "Torque level").
 
-Cost per rollout: ``points + 1`` evaluations of the reaching command, the kinematics and the rows on a
-scratch ``MjData``; the filter runs a rollout at most once every ``predict_every`` control steps, and
-only while it is on with every ``Xi_on`` above the margin.
+Cost per rollout: ``points + 1`` evaluations of the reaching command, the kinematics (with the Euler step in
+one compiled call where the kernels run) and the rows on a scratch ``MjData``; the rows' ``psi`` and the
+pairing of consecutive points are a few array operations over all points, and the points go to the core
+stacked (:class:`~isf_robot.core.intermittent.StackedPoints`: one pass of ``predict``). The filter runs a
+rollout at most once every ``predict_every`` control steps, and only while it is on with every ``Xi_on``
+above the margin.
 """
 
 from __future__ import annotations
@@ -45,9 +48,12 @@ import mujoco
 import numpy as np
 
 from isf_robot.core import ConfigError, LieData
+from isf_robot.core.intermittent import StackedPoints
 
+from . import kernels
 from .collision import CollisionBarriers
 from .joint_limits import JointLimitBarriers
+from .rollout import obstacle_tracks
 from .scene import Scene
 
 __all__ = ["TorqueRollout"]
@@ -97,72 +103,102 @@ class TorqueRollout:
         self.moving = len(scene.config.moving) > 0
         self.approaching = bool(approaching)
         self._data = mujoco.MjData(scene.model)
-        self._qadr = np.asarray(scene.qpos_adr, dtype=np.int64)
+        self._qadr = np.ascontiguousarray(scene.qpos_adr, dtype=np.int64)
         self._dofs = np.asarray(scene.dof_adr, dtype=np.int64)
         self._kc = coll.pairs.k
         self._joint_keys = self._kc + np.arange(len(joints.names), dtype=np.int64)
         self._names = np.array([*coll.pairs.names, *joints.names], dtype=object)  # (a row's name by its key)
-        self._at = np.full(self._names.size, -1, dtype=np.int64)  # (key -> its row at the next point; -1: absent)
-        self._u0 = np.zeros(self._dofs.size)
+        self._key_names = tuple(self._names.tolist())
+        self._s = [j * self.dt for j in range(self.n)]  # (the points' times ahead)
+        self._zeros: tuple = (np.zeros((0, 0, 0)),)  # (Lg and u of every point: zero blocks, made once per size)
+        self._mids = np.asarray(scene.moving_mocap_ids, dtype=np.int64)
+        ks = kernels.rollout_kernels() if getattr(scene.model, "_address", 0) else None
+        self._step = ks[0] if ks is not None else None  # (compiled q + dt v and kinematics; None: numpy)
+        self._addr = (int(getattr(scene.model, "_address", 0)), int(getattr(self._data, "_address", 0)))
         self.calls = 0
-
-    def _psi(self, v: np.ndarray, lin: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(keys, psi, |J|)`` of every row at the state in the scratch data with joint velocities ``v``.
-
-        Keys: a near pair's index, then ``k_c + i`` for joint limit ``i`` (the same row at every point).
-        """
-        lie, idx = self.coll.lie_rows(self._data, self.joints, lin)[:2]
-        keys = np.concatenate((np.asarray(idx, dtype=np.int64), self._joint_keys))
-        dhdt = -np.abs(lie.lf) if self.approaching else lie.lf
-        psi = lie.lg @ v + dhdt + self.alpha_1 * lie.h
-        return keys, psi, np.array(lie.grad_norm, dtype=float)
 
     def __call__(self, t: float, x: Any,
                  first: np.ndarray | None = None) -> Sequence[tuple[float, LieData, np.ndarray]]:
-        """Points ``s = 0, dt, ..., (n - 1) dt`` ahead of ``t`` from the state in ``x`` (the episode's MjData)."""
+        """Points ``s = 0, dt, ..., (n - 1) dt`` ahead of ``t`` from the state in ``x`` (the episode's MjData).
+
+        Handed over stacked (:class:`~isf_robot.core.intermittent.StackedPoints`: ``predict`` reads every point in
+        one pass; a point's :class:`LieData` is made only when asked for, its ``Lg`` a read-only zero block).
+        """
         if first is not None:
             raise ConfigError("maneuvers by shooting are not available at the torque level (give shoot = 0)")
         if not isinstance(x, mujoco.MjData):
             raise ConfigError("TorqueRollout needs the episode's MjData as the state x of step_lie")
-        m, d, scene, dt = self.scene.model, self._data, self.scene, self.dt
+        m, d, dt, n, K = self.scene.model, self._data, self.dt, self.n, self._names.size
         d.qpos[:] = x.qpos
         if m.nmocap:
             d.mocap_pos[:] = x.mocap_pos
             d.mocap_quat[:] = x.mocap_quat
         q = x.qpos[self._qadr].copy()
         q_dot = x.qvel[self._dofs].copy()
+        if self.moving:  # (the obstacles' places and velocities at every point's time, in one pass)
+            mpos, lins = obstacle_tracks(self.scene, [t + j * dt + self.offset for j in range(n + 1)])
+        coll, joints, jk, step, qpos = self.coll, self.joints, self._joint_keys, self._step, d.qpos
+        keys, lgv, lf, h, gn = [], [], [], [], []  # (per point; put together after the loop, in a few operations)
         saved = self.nominal.snapshot()
         self.calls += 1
-        rows: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         try:
-            e = None
-            for j in range(self.n + 1):
-                s = j * dt
+            e = v = None
+            for j in range(n + 1):
                 lin = None
-                if self.moving:
-                    scene.set_moving_obstacles(d, t + s + self.offset)
-                    lin = scene.mocap_velocities(t + s + self.offset)[0]
-                d.qpos[self._qadr] = q
-                mujoco.mj_kinematics(m, d)
-                mujoco.mj_comPos(m, d)
-                v_ref = np.array(self.nominal(t + s, d), dtype=float)
+                if self.moving:  # (the obstacles' place first: the kinematics below read it)
+                    d.mocap_pos[self._mids] = mpos[j]
+                    lin = lins[j]
+                if j and step is not None:
+                    step(*self._addr, q, v, dt, qpos, self._qadr)  # (q + dt v into qpos, then the kinematics)
+                else:
+                    if j:
+                        q = q + dt * v
+                    d.qpos[self._qadr] = q
+                    mujoco.mj_kinematics(m, d)
+                    mujoco.mj_comPos(m, d)
+                v_ref = np.array(self.nominal(t + j * dt, d), dtype=float)
                 e = q_dot - v_ref if e is None else e * self.decay
                 v = v_ref + e
-                rows.append(self._psi(v, lin))
-                q = q + dt * v
+                lie, idx = coll.lie_rows(d, joints, lin)[:2]
+                keys += (idx, jk)  # (a near pair's index, then k_c + i for joint limit i)
+                lgv.append(lie.lg @ v)
+                lf.append(lie.lf)
+                h.append(lie.h)
+                gn.append(lie.grad_norm)
         finally:
             self.nominal.restore(saved)
-        out = []
-        at, m = self._at, self._u0.size
-        for j in range(self.n):
-            (k0, p0, g0), (k1, p1, _) = rows[j], rows[j + 1]
-            at[k1] = np.arange(k1.size)  # (the rows present at both points, in point j's order: ascending keys)
-            nxt = at[k0]
-            at[k1] = -1
-            i0 = np.flatnonzero(nxt >= 0)
-            i1 = nxt[i0]
-            h0 = p0[i0]
-            lie = LieData._of(h0, (p1[i1] - h0) / dt, np.zeros((i0.size, m)), g0[i0],
-                              tuple(self._names[k0[i0]].tolist()))
-            out.append((j * dt, lie, self._u0))
-        return out
+        rows = np.array([a.size for a in lgv])
+        dhdt = np.concatenate(lf)
+        psi_all = np.concatenate(lgv) + (-np.abs(dhdt) if self.approaching else dhdt) + self.alpha_1 * np.concatenate(h)
+        at = (np.repeat(np.arange(n + 1), rows), np.concatenate(keys))
+        psi, g, present = np.empty((n + 1, K)), np.empty((n + 1, K)), np.zeros((n + 1, K), dtype=bool)
+        psi[at], g[at], present[at] = psi_all, np.concatenate(gn), True
+        return self._points(psi, g, present)
+
+    def _points(self, psi: np.ndarray, gn: np.ndarray, present: np.ndarray) -> StackedPoints:
+        """Per point ``j < n`` the rows present at ``j`` and ``j + 1`` (ascending keys): ``h = psi_j``, the rate."""
+        n, K, dt, mu = self.n, self._names.size, self.dt, self._dofs.size
+        both = present[:-1] & present[1:]
+        jj, kk = np.nonzero(both)  # (row-major: each point's rows in ascending keys)
+        rows = np.count_nonzero(both, axis=1).astype(np.int64)
+        pos = np.arange(jj.size) - (np.cumsum(rows) - rows)[jj]  # (a row's place within its point)
+        h, lf, g, keys = np.zeros((n, K)), np.zeros((n, K)), np.zeros((n, K)), np.zeros((n, K), dtype=np.int64)
+        h0 = psi[jj, kk]
+        h[jj, pos] = h0
+        lf[jj, pos] = (psi[jj + 1, kk] - h0) / dt
+        g[jj, pos] = gn[jj, kk]
+        keys[jj, pos] = kk
+        if self._zeros[0].shape != (n, K, mu):
+            lg0, u0 = np.zeros((n, K, mu)), np.zeros((n, mu))
+            ro = lg0.view()
+            ro.flags.writeable = False  # (the points' Lg: views that cannot write into the block)
+            self._zeros = (lg0, u0, ro)
+        lg0, u0, ro = self._zeros
+        kl = rows.tolist()
+        names = self._names
+
+        def point(j: int) -> LieData:
+            k = kl[j]
+            return LieData._of(h[j, :k], lf[j, :k], ro[j, :k], g[j, :k], tuple(names[keys[j, :k]].tolist()))
+
+        return StackedPoints._of(self._s, u0, rows, kl, h, lf, lg0, g, point, None, keys, self._key_names)

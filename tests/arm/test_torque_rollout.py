@@ -133,3 +133,49 @@ def test_the_default_step_is_one_control_period(pole) -> None:  # type: ignore[n
         np.testing.assert_allclose(lie.lf, 0.0, atol=1e-9)
     with pytest.raises(ConfigError, match="control period"):
         TorqueRollout(pole, ref, sim.coll, sim.joints, 0.0, 0.0, 0.26, 6.0, 5.0)
+
+
+@pytest.mark.parametrize("name", ["panda_pole", "panda_moving"])
+def test_stacked_points_are_the_points_and_start_at_the_ticks_psi(name: str) -> None:
+    """The stacked arrays ``predict`` reads hold each point's Lie data (the same prediction either way, names
+    included); a point's ``Lg`` is a read-only zero block; point 0's ``psi`` is the filter's own row at the state
+    (moving obstacles placed on their track, ``approaching`` rows), for every row present at points 0 and 1."""
+    from isf_robot.core import as_class_k
+    from isf_robot.core.intermittent import StackedPoints, predict
+
+    scene = load_scene(name)
+    params = resolve_torque_params(scene, d_bar=D_BAR)
+    sim = TorqueSimulation(scene, "isf", seed=0, params=params)
+    roll = sim.strategy.predictor.rollout
+    assert isinstance(roll, TorqueRollout)
+    ep = sim.episode(sim, 10)
+    rng = np.random.default_rng(2)
+    data, alpha = ep.data, as_class_k(params.alpha)
+    seen = 0
+    for _ in range(8):
+        data.qpos[scene.qpos_adr] = scene.home + rng.uniform(-0.5, 0.5, scene.n_joints)
+        data.qvel[scene.dof_adr] = rng.uniform(-1.0, 1.0, scene.n_joints)
+        t = float(rng.uniform(0.0, 3.0))
+        lin = sim._clock(data, t) if scene.config.moving else None
+        mujoco.mj_forward(scene.model, data)
+        psi, _ = sim.second_order.tick(data, t, sim.dynamics.terms(data), lin)
+        pts = roll(t, data)
+        assert type(pts) is StackedPoints
+        listed = list(pts)
+        for d_bar in (0.0, 5.0):  # (5 rad/s^2: some rows predicted to fail, so their names are looked up)
+            a, b = predict(pts, alpha, d_bar), predict(listed, alpha, d_bar)
+            assert (a.ok, a.first_fail_s, a.failing) == (b.ok, b.first_fail_s, b.failing)
+            assert a.xi_min == pytest.approx(b.xi_min, rel=1e-12, abs=1e-12)
+        for j, (_, lie, u) in enumerate(listed):
+            k = pts.rows[j]
+            np.testing.assert_array_equal(lie.h, pts.h[j, :k])
+            np.testing.assert_array_equal(lie.lf, pts.lf[j, :k])
+            assert not u.any() and not lie.lg.any() and lie.lg.shape == (k, scene.n_joints)
+            assert not lie.lg.flags.writeable
+        at = {nm: i for i, nm in enumerate(psi.names)}
+        first = listed[0][1]
+        rows = [at[nm] for nm in first.names]
+        np.testing.assert_allclose(first.h, psi.h[rows], rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(first.grad_norm, psi.grad_norm[rows], rtol=1e-12, atol=1e-12)
+        seen += len(rows)
+    assert seen > 8 * 2 * scene.n_joints  # (collision rows too, not only the joint limits)
