@@ -248,3 +248,37 @@ def test_the_torque_levels_trigger_with_a_fake_clock(pole) -> None:  # type: ign
     assert [(e.kind, e.t) for e in events] == [("on", t_on), ("off", t_off)]
     assert times[-1] - t_off > p.blend  # (the last ticks checked the nominal torque exactly)
     assert events[1].duration_s == pytest.approx(t_off - t_on, abs=1e-12)
+
+
+def test_torque_nominal_owns_its_reference(pole) -> None:  # type: ignore[no-untyped-def]
+    """A velocity nominal may hand back the same buffer at every call (NominalController's contract): ``a_ref`` is
+    still the change of the reference between ticks, and ``v_ref`` is not changed by later calls (a rollout's)."""
+    from isf_robot.arm.dynamics import ArmDynamics
+    from isf_robot.arm.torque_nominal import TorqueNominal, computed_torque
+
+    class Reusing:
+        def __init__(self, values):  # type: ignore[no-untyped-def]
+            self.values, self.buf, self.k = values, np.zeros(pole.n_joints), 0
+
+        def __call__(self, t, data):  # type: ignore[no-untyped-def]
+            self.buf[:] = self.values[min(self.k, len(self.values) - 1)]
+            self.k += 1
+            return self.buf
+
+        def reset(self) -> None:
+            self.k = 0
+
+    v1, v2, T, kd = np.full(pole.n_joints, 0.1), np.linspace(-0.3, 0.3, pole.n_joints), 0.002, 10.0
+    ref = Reusing([v1, v2, np.full(pole.n_joints, 9.0)])
+    tau_max = np.full(pole.n_joints, 1e6)
+    nom = TorqueNominal(ref, pole.dof_adr, tau_max, T, kd)  # type: ignore[arg-type]
+    data = pole.make_data()
+    terms = ArmDynamics(pole.model, pole.dof_adr).terms(data)
+    q_dot = data.qvel[pole.dof_adr]
+    np.testing.assert_array_equal(nom(0.0, data, terms), computed_torque(terms, v1, 0 * v1, q_dot, kd, tau_max))
+    np.testing.assert_allclose(nom(T, data, terms), computed_torque(terms, v2, (v2 - v1) / T, q_dot, kd, tau_max),
+                               rtol=1e-12)
+    ref(2 * T, data)  # (the reference called again, as a rollout does, between two ticks)
+    np.testing.assert_array_equal(nom.v_ref, v2)
+    nom.reset()
+    np.testing.assert_array_equal(nom(0.0, data, terms), computed_torque(terms, v1, 0 * v1, q_dot, kd, tau_max))
