@@ -17,7 +17,7 @@ and hands the core, per point ``s_j``, the rows present at both ``s_j`` and ``s_
 
 so that the core's ``Xi_on`` (:func:`~isf_robot.core.robust.robust_slack`) at the point is the rate of
 ``psi`` along the nominal's own motion, plus ``alpha(psi) - |J| d_bar``: no second derivatives of the
-distance are needed (the central differences of the tick's rows are not repeated at every point). A pair
+distance are needed (the difference of the tick's rows is not repeated at every point). A pair
 entering or leaving the broad-phase cut-off between two points has no rate there (its ``psi`` jumps from
 the far value ``alpha_1 (cutoff - margin)`` by its approach speed): it counts from the next point on.
 With ``approaching`` the moving obstacles' part of ``phi`` is ``-|dh/dt|``, as in the filter's rows

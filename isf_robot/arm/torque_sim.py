@@ -221,7 +221,7 @@ class _TorqueEpisode(_Episode):
     def barriers(self) -> tuple[TickValues | None, LieData | None]:
         """The ``psi`` rows and the tick's safety accounting on the true geometry.
 
-        A strategy without rows (the nominal) gets the accounting only: no ``psi``, so no central differences.
+        A strategy without rows (the nominal) gets the accounting only: no ``psi``, so no difference of ``phi``.
         """
         sim = self.sim
         assert sim.terms is not None
