@@ -48,7 +48,7 @@ from .nominal import ReachingController
 from .paths import path_track
 from .scene import Scene
 
-__all__ = ["NominalRollout", "MAX_POINTS", "obstacle_tracks"]
+__all__ = ["NominalRollout", "ScratchRollout", "MAX_POINTS", "obstacle_tracks"]
 
 _NO_IDS, _NO_POS, _NO_LINS = np.zeros(0, np.int64), np.zeros((0, 0, 3)), np.zeros((0, 0))
 
@@ -72,7 +72,63 @@ def obstacle_tracks(scene: Scene, times: Sequence[float]) -> tuple[np.ndarray, n
     return mpos, lins
 
 
-class NominalRollout:
+class ScratchRollout:
+    """What a rollout of a nominal from the episode's state holds: the part its two kinds share.
+
+    :class:`NominalRollout` and :class:`~isf_robot.arm.torque_rollout.TorqueRollout`: the checked arguments, the
+    step and the number of points, a scratch ``MjData`` loaded from the episode's (:meth:`_load`), the compiled
+    Euler step where the kernels run.
+
+    Args:
+        scene: The scene.
+        nominal: The nominal controller (with ``snapshot()``/``restore()``: put back after each rollout).
+        coll: The collision barriers (their rows at the predicted states).
+        joints: The joint-limit barriers.
+        control_period: The control period [s].
+        time_offset: The episode's time offset [s] (moving obstacles' clock).
+        horizon: Prediction horizon [s], > 0.
+        points: Largest number of predicted points; the step is ``max(control period, horizon / points)``.
+
+    """
+
+    def __init__(self, scene: Scene, nominal: Any, coll: CollisionBarriers, joints: JointLimitBarriers,
+                 control_period: float, time_offset: float, horizon: float, points: int) -> None:
+        if not (math.isfinite(horizon) and horizon > 0):
+            raise ConfigError(f"rollout horizon must be > 0 [s], got {horizon}")
+        if int(points) != points or points < 1:
+            raise ConfigError(f"rollout points must be a whole number >= 1, got {points}")
+        if not (callable(getattr(nominal, "snapshot", None)) and callable(getattr(nominal, "restore", None))):
+            raise ConfigError("the predictive off trigger (horizon > 0) needs a nominal controller with "
+                              "snapshot() and restore() (isf_robot.arm.NominalController has them)")
+        self.scene, self.nominal = scene, nominal
+        self.coll, self.joints = coll, joints
+        self.offset = float(time_offset)
+        self.dt = max(float(control_period), float(horizon) / int(points))
+        self.n = max(1, int(math.ceil(float(horizon) / self.dt - 1e-9)))
+        self.horizon = float(horizon)
+        self.moving = len(scene.config.moving) > 0
+        self._data = mujoco.MjData(scene.model)
+        self._qadr = np.ascontiguousarray(scene.qpos_adr, dtype=np.int64)
+        self._kernels = kernels.rollout_kernels() if getattr(scene.model, "_address", 0) else None
+        self._step = self._kernels[0] if self._kernels is not None else None  # (q + dt u and the kinematics)
+        self._addr = (int(getattr(scene.model, "_address", 0)), int(getattr(self._data, "_address", 0)))
+        self._nmocap = int(scene.model.nmocap)
+        self._mids = np.ascontiguousarray(scene.moving_mocap_ids, dtype=np.int64) if self.moving else _NO_IDS
+        self.calls = 0
+
+    def _load(self, x: Any) -> mujoco.MjData:
+        """The scratch data with the episode's positions and mocap bodies (``x``: the episode's ``MjData``)."""
+        if not isinstance(x, mujoco.MjData):
+            raise ConfigError(f"{type(self).__name__} needs the episode's MjData as the state x of step_lie")
+        d = self._data
+        d.qpos[:] = x.qpos
+        if self._nmocap:
+            d.mocap_pos[:] = x.mocap_pos
+            d.mocap_quat[:] = x.mocap_quat
+        return d
+
+
+class NominalRollout(ScratchRollout):
     """``rollout(t, data) -> [(s, lie, u_nom), ...]``: the nominal rolled forward on its own scratch ``MjData``.
 
     Args:
@@ -90,33 +146,13 @@ class NominalRollout:
 
     def __init__(self, scene: Scene, nominal: Any, coll: CollisionBarriers, joints: JointLimitBarriers,
                  control_period: float, time_offset: float, horizon: float, points: int = MAX_POINTS) -> None:
-        if not (math.isfinite(horizon) and horizon > 0):
-            raise ConfigError(f"rollout horizon must be > 0 [s], got {horizon}")
-        if int(points) != points or points < 1:
-            raise ConfigError(f"rollout points must be a whole number >= 1, got {points}")
-        if not (callable(getattr(nominal, "snapshot", None)) and callable(getattr(nominal, "restore", None))):
-            raise ConfigError("the predictive off trigger (horizon > 0) needs a nominal controller with "
-                              "snapshot() and restore() (isf_robot.arm.NominalController has them)")
-        self.scene, self.nominal = scene, nominal
-        self.coll, self.joints = coll, joints
-        self.offset = float(time_offset)
-        self.dt = max(float(control_period), float(horizon) / int(points))
-        self.n = max(1, int(math.ceil(float(horizon) / self.dt - 1e-9)))
+        super().__init__(scene, nominal, coll, joints, control_period, time_offset, horizon, points)
         self._s = tuple((j + 1) * self.dt for j in range(self.n))  # (the points' times ahead, as the loop makes them)
-        self.horizon = float(horizon)
-        self.moving = len(self.scene.config.moving) > 0
-        self._data = mujoco.MjData(self.scene.model)
-        self._qadr = np.ascontiguousarray(self.scene.qpos_adr, dtype=np.int64)
-        ks = kernels.rollout_kernels() if getattr(self.scene.model, "_address", 0) else None
-        self._step = ks[0] if ks is not None else None
+        ks = self._kernels
         reach = (type(nominal) is ReachingController and nominal._reach is not None  # (its compiled command)
                  and nominal.scene.model is self.scene.model)
         self._whole = ks[1] if ks is not None and reach and self.coll._kernel is not None else None
-        self._addr = (int(getattr(self.scene.model, "_address", 0)), int(getattr(self._data, "_address", 0)))
         self._qpos = self._data.qpos  # (a view of the scratch data: the kernel writes through it)
-        self.calls = 0
-        self._nmocap = int(self.scene.model.nmocap)
-        self._mids = np.ascontiguousarray(self.scene.moving_mocap_ids, dtype=np.int64) if self.moving else _NO_IDS
         self._mp_addr = int(self._data.mocap_pos.ctypes.data)  # (the kernel writes the moving obstacles' places there)
         qa = self._qadr
         contiguous = qa.size and bool((np.diff(qa) == 1).all())
@@ -205,13 +241,7 @@ class NominalRollout:
         ``first``: the command over the first Euler step ``[t, t + dt]`` instead of the nominal's (a
         candidate maneuver's, :mod:`isf_robot.core.shooting`); the nominal takes over from ``t + dt``.
         """
-        if not isinstance(x, mujoco.MjData):
-            raise ConfigError("NominalRollout needs the episode's MjData as the state x of step_lie")
-        m, d, scene = self.scene.model, self._data, self.scene
-        d.qpos[:] = x.qpos
-        if self._nmocap:
-            d.mocap_pos[:] = x.mocap_pos
-            d.mocap_quat[:] = x.mocap_quat
+        m, d, scene = self.scene.model, self._load(x), self.scene
         q = x.qpos[self._qsel].copy()
         saved = self.nominal.snapshot()
         out: list[tuple[float, LieData, np.ndarray]] = []

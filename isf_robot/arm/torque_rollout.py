@@ -50,16 +50,15 @@ import numpy as np
 from isf_robot.core import ConfigError, LieData
 from isf_robot.core.intermittent import StackedPoints
 
-from . import kernels
 from .collision import CollisionBarriers
 from .joint_limits import JointLimitBarriers
-from .rollout import obstacle_tracks
+from .rollout import ScratchRollout, obstacle_tracks
 from .scene import Scene
 
 __all__ = ["TorqueRollout"]
 
 
-class TorqueRollout:
+class TorqueRollout(ScratchRollout):
     """``rollout(t, data) -> [(s, lie, u), ...]``: the torque nominal's closed loop, as ``psi`` rows (module docstring).
 
     Args:
@@ -82,28 +81,18 @@ class TorqueRollout:
     def __init__(self, scene: Scene, nominal: Any, coll: CollisionBarriers, joints: JointLimitBarriers,
                  control_period: float, time_offset: float, horizon: float, kd: float, alpha_1: float,
                  points: int | None = None, approaching: bool = False) -> None:
-        if not (math.isfinite(horizon) and horizon > 0):
-            raise ConfigError(f"rollout horizon must be > 0 [s], got {horizon}")
         if not (math.isfinite(control_period) and control_period > 0):
             raise ConfigError(f"rollout control period must be > 0 [s], got {control_period}")
-        if points is None:
-            points = max(1, int(math.ceil(float(horizon) / float(control_period) - 1e-9)))
-        if int(points) != points or points < 1:
-            raise ConfigError(f"rollout points must be a whole number >= 1, got {points}")
         for name, v in (("kd", kd), ("alpha_1", alpha_1)):
             if not (math.isfinite(v) and v > 0):
                 raise ConfigError(f"torque rollout {name} must be a positive number [1/s], got {v}")
-        if not (callable(getattr(nominal, "snapshot", None)) and callable(getattr(nominal, "restore", None))):
-            raise ConfigError("the predictive off trigger needs a nominal controller with snapshot() and restore()")
-        self.scene, self.nominal, self.coll, self.joints = scene, nominal, coll, joints
-        self.offset, self.horizon, self.alpha_1 = float(time_offset), float(horizon), float(alpha_1)
-        self.dt = max(float(control_period), float(horizon) / int(points))
-        self.n = max(1, int(math.ceil(float(horizon) / self.dt - 1e-9)))
+        if points is None:  # (one per control period; a horizon that is not a positive number: the base says so)
+            ok = math.isfinite(horizon) and horizon > 0
+            points = max(1, int(math.ceil(float(horizon) / float(control_period) - 1e-9))) if ok else 1
+        super().__init__(scene, nominal, coll, joints, control_period, time_offset, horizon, points)
+        self.alpha_1 = float(alpha_1)
         self.decay = math.exp(-float(kd) * self.dt)
-        self.moving = len(scene.config.moving) > 0
         self.approaching = bool(approaching)
-        self._data = mujoco.MjData(scene.model)
-        self._qadr = np.ascontiguousarray(scene.qpos_adr, dtype=np.int64)
         self._dofs = np.asarray(scene.dof_adr, dtype=np.int64)
         self._kc = coll.pairs.k
         self._joint_keys = self._kc + np.arange(len(joints.names), dtype=np.int64)
@@ -111,11 +100,6 @@ class TorqueRollout:
         self._key_names = tuple(self._names.tolist())
         self._s = [j * self.dt for j in range(self.n)]  # (the points' times ahead)
         self._zeros: tuple = (np.zeros((0, 0, 0)),)  # (Lg and u of every point: zero blocks, made once per size)
-        self._mids = np.asarray(scene.moving_mocap_ids, dtype=np.int64)
-        ks = kernels.rollout_kernels() if getattr(scene.model, "_address", 0) else None
-        self._step = ks[0] if ks is not None else None  # (compiled q + dt v and kinematics; None: numpy)
-        self._addr = (int(getattr(scene.model, "_address", 0)), int(getattr(self._data, "_address", 0)))
-        self.calls = 0
 
     def __call__(self, t: float, x: Any,
                  first: np.ndarray | None = None) -> Sequence[tuple[float, LieData, np.ndarray]]:
@@ -126,13 +110,7 @@ class TorqueRollout:
         """
         if first is not None:
             raise ConfigError("maneuvers by shooting are not available at the torque level (give shoot = 0)")
-        if not isinstance(x, mujoco.MjData):
-            raise ConfigError("TorqueRollout needs the episode's MjData as the state x of step_lie")
-        m, d, dt, n, K = self.scene.model, self._data, self.dt, self.n, self._names.size
-        d.qpos[:] = x.qpos
-        if m.nmocap:
-            d.mocap_pos[:] = x.mocap_pos
-            d.mocap_quat[:] = x.mocap_quat
+        m, d, dt, n, K = self.scene.model, self._load(x), self.dt, self.n, self._names.size
         q = x.qpos[self._qadr].copy()
         q_dot = x.qvel[self._dofs].copy()
         if self.moving:  # (the obstacles' places and velocities at every point's time, in one pass)
