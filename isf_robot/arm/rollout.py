@@ -114,7 +114,30 @@ class ScratchRollout:
         self._addr = (int(getattr(scene.model, "_address", 0)), int(getattr(self._data, "_address", 0)))
         self._nmocap = int(scene.model.nmocap)
         self._mids = np.ascontiguousarray(scene.moving_mocap_ids, dtype=np.int64) if self.moving else _NO_IDS
+        self._mp_addr = int(self._data.mocap_pos.ctypes.data)  # (a kernel writes the moving obstacles' places there)
         self.calls = 0
+
+    def _whole_kernel(self, i: int) -> Any:
+        """Rollout kernel ``i`` of :func:`~isf_robot.arm.kernels.rollout_kernels`, or ``None``.
+
+        The kernel when every point can be one call: the reaching controller with its compiled command on this
+        model, and the compiled collision kernel.
+        """
+        nom, ks = self.nominal, self._kernels
+        reach = (type(nom) is ReachingController and nom._reach is not None  # (its compiled command)
+                 and nom.scene.model is self.scene.model)
+        return ks[i] if ks is not None and reach and self.coll._kernel is not None else None
+
+    def _steady(self, t: float) -> bool:
+        """Whether the points after ``t`` can be one compiled call.
+
+        The goal index cannot change over the horizon (:meth:`GoalSequence.steady`: the kernel holds it; the goal
+        bookkeeping is put back after the rollout anyway), the controller has a previous command (its rate limit)
+        and its compiled command is bound to the scratch data, and the collision kernel computes ``dh/dt``.
+        """
+        nom, coll = self.nominal, self.coll
+        return (nom._rate.t_prev is not None and not (coll._any_moving and not coll._kdhdt)
+                and nom.goals.steady(t + 1 * self.dt, t + self.n * self.dt) and nom._bound(self._data))
 
     def _load(self, x: Any) -> mujoco.MjData:
         """The scratch data with the episode's positions and mocap bodies (``x``: the episode's ``MjData``)."""
@@ -148,12 +171,8 @@ class NominalRollout(ScratchRollout):
                  control_period: float, time_offset: float, horizon: float, points: int = MAX_POINTS) -> None:
         super().__init__(scene, nominal, coll, joints, control_period, time_offset, horizon, points)
         self._s = tuple((j + 1) * self.dt for j in range(self.n))  # (the points' times ahead, as the loop makes them)
-        ks = self._kernels
-        reach = (type(nominal) is ReachingController and nominal._reach is not None  # (its compiled command)
-                 and nominal.scene.model is self.scene.model)
-        self._whole = ks[1] if ks is not None and reach and self.coll._kernel is not None else None
+        self._whole = self._whole_kernel(1)
         self._qpos = self._data.qpos  # (a view of the scratch data: the kernel writes through it)
-        self._mp_addr = int(self._data.mocap_pos.ctypes.data)  # (the kernel writes the moving obstacles' places there)
         qa = self._qadr
         contiguous = qa.size and bool((np.diff(qa) == 1).all())
         self._qsel = slice(int(qa[0]), int(qa[0]) + qa.size) if contiguous else qa  # (a slice: a cheaper copy)
@@ -167,16 +186,13 @@ class NominalRollout(ScratchRollout):
                   first: np.ndarray) -> Sequence[tuple[float, LieData, np.ndarray]] | None:
         """Every point in one compiled call (``_rollout_jit.rollout_points``), the general loop's formulas.
 
-        Taken while the goal index cannot change over the horizon (:meth:`GoalSequence.steady`: the
-        kernel holds it; the goal bookkeeping is put back after the rollout anyway) and the reaching
-        controller's compiled command is bound to the scratch data. ``None``: the general loop runs
+        Taken while :meth:`_steady`. ``None``: the general loop runs
         (the controller's state as before this call, ``q`` unchanged), also after a point whose witness
         points coincide (the numpy narrow phase's case).
         """
         nom, d, coll, joints, dt, n = self.nominal, self._data, self.coll, self.joints, self.dt, self.n
         rate = nom._rate  # type: ignore[attr-defined]
-        if (rate.t_prev is None or u.shape != q.shape or u.ndim != 1
-                or not nom.goals.steady(t + 1 * dt, t + n * dt) or not nom._bound(d)):  # type: ignore[attr-defined]
+        if u.shape != q.shape or u.ndim != 1 or not self._steady(t):
             return None
         c = coll._kernel_context(d, None, joints)
         blk, g, rows = coll._point_outputs(c, n)

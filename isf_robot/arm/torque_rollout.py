@@ -60,7 +60,6 @@ from isf_robot.core.intermittent import StackedPoints
 from . import narrow
 from .collision import CollisionBarriers
 from .joint_limits import JointLimitBarriers
-from .nominal import ReachingController
 from .rollout import _NO_LINS, _NO_POS, ScratchRollout, obstacle_tracks
 from .scene import Scene
 
@@ -99,11 +98,7 @@ class TorqueRollout(ScratchRollout):
             ok = math.isfinite(horizon) and horizon > 0
             points = max(1, int(math.ceil(float(horizon) / float(control_period) - 1e-9))) if ok else 1
         super().__init__(scene, nominal, coll, joints, control_period, time_offset, horizon, points)
-        ks = self._kernels
-        reach = (type(nominal) is ReachingController and nominal._reach is not None  # (its compiled command)
-                 and nominal.scene.model is scene.model)
-        self._whole = ks[2] if ks is not None and reach and coll._kernel is not None else None
-        self._mp_addr = int(self._data.mocap_pos.ctypes.data)  # (the kernel writes the moving obstacles' places there)
+        self._whole = self._whole_kernel(2)
         self.alpha_1 = float(alpha_1)
         self.decay = math.exp(-float(kd) * self.dt)
         self.approaching = bool(approaching)
@@ -184,8 +179,7 @@ class TorqueRollout(ScratchRollout):
                   mpos: np.ndarray | None, lins: np.ndarray | None) -> tuple | None:
         """Points ``1 .. n`` in one compiled call (``_rollout_jit.torque_points``), the loop's formulas.
 
-        Taken after point 0 (``q``, ``v``, ``e`` and the command ``v_ref`` there) while the goal cannot change over
-        the horizon and the reaching controller's compiled command is bound to the scratch data, as
+        Taken after point 0 (``q``, ``v``, ``e`` and the command ``v_ref`` there) while :meth:`_steady`, as
         :meth:`NominalRollout._compiled <isf_robot.arm.rollout.NominalRollout._compiled>`. Returns
         ``([point of each row], keys, J v, dh/dt, h, |J|)`` of every row of those points, flat; ``None``: the loop
         goes on (``q``, ``e`` and the controller's state as before this call), also after a point whose witness
@@ -193,8 +187,7 @@ class TorqueRollout(ScratchRollout):
         """
         nom, d, coll, joints, dt, n = self.nominal, self._data, self.coll, self.joints, self.dt, self.n
         rate = nom._rate
-        if (rate.t_prev is None or v.shape != q.shape or (coll._any_moving and not coll._kdhdt)
-                or not nom.goals.steady(t + 1 * dt, t + n * dt) or not nom._bound(d)):
+        if v.shape != q.shape or not self._steady(t):
             return None
         c = coll._kernel_context(d, None, joints)
         blk, gr, rows = coll._point_outputs(c, n)
