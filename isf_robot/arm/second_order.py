@@ -73,7 +73,7 @@ def phi_rows(grad: np.ndarray, q_dot: np.ndarray, dhdt: np.ndarray) -> np.ndarra
 
 def psi_lie(h: np.ndarray, grad: np.ndarray, dhdt: np.ndarray, dphi: np.ndarray, q_dot: np.ndarray,
             terms: DynamicsTerms, alpha_1: float, names: tuple[str, ...] = (),
-            grad_norm: np.ndarray | None = None) -> LieData:
+            grad_norm: np.ndarray | None = None, phi: np.ndarray | None = None) -> LieData:
     """The Lie data of ``psi = J q_dot + dh/dt + alpha_1 h`` on the full dynamics (module docstring).
 
     Args:
@@ -86,12 +86,13 @@ def psi_lie(h: np.ndarray, grad: np.ndarray, dhdt: np.ndarray, dphi: np.ndarray,
         alpha_1: The inner gain [1/s], > 0.
         names: Row names.
         grad_norm: ``|J|`` per row when known (the velocity level's rows carry it); ``None``: computed here.
+        phi: ``phi`` per row when known (:func:`phi_rows` of these rows); ``None``: computed here.
 
     Returns:
         ``LieData(h=psi, lf=Lf psi, lg=Lg psi, grad_norm=|J|)``.
 
     """
-    phi = phi_rows(grad, q_dot, dhdt)
+    phi = phi_rows(grad, q_dot, dhdt) if phi is None else phi
     return LieData._of(phi + alpha_1 * h, dphi + grad @ terms.a0 + alpha_1 * phi, grad @ terms.minv,
                        np.linalg.norm(grad, axis=1) if grad_norm is None else grad_norm, names)
 
@@ -155,7 +156,7 @@ class SecondOrderRows:
         at[near.rows] = np.arange(near.rows.size)
         sel = at[rows]
         at[near.rows] = -1
-        if np.any(sel < 0):  # (cannot happen within PROBE_REACH of the cut-off; said rather than assumed)
+        if (sel < 0).any():  # (cannot happen within PROBE_REACH of the cut-off; said rather than assumed)
             raise ConfigError(f"pairs {rows[sel < 0].tolist()} left the probe's reach within eps = {e} s")
         dhdt = near.dhdt[sel]
         return (phi_rows(near.grad[sel], q_dot, -np.abs(dhdt) if self.approaching else dhdt) - phi) / e
@@ -177,7 +178,8 @@ class SecondOrderRows:
         # (no copies: the rows' arrays are the tick's own, never handed out again, and only read here)
         dhdt = -np.abs(lie.lf) if self.approaching else lie.lf
         q_dot = data.qvel[self.coll.dof_adr]
-        dphi = np.zeros(lie.h.shape[0])
+        phi = phi_rows(lie.lg, q_dot, dhdt)
+        dphi = np.zeros(phi.shape[0])
         nc = idx.size
-        dphi[:nc] = self.phi_rate(data, t, idx, q_dot, phi_rows(lie.lg[:nc], q_dot, dhdt[:nc]))
-        return psi_lie(lie.h, lie.lg, dhdt, dphi, q_dot, terms, self.alpha_1, lie.names, lie.grad_norm), tick
+        dphi[:nc] = self.phi_rate(data, t, idx, q_dot, phi[:nc])
+        return psi_lie(lie.h, lie.lg, dhdt, dphi, q_dot, terms, self.alpha_1, lie.names, lie.grad_norm, phi), tick
