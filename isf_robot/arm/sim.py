@@ -375,7 +375,9 @@ class _Episode:
     def act(self, k: int, u: np.ndarray) -> None:
         """Track ``u`` over the control period: S physics steps, each checked for safety."""
         data, model = self.data, self.model
-        self.track_err[k] = self._command(data, u, self.sim.control_period)
+        command = self._command
+        assert command is not None  # (a level without a tracker has an act of its own)
+        self.track_err[k] = command(data, u, self.sim.control_period)
         mujoco.mj_step2(model, data)
         if self.S == 1:
             return

@@ -125,12 +125,17 @@ class TorqueRollout(ScratchRollout):
         if self.moving:  # (the obstacles' places and velocities at every point's time, in one pass)
             mpos, lins = obstacle_tracks(self.scene, [t + j * dt + self.offset for j in range(n + 1)])
         coll, joints, jk, step, qpos = self.coll, self.joints, self._joint_keys, self._step, d.qpos
-        keys, lgv, lf, h, gn = [], [], [], [], []  # (per point; put together after the loop, in a few operations)
+        keys: list[np.ndarray] = []  # (per point, as lgv, lf, h, gn; put together after the loop in a few operations)
+        lgv: list[np.ndarray] = []
+        lf: list[np.ndarray] = []
+        h: list[np.ndarray] = []
+        gn: list[np.ndarray] = []
         at: list[np.ndarray] = []  # (each entry's point, for entries made by the compiled points)
         saved = self.nominal.snapshot()
         self.calls += 1
         try:
-            e = v = None
+            e: np.ndarray | None = None
+            v = q_dot  # (the velocity at the point; made at point 0 before its first use)
             for j in range(n + 1):
                 lin = None
                 if self.moving:  # (the obstacles' place first: the kinematics below read it)
