@@ -69,3 +69,43 @@ def rollout_points(ma, da, q, u0, t, dt, qpos, qadr, rp, nb, outs, n, nv, dof0, 
         if touching:
             return j + 1
     return outs.shape[0]
+
+
+def torque_points(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs, vs, n, nv, dof0, site, index, t_prev,
+                  a_max, kp, max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff, distmax, slack, eps,
+                  norms_in, lin, dhdt_in, mp_addr, nmocap, mids, mpos, lins):  # pragma: no cover (compiled)
+    """The torque nominal's closed loop (:class:`~isf_robot.arm.torque_rollout.TorqueRollout`) after its first point.
+
+    As :func:`rollout_points` with the joint velocity ``v = v_ref + e`` instead of the command: per point ``j``
+    (time ``t + (j + 1) dt``) the obstacles' places, the Euler step ``q <- q + dt v`` with the previous ``v``
+    (``v0`` first), the reaching command ``v_ref`` into ``outs[j]``, ``e <- e decay`` (in place) and
+    ``vs[j] = v_ref + e``, the collision kernel's rows into ``blks[j]``/``rows[j]`` and their keys into
+    ``keys[j]``. ``res[j]`` and the return value as there.
+    """
+    v = v0
+    nm = mids.shape[0]
+    mp = carray(f64p(mp_addr), (max(nmocap, 1), 3))
+    for j in range(outs.shape[0]):
+        tj = t + (j + 1) * dt
+        for r in range(nm):  # (the obstacles' place first: the kinematics below read it)
+            for c in range(3):
+                mp[mids[r], c] = mpos[j, r, c]
+        euler_step(ma, da, q, v, dt, qpos, qadr)
+        res[j, 5] = reach(ma, da, rp, nb, outs[j], n, nv, dof0, site, index, False, tj, t_prev, True, a_max, kp,
+                          max_ee, max_js, lam2)
+        t_prev = tj
+        for i in range(n):
+            e[i] = e[i] * decay
+            vs[j, i] = outs[j, i] + e[i]
+        v = vs[j]
+        k, h_min, dist_min, jmin, touching, _ = near_packed_key(ma, da, pn, blks[j], rows[j], False, cutoff, distmax,
+                                                                slack, eps, norms_in, lins[j] if lins.shape[0] else lin,
+                                                                dhdt_in)
+        res[j, 0], res[j, 1], res[j, 2], res[j, 3], res[j, 4] = k, h_min, dist_min, jmin, 1.0 if touching else 0.0
+        for i in range(k):
+            keys[j, i] = rows[j, i]
+        for i in range(keys.shape[1] - k):
+            keys[j, k + i] = npairs + i
+        if touching:
+            return j + 1
+    return outs.shape[0]

@@ -14,8 +14,8 @@ of ``tau`` over a control period). So ``q_ddot = a0 + Minv tau + d`` with
 
 and ``d = M^-1 d_tau`` the disturbance on the accelerations [rad/s^2] whose bound ``d_bar`` is
 calibrated (:mod:`isf_robot.arm.torque_calibration`). The terms are read from an ``MjData`` on
-which ``mj_step1`` (or ``mj_forward``) has run: ``mj_fullM`` of its sparse mass matrix, its
-``qfrc_bias`` and ``qfrc_passive``.
+which ``mj_step1`` (or ``mj_forward``) has run: ``mj_fullM`` of its sparse mass matrix, ``mj_solveM`` on
+the factor of it they computed (``qLD``), its ``qfrc_bias`` and ``qfrc_passive``.
 
 Torque limits (:func:`torque_limits`): each arm actuator's largest joint torque
 (:class:`~isf_robot.arm.actuation.ActuatorInfo` ``force_limit``: ``forcerange`` times the gear; a
@@ -77,12 +77,21 @@ class ArmDynamics:
     def __init__(self, model: mujoco.MjModel, dof_adr: np.ndarray, own_data: bool = False) -> None:
         self.model = model
         self.dof = np.asarray(dof_adr, dtype=np.int64)
+        n = self.dof.size
         self._full = np.zeros((model.nv, model.nv))
         self._own = mujoco.MjData(model) if own_data else None
         self._all = bool(np.array_equal(self.dof, np.arange(model.nv)))  # (the arm is every dof: no selection)
+        # Right-hand sides of the one solve per state: the arm dofs' unit vectors, then the free force.
+        self._rhs = np.zeros((n + 1, model.nv))
+        self._rhs[np.arange(n), self.dof] = 1.0
 
     def terms(self, data: mujoco.MjData) -> DynamicsTerms:
-        """The terms at the state in ``data`` (after ``mj_step1`` or ``mj_forward``)."""
+        """The terms at the state in ``data`` (after ``mj_step1`` or ``mj_forward``).
+
+        ``M^-1`` comes from the factor of ``M`` those leave in ``data`` (``qLD``, ``mj_solveM``): one solve of
+        ``n + 1`` right-hand sides (the arm dofs' unit vectors, whose solutions' arm entries are ``[M^-1]_aa``
+        (``M`` symmetric), and ``qfrc_passive - qfrc_bias``, whose solution is the free acceleration).
+        """
         if self._own is not None:
             own = self._own
             own.qpos[:], own.qvel[:], own.time = data.qpos, data.qvel, data.time
@@ -90,13 +99,16 @@ class ArmDynamics:
             mujoco.mj_fwdPosition(self.model, own)
             mujoco.mj_fwdVelocity(self.model, own)
             data = own
-        mujoco.mj_fullM(self.model, data, self._full)
-        inv = np.linalg.inv(self._full)
+        model, rhs, n = self.model, self._rhs, self.dof.size
+        mujoco.mj_fullM(model, data, self._full)
         free = data.qfrc_passive - data.qfrc_bias
+        rhs[n] = free
+        sol = np.empty_like(rhs)
+        mujoco.mj_solveM(model, data, sol, rhs)
         if self._all:
-            return DynamicsTerms(self._full.copy(), inv, inv @ free, -free)
+            return DynamicsTerms(self._full.copy(), sol[:n], sol[n], -free)
         dof = self.dof
-        return DynamicsTerms(self._full[np.ix_(dof, dof)].copy(), inv[np.ix_(dof, dof)], (inv @ free)[dof], -free[dof])
+        return DynamicsTerms(self._full[np.ix_(dof, dof)], sol[:n, dof], sol[n, dof], -free[dof])
 
 
 def torque_limits(scene: Scene) -> np.ndarray:

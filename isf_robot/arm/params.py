@@ -15,8 +15,6 @@ import dataclasses
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
-
 from isf_robot.core import ClassK, ConfigError, FilterSpec, Linear
 
 from .actuation import servo_lead
@@ -82,24 +80,22 @@ def resolve_params(
     return FilterParams(**fields, d_bar_source=source)
 
 
-def filter_options(sim: Any, inner: float = 0.0,
-                   rollout: Callable[[float], Any] | None = None) -> tuple[FilterParams, dict[str, Any]]:
+def filter_options(sim: Any, rollout: Callable[[float], Any] | None = None) -> tuple[FilterParams, dict[str, Any]]:
     """The strategy's parameters and wiring for ``sim``, an :class:`~isf_robot.arm.ArmSimulation` being built.
 
-    With ``min_off`` the designed margin is capped at ``alpha(cutoff - margin)`` too (a larger one
-    could not be met by a pair at the broad-phase cut-off; ``inner > 0``: the rows are the torque
-    level's ``psi = h_dot + inner h``, whose value at the cut-off is ``inner (cutoff - margin)``); with a
-    horizon, the wiring holds the rollout of the nominal on the reduced model
-    (:class:`~isf_robot.arm.rollout.NominalRollout`), and with ``shoot`` the shooting's rollout (the same,
-    over ``shoot`` seconds). ``rollout(horizon)``: the level's own rollout instead (the torque level's).
+    With ``min_off`` the designed margin is capped at ``alpha`` of the rows' value beyond the cut-off too
+    (``sim.far_value()``: a larger one could not be met by a pair at the broad-phase cut-off; ``cutoff - margin``,
+    at the torque level ``alpha_1 (cutoff - margin)``); with a horizon, the wiring holds the rollout of the
+    nominal on the reduced model (:class:`~isf_robot.arm.rollout.NominalRollout`), and with ``shoot`` the
+    shooting's rollout (the same, over ``shoot`` seconds). ``rollout(horizon)``: the level's own rollout instead
+    (the torque level's).
     """
     p: FilterParams = sim.params
     if not sim.info.intermittent:
         return p, {}
     wiring: dict[str, Any] = {}
     if p.min_off:  # no margin above what a pair at the broad-phase cut-off can reach
-        cutoff_h = float(np.min(sim.coll.cutoff - sim.coll.pairs.margin)) * (inner if inner > 0 else 1.0)
-        p = p.replace(c_max=max(p.c, min(p.c_max, p.class_k(cutoff_h))))
+        p = p.replace(c_max=max(p.c, min(p.c_max, p.class_k(sim.far_value()))))
     for key, horizon in (("rollout", p.horizon), ("shoot_rollout", p.shoot)):
         if horizon > 0:
             wiring[key] = (rollout(horizon) if rollout is not None else

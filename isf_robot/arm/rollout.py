@@ -48,7 +48,7 @@ from .nominal import ReachingController
 from .paths import path_track
 from .scene import Scene
 
-__all__ = ["NominalRollout", "MAX_POINTS"]
+__all__ = ["NominalRollout", "ScratchRollout", "MAX_POINTS", "obstacle_tracks"]
 
 _NO_IDS, _NO_POS, _NO_LINS = np.zeros(0, np.int64), np.zeros((0, 0, 3)), np.zeros((0, 0))
 
@@ -56,7 +56,102 @@ MAX_POINTS = 10
 """Default largest number of predicted points per rollout (the integration step grows with the horizon)."""
 
 
-class NominalRollout:
+def obstacle_tracks(scene: Scene, times: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    """The moving obstacles' places (n, p, 3) and every mocap body's linear velocity (n, nmocap, 3) at ``times``.
+
+    Places in the order of ``scene.moving_mocap_ids``; through :func:`~isf_robot.arm.paths.path_track` (a track's
+    numbers are those of each time alone: ``Scene.set_moving_obstacles``/``mocap_velocities``, one call per time).
+    """
+    ts = np.array(times, dtype=float)
+    mids = scene.moving_mocap_ids
+    mpos, lins = np.empty((ts.size, len(mids), 3)), np.zeros((ts.size, int(scene.model.nmocap), 3))
+    for r, mv in enumerate(scene.config.moving):
+        pos, vel = path_track(mv.path, ts)
+        mpos[:, r] = pos
+        lins[:, mids[r]] = vel
+    return mpos, lins
+
+
+class ScratchRollout:
+    """What a rollout of a nominal from the episode's state holds: the part its two kinds share.
+
+    :class:`NominalRollout` and :class:`~isf_robot.arm.torque_rollout.TorqueRollout`: the checked arguments, the
+    step and the number of points, a scratch ``MjData`` loaded from the episode's (:meth:`_load`), the compiled
+    Euler step where the kernels run.
+
+    Args:
+        scene: The scene.
+        nominal: The nominal controller (with ``snapshot()``/``restore()``: put back after each rollout).
+        coll: The collision barriers (their rows at the predicted states).
+        joints: The joint-limit barriers.
+        control_period: The control period [s].
+        time_offset: The episode's time offset [s] (moving obstacles' clock).
+        horizon: Prediction horizon [s], > 0.
+        points: Largest number of predicted points; the step is ``max(control period, horizon / points)``.
+
+    """
+
+    def __init__(self, scene: Scene, nominal: Any, coll: CollisionBarriers, joints: JointLimitBarriers,
+                 control_period: float, time_offset: float, horizon: float, points: int) -> None:
+        if not (math.isfinite(horizon) and horizon > 0):
+            raise ConfigError(f"rollout horizon must be > 0 [s], got {horizon}")
+        if int(points) != points or points < 1:
+            raise ConfigError(f"rollout points must be a whole number >= 1, got {points}")
+        if not (callable(getattr(nominal, "snapshot", None)) and callable(getattr(nominal, "restore", None))):
+            raise ConfigError("the predictive off trigger (horizon > 0) needs a nominal controller with "
+                              "snapshot() and restore() (isf_robot.arm.NominalController has them)")
+        self.scene, self.nominal = scene, nominal
+        self.coll, self.joints = coll, joints
+        self.offset = float(time_offset)
+        self.dt = max(float(control_period), float(horizon) / int(points))
+        self.n = max(1, int(math.ceil(float(horizon) / self.dt - 1e-9)))
+        self.horizon = float(horizon)
+        self.moving = len(scene.config.moving) > 0
+        self._data = mujoco.MjData(scene.model)
+        self._qadr = np.ascontiguousarray(scene.qpos_adr, dtype=np.int64)
+        self._kernels = kernels.rollout_kernels() if getattr(scene.model, "_address", 0) else None
+        self._step = self._kernels[0] if self._kernels is not None else None  # (q + dt u and the kinematics)
+        self._addr = (int(getattr(scene.model, "_address", 0)), int(getattr(self._data, "_address", 0)))
+        self._nmocap = int(scene.model.nmocap)
+        self._mids = np.ascontiguousarray(scene.moving_mocap_ids, dtype=np.int64) if self.moving else _NO_IDS
+        self._mp_addr = int(self._data.mocap_pos.ctypes.data)  # (a kernel writes the moving obstacles' places there)
+        self.calls = 0
+
+    def _whole_kernel(self, i: int) -> Any:
+        """Rollout kernel ``i`` of :func:`~isf_robot.arm.kernels.rollout_kernels`, or ``None``.
+
+        The kernel when every point can be one call: the reaching controller with its compiled command on this
+        model, and the compiled collision kernel.
+        """
+        nom, ks = self.nominal, self._kernels
+        reach = (type(nom) is ReachingController and nom._reach is not None  # (its compiled command)
+                 and nom.scene.model is self.scene.model)
+        return ks[i] if ks is not None and reach and self.coll._kernel is not None else None
+
+    def _steady(self, t: float) -> bool:
+        """Whether the points after ``t`` can be one compiled call.
+
+        The goal index cannot change over the horizon (:meth:`GoalSequence.steady`: the kernel holds it; the goal
+        bookkeeping is put back after the rollout anyway), the controller has a previous command (its rate limit)
+        and its compiled command is bound to the scratch data, and the collision kernel computes ``dh/dt``.
+        """
+        nom, coll = self.nominal, self.coll
+        return (nom._rate.t_prev is not None and not (coll._any_moving and not coll._kdhdt)
+                and nom.goals.steady(t + 1 * self.dt, t + self.n * self.dt) and nom._bound(self._data))
+
+    def _load(self, x: Any) -> mujoco.MjData:
+        """The scratch data with the episode's positions and mocap bodies (``x``: the episode's ``MjData``)."""
+        if not isinstance(x, mujoco.MjData):
+            raise ConfigError(f"{type(self).__name__} needs the episode's MjData as the state x of step_lie")
+        d = self._data
+        d.qpos[:] = x.qpos
+        if self._nmocap:
+            d.mocap_pos[:] = x.mocap_pos
+            d.mocap_quat[:] = x.mocap_quat
+        return d
+
+
+class NominalRollout(ScratchRollout):
     """``rollout(t, data) -> [(s, lie, u_nom), ...]``: the nominal rolled forward on its own scratch ``MjData``.
 
     Args:
@@ -74,34 +169,10 @@ class NominalRollout:
 
     def __init__(self, scene: Scene, nominal: Any, coll: CollisionBarriers, joints: JointLimitBarriers,
                  control_period: float, time_offset: float, horizon: float, points: int = MAX_POINTS) -> None:
-        if not (math.isfinite(horizon) and horizon > 0):
-            raise ConfigError(f"rollout horizon must be > 0 [s], got {horizon}")
-        if int(points) != points or points < 1:
-            raise ConfigError(f"rollout points must be a whole number >= 1, got {points}")
-        if not (callable(getattr(nominal, "snapshot", None)) and callable(getattr(nominal, "restore", None))):
-            raise ConfigError("the predictive off trigger (horizon > 0) needs a nominal controller with "
-                              "snapshot() and restore() (isf_robot.arm.NominalController has them)")
-        self.scene, self.nominal = scene, nominal
-        self.coll, self.joints = coll, joints
-        self.offset = float(time_offset)
-        self.dt = max(float(control_period), float(horizon) / int(points))
-        self.n = max(1, int(math.ceil(float(horizon) / self.dt - 1e-9)))
+        super().__init__(scene, nominal, coll, joints, control_period, time_offset, horizon, points)
         self._s = tuple((j + 1) * self.dt for j in range(self.n))  # (the points' times ahead, as the loop makes them)
-        self.horizon = float(horizon)
-        self.moving = len(self.scene.config.moving) > 0
-        self._data = mujoco.MjData(self.scene.model)
-        self._qadr = np.ascontiguousarray(self.scene.qpos_adr, dtype=np.int64)
-        ks = kernels.rollout_kernels() if getattr(self.scene.model, "_address", 0) else None
-        self._step = ks[0] if ks is not None else None
-        reach = (type(nominal) is ReachingController and nominal._reach is not None  # (its compiled command)
-                 and nominal.scene.model is self.scene.model)
-        self._whole = ks[1] if ks is not None and reach and self.coll._kernel is not None else None
-        self._addr = (int(getattr(self.scene.model, "_address", 0)), int(getattr(self._data, "_address", 0)))
+        self._whole = self._whole_kernel(1)
         self._qpos = self._data.qpos  # (a view of the scratch data: the kernel writes through it)
-        self.calls = 0
-        self._nmocap = int(self.scene.model.nmocap)
-        self._mids = np.ascontiguousarray(self.scene.moving_mocap_ids, dtype=np.int64) if self.moving else _NO_IDS
-        self._mp_addr = int(self._data.mocap_pos.ctypes.data)  # (the kernel writes the moving obstacles' places there)
         qa = self._qadr
         contiguous = qa.size and bool((np.diff(qa) == 1).all())
         self._qsel = slice(int(qa[0]), int(qa[0]) + qa.size) if contiguous else qa  # (a slice: a cheaper copy)
@@ -115,16 +186,13 @@ class NominalRollout:
                   first: np.ndarray) -> Sequence[tuple[float, LieData, np.ndarray]] | None:
         """Every point in one compiled call (``_rollout_jit.rollout_points``), the general loop's formulas.
 
-        Taken while the goal index cannot change over the horizon (:meth:`GoalSequence.steady`: the
-        kernel holds it; the goal bookkeeping is put back after the rollout anyway) and the reaching
-        controller's compiled command is bound to the scratch data. ``None``: the general loop runs
+        Taken while :meth:`_steady`. ``None``: the general loop runs
         (the controller's state as before this call, ``q`` unchanged), also after a point whose witness
         points coincide (the numpy narrow phase's case).
         """
         nom, d, coll, joints, dt, n = self.nominal, self._data, self.coll, self.joints, self.dt, self.n
         rate = nom._rate  # type: ignore[attr-defined]
-        if (rate.t_prev is None or u.shape != q.shape or u.ndim != 1
-                or not nom.goals.steady(t + 1 * dt, t + n * dt) or not nom._bound(d)):  # type: ignore[attr-defined]
+        if u.shape != q.shape or u.ndim != 1 or not self._steady(t):
             return None
         c = coll._kernel_context(d, None, joints)
         blk, g, rows = coll._point_outputs(c, n)
@@ -170,17 +238,10 @@ class NominalRollout:
     def _tracks(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The moving obstacles' places (n, p, 3) and every mocap body's velocity (n, nmocap * 3) at the points' times.
 
-        The times ``t + s + offset`` of the loop's points, through :func:`~isf_robot.arm.paths.path_track` (a
-        track's numbers are those of each time alone: ``Scene.set_moving_obstacles``/``mocap_velocities``).
+        The times ``t + s + offset`` of the loop's points (:func:`obstacle_tracks`).
         """
-        times = np.array([t + s + self.offset for s in self._s])
-        n, nmocap = times.size, self._nmocap
-        mpos, lins = np.empty((n, self._mids.size, 3)), np.zeros((n, nmocap, 3))
-        for r, mv in enumerate(self.scene.config.moving):
-            pos, vel = path_track(mv.path, times)
-            mpos[:, r] = pos
-            lins[:, self._mids[r]] = vel
-        return mpos, lins.reshape(n, nmocap * 3)
+        mpos, lins = obstacle_tracks(self.scene, [t + s + self.offset for s in self._s])
+        return mpos, lins.reshape(len(self._s), self._nmocap * 3)
 
     def _key_names(self, pairs: tuple[str, ...], joints: tuple[str, ...]) -> tuple[str, ...]:
         """The names of the rows' keys (the pairs', then the joints'), kept while those names are the same objects."""
@@ -196,13 +257,7 @@ class NominalRollout:
         ``first``: the command over the first Euler step ``[t, t + dt]`` instead of the nominal's (a
         candidate maneuver's, :mod:`isf_robot.core.shooting`); the nominal takes over from ``t + dt``.
         """
-        if not isinstance(x, mujoco.MjData):
-            raise ConfigError("NominalRollout needs the episode's MjData as the state x of step_lie")
-        m, d, scene = self.scene.model, self._data, self.scene
-        d.qpos[:] = x.qpos
-        if self._nmocap:
-            d.mocap_pos[:] = x.mocap_pos
-            d.mocap_quat[:] = x.mocap_quat
+        m, d, scene = self.scene.model, self._load(x), self.scene
         q = x.qpos[self._qsel].copy()
         saved = self.nominal.snapshot()
         out: list[tuple[float, LieData, np.ndarray]] = []

@@ -15,8 +15,8 @@ torques ``tau`` as input::
 
 ``D phi = d/ds phi(q + s q_dot, t + s)`` at ``s = 0`` with ``q_dot`` held: ``Jdot q_dot`` plus the
 terms of the obstacle's motion (``d/dt (dh/dt)`` with the obstacle's acceleration, and the
-change of ``dh/dt`` with ``q``). It is the central difference of the velocity level's own rows
-at ``(q -+ eps q_dot, t -+ eps)`` (:class:`SecondOrderRows`): the curvature of the distance
+change of ``dh/dt`` with ``q``). It is the forward difference of the velocity level's own rows
+between the state and ``(q + eps q_dot, t + eps)`` (:class:`SecondOrderRows`): the curvature of the distance
 between two geoms (witness points that slide, normals that turn) comes with it, where
 ``mj_jacDot`` at fixed witness points would miss it. Joint-limit rows have ``J`` constant and
 ``dh/dt = 0``, so ``D phi = 0``.
@@ -56,18 +56,24 @@ from .collision import CollisionBarriers
 from .dynamics import DynamicsTerms
 from .joint_limits import JointLimitBarriers
 
-__all__ = ["psi_lie", "SecondOrderRows", "ObstacleClock", "PROBE_REACH"]
+__all__ = ["psi_lie", "phi_rows", "SecondOrderRows", "ObstacleClock", "PROBE_REACH"]
 
 PROBE_REACH = 0.05
-"""How far beyond the broad-phase cut-off [m] the central differences of ``phi`` still see a pair."""
+"""How far beyond the broad-phase cut-off [m] the difference of ``phi`` still sees a pair."""
 
 ObstacleClock = Callable[[mujoco.MjData, float], np.ndarray | None]
 """``(data, t) -> mocap linear velocities (nmocap, 3) or None``: puts the moving obstacles where they
 are at time ``t`` (writes ``data.mocap_pos``) and returns their velocities (``None``: static scene)."""
 
 
+def phi_rows(grad: np.ndarray, q_dot: np.ndarray, dhdt: np.ndarray) -> np.ndarray:
+    """``phi = J q_dot + dh/dt`` of rows with gradients ``grad`` (k, n) and ``dh/dt`` (k,) [m/s], shape (k,)."""
+    return grad @ q_dot + dhdt
+
+
 def psi_lie(h: np.ndarray, grad: np.ndarray, dhdt: np.ndarray, dphi: np.ndarray, q_dot: np.ndarray,
-            terms: DynamicsTerms, alpha_1: float, names: tuple[str, ...] = ()) -> LieData:
+            terms: DynamicsTerms, alpha_1: float, names: tuple[str, ...] = (),
+            grad_norm: np.ndarray | None = None, phi: np.ndarray | None = None) -> LieData:
     """The Lie data of ``psi = J q_dot + dh/dt + alpha_1 h`` on the full dynamics (module docstring).
 
     Args:
@@ -79,14 +85,16 @@ def psi_lie(h: np.ndarray, grad: np.ndarray, dhdt: np.ndarray, dphi: np.ndarray,
         terms: The dynamics' terms at the state.
         alpha_1: The inner gain [1/s], > 0.
         names: Row names.
+        grad_norm: ``|J|`` per row when known (the velocity level's rows carry it); ``None``: computed here.
+        phi: ``phi`` per row when known (:func:`phi_rows` of these rows); ``None``: computed here.
 
     Returns:
         ``LieData(h=psi, lf=Lf psi, lg=Lg psi, grad_norm=|J|)``.
 
     """
-    phi = grad @ q_dot + dhdt
+    phi = phi_rows(grad, q_dot, dhdt) if phi is None else phi
     return LieData._of(phi + alpha_1 * h, dphi + grad @ terms.a0 + alpha_1 * phi, grad @ terms.minv,
-                       np.linalg.norm(grad, axis=1), names)
+                       np.linalg.norm(grad, axis=1) if grad_norm is None else grad_norm, names)
 
 
 class SecondOrderRows:
@@ -98,7 +106,7 @@ class SecondOrderRows:
         qpos_adr: The arm's qpos addresses, shape (n,) (hinge and slide joints: ``q_dot`` is the dof velocity).
         alpha_1: The inner gain of ``psi = h_dot + alpha_1 h`` [1/s], > 0.
         obstacles: Moving obstacles' clock (:data:`ObstacleClock`); ``None``: static obstacles.
-        eps: Step of the central difference of ``phi`` [s], > 0.
+        eps: Step of the forward difference of ``phi`` [s], > 0.
         approaching: ``phi = J q_dot - |dh/dt|`` (module docstring, "Moving obstacles that reverse"); default the
             exact ``phi = h_dot``.
 
@@ -118,36 +126,40 @@ class SecondOrderRows:
         self.approaching = bool(approaching)
         self._scratch = mujoco.MjData(coll.model)
         # The same pairs with a cut-off a little further out for the differences: a pair near at the state stays
-        # within it at q -+ eps q_dot (else its saturated value, with zero gradient, would make a false kink).
+        # within it at q + eps q_dot (else its saturated value, with zero gradient, would make a false kink).
         with warnings.catch_warnings():  # (the pairs' warnings were given when ``coll`` was made)
             warnings.simplefilter("ignore", IsfWarning)
             self._probe = CollisionBarriers(coll.model, coll.pairs, coll.dof_adr, coll.cutoff + PROBE_REACH)
         self._at = np.full(coll.pairs.k, -1, dtype=np.int64)  # (pair -> its row in the probe's near pairs)
 
-    def phi_rate(self, data: mujoco.MjData, t: float, rows: np.ndarray, q_dot: np.ndarray) -> np.ndarray:
-        """``D phi`` of the collision pairs ``rows`` at the state in ``data`` (time ``t``), shape (len(rows),)."""
+    def phi_rate(self, data: mujoco.MjData, t: float, rows: np.ndarray, q_dot: np.ndarray,
+                 phi: np.ndarray) -> np.ndarray:
+        """``D phi`` of the collision pairs ``rows`` at the state in ``data`` (time ``t``), shape (len(rows),).
+
+        The forward difference ``(phi(q + eps q_dot, t + eps) - phi) / eps``; ``phi``: the pairs' ``phi`` at the
+        state (the tick's, :func:`phi_rows`). One evaluation of the rows per tick; the central difference took two
+        for about the same figure (on 150 random states each of panda_pole and panda_moving with near pairs,
+        10309 rows: apart by 5e-7 m/s^2 at the median, 5e-4 at the 99th percentile, 0.035 at most).
+        """
         if rows.size == 0:
             return np.zeros(0)
         model, s, e = self.coll.model, self._scratch, self.eps
-        out = []
-        for sign in (1.0, -1.0):
-            s.qpos[:] = data.qpos
-            s.qpos[self.qadr] += sign * e * q_dot
-            s.mocap_pos[:] = data.mocap_pos
-            s.mocap_quat[:] = data.mocap_quat
-            lin = self.obstacles(s, t + sign * e) if self.obstacles is not None else None
-            mujoco.mj_kinematics(model, s)
-            mujoco.mj_comPos(model, s)
-            near = self._probe.near(s, lin)
-            at = self._at
-            at[near.rows] = np.arange(near.rows.size)
-            sel = at[rows]
-            at[near.rows] = -1
-            if np.any(sel < 0):  # (cannot happen within PROBE_REACH of the cut-off; said rather than assumed)
-                raise ConfigError(f"pairs {rows[sel < 0].tolist()} left the probe's reach within eps = {e} s")
-            dhdt = near.dhdt[sel]
-            out.append(near.grad[sel] @ q_dot + (-np.abs(dhdt) if self.approaching else dhdt))
-        return (out[0] - out[1]) / (2.0 * e)
+        s.qpos[:] = data.qpos
+        s.qpos[self.qadr] = data.qpos[self.qadr] + e * q_dot
+        s.mocap_pos[:] = data.mocap_pos
+        s.mocap_quat[:] = data.mocap_quat
+        lin = self.obstacles(s, t + e) if self.obstacles is not None else None
+        mujoco.mj_kinematics(model, s)
+        mujoco.mj_comPos(model, s)
+        near = self._probe.near(s, lin)
+        at = self._at
+        at[near.rows] = np.arange(near.rows.size)
+        sel = at[rows]
+        at[near.rows] = -1
+        if (sel < 0).any():  # (cannot happen within PROBE_REACH of the cut-off; said rather than assumed)
+            raise ConfigError(f"pairs {rows[sel < 0].tolist()} left the probe's reach within eps = {e} s")
+        dhdt = near.dhdt[sel]
+        return (phi_rows(near.grad[sel], q_dot, -np.abs(dhdt) if self.approaching else dhdt) - phi) / e
 
     def tick(self, data: mujoco.MjData, t: float, terms: DynamicsTerms, lin: np.ndarray | None = None, *,
              coherence: object = None, witness: bool = False) -> tuple:
@@ -163,10 +175,11 @@ class SecondOrderRows:
         """
         tick = self.coll.lie_rows(data, self.joints, lin, coherence=coherence, witness=witness)  # type: ignore[arg-type]
         lie, idx = tick[0], tick[1]
-        h, grad, dhdt = lie.h.copy(), lie.lg.copy(), lie.lf.copy()  # (the compiled path reuses its buffers)
-        if self.approaching:
-            dhdt = -np.abs(dhdt)
+        # (no copies: the rows' arrays are the tick's own, never handed out again, and only read here)
+        dhdt = -np.abs(lie.lf) if self.approaching else lie.lf
         q_dot = data.qvel[self.coll.dof_adr]
-        dphi = np.zeros(h.shape[0])
-        dphi[:idx.size] = self.phi_rate(data, t, idx, q_dot)
-        return psi_lie(h, grad, dhdt, dphi, q_dot, terms, self.alpha_1, lie.names), tick
+        phi = phi_rows(lie.lg, q_dot, dhdt)
+        dphi = np.zeros(phi.shape[0])
+        nc = idx.size
+        dphi[:nc] = self.phi_rate(data, t, idx, q_dot, phi[:nc])
+        return psi_lie(lie.h, lie.lg, dhdt, dphi, q_dot, terms, self.alpha_1, lie.names, lie.grad_norm, phi), tick

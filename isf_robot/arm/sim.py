@@ -136,7 +136,7 @@ class ArmSimulation:
         self.nominal = nominal if nominal is not None else ReachingController(scene, goals=self.setup.goals)
         if self.nominal.n != scene.n_joints:
             raise ConfigError(f"nominal controller has {self.nominal.n} joints, the scene {scene.n_joints}")
-        self.tracker = tracker if tracker is not None else make_actuation(scene)
+        self.tracker = self._make_tracker(tracker)
         self.params = p = params if params is not None else resolve_params(scene, alpha, c, b, d_bar, calibrate=False)
         self.coll = CollisionBarriers.from_scene(scene)
         self.joints = JointLimitBarriers.from_scene(scene)
@@ -148,15 +148,35 @@ class ArmSimulation:
         if not (keep_j >= 0 and keep_c >= 0):
             raise ConfigError(f"joint_row_slack and collision_row_slack must be >= 0, got {keep_j} and {keep_c}")
         self.keep_collision, self.keep_joint = max(p.c, keep_c), max(p.c, keep_j)
-        cutoff_h = float(np.min(self.coll.cutoff - self.coll.pairs.margin))
-        if self.info.intermittent and as_class_k(p.alpha)(cutoff_h) < p.c:
+        far = as_class_k(p.alpha)(self.far_value())
+        if self.info.intermittent and far < p.c:
             raise ConfigError(
-                f"alpha(cutoff - margin) = {as_class_k(p.alpha)(cutoff_h):.3g} < c = {p.c}: pairs beyond the "
-                "broad-phase cut-off would keep the intermittent filter on; raise the cut-off")
+                f"alpha({self.far_formula}) = {far:.3g} < c = {p.c}: pairs beyond the broad-phase cut-off would "
+                "keep the intermittent filter on; raise the cut-off")
+        self.strategy = self._make_strategy(strategy, solver if solver is not None else QPSolver(few_rows=True))
+
+    far_formula = "cutoff - margin"
+    """How :meth:`far_value` is made (for messages)."""
+
+    def far_value(self) -> float:
+        """The least value of a collision row beyond the broad-phase cut-off: ``h = cutoff - margin`` [m].
+
+        A pair there counts with this value; the intermittent filter needs ``alpha`` of it to be at least ``c``.
+        """
+        return float(np.min(self.coll.cutoff - self.coll.pairs.margin))
+
+    def _make_tracker(self, tracker: Actuation | None) -> Actuation | None:
+        """The low-level controller (the argument, else :func:`~isf_robot.arm.actuation.make_actuation`).
+
+        A level that drives the joints otherwise returns ``None`` (its episode's ``act`` does not track).
+        """
+        return tracker if tracker is not None else make_actuation(self.scene)
+
+    def _make_strategy(self, strategy: str, solver: QPSolver) -> Any:
+        """The strategy of this level (called once, last in ``__init__``; a level with rows of its own overrides)."""
         spec, wiring = filter_options(self)
-        self.strategy = make_strategy(strategy, spec, **wiring,
-                                      solver=solver if solver is not None else QPSolver(few_rows=True),
-                                      on_infeasible="fallback", fallback=_brake, validate=False)
+        return make_strategy(strategy, spec, **wiring, solver=solver, on_infeasible="fallback", fallback=_brake,
+                             validate=False)
 
     def start_info(self, duration: float) -> dict[str, Any]:
         """What observers learn when a run starts: the run's settings and the model's geometry."""
@@ -275,7 +295,8 @@ class _Episode:
             self._place(0)
         mujoco.mj_forward(model, data)
         sim.nominal.reset()
-        sim.tracker.reset(data)
+        if sim.tracker is not None:
+            sim.tracker.reset(data)
         sim.strategy.reset(0.0)
         self.monitor = SafetyMonitor(sim.coll)
         self.metrics = MetricsAccumulator()
@@ -290,7 +311,8 @@ class _Episode:
         self._screen_j = np.full(nj, sim.keep_joint)
         self._screen_cache: dict[int, np.ndarray] = {}
         self._step_lie, self._add_step, self._period = sim.strategy.step_lie, self.metrics.add_step, sim.control_period
-        self._command = tracking_step(sim.tracker, scene.dof_adr)  # tracking error, set_command and apply in one
+        self._command = (tracking_step(sim.tracker, scene.dof_adr)  # tracking error, set_command and apply in one
+                         if sim.tracker is not None else None)
         self._qpos_sel, self._dof_sel = as_slice(np.asarray(scene.qpos_adr)), as_slice(np.asarray(scene.dof_adr))
 
     # -- phases --------------------------------------------------------------------------
@@ -353,7 +375,9 @@ class _Episode:
     def act(self, k: int, u: np.ndarray) -> None:
         """Track ``u`` over the control period: S physics steps, each checked for safety."""
         data, model = self.data, self.model
-        self.track_err[k] = self._command(data, u, self.sim.control_period)
+        command = self._command
+        assert command is not None  # (a level without a tracker has an act of its own)
+        self.track_err[k] = command(data, u, self.sim.control_period)
         mujoco.mj_step2(model, data)
         if self.S == 1:
             return

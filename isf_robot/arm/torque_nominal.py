@@ -48,17 +48,18 @@ class TorqueNominal:
             raise ConfigError(f"torque nominal kd must be a positive number [1/s], got {kd}")
         self.reference, self.dof = reference, np.asarray(dof_adr, dtype=np.int64)
         self.tau_max, self.period, self.kd = np.asarray(tau_max, dtype=float), float(period), float(kd)
-        self.v_ref = np.zeros(self.dof.size)
-        self._prev: np.ndarray | None = None
+        self.v_ref = np.zeros(self.dof.size)  # (the last tick's reference, this object's own array)
+        self._first = True
 
     def reset(self) -> None:
         """Forget the previous reference (and reset the velocity-level nominal)."""
         self.reference.reset()
-        self._prev = None
+        self.v_ref = np.zeros(self.dof.size)
+        self._first = True
 
     def __call__(self, t: float, data: mujoco.MjData, terms: DynamicsTerms) -> np.ndarray:
         """The nominal torque at the tick [N m], shape (n,) (``v_ref`` keeps the velocity reference)."""
-        v = self.reference(t, data)
-        a = np.zeros_like(v) if self._prev is None else (v - self._prev) / self.period
-        self._prev, self.v_ref = v, v
+        v = np.array(self.reference(t, data), dtype=float)  # (a copy: a nominal may reuse its buffer)
+        a = np.zeros_like(v) if self._first else (v - self.v_ref) / self.period
+        self.v_ref, self._first = v, False
         return computed_torque(terms, v, a, data.qvel[self.dof], self.kd, self.tau_max)

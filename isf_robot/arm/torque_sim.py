@@ -155,25 +155,41 @@ class TorqueSimulation(ArmSimulation):
                 c, robot=dataclasses.replace(c.robot, self_collision=bool(self_collision))))
         self.filter_scene = scene
         self.tau_max = torque_limits(scene)
-        solver = solver if solver is not None else QPSolver(few_rows=True)
-        super().__init__(dataclasses.replace(scene, model=torque_plant(scene.model if plant is None else plant)),
-                         strategy, params=params, solver=solver, **kwargs)
-        if alpha_1 is None:
-            alpha_1 = inner_gain(params.alpha)
+        alpha_1 = inner_gain(params.alpha) if alpha_1 is None else alpha_1
+        if not (math.isfinite(alpha_1) and alpha_1 > 0):
+            raise ConfigError(f"alpha_1 must be a positive number [1/s], got {alpha_1}")
         self.alpha_1, self.kd = float(alpha_1), float(designed_kd(scene.config) if kd is None else kd)
+        self.terms: DynamicsTerms | None = None
+        self._zero = np.zeros(scene.n_joints)
+        super().__init__(dataclasses.replace(scene, model=torque_plant(scene.model if plant is None else plant)),
+                         strategy, params=params, solver=solver, **kwargs)  # (builds this level's strategy last)
         self.dynamics = ArmDynamics(scene.model, scene.dof_adr, own_data=plant is not None)
         self.second_order = SecondOrderRows(self.coll, self.joints, scene.qpos_adr, self.alpha_1,
                                             self._clock if scene.config.moving else None, approaching=True)
         self.torque_nominal = TorqueNominal(self.nominal, scene.dof_adr, self.tau_max, self.control_period,
                                            self.kd)
-        self.terms: DynamicsTerms | None = None
-        self._zero = np.zeros(scene.n_joints)
-        spec, wiring = filter_options(self, inner=self.alpha_1, rollout=lambda horizon: TorqueRollout(
+
+    far_formula = "alpha_1 (cutoff - margin)"
+
+    def far_value(self) -> float:
+        """The least value of a ``psi`` row beyond the broad-phase cut-off [m/s].
+
+        ``alpha_1 (cutoff - margin)``: ``J = 0`` there, so ``psi = alpha_1 h``.
+        """
+        return self.alpha_1 * super().far_value()
+
+    def _make_tracker(self, tracker: Any) -> None:
+        """No low-level tracker: this level puts its torques on the joints itself."""
+        if tracker is not None:
+            raise ConfigError("the torque level applies its torques itself: it takes no tracker (drop tracker=)")
+
+    def _make_strategy(self, strategy: str, solver: QPSolver) -> Any:
+        """The core's strategy on the ``psi`` rows, the torque limits as input bounds, the torque nominal's rollout."""
+        spec, wiring = filter_options(self, rollout=lambda horizon: TorqueRollout(
             self.scene, self.nominal, self.coll, self.joints, self.control_period, self.setup.time_offset,
             horizon, self.kd, self.alpha_1, approaching=True))
-        self.strategy = make_strategy(strategy, spec, **wiring, solver=solver, u_min=-self.tau_max,
-                                      u_max=self.tau_max, on_infeasible="fallback", fallback=self._fallback,
-                                      validate=False)
+        return make_strategy(strategy, spec, **wiring, solver=solver, u_min=-self.tau_max, u_max=self.tau_max,
+                             on_infeasible="fallback", fallback=self._fallback, validate=False)
 
     def _clock(self, data: mujoco.MjData, t: float) -> np.ndarray:
         """Moving obstacles at run time ``t`` (their path's time ``t + time_offset``); their velocities."""
@@ -221,7 +237,7 @@ class _TorqueEpisode(_Episode):
     def barriers(self) -> tuple[TickValues | None, LieData | None]:
         """The ``psi`` rows and the tick's safety accounting on the true geometry.
 
-        A strategy without rows (the nominal) gets the accounting only: no ``psi``, so no central differences.
+        A strategy without rows (the nominal) gets the accounting only: no ``psi``, so no difference of ``phi``.
         """
         sim = self.sim
         assert sim.terms is not None

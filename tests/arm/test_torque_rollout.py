@@ -133,3 +133,135 @@ def test_the_default_step_is_one_control_period(pole) -> None:  # type: ignore[n
         np.testing.assert_allclose(lie.lf, 0.0, atol=1e-9)
     with pytest.raises(ConfigError, match="control period"):
         TorqueRollout(pole, ref, sim.coll, sim.joints, 0.0, 0.0, 0.26, 6.0, 5.0)
+
+
+@pytest.mark.parametrize("name", ["panda_pole", "panda_moving"])
+def test_stacked_points_are_the_points_and_start_at_the_ticks_psi(name: str) -> None:
+    """The stacked arrays ``predict`` reads hold each point's Lie data (the same prediction either way, names
+    included); a point's ``Lg`` is a read-only zero block; point 0's ``psi`` is the filter's own row at the state
+    (moving obstacles placed on their track, ``approaching`` rows), for every row present at points 0 and 1."""
+    from isf_robot.core import as_class_k
+    from isf_robot.core.intermittent import StackedPoints, predict
+
+    scene = load_scene(name)
+    params = resolve_torque_params(scene, d_bar=D_BAR)
+    sim = TorqueSimulation(scene, "isf", seed=0, params=params)
+    roll = sim.strategy.predictor.rollout
+    assert isinstance(roll, TorqueRollout)
+    ep = sim.episode(sim, 10)
+    rng = np.random.default_rng(2)
+    data, alpha = ep.data, as_class_k(params.alpha)
+    seen = 0
+    for _ in range(8):
+        data.qpos[scene.qpos_adr] = scene.home + rng.uniform(-0.5, 0.5, scene.n_joints)
+        data.qvel[scene.dof_adr] = rng.uniform(-1.0, 1.0, scene.n_joints)
+        t = float(rng.uniform(0.0, 3.0))
+        lin = sim._clock(data, t) if scene.config.moving else None
+        mujoco.mj_forward(scene.model, data)
+        psi, _ = sim.second_order.tick(data, t, sim.dynamics.terms(data), lin)
+        pts = roll(t, data)
+        assert type(pts) is StackedPoints
+        listed = list(pts)
+        for d_bar in (0.0, 5.0):  # (5 rad/s^2: some rows predicted to fail, so their names are looked up)
+            a, b = predict(pts, alpha, d_bar), predict(listed, alpha, d_bar)
+            assert (a.ok, a.first_fail_s, a.failing) == (b.ok, b.first_fail_s, b.failing)
+            assert a.xi_min == pytest.approx(b.xi_min, rel=1e-12, abs=1e-12)
+        for j, (_, lie, u) in enumerate(listed):
+            k = pts.rows[j]
+            np.testing.assert_array_equal(lie.h, pts.h[j, :k])
+            np.testing.assert_array_equal(lie.lf, pts.lf[j, :k])
+            assert not u.any() and not lie.lg.any() and lie.lg.shape == (k, scene.n_joints)
+            assert not lie.lg.flags.writeable
+        at = {nm: i for i, nm in enumerate(psi.names)}
+        first = listed[0][1]
+        rows = [at[nm] for nm in first.names]
+        np.testing.assert_allclose(first.h, psi.h[rows], rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(first.grad_norm, psi.grad_norm[rows], rtol=1e-12, atol=1e-12)
+        seen += len(rows)
+    assert seen > 8 * 2 * scene.n_joints  # (collision rows too, not only the joint limits)
+
+
+def _torque_points(roll, t, data):  # type: ignore[no-untyped-def]
+    return [(s, lie.names, np.concatenate((lie.h, lie.lf, lie.grad_norm))) for s, lie, _ in roll(t, data)]
+
+
+def _compare_paths(name: str, states: int, goals=None) -> tuple:  # type: ignore[no-untyped-def]
+    """Torque rollouts from random states by the compiled points, the compiled Euler step alone and numpy; returns
+    (rows compared, whole-path calls that finished, Euler-step calls)."""
+    from isf_robot.arm import kernels
+
+    if not kernels.available():
+        pytest.skip("compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
+    scene = load_scene(name)
+    sim = TorqueSimulation(scene, "isf", seed=3, params=resolve_torque_params(scene, d_bar=D_BAR))
+    roll = sim.strategy.predictor.rollout
+    whole, step = roll._whole, roll._step
+    assert whole is not None and step is not None
+    done: list[int] = []  # (per call of the kernel: 1 when it finished without touching points)
+    steps: list[int] = []
+
+    def counted_whole(*a):  # type: ignore[no-untyped-def]
+        out = whole(*a)
+        done.append(int(out == roll.n and not a[30][roll.n - 1, 4]))  # (a[30]: its res)
+        return out
+
+    rng = np.random.default_rng(8)
+    data = mujoco.MjData(scene.model)
+    nom, rows = sim.nominal, 0
+    nom.reset()
+    for k in range(states):
+        t = 0.2 + 0.05 * k
+        data.qpos[scene.qpos_adr] = sim.setup.q0 + rng.normal(scale=0.4, size=scene.n_joints)
+        data.qvel[scene.dof_adr] = rng.uniform(-1.0, 1.0, scene.n_joints)
+        lin = sim._clock(data, t) if scene.config.moving else None
+        mujoco.mj_forward(scene.model, data)
+        if goals is not None:
+            goals(nom, data, t)
+        nom(t - 0.002, data)  # (a previous command for the rate limit)
+        before = nom.snapshot()
+        roll._whole, roll._step = counted_whole, (lambda *a: steps.append(1) or step(*a))
+        fast = _torque_points(roll, t, data)
+        after = nom.snapshot()
+        assert after[1].tolist() == before[1].tolist() and after[2] == before[2]  # (the controller put back)
+        roll._whole = None
+        euler = _torque_points(roll, t, data)
+        roll._step = None
+        slow = _torque_points(roll, t, data)
+        for a, b in ((fast, slow), (euler, slow)):
+            assert len(a) == len(b)
+            for pa, pb in zip(a, b):
+                assert pa[0] == pb[0] and pa[1] == pb[1]
+                scale = max(1.0, float(np.max(np.abs(pb[2]), initial=0.0)))
+                np.testing.assert_allclose(pa[2], pb[2], rtol=1e-12, atol=1e-12 * scale / roll.dt)
+        rows += sum(len(p[1]) - len(sim.joints.names) for p in fast)
+        assert lin is None or lin.shape == (scene.model.nmocap, 3)
+    assert rows > 0  # (pairs within the cut-off were compared)
+    return roll, (len(done), sum(done)), len(steps)
+
+
+@pytest.mark.parametrize("name", ["panda_pole", "panda_moving"])
+def test_compiled_torque_points_are_the_loops(name: str) -> None:
+    """The points after the first in one compiled call (``torque_points``) are the numpy loop's, to rounding (the
+    rates: ``1e-12`` of the scale over ``dt``), with static and moving obstacles; the Euler-step path too."""
+    roll, whole, euler = _compare_paths(name, 8)
+    assert whole == (8, 8) and euler == 8 * roll.n  # (the whole path at every state; the Euler path once per point)
+
+
+def test_a_goal_change_within_the_horizon_takes_the_loop() -> None:
+    def near_the_goal(nom, data, t):  # type: ignore[no-untyped-def]
+        nom.goals.reset()
+        nom.goals.dwell[:] = 0.05  # (an arrival within the horizon can advance the goal)
+        nom.goal_positions[nom.goals.index] = nom.scene.ee_position(data)  # (arrives at once)
+
+    roll, whole, euler = _compare_paths("panda_pole", 4, goals=near_the_goal)
+    assert whole == (0, 0) and euler == 2 * 4 * roll.n  # (never the kernel: goals.steady said no)
+
+
+def test_coinciding_witness_points_fall_back_to_the_loop(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """Every near pair touching: the kernel stops at its first point with one, and the loop redoes the points
+    after the first from the state the kernel started from (the same points as numpy's)."""
+    from isf_robot.arm import narrow as narrow_module
+
+    monkeypatch.setattr(narrow_module, "_EPS_DIST", 10.0)
+    roll, whole, euler = _compare_paths("panda_pole", 4)
+    assert whole == (4, 0) and euler == 2 * 4 * roll.n  # (the kernel ran at every state and stopped early)

@@ -248,3 +248,94 @@ def test_the_torque_levels_trigger_with_a_fake_clock(pole) -> None:  # type: ign
     assert [(e.kind, e.t) for e in events] == [("on", t_on), ("off", t_off)]
     assert times[-1] - t_off > p.blend  # (the last ticks checked the nominal torque exactly)
     assert events[1].duration_s == pytest.approx(t_off - t_on, abs=1e-12)
+
+
+def test_torque_nominal_owns_its_reference(pole) -> None:  # type: ignore[no-untyped-def]
+    """A velocity nominal may hand back the same buffer at every call (NominalController's contract): ``a_ref`` is
+    still the change of the reference between ticks, and ``v_ref`` is not changed by later calls (a rollout's)."""
+    from isf_robot.arm.dynamics import ArmDynamics
+    from isf_robot.arm.torque_nominal import TorqueNominal, computed_torque
+
+    class Reusing:
+        def __init__(self, values):  # type: ignore[no-untyped-def]
+            self.values, self.buf, self.k = values, np.zeros(pole.n_joints), 0
+
+        def __call__(self, t, data):  # type: ignore[no-untyped-def]
+            self.buf[:] = self.values[min(self.k, len(self.values) - 1)]
+            self.k += 1
+            return self.buf
+
+        def reset(self) -> None:
+            self.k = 0
+
+    v1, v2, T, kd = np.full(pole.n_joints, 0.1), np.linspace(-0.3, 0.3, pole.n_joints), 0.002, 10.0
+    ref = Reusing([v1, v2, np.full(pole.n_joints, 9.0)])
+    tau_max = np.full(pole.n_joints, 1e6)
+    nom = TorqueNominal(ref, pole.dof_adr, tau_max, T, kd)  # type: ignore[arg-type]
+    data = pole.make_data()
+    terms = ArmDynamics(pole.model, pole.dof_adr).terms(data)
+    q_dot = data.qvel[pole.dof_adr]
+    np.testing.assert_array_equal(nom(0.0, data, terms), computed_torque(terms, v1, 0 * v1, q_dot, kd, tau_max))
+    np.testing.assert_allclose(nom(T, data, terms), computed_torque(terms, v2, (v2 - v1) / T, q_dot, kd, tau_max),
+                               rtol=1e-12)
+    ref(2 * T, data)  # (the reference called again, as a rollout does, between two ticks)
+    np.testing.assert_array_equal(nom.v_ref, v2)
+    nom.reset()
+    np.testing.assert_array_equal(nom(0.0, data, terms), computed_torque(terms, v1, 0 * v1, q_dot, kd, tau_max))
+
+
+def test_start_check_uses_the_rows_far_value(pole) -> None:  # type: ignore[no-untyped-def]
+    """The intermittent filter's start check reads ``alpha`` of the torque rows' far value ``alpha_1 (cutoff -
+    margin)``, not of ``h``'s: a ``c`` between the two raises at the level whose far value is the smaller only."""
+    from isf_robot.arm import ArmSimulation
+
+    base = resolve_torque_params(pole, d_bar=D_BAR)
+    unit = TorqueSimulation(pole, "isf", seed=0, params=base, alpha_1=1.0)
+    h_far = float(np.min(unit.coll.cutoff - unit.coll.pairs.margin))
+    assert unit.far_value() == pytest.approx(h_far) and h_far > 0
+    alpha = base.class_k
+    assert alpha(h_far) > base.c  # (the shipped settings pass at either level)
+    # alpha_1 = 0.2: the psi rows' far value is a fifth of h's; a c between them is too large for the torque rows
+    c = 0.5 * (alpha(0.2 * h_far) + alpha(h_far))
+    params = dataclasses.replace(base, c=c, c_max=max(base.c_max, c))
+    ArmSimulation(pole, "isf", seed=0, params=params)  # (the velocity level's rows reach c)
+    with pytest.raises(ConfigError, match=r"alpha\(alpha_1 \(cutoff - margin\)\) = .* < c = ") as err:
+        TorqueSimulation(pole, "isf", seed=0, params=params, alpha_1=0.2)
+    assert "\n" not in str(err.value)
+    TorqueSimulation(pole, "cbf", seed=0, params=params, alpha_1=0.2)  # (not intermittent: no check)
+    # alpha_1 = 10: the psi rows reach a c that h's far value does not
+    c = 0.5 * (alpha(h_far) + alpha(10.0 * h_far))
+    params = dataclasses.replace(base, c=c, c_max=max(base.c_max, c))
+    with pytest.raises(ConfigError, match=r"alpha\(cutoff - margin\) = .* < c = "):
+        ArmSimulation(pole, "isf", seed=0, params=params)
+    assert TorqueSimulation(pole, "isf", seed=0, params=params, alpha_1=10.0).far_value() == pytest.approx(10 * h_far)
+
+
+def test_the_torque_level_builds_only_its_own_strategy(pole, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """No velocity-level strategy, rollout or tracker is built on the way (and a tracker is refused)."""
+    import isf_robot.arm.params as params_mod
+    import isf_robot.arm.sim as sim_mod
+    import isf_robot.arm.torque_sim as torque_mod
+    from isf_robot.arm.torque_rollout import TorqueRollout
+
+    made = []
+
+    def count(make):  # type: ignore[no-untyped-def]
+        def wrapped(*args, **kwargs):  # type: ignore[no-untyped-def]
+            made.append(kwargs.get("fallback"))
+            return make(*args, **kwargs)
+        return wrapped
+
+    def refuse(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise AssertionError("a velocity-level part was built")
+
+    monkeypatch.setattr(sim_mod, "make_strategy", count(sim_mod.make_strategy))
+    monkeypatch.setattr(torque_mod, "make_strategy", count(torque_mod.make_strategy))
+    monkeypatch.setattr(sim_mod, "make_actuation", refuse)
+    monkeypatch.setattr(params_mod, "NominalRollout", refuse)
+    sim = TorqueSimulation(pole, "isf", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR))
+    assert len(made) == 1 and made[0] == sim._fallback
+    assert isinstance(sim.strategy.predictor.rollout, TorqueRollout) and sim.tracker is None
+    assert sim.run(0.05).collisions == 0  # (an episode runs without a tracker)
+    with pytest.raises(ConfigError, match="takes no tracker"):
+        TorqueSimulation(pole, "isf", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR), tracker=object())
