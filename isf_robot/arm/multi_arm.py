@@ -216,15 +216,19 @@ class MultiArmSimulation(ArmSimulation):
         if not isinstance(nominal, TeamReaching):
             raise ConfigError(f"a scene with several arms runs a TeamReaching nominal (one per arm), got "
                               f"{type(nominal).__name__}")
-        super().__init__(scene, strategy, seed=seed, nominal=nominal, **kwargs)
         self.coordination = coordination
         self.blocks = tuple(a.joints for a in scene.arms)
         self.arm_names = tuple(a.name for a in scene.arms)
+        self._off_hold = off_hold
+        self._solver_given = kwargs.get("solver") is not None
+        super().__init__(scene, strategy, seed=seed, nominal=nominal, **kwargs)
         self.geom_arm = geom_arms(scene.arms, np.arange(scene.model.ngeom))
-        if coordination == "central":
-            self.strategy = CentralFilter(self.strategy, self.blocks, self.arm_names, self.control_period,
-                                          off_hold=off_hold)
-            return
+
+    def _make_strategy(self, strategy: str, solver: QPSolver) -> CentralFilter | SharedFilter:
+        """One filter over every arm's joints (central), or one per arm with its shares (decentral)."""
+        if self.coordination == "central":
+            return CentralFilter(super()._make_strategy(strategy, solver), self.blocks, self.arm_names,
+                                 self.control_period, off_hold=self._off_hold)
         spec, wiring = filter_options(self)
         cache: dict[str, Any] = {}
         per_arm = []
@@ -232,10 +236,10 @@ class MultiArmSimulation(ArmSimulation):
             w = dict(wiring)
             if "rollout" in w:
                 w["rollout"] = _ArmRollout(wiring["rollout"], cache, self.blocks, i)
-            solver = kwargs.get("solver") or QPSolver(few_rows=True)  # (a given solver serves every arm, in turn)
-            per_arm.append(make_strategy(strategy, spec, **w, solver=solver, on_infeasible="fallback",
+            arm_solver = solver if self._solver_given else QPSolver(few_rows=True)  # (a given one serves every arm)
+            per_arm.append(make_strategy(strategy, spec, **w, solver=arm_solver, on_infeasible="fallback",
                                          fallback=_brake, validate=False))
-        self.strategy = SharedFilter(per_arm, self.blocks, self.arm_names, self.control_period, off_hold=off_hold)
+        return SharedFilter(per_arm, self.blocks, self.arm_names, self.control_period, off_hold=self._off_hold)
 
     def start_info(self, duration: float) -> dict[str, Any]:
         """As :meth:`ArmSimulation.start_info`, plus the arms and the coordination.

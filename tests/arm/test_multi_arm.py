@@ -675,3 +675,27 @@ def test_a_team_simulation_runs_again_the_same_and_takes_the_given_solver(two_ar
     assert first.arms == second.arms and first.clearance == second.clearance
     with pytest.raises(ConfigError, match="TeamReaching"):
         MultiArmSimulation(two_arms, "isf", nominal=object(), d_bar=0.1)  # type: ignore[arg-type]
+
+
+def test_each_way_builds_only_its_own_filters(two_arms, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """Central: one strategy over every joint; decentral: one per arm, each with its own solver unless one is
+    given, and no central strategy built to be thrown away."""
+    from isf_robot.arm import multi_arm, sim
+
+    made: list[str] = []
+
+    def counting(real):  # type: ignore[no-untyped-def]
+        def make(*a, **kw):  # type: ignore[no-untyped-def]
+            made.append(real.__module__)
+            return real(*a, **kw)
+        return make
+
+    monkeypatch.setattr(sim, "make_strategy", counting(sim.make_strategy))
+    monkeypatch.setattr(multi_arm, "make_strategy", counting(multi_arm.make_strategy))
+    central = MultiArmSimulation(two_arms, "cbf", coordination="central", seed=0, d_bar=0.1)
+    assert len(made) == 1 and isinstance(central.strategy, CentralFilter)
+    made.clear()
+    decentral = MultiArmSimulation(two_arms, "cbf", coordination="decentral", seed=0, d_bar=0.1)
+    assert len(made) == 2 and isinstance(decentral.strategy, SharedFilter)
+    a, b = decentral.strategy.agents
+    assert a.solver is not b.solver
