@@ -3,13 +3,14 @@
 Plain functions that :func:`~isf_robot.core.jit.compiled` compiles (:mod:`isf_robot.arm.kernels`
 hands them out; its cache is keyed on every source file of this folder, so an edit of a kernel or
 formula this calls compiles it again). MuJoCo's ``mj_kinematics`` and ``mj_comPos`` are called on the
-raw addresses of the ``MjModel``/``MjData`` the bindings hold; :func:`rollout_points` calls the
+raw addresses of the ``MjModel``/``MjData`` the bindings hold; :func:`closed_loop_points` calls the
 reaching controller's kernel (``_kernels_step.reach``) and the collision kernel
 (``_kernels_jit.near_packed_key``).
 """
 
 from __future__ import annotations
 
+import numpy as np
 from numba import carray
 
 from isf_robot.core.jit import formula
@@ -31,56 +32,36 @@ def euler_step(ma, da, q, u, dt, qpos, qadr):  # pragma: no cover (compiled)
 def rollout_points(ma, da, q, u0, t, dt, qpos, qadr, rp, nb, outs, n, nv, dof0, site, index, t_prev, a_max, kp,
                    max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff, distmax, slack, eps, norms_in, lin,
                    dhdt_in, mp_addr, nmocap, mids, mpos, lins):  # pragma: no cover (compiled)
-    """Every point of a rollout with the goal ``index`` held, in one call.
+    """Every point of the velocity level's rollout with the goal ``index`` held, in one call.
 
-    Per point ``j`` (time ``t + (j + 1) dt``): the Euler step from the previous command, the reaching
-    controller's command into ``outs[j]`` (``reach``, buffer ``nb``, addresses ``rp``), the collision
-    kernel's rows into ``blks[j]``/``rows[j]`` (``near_packed_key``, tables ``pn``, no coherence bounds), and
-    each row's key into ``keys[j]`` (a pair's index for the pair rows, ``npairs + i`` for the i-th row
-    after them: the joint rows).
+    :func:`closed_loop_points` with the command tracked exactly: the joint velocity is the previous command
+    (``u0`` first), with no error.
+    """
+    return closed_loop_points(ma, da, q, u0, np.zeros(n), 0.0, t, dt, qpos, qadr, rp, nb, outs, outs, n, nv, dof0,
+                              site, index, t_prev, a_max, kp, max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res,
+                              cutoff, distmax, slack, eps, norms_in, lin, dhdt_in, mp_addr, nmocap, mids, mpos, lins)
+
+
+@formula
+def closed_loop_points(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs, vs, n, nv, dof0, site, index, t_prev,
+                  a_max, kp, max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff, distmax, slack, eps,
+                  norms_in, lin, dhdt_in, mp_addr, nmocap, mids, mpos, lins):  # pragma: no cover (compiled)
+    """The reaching controller's closed loop rolled forward, in one call: both levels' rollout points.
+
+    Per point ``j`` (time ``t + (j + 1) dt``): the obstacles' places, the Euler step ``q <- q + dt v`` with the
+    previous joint velocity ``v`` (``v0`` first), the reaching controller's command ``v_ref`` into ``outs[j]``
+    (``reach``, buffer ``nb``, addresses ``rp``), the tracking error ``e <- e decay`` (in place) and the joint
+    velocity ``vs[j] = v_ref + e``, the collision kernel's rows into ``blks[j]``/``rows[j]``
+    (``near_packed_key``, tables ``pn``, no coherence bounds), and each row's key into ``keys[j]`` (a pair's
+    index for the pair rows, ``npairs + i`` for the i-th row after them: the joint rows).
+    The velocity level tracks its command (:func:`rollout_points`: no error, ``vs`` is ``outs``); the torque
+    level's computed torque leaves an error that decays as ``exp(-kd s)``
+    (:class:`~isf_robot.arm.torque_rollout.TorqueRollout`, after its first point).
     ``res[j]``: near pairs, h_min, dist_min, joint_min, touching, goal distance. Returns the points done:
     it stops after a point with touching witness points (which the caller hands to the general path).
     Moving obstacles: before each point's kinematics, mocap body ``mids[r]`` is put at ``mpos[j, r]``
     (the scratch data's ``mocap_pos`` at address ``mp_addr``, ``nmocap`` rows), and the collision
     kernel reads the mocap velocities ``lins[j]`` (no rows: ``lin`` at every point).
-    """
-    u = u0
-    nm = mids.shape[0]
-    mp = carray(f64p(mp_addr), (max(nmocap, 1), 3))
-    for j in range(outs.shape[0]):
-        s = (j + 1) * dt
-        tj = t + s
-        for r in range(nm):  # (the obstacles' place first: the kinematics below read it)
-            for e in range(3):
-                mp[mids[r], e] = mpos[j, r, e]
-        euler_step(ma, da, q, u, dt, qpos, qadr)
-        res[j, 5] = reach(ma, da, rp, nb, outs[j], n, nv, dof0, site, index, False, tj, t_prev, True, a_max, kp,
-                          max_ee, max_js, lam2)
-        t_prev = tj
-        u = outs[j]
-        k, h_min, dist_min, jmin, touching, _ = near_packed_key(ma, da, pn, blks[j], rows[j], False, cutoff, distmax,
-                                                                slack, eps, norms_in, lins[j] if lins.shape[0] else lin,
-                                                                dhdt_in)
-        res[j, 0], res[j, 1], res[j, 2], res[j, 3], res[j, 4] = k, h_min, dist_min, jmin, 1.0 if touching else 0.0
-        for i in range(k):
-            keys[j, i] = rows[j, i]
-        for i in range(keys.shape[1] - k):
-            keys[j, k + i] = npairs + i
-        if touching:
-            return j + 1
-    return outs.shape[0]
-
-
-def torque_points(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs, vs, n, nv, dof0, site, index, t_prev,
-                  a_max, kp, max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff, distmax, slack, eps,
-                  norms_in, lin, dhdt_in, mp_addr, nmocap, mids, mpos, lins):  # pragma: no cover (compiled)
-    """The torque nominal's closed loop (:class:`~isf_robot.arm.torque_rollout.TorqueRollout`) after its first point.
-
-    As :func:`rollout_points` with the joint velocity ``v = v_ref + e`` instead of the command: per point ``j``
-    (time ``t + (j + 1) dt``) the obstacles' places, the Euler step ``q <- q + dt v`` with the previous ``v``
-    (``v0`` first), the reaching command ``v_ref`` into ``outs[j]``, ``e <- e decay`` (in place) and
-    ``vs[j] = v_ref + e``, the collision kernel's rows into ``blks[j]``/``rows[j]`` and their keys into
-    ``keys[j]``. ``res[j]`` and the return value as there.
     """
     v = v0
     nm = mids.shape[0]

@@ -33,7 +33,7 @@ most 0.43); with one point per control period by 0.03 (at most 0.33), and fewer 
 Cost per rollout: ``points + 1`` evaluations of the reaching command, the kinematics and the rows on a
 scratch ``MjData``. With numba, while the goal cannot change over the horizon and the nominal is the
 :class:`~isf_robot.arm.nominal.ReachingController` with its compiled command, every point after the first is
-one compiled call (``_rollout_jit.torque_points``: the obstacles' places, the Euler step, the kinematics, the
+one compiled call (``_rollout_jit.closed_loop_points``: the obstacles' places, the Euler step, the kinematics, the
 controller's kernel, the error's decay, the collision kernel), as the velocity level's
 :class:`~isf_robot.arm.rollout.NominalRollout` does; otherwise each point's Euler step and kinematics are one
 call and its rows :meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`. Either way the rows' ``psi``
@@ -182,7 +182,7 @@ class TorqueRollout(ScratchRollout):
 
     def _compiled(self, t: float, q: np.ndarray, v: np.ndarray, e: np.ndarray, v_ref: np.ndarray,
                   mpos: np.ndarray | None, lins: np.ndarray | None) -> tuple | None:
-        """Points ``1 .. n`` in one compiled call (``_rollout_jit.torque_points``), the loop's formulas.
+        """Points ``1 .. n`` in one compiled call (``_rollout_jit.closed_loop_points``), the loop's formulas.
 
         Taken after point 0 (``q``, ``v``, ``e`` and the command ``v_ref`` there) while :meth:`_steady`, as
         :meth:`NominalRollout._compiled <isf_robot.arm.rollout.NominalRollout._compiled>`. Returns

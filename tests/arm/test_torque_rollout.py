@@ -241,7 +241,7 @@ def _compare_paths(name: str, states: int, goals=None) -> tuple:  # type: ignore
 
 @pytest.mark.parametrize("name", ["panda_pole", "panda_moving"])
 def test_compiled_torque_points_are_the_loops(name: str) -> None:
-    """The points after the first in one compiled call (``torque_points``) are the numpy loop's, to rounding (the
+    """The points after the first in one compiled call (``closed_loop_points``) are the numpy loop's, to rounding (the
     rates: ``1e-12`` of the scale over ``dt``), with static and moving obstacles; the Euler-step path too."""
     roll, whole, euler = _compare_paths(name, 8)
     assert whole == (8, 8) and euler == 8 * roll.n  # (the whole path at every state; the Euler path once per point)
