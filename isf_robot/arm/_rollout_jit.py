@@ -10,7 +10,6 @@ reaching controller's kernel (``_kernels_step.reach``) and the collision kernel
 
 from __future__ import annotations
 
-import numpy as np
 from numba import carray
 
 from isf_robot.core.jit import formula
@@ -29,19 +28,6 @@ def euler_step(ma, da, q, u, dt, qpos, qadr):  # pragma: no cover (compiled)
     com_pos(ma, da)
 
 
-def rollout_points(ma, da, q, u0, t, dt, qpos, qadr, rp, nb, outs, n, nv, dof0, site, index, t_prev, a_max, kp,
-                   max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff, distmax, slack, eps, norms_in, lin,
-                   dhdt_in, mp_addr, nmocap, mids, mpos, lins):  # pragma: no cover (compiled)
-    """Every point of the velocity level's rollout with the goal ``index`` held, in one call.
-
-    :func:`closed_loop_points` with the command tracked exactly: the joint velocity is the previous command
-    (``u0`` first), with no error.
-    """
-    return closed_loop_points(ma, da, q, u0, np.zeros(n), 0.0, t, dt, qpos, qadr, rp, nb, outs, outs, n, nv, dof0,
-                              site, index, t_prev, a_max, kp, max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res,
-                              cutoff, distmax, slack, eps, norms_in, lin, dhdt_in, mp_addr, nmocap, mids, mpos, lins)
-
-
 @formula
 def closed_loop_points(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs, vs, n, nv, dof0, site, index, t_prev,
                   a_max, kp, max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff, distmax, slack, eps,
@@ -54,9 +40,9 @@ def closed_loop_points(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs,
     velocity ``vs[j] = v_ref + e``, the collision kernel's rows into ``blks[j]``/``rows[j]``
     (``near_packed_key``, tables ``pn``, no coherence bounds), and each row's key into ``keys[j]`` (a pair's
     index for the pair rows, ``npairs + i`` for the i-th row after them: the joint rows).
-    The velocity level tracks its command (:func:`rollout_points`: no error, ``vs`` is ``outs``); the torque
-    level's computed torque leaves an error that decays as ``exp(-kd s)``
-    (:class:`~isf_robot.arm.torque_rollout.TorqueRollout`, after its first point).
+    The velocity level tracks its command (no error, ``vs`` is ``outs``:
+    :class:`~isf_robot.arm.rollout.NominalRollout`); the torque level's computed torque leaves an error that
+    decays as ``exp(-kd s)`` (:class:`~isf_robot.arm.torque_rollout.TorqueRollout`, after its first point).
     ``res[j]``: near pairs, h_min, dist_min, joint_min, touching, goal distance. Returns the points done:
     it stops after a point with touching witness points (which the caller hands to the general path).
     Moving obstacles: before each point's kinematics, mocap body ``mids[r]`` is put at ``mpos[j, r]``

@@ -59,8 +59,7 @@ def _build() -> dict[str, Callable[..., Any]] | None:
         return None
     fns = {"near_packed_key": kj.near_packed_key, "monitor": kj.monitor, "track_apply": ks.track_apply,
            "track_step": ks.track_step, "reach": ks.reach, "monitor_apply": ks.monitor_apply,
-           "euler_step": kr.euler_step, "rollout_points": kr.rollout_points,
-           "closed_loop_points": kr.closed_loop_points}
+           "euler_step": kr.euler_step, "closed_loop_points": kr.closed_loop_points}
     return {name: compiled(fn) for name, fn in fns.items()}
 
 
@@ -117,11 +116,11 @@ def step_kernels(n: int) -> dict[str, Any] | None:
             "reach": k["reach"]}
 
 
-def rollout_kernels() -> tuple[Callable[..., Any], Callable[..., Any], Callable[..., Any]] | None:
+def rollout_kernels() -> tuple[Callable[..., Any], Callable[..., Any]] | None:
     """The compiled Euler step and whole-rollout kernels of the rollouts.
 
-    ``(euler_step, rollout_points, closed_loop_points)``: :class:`~isf_robot.arm.rollout.NominalRollout`'s points,
-    :class:`~isf_robot.arm.torque_rollout.TorqueRollout`'s. ``None``: the numpy path.
+    ``(euler_step, closed_loop_points)``: the points of :class:`~isf_robot.arm.rollout.NominalRollout` and of
+    :class:`~isf_robot.arm.torque_rollout.TorqueRollout`, one kernel for both. ``None``: the numpy path.
     """
     k = _kernels()
-    return None if k is None else (k["euler_step"], k["rollout_points"], k["closed_loop_points"])
+    return None if k is None else (k["euler_step"], k["closed_loop_points"])

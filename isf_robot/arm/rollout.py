@@ -117,8 +117,8 @@ class ScratchRollout:
         self._mp_addr = int(self._data.mocap_pos.ctypes.data)  # (a kernel writes the moving obstacles' places there)
         self.calls = 0
 
-    def _whole_kernel(self, i: int) -> Any:
-        """Rollout kernel ``i`` of :func:`~isf_robot.arm.kernels.rollout_kernels`, or ``None``.
+    def _whole_kernel(self) -> Any:
+        """The whole-rollout kernel (:func:`~isf_robot.arm.kernels.rollout_kernels`' second), or ``None``.
 
         The kernel when every point can be one call: the reaching controller with its compiled command on this
         model, and the compiled collision kernel.
@@ -126,7 +126,7 @@ class ScratchRollout:
         nom, ks = self.nominal, self._kernels
         reach = (type(nom) is ReachingController and nom._reach is not None  # (its compiled command)
                  and nom.scene.model is self.scene.model)
-        return ks[i] if ks is not None and reach and self.coll._kernel is not None else None
+        return ks[1] if ks is not None and reach and self.coll._kernel is not None else None
 
     def _steady(self, t: float) -> bool:
         """Whether the points after ``t`` can be one compiled call.
@@ -171,7 +171,8 @@ class NominalRollout(ScratchRollout):
                  control_period: float, time_offset: float, horizon: float, points: int = MAX_POINTS) -> None:
         super().__init__(scene, nominal, coll, joints, control_period, time_offset, horizon, points)
         self._s = tuple((j + 1) * self.dt for j in range(self.n))  # (the points' times ahead, as the loop makes them)
-        self._whole = self._whole_kernel(1)
+        self._whole = self._whole_kernel()  # (with no tracking error: the velocity is the command)
+        self._no_error = np.zeros(self._qadr.size)  # (stays 0: 0 * decay 0)
         self._qpos = self._data.qpos  # (a view of the scratch data: the kernel writes through it)
         qa = self._qadr
         contiguous = qa.size and bool((np.diff(qa) == 1).all())
@@ -184,7 +185,7 @@ class NominalRollout(ScratchRollout):
 
     def _compiled(self, t: float, q: np.ndarray, u: np.ndarray,
                   first: np.ndarray) -> Sequence[tuple[float, LieData, np.ndarray]] | None:
-        """Every point in one compiled call (``_rollout_jit.rollout_points``), the general loop's formulas.
+        """Every point in one compiled call (``_rollout_jit.closed_loop_points``, no tracking error): the loop's.
 
         Taken while :meth:`_steady`. ``None``: the general loop runs
         (the controller's state as before this call, ``q`` unchanged), also after a point whose witness
@@ -204,7 +205,8 @@ class NominalRollout(ScratchRollout):
             if coll._any_moving:
                 lin, dl = lins[0], coll._kdhdt
         outs, res, q0 = np.empty((n, u.size)), np.empty((n, 6)), q.copy()
-        done = self._whole(*self._addr, q, first, t, dt, self._qpos, self._qadr, nom._ptrs, nom._buf, outs,  # type: ignore[misc, attr-defined]
+        done = self._whole(*self._addr, q, first, self._no_error, 0.0, t, dt, self._qpos, self._qadr,  # type: ignore[misc]
+                           nom._ptrs, nom._buf, outs, outs,  # type: ignore[attr-defined]
                            u.size, nom._jac.shape[1], nom._dof0, nom.scene.ee_site_id, nom.goals.index,  # type: ignore[attr-defined]
                            rate.t_prev, rate.a_max, nom.kp, nom.max_ee_speed, nom.max_joint_speed, nom._lam2,  # type: ignore[attr-defined]
                            c[4], blk, rows, keys, len(coll.pairs.names), res, coll.cutoff, c[14], c[15],

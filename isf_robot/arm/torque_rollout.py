@@ -98,7 +98,7 @@ class TorqueRollout(ScratchRollout):
             ok = math.isfinite(horizon) and horizon > 0
             points = max(1, int(math.ceil(float(horizon) / float(control_period) - 1e-9))) if ok else 1
         super().__init__(scene, nominal, coll, joints, control_period, time_offset, horizon, points)
-        self._whole = self._whole_kernel(2)
+        self._whole = self._whole_kernel()
         self.alpha_1 = float(alpha_1)
         self.decay = math.exp(-float(kd) * self.dt)
         self.approaching = bool(approaching)
