@@ -124,8 +124,9 @@ def combine(clocks: list[_StepClock]) -> tuple[float, dict[str, float], float]:
     return least_mean([c.steps for c in clocks]), split, least_mean([c.mj for c in clocks])
 
 
-def clocked(scene, strategy: str, params, duration: float, period: float, **kw) -> tuple[_StepClock, object]:
-    """One episode under the step clock: (its clock, RunResult)."""
+def clocked(scene, strategy: str, params, duration: float, period: float | None, sim_type=ArmSimulation,
+            **kw) -> tuple[_StepClock, object]:
+    """One episode of ``sim_type`` (seed 0; ``period`` None: the scene's) under the step clock: (its clock, result)."""
     clocks: list[_StepClock] = []
 
     def make(phases: dict) -> _StepClock:
@@ -135,8 +136,7 @@ def clocked(scene, strategy: str, params, duration: float, period: float, **kw) 
     saved = sim_module.PhaseTimers
     sim_module.PhaseTimers = make  # the loop wraps its phases with whatever this name holds
     try:
-        r = ArmSimulation(scene, strategy, seed=0, params=params, control_period=period, timing=True,
-                          **kw).run(duration)
+        r = sim_type(scene, strategy, seed=0, params=params, control_period=period, timing=True, **kw).run(duration)
     finally:
         sim_module.PhaseTimers = saved
     return clocks[0], r

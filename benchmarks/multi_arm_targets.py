@@ -1,7 +1,7 @@
 """Arms sharing a workspace: violations, per-arm duty against cbf, off periods and step cost.
 
     nice -n 19 python benchmarks/multi_arm_targets.py [--episodes 20] [--jobs 2] \
-        [--scenes panda_pair panda_quad] [--cost-seeds 3] [--marker multi_arm] [--cost-only | --no-cost] [--no-write]
+        [--scenes panda_pair panda_quad] [--cost-repeats 3] [--marker multi_arm] [--cost-only | --no-cost] [--no-write]
 
 For each scene with several arms, ``cbf`` and ``isf`` with each coordination (``central``: one filter over
 every arm's joints; ``decentral``: one filter per arm with an equal share of each inter-arm row) on seeds
@@ -11,9 +11,11 @@ with a pair below its margin, and penetrating contacts at the control ticks by k
 arm-obstacle, self), per arm the mean duty cycle, on-switches, intervention, goals reached and missed,
 coordination steps and events, and the shortest complete off period of any episode.
 
-Step cost: wall time per control step (median over ``--cost-seeds`` seeds, 6 s episodes, one process,
-the configurations interleaved seed by seed, after the episodes above) of ``panda_pole`` (one arm) against
-the scenes with several arms, each strategy and coordination. Run it alone on a quiet machine.
+Step cost: the wall time of every control step of a 6 s episode (seed 0), each step's least over
+``--cost-repeats`` repeats, then the mean over the steps (``arm_bench.py``'s step clock: a burst of another
+job stretches one repeat's step, rarely the same step in every repeat), for ``panda_pole`` (one arm) and the
+scenes with several arms, each strategy and coordination, the repeats interleaved in one process. Run it
+alone on a quiet machine.
 
 Writes the outcome tables into RESULTS.md between ``<!-- MARKER:start -->`` and ``<!-- MARKER:end -->``, and
 the step cost into BENCHMARKS.md between ``<!-- team-step:start -->`` and ``<!-- team-step:end -->`` with the
@@ -50,18 +52,9 @@ def _episode(job: tuple[str, str, str, int, float | None]) -> dict[str, Any]:
     name, strategy, way, seed, duration = job
     scene = load_scene(name)
     r = run_team(scene, strategy, way, duration=duration, seed=seed, params=resolve_params(scene))
-    steps = max(1, r.run.metrics.control_steps)
     return {"scene": name, "strategy": strategy, "way": way, "seed": seed, "violations": r.violations,
             "collisions": r.run.collisions, "contacts": r.contacts, "min_barrier": r.run.min_barrier,
-            "arms": list(r.arms), "step_us": r.run.wall_s / steps * 1e6, "fallbacks": r.run.stats.fallbacks}
-
-
-def _single(job: tuple[str, str, int, float]) -> float:
-    from isf_robot.arm import load_scene, run_episode
-
-    name, strategy, seed, duration = job
-    r = run_episode(load_scene(name), strategy, duration, seed)
-    return r.wall_s / max(1, r.metrics.control_steps) * 1e6
+            "arms": list(r.arms), "fallbacks": r.run.stats.fallbacks}
 
 
 def _fmt(x: Any, spec: str = ".3f") -> str:
@@ -104,7 +97,7 @@ def main() -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--scenes", nargs="+", default=["panda_pair", "panda_quad"])
     ap.add_argument("--duration", type=float, default=None, help="episode length [s] (default: the scene's)")
-    ap.add_argument("--cost-seeds", type=int, default=3)
+    ap.add_argument("--cost-repeats", type=int, default=3)
     ap.add_argument("--marker", default="multi_arm")
     ap.add_argument("--cost-only", action="store_true", help="measure the step cost only (BENCHMARKS.md)")
     ap.add_argument("--no-cost", action="store_true", help="the outcome tables only (RESULTS.md)")
@@ -128,44 +121,58 @@ def main() -> int:
             write_section(ROOT / "RESULTS.md", f"<!-- {args.marker}:start -->", f"<!-- {args.marker}:end -->", body)
     if args.no_cost:
         return 0
-    cost = step_cost(args.scenes, args.cost_seeds)
+    cost = step_cost(args.scenes, args.cost_repeats)
     print(cost)
     if not args.no_write:
         write_section(ROOT / "BENCHMARKS.md", "<!-- team-step:start -->", "<!-- team-step:end -->", cost)
     return 0
 
 
-def step_cost(scenes: list[str], seeds: int) -> str:
+def step_cost(scenes: list[str], repeats: int) -> str:
     """The step-cost section: one arm against the scenes with several arms, each strategy and way."""
+    from arm_bench import clocked, combine  # (benchmarks/ is on sys.path)
+
+    from isf_robot.arm import load_scene
+    from isf_robot.arm.multi_arm import MultiArmSimulation
+    from isf_robot.arm.params import resolve_params
+
     load = os.getloadavg()
     configs = [(st, None, None) for st in ("cbf", "isf")] + [
         (st, sc, w) for st in ("cbf", "isf") for sc in scenes for w in WAYS]
+    scenes_by_name = {name: load_scene(name) for name in ["panda_pole", *scenes]}
+    params = {name: resolve_params(sc) for name, sc in scenes_by_name.items()}
 
-    def step_us(st: str, sc: str | None, w: str | None, seed: int, duration: float) -> float:
-        return _single(("panda_pole", st, seed, duration)) if sc is None else _episode((sc, st, w, seed, duration))[
-            "step_us"]
+    def run(st: str, sc: str | None, w: str | None, duration: float) -> Any:
+        name = sc or "panda_pole"
+        if sc is None:
+            return clocked(scenes_by_name[name], st, params[name], duration, None)[0]
+        return clocked(scenes_by_name[name], st, params[name], duration, None, MultiArmSimulation, coordination=w)[0]
 
     for cfg in configs:  # (warm-up: every compiled kernel a configuration uses is loaded before the timing)
-        step_us(*cfg, 0, 0.5)
-    samples: dict[tuple[str, str | None, str | None], list[float]] = {cfg: [] for cfg in configs}
-    for k in range(seeds):  # (one process; the configurations interleaved, so load changes hit all alike)
+        run(*cfg, 0.5)
+    clocks: dict[tuple[str, str | None, str | None], list[Any]] = {cfg: [] for cfg in configs}
+    for _ in range(repeats):  # (one process; the configurations interleaved, so load changes hit all alike)
         for cfg in configs:
-            samples[cfg].append(step_us(*cfg, k, 6.0))
-    cost = {(f"panda_pole {st}" if sc is None else f"{sc} {st} {w}"): statistics.median(v)
-            for (st, sc, w), v in samples.items()}
+            clocks[cfg].append(run(*cfg, 6.0))
+    cost, mj = {}, {}
+    for (st, sc, w), cs in clocks.items():
+        key = f"panda_pole {st}" if sc is None else f"{sc} {st} {w}"
+        cost[key], _, mj[key] = combine(cs)
     after = os.getloadavg()
     now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M")
     lines = ["## Arms sharing a workspace: the control step (`benchmarks/multi_arm_targets.py --cost-only`)", "",
              f"Machine: {platform.platform()}; CPU {cpu_model()}; {os.cpu_count()} cores; Python "
              f"{platform.python_version()}. Date (UTC): {now}. Load average before: {load[0]:.2f}, {load[1]:.2f}, "
              f"{load[2]:.2f}; after: {after[0]:.2f}, {after[1]:.2f}, {after[2]:.2f}.", "",
-             f"Wall time per control step (everything the loop does: physics, rows, nominal, filter, accounting), "
-             f"median of {seeds} seeds of 6 s, one process, the configurations interleaved seed by seed. Targets: "
-             "two arms <= 2.2x one arm's step (the same strategy, same run); four arms <= 0.5 ms.", "",
-             "| run | us / step | x one arm (same strategy) |", "|---|---|---|"]
+             "Wall time per control step (everything the loop does: physics, rows, nominal, filter, accounting) of "
+             f"a 6 s episode, seed 0: each step's least time over {repeats} repeats, then the mean over the steps "
+             "(the step clock of `arm_bench.py`), the repeats of every configuration interleaved in one process; "
+             "`mj_step` timed the same way on copies of each episode's states. Targets: two arms <= 2.2x one arm's "
+             "step (the same strategy, same run); four arms <= 0.5 ms.", "",
+             "| run | us / step | x one arm (same strategy) | mj_step [us] |", "|---|---|---|---|"]
     for key, us in cost.items():
         st = key.split()[1]
-        lines.append(f"| {key} | {us:.0f} | {us / cost[f'panda_pole {st}']:.2f} |")
+        lines.append(f"| {key} | {us:.0f} | {us / cost[f'panda_pole {st}']:.2f} | {mj[key]:.1f} |")
     lines += ["", "Reproduce: `python benchmarks/multi_arm_targets.py --cost-only` (add `--no-write` to only print)."]
     return "\n".join(lines)
 
