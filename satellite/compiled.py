@@ -16,6 +16,7 @@ an edit of any formula it calls compiles it afresh instead of loading a stale ke
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -41,8 +42,9 @@ def _numba() -> Any:
     return numba
 
 
+@functools.cache
 def _source_folders() -> tuple[str, ...]:
-    """Every folder of this package's source, then the core's (the same in every process)."""
+    """Every folder of this package's source, then the core's (the same in every process; found once)."""
     here = Path(__file__).resolve().parent
     folders = sorted(str(p) for p in here.rglob("*") if p.is_dir() and p.name != "__pycache__")
     return (str(here), *folders, os.path.dirname(os.path.abspath(isf_robot.core.__file__)))
@@ -63,13 +65,8 @@ def kernel(fn: F) -> F:
 
     register_formulas()
     got = numba.njit(cache=True, nogil=True)(fn)
-    if not _FOLDERS:
-        _FOLDERS.extend(_source_folders())
-    stamp_sources(got, _FOLDERS)
+    stamp_sources(got, _source_folders())
     return got  # type: ignore[no-any-return]
-
-
-_FOLDERS: list[str] = []
 
 
 def inlined(fn: F) -> F:
