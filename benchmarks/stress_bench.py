@@ -75,6 +75,7 @@ from isf_robot.arm.joint_limits import JointLimitBarriers  # noqa: E402
 from isf_robot.arm.params import resolve_params  # noqa: E402
 from isf_robot.arm.sweep import goals_time  # noqa: E402
 from isf_robot.core.exceptions import IsfError  # noqa: E402
+from isf_robot.core.metrics import CHATTER_OFF_S  # noqa: E402
 from isf_robot.core.robust import robust_slack  # noqa: E402
 from isf_robot.support.files import write_text_atomic  # noqa: E402
 from isf_robot.support.parallel import Interrupted, Terminated, run_tasks  # noqa: E402
@@ -292,7 +293,7 @@ def ratios(results: list[dict[str, Any]], scenes: list[str], n_goals: dict[str, 
             row.update(time_cbf=tc, time_isf=ti, time=ti / tc if tc > 0 else float("nan"),
                        k=use[0]["k"] if len(use) == 1 else None)
         offs = [float(r["min_off_s"]) for r in isf if r.get("min_off_s") is not None]
-        row["short_off_episodes"] = sum(1 for v in offs if v < 0.25)
+        row["short_off_episodes"] = sum(1 for v in offs if v < CHATTER_OFF_S)
         row["min_off_s"] = min(offs) if offs else float("nan")
         row["violation_episodes"] = sum(1 for r in isf if int(r["collisions"]) > 0)
         out.append(row)

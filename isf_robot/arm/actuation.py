@@ -228,7 +228,7 @@ class ServoTracker:
         kp = np.array([i.kp for i in infos])
         kv = np.array([i.kv for i in infos])
         with np.errstate(divide="ignore", invalid="ignore"):
-            lead = np.where(self._pos, (gear ** 2 * kv + damping) / (gear ** 2 * kp), 0.0)
+            lead = np.where(self._pos, servo_time_constant(gear, kp, kv, damping), 0.0)
         self.lead = lead if self.feedforward else np.zeros(self.n)
         with np.errstate(divide="ignore"):
             self._inv_k = np.where(self._pos & self.feedforward, 1.0 / (gear ** 2 * kp), 0.0)
@@ -354,6 +354,12 @@ def tracking_step(tracker: Actuation, dof_adr: np.ndarray) -> Callable[[mujoco.M
     return step
 
 
+def servo_time_constant(gear, kp, kv, damping):  # noqa: ANN001, ANN201 (floats or arrays)
+    """A position servo's time constant ``(gear^2 kv + damping) / (gear^2 kp)`` [s]: the lead its target needs."""
+    g2 = gear ** 2
+    return (g2 * kv + damping) / (g2 * kp)
+
+
 def servo_lead(scene: Scene) -> float:
     """The time constant of the arm's slowest position servo [s]: ``(gear^2 kv + damping) / (gear^2 kp)``.
 
@@ -370,6 +376,5 @@ def servo_lead(scene: Scene) -> float:
         except ConfigError:
             continue
         if info.kind == "position" and info.kp > 0:
-            g2 = info.gear ** 2
-            out = max(out, (g2 * info.kv + float(m.dof_damping[scene.dof_adr[i]])) / (g2 * info.kp))
+            out = max(out, float(servo_time_constant(info.gear, info.kp, info.kv, m.dof_damping[scene.dof_adr[i]])))
     return out

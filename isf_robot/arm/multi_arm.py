@@ -112,21 +112,16 @@ class _TeamEpisode(ArmSimulation.episode):  # type: ignore[name-defined,misc,val
     def block(self, capacity: int) -> TeamStepColumns:
         """An empty block of ``capacity`` steps with each arm's columns (:class:`TeamStepColumns`)."""
         sim = self.sim
-        goals = sim.nominal.goal_positions if isinstance(sim.nominal, TeamReaching) else None
         return TeamStepColumns(capacity, len(sim.scene.qpos_adr), sim.names, sim.coll.pairs.k, self.model.nmocap,
-                               sim.control_period, sim.arm_names, sim.coll.h_far, goals)
+                               sim.control_period, sim.arm_names, sim.coll.h_far, sim.nominal.goal_positions)
 
     def write(self, block: Any, t: float, step: Any, values: TickValues) -> None:
         """The step's row, then each arm's mode, end effector and goal."""
         super().write(block, t, step, values)
         sim, data = self.sim, self.data
         ee = [data.site_xpos[a.ee_site_id] for a in sim.scene.arms]
-        nominal = sim.nominal
-        goals: list[np.ndarray | None] = [None] * len(ee)
-        if isinstance(nominal, TeamReaching):
-            for j, c in enumerate(nominal.arms):
-                gi = c.goal_index
-                goals[j] = c.goal_positions[gi] if 0 <= gi < len(c.goal_positions) else None
+        goals = [c.goal_positions[c.goal_index] if 0 <= c.goal_index < len(c.goal_positions) else None
+                 for c in sim.nominal.arms]  # (a team's nominal is a TeamReaching: __init__ refuses others)
         block.write_arms(sim.strategy.agent_modes(), ee, goals)
 
     def barriers(self) -> tuple[Any, LieData | None]:

@@ -154,17 +154,7 @@ class ScratchRollout:
 class NominalRollout(ScratchRollout):
     """``rollout(t, data) -> [(s, lie, u_nom), ...]``: the nominal rolled forward on its own scratch ``MjData``.
 
-    Args:
-        scene: The scene.
-        nominal: The nominal controller (with ``snapshot()``/``restore()``: put back after each rollout).
-        coll: The collision barriers (their rows at the predicted states).
-        joints: The joint-limit barriers.
-        control_period: The control period [s].
-        time_offset: The episode's time offset [s] (moving obstacles' clock).
-        horizon: Prediction horizon [s], > 0.
-        points: Largest number of predicted points; the Euler step is
-            ``max(control period, horizon / points)``.
-
+    Arguments as :class:`ScratchRollout` (``points`` defaults to :data:`MAX_POINTS`).
     """
 
     def __init__(self, scene: Scene, nominal: Any, coll: CollisionBarriers, joints: JointLimitBarriers,

@@ -56,7 +56,7 @@ from .collision import CollisionBarriers
 from .dynamics import DynamicsTerms
 from .joint_limits import JointLimitBarriers
 
-__all__ = ["psi_lie", "phi_rows", "SecondOrderRows", "ObstacleClock", "PROBE_REACH"]
+__all__ = ["psi_lie", "obstacle_rate", "phi_rows", "SecondOrderRows", "ObstacleClock", "PROBE_REACH"]
 
 PROBE_REACH = 0.05
 """How far beyond the broad-phase cut-off [m] the difference of ``phi`` still sees a pair."""
@@ -64,6 +64,15 @@ PROBE_REACH = 0.05
 ObstacleClock = Callable[[mujoco.MjData, float], np.ndarray | None]
 """``(data, t) -> mocap linear velocities (nmocap, 3) or None``: puts the moving obstacles where they
 are at time ``t`` (writes ``data.mocap_pos``) and returns their velocities (``None``: static scene)."""
+
+
+def obstacle_rate(dhdt: np.ndarray, approaching: bool) -> np.ndarray:
+    """The moving obstacles' part of ``h_dot``: ``dh/dt`` itself, or ``-|dh/dt|`` with ``approaching``.
+
+    ``approaching`` takes every moving obstacle as closing in at its speed, whichever way it moves (the torque
+    level's rows: :class:`SecondOrderRows`, and its rollout's).
+    """
+    return -np.abs(dhdt) if approaching else dhdt
 
 
 def phi_rows(grad: np.ndarray, q_dot: np.ndarray, dhdt: np.ndarray) -> np.ndarray:
@@ -159,7 +168,7 @@ class SecondOrderRows:
         if (sel < 0).any():  # (cannot happen within PROBE_REACH of the cut-off; said rather than assumed)
             raise ConfigError(f"pairs {rows[sel < 0].tolist()} left the probe's reach within eps = {e} s")
         dhdt = near.dhdt[sel]
-        return (phi_rows(near.grad[sel], q_dot, -np.abs(dhdt) if self.approaching else dhdt) - phi) / e
+        return (phi_rows(near.grad[sel], q_dot, obstacle_rate(dhdt, self.approaching)) - phi) / e
 
     def tick(self, data: mujoco.MjData, t: float, terms: DynamicsTerms, lin: np.ndarray | None = None, *,
              coherence: object = None, witness: bool = False) -> tuple:
@@ -176,7 +185,7 @@ class SecondOrderRows:
         tick = self.coll.lie_rows(data, self.joints, lin, coherence=coherence, witness=witness)  # type: ignore[arg-type]
         lie, idx = tick[0], tick[1]
         # (no copies: the rows' arrays are the tick's own, never handed out again, and only read here)
-        dhdt = -np.abs(lie.lf) if self.approaching else lie.lf
+        dhdt = obstacle_rate(lie.lf, self.approaching)
         q_dot = data.qvel[self.coll.dof_adr]
         phi = phi_rows(lie.lg, q_dot, dhdt)
         dphi = np.zeros(phi.shape[0])

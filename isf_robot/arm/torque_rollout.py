@@ -62,6 +62,7 @@ from .collision import CollisionBarriers
 from .joint_limits import JointLimitBarriers
 from .rollout import _NO_LINS, _NO_POS, ScratchRollout, obstacle_tracks
 from .scene import Scene
+from .second_order import obstacle_rate
 
 __all__ = ["TorqueRollout"]
 
@@ -103,8 +104,7 @@ class TorqueRollout(ScratchRollout):
         self.decay = math.exp(-float(kd) * self.dt)
         self.approaching = bool(approaching)
         self._dofs = np.asarray(scene.dof_adr, dtype=np.int64)
-        self._kc = coll.pairs.k
-        self._joint_keys = self._kc + np.arange(len(joints.names), dtype=np.int64)
+        self._joint_keys = coll.pairs.k + np.arange(len(joints.names), dtype=np.int64)
         self._names = np.array([*coll.pairs.names, *joints.names], dtype=object)  # (a row's name by its key)
         self._key_names = tuple(self._names.tolist())
         self._s = [j * self.dt for j in range(self.n)]  # (the points' times ahead)
@@ -120,8 +120,8 @@ class TorqueRollout(ScratchRollout):
         if first is not None:
             raise ConfigError("maneuvers by shooting are not available at the torque level (give shoot = 0)")
         m, d, dt, n, K = self.scene.model, self._load(x), self.dt, self.n, self._names.size
-        q = x.qpos[self._qadr].copy()
-        q_dot = x.qvel[self._dofs].copy()
+        q = x.qpos[self._qadr]  # (index arrays: copies already)
+        q_dot = x.qvel[self._dofs]
         if self.moving:  # (the obstacles' places and velocities at every point's time, in one pass)
             mpos, lins = obstacle_tracks(self.scene, [t + j * dt + self.offset for j in range(n + 1)])
         coll, joints, jk, step, qpos = self.coll, self.joints, self._joint_keys, self._step, d.qpos
@@ -174,7 +174,7 @@ class TorqueRollout(ScratchRollout):
         rows = np.array([a.size for a in lgv[:len(lgv) - len(at)]])  # (the points made one by one)
         point = np.repeat(np.arange(rows.size), rows)
         dhdt = np.concatenate(lf)
-        psi_all = np.concatenate(lgv) + (-np.abs(dhdt) if self.approaching else dhdt) + self.alpha_1 * np.concatenate(h)
+        psi_all = np.concatenate(lgv) + obstacle_rate(dhdt, self.approaching) + self.alpha_1 * np.concatenate(h)
         where = (np.concatenate((point, *at)), np.concatenate(keys))
         psi, g, present = np.empty((n + 1, K)), np.empty((n + 1, K)), np.zeros((n + 1, K), dtype=bool)
         psi[where], g[where], present[where] = psi_all, np.concatenate(gn), True
@@ -192,7 +192,7 @@ class TorqueRollout(ScratchRollout):
         """
         nom, d, coll, joints, dt, n = self.nominal, self._data, self.coll, self.joints, self.dt, self.n
         rate = nom._rate
-        if v.shape != q.shape or not self._steady(t):
+        if not self._steady(t):
             return None
         c = coll._kernel_context(d, None, joints)
         blk, gr, rows = coll._point_outputs(c, n)

@@ -239,14 +239,12 @@ class _TorqueEpisode(_Episode):
 
         A strategy without rows (the nominal) gets the accounting only: no ``psi``, so no difference of ``phi``.
         """
+        if not self.uses_rows:
+            return super().barriers()  # (the velocity level's accounting: the same pairs, no rows)
         sim = self.sim
         assert sim.terms is not None
-        if self.uses_rows:
-            psi, tick = sim.second_order.tick(self.data, self._t, sim.terms, self.lin, coherence=self.coherence,
-                                              witness=self.recording)
-        else:
-            psi, tick = None, sim.coll.lie_rows(self.data, sim.joints, self.lin, coherence=self.coherence,
-                                                witness=self.recording)
+        psi, tick = sim.second_order.tick(self.data, self._t, sim.terms, self.lin, coherence=self.coherence,
+                                          witness=self.recording)
         lie, idx, row_list, h_min, dist_min, jmin, wit = tick
         values = TickValues(idx, lie.h, wit) if self.recording else None
         self.dmin = self.monitor.tick_min(min(h_min, self._h_far_min), row_list, dist_min, idx)

@@ -110,6 +110,7 @@ class Coordination:
         self.steps, self.events = np.zeros(a, dtype=np.int64), np.zeros(a, dtype=np.int64)
         self.time = np.zeros(a)
         self._was = np.zeros(a, dtype=bool)
+        self._any = False  # (whether any agent needed the others at the last step)
 
     @staticmethod
     def needs(step: FilterStep, shared: np.ndarray, involves: np.ndarray | None = None) -> np.ndarray:
@@ -127,25 +128,47 @@ class Coordination:
         """
         a = 1 if involves is None else involves.shape[1]
         if not step.on or not shared.any():
-            return np.zeros(a, dtype=bool)
+            return _nobody(a)
         hot = shared & (step.xi < (step.margin if step.margin is not None else 0.0))
         if involves is None:
-            return np.array([hot.any()])
+            return _SOMEONE if hot.any() else _nobody(1)
         return (involves & hot[:, None]).any(axis=0)
 
     def add(self, need: np.ndarray, dt: float) -> None:
         """Count a step of ``dt`` seconds for the agents in ``need`` (bool, shape (a,))."""
-        if need.any():
+        if need is _SOMEONE:  # (one agent, needing the others: scalar updates)
+            self.steps[0] += 1
+            self.time[0] += dt
+            if not self._any:
+                self.events[0] += 1
+            self._was[0] = self._any = True
+        elif need is not _NOBODY.get(need.shape[0]) and need.any():
             self.steps += need
             self.time[need] += dt
             self.events += need & ~self._was
             self._was = need.copy()
-        elif self._was.any():
+            self._any = True
+        elif self._any:
             self._was[:] = False
+            self._any = False
 
     def of(self, i: int) -> tuple[int, int, float]:
         """Agent ``i``'s ``(steps, events, seconds)``."""
         return int(self.steps[i]), int(self.events[i]), float(self.time[i])
+
+
+_NOBODY: dict[int, np.ndarray] = {}
+_SOMEONE = np.ones(1, dtype=bool)
+_SOMEONE.flags.writeable = False
+
+
+def _nobody(a: int) -> np.ndarray:
+    """A read-only "no agent" answer of :meth:`Coordination.needs` (one per size: most steps need nobody)."""
+    got = _NOBODY.get(a)
+    if got is None:
+        got = _NOBODY[a] = np.zeros(a, dtype=bool)
+        got.flags.writeable = False
+    return got
 
 
 class AgentTally:
@@ -270,7 +293,7 @@ class CentralFilter:
         self.intervention = BlockIntervention(self.blocks)
         self.coordination = Coordination(len(self.blocks))
         self._last: FilterStep | None = None
-        self._nobody = np.zeros(len(self.blocks), dtype=bool)
+        self._nobody = _nobody(len(self.blocks))
 
     @property
     def on(self) -> bool:

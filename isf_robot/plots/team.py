@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from isf_robot.core import ConfigError
+from isf_robot.core.metrics import CHATTER_OFF_S
 
 from .data import RunSeries
 from .figures import _h_axis, _shade_on, strategy_color
@@ -27,7 +28,7 @@ from .output import new_figure
 
 __all__ = ["TeamBars", "team_run_figure", "team_compare_figure", "CHATTER_S"]
 
-CHATTER_S = 0.25
+CHATTER_S = CHATTER_OFF_S
 """An off period shorter than this counts as chatter (the issue's target: each arm's shortest off >= 0.25 s)."""
 
 ARM_COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#17becf")

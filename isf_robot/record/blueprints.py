@@ -19,11 +19,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-import rerun as rr
 import rerun.blueprint as rrb
 
 from .errors import RecordError
-from .schema import ARMS, EVENT_LOG, PLOTS, WORLD
+from .schema import ARMS, EVENT_LOG, PLOTS, WORLD, arm_path
 
 __all__ = ["arm_blueprint", "team_blueprint", "satellite_blueprint", "generic_blueprint", "blueprint_for",
            "compare_blueprint", "camera_for"]
@@ -123,7 +122,7 @@ def team_blueprint(arms: Sequence[str], eye: Sequence[float] | None = None, targ
     span = _whole_run(duration_s)
     tabs = []
     for name in arms:
-        base = f"{ARMS}/{rr.escape_entity_path_part(str(name))}"
+        base = arm_path(ARMS, name)
         tabs.append(rrb.Vertical(
             rrb.TimeSeriesView(origin=f"{base}/mode", name=f"{name}: filter mode (1 = on)", **span),
             rrb.TimeSeriesView(origin=f"{base}/barrier_min", name=f"{name}: min h of its pairs [m]", **span),

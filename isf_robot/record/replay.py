@@ -22,7 +22,6 @@ from typing import Any
 
 import numpy as np
 import pyarrow as pa
-import rerun as rr
 from rerun.chunk import RrdReader
 
 from isf_robot.core.metrics import compute_metrics
@@ -196,7 +195,7 @@ def _arm_steps(by_entity: dict[str, list[pa.RecordBatch]], names: Sequence[str])
     """Each arm's replay columns (``/replay/arms/<name>``), in time order, by name in the team's order."""
     out: dict[str, dict[str, np.ndarray]] = {}
     for name in names:
-        batches = by_entity.get(f"{schema.ARM_STEPS}/{rr.escape_entity_path_part(str(name))}")
+        batches = by_entity.get(schema.arm_path(schema.ARM_STEPS, name))
         if not batches:
             continue
         cols = _collect(batches, schema.STEP_FIELDS)

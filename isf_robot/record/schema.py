@@ -36,9 +36,12 @@ Layout of a recording (every time-varying entity is on the ``sim_time`` timeline
 
 from __future__ import annotations
 
+import rerun as rr
+
 __all__ = [
     "INFO", "SUMMARY", "STEPS", "EVENTS", "EVENT_LOG", "STEP_FIELDS", "EVENT_FIELDS",
     "PLOTS", "WORLD", "IMPULSES", "IMPULSE_FIELDS", "TERMINAL", "ARMS", "ARM_STEPS",
+    "arm_path",
 ]
 
 INFO = "/run/info"
@@ -63,3 +66,8 @@ IMPULSE_FIELDS: tuple[str, ...] = (
     "t", "kind", "index", "dv_x", "dv_y", "dv_z", "h_after", "xi_after", "interval_s",
 )
 """Columns of :data:`IMPULSES` (impulsive runs), in order."""
+
+
+def arm_path(root: str, name: str) -> str:
+    """``<root>/<name>`` with an arm's name escaped as one entity path part (a team's per-arm entities)."""
+    return f"{root}/{rr.escape_entity_path_part(str(name))}"

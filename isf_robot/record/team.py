@@ -33,16 +33,11 @@ from isf_robot.core.sums import row_sq_sums
 from .buffer import TIMELINE
 from .errors import RecordError
 from .recorder import finite_scalars, value_columns
-from .schema import ARM_STEPS, ARMS, WORLD
+from .schema import ARM_STEPS, ARMS, WORLD, arm_path
 
-__all__ = ["TeamSeries", "arm_path"]
+__all__ = ["TeamSeries"]
 
 ARM_COLOURS = ((70, 140, 255), (240, 120, 40), (60, 190, 90), (200, 70, 200), (230, 200, 40), (80, 200, 220))
-
-
-def arm_path(root: str, name: str) -> str:
-    """``<root>/<name>`` with the arm's name escaped as one entity path part."""
-    return f"{root}/{rr.escape_entity_path_part(str(name))}"
 
 
 class TeamSeries:

@@ -195,3 +195,13 @@ def test_position_servo_feeds_gravity_forward() -> None:
     assert abs(sag[1]) > 3e-3
     held = _hold(sc, make_actuation(sc), np.zeros(6), 1.0)
     assert np.max(np.abs(held.qpos[sc.qpos_adr] - sc.home)) < 2e-4
+
+
+def test_servo_time_constant_is_the_servos_lead() -> None:
+    """``tau = (g^2 kv + damping) / (g^2 kp)``: a position servo ``g^2 kp (q* - q) - (g^2 kv + damping) q_dot`` at
+    constant speed v lags its target by ``tau v`` (known answers, floats and arrays)."""
+    from isf_robot.arm.actuation import servo_time_constant
+
+    assert servo_time_constant(2.0, 100.0, 10.0, 4.0) == pytest.approx((4 * 10 + 4) / (4 * 100))
+    np.testing.assert_allclose(servo_time_constant(np.array([1.0, 1.0]), np.array([50.0, 200.0]),
+                                                   np.array([5.0, 20.0]), np.array([0.0, 2.0])), [0.1, 0.11])

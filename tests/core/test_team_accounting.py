@@ -50,13 +50,13 @@ def test_shared_rows_match_row_agents_and_are_kept_per_names() -> None:
     np.testing.assert_array_equal(inv.inv, row_agents(lg, BLOCKS))
     np.testing.assert_array_equal(inv.shared, [False, False, True])
     rows, share, sh, names_1 = inv.parts[1]
-    assert names_1 == ("b|y", "a|b") and inv.parts[1][3] is names_1  # (one names tuple per set of names)
+    assert names_1 == ("b|y", "a|b")
     np.testing.assert_array_equal(rows, [1, 2])
     np.testing.assert_array_equal(share, [1.0, 0.5])
     np.testing.assert_array_equal(sh, [False, True])
     # the same names at another state: the same answer without looking again
-    again = shared(_lie(rng.normal(size=(3, 5)), tuple(names)))
-    assert again is inv
+    again = shared(_lie(rng.normal(size=(3, 5)), tuple(list(names))))  # (an equal names tuple, another object)
+    assert again is inv  # (so an agent's names tuple, parts[i][3], is the same object again: the hand-over's key)
     # other names, or rows without names: looked at
     other = shared(_lie(lg[::-1].copy(), ("a|b", "b|y", "a|x")))
     np.testing.assert_array_equal(other.shared, [True, False, False])
