@@ -139,16 +139,22 @@ def level_params(scene: Scene, level: str, *args: Any, **options: Any) -> Filter
     return (resolve_torque_params if level == "torque" else resolve_params)(scene, *args, **options)
 
 
+def make_simulation(scene: Scene, strategy: str, level: str, coordination: str | None, seed: int,
+                    **kwargs: Any) -> Any:
+    """One episode's simulation: a team's (:class:`MultiArmSimulation`) with a way of filtering, else the level's."""
+    if coordination is not None:
+        return MultiArmSimulation(scene, strategy, coordination=coordination, seed=seed, **kwargs)
+    return simulation_type(level)(scene, strategy, seed=seed, **kwargs)
+
+
 def run_task(task: EpisodeTask) -> dict[str, Any]:
     """Run one episode and return its JSON-ready result (used by the worker processes)."""
     scene = task.spec.load()
     kwargs = dict(task.params)
     if not isinstance(kwargs.get("params"), FilterParams):
         kwargs["params"] = level_params(scene, task.level, *(kwargs.pop(k, None) for k in FILTER_KEYS))
-    if task.coordination is not None:
-        team = MultiArmSimulation(scene, task.strategy, coordination=task.coordination, seed=task.seed, **kwargs)
-        return json_safe(team.run_team(task.duration).as_dict())
-    res = simulation_type(task.level)(scene, task.strategy, seed=task.seed, **kwargs).run(task.duration)
+    sim = make_simulation(scene, task.strategy, task.level, task.coordination, task.seed, **kwargs)
+    res = sim.run_team(task.duration) if task.coordination is not None else sim.run(task.duration)
     return json_safe(res.as_dict())
 
 

@@ -43,8 +43,8 @@ from isf_robot.core.strategies import strategy_info
 from isf_robot.support.parallel import MAX_JOBS, Interrupted, check_backend, run_tasks
 from isf_robot.support.report import format_table
 
-from .compare import EpisodeTask, SceneSpec, json_safe, level_params, run_task, simulation_type
-from .multi_arm import COORDINATIONS, MultiArmSimulation
+from .compare import EpisodeTask, SceneSpec, json_safe, level_params, make_simulation, run_task, simulation_type
+from .multi_arm import COORDINATIONS
 from .records import FilterParams
 
 __all__ = ["SweepPoint", "SweepTask", "grid_points", "random_points", "run_sweep", "summarize_point",
@@ -281,7 +281,7 @@ def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: S
     if n > MAX_SWEEP_EPISODES:
         raise ConfigError(f"{n} episodes asked for; at most {MAX_SWEEP_EPISODES} per sweep")
     check_backend(backend, address)  # a missing Ray extra is said before any episode runs
-    sim_type = simulation_type(level)  # (an unknown level: said before any scene loads)
+    simulation_type(level)  # (an unknown level: said before any scene loads)
     ways = list(COORDINATIONS) if coordinations is None else list(coordinations)
     for way in ways:
         if way not in COORDINATIONS:
@@ -302,11 +302,8 @@ def run_sweep(specs: Sequence[SceneSpec], points: Sequence[SweepPoint], seeds: S
         base = level_params(scene, level, d_bar=d_bar)
         for j, pt in enumerate(pts):
             fp = _params_of(scene, base, pt, level)
-            if pt.coordination is not None:  # validates
-                MultiArmSimulation(scene, pt.strategy, coordination=pt.coordination, seed=int(seeds[0]),
-                                   params=fp).control_steps(duration)
-            else:
-                sim_type(scene, pt.strategy, seed=int(seeds[0]), params=fp).control_steps(duration)
+            make_simulation(scene, pt.strategy, level, pt.coordination, int(seeds[0]),  # (validates)
+                            params=fp).control_steps(duration)
             tasks += [SweepTask(i, j, EpisodeTask(spec, pt.strategy, int(s), duration, {"params": fp}, level,
                                                   pt.coordination), pt.label) for s in seeds]
     if coordinations is not None and not any(pt.coordination for pts in scene_points for pt in pts):
