@@ -151,6 +151,42 @@ class ScratchRollout:
         return d
 
 
+    def _run_whole(self, t: float, q: np.ndarray, v0: np.ndarray, e: np.ndarray, decay: float, prev: np.ndarray,
+                   mpos: np.ndarray | None, lins: np.ndarray | None, command: bool) -> tuple | None:
+        """The points after ``t`` in one compiled call (:meth:`_whole_kernel`: ``_rollout_jit.closed_loop_points``).
+
+        From ``q`` with the joint velocity ``v0`` and the tracking error ``e`` (decaying by ``decay`` per point);
+        ``command``: the joint velocity is the command itself (the velocity level: no error). ``mpos``/``lins``:
+        each point's obstacle places and mocap velocities (``None``: no moving obstacle).
+        Returns ``(kernel context, blocks, gradients, rows, keys, res, commands, velocities)``; ``None`` after a
+        point whose witness points coincide (the general loop's case): ``q``, ``e`` and the controller's state as
+        before the call (the kernel's only change to the controller is the rate limit's last command: ``prev``).
+        """
+        nom, coll, n = self.nominal, self.coll, self.n
+        rate = nom._rate
+        c = coll._kernel_context(self._data, None, self.joints)
+        blk, g, rows = coll._point_outputs(c, n)
+        keys = np.empty((n, c[7]), dtype=np.int64)
+        mp, ls, lin, dl = _NO_POS, _NO_LINS, coll._knolin, 0
+        if mpos is not None and lins is not None:
+            mp, ls = mpos, lins
+            if coll._any_moving:
+                lin, dl = ls[0], coll._kdhdt
+        nq = v0.size
+        outs, res, q0, e0 = np.empty((n, nq)), np.empty((n, 6)), q.copy(), e.copy()
+        vs = outs if command else np.empty((n, nq))
+        done = self._whole(*self._addr, q, v0, e, decay, t, self.dt, self._data.qpos, self._qadr, nom._ptrs, nom._buf,
+                           outs, vs, nq, nom._jac.shape[1], nom._dof0, nom.scene.ee_site_id, nom.goals.index,
+                           rate.t_prev, rate.a_max, nom.kp, nom.max_ee_speed, nom.max_joint_speed, nom._lam2, c[4],
+                           blk, rows, keys, len(coll.pairs.names), res, coll.cutoff, c[14], c[15], narrow._EPS_DIST,
+                           c[13], lin, dl, self._mp_addr, self._nmocap, self._mids, mp, ls if dl else _NO_LINS)
+        if done < n or res[n - 1, 4]:  # (touching witness points)
+            rate.prev[:] = prev
+            q[:], e[:] = q0, e0
+            return None
+        return c, blk, g, rows, keys, res, outs, vs
+
+
 class NominalRollout(ScratchRollout):
     """``rollout(t, data) -> [(s, lie, u_nom), ...]``: the nominal rolled forward on its own scratch ``MjData``.
 
@@ -181,31 +217,15 @@ class NominalRollout(ScratchRollout):
         (the controller's state as before this call, ``q`` unchanged), also after a point whose witness
         points coincide (the numpy narrow phase's case).
         """
-        nom, d, coll, joints, dt, n = self.nominal, self._data, self.coll, self.joints, self.dt, self.n
-        rate = nom._rate  # type: ignore[attr-defined]
+        coll, joints, n = self.coll, self.joints, self.n
         if u.shape != q.shape or u.ndim != 1 or not self._steady(t):
             return None
-        c = coll._kernel_context(d, None, joints)
-        blk, g, rows = coll._point_outputs(c, n)
-        m = c[7]
-        keys = np.empty((n, m), dtype=np.int64)
-        mpos, lins, lin, dl = _NO_POS, _NO_LINS, coll._knolin, 0
-        if self.moving:  # (each point's obstacle places and mocap velocities, as the loop sets them)
-            mpos, lins = self._tracks(t)
-            if coll._any_moving:
-                lin, dl = lins[0], coll._kdhdt
-        outs, res, q0 = np.empty((n, u.size)), np.empty((n, 6)), q.copy()
-        done = self._whole(*self._addr, q, first, self._no_error, 0.0, t, dt, self._qpos, self._qadr,  # type: ignore[misc]
-                           nom._ptrs, nom._buf, outs, outs,  # type: ignore[attr-defined]
-                           u.size, nom._jac.shape[1], nom._dof0, nom.scene.ee_site_id, nom.goals.index,  # type: ignore[attr-defined]
-                           rate.t_prev, rate.a_max, nom.kp, nom.max_ee_speed, nom.max_joint_speed, nom._lam2,  # type: ignore[attr-defined]
-                           c[4], blk, rows, keys, len(coll.pairs.names), res, coll.cutoff, c[14], c[15],
-                           narrow._EPS_DIST, c[13], lin, dl, self._mp_addr, self._nmocap, self._mids, mpos,
-                           lins if dl else _NO_LINS)
-        if done < n or res[n - 1, 4]:  # (touching witness points: the general loop from the start)
-            rate.prev[:] = u  # (the kernel's only change to the controller's state: the rate limit's last command,
-            q[:] = q0  # which after the command now is u; the goal bookkeeping is Python's and untouched)
+        mpos, lins = self._tracks(t) if self.moving else (None, None)  # (each point's obstacle places, velocities)
+        got = self._run_whole(t, q, first, self._no_error, 0.0, u, mpos, lins, command=True)
+        if got is None:  # (the general loop from the start)
             return None
+        c, blk, g, rows, keys, res, outs, _ = got
+        m = c[7]
         counts = res[:, 0].tolist()
 
         def point(j: int) -> LieData:  # (point j's Lie data, read from its block as the simulation's tick reads it)

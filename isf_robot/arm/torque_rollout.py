@@ -57,10 +57,9 @@ import numpy as np
 from isf_robot.core import ConfigError, LieData
 from isf_robot.core.intermittent import StackedPoints
 
-from . import narrow
 from .collision import CollisionBarriers
 from .joint_limits import JointLimitBarriers
-from .rollout import _NO_LINS, _NO_POS, ScratchRollout, obstacle_tracks
+from .rollout import ScratchRollout, obstacle_tracks
 from .scene import Scene
 from .second_order import obstacle_rate
 
@@ -190,30 +189,16 @@ class TorqueRollout(ScratchRollout):
         goes on (``q``, ``e`` and the controller's state as before this call), also after a point whose witness
         points coincide.
         """
-        nom, d, coll, joints, dt, n = self.nominal, self._data, self.coll, self.joints, self.dt, self.n
-        rate = nom._rate
+        joints, n = self.joints, self.n
         if not self._steady(t):
             return None
-        c = coll._kernel_context(d, None, joints)
-        blk, gr, rows = coll._point_outputs(c, n)
-        mr = c[7]
-        keys = np.empty((n, mr), dtype=np.int64)
-        mp, ls, lin, dl = _NO_POS, _NO_LINS, coll._knolin, 0
-        if mpos is not None and lins is not None:
-            mp, ls = np.ascontiguousarray(mpos[1:]), lins[1:].reshape(n, -1)
-            if coll._any_moving:
-                lin, dl = ls[0], coll._kdhdt
-        nq = v.size
-        outs, vs, res, q0, e0 = np.empty((n, nq)), np.empty((n, nq)), np.empty((n, 6)), q.copy(), e.copy()
-        done = self._whole(*self._addr, q, v, e, self.decay, t, dt, d.qpos, self._qadr, nom._ptrs, nom._buf, outs,
-                           vs, nq, nom._jac.shape[1], nom._dof0, nom.scene.ee_site_id, nom.goals.index, rate.t_prev,
-                           rate.a_max, nom.kp, nom.max_ee_speed, nom.max_joint_speed, nom._lam2, c[4], blk, rows, keys,
-                           len(coll.pairs.names), res, coll.cutoff, c[14], c[15], narrow._EPS_DIST, c[13], lin, dl,
-                           self._mp_addr, self._nmocap, self._mids, mp, ls if dl else _NO_LINS)
-        if done < n or res[n - 1, 4]:  # (touching witness points: the loop from point 1)
-            rate.prev[:] = v_ref  # (the kernel's only change to the controller's state, as NominalRollout's)
-            q[:], e[:] = q0, e0
+        moving = mpos is not None and lins is not None
+        got = self._run_whole(t, q, v, e, self.decay, v_ref, np.ascontiguousarray(mpos[1:]) if moving else None,
+                              lins[1:].reshape(n, -1) if moving else None, command=False)
+        if got is None:  # (the loop from point 1)
             return None
+        c, blk, gr, rows, keys, res, _, vs = got
+        mr = c[7]
         k = res[:, 0].astype(np.int64) + len(joints.names)
         jj, ii = np.nonzero(np.arange(mr) < k[:, None])  # (each point's rows: its pairs, then the joint limits)
         o_gn, o_lf = c[10], c[11]
