@@ -258,6 +258,23 @@ def two_arm_files(two_arms):  # type: ignore[no-untyped-def]
     return ["--model", str(two_arms.xml_path), "--config", str(two_arms.config.source)]
 
 
+@pytest.fixture(scope="module")
+def decentral_recording(two_arm_files, tmp_path_factory):  # type: ignore[no-untyped-def]
+    """``(path, run JSON)`` of one recorded 3 s isf run of the two arms per arm, shared by the tests that read it."""
+    pytest.importorskip("rerun")
+    import contextlib
+    import io
+
+    from isf_robot.cli import main
+
+    rrd = tmp_path_factory.mktemp("decentral") / "pair.rrd"
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["run", *two_arm_files, "--filter", "isf", "--coordination", "decentral", "--duration", "3",
+                     "--rrd", str(rrd), "--json"]) == 0
+    return rrd, json.loads(out.getvalue())
+
+
 def test_run_prints_a_line_per_arm(capsys, two_arm_files) -> None:  # type: ignore[no-untyped-def]
     from isf_robot.cli import main
 
@@ -315,16 +332,11 @@ def test_init_writes_an_arm_table_per_arm(tmp_path: Path) -> None:
     assert CollisionBarriers.from_scene(sc).pairs.k == 252
 
 
-def test_per_arm_intervention_reads_back_from_a_recording(capsys, two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_per_arm_intervention_reads_back_from_a_recording(decentral_recording) -> None:  # type: ignore[no-untyped-def]
     """The recording's per-joint correction ``u - u_nom``, summed over each arm's joints, gives the arm's figure."""
-    pytest.importorskip("rerun")
-    from isf_robot.cli import main
     from isf_robot.record import read_columns
 
-    rrd = tmp_path / "pair.rrd"
-    assert main(["run", *two_arm_files, "--filter", "isf", "--coordination", "decentral", "--duration", "1.5",
-                 "--rrd", str(rrd), "--json"]) == 0
-    d = json.loads(capsys.readouterr().out)
+    rrd, d = decentral_recording
     col = read_columns(rrd, "/plots/joints/correction", ["Scalars:scalars"])["Scalars:scalars"]
     assert col.shape == (d["control_steps"], 4)
     for arm, cols in zip(d["arms"], (slice(0, 2), slice(2, 4))):
@@ -478,14 +490,10 @@ def test_each_arms_series_read_back_give_its_figures(capsys, two_arm_files, tmp_
     assert replay_metrics(log)["arms"][1]["duty_cycle"] == d["arms"][1]["duty_cycle"]
 
 
-def test_replay_of_a_team_recording_prints_each_arm(capsys, two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
-    pytest.importorskip("rerun")
+def test_replay_of_a_team_recording_prints_each_arm(capsys, decentral_recording) -> None:  # type: ignore[no-untyped-def]
     from isf_robot.cli import main
 
-    rrd = tmp_path / "pair.rrd"
-    assert main(["run", *two_arm_files, "--filter", "isf", "--coordination", "decentral", "--duration", "2",
-                 "--rrd", str(rrd), "--json"]) == 0
-    d = json.loads(capsys.readouterr().out)
+    rrd, d = decentral_recording
     assert main(["replay", str(rrd)]) == 0
     out = capsys.readouterr().out
     assert "per arm:" in out
@@ -517,7 +525,7 @@ def test_team_blueprint_has_a_tab_per_arm() -> None:
         team_blueprint([])
 
 
-def test_plot_draws_a_team_recording_per_arm(capsys, two_arm_files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_plot_draws_a_team_recording_per_arm(capsys, decentral_recording, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     """``plot`` on a team recording: the team's row and a row per arm, each from that arm's logged series."""
     pytest.importorskip("rerun")
     pytest.importorskip("matplotlib")
@@ -526,10 +534,7 @@ def test_plot_draws_a_team_recording_per_arm(capsys, two_arm_files, tmp_path: Pa
     from isf_robot.record import read_rrd
     from isf_robot.record.figure_data import arm_series, team_arm_series
 
-    rrd = tmp_path / "pair.rrd"
-    assert main(["run", *two_arm_files, "--filter", "isf", "--coordination", "decentral", "--duration", "3",
-                 "--rrd", str(rrd), "--json"]) == 0
-    d = json.loads(capsys.readouterr().out)
+    rrd, d = decentral_recording
     png = tmp_path / "team.png"
     assert main(["plot", str(rrd), "-o", str(png)]) == 0
     assert png.stat().st_size > 1000 and "team run" in capsys.readouterr().err
