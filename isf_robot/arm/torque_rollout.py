@@ -170,7 +170,7 @@ class TorqueRollout(ScratchRollout):
                         break
         finally:
             self.nominal.restore(saved)
-        rows = np.array([a.size for a in lgv[:len(lgv) - len(at)]])  # (the points made one by one)
+        rows = np.array([a.size for a in (lgv[:-1] if at else lgv)])  # (the points made one by one)
         point = np.repeat(np.arange(rows.size), rows)
         dhdt = np.concatenate(lf)
         psi_all = np.concatenate(lgv) + obstacle_rate(dhdt, self.approaching) + self.alpha_1 * np.concatenate(h)
