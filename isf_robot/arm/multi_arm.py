@@ -112,8 +112,11 @@ class _TeamEpisode(ArmSimulation.episode):  # type: ignore[name-defined,misc,val
     def block(self, capacity: int) -> TeamStepColumns:
         """An empty block of ``capacity`` steps with each arm's columns (:class:`TeamStepColumns`)."""
         sim = self.sim
-        return TeamStepColumns(capacity, len(sim.scene.qpos_adr), sim.names, sim.coll.pairs.k, self.model.nmocap,
-                               sim.control_period, sim.arm_names, sim.coll.h_far, sim.nominal.goal_positions)
+        block = TeamStepColumns(capacity, len(sim.scene.qpos_adr), sim.names, sim.coll.pairs.k, self.model.nmocap,
+                                sim.control_period, sim.arm_names, sim.coll.h_far, sim.nominal.goal_positions,
+                                nbody=self.model.nbody)
+        self.bind(block)
+        return block
 
     def write(self, block: Any, t: float, step: Any, values: TickValues) -> None:
         """The step's row, then each arm's mode, end effector and goal."""

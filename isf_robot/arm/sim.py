@@ -240,11 +240,13 @@ class ArmSimulation:
                 values, lie = barriers()
                 u_nom = nominal(t)
                 step = strategy(t, lie, u_nom)
+                if block is not None:  # (the row holds the tick's state: written before the physics steps)
+                    ep.write(block, t, step, values)
                 act(k, step.u)
                 if block is not None:
+                    block.end_row(ep.dmin)
                     if step.event is not None:
                         observers.on_event(step.event)
-                    ep.write(block, t, step, values)
                     if stepwise:
                         stepwise.on_step(block.record(block.size - 1))
                     if block.full:
@@ -314,6 +316,7 @@ class _Episode:
         self._command = (tracking_step(sim.tracker, scene.dof_adr)  # tracking error, set_command and apply in one
                          if sim.tracker is not None else None)
         self._qpos_sel, self._dof_sel = as_slice(np.asarray(scene.qpos_adr)), as_slice(np.asarray(scene.dof_adr))
+        self._ee: np.ndarray | None = None  # (a block's end-effector buffer when the arm has no site)
 
     # -- phases --------------------------------------------------------------------------
     def sense(self, k: int) -> None:
@@ -397,14 +400,23 @@ class _Episode:
         """An empty block of ``capacity`` steps for this run's observers."""
         sim = self.sim
         goals = sim.nominal.goal_positions if isinstance(sim.nominal, ReachingController) else None
-        return StepColumns(capacity, len(sim.scene.qpos_adr), sim.names, sim.coll.pairs.k, self.model.nmocap,
-                           sim.control_period, sim.coll.h_far, goals)
+        block = StepColumns(capacity, len(sim.scene.qpos_adr), sim.names, sim.coll.pairs.k, self.model.nmocap,
+                            sim.control_period, sim.coll.h_far, goals, nbody=self.model.nbody)
+        self.bind(block)
+        return block
+
+    def bind(self, block: StepColumns) -> None:
+        """Point ``block`` at this run's data (the end effector: its site, else a buffer :meth:`write` fills)."""
+        scene = self.sim.scene
+        self._ee = None if scene.ee_site_id >= 0 else np.zeros(3)
+        block.bind(self.data, self._qpos_sel, self._dof_sel,
+                   self.data.site_xpos[scene.ee_site_id] if self._ee is None else self._ee)
 
     def write(self, block: StepColumns, t: float, step: Any, values: TickValues) -> None:
-        """Write the step just taken into the next row of ``block``."""
-        sim, scene = self.sim, self.sim.scene
-        block.write(t, step, self.data, self._qpos_sel, self._dof_sel, values, self.dmin,
-                    scene.ee_position(self.data), sim.nominal.goal_index)
+        """Write the step just decided into the next row of ``block``, at the tick (before its physics steps)."""
+        if self._ee is not None:
+            self._ee[:] = self.sim.scene.ee_position(self.data)
+        block.write(t, step, values, self.sim.nominal.goal_index)
 
     def finish(self, wall: float, timings: dict[str, float]) -> RunResult:
         """Account the state after the last step and summarise the run."""

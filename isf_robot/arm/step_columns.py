@@ -1,15 +1,20 @@
 """The arm loop's control steps in columns: what a block observer (the Rerun recorder) receives.
 
-The loop writes each control step into row ``i`` of preallocated arrays (:meth:`StepColumns.write`),
-and hands the whole block to observers that take blocks (:meth:`Observer.on_steps
+The loop writes each control step into row ``i`` of preallocated arrays (:meth:`StepColumns.write`
+at the control tick, :meth:`StepColumns.end_row` once the step's physics steps are done), and hands
+the whole block to observers that take blocks (:meth:`Observer.on_steps
 <isf_robot.core.hooks.Observer.on_steps>`) when it is full, when the run ends and when it stops
 early. No per-step object is built for them and nothing is transposed back into columns: a
 recorder sends ``block.t[:n]``, ``block.q[:n]``, ... as they are. Observers that want one record
 per step (a live viewer, a video) still get an :class:`~isf_robot.arm.records.ArmStepRecord`
 at every step; :meth:`StepColumns.record` builds the same record from a row.
 
+A row is the control tick's state (``t``: joint positions and velocities, every body's pose, the
+end effector, mocap poses: what the filter's barrier values ``h`` were computed from), the command
+applied from it, and the smallest true distance over the step's physics steps.
+
 Shapes: ``n`` arm joints, ``k`` barriers (the collision pairs first, then the joint-limit rows;
-``k_c`` collision pairs), ``m`` mocap bodies, ``C`` the block's capacity.
+``k_c`` collision pairs), ``m`` mocap bodies, ``B`` the model's bodies, ``C`` the block's capacity.
 """
 
 from __future__ import annotations
@@ -43,40 +48,45 @@ class TickValues(NamedTuple):
 class StepColumns:
     """A block of consecutive control steps, one row per step (capacity ``C``).
 
-    The loop calls :meth:`write` per step and :meth:`seal` before handing the block on; after
-    :meth:`seal` the attributes below hold the block's first ``len(block)`` rows.
+    The loop calls :meth:`bind` once per run, then :meth:`write` and :meth:`end_row` per step, and
+    :meth:`seal` before handing the block on; after :meth:`seal` the attributes below hold the
+    block's first ``len(block)`` rows.
 
     Attributes:
         t: Time at the start of each step [s], shape (C,).
         dt: Control period [s] (the same every step).
-        q, qd, u, u_nom: Joint positions [rad], velocities, applied and nominal commands [rad/s], shape (C, n).
+        q, qd: Joint positions [rad] and velocities [rad/s] at ``t``, shape (C, n).
+        u, u_nom: Applied and nominal commands [rad/s], shape (C, n).
+        body_pos, body_quat: Every body's pose at ``t`` ([m]; (w, x, y, z)), shape (C, B, 3) and (C, B, 4).
         on, qp_solved, fallback: Filter mode, QP solved, braking fallback applied, shape (C,) bool.
         xi_min: Smallest ``Xi_on`` the filter saw (inf for ``nominal``), shape (C,).
         dist_min: Smallest true signed distance [m] over the step's physics steps, shape (C,).
-        h: Every barrier value, shape (C, k) (pairs beyond the cut-off: ``cutoff - margin``).
+        h: Every barrier value at ``t``, shape (C, k) (pairs beyond the cut-off: ``cutoff - margin``).
         h_min: Smallest barrier value of each row, shape (C,).
-        ee_pos, goal_pos: End effector and goal pursued [m], shape (C, 3) (goal NaN without one).
+        ee_pos, goal_pos: End effector at ``t`` and goal pursued [m], shape (C, 3) (goal NaN without one).
         goal_index: Goal pursued, shape (C,) int.
-        mocap_pos, mocap_quat: Mocap poses [m], (w, x, y, z), shape (C, m, 3) and (C, m, 4).
+        mocap_pos, mocap_quat: Mocap poses at ``t`` [m], (w, x, y, z), shape (C, m, 3) and (C, m, 4).
         near: Per row, the indices of the collision pairs within the cut-off (ascending).
-        witness: Per row, their witness points (on the robot geom, on the other), shape (a, 2, 3).
+        witness: Per row, their witness points, ``[:, 0]`` on the robot geom and ``[:, 1]`` on the other,
+            shape (a, 2 or more, 3).
         relaxed: Per row, the names of the barriers whose promotion was relaxed.
         events: Per row, the switch at that step or ``None``.
         names: Barrier names, length k.
         n_collision: ``k_c``.
 
-    Cost: a step's vectors that live in MuJoCo's data or may be reused by their owner (``q``,
-    ``qd``, ``u``, ``u_nom``, the end effector, the goal, mocap poses) are copied into their row;
-    its scalars go to lists, and the arrays the loop makes fresh at every step (``Xi_on``, the
-    near pairs' ``h``, indices and witness points, the joint rows' ``h``) are kept by reference.
-    :meth:`seal` turns lists and references into the block's arrays in one pass. A step inside a
-    control loop costs far more per NumPy call than the same call in a tight loop, so the
-    per-step part makes as few as it can.
+    Cost: a step's vectors that live in MuJoCo's data or may be reused by their owner (the state,
+    ``u``, ``u_nom``, the end effector) are copied into their row, from views of ``data`` made once
+    by :meth:`bind`; everything else of the step goes to one tuple per row (its scalars, and the
+    arrays the loop makes fresh at every step, ``Xi_on`` and the tick's values, by reference).
+    :meth:`seal` turns those tuples into the block's arrays in one pass. A step inside a control
+    loop costs far more per NumPy call than the same call in a tight loop, so the per-step part
+    makes as few as it can.
 
     """
 
     def __init__(self, capacity: int, n: int, names: tuple[str, ...], n_collision: int, nmocap: int,
-                 dt: float, h_far: np.ndarray | None = None, goals: np.ndarray | None = None) -> None:
+                 dt: float, h_far: np.ndarray | None = None, goals: np.ndarray | None = None,
+                 nbody: int = 0) -> None:
         c, k = int(capacity), len(names)
         if c < 1:
             raise ValueError(f"capacity must be >= 1, got {capacity}")
@@ -85,23 +95,21 @@ class StepColumns:
                       else np.asarray(h_far, dtype=float).reshape(self.n_collision))
         self.size = 0
         self.q, self.qd, self.u, self.u_nom = (np.zeros((c, n)) for _ in range(4))
+        self.body_pos, self.body_quat = np.zeros((c, int(nbody), 3)), np.zeros((c, int(nbody), 4))
         self.ee_pos, self.goal_pos = np.zeros((c, 3)), np.zeros((c, 3))
         self.mocap_pos, self.mocap_quat = np.zeros((c, nmocap, 3)), np.zeros((c, nmocap, 4))
-        self._moving = nmocap > 0
         self._goals = None if goals is None else np.asarray(goals, dtype=float).reshape(-1, 3).copy()
         self.t, self.on, self.qp_solved, self.fallback = np.zeros(c), *(np.zeros(c, dtype=bool) for _ in range(3))
-        self.xi_min, self.dist_min, self.h_min = np.zeros(c), np.zeros(c), np.zeros(c)
+        self.xi_min, self.dist_min, self.h_min = np.zeros(c), np.full(c, math.inf), np.zeros(c)
         self.goal_index = np.zeros(c, dtype=np.int64)
         self.h = np.zeros((c, k))
-        self._scalars: list[tuple[float, bool, bool, bool, float, int]] = []
-        self._xi: list[np.ndarray] = []
-        self._tick_h: list[np.ndarray] = []
-        self._witness: list[np.ndarray | None] = []
+        self._rows: list[tuple[Any, ...]] = []
         self.near: list[np.ndarray] = []
         self.witness: list[np.ndarray] = []
         self.relaxed: list[tuple[str, ...]] = []
         self.events: list[Any] = []
         self.sealed = 0
+        self._state: tuple[Any, ...] = ()
 
     def __len__(self) -> int:
         return self.size
@@ -111,78 +119,104 @@ class StepColumns:
         """Whether every row is written (the loop then seals it, hands it on and clears it)."""
         return self.size >= self.capacity
 
+    def bind(self, data: Any, qpos_adr: Any, dof_adr: Any, ee_pos: np.ndarray) -> None:
+        """Where :meth:`write` reads the tick's state: views of ``data`` (MuJoCo's, valid while it lives).
+
+        Args:
+            data: The run's MuJoCo data.
+            qpos_adr: Addresses of the arm's joints in ``qpos`` (a slice where they are consecutive: a view).
+            dof_adr: Addresses of the arm's joints in ``qvel`` (likewise).
+            ee_pos: The end effector's position as kept in ``data`` (a view such as
+                ``data.site_xpos[site]``), shape (3,).
+
+        """
+        nbody = self.body_pos.shape[1]
+        if nbody not in (0, data.xpos.shape[0]):
+            raise ValueError(f"the block keeps {nbody} body poses; the data has {data.xpos.shape[0]} bodies")
+        view = (lambda a, adr: a[adr] if isinstance(adr, slice) else None)
+        self._state = (data, qpos_adr, dof_adr, view(data.qpos, qpos_adr), view(data.qvel, dof_adr),
+                       data.xpos if nbody else None, data.xquat if nbody else None,
+                       data.mocap_pos if self.mocap_pos.shape[1] else None,
+                       data.mocap_quat if self.mocap_pos.shape[1] else None, ee_pos)
+
     def clear(self) -> None:
         """Start the next block (the arrays are reused: observers must not keep views past ``on_steps``)."""
         self.size = self.sealed = 0
-        for rows in (self._scalars, self._xi, self._tick_h, self._witness, self.near, self.witness, self.relaxed,
-                     self.events):
+        self.dist_min[:] = math.inf
+        for rows in (self._rows, self.near, self.witness, self.relaxed, self.events):
             rows.clear()
 
-    def write(self, t: float, step: Any, data: Any, qpos_adr: Any, dof_adr: Any, values: TickValues,
-              dist_min: float, ee_pos: np.ndarray, goal_index: int) -> None:
-        """Write one control step into the next row.
+    def write(self, t: float, step: Any, values: TickValues, goal_index: int) -> None:
+        """Write one control step into the next row, at the control tick (before its physics steps).
 
         Args:
             t: Time at the start of the step [s].
             step: The strategy's step (``u``, ``u_nom``, ``on``, ``xi``, ``qp``, ``fallback``,
                 ``relaxed``, ``event``).
-            data: The MuJoCo data after the step.
-            qpos_adr: Addresses of the arm's joints in ``qpos`` (a slice where they are consecutive).
-            dof_adr: Addresses of the arm's joints in ``qvel`` (likewise).
             values: The tick's barrier values (made for this step: kept by reference).
-            dist_min: Smallest true signed distance over the step's physics steps [m].
-            ee_pos: End-effector position [m], shape (3,).
             goal_index: Goal pursued (its position: the block's goal table, NaN without one).
+
+        Raises:
+            IndexError: The block is full.
+            RuntimeError: :meth:`bind` was not called.
 
         """
         i = self.size
         if i >= self.capacity:
             raise IndexError(f"the block is full ({self.capacity} steps)")
-        self.q[i] = data.qpos[qpos_adr]
-        self.qd[i] = data.qvel[dof_adr]
+        if not self._state:
+            raise RuntimeError("StepColumns.write needs bind(data, qpos_adr, dof_adr, ee_pos) first")
+        data, qpos_adr, dof_adr, q, qd, xpos, xquat, mpos, mquat, ee = self._state
+        self.q[i] = data.qpos[qpos_adr] if q is None else q
+        self.qd[i] = data.qvel[dof_adr] if qd is None else qd
         self.u[i] = step.u
         self.u_nom[i] = step.u_nom
-        self.ee_pos[i] = ee_pos
-        if self._moving:
-            self.mocap_pos[i] = data.mocap_pos
-            self.mocap_quat[i] = data.mocap_quat
-        self._scalars.append((t, step.on, step.qp is not None, step.fallback, dist_min, goal_index))
-        self._xi.append(step.xi)
-        rows, h, w = values
-        self._tick_h.append(h)
-        self.near.append(rows)
-        self._witness.append(w)
-        self.relaxed.append(tuple(step.relaxed))
-        self.events.append(step.event)
+        self.ee_pos[i] = ee
+        if xpos is not None:
+            self.body_pos[i] = xpos
+            self.body_quat[i] = xquat
+        if mpos is not None:
+            self.mocap_pos[i] = mpos
+            self.mocap_quat[i] = mquat
+        self._rows.append((t, step.on, step.qp is not None, step.fallback, goal_index, step.xi, values,
+                           step.relaxed, step.event))
         self.size = i + 1
 
+    def end_row(self, dist_min: float) -> None:
+        """The smallest true signed distance [m] over the physics steps of the row just written."""
+        self.dist_min[self.size - 1] = dist_min
+
     def seal(self) -> None:
-        """Fill the block's arrays from the rows written since the last :meth:`seal` (or :meth:`clear`)."""
+        """Fill the block's arrays from the rows written since the last :meth:`seal` (or :meth:`clear`).
+
+        A handful of NumPy calls over the whole stretch of rows (one concatenation per kind of
+        per-row array), not one per row.
+        """
         a, b = self.sealed, self.size
         if b <= a:
             return
-        t, on, qp, fallback, dist, goal = zip(*self._scalars[a:b])
+        n = b - a
+        t, on, qp, fallback, goal, xi, values, relaxed, events = zip(*self._rows[a:b])
         self.t[a:b], self.on[a:b], self.qp_solved[a:b] = t, on, qp
-        self.fallback[a:b], self.dist_min[a:b], self.goal_index[a:b] = fallback, dist, goal
-        xi = self._xi[a:b]
-        sizes = np.fromiter((x.size for x in xi), dtype=np.int64, count=b - a)
-        mins = np.full(b - a, math.inf)
-        if sizes.any():
-            flat = np.concatenate(xi)
-            nz = np.flatnonzero(sizes)
-            mins[nz] = np.minimum.reduceat(flat, (np.cumsum(sizes) - sizes)[nz])
-        self.xi_min[a:b] = mins
+        self.fallback[a:b], self.goal_index[a:b] = fallback, goal
+        self.relaxed[a:b] = relaxed
+        self.events[a:b] = events
+        self.xi_min[a:b] = _row_minima(xi, n)
+        rows, tick_h, witness = zip(*values)
+        self.near[a:b] = rows
+        self.witness[a:b] = [_NO_WITNESS if w is None else w for w in witness]
         nc = self.n_collision
         h = self.h[a:b]
         h[:, :nc] = self.h_far
-        rows, tick_h = self.near[a:b], self._tick_h[a:b]
-        counts = np.fromiter((r.size for r in rows), dtype=np.int64, count=b - a)
+        counts = np.fromiter(map(len, rows), dtype=np.int64, count=n)
+        nj = h.shape[1] - nc  # (each tick's values: its near pairs', then every joint row's)
+        flat = np.concatenate(tick_h)
+        start = np.cumsum(counts + nj) - (counts + nj)
         if counts.any():  # (every row's near pairs in one scatter)
-            h[np.repeat(np.arange(b - a), counts), np.concatenate(rows)] = np.concatenate(
-                [th[:c] for th, c in zip(tick_h, counts.tolist())])
-        if h.shape[1] > nc:
-            h[:, nc:] = [th[c:] for th, c in zip(tick_h, counts.tolist())]
-        self.witness[a:b] = [_NO_WITNESS if w is None else w[:, :2] for w in self._witness[a:b]]
+            first = np.repeat(start - (np.cumsum(counts) - counts), counts)
+            h[np.repeat(np.arange(n), counts), np.concatenate(rows)] = flat[first + np.arange(int(counts.sum()))]
+        if nj:
+            h[:, nc:] = flat[(start + counts)[:, None] + np.arange(nj)]
         goals, gi = self._goals, self.goal_index[a:b]
         ok = (gi >= 0) & (gi < (0 if goals is None else len(goals)))
         self.goal_pos[a:b] = math.nan
@@ -206,11 +240,21 @@ class StepColumns:
             u_nom=self.u_nom[i].copy(), on=bool(self.on[i]), h_min=float(self.h_min[i]),
             xi_min=float(self.xi_min[i]), dist_min=float(self.dist_min[i]), qp_solved=bool(self.qp_solved[i]),
             h=self.h[i].copy(), names=names, closest=tuple(names[j] for j in self.closest(i).tolist()),
-            witness=np.array(self.witness[i]), witness_names=tuple(names[j] for j in self.near[i].tolist()),
+            witness=np.array(self.witness[i][:, :2]), witness_names=tuple(names[j] for j in self.near[i].tolist()),
             mocap_pos=self.mocap_pos[i].copy(), mocap_quat=self.mocap_quat[i].copy(),
             ee_pos=self.ee_pos[i].copy(), goal_index=int(self.goal_index[i]), goal_pos=self.goal_pos[i].copy(),
             event=self.events[i], fallback=bool(self.fallback[i]), relaxed=self.relaxed[i],
         )
+
+
+def _row_minima(arrays: tuple[np.ndarray, ...], n: int) -> np.ndarray:
+    """Each array's smallest value (``inf`` for an empty one), shape (n,)."""
+    sizes = np.fromiter(map(len, arrays), dtype=np.int64, count=n)
+    mins = np.full(n, math.inf)
+    if sizes.any():
+        nz = np.flatnonzero(sizes)
+        mins[nz] = np.minimum.reduceat(np.concatenate(arrays), (np.cumsum(sizes) - sizes)[nz])
+    return mins
 
 
 _NO_WITNESS = np.zeros((0, 2, 3))

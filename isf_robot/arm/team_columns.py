@@ -30,8 +30,9 @@ class TeamStepColumns(StepColumns):
     """
 
     def __init__(self, capacity: int, n: int, names: tuple[str, ...], n_collision: int, nmocap: int, dt: float,
-                 arm_names: Sequence[str], h_far: np.ndarray | None = None, goals: np.ndarray | None = None) -> None:
-        super().__init__(capacity, n, names, n_collision, nmocap, dt, h_far, goals)
+                 arm_names: Sequence[str], h_far: np.ndarray | None = None, goals: np.ndarray | None = None,
+                 nbody: int = 0) -> None:
+        super().__init__(capacity, n, names, n_collision, nmocap, dt, h_far, goals, nbody)
         c, a = self.capacity, len(arm_names)
         self.arm_names = tuple(str(x) for x in arm_names)
         self.arm_on = np.zeros((c, a), dtype=bool)

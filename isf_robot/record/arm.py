@@ -5,7 +5,7 @@ Logged, besides the base recorder's replay columns, mode and events:
 * ``/world/bodies/...``: the MuJoCo scene's geometry once, solid (capsules, spheres,
   ellipsoids, boxes, cylinders, planes, meshes as meshes): the visible groups plus every robot
   and obstacle geom of the start info whatever its group, and the moving bodies' poses per step
-  (arm links and moving obstacles), by forward kinematics of the record's ``q`` and mocap poses.
+  (arm links and moving obstacles), as the loop kept them at each control tick.
   The robot's geoms turn orange while the filter is on (their colour is sent at each switch).
 * ``/world/goals`` (static, every goal), ``/world/goal`` (the goal pursued), ``/world/ee``,
   ``/world/ee_trail`` (the end effector's path over the last ``trail_s`` seconds).
@@ -34,7 +34,7 @@ extra row ``/replay/terminal``.
 Cost: the arm loop writes each step into a block of columns
 (:class:`~isf_robot.arm.step_columns.StepColumns`, a row of array writes per step) and hands the
 block to :meth:`ArmRecorder.on_steps` every ``capacity`` steps; the recorder derives every entity
-from those arrays (forward kinematics for the poses included) and sends each once.
+from those arrays and sends each once.
 """
 
 from __future__ import annotations
@@ -111,7 +111,6 @@ class ArmRecorder(RerunRecorder):
         self._pair_member: dict[int, bool] = {}
         self._trail_tail = np.zeros((0, 3))
         self._names: tuple[str, ...] = ()
-        self._qpos_adr: Any = None
         self.team: TeamSeries | None = None
         self._derived = self._derived_entities()
 
@@ -137,7 +136,6 @@ class ArmRecorder(RerunRecorder):
         self.exact_min_barrier = self.margins.size == 0 or bool(np.all(self.margins == self.margins[0]))
         self._margin = float(self.margins.max()) if self.margins.size else 0.0
         self._n_collision = int(info.get("n_collision", self.margins.size))
-        self._qpos_adr = MujocoDrawing.index(info["qpos_adr"])
         c = info.get("c")
         self.c = float(c) if isinstance(c, (int, float)) else math.nan
         self.team = TeamSeries.from_info(info)
@@ -199,7 +197,7 @@ class ArmRecorder(RerunRecorder):
         if self.team is not None:
             self.team.send(stream, t, a["dt"], b, a["h"][:, :self._n_collision], u, u_nom)
         assert self.drawing is not None
-        self.drawing.send_poses(stream, t, self._qpos_adr, b.q[:n], b.mocap_pos[:n], b.mocap_quat[:n])
+        self.drawing.send_poses(stream, t, b.body_pos[:n], b.body_quat[:n])
         self.drawing.send_tint(stream, t, a["on"])
         self.steps += n
 

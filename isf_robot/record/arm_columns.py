@@ -48,7 +48,7 @@ def closest_witness(block: Any, n: int, m: int) -> tuple[np.ndarray, np.ndarray]
 
     ``block.h[:, :block.n_collision]`` ranks the pairs (the smallest ``h`` first, as the step
     record's ``closest``); ``block.near[i]`` and ``block.witness[i]`` are row ``i``'s pairs within
-    the cut-off and their segments, shape (a, 2, 3).
+    the cut-off and their witness points, shape (a, 2 or more, 3) (the first two: the segment).
 
     Returns:
         ``(segments, lengths)``: shape (s, 2, 3) and (n,), row after row.
@@ -57,11 +57,11 @@ def closest_witness(block: Any, n: int, m: int) -> tuple[np.ndarray, np.ndarray]
     nc = block.n_collision
     if m <= 0 or nc == 0 or n == 0:
         return np.zeros((0, 2, 3)), np.zeros(n, dtype=np.int64)
-    counts = np.fromiter((len(w) for w in block.witness[:n]), dtype=np.int64, count=n)
+    counts = np.fromiter(map(len, block.witness[:n]), dtype=np.int64, count=n)
     if not counts.any():
         return np.zeros((0, 2, 3)), counts
-    segs = np.concatenate([w for w in block.witness[:n] if len(w)]).reshape(-1, 2, 3)
-    pair = np.concatenate([p for p, c in zip(block.near[:n], counts.tolist()) if c])
+    segs = np.concatenate([w for w in block.witness[:n] if len(w)])[:, :2]
+    pair = np.concatenate(block.near[:n])
     row = np.repeat(np.arange(n), counts)
     closest = np.argsort(block.h[:n, :nc], axis=1)[:, :m]
     member = np.zeros((n, nc), dtype=bool)

@@ -140,15 +140,6 @@ class MujocoDrawing:
         self.moving = np.flatnonzero(np.asarray(model.body_weldid) != 0)
         self.geoms_drawn = 0
         self.geoms_skipped: list[str] = []
-        self._mocap = model.nmocap > 0
-        self._mocap_pos = self.data.mocap_pos  # views into MjData (valid while self.data lives)
-        self._mocap_quat = self.data.mocap_quat
-        self._xpos: np.ndarray | None = None
-        self._xquat: np.ndarray | None = None
-        if self.moving.size:
-            lo, hi = int(self.moving[0]), int(self.moving[-1]) + 1
-            if hi - lo == self.moving.size:  # contiguous: views, no copy per step
-                self._xpos, self._xquat = self.data.xpos[lo:hi], self.data.xquat[lo:hi]
 
     def drawn(self, g: int) -> bool:
         """Whether geom ``g`` is drawn (visible group, listed, or on a listed geom's tree)."""
@@ -189,48 +180,27 @@ class MujocoDrawing:
                                       quaternion=rr.Quaternion(xyzw=_xyzw(self.data.xquat[b])))
                 stream.log(self.body_paths[b], pose, static=True)
 
-    def send_poses(self, stream: rr.RecordingStream, t: np.ndarray, qpos_adr: slice | np.ndarray,
-                   q: Sequence[np.ndarray], mocap_pos: Sequence[np.ndarray] | None = None,
-                   mocap_quat: Sequence[np.ndarray] | None = None) -> None:
-        """Forward kinematics of a block of states and one ``send_columns`` per moving body.
+    def send_poses(self, stream: rr.RecordingStream, t: np.ndarray, pos: np.ndarray, quat: np.ndarray) -> None:
+        """The moving bodies' poses over a block of steps: one ``send_columns`` per moving body.
 
         Args:
             stream: Where to send.
             t: Times [s], shape (N,).
-            qpos_adr: Addresses (or a slice) of ``q`` in ``qpos``.
-            q: Joint positions per row.
-            mocap_pos: Mocap positions per row, each shape (nmocap, 3), or ``None``.
-            mocap_quat: Mocap orientations (w, x, y, z) per row, or ``None``.
+            pos: Every body's position at each time [m] (MuJoCo's ``xpos`` per row), shape (N, nbody, 3).
+            quat: Every body's orientation (w, x, y, z) (``xquat`` per row), shape (N, nbody, 4).
 
         """
-        nb = int(self.moving.size)
         n = len(t)
-        if nb == 0 or n == 0:
+        if not self.moving.size or n == 0:
             return
-        d, m = self.data, self.model
-        pos = np.empty((n, nb, 3))
-        quat = np.empty((n, nb, 4))
-        xpos, xquat = self._xpos, self._xquat
-        views = xpos is not None and xquat is not None
-        mocap = self._mocap and mocap_pos is not None and mocap_quat is not None
-        kin = mujoco.mj_kinematics
-        for i in range(n):
-            d.qpos[qpos_adr] = q[i]
-            if mocap:
-                self._mocap_pos[:] = mocap_pos[i]  # type: ignore[index]
-                self._mocap_quat[:] = mocap_quat[i]  # type: ignore[index]
-            kin(m, d)
-            if views:
-                pos[i] = xpos
-                quat[i] = xquat
-            else:
-                pos[i] = d.xpos[self.moving]
-                quat[i] = d.xquat[self.moving]
+        nbody = self.model.nbody
+        if pos.shape != (n, nbody, 3) or quat.shape != (n, nbody, 4):
+            raise ValueError(f"poses must have shapes ({n}, {nbody}, 3) and ({n}, {nbody}, 4) (every body of the "
+                             f"model at each of the {n} times); got {pos.shape} and {quat.shape}")
         idx = [rr.TimeColumn(TIMELINE, duration=t)]
-        quat = _xyzw(quat)
-        for j, b in enumerate(self.moving.tolist()):
+        for b in self.moving.tolist():
             stream.send_columns(self.body_paths[b], indexes=idx,
-                                columns=rr.Transform3D.columns(translation=pos[:, j], quaternion=quat[:, j]))
+                                columns=rr.Transform3D.columns(translation=pos[:, b], quaternion=_xyzw(quat[:, b])))
 
     def send_tint(self, stream: rr.RecordingStream, t: np.ndarray, flag: np.ndarray) -> None:
         """Colour of the tinted geoms: their own while ``flag`` is false, tinted while true.
@@ -272,11 +242,3 @@ class MujocoDrawing:
                 continue
             radius = max(radius, float(np.linalg.norm(d.geom_xpos[g] - centre)) + float(m.geom_rbound[g]))
         return centre, max(radius, 0.1)
-
-    @staticmethod
-    def index(adr: np.ndarray) -> slice | np.ndarray:
-        """A slice when the addresses are contiguous (cheaper to assign through), else the array."""
-        adr = np.asarray(adr, dtype=np.intp)
-        if adr.size and np.array_equal(adr, np.arange(adr[0], adr[0] + adr.size)):
-            return slice(int(adr[0]), int(adr[0]) + int(adr.size))
-        return adr

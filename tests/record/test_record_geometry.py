@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
-import rerun as rr
+import pytest
 from rerun.chunk import RrdReader
 
 from isf_robot.record import close_stream, open_stream
@@ -52,10 +52,15 @@ def test_every_geom_type_is_drawn(tmp_path) -> None:  # type: ignore[no-untyped-
     # moving bodies: the hinged arm and the mocap crate; the world is static
     assert sorted(draw.body_paths[b].rsplit("/", 1)[1] for b in draw.moving) == ["arm", "crate"]
     t = np.array([0.0, 0.1])
-    q = [np.array([0.0]), np.array([np.pi / 2])]
-    mpos = [np.array([[0.6, 0.4, 0.1]]), np.array([[0.7, 0.4, 0.1]])]
-    mquat = [np.array([[1.0, 0, 0, 0]])] * 2
-    draw.send_poses(rec, t, MujocoDrawing.index(np.array([0])), q, mpos, mquat)
+    data = mujoco.MjData(model)
+    pos, quat = np.zeros((2, model.nbody, 3)), np.zeros((2, model.nbody, 4))
+    for i, (q, crate) in enumerate([(0.0, [0.6, 0.4, 0.1]), (np.pi / 2, [0.7, 0.4, 0.1])]):
+        data.qpos[0], data.mocap_pos[0] = q, crate
+        mujoco.mj_kinematics(model, data)
+        pos[i], quat[i] = data.xpos, data.xquat
+    with pytest.raises(ValueError, match="every body"):
+        draw.send_poses(rec, t, pos[:, :1], quat)
+    draw.send_poses(rec, t, pos, quat)
     close_stream(rec)
     comps = _static_components(path)
     want = {
@@ -75,9 +80,3 @@ def test_every_geom_type_is_drawn(tmp_path) -> None:  # type: ignore[no-untyped-
     np.testing.assert_allclose(quat[1], [0, 0, np.sin(np.pi / 4), np.cos(np.pi / 4)], atol=1e-6)
     crate = read_columns(path, "/world/bodies/crate")
     np.testing.assert_allclose(crate["Transform3D:translation"][1], [0.7, 0.4, 0.1], atol=1e-6)
-
-
-def test_contiguous_index_is_a_slice() -> None:
-    assert MujocoDrawing.index(np.array([2, 3, 4])) == slice(2, 5)
-    assert isinstance(MujocoDrawing.index(np.array([0, 2])), np.ndarray)
-    assert rr is not None

@@ -85,6 +85,31 @@ def test_arm_geometry_and_poses(arm_run) -> None:  # type: ignore[no-untyped-def
     np.testing.assert_allclose(np.asarray(wit[k], dtype=float).reshape(-1, 2, 3), want, atol=1e-6)
 
 
+def test_arm_poses_and_barriers_are_the_tick_state(arm_run) -> None:  # type: ignore[no-untyped-def]
+    """A row's body poses and barrier values are those of its own ``q`` (the state at the control tick)."""
+    import mujoco
+
+    from isf_robot.arm import load_scene
+    from isf_robot.arm.sim import ArmSimulation
+
+    recs = arm_run.collector.steps
+    draw = arm_run.recorder.drawing
+    sim = ArmSimulation(load_scene("planar_moving"), "nominal", params=arm_run.result.params)
+    model, qadr = draw.model, sim.scene.qpos_adr
+    data = mujoco.MjData(model)
+    links = [b for b in draw.moving.tolist() if model.body_mocapid[b] < 0]
+    assert links
+    cols = {b: read_columns(arm_run.path, draw.body_paths[b])["Transform3D:translation"] for b in links}
+    for i in range(0, len(recs), 97):
+        data.qpos[qadr] = recs[i].q
+        data.mocap_pos[:], data.mocap_quat[:] = recs[i].mocap_pos, recs[i].mocap_quat
+        mujoco.mj_kinematics(model, data)
+        for b in links:
+            np.testing.assert_allclose(cols[b][i], data.xpos[b], atol=1e-6)  # float32 translations
+        joints = sim.joints.evaluate(data)
+        np.testing.assert_array_equal(recs[i].h[len(recs[i].h) - joints.k:], joints.h)
+
+
 def test_arm_replay_metrics_equal_run(arm_run) -> None:  # type: ignore[no-untyped-def]
     (log,) = read_rrd(arm_run.path)
     m = replay_metrics(log)
