@@ -66,23 +66,30 @@ class StepColumns:
         ee_pos, goal_pos: End effector at ``t`` and goal pursued [m], shape (C, 3) (goal NaN without one).
         goal_index: Goal pursued, shape (C,) int.
         mocap_pos, mocap_quat: Mocap poses at ``t`` [m], (w, x, y, z), shape (C, m, 3) and (C, m, 4).
-        near: Per row, the indices of the collision pairs within the cut-off (ascending).
-        witness: Per row, their witness points, ``[:, 0]`` on the robot geom and ``[:, 1]`` on the other,
-            shape (a, 2 or more, 3).
-        relaxed: Per row, the names of the barriers whose promotion was relaxed.
-        events: Per row, the switch at that step or ``None``.
+        pair_start: Where each row's near pairs start in :attr:`pairs` and :attr:`witness`, shape (C + 1,):
+            row ``i``'s are ``pairs[pair_start[i]:pair_start[i + 1]]``.
+        pairs: The collision pairs within the cut-off, row after row (each row's ascending), shape (A,) int64.
+        witness: Their witness points, ``[:, 0]`` on the robot geom and ``[:, 1]`` on the other [m]
+            (NaN where the loop kept none), shape (A, 2, 3).
+        relaxed: The names of the barriers whose promotion was relaxed, by row (rows without any: absent).
+        events: The switches, by row (rows without one: absent).
         names: Barrier names, length k.
         n_collision: ``k_c``.
 
     Cost: a step's vectors that live in MuJoCo's data or may be reused by their owner (the state,
     ``u``, ``u_nom``, the end effector) are copied into their row, from views of ``data`` made once
-    by :meth:`bind`; everything else of the step goes to one tuple per row (its scalars, and the
-    arrays the loop makes fresh at every step, ``Xi_on`` and the tick's values, by reference).
-    :meth:`seal` turns those tuples into the block's arrays in one pass. A step inside a control
-    loop costs far more per NumPy call than the same call in a tight loop, so the per-step part
-    makes as few as it can.
+    by :meth:`bind`; the rest of the step goes to one tuple (its scalars, and the arrays the loop
+    makes fresh at every step, ``Xi_on`` and the tick's values, by reference). :meth:`seal` turns
+    those tuples into the block's arrays with a few NumPy calls over the whole stretch of rows, and
+    runs every :attr:`SEAL_ROWS` rows: a kept view keeps alive the kernel's output block it points
+    into, and a long run of them makes every phase of the loop slower. A step inside a control loop
+    costs far more per NumPy call than the same call in a tight loop, so the per-step part makes as
+    few as it can.
 
     """
+
+    SEAL_ROWS = 256
+    """:meth:`write` seals the block every this many rows (the loop's arrays of a row are kept until then)."""
 
     def __init__(self, capacity: int, n: int, names: tuple[str, ...], n_collision: int, nmocap: int,
                  dt: float, h_far: np.ndarray | None = None, goals: np.ndarray | None = None,
@@ -103,11 +110,12 @@ class StepColumns:
         self.xi_min, self.dist_min, self.h_min = np.zeros(c), np.full(c, math.inf), np.zeros(c)
         self.goal_index = np.zeros(c, dtype=np.int64)
         self.h = np.zeros((c, k))
-        self._rows: list[tuple[Any, ...]] = []
-        self.near: list[np.ndarray] = []
-        self.witness: list[np.ndarray] = []
-        self.relaxed: list[tuple[str, ...]] = []
-        self.events: list[Any] = []
+        self.pair_start = np.zeros(c + 1, dtype=np.int64)
+        per_row = max(1, min(self.n_collision, 8))  # (first guess of the near pairs per row: the buffers grow)
+        self._pairs, self._witness = np.zeros(c * per_row, dtype=np.int64), np.full((c * per_row, 2, 3), np.nan)
+        self._rows: list[tuple[Any, ...]] = []  # (the rows not sealed yet: t, on, QP, fallback, goal, Xi_on, values)
+        self.relaxed: dict[int, tuple[str, ...]] = {}
+        self.events: dict[int, Any] = {}
         self.sealed = 0
         self._state: tuple[Any, ...] = ()
 
@@ -118,6 +126,16 @@ class StepColumns:
     def full(self) -> bool:
         """Whether every row is written (the loop then seals it, hands it on and clears it)."""
         return self.size >= self.capacity
+
+    @property
+    def pairs(self) -> np.ndarray:
+        """The written rows' near pairs, row after row, shape (A,) (see :attr:`pair_start`)."""
+        return self._pairs[: self.pair_start[self.sealed]]
+
+    @property
+    def witness(self) -> np.ndarray:
+        """Their witness points, shape (A, 2, 3)."""
+        return self._witness[: self.pair_start[self.sealed]]
 
     def bind(self, data: Any, qpos_adr: Any, dof_adr: Any, ee_pos: np.ndarray) -> None:
         """Where :meth:`write` reads the tick's state: views of ``data`` (MuJoCo's, valid while it lives).
@@ -143,8 +161,9 @@ class StepColumns:
         """Start the next block (the arrays are reused: observers must not keep views past ``on_steps``)."""
         self.size = self.sealed = 0
         self.dist_min[:] = math.inf
-        for rows in (self._rows, self.near, self.witness, self.relaxed, self.events):
-            rows.clear()
+        self._rows.clear()
+        self.relaxed.clear()
+        self.events.clear()
 
     def write(self, t: float, step: Any, values: TickValues, goal_index: int) -> None:
         """Write one control step into the next row, at the control tick (before its physics steps).
@@ -153,7 +172,7 @@ class StepColumns:
             t: Time at the start of the step [s].
             step: The strategy's step (``u``, ``u_nom``, ``on``, ``xi``, ``qp``, ``fallback``,
                 ``relaxed``, ``event``).
-            values: The tick's barrier values (made for this step: kept by reference).
+            values: The tick's barrier values (copied).
             goal_index: Goal pursued (its position: the block's goal table, NaN without one).
 
         Raises:
@@ -178,9 +197,23 @@ class StepColumns:
         if mpos is not None:
             self.mocap_pos[i] = mpos
             self.mocap_quat[i] = mquat
-        self._rows.append((t, step.on, step.qp is not None, step.fallback, goal_index, step.xi, values,
-                           step.relaxed, step.event))
+        self._rows.append((t, step.on, step.qp is not None, step.fallback, goal_index, step.xi, values))
+        if step.relaxed:
+            self.relaxed[i] = tuple(step.relaxed)
+        if step.event is not None:
+            self.events[i] = step.event
         self.size = i + 1
+        if self.size - self.sealed >= self.SEAL_ROWS:
+            self.seal()
+
+    def _room(self, pairs: int) -> None:
+        """Room for at least ``pairs`` near pairs (and their witness points) in the flat buffers."""
+        if pairs > len(self._pairs):
+            size = max(pairs, 2 * len(self._pairs))
+            self._pairs = np.resize(self._pairs, size)
+            witness = np.full((size, 2, 3), np.nan)
+            witness[: len(self._witness)] = self._witness
+            self._witness = witness
 
     def end_row(self, dist_min: float) -> None:
         """The smallest true signed distance [m] over the physics steps of the row just written."""
@@ -190,31 +223,40 @@ class StepColumns:
         """Fill the block's arrays from the rows written since the last :meth:`seal` (or :meth:`clear`).
 
         A handful of NumPy calls over the whole stretch of rows (one concatenation per kind of
-        per-row array), not one per row.
+        per-row array), not one per row. :meth:`write` seals every :attr:`SEAL_ROWS` rows, so the
+        step's own arrays (views into the kernels' output blocks) are let go soon.
         """
         a, b = self.sealed, self.size
         if b <= a:
             return
         n = b - a
-        t, on, qp, fallback, goal, xi, values, relaxed, events = zip(*self._rows[a:b])
+        t, on, qp, fallback, goal, xi, values = zip(*self._rows)
+        self._rows.clear()
         self.t[a:b], self.on[a:b], self.qp_solved[a:b] = t, on, qp
         self.fallback[a:b], self.goal_index[a:b] = fallback, goal
-        self.relaxed[a:b] = relaxed
-        self.events[a:b] = events
-        self.xi_min[a:b] = _row_minima(xi, n)
         rows, tick_h, witness = zip(*values)
-        self.near[a:b] = rows
-        self.witness[a:b] = [_NO_WITNESS if w is None else w for w in witness]
+        counts = np.fromiter(map(len, rows), dtype=np.int64, count=n)
+        p0 = int(self.pair_start[a])
+        self.pair_start[a + 1: b + 1] = p0 + np.cumsum(counts)
+        p1 = int(self.pair_start[b])
+        self._room(p1)
+        self.xi_min[a:b] = _row_minima(xi, n)
         nc = self.n_collision
         h = self.h[a:b]
         h[:, :nc] = self.h_far
-        counts = np.fromiter(map(len, rows), dtype=np.int64, count=n)
         nj = h.shape[1] - nc  # (each tick's values: its near pairs', then every joint row's)
         flat = np.concatenate(tick_h)
-        start = np.cumsum(counts + nj) - (counts + nj)
-        if counts.any():  # (every row's near pairs in one scatter)
-            first = np.repeat(start - (np.cumsum(counts) - counts), counts)
-            h[np.repeat(np.arange(n), counts), np.concatenate(rows)] = flat[first + np.arange(int(counts.sum()))]
+        start = np.cumsum(counts + nj) - (counts + nj)  # (where each row's values start in ``flat``)
+        if p1 > p0:  # (every row's near pairs in one scatter)
+            pairs = self._pairs[p0:p1] = np.concatenate(rows)
+            h[np.repeat(np.arange(n), counts), pairs] = flat[np.repeat(start - (np.cumsum(counts) - counts), counts)
+                                                              + np.arange(p1 - p0)]
+            if not any(w is None for w in witness):
+                self._witness[p0:p1] = np.concatenate(witness)[:, :2]
+            else:  # (rows without witness points: NaN there)
+                for r, w in enumerate(witness):
+                    self._witness[self.pair_start[a + r]: self.pair_start[a + r + 1]] = (
+                        math.nan if w is None else w[:, :2])
         if nj:
             h[:, nc:] = flat[(start + counts)[:, None] + np.arange(nj)]
         goals, gi = self._goals, self.goal_index[a:b]
@@ -235,15 +277,16 @@ class StepColumns:
             raise IndexError(f"row {i} of a block of {self.size} step(s)")
         self.seal()
         names = self.names
+        near = slice(int(self.pair_start[i]), int(self.pair_start[i + 1]))
         return ArmStepRecord(
             t=float(self.t[i]), dt=self.dt, q=self.q[i].copy(), qd=self.qd[i].copy(), u=self.u[i].copy(),
             u_nom=self.u_nom[i].copy(), on=bool(self.on[i]), h_min=float(self.h_min[i]),
             xi_min=float(self.xi_min[i]), dist_min=float(self.dist_min[i]), qp_solved=bool(self.qp_solved[i]),
             h=self.h[i].copy(), names=names, closest=tuple(names[j] for j in self.closest(i).tolist()),
-            witness=np.array(self.witness[i][:, :2]), witness_names=tuple(names[j] for j in self.near[i].tolist()),
+            witness=self._witness[near].copy(), witness_names=tuple(names[j] for j in self._pairs[near].tolist()),
             mocap_pos=self.mocap_pos[i].copy(), mocap_quat=self.mocap_quat[i].copy(),
             ee_pos=self.ee_pos[i].copy(), goal_index=int(self.goal_index[i]), goal_pos=self.goal_pos[i].copy(),
-            event=self.events[i], fallback=bool(self.fallback[i]), relaxed=self.relaxed[i],
+            event=self.events.get(i), fallback=bool(self.fallback[i]), relaxed=self.relaxed.get(i, ()),
         )
 
 
@@ -256,6 +299,3 @@ def _row_minima(arrays: tuple[np.ndarray, ...], n: int) -> np.ndarray:
         mins[nz] = np.minimum.reduceat(np.concatenate(arrays), (np.cumsum(sizes) - sizes)[nz])
     return mins
 
-
-_NO_WITNESS = np.zeros((0, 2, 3))
-_NO_WITNESS.flags.writeable = False

@@ -184,6 +184,8 @@ class ArmRecorder(RerunRecorder):
             "intervention_rate": row_sq_sums(u - u_nom),
             "dist_min": b.dist_min[:n].copy(), "h_filter": b.h_min[:n].copy(), "xi": b.xi_min[:n].copy(),
             "h": b.h[:n].copy(), "u_nom": u_nom, "u": u, "ee": b.ee_pos[:n].copy(), "goal": b.goal_pos[:n].copy(),
+            # each row's collision pairs, the smallest h first (as the step record's ``closest``)
+            "order": np.argsort(b.h[:n, :self._n_collision], axis=1),
         }
         if not self._names:
             self._names = tuple(b.names)
@@ -193,7 +195,7 @@ class ArmRecorder(RerunRecorder):
             if out is not None and len(out[0]):
                 stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=out[0])], columns=out[1])
         stream.send_columns("/world/witness", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
-                            columns=witness_columns(*closest_witness(b, n, min(self.closest, 3))))
+                            columns=witness_columns(*closest_witness(b, n, a["order"][:, :min(self.closest, 3)])))
         if self.team is not None:
             self.team.send(stream, t, a["dt"], b, a["h"][:, :self._n_collision], u, u_nom)
         assert self.drawing is not None
@@ -231,7 +233,7 @@ class ArmRecorder(RerunRecorder):
         h = a["h"][:, :nc]
         n = h.shape[0]
         member = np.zeros((n, nc), dtype=bool)
-        member[np.arange(n)[:, None], np.argsort(h, axis=1)[:, :m]] = True
+        member[np.arange(n)[:, None], a["order"][:, :m]] = True
         prev = np.empty_like(member)
         prev[1:] = member[:-1]
         prev[0] = False

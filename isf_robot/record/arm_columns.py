@@ -43,27 +43,25 @@ def witness_columns(segs: np.ndarray, lengths: np.ndarray) -> Any:
     return rr.LineStrips3D.columns(strips=strips).partition(lengths.tolist())
 
 
-def closest_witness(block: Any, n: int, m: int) -> tuple[np.ndarray, np.ndarray]:
-    """The witness segments of each row's pairs that are among its ``m`` closest, for :func:`witness_columns`.
+def closest_witness(block: Any, n: int, closest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The witness segments of each row's pairs among ``closest[i]``, for :func:`witness_columns`.
 
-    ``block.h[:, :block.n_collision]`` ranks the pairs (the smallest ``h`` first, as the step
-    record's ``closest``); ``block.near[i]`` and ``block.witness[i]`` are row ``i``'s pairs within
-    the cut-off and their witness points, shape (a, 2 or more, 3) (the first two: the segment).
+    ``block`` holds each row's pairs within the cut-off and their witness points (``pairs``,
+    ``witness``, row ``i``'s from ``pair_start[i]`` to ``pair_start[i + 1]``:
+    :class:`~isf_robot.arm.step_columns.StepColumns`); ``closest`` holds each row's pairs to draw,
+    shape (n, m) (the smallest ``h`` first, as the step record's ``closest``).
 
     Returns:
         ``(segments, lengths)``: shape (s, 2, 3) and (n,), row after row.
 
     """
     nc = block.n_collision
-    if m <= 0 or nc == 0 or n == 0:
+    if closest.size == 0 or nc == 0 or n == 0:
         return np.zeros((0, 2, 3)), np.zeros(n, dtype=np.int64)
-    counts = np.fromiter(map(len, block.witness[:n]), dtype=np.int64, count=n)
-    if not counts.any():
-        return np.zeros((0, 2, 3)), counts
-    segs = np.concatenate([w for w in block.witness[:n] if len(w)])[:, :2]
-    pair = np.concatenate(block.near[:n])
+    start = block.pair_start[: n + 1]
+    counts = np.diff(start)
+    pair, segs = block.pairs[start[0]: start[-1]], block.witness[start[0]: start[-1]]
     row = np.repeat(np.arange(n), counts)
-    closest = np.argsort(block.h[:n, :nc], axis=1)[:, :m]
     member = np.zeros((n, nc), dtype=bool)
     member[np.arange(n)[:, None], closest] = True
     keep = member[row, pair]
