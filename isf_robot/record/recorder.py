@@ -17,7 +17,7 @@ cost per step is a few array writes; the stream is closed (file footer written) 
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -36,16 +36,16 @@ from .stream import close_stream
 __all__ = ["RerunRecorder", "to_jsonable", "finite_scalars", "value_columns"]
 
 
-def value_columns(**fields: np.ndarray) -> Any:
-    """``rr.AnyValues.columns`` of 1-D numeric or bool arrays, one value per row.
+def value_columns(**fields: np.ndarray | Sequence[str]) -> Any:
+    """``rr.AnyValues.columns`` of 1-D numeric or bool arrays (or lists of strings), one value per row.
 
     The same columns as ``rr.AnyValues.columns(**fields)`` (a list of one value per row), built as
     Arrow list arrays in one go: Rerun's own conversion makes a Python list per value.
     """
     out = {}
     for name, values in fields.items():
-        v = np.ascontiguousarray(values).reshape(-1)
-        out[name] = pa.ListArray.from_arrays(pa.array(np.arange(v.size + 1, dtype=np.int32)), pa.array(v))
+        v = pa.array(np.ascontiguousarray(values).reshape(-1) if isinstance(values, np.ndarray) else list(values))
+        out[name] = pa.ListArray.from_arrays(pa.array(np.arange(len(v) + 1, dtype=np.int32)), v)
     return rr.AnyValues.columns(**out)
 
 
@@ -62,9 +62,9 @@ def finite_scalars(t: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, Any] 
 
 def _event_columns(rows: list[tuple[float, str, int, float, float]]) -> Any:
     t, kind, index, xi, dur = zip(*rows)
-    return rr.AnyValues.columns(
+    return value_columns(
         t=np.asarray(t, dtype=np.float64),
-        kind=list(kind),
+        kind=kind,
         index=np.asarray(index, dtype=np.int64),
         xi=np.asarray(xi, dtype=np.float64),
         duration_s=np.asarray(dur, dtype=np.float64),

@@ -39,7 +39,7 @@ import rerun as rr
 
 from .blueprints import satellite_blueprint
 from .errors import RecordError
-from .recorder import RerunRecorder
+from .recorder import RerunRecorder, value_columns
 from .schema import IMPULSES, PLOTS
 
 __all__ = ["SatelliteRecorder", "body_triangles", "ITOKAWA_HALF_AXES_M"]
@@ -78,11 +78,16 @@ def body_triangles(mesh: Any) -> tuple[np.ndarray, np.ndarray]:
     return verts, faces.astype(np.uint32)
 
 
+def _arrow_columns(origins: np.ndarray, vectors: np.ndarray, labels: np.ndarray) -> Any:
+    """One arrow per row (the impulse at the satellite), labelled."""
+    return rr.Arrows3D.columns(origins=origins, vectors=vectors, labels=[str(x) for x in labels])
+
+
 def _impulse_columns(rows: list[tuple[Any, ...]]) -> Any:
     t, kind, index, dv, h_after, xi_after, interval = zip(*rows)
     dv_arr = np.asarray(dv, dtype=np.float64).reshape(len(rows), -1)
-    return rr.AnyValues.columns(
-        t=np.asarray(t, dtype=np.float64), kind=list(kind), index=np.asarray(index, dtype=np.int64),
+    return value_columns(
+        t=np.asarray(t, dtype=np.float64), kind=kind, index=np.asarray(index, dtype=np.int64),
         dv_x=dv_arr[:, 0], dv_y=dv_arr[:, 1] if dv_arr.shape[1] > 1 else np.zeros(len(rows)),
         dv_z=dv_arr[:, 2] if dv_arr.shape[1] > 2 else np.zeros(len(rows)),
         h_after=np.asarray(h_after, dtype=np.float64), xi_after=np.asarray(xi_after, dtype=np.float64),
@@ -125,15 +130,20 @@ class SatelliteRecorder(RerunRecorder):
         self._parts = 0
         self._last_pos: np.ndarray | None = None
         buf = self.buffer
-        self._radius = buf.scalars("/plots/radius")
-        self._h = buf.scalars("/plots/barrier/h")
-        self._xi = buf.scalars("/plots/xi/xi")
-        self._xi_tau = buf.scalars("/plots/xi/xi_tau")
-        self._body = buf.channel("/world/body", {"quaternion": ((4,), np.float64)},
-                                 lambda quaternion: rr.Transform3D.columns(quaternion=quaternion))
-        self._sat = buf.channel("/world/satellite", {"positions": ((3,), np.float64)},
-                                lambda positions: rr.Points3D.columns(positions=positions))
+        scalars = (lambda name: lambda t, a: (t, rr.Scalars.columns(scalars=a[name])))
+        # one push per sample feeds every per-sample entity (one channel, its rows sent to each path)
+        self._sample = buf.channel("/plots/radius", {
+            "r": ((), np.float64), "h": ((), np.float64), "xi": ((), np.float64), "xi_tau": ((), np.float64),
+            "quaternion": ((4,), np.float64), "position": ((3,), np.float64)},
+            lambda r, **_: rr.Scalars.columns(scalars=r), derived=(
+                ("/plots/barrier/h", scalars("h")), ("/plots/xi/xi", scalars("xi")),
+                ("/plots/xi/xi_tau", scalars("xi_tau")),
+                ("/world/body", lambda t, a: (t, rr.Transform3D.columns(quaternion=a["quaternion"]))),
+                ("/world/satellite", lambda t, a: (t, rr.Points3D.columns(positions=a["position"]))),
+            ))
         self._impulses = buf.ragged(IMPULSES, _impulse_columns)
+        self._arrows = buf.channel("/world/impulses", {"origins": ((3,), np.float64), "vectors": ((3,), np.float64),
+                                                       "labels": ((), object)}, _arrow_columns)
         self._dv = buf.scalars(f"{PLOTS}/impulses/dv")
         self._band = _BAND
         self._t_last = 0.0
@@ -161,6 +171,7 @@ class SatelliteRecorder(RerunRecorder):
                                                           fill_mode="majorwireframe",
                                                           labels=[f"{k}R"]), static=True)
         rec.log("/world/satellite", rr.Points3D.from_fields(radii=[0.03 * R], colors=[[250, 250, 60]]), static=True)
+        rec.log("/world/impulses", rr.Arrows3D.from_fields(colors=[[255, 60, 60]]), static=True)
         rec.log("/plots/radius", rr.SeriesLines(names="r / R"), static=True)
         band = info.get("band_over_R") or _BAND
         self._band = (float(band[0]), float(band[1]))
@@ -207,13 +218,9 @@ class SatelliteRecorder(RerunRecorder):
         """Radius, barrier, triggers, body spin, position and trajectory."""
         R = float(self.radius_m or 1.0)
         self._t_last = t
-        self._radius.push(t, float(record.r) / R)
-        self._h.push(t, float(record.h))
-        self._xi.push(t, float(record.xi))
-        self._xi_tau.push(t, float(record.xi_tau))
         half = 0.5 * float(record.body_angle)
-        self._body.push(t, (0.0, 0.0, math.sin(half), math.cos(half)))
-        self._sat.push(t, record.position)
+        self._sample.push(t, float(record.r) / R, record.h, record.xi, record.xi_tau,
+                          (0.0, 0.0, math.sin(half), math.cos(half)), record.position)
         self._pos[self._n_pos] = record.position
         self._n_pos += 1
         if self._n_pos == self._pos.shape[0]:
@@ -240,12 +247,8 @@ class SatelliteRecorder(RerunRecorder):
         x = np.asarray(getattr(event, "x_before", np.zeros(6)), dtype=np.float64).ravel()
         if v.size == 3 and x.size >= 3:
             mag = float(np.linalg.norm(v))
-            self.stream.set_time("sim_time", duration=t)
-            self.stream.log("/world/impulses", rr.Arrows3D(
-                origins=[x[:3]], vectors=[v * float(self.arrow_scale or 1.0)], colors=[[255, 60, 60]],
-                labels=[f"{getattr(event, 'kind', '')} t = {t / 3600.0:.3f} h, |dv| = {mag:.3g} m/s"],
-            ))
-            self.stream.reset_time()
+            self._arrows.push(t, x[:3], v * float(self.arrow_scale or 1.0),
+                              f"{getattr(event, 'kind', '')} t = {t / 3600.0:.3f} h, |dv| = {mag:.3g} m/s")
         self._dv.push(t, float(np.linalg.norm(v[:3])) if v.size >= 3 else float("nan"))
         self._impulses.push(t, (t, str(getattr(event, "kind", "")), int(getattr(event, "index", 0)),
                                 tuple(v[:3]) if v.size >= 3 else (float("nan"),) * 3,

@@ -148,6 +148,11 @@ def test_satellite_round_trip(sat_run) -> None:  # type: ignore[no-untyped-def]
     arrows = read_columns(sat_run.path, "/world/impulses")
     assert len(arrows["sim_time"]) == res.triggers
     assert "h" in str(arrows["Arrows3D:labels"][0])
+    np.testing.assert_allclose(np.asarray(arrows["Arrows3D:origins"], dtype=float).reshape(-1, 3),
+                               [e.x_before[:3] for e in res.events], rtol=1e-6)  # float32 points
+    scale = sat_run.recorder.arrow_scale
+    np.testing.assert_allclose(np.asarray(arrows["Arrows3D:vectors"], dtype=float).reshape(-1, 3),
+                               [np.asarray(e.v) * scale for e in res.events], rtol=1e-6, atol=1e-9 * scale)
 
 
 def test_satellite_replay_gives_the_run_figures_only(sat_run) -> None:  # type: ignore[no-untyped-def]
