@@ -7,19 +7,27 @@ input bounds): :func:`~isf_robot.core.robust.row_bounds` of the kept rows,
 :func:`~isf_robot.core.screening.others_hold` on the rows screened out. The same functions the
 general path calls one by one, composed: compiled as one call (:func:`~isf_robot.core.jit.compiled`)
 it saves their separate calls' overhead; as written it runs them in numpy.
+
+:func:`xi_closed_step` is the standard filter's whole step in one call: :func:`~isf_robot.core.robust.xi_pass`
+(``Xi_on`` of every row and the rows below their screening thresholds), the rows the filter solves
+(:func:`solved_rows`) and :func:`closed_step` on them.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from .jit import formula
 from .projection import FEW_ROWS, REL_TOL, project_few, project_row
-from .robust import row_bound, row_bounds
+from .robust import row_bound, row_bounds, xi_pass
 from .screening import others_hold
 
-__all__ = ["closed_step"]
+__all__ = ["closed_step", "solved_rows", "xi_closed_step"]
 
 
+@formula
 def closed_step(rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: float, alpha_h: np.ndarray,
                 promote: np.ndarray, ramp: np.ndarray, b: float, lg: np.ndarray, u_nom: np.ndarray, xi: np.ndarray,
                 feas_tol: float, active_tol: float, few: bool, u: np.ndarray, res: np.ndarray) -> tuple:
@@ -49,3 +57,41 @@ def closed_step(rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: 
     if code == 0:
         return code, low, others_hold(xi, lg, np.zeros(u_nom.shape[0]), rows, active_tol)
     return code, low, others_hold(xi, lg, u - u_nom, rows, active_tol)
+
+
+@formula
+def solved_rows(kept: int, argmin: int, k: int, rows: np.ndarray) -> int:
+    """The rows a filter step solves, written to ``rows``; returns their number.
+
+    ``rows[:kept]``: the rows kept by screening. None kept (``kept == 0``): the row of least slack
+    ``argmin`` alone; no screening (``kept < 0``) or every row kept: every row, ascending.
+    """
+    if kept == 0:
+        rows[0] = argmin
+        return 1
+    if 0 < kept < k:
+        return kept
+    for i in range(k):
+        rows[i] = i
+    return k
+
+
+def xi_closed_step(lf: np.ndarray, lg: np.ndarray, u_nom: np.ndarray, grad_norm: np.ndarray, d_bar: float,
+                   h: np.ndarray, gain: float, av: np.ndarray, screen: np.ndarray, xi: np.ndarray, rows: np.ndarray,
+                   promote: np.ndarray, ramp: np.ndarray, feas_tol: float, active_tol: float, few: bool,
+                   u: np.ndarray, res: np.ndarray) -> tuple:
+    """The standard filter's step in one pass: ``Xi_on`` of every row, then the robust rows it keeps by closed form.
+
+    :func:`~isf_robot.core.robust.xi_pass` (arguments as there; at least one row), the rows
+    :func:`solved_rows` picks (written to ``rows``) and :func:`closed_step` on them with the robust
+    bounds (``promote``, ``ramp``: no entries). Returns ``(sum, min, argmin, kept, n, code, slack,
+    others hold)``: xi_pass's four, the rows solved and closed_step's three; ``code`` -3 (nothing
+    solved) when ``sum`` is not finite.
+    """
+    total, low, arg, kept = xi_pass(lf, lg, u_nom, grad_norm, d_bar, h, gain, av, screen, xi, rows)
+    if not math.isfinite(total):
+        return total, low, arg, kept, 0, -3, 0.0, False
+    n = solved_rows(kept, arg, xi.shape[0], rows)
+    code, slack, held = closed_step(rows[:n], lf, grad_norm, d_bar, av, promote, ramp, 0.0, lg, u_nom, xi, feas_tol,
+                                    active_tol, few, u, res)
+    return total, low, arg, kept, n, code, slack, held

@@ -8,8 +8,9 @@ The filters' semantics (when they are on, which rows they promote) are in
    (:func:`~isf_robot.core.robust.row_bounds`: robust, promoted or ramped);
 3. one of three solve paths: the closed form for one row or for a few rows without input bounds
    (:mod:`isf_robot.core.projection`, with the bounds and step 4 in one call:
-   :mod:`isf_robot.core.closed_step`), else the QP (:class:`~isf_robot.core.qp_solver.QPSolver`);
-   promotions relaxed to the robust condition when the promoted QP is infeasible;
+   :mod:`isf_robot.core.closed_step`; the standard filter runs steps 1 to 4 in that one call), else
+   the QP (:class:`~isf_robot.core.qp_solver.QPSolver`); promotions relaxed to the robust condition
+   when the promoted QP is infeasible;
 4. the rows screened out checked at the answer (solved again with every row when one binds);
 5. the infeasibility policy.
 
@@ -32,7 +33,7 @@ import numpy as np
 from . import projection, robust, screening
 from .barrier import Barrier, evaluate_barriers
 from .class_k import ClassK, Linear, as_class_k
-from .closed_step import closed_step
+from .closed_step import closed_step, xi_closed_step
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
 from .handover import promote_rows
 from .jit import compiled, jit_enabled
@@ -57,6 +58,7 @@ _ACTIVE = (np.zeros(1, bool), np.ones(1, bool))  # one row's activity, shared (r
 for _a in _ACTIVE:
     _a.flags.writeable = False
 _tuple_new = tuple.__new__  # (builds a _Xi without its generated __new__)
+_NO_CLOSED = (None, False)  # "no closed-form answer" (see _FilterBase._closed)
 
 
 class Passes(NamedTuple):
@@ -68,13 +70,14 @@ class Passes(NamedTuple):
     others_hold: Callable[..., Any]
     promote_rows: Callable[..., Any]
     closed_step: Callable[..., Any]
+    xi_closed_step: Callable[..., Any]
 
     @classmethod
     def build(cls, compile_them: bool = True) -> Passes:
         """The passes compiled (where ``ISF_ROBOT_JIT`` allows; ``compile_them=False``: as written)."""
         c = compiled if compile_them else (lambda f: f)
         return cls(c(robust.xi_pass), c(robust.row_bounds), c(screening.kept_rows), c(screening.others_hold),
-                   c(promote_rows), c(closed_step))
+                   c(promote_rows), c(closed_step), c(xi_closed_step))
 
 
 def core_kernels() -> list[Any]:
@@ -98,6 +101,7 @@ class _Xi(NamedTuple):
     argmin: int  # first row of least Xi_on
     rows: np.ndarray | None  # with screening thresholds: the rows below theirs, ascending (the filter's buffer)
     passes: Passes  # the passes these inputs take (compiled, or as written)
+    closed: tuple[QPResult | None, bool] | None  # the robust rows' closed form when made with Xi_on (see _closed)
 
 
 class _FilterBase:
@@ -212,11 +216,15 @@ class _FilterBase:
             return self._passes
         return self._plain
 
-    def _xi(self, t: float, lie: LieData, u_nom: np.ndarray, screen: float | np.ndarray | None = None) -> _Xi:
+    def _xi(self, t: float, lie: LieData, u_nom: np.ndarray, screen: float | np.ndarray | None = None,
+            closed: bool = False) -> _Xi:
         """Checked inputs, ``Xi_on`` per row, its minimum and ``alpha(h)``; with ``screen``, the rows below it.
 
-        A non-finite input raises NonFiniteError (a finite ``Xi_on`` also means finite ``Lg h`` and
-        ``u_nom``).
+        ``closed``: also the robust rows' closed form (:meth:`_closed` of the rows :meth:`_solve_rows`
+        keeps without promotions) in the same call (:func:`~isf_robot.core.closed_step.xi_closed_step`),
+        where the filter has no input bounds and its solver the closed forms: the field ``closed``
+        (else ``None``). A non-finite input raises NonFiniteError (a finite ``Xi_on`` also means
+        finite ``Lg h`` and ``u_nom``).
         """
         if self.validate:
             lie.validate()
@@ -224,7 +232,7 @@ class _FilterBase:
         h = lie.h
         k = h.shape[0]
         if k == 0:
-            return _tuple_new(_Xi, (u_nom, np.zeros(0), math.inf, np.zeros(0), -1, None, self._plain))
+            return _tuple_new(_Xi, (u_nom, np.zeros(0), math.inf, np.zeros(0), -1, None, self._plain, None))
         alpha = self.alpha
         gain = alpha.gain if type(alpha) is Linear else 0.0
         av = np.empty(k) if gain > 0.0 else np.asarray(alpha.vector(h), dtype=float)
@@ -234,12 +242,23 @@ class _FilterBase:
             rows = self._rows_buf = np.empty(2 * k, np.intp)
         xi = np.empty(k)
         passes = self._passes_for(lie, u_nom)
-        total, low, arg, kept = passes.xi_pass(lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, sa, xi,
-                                               rows)
+        solver = self.solver
+        if closed and self.u_min is None and self.u_max is None and solver.closed_form:
+            u = np.empty(u_nom.shape[0])
+            t0 = time.perf_counter()
+            total, low, arg, kept, n, code, slack, held = passes.xi_closed_step(
+                lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, sa, xi, rows, _NONE_B, _NONE_F,
+                solver.feas_tol, solver.active_tol, solver.few_closed, u, self._res_buf)
+            short = self._closed_result(u_nom, u, code, slack, held, n, t0) if code >= 0 else _NO_CLOSED
+        else:
+            total, low, arg, kept = passes.xi_pass(lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, sa,
+                                                   xi, rows)
+            short = None
         if not math.isfinite(total):
             raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
                                  f"Xi_on = {xi}, u_nom = {u_nom}")
-        return _tuple_new(_Xi, (u_nom, xi, float(low), av, int(arg), None if kept < 0 else rows[:kept], passes))
+        return _tuple_new(_Xi, (u_nom, xi, float(low), av, int(arg), None if kept < 0 else rows[:kept], passes,
+                                short))
 
     # -- the QP's rows -------------------------------------------------------------------
     def qp_lower(self, lie: LieData, promote: np.ndarray | None = None, b: float = 0.0,
@@ -315,48 +334,52 @@ class _FilterBase:
                 rows = None
             elif rows.shape[0] == 0:  # the row of least slack alone
                 rows = np.array([xs.argmin if xs is not None else int(np.argmin(xi))], np.intp)
-        short = self._closed(lie, u_nom, xi, av, promote, ramp, b, rows, passes)
-        if short is not None and short[1]:
-            return short[0], (), False, False
-        if short is not None:  # a screened row binds at the closed form's answer
-            first: QPResult | None = short[0]
-        else:
+        short = (xs.closed if xs is not None and xs.closed is not None and promote is None and not floor > 0.0
+                 else self._closed(lie, u_nom, xi, av, promote, ramp, b, rows, passes))
+        if short[1]:
+            return short[0], (), False, False  # type: ignore[return-value]
+        first = short[0]
+        if first is None:
             first, relaxed, fb = self._solve_block(t, x, lie, u_nom, av, promote, ramp, b, rows, passes)
             if rows is None or fb or passes.others_hold(xi, lie.lg, first.u - u_nom, rows, self.solver.active_tol):
                 return first, relaxed, fb, False
+        # (else a screened row binds at the closed form's answer)
         res, relaxed, fb = self._solve_block(t, x, lie, u_nom, av, promote, ramp, b, None, passes)
         return replace(res, solve_time_s=res.solve_time_s + first.solve_time_s), relaxed, fb, True
 
     def _closed(self, lie: LieData, u_nom: np.ndarray, xi: np.ndarray, av: np.ndarray, promote: np.ndarray | None,
                 ramp: np.ndarray, b: float, rows: np.ndarray | None,
-                passes: Passes) -> tuple[QPResult, bool] | None:
+                passes: Passes) -> tuple[QPResult | None, bool]:
         """The kept rows by their closed form (:func:`~isf_robot.core.closed_step.closed_step`).
 
-        ``(result, every other row holds)``, or ``None`` (input bounds, the closed forms off, too many
-        rows, no answer).
+        ``(result, every other row holds)``, or ``(None, False)`` (input bounds, the closed forms off, too
+        many rows, no answer).
         """
         solver = self.solver
         if self.u_min is not None or self.u_max is not None or not solver.closed_form:
-            return None
+            return _NO_CLOSED
         k = xi.shape[0]
         idx = self._all_rows(k) if rows is None else rows
         n = idx.shape[0]
         few = solver.few_closed and n <= FEW_ROWS
         if n == 0 or (n > 1 and not few):
-            return None
-        u, res = np.empty(u_nom.shape[0]), self._res_buf
+            return _NO_CLOSED
+        u = np.empty(u_nom.shape[0])
         t0 = time.perf_counter()
         code, low, held = passes.closed_step(idx, lie.lf, lie.grad_norm, self.d_bar, av,
                                              _NONE_B if promote is None else promote, ramp, b, lie.lg, u_nom, xi,
-                                             solver.feas_tol, solver.active_tol, few, u, res)
-        if code < 0:
-            return None
+                                             solver.feas_tol, solver.active_tol, few, u, self._res_buf)
+        return self._closed_result(u_nom, u, code, low, held, n, t0) if code >= 0 else _NO_CLOSED
+
+    def _closed_result(self, u_nom: np.ndarray, u: np.ndarray, code: int, low: float, held: bool, n: int,
+                       t0: float) -> tuple[QPResult, bool]:
+        """``(result, every other row holds)`` of a closed-form answer (``code`` >= 0) on ``n`` rows, from ``t0``."""
+        spent = time.perf_counter() - t0
         self.qp_solves += 1
+        tol = self.solver.active_tol
         if n == 1:
-            return QPResult._of(u_nom if code == 0 else u, "closed_form", _ACTIVE[int(low <= solver.active_tol)],
-                                time.perf_counter() - t0), bool(held)
-        return QPResult._of(u, "optimal", res[:n] <= solver.active_tol, time.perf_counter() - t0, 0,
-                            max(0.0, -float(low))), bool(held)
+            return QPResult._of(u_nom if code == 0 else u, "closed_form", _ACTIVE[int(low <= tol)], spent), bool(held)
+        return QPResult._of(u, "optimal", self._res_buf[:n] <= tol, spent, 0, max(0.0, -float(low))), bool(held)
 
     def _solve_block(
         self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, av: np.ndarray,
