@@ -10,7 +10,9 @@ it saves their separate calls' overhead; as written it runs them in numpy.
 
 :func:`xi_closed_step` is the standard filter's whole step in one call: :func:`~isf_robot.core.robust.xi_pass`
 (``Xi_on`` of every row and the rows below their screening thresholds), the rows the filter solves
-(:func:`solved_rows`) and :func:`closed_step` on them.
+(:func:`~isf_robot.core.screening.solved_rows`) and :func:`closed_step` on them;
+:func:`screened_closed_step` the rows kept by screening (:func:`~isf_robot.core.screening.screened_rows`:
+promoted rows always) and :func:`closed_step` on them, given ``Xi_on`` (the filters' other solves).
 """
 
 from __future__ import annotations
@@ -22,9 +24,9 @@ import numpy as np
 from .jit import formula
 from .projection import FEW_ROWS, REL_TOL, project_few, project_row
 from .robust import row_bound, row_bounds, xi_pass
-from .screening import others_hold
+from .screening import others_hold, screened_rows, solved_rows
 
-__all__ = ["closed_step", "solved_rows", "xi_closed_step"]
+__all__ = ["closed_step", "xi_closed_step", "screened_closed_step"]
 
 
 @formula
@@ -59,23 +61,6 @@ def closed_step(rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: 
     return code, low, others_hold(xi, lg, u - u_nom, rows, active_tol)
 
 
-@formula
-def solved_rows(kept: int, argmin: int, k: int, rows: np.ndarray) -> int:
-    """The rows a filter step solves, written to ``rows``; returns their number.
-
-    ``rows[:kept]``: the rows kept by screening. None kept (``kept == 0``): the row of least slack
-    ``argmin`` alone; no screening (``kept < 0``) or every row kept: every row, ascending.
-    """
-    if kept == 0:
-        rows[0] = argmin
-        return 1
-    if 0 < kept < k:
-        return kept
-    for i in range(k):
-        rows[i] = i
-    return k
-
-
 def xi_closed_step(lf: np.ndarray, lg: np.ndarray, u_nom: np.ndarray, grad_norm: np.ndarray, d_bar: float,
                    h: np.ndarray, gain: float, av: np.ndarray, screen: np.ndarray, xi: np.ndarray, rows: np.ndarray,
                    promote: np.ndarray, ramp: np.ndarray, feas_tol: float, active_tol: float, few: bool,
@@ -83,8 +68,8 @@ def xi_closed_step(lf: np.ndarray, lg: np.ndarray, u_nom: np.ndarray, grad_norm:
     """The standard filter's step in one pass: ``Xi_on`` of every row, then the robust rows it keeps by closed form.
 
     :func:`~isf_robot.core.robust.xi_pass` (arguments as there; at least one row), the rows
-    :func:`solved_rows` picks (written to ``rows``) and :func:`closed_step` on them with the robust
-    bounds (``promote``, ``ramp``: no entries). Returns ``(sum, min, argmin, kept, n, code, slack,
+    :func:`~isf_robot.core.screening.solved_rows` picks (written to ``rows``) and :func:`closed_step` on
+    them with the robust bounds (``promote``, ``ramp``: no entries). Returns ``(sum, min, argmin, kept, n, code, slack,
     others hold)``: xi_pass's four, the rows solved and closed_step's three; ``code`` -3 (nothing
     solved) when ``sum`` is not finite.
     """
@@ -95,3 +80,18 @@ def xi_closed_step(lf: np.ndarray, lg: np.ndarray, u_nom: np.ndarray, grad_norm:
     code, slack, held = closed_step(rows[:n], lf, grad_norm, d_bar, av, promote, ramp, 0.0, lg, u_nom, xi, feas_tol,
                                     active_tol, few, u, res)
     return total, low, arg, kept, n, code, slack, held
+
+
+def screened_closed_step(xi: np.ndarray, screen: np.ndarray, floor: float, promote: np.ndarray, argmin: int,
+                         rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: float, alpha_h: np.ndarray,
+                         ramp: np.ndarray, b: float, lg: np.ndarray, u_nom: np.ndarray, feas_tol: float,
+                         active_tol: float, few: bool, u: np.ndarray, res: np.ndarray) -> tuple:
+    """The rows a filter step solves and their closed form, in one pass: ``(n, code, slack, others hold)``.
+
+    :func:`~isf_robot.core.screening.screened_rows` (the ``n`` rows, written to ``rows``) and
+    :func:`closed_step` on them (arguments as there).
+    """
+    n = screened_rows(xi, screen, floor, promote, argmin, rows)
+    code, slack, held = closed_step(rows[:n], lf, grad_norm, d_bar, alpha_h, promote, ramp, b, lg, u_nom, xi, feas_tol,
+                                    active_tol, few, u, res)
+    return n, code, slack, held
