@@ -26,7 +26,7 @@ from .projection import FEW_ROWS, REL_TOL, project_few, project_row
 from .robust import row_bound, row_bounds, xi_pass
 from .screening import others_hold, screened_rows, solved_rows
 
-__all__ = ["closed_step", "xi_closed_step", "screened_closed_step"]
+__all__ = ["closed_step", "active_bits", "xi_closed_step", "screened_closed_step"]
 
 
 @formula
@@ -61,6 +61,16 @@ def closed_step(rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: 
     return code, low, others_hold(xi, lg, u - u_nom, rows, active_tol)
 
 
+@formula
+def active_bits(res: np.ndarray, n: int, active_tol: float) -> int:
+    """The rows active at a closed form's answer as bits: bit ``i`` set when ``res[i] <= active_tol`` (``i < n``)."""
+    bits = 0
+    for i in range(n):
+        if res[i] <= active_tol:
+            bits |= 1 << i
+    return bits
+
+
 def xi_closed_step(lf: np.ndarray, lg: np.ndarray, u_nom: np.ndarray, grad_norm: np.ndarray, d_bar: float,
                    h: np.ndarray, gain: float, av: np.ndarray, screen: np.ndarray, xi: np.ndarray, rows: np.ndarray,
                    promote: np.ndarray, ramp: np.ndarray, feas_tol: float, active_tol: float, few: bool,
@@ -70,28 +80,28 @@ def xi_closed_step(lf: np.ndarray, lg: np.ndarray, u_nom: np.ndarray, grad_norm:
     :func:`~isf_robot.core.robust.xi_pass` (arguments as there; at least one row), the rows
     :func:`~isf_robot.core.screening.solved_rows` picks (written to ``rows``) and :func:`closed_step` on
     them with the robust bounds (``promote``, ``ramp``: no entries). Returns ``(sum, min, argmin, kept, n, code, slack,
-    others hold)``: xi_pass's four, the rows solved and closed_step's three; ``code`` -3 (nothing
-    solved) when ``sum`` is not finite.
+    others hold, active)``: xi_pass's four, the rows solved, closed_step's three and :func:`active_bits`
+    of the answer; ``code`` -3 (nothing solved) when ``sum`` is not finite.
     """
     total, low, arg, kept = xi_pass(lf, lg, u_nom, grad_norm, d_bar, h, gain, av, screen, xi, rows)
     if not math.isfinite(total):
-        return total, low, arg, kept, 0, -3, 0.0, False
+        return total, low, arg, kept, 0, -3, 0.0, False, 0
     n = solved_rows(kept, arg, xi.shape[0], rows)
     code, slack, held = closed_step(rows[:n], lf, grad_norm, d_bar, av, promote, ramp, 0.0, lg, u_nom, xi, feas_tol,
                                     active_tol, few, u, res)
-    return total, low, arg, kept, n, code, slack, held
+    return total, low, arg, kept, n, code, slack, held, active_bits(res, n, active_tol) if code >= 0 else 0
 
 
 def screened_closed_step(xi: np.ndarray, screen: np.ndarray, floor: float, promote: np.ndarray, argmin: int,
                          rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: float, alpha_h: np.ndarray,
                          ramp: np.ndarray, b: float, lg: np.ndarray, u_nom: np.ndarray, feas_tol: float,
                          active_tol: float, few: bool, u: np.ndarray, res: np.ndarray) -> tuple:
-    """The rows a filter step solves and their closed form, in one pass: ``(n, code, slack, others hold)``.
+    """The rows a filter step solves and their closed form, in one pass: ``(n, code, slack, others hold, active)``.
 
-    :func:`~isf_robot.core.screening.screened_rows` (the ``n`` rows, written to ``rows``) and
-    :func:`closed_step` on them (arguments as there).
+    :func:`~isf_robot.core.screening.screened_rows` (the ``n`` rows, written to ``rows``),
+    :func:`closed_step` on them (arguments as there) and :func:`active_bits` of the answer.
     """
     n = screened_rows(xi, screen, floor, promote, argmin, rows)
     code, slack, held = closed_step(rows[:n], lf, grad_norm, d_bar, alpha_h, promote, ramp, b, lg, u_nom, xi, feas_tol,
                                     active_tol, few, u, res)
-    return n, code, slack, held
+    return n, code, slack, held, active_bits(res, n, active_tol) if code >= 0 else 0

@@ -54,11 +54,19 @@ _F64 = np.dtype(np.float64)
 _NONE_B = np.zeros(0, bool)  # "no promoted rows"
 _NONE_F = np.zeros(0)  # "no thresholds" / "every ramp weight 1"
 _KINDS = ("robust", "promote")  # a row's kind by its promotion flag
-_ACTIVE = (np.zeros(1, bool), np.ones(1, bool))  # one row's activity, shared (read-only)
-for _a in _ACTIVE:
-    _a.flags.writeable = False
+_ACTIVE: dict[int, tuple[np.ndarray, ...]] = {}  # n rows' activity masks by their bits, shared (read-only)
 _tuple_new = tuple.__new__  # (builds a _Xi without its generated __new__)
 _NO_CLOSED = (None, False)  # "no closed-form answer" (see _FilterBase._solve_rows)
+
+
+def _masks(n: int) -> tuple[np.ndarray, ...]:
+    """Every activity mask of ``n`` rows, read-only, indexed by its bits (bit ``i``: row ``i`` active)."""
+    out = []
+    for bits in range(1 << n):
+        mask = np.array([bool(bits >> i & 1) for i in range(n)])
+        mask.flags.writeable = False
+        out.append(mask)
+    return tuple(out)
 
 
 class Passes(NamedTuple):
@@ -246,10 +254,10 @@ class _FilterBase:
         if closed and self.u_min is None and self.u_max is None and solver.closed_form:
             u = np.empty(u_nom.shape[0])
             t0 = time.perf_counter()
-            total, low, arg, kept, n, code, slack, held = passes.xi_closed_step(
+            total, low, arg, kept, n, code, slack, held, bits = passes.xi_closed_step(
                 lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, sa, xi, rows, _NONE_B, _NONE_F,
                 solver.feas_tol, solver.active_tol, solver.few_closed, u, self._res_buf)
-            short = self._closed_result(u_nom, u, code, slack, held, n, t0) if code >= 0 else None
+            short = self._closed_result(u_nom, u, code, slack, held, n, bits, t0) if code >= 0 else None
         else:  # (no thresholds: _solve_rows finds the rows it keeps)
             total, low, arg, _ = passes.xi_pass(lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, _NONE_F,
                                                 xi, rows)
@@ -329,11 +337,10 @@ class _FilterBase:
             if self.u_min is None and self.u_max is None and solver.closed_form:
                 u = np.empty(u_nom.shape[0])
                 t0 = time.perf_counter()
-                n, code, low, held = passes.screened_closed_step(xi, sa, floor, prom, arg, buf, lie.lf, lie.grad_norm,
-                                                                 self.d_bar, av, ramp, b, lie.lg, u_nom,
-                                                                 solver.feas_tol, solver.active_tol, solver.few_closed,
-                                                                 u, self._res_buf)
-                short = self._closed_result(u_nom, u, code, low, held, n, t0) if code >= 0 else _NO_CLOSED
+                n, code, low, held, bits = passes.screened_closed_step(
+                    xi, sa, floor, prom, arg, buf, lie.lf, lie.grad_norm, self.d_bar, av, ramp, b, lie.lg, u_nom,
+                    solver.feas_tol, solver.active_tol, solver.few_closed, u, self._res_buf)
+                short = self._closed_result(u_nom, u, code, low, held, n, bits, t0) if code >= 0 else _NO_CLOSED
             else:
                 n, short = passes.screened_rows(xi, sa, floor, prom, arg, buf), _NO_CLOSED
             rows = None if n == k else buf[:n]
@@ -348,15 +355,21 @@ class _FilterBase:
         res, relaxed, fb = self._solve_block(t, x, lie, u_nom, av, promote, ramp, b, None, passes)
         return replace(res, solve_time_s=res.solve_time_s + first.solve_time_s), relaxed, fb, True
 
-    def _closed_result(self, u_nom: np.ndarray, u: np.ndarray, code: int, low: float, held: bool, n: int,
+    def _closed_result(self, u_nom: np.ndarray, u: np.ndarray, code: int, low: float, held: bool, n: int, bits: int,
                        t0: float) -> tuple[QPResult, bool]:
-        """``(result, every other row holds)`` of a closed-form answer (``code`` >= 0) on ``n`` rows, from ``t0``."""
+        """``(result, every other row holds)`` of a closed-form answer (``code`` >= 0) on ``n`` rows, from ``t0``.
+
+        ``bits``: the active rows (:func:`~isf_robot.core.closed_step.active_bits`); the result's ``active``
+        is a shared read-only mask.
+        """
         spent = time.perf_counter() - t0
         self.qp_solves += 1
-        tol = self.solver.active_tol
+        masks = _ACTIVE.get(n)
+        if masks is None:
+            masks = _ACTIVE[n] = _masks(n)
         if n == 1:
-            return QPResult._of(u_nom if code == 0 else u, "closed_form", _ACTIVE[int(low <= tol)], spent), bool(held)
-        return QPResult._of(u, "optimal", self._res_buf[:n] <= tol, spent, 0, max(0.0, -float(low))), bool(held)
+            return QPResult._of(u_nom if code == 0 else u, "closed_form", masks[bits], spent), bool(held)
+        return QPResult._of(u, "optimal", masks[bits], spent, 0, max(0.0, -float(low))), bool(held)
 
     def _solve_block(
         self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, av: np.ndarray,
