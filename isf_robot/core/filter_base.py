@@ -228,11 +228,10 @@ class _FilterBase:
         """Checked inputs, ``Xi_on`` per row, its minimum and ``alpha(h)``.
 
         ``closed``: also the robust rows' closed form (of the rows :meth:`_solve_rows` keeps without
-        promotions, ``screen`` their thresholds) in the same call
-        (:func:`~isf_robot.core.closed_step.xi_closed_step`),
-        where the filter has no input bounds and its solver the closed forms: the field ``closed`` when
-        it answered (else ``None``). A non-finite input raises NonFiniteError (a finite ``Xi_on`` also
-        means finite ``Lg h`` and ``u_nom``).
+        promotions, ``screen`` their thresholds) in the same compiled call
+        (:func:`~isf_robot.core.closed_step.xi_closed_step`) where the filter has no input bounds and its
+        solver the closed forms: the field ``closed`` when it answered (else ``None``). A non-finite input
+        raises NonFiniteError (a finite ``Xi_on`` also means finite ``Lg h`` and ``u_nom``).
         """
         if self.validate:
             lie.validate()
@@ -320,20 +319,23 @@ class _FilterBase:
         """Solve with screening; return ``(result, relaxed names, fallback, resolved)``.
 
         ``xi``: each row's robust slack at ``u_nom`` (``Xi_on``, or the slack at a blended target);
-        ``xs``: the step's :meth:`_xi` when ``xi`` is its ``Xi_on`` (its rows below the thresholds
-        then serve); ``floor``: the thresholds are at least this (the off margin); promoted rows
-        are always kept.
+        ``xs``: the step's :meth:`_xi` when ``xi`` is its ``Xi_on`` (its closed form then serves, if it
+        made one); ``floor``: the thresholds are at least this (the off margin); promoted rows are
+        always kept. The rows (:func:`~isf_robot.core.screening.screened_rows`) and their closed form are
+        one compiled call (:func:`~isf_robot.core.closed_step.screened_closed_step`) where the closed
+        forms serve.
         """
         k = xi.shape[0]
         passes = xs.passes if xs is not None else self._passes_for(lie, u_nom)
+        short: tuple[QPResult | None, bool]
         if xs is not None and xs.closed is not None and promote is None and not floor > 0.0:
             short, rows = xs.closed, None  # (made with Xi_on for the same rows, and answered: no rows needed below)
         else:
             if screen is None:
                 screen = self.screen
             sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
-            prom, arg, buf, solver = _NONE_B if promote is None else promote, -1 if xs is None else xs.argmin, \
-                self._rows_buf, self.solver
+            prom, arg = _NONE_B if promote is None else promote, -1 if xs is None else xs.argmin
+            buf, solver = self._rows_buf, self.solver
             if self.u_min is None and self.u_max is None and solver.closed_form:
                 u = np.empty(u_nom.shape[0])
                 t0 = time.perf_counter()
@@ -344,14 +346,14 @@ class _FilterBase:
             else:
                 n, short = passes.screened_rows(xi, sa, floor, prom, arg, buf), _NO_CLOSED
             rows = None if n == k else buf[:n]
-        if short[1]:
-            return short[0], (), False, False  # type: ignore[return-value]
         first = short[0]
+        if first is not None and short[1]:
+            return first, (), False, False
         if first is None:
             first, relaxed, fb = self._solve_block(t, x, lie, u_nom, av, promote, ramp, b, rows, passes)
             if rows is None or fb or passes.others_hold(xi, lie.lg, first.u - u_nom, rows, self.solver.active_tol):
                 return first, relaxed, fb, False
-        # (else a screened row binds at the closed form's answer)
+        # a screened row binds at the answer: every row
         res, relaxed, fb = self._solve_block(t, x, lie, u_nom, av, promote, ramp, b, None, passes)
         return replace(res, solve_time_s=res.solve_time_s + first.solve_time_s), relaxed, fb, True
 

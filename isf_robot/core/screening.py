@@ -63,7 +63,7 @@ def screened_rows(xi: np.ndarray, screen: np.ndarray, floor: float, promote: np.
     k = xi.shape[0]
     kept = kept_rows(xi, screen, floor, promote, rows) if screen.shape[0] else -1
     if kept == 0 and argmin < 0:
-        argmin = np.argmin(xi)
+        argmin = int(np.argmin(xi))
     return solved_rows(kept, argmin, k, rows)
 
 
