@@ -243,7 +243,6 @@ class _FilterBase:
         alpha = self.alpha
         gain = alpha.gain if type(alpha) is Linear else 0.0
         av = np.empty(k) if gain > 0.0 else np.asarray(alpha.vector(h), dtype=float)
-        sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
         rows = self._rows_buf
         if rows.shape[0] < k:
             rows = self._rows_buf = np.empty(2 * k, np.intp)
@@ -251,6 +250,7 @@ class _FilterBase:
         passes = self._passes_for(lie, u_nom)
         solver = self.solver
         if closed and self.u_min is None and self.u_max is None and solver.closed_form:
+            sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
             u = np.empty(u_nom.shape[0])
             t0 = time.perf_counter()
             total, low, arg, kept, n, code, slack, held, bits = passes.xi_closed_step(
