@@ -7,19 +7,29 @@ input bounds): :func:`~isf_robot.core.robust.row_bounds` of the kept rows,
 :func:`~isf_robot.core.screening.others_hold` on the rows screened out. The same functions the
 general path calls one by one, composed: compiled as one call (:func:`~isf_robot.core.jit.compiled`)
 it saves their separate calls' overhead; as written it runs them in numpy.
+
+:func:`xi_closed_step` is the standard filter's whole step in one call: :func:`~isf_robot.core.robust.xi_pass`
+(``Xi_on`` of every row and the rows below their screening thresholds), the rows the filter solves
+(:func:`~isf_robot.core.screening.solved_rows`) and :func:`closed_step` on them;
+:func:`screened_closed_step` the rows kept by screening (:func:`~isf_robot.core.screening.screened_rows`:
+promoted rows always) and :func:`closed_step` on them, given ``Xi_on`` (the filters' other solves).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from .jit import formula
 from .projection import FEW_ROWS, REL_TOL, project_few, project_row
-from .robust import row_bound, row_bounds
-from .screening import others_hold
+from .robust import row_bound, row_bounds, xi_pass
+from .screening import others_hold, screened_rows, solved_rows
 
-__all__ = ["closed_step"]
+__all__ = ["closed_step", "active_bits", "xi_closed_step", "screened_closed_step"]
 
 
+@formula
 def closed_step(rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: float, alpha_h: np.ndarray,
                 promote: np.ndarray, ramp: np.ndarray, b: float, lg: np.ndarray, u_nom: np.ndarray, xi: np.ndarray,
                 feas_tol: float, active_tol: float, few: bool, u: np.ndarray, res: np.ndarray) -> tuple:
@@ -49,3 +59,49 @@ def closed_step(rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: 
     if code == 0:
         return code, low, others_hold(xi, lg, np.zeros(u_nom.shape[0]), rows, active_tol)
     return code, low, others_hold(xi, lg, u - u_nom, rows, active_tol)
+
+
+@formula
+def active_bits(res: np.ndarray, n: int, active_tol: float) -> int:
+    """The rows active at a closed form's answer as bits: bit ``i`` set when ``res[i] <= active_tol`` (``i < n``)."""
+    bits = 0
+    for i in range(n):
+        if res[i] <= active_tol:
+            bits |= 1 << i
+    return bits
+
+
+def xi_closed_step(lf: np.ndarray, lg: np.ndarray, u_nom: np.ndarray, grad_norm: np.ndarray, d_bar: float,
+                   h: np.ndarray, gain: float, av: np.ndarray, screen: np.ndarray, xi: np.ndarray, rows: np.ndarray,
+                   promote: np.ndarray, ramp: np.ndarray, feas_tol: float, active_tol: float, few: bool,
+                   u: np.ndarray, res: np.ndarray) -> tuple:
+    """The standard filter's step in one pass: ``Xi_on`` of every row, then the robust rows it keeps by closed form.
+
+    :func:`~isf_robot.core.robust.xi_pass` (arguments as there; at least one row), the rows
+    :func:`~isf_robot.core.screening.solved_rows` picks (written to ``rows``) and :func:`closed_step` on
+    them with the robust bounds (``promote``, ``ramp``: no entries). Returns ``(sum, min, argmin, kept, n, code, slack,
+    others hold, active)``: xi_pass's four, the rows solved, closed_step's three and :func:`active_bits`
+    of the answer; ``code`` -3 (nothing solved) when ``sum`` is not finite.
+    """
+    total, low, arg, kept = xi_pass(lf, lg, u_nom, grad_norm, d_bar, h, gain, av, screen, xi, rows)
+    if not math.isfinite(total):
+        return total, low, arg, kept, 0, -3, 0.0, False, 0
+    n = solved_rows(kept, arg, xi.shape[0], rows)
+    code, slack, held = closed_step(rows[:n], lf, grad_norm, d_bar, av, promote, ramp, 0.0, lg, u_nom, xi, feas_tol,
+                                    active_tol, few, u, res)
+    return total, low, arg, kept, n, code, slack, held, active_bits(res, n, active_tol) if code >= 0 else 0
+
+
+def screened_closed_step(xi: np.ndarray, screen: np.ndarray, floor: float, promote: np.ndarray, argmin: int,
+                         rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: float, alpha_h: np.ndarray,
+                         ramp: np.ndarray, b: float, lg: np.ndarray, u_nom: np.ndarray, feas_tol: float,
+                         active_tol: float, few: bool, u: np.ndarray, res: np.ndarray) -> tuple:
+    """The rows a filter step solves and their closed form, in one pass: ``(n, code, slack, others hold, active)``.
+
+    :func:`~isf_robot.core.screening.screened_rows` (the ``n`` rows, written to ``rows``),
+    :func:`closed_step` on them (arguments as there) and :func:`active_bits` of the answer.
+    """
+    n = screened_rows(xi, screen, floor, promote, argmin, rows)
+    code, slack, held = closed_step(rows[:n], lf, grad_norm, d_bar, alpha_h, promote, ramp, b, lg, u_nom, xi, feas_tol,
+                                    active_tol, few, u, res)
+    return n, code, slack, held, active_bits(res, n, active_tol) if code >= 0 else 0

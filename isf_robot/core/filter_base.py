@@ -8,8 +8,9 @@ The filters' semantics (when they are on, which rows they promote) are in
    (:func:`~isf_robot.core.robust.row_bounds`: robust, promoted or ramped);
 3. one of three solve paths: the closed form for one row or for a few rows without input bounds
    (:mod:`isf_robot.core.projection`, with the bounds and step 4 in one call:
-   :mod:`isf_robot.core.closed_step`), else the QP (:class:`~isf_robot.core.qp_solver.QPSolver`);
-   promotions relaxed to the robust condition when the promoted QP is infeasible;
+   :mod:`isf_robot.core.closed_step`; the standard filter runs steps 1 to 4 in that one call), else
+   the QP (:class:`~isf_robot.core.qp_solver.QPSolver`); promotions relaxed to the robust condition
+   when the promoted QP is infeasible;
 4. the rows screened out checked at the answer (solved again with every row when one binds);
 5. the infeasibility policy.
 
@@ -32,7 +33,7 @@ import numpy as np
 from . import projection, robust, screening
 from .barrier import Barrier, evaluate_barriers
 from .class_k import ClassK, Linear, as_class_k
-from .closed_step import closed_step
+from .closed_step import screened_closed_step, xi_closed_step
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
 from .handover import promote_rows
 from .jit import compiled, jit_enabled
@@ -53,10 +54,19 @@ _F64 = np.dtype(np.float64)
 _NONE_B = np.zeros(0, bool)  # "no promoted rows"
 _NONE_F = np.zeros(0)  # "no thresholds" / "every ramp weight 1"
 _KINDS = ("robust", "promote")  # a row's kind by its promotion flag
-_ACTIVE = (np.zeros(1, bool), np.ones(1, bool))  # one row's activity, shared (read-only)
-for _a in _ACTIVE:
-    _a.flags.writeable = False
+_ACTIVE: dict[int, tuple[np.ndarray, ...]] = {}  # n rows' activity masks by their bits, shared (read-only)
 _tuple_new = tuple.__new__  # (builds a _Xi without its generated __new__)
+_NO_CLOSED = (None, False)  # "no closed-form answer" (see _FilterBase._solve_rows)
+
+
+def _masks(n: int) -> tuple[np.ndarray, ...]:
+    """Every activity mask of ``n`` rows, read-only, indexed by its bits (bit ``i``: row ``i`` active)."""
+    out = []
+    for bits in range(1 << n):
+        mask = np.array([bool(bits >> i & 1) for i in range(n)])
+        mask.flags.writeable = False
+        out.append(mask)
+    return tuple(out)
 
 
 class Passes(NamedTuple):
@@ -64,17 +74,18 @@ class Passes(NamedTuple):
 
     xi_pass: Callable[..., Any]
     row_bounds: Callable[..., Any]
-    kept_rows: Callable[..., Any]
+    screened_rows: Callable[..., Any]
     others_hold: Callable[..., Any]
     promote_rows: Callable[..., Any]
-    closed_step: Callable[..., Any]
+    xi_closed_step: Callable[..., Any]
+    screened_closed_step: Callable[..., Any]
 
     @classmethod
     def build(cls, compile_them: bool = True) -> Passes:
         """The passes compiled (where ``ISF_ROBOT_JIT`` allows; ``compile_them=False``: as written)."""
         c = compiled if compile_them else (lambda f: f)
-        return cls(c(robust.xi_pass), c(robust.row_bounds), c(screening.kept_rows), c(screening.others_hold),
-                   c(promote_rows), c(closed_step))
+        return cls(c(robust.xi_pass), c(robust.row_bounds), c(screening.screened_rows), c(screening.others_hold),
+                   c(promote_rows), c(xi_closed_step), c(screened_closed_step))
 
 
 def core_kernels() -> list[Any]:
@@ -96,8 +107,8 @@ class _Xi(NamedTuple):
     xi_min: float
     av: np.ndarray  # alpha(h) per row
     argmin: int  # first row of least Xi_on
-    rows: np.ndarray | None  # with screening thresholds: the rows below theirs, ascending (the filter's buffer)
     passes: Passes  # the passes these inputs take (compiled, or as written)
+    closed: tuple[QPResult, bool] | None  # the robust rows' closed form (_closed_result), made with Xi_on, if answered
 
 
 class _FilterBase:
@@ -212,11 +223,15 @@ class _FilterBase:
             return self._passes
         return self._plain
 
-    def _xi(self, t: float, lie: LieData, u_nom: np.ndarray, screen: float | np.ndarray | None = None) -> _Xi:
-        """Checked inputs, ``Xi_on`` per row, its minimum and ``alpha(h)``; with ``screen``, the rows below it.
+    def _xi(self, t: float, lie: LieData, u_nom: np.ndarray, screen: float | np.ndarray | None = None,
+            closed: bool = False) -> _Xi:
+        """Checked inputs, ``Xi_on`` per row, its minimum and ``alpha(h)``.
 
-        A non-finite input raises NonFiniteError (a finite ``Xi_on`` also means finite ``Lg h`` and
-        ``u_nom``).
+        ``closed``: also the robust rows' closed form (of the rows :meth:`_solve_rows` keeps without
+        promotions, ``screen`` their thresholds) in the same compiled call
+        (:func:`~isf_robot.core.closed_step.xi_closed_step`) where the filter has no input bounds and its
+        solver the closed forms: the field ``closed`` when it answered (else ``None``). A non-finite input
+        raises NonFiniteError (a finite ``Xi_on`` also means finite ``Lg h`` and ``u_nom``).
         """
         if self.validate:
             lie.validate()
@@ -224,22 +239,32 @@ class _FilterBase:
         h = lie.h
         k = h.shape[0]
         if k == 0:
-            return _tuple_new(_Xi, (u_nom, np.zeros(0), math.inf, np.zeros(0), -1, None, self._plain))
+            return _tuple_new(_Xi, (u_nom, np.zeros(0), math.inf, np.zeros(0), -1, self._plain, None))
         alpha = self.alpha
         gain = alpha.gain if type(alpha) is Linear else 0.0
         av = np.empty(k) if gain > 0.0 else np.asarray(alpha.vector(h), dtype=float)
-        sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
         rows = self._rows_buf
         if rows.shape[0] < k:
             rows = self._rows_buf = np.empty(2 * k, np.intp)
         xi = np.empty(k)
         passes = self._passes_for(lie, u_nom)
-        total, low, arg, kept = passes.xi_pass(lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, sa, xi,
-                                               rows)
+        solver = self.solver
+        if closed and self.u_min is None and self.u_max is None and solver.closed_form:
+            sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
+            u = np.empty(u_nom.shape[0])
+            t0 = time.perf_counter()
+            total, low, arg, kept, n, code, slack, held, bits = passes.xi_closed_step(
+                lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, sa, xi, rows, _NONE_B, _NONE_F,
+                solver.feas_tol, solver.active_tol, solver.few_closed, u, self._res_buf)
+            short = self._closed_result(u_nom, u, code, slack, held, n, bits, t0) if code >= 0 else None
+        else:  # (no thresholds: _solve_rows finds the rows it keeps)
+            total, low, arg, _ = passes.xi_pass(lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, _NONE_F,
+                                                xi, rows)
+            short = None
         if not math.isfinite(total):
             raise NonFiniteError(f"barrier data or nominal command not finite at t={t:.6g}: "
                                  f"Xi_on = {xi}, u_nom = {u_nom}")
-        return _tuple_new(_Xi, (u_nom, xi, float(low), av, int(arg), None if kept < 0 else rows[:kept], passes))
+        return _tuple_new(_Xi, (u_nom, xi, float(low), av, int(arg), passes, short))
 
     # -- the QP's rows -------------------------------------------------------------------
     def qp_lower(self, lie: LieData, promote: np.ndarray | None = None, b: float = 0.0,
@@ -294,69 +319,59 @@ class _FilterBase:
         """Solve with screening; return ``(result, relaxed names, fallback, resolved)``.
 
         ``xi``: each row's robust slack at ``u_nom`` (``Xi_on``, or the slack at a blended target);
-        ``xs``: the step's :meth:`_xi` when ``xi`` is its ``Xi_on`` (its rows below the thresholds
-        then serve); ``floor``: the thresholds are at least this (the off margin); promoted rows
-        are always kept.
+        ``xs``: the step's :meth:`_xi` when ``xi`` is its ``Xi_on`` (its closed form then serves, if it
+        made one); ``floor``: the thresholds are at least this (the off margin); promoted rows are
+        always kept. The rows (:func:`~isf_robot.core.screening.screened_rows`) and their closed form are
+        one compiled call (:func:`~isf_robot.core.closed_step.screened_closed_step`) where the closed
+        forms serve.
         """
         k = xi.shape[0]
         passes = xs.passes if xs is not None else self._passes_for(lie, u_nom)
-        if screen is None:
-            screen = self.screen
-        rows = None
-        if screen is not None and k > 1:
-            if xs is not None and xs.rows is not None and promote is None and not floor > 0.0:
-                rows = xs.rows
-            else:
-                buf = self._rows_buf
-                n = passes.kept_rows(xi, self._screen_array(screen, k), floor,
-                                     _NONE_B if promote is None else promote, buf)
-                rows = buf[:n]
-            if rows.shape[0] == k:
-                rows = None
-            elif rows.shape[0] == 0:  # the row of least slack alone
-                rows = np.array([xs.argmin if xs is not None else int(np.argmin(xi))], np.intp)
-        short = self._closed(lie, u_nom, xi, av, promote, ramp, b, rows, passes)
-        if short is not None and short[1]:
-            return short[0], (), False, False
-        if short is not None:  # a screened row binds at the closed form's answer
-            first: QPResult | None = short[0]
+        short: tuple[QPResult | None, bool]
+        if xs is not None and xs.closed is not None and promote is None and not floor > 0.0:
+            short, rows = xs.closed, None  # (made with Xi_on for the same rows, and answered: no rows needed below)
         else:
+            if screen is None:
+                screen = self.screen
+            sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
+            prom, arg = _NONE_B if promote is None else promote, -1 if xs is None else xs.argmin
+            buf, solver = self._rows_buf, self.solver
+            if self.u_min is None and self.u_max is None and solver.closed_form:
+                u = np.empty(u_nom.shape[0])
+                t0 = time.perf_counter()
+                n, code, low, held, bits = passes.screened_closed_step(
+                    xi, sa, floor, prom, arg, buf, lie.lf, lie.grad_norm, self.d_bar, av, ramp, b, lie.lg, u_nom,
+                    solver.feas_tol, solver.active_tol, solver.few_closed, u, self._res_buf)
+                short = self._closed_result(u_nom, u, code, low, held, n, bits, t0) if code >= 0 else _NO_CLOSED
+            else:
+                n, short = passes.screened_rows(xi, sa, floor, prom, arg, buf), _NO_CLOSED
+            rows = None if n == k else buf[:n]
+        first = short[0]
+        if first is not None and short[1]:
+            return first, (), False, False
+        if first is None:
             first, relaxed, fb = self._solve_block(t, x, lie, u_nom, av, promote, ramp, b, rows, passes)
             if rows is None or fb or passes.others_hold(xi, lie.lg, first.u - u_nom, rows, self.solver.active_tol):
                 return first, relaxed, fb, False
+        # a screened row binds at the answer: every row
         res, relaxed, fb = self._solve_block(t, x, lie, u_nom, av, promote, ramp, b, None, passes)
         return replace(res, solve_time_s=res.solve_time_s + first.solve_time_s), relaxed, fb, True
 
-    def _closed(self, lie: LieData, u_nom: np.ndarray, xi: np.ndarray, av: np.ndarray, promote: np.ndarray | None,
-                ramp: np.ndarray, b: float, rows: np.ndarray | None,
-                passes: Passes) -> tuple[QPResult, bool] | None:
-        """The kept rows by their closed form (:func:`~isf_robot.core.closed_step.closed_step`).
+    def _closed_result(self, u_nom: np.ndarray, u: np.ndarray, code: int, low: float, held: bool, n: int, bits: int,
+                       t0: float) -> tuple[QPResult, bool]:
+        """``(result, every other row holds)`` of a closed-form answer (``code`` >= 0) on ``n`` rows, from ``t0``.
 
-        ``(result, every other row holds)``, or ``None`` (input bounds, the closed forms off, too many
-        rows, no answer).
+        ``bits``: the active rows (:func:`~isf_robot.core.closed_step.active_bits`); the result's ``active``
+        is a shared read-only mask.
         """
-        solver = self.solver
-        if self.u_min is not None or self.u_max is not None or not solver.closed_form:
-            return None
-        k = xi.shape[0]
-        idx = self._all_rows(k) if rows is None else rows
-        n = idx.shape[0]
-        few = solver.few_closed and n <= FEW_ROWS
-        if n == 0 or (n > 1 and not few):
-            return None
-        u, res = np.empty(u_nom.shape[0]), self._res_buf
-        t0 = time.perf_counter()
-        code, low, held = passes.closed_step(idx, lie.lf, lie.grad_norm, self.d_bar, av,
-                                             _NONE_B if promote is None else promote, ramp, b, lie.lg, u_nom, xi,
-                                             solver.feas_tol, solver.active_tol, few, u, res)
-        if code < 0:
-            return None
+        spent = time.perf_counter() - t0
         self.qp_solves += 1
+        masks = _ACTIVE.get(n)
+        if masks is None:
+            masks = _ACTIVE[n] = _masks(n)
         if n == 1:
-            return QPResult._of(u_nom if code == 0 else u, "closed_form", _ACTIVE[int(low <= solver.active_tol)],
-                                time.perf_counter() - t0), bool(held)
-        return QPResult._of(u, "optimal", res[:n] <= solver.active_tol, time.perf_counter() - t0, 0,
-                            max(0.0, -float(low))), bool(held)
+            return QPResult._of(u_nom if code == 0 else u, "closed_form", masks[bits], spent), bool(held)
+        return QPResult._of(u, "optimal", masks[bits], spent, 0, max(0.0, -float(low))), bool(held)
 
     def _solve_block(
         self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, av: np.ndarray,

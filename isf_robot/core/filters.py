@@ -103,11 +103,14 @@ class SafetyFilter(_FilterBase):
         one per row of ``lie``).
         """
         screen = self.screen if screen is None else screen
-        xs = self._xi(t, lie, u_nom, screen)
+        xs = self._xi(t, lie, u_nom, screen, True)
         u_nom, xi = xs.u_nom, xs.xi
-        res, _, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, xs.av, None, _NONE_F, 0.0, 0.0, screen, xs)
-        active = res.active
-        on = fb or (bool(active[0]) if active.size == 1 else bool(active.any()))
+        short = xs.closed
+        if short is not None and short[1]:  # (the rows' closed form, every other row holding: solved with Xi_on)
+            res, fb, resolved = short[0], False, False
+        else:
+            res, _, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, xs.av, None, _NONE_F, 0.0, 0.0, screen, xs)
+        on = fb or any(res.active.tolist())
         sw = self._switches
         event = None if on == sw.on else sw.update(t, on, xs.xi_min)
         return FilterStep._of(t, res.u, u_nom, on, lie.h, xi, event, res, (), fb, lie.names, resolved)

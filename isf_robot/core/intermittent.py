@@ -228,7 +228,7 @@ class StackedPoints(Sequence[tuple[float, LieData, np.ndarray]]):
 def _lg_block(lg: Sequence[np.ndarray] | np.ndarray, shape: tuple[int, ...], m: int, kl: list[int]) -> np.ndarray:
     """The points' ``Lg h`` as one float64 (n, K, m) array (``lg`` itself when it is one)."""
     if type(lg) is np.ndarray and lg.dtype == _F64 and lg.shape == (*shape, m):
-        return np.ascontiguousarray(lg)
+        return lg
     block = np.zeros((*shape, m))
     for j, a in enumerate(lg):
         block[j, :kl[j]] = np.asarray(a, dtype=float)[:kl[j]]

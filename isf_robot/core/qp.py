@@ -111,8 +111,10 @@ class QPResult:
         u: The command, shape (m,).
         status: ``"unconstrained"`` (no rows), ``"closed_form"``, ``"optimal"``,
             ``"infeasible"`` or ``"fallback"`` (a configured fallback produced ``u``).
-        active: Per row, whether the constraint is active at ``u``, shape (k,) bool.
-        solve_time_s: Wall time of the solve [s].
+        active: Per row, whether the constraint is active at ``u``, shape (k,) bool (a closed form's is
+            a shared read-only array: copy it to change it).
+        solve_time_s: Wall time of the solve [s] (the standard filter's closed form: of its compiled call,
+            ``Xi_on`` of every row included).
         iterations: Solver iterations (0 for closed forms).
         max_violation: Largest constraint violation of ``u`` (0 up to tolerance when solved).
         relaxed: Indices of rows whose promotion was relaxed to the robust condition.

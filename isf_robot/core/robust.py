@@ -65,6 +65,7 @@ def promotion_level(alpha_h: float, b: float, w: float) -> float:
     return x if x > r else r
 
 
+@formula
 def xi_pass(lf: np.ndarray, lg: np.ndarray, u: np.ndarray, grad_norm: np.ndarray, d_bar: float, h: np.ndarray,
             gain: float, av: np.ndarray, screen: np.ndarray, xi: np.ndarray, rows: np.ndarray) -> tuple:
     """Every row's ``Xi`` under ``u`` (written to ``xi``) and what a filter step reads of it, in one pass.

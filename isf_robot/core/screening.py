@@ -15,9 +15,10 @@ import numpy as np
 
 from .jit import formula
 
-__all__ = ["kept_rows", "others_hold"]
+__all__ = ["kept_rows", "solved_rows", "screened_rows", "others_hold"]
 
 
+@formula
 def kept_rows(xi: np.ndarray, screen: np.ndarray, floor: float, promote: np.ndarray, rows: np.ndarray) -> int:
     """The rows kept: ``xi < max(screen, floor)`` (``floor > 0``; else ``xi < screen``), or promoted.
 
@@ -33,6 +34,37 @@ def kept_rows(xi: np.ndarray, screen: np.ndarray, floor: float, promote: np.ndar
     got = np.flatnonzero(keep)
     rows[:got.shape[0]] = got
     return got.shape[0]
+
+
+@formula
+def solved_rows(kept: int, argmin: int, k: int, rows: np.ndarray) -> int:
+    """The rows a filter step solves, written to ``rows``; returns their number.
+
+    ``rows[:kept]``: the rows kept by screening. None kept (``kept == 0``): the row of least slack
+    ``argmin`` alone; no screening (``kept < 0``) or every row kept: every row, ascending.
+    """
+    if kept == 0:
+        rows[0] = argmin
+        return 1
+    if 0 < kept < k:
+        return kept
+    for i in range(k):
+        rows[i] = i
+    return k
+
+
+@formula
+def screened_rows(xi: np.ndarray, screen: np.ndarray, floor: float, promote: np.ndarray, argmin: int,
+                  rows: np.ndarray) -> int:
+    """:func:`solved_rows` of :func:`kept_rows` (``screen`` without entries: no screening, every row).
+
+    ``argmin``: the row of least ``xi`` (-1: found here when needed).
+    """
+    k = xi.shape[0]
+    kept = kept_rows(xi, screen, floor, promote, rows) if screen.shape[0] else -1
+    if kept == 0 and argmin < 0:
+        argmin = int(np.argmin(xi))
+    return solved_rows(kept, argmin, k, rows)
 
 
 @formula

@@ -10,7 +10,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isf_robot.core import IntermittentSafetyFilter, LieData, Power, QPSolver, SafetyFilter, handover, robust, screening
+from isf_robot.core import (
+    IntermittentSafetyFilter,
+    LieData,
+    Power,
+    QPSolver,
+    SafetyFilter,
+    closed_step,
+    handover,
+    robust,
+    screening,
+)
 from isf_robot.core.jit import compiled
 
 pytestmark = pytest.mark.kernels  # (skipped under ISF_ROBOT_JIT=0: tests/conftest.py)
@@ -140,3 +150,49 @@ def test_filters_compiled_and_as_written_give_the_same_steps(kind: str, monkeypa
         assert (oa, ea, na) == (ob, eb, nb)
         switches += ea != "None"
     assert switches > 5
+
+
+def test_the_fused_closed_steps_are_their_parts_composed_compiled_and_as_written() -> None:
+    """``xi_closed_step`` = xi_pass, solved_rows, closed_step; ``screened_closed_step`` = screened_rows, closed_step."""
+    rng = np.random.default_rng(5)
+    none_b, none_f = np.zeros(0, bool), np.zeros(0)
+    fused_xi, fused_screened = compiled(closed_step.xi_closed_step), compiled(closed_step.screened_closed_step)
+    for _ in range(300):
+        k, m = int(rng.integers(1, 12)), int(rng.integers(1, 7))
+        lf, lg, u_nom, gn, h = _data(rng, k, m)
+        lf -= 1.5  # (some rows violated at u_nom)
+        screen = [np.zeros(0), np.full(1, 0.4), rng.uniform(0.1, 2.0, k)][int(rng.integers(0, 3))]
+        few = bool(rng.random() < 0.8)
+        outs = []
+        for fn in (closed_step.xi_closed_step, fused_xi, None):
+            av, xi, rows, u, res = np.empty(k), np.empty(k), np.empty(k, np.intp), np.zeros(m), np.zeros(8)
+            if fn is None:  # (the parts, one by one)
+                total, low, arg, kept = robust.xi_pass(lf, lg, u_nom, gn, 0.1, h, 2.0, av, screen, xi, rows)
+                n = screening.solved_rows(kept, arg, k, rows)
+                got = (total, low, arg, kept, n, *closed_step.closed_step(rows[:n], lf, gn, 0.1, av, none_b, none_f,
+                                                                          0.0, lg, u_nom, xi, 1e-9, 1e-9, few, u, res))
+                got += (sum(1 << i for i in range(n) if res[i] <= 1e-9) if got[5] >= 0 else 0,)
+            else:
+                got = fn(lf, lg, u_nom, gn, 0.1, h, 2.0, av, screen, xi, rows, none_b, none_f, 1e-9, 1e-9, few, u, res)
+            outs.append((got, rows[:got[4]].tolist(), u.copy(), xi.copy()))
+        for got, rows, u, xi in outs[1:]:
+            assert got[2:6] == outs[0][0][2:6] and got[7:] == outs[0][0][7:] and rows == outs[0][1]
+            _close(np.array([got[0], got[1], got[6]]), np.array(outs[0][0][:2] + (outs[0][0][6],)))
+            _close(u, outs[0][2])
+            _close(xi, outs[0][3])
+        prom = rng.random(k) < 0.3 if rng.random() < 0.5 else none_b
+        ramp = rng.uniform(0.0, 1.0, k) if prom.shape[0] and rng.random() < 0.5 else none_f
+        xi = rng.normal(size=k)
+        arg = int(np.argmin(xi)) if rng.random() < 0.5 else -1
+        outs = []
+        for fn in (closed_step.screened_closed_step, fused_screened):
+            rows, u, res = np.empty(k, np.intp), np.zeros(m), np.zeros(8)
+            got = fn(xi, screen, 0.2, prom, arg, rows, lf, gn, 0.1, np.tanh(h), ramp, 0.05, lg, u_nom, 1e-9, 1e-9,
+                     few, u, res)
+            n = screening.screened_rows(xi, screen, 0.2, prom, arg, np.empty(k, np.intp))
+            assert got[0] == n and (n == k if not screen.shape[0] else True)
+            outs.append((got, rows[:n].tolist(), u.copy()))
+        (ga, ra, ua), (gb, rb, ub) = outs
+        assert ga[:2] == gb[:2] and ga[3:] == gb[3:] and ra == rb
+        _close(ga[2], gb[2])
+        _close(ua, ub)
