@@ -295,7 +295,9 @@ def compare_strategies(
     # validates the control period and the rest before any worker starts
     sim_type(scene, strategies[0], seed=seed0, **params).control_steps(duration)
     seeds = tuple(range(int(seed0), int(seed0) + int(episodes)))
-    tasks = [EpisodeTask(spec, s, seed, duration, params, level) for seed in seeds for s in strategies]
+    # strategies in reverse order (by default the registry's: the unfiltered first, the intermittent last), so the
+    # longer episodes start first and the short ones fill the workers' ends (the last worker idles less)
+    tasks = [EpisodeTask(spec, s, seed, duration, params, level) for s in reversed(strategies) for seed in seeds]
     results: dict[tuple[str, int], dict[str, Any]] = {}
 
     def summary(partial: bool) -> Comparison:
