@@ -1,0 +1,122 @@
+"""The arm loop's block of step columns: what is written is what is read back, however it is sealed."""
+
+from __future__ import annotations
+
+import gc
+import math
+import weakref
+from types import SimpleNamespace
+
+import mujoco
+import numpy as np
+import pytest
+
+from isf_robot.arm.step_columns import StepColumns, TickValues
+
+MJCF = """<mujoco><worldbody>
+  <body name="a"><joint name="j0" type="hinge"/><joint name="j1" type="hinge" axis="1 0 0"/>
+    <geom size="0.1"/><site name="ee" pos="0 0 0.2"/></body>
+  <body name="ball" mocap="true"><geom size="0.05"/></body>
+</worldbody></mujoco>"""
+
+NC, NJ = 6, 4  # collision pairs, joint rows
+NAMES = tuple(f"p{i}" for i in range(NC)) + tuple(f"j{i}" for i in range(NJ))
+
+
+def _rows(rng: np.random.Generator, count: int) -> list[dict]:
+    """Steps as the loop makes them: fresh arrays, a few near pairs (ascending), joint rows after them."""
+    out = []
+    for i in range(count):
+        near = np.sort(rng.choice(NC, size=int(rng.integers(0, 4)), replace=False)).astype(np.int64)
+        h = rng.normal(size=near.size + NJ)
+        wit = rng.normal(size=(near.size, 3, 3))
+        xi = rng.normal(size=int(rng.integers(0, 5)))
+        step = SimpleNamespace(u=rng.normal(size=2), u_nom=rng.normal(size=2), on=bool(i % 3 == 0), xi=xi,
+                               qp=object() if i % 2 else None, fallback=i == 7,
+                               relaxed=("p1",) if i == 5 else (), event="switch" if i == 9 else None)
+        out.append({"t": 0.002 * i, "step": step, "values": TickValues(near, h, wit), "goal": i % 2,
+                    "q": rng.normal(size=2), "dist": float(rng.normal())})
+    return out
+
+
+def _block(capacity: int) -> tuple[StepColumns, mujoco.MjData, mujoco.MjModel]:
+    model = mujoco.MjModel.from_xml_string(MJCF)
+    data = mujoco.MjData(model)
+    block = StepColumns(capacity, 2, NAMES, NC, model.nmocap, 0.002, h_far=np.full(NC, 0.5),
+                        goals=np.array([[0.1, 0.0, 0.0], [0.2, 0.0, 0.0]]), nbody=model.nbody)
+    block.bind(data, slice(0, 2), slice(0, 2), data.site_xpos[0])
+    return block, data, model
+
+
+@pytest.mark.parametrize("seal_every", [1, 7, 10_000])
+def test_columns_hold_what_was_written(seal_every: int) -> None:
+    rng = np.random.default_rng(seal_every)
+    rows = _rows(rng, 300)
+    block, data, model = _block(400)
+    block.SEAL_ROWS = 64  # (an instance value: the loop's own seals between the explicit ones)
+    want_pos = []
+    for i, r in enumerate(rows):
+        data.qpos[:] = r["q"]
+        data.mocap_pos[0] = [i, 0.0, 0.0]
+        mujoco.mj_kinematics(model, data)
+        want_pos.append(data.xpos.copy())
+        block.write(r["t"], r["step"], r["values"], r["goal"])
+        block.end_row(r["dist"])
+        if (i + 1) % seal_every == 0:
+            block.seal()
+    block.seal()
+    n = len(rows)
+    assert len(block) == n
+    np.testing.assert_array_equal(block.t[:n], [r["t"] for r in rows])
+    np.testing.assert_array_equal(block.q[:n], [r["q"] for r in rows])
+    np.testing.assert_array_equal(block.u[:n], [r["step"].u for r in rows])
+    np.testing.assert_array_equal(block.body_pos[:n], want_pos)
+    np.testing.assert_array_equal(block.mocap_pos[:n, 0, 0], np.arange(n))
+    np.testing.assert_array_equal(block.dist_min[:n], [r["dist"] for r in rows])
+    np.testing.assert_array_equal(block.on[:n], [r["step"].on for r in rows])
+    np.testing.assert_array_equal(block.qp_solved[:n], [r["step"].qp is not None for r in rows])
+    np.testing.assert_array_equal(block.xi_min[:n], [x.min() if x.size else math.inf
+                                                     for x in (r["step"].xi for r in rows)])
+    for i, r in enumerate(rows):
+        near, h, wit = r["values"]
+        full = np.full(NC + NJ, 0.5)
+        full[near] = h[: near.size]
+        full[NC:] = h[near.size:]
+        np.testing.assert_array_equal(block.h[i], full)
+        assert block.h_min[i] == full.min()
+        a, b = block.pair_start[i], block.pair_start[i + 1]
+        np.testing.assert_array_equal(block.pairs[a:b], near)
+        np.testing.assert_array_equal(block.witness[a:b], wit[:, :2])
+        rec = block.record(i)
+        assert rec.witness_names == tuple(NAMES[k] for k in near)
+        assert rec.relaxed == r["step"].relaxed and rec.event == r["step"].event
+        np.testing.assert_array_equal(rec.goal_pos, [[0.1, 0, 0], [0.2, 0, 0]][r["goal"]])
+
+
+def test_the_loops_arrays_are_let_go_within_seal_rows() -> None:
+    """A kept view keeps the kernel's whole output block alive: the block lets each row's go at the next seal."""
+    rows = _rows(np.random.default_rng(0), 40)
+    block, _, _ = _block(100)
+    block.SEAL_ROWS = 16
+    refs = []
+    for r in rows:
+        refs.append(weakref.ref(r["values"].h))
+        block.write(r["t"], r["step"], r["values"], r["goal"])
+        block.end_row(r["dist"])
+    del rows, r
+    gc.collect()
+    alive = [ref() is not None for ref in refs]
+    assert not any(alive[:32]) and all(alive[32:])  # (two seals of 16 rows; the last 8 wait for the next)
+
+
+def test_write_checks() -> None:
+    block, _, _ = _block(1)
+    fresh = StepColumns(1, 2, NAMES, NC, 0, 0.002)
+    r = _rows(np.random.default_rng(1), 2)
+    with pytest.raises(RuntimeError, match="bind"):
+        fresh.write(0.0, r[0]["step"], r[0]["values"], 0)
+    block.write(0.0, r[0]["step"], r[0]["values"], 0)
+    with pytest.raises(IndexError, match="full"):
+        block.write(0.002, r[1]["step"], r[1]["values"], 0)
+    block.clear()
+    assert len(block) == 0 and block.dist_min[0] == math.inf
