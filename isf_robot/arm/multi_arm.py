@@ -90,8 +90,7 @@ class _TeamEpisode(ArmSimulation.episode):  # type: ignore[name-defined,misc,val
         a1, a2 = self._arm_of[pairs.geom1], self._arm_of[pairs.geom2]
         both = (a1 >= 0) & (a2 >= 0)
         self._pair_kind = np.where(both, np.where(a1 != a2, 0, 2), 1)  # (an index of CLEARANCE_KINDS per pair)
-        self._kind_min = np.full(len(CLEARANCE_KINDS), math.inf)
-        self._kind_tick = np.empty(len(CLEARANCE_KINDS))
+        self._pair_min = np.full(pairs.k, math.inf)  # (each pair's smallest barrier value at the ticks so far)
         sim.last_episode = self
 
     def sense(self, k: int) -> None:
@@ -131,17 +130,17 @@ class _TeamEpisode(ArmSimulation.episode):  # type: ignore[name-defined,misc,val
         values, lie = super().barriers()
         monitor = self.monitor
         if len(monitor.rows):  # (every strategy, the nominal's too: tick_h holds the pairs within the cut-off first)
-            rows = monitor.rows_array()
-            tick = self._kind_tick
-            tick.fill(math.inf)
-            np.minimum.at(tick, self._pair_kind[rows], self.tick_h[:rows.size])
-            np.minimum(self._kind_min, tick, out=self._kind_min)
+            rows = monitor.rows_array()  # (each pair once)
+            pm = self._pair_min
+            pm[rows] = np.minimum(pm[rows], self.tick_h[:rows.size])
         return values, lie
 
     @property
     def kind_min(self) -> dict[str, float]:
         """Smallest barrier value at the control ticks so far, by kind of pair (:data:`CLEARANCE_KINDS`) [m]."""
-        return dict(zip(CLEARANCE_KINDS, self._kind_min.tolist()))
+        kinds = self._pair_kind
+        return {kind: float(self._pair_min[kinds == i].min(initial=math.inf))
+                for i, kind in enumerate(CLEARANCE_KINDS)}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -255,7 +254,7 @@ class MultiArmSimulation(ArmSimulation):
         run = self.run(duration)
         ep = self.last_episode
         arms = []
-        for res, nom in zip(self.strategy.agent_results(), self.nominal.arms):  # type: ignore[attr-defined]
+        for res, nom in zip(self.strategy.agent_results(run.metrics), self.nominal.arms):  # type: ignore[attr-defined]
             d = res.as_dict()
             arms.append({"name": d.pop("name"), **d.pop("metrics"), **d,
                          "goals_reached": nom.goals_reached, "goals_missed": nom.goals_missed})

@@ -258,7 +258,7 @@ class OffHold:
 
     def record(self, step: FilterStep) -> None:
         """Note the step's outcome: an on step whose smallest ``Xi_on`` is below its margin."""
-        if step.on and step.xi.size and float(step.xi.min()) < (step.margin or 0.0):
+        if self.hold_s > 0.0 and step.on and step.xi.size and float(step.xi.min()) < (step.margin or 0.0):
             self._t_fail = step.t
 
 
@@ -289,7 +289,6 @@ class CentralFilter:
         self.hold = OffHold(off_hold if strategy.intermittent else 0.0)
         self.uses_rows, self.intermittent = strategy.uses_rows, strategy.intermittent
         self.shared_rows = SharedRows(self.blocks)
-        self.metrics = MetricsAccumulator()  # (the one filter's figures: every agent's but the intervention)
         self.intervention = BlockIntervention(self.blocks)
         self.coordination = Coordination(len(self.blocks))
         self._last: FilterStep | None = None
@@ -305,7 +304,6 @@ class CentralFilter:
         self.inner.reset(t0)
         self.hold.reset()
         self._last = None
-        self.metrics = MetricsAccumulator()
         self.intervention.reset()
         self.coordination.reset()
 
@@ -326,7 +324,6 @@ class CentralFilter:
             step = self.inner.step_lie(t, lie, u_nom, x, **kw)
             self.hold.record(step)
             need = Coordination.needs(step, rows.shared, rows.inv) if lie.k == step.xi.shape[0] else self._nobody
-        self.metrics.add_step(step, self.period)
         self.intervention.add(step.u, step.u_nom, self.period)
         self.coordination.add(need, self.period)
         self._last = step
@@ -338,9 +335,17 @@ class CentralFilter:
         mode = (False, False) if st is None else (bool(st.on), st.qp is not None)
         return [mode] * len(self.blocks)
 
-    def agent_results(self) -> list[AgentResult]:
-        """Each agent's figures: the filter's duty cycle, switches and periods, its own intervention."""
-        team = self.metrics.result()
+    def agent_results(self, team: DutyCycleMetrics | None = None) -> list[AgentResult]:
+        """Each agent's figures: the filter's duty cycle, switches and periods, its own intervention.
+
+        Args:
+            team: The filter's figures over the run, as the loop that ran it accounted its steps (the one
+                filter's duty cycle, switches and periods are every agent's).
+
+        """
+        if team is None:
+            raise ConfigError("CentralFilter.agent_results needs the filter's figures (the loop's account of its "
+                              "steps: MetricsAccumulator.result())")
         return [AgentResult(n, replace(team, intervention=float(v)), *self.coordination.of(i))
                 for i, (n, v) in enumerate(zip(self.names, self.intervention.result()))]
 
@@ -438,6 +443,6 @@ class SharedFilter:
             return [(False, False)] * len(self.tallies)
         return [(bool(st.on), st.qp is not None) for st in self.last]
 
-    def agent_results(self) -> list[AgentResult]:
-        """Each agent's figures."""
+    def agent_results(self, team: DutyCycleMetrics | None = None) -> list[AgentResult]:
+        """Each agent's figures, from its own filter's tally (``team``, the team's figures, is not needed)."""
         return [t.result() for t in self.tallies]

@@ -224,6 +224,28 @@ def test_team_run_is_safe_and_its_arm_figures_add_up(two_arms, coordination) -> 
                 assert a["duty_cycle"] == pytest.approx(r.run.metrics.duty_cycle)
 
 
+def test_clearance_by_kind_is_each_kinds_smallest_tick_value(two_arms) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.core import Observer
+
+    records = []
+
+    class Keep(Observer):
+        def on_step(self, record):  # type: ignore[no-untyped-def]
+            records.append(record)
+
+    sim = MultiArmSimulation(two_arms, "nominal", coordination="central", seed=0, observers=[Keep()])
+    r = sim.run_team(2.0)
+    pairs, arm = sim.coll.pairs, sim.geom_arm
+    a1, a2 = arm[pairs.geom1], arm[pairs.geom2]
+    kind = np.where((a1 >= 0) & (a2 >= 0), np.where(a1 != a2, "arm-arm", "self"), "arm-obstacle")
+    want = dict.fromkeys(r.clearance, np.inf)
+    for rec in records:  # (a record's h: the tick's values; its witness names: the pairs within the cut-off)
+        for name in rec.witness_names:
+            i = rec.names.index(name)
+            want[kind[i]] = min(want[kind[i]], rec.h[i])
+    assert r.clearance == want and np.isfinite(want["arm-arm"])
+
+
 def test_team_reaching_stacks_each_arms_controller(two_arms) -> None:  # type: ignore[no-untyped-def]
     team = TeamReaching(two_arms)
     d = two_arms.make_data()
