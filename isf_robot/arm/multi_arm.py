@@ -115,16 +115,15 @@ class _TeamEpisode(ArmSimulation.episode):  # type: ignore[name-defined,misc,val
                                 sim.control_period, sim.arm_names, sim.coll.h_far, sim.nominal.goal_positions,
                                 nbody=self.model.nbody)
         self.bind(block)
+        block.bind_arms(self.data.site_xpos, [a.ee_site_id for a in sim.scene.arms],
+                        [c.goal_positions for c in sim.nominal.arms])  # (a TeamReaching: __init__ refuses others)
         return block
 
     def write(self, block: Any, t: float, step: Any, values: TickValues) -> None:
         """The step's row, then each arm's mode, end effector and goal."""
         super().write(block, t, step, values)
-        sim, data = self.sim, self.data
-        ee = [data.site_xpos[a.ee_site_id] for a in sim.scene.arms]
-        goals = [c.goal_positions[c.goal_index] if 0 <= c.goal_index < len(c.goal_positions) else None
-                 for c in sim.nominal.arms]  # (a team's nominal is a TeamReaching: __init__ refuses others)
-        block.write_arms(sim.strategy.agent_modes(), ee, goals)
+        sim = self.sim
+        block.write_arms(sim.strategy.agent_modes(), [c.goal_index for c in sim.nominal.arms])
 
     def barriers(self) -> tuple[Any, LieData | None]:
         values, lie = super().barriers()

@@ -24,8 +24,9 @@ class TeamStepColumns(StepColumns):
         arm_names: The arms' names, length a.
         arm_on: Each arm's filter on at the step, shape (C, a) (centrally filtered: the one filter's mode).
         arm_qp: Each arm's filter solved a QP at the step, shape (C, a).
-        arm_ee: Each arm's end effector [m], shape (C, a, 3).
-        arm_goal: The goal each arm pursues [m], shape (C, a, 3) (NaN without one).
+        arm_ee: Each arm's end effector at the tick [m], shape (C, a, 3).
+        arm_goal_index: The goal each arm pursues (its own goal table's row; -1: none), shape (C, a).
+        arm_goal: Those goals [m], shape (len(block), a, 3) (NaN without one; made when read).
 
     """
 
@@ -38,16 +39,42 @@ class TeamStepColumns(StepColumns):
         self.arm_on = np.zeros((c, a), dtype=bool)
         self.arm_qp = np.zeros((c, a), dtype=bool)
         self.arm_ee = np.zeros((c, a, 3))
-        self.arm_goal = np.full((c, a, 3), np.nan)
+        self.arm_goal_index = np.full((c, a), -1, dtype=np.int64)
+        self._arm_goals: list[np.ndarray] = [np.zeros((0, 3))] * a
+        self._arm_ee: tuple[np.ndarray, np.ndarray] | None = None
 
-    def write_arms(self, modes: Sequence[tuple[bool, bool]], ee: Sequence[np.ndarray],
-                   goals: Sequence[np.ndarray | None]) -> None:
-        """Each arm's ``(on, QP solved)``, end effector and goal (``None``: none) at the row just written."""
+    def bind_arms(self, site_xpos: np.ndarray, ee_sites: Sequence[int], goals: Sequence[np.ndarray]) -> None:
+        """Where :meth:`write_arms` reads each arm's end effector, and each arm's goal table.
+
+        Args:
+            site_xpos: The run's ``data.site_xpos`` (a view into MuJoCo's data).
+            ee_sites: Each arm's end-effector site.
+            goals: Each arm's goal positions [m], shape (g_i, 3).
+
+        """
+        if len(ee_sites) != len(self.arm_names) or len(goals) != len(self.arm_names):
+            raise ValueError(f"one end-effector site and one goal table per arm ({len(self.arm_names)}), got "
+                             f"{len(ee_sites)} and {len(goals)}")
+        self._arm_ee = (site_xpos, np.asarray(ee_sites, dtype=np.intp))
+        self._arm_goals = [np.asarray(g, dtype=float).reshape(-1, 3) for g in goals]
+
+    def write_arms(self, modes: Sequence[tuple[bool, bool]], goal_index: Sequence[int]) -> None:
+        """Each arm's ``(on, QP solved)`` and goal (its table's row) at the row just written (the tick's ends)."""
         i = self.size - 1
         if i < 0:
             raise IndexError("write_arms follows write: the block has no row yet")
-        for j, ((on, qp), p, g) in enumerate(zip(modes, ee, goals)):
-            self.arm_on[i, j] = on
-            self.arm_qp[i, j] = qp
-            self.arm_ee[i, j] = p
-            self.arm_goal[i, j] = np.nan if g is None else g
+        if self._arm_ee is None:
+            raise RuntimeError("TeamStepColumns.write_arms needs bind_arms(site_xpos, ee_sites, goals) first")
+        self.arm_on[i], self.arm_qp[i] = zip(*modes)
+        self.arm_ee[i] = self._arm_ee[0][self._arm_ee[1]]
+        self.arm_goal_index[i] = goal_index
+
+    @property
+    def arm_goal(self) -> np.ndarray:
+        """The goal each arm pursues [m], shape (len(block), a, 3) (NaN without one)."""
+        out = np.full((self.size, len(self.arm_names), 3), np.nan)
+        for j, table in enumerate(self._arm_goals):
+            gi = self.arm_goal_index[: self.size, j]
+            ok = (gi >= 0) & (gi < len(table))
+            out[ok, j] = table[gi[ok]]
+        return out

@@ -120,3 +120,32 @@ def test_write_checks() -> None:
         block.write(0.002, r[1]["step"], r[1]["values"], 0)
     block.clear()
     assert len(block) == 0 and block.dist_min[0] == math.inf
+
+
+def test_team_columns_keep_each_arms_mode_end_effector_and_goal() -> None:
+    from isf_robot.arm.team_columns import TeamStepColumns
+
+    model = mujoco.MjModel.from_xml_string(MJCF.replace('<site name="ee" pos="0 0 0.2"/>',
+                                                        '<site name="ee" pos="0 0 0.2"/><site name="ee2" pos="0.1 0 0"/>'))
+    data = mujoco.MjData(model)
+    block = TeamStepColumns(10, 2, NAMES, NC, model.nmocap, 0.002, ("left", "right"), nbody=model.nbody)
+    block.bind(data, slice(0, 2), slice(0, 2), data.site_xpos[0])
+    goals = [np.array([[1.0, 0, 0], [2.0, 0, 0]]), np.array([[0, 3.0, 0]])]
+    block.bind_arms(data.site_xpos, [1, 0], goals)
+    rows = _rows(np.random.default_rng(2), 4)
+    want_ee = []
+    for i, r in enumerate(rows):
+        data.qpos[:] = r["q"]
+        mujoco.mj_kinematics(model, data)
+        want_ee.append(data.site_xpos[[1, 0]].copy())
+        block.write(r["t"], r["step"], r["values"], r["goal"])
+        block.write_arms([(i % 2 == 0, False), (True, i == 3)], [i % 2, 0 if i < 2 else -1])
+    np.testing.assert_array_equal(block.arm_ee[:4], want_ee)
+    np.testing.assert_array_equal(block.arm_on[:4], [[True, True], [False, True]] * 2)
+    np.testing.assert_array_equal(block.arm_qp[:4, 1], [False, False, False, True])
+    goal = block.arm_goal
+    np.testing.assert_array_equal(goal[:, 0, 0], [1.0, 2.0, 1.0, 2.0])
+    np.testing.assert_array_equal(goal[:2, 1], [[0, 3.0, 0]] * 2)
+    assert np.isnan(goal[2:, 1]).all()
+    with pytest.raises(ValueError, match="one end-effector site"):
+        block.bind_arms(data.site_xpos, [0], goals)
