@@ -131,9 +131,12 @@ def recorder_cost_us(scene_name: str = "panda_pole", seconds: float = 10.0) -> d
     from isf_robot.arm.scene import load_scene
     from isf_robot.arm.sim import ArmSimulation
     from isf_robot.core import Observer
+    from isf_robot.record.arm import ArmRecorder
     from isf_robot.record.options import open_recorder
 
     class Keep(Observer):
+        block_steps = ArmRecorder.FILE_CAPACITY  # (the loop's blocks as a recording to a file gets them)
+
         def __init__(self) -> None:
             self.blocks: list[Any] = []
             self.info: Any = {}
@@ -216,8 +219,11 @@ def label(case: str) -> str:
 
 
 def report(results: list[dict[str, Any]], long_results: list[dict[str, Any]], cost: dict[str, float]) -> str:
+    from isf_robot.record.arm import ArmRecorder
+
     now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M")
     load = os.getloadavg()
+    capacity = (ArmRecorder.FILE_CAPACITY, ArmRecorder.LIVE_CAPACITY)
     lines = [
         "## Rerun logging overhead (`benchmarks/record_bench.py`)",
         "",
@@ -245,9 +251,9 @@ def report(results: list[dict[str, Any]], long_results: list[dict[str, Any]], co
         "",
         "The *no-op observer ratio* is the same run with an observer that takes the loop's blocks of steps and "
         "does nothing: the cost of the loop writing its step columns (arm: the rows with witness points, "
-        "exact true-geometry distances at every physics step, one row of array writes per step), which any "
-        "recording pays; the rest of the difference is the recorder (forward kinematics for the poses, "
-        "Arrow columns, `send_columns`, file writing).",
+        "exact true-geometry distances at every physics step, one row of array writes per step with every "
+        "body's pose), which any recording pays; the rest of the difference is the recorder (Arrow columns, "
+        "`send_columns`, file writing).",
         "",
         "Memory on long runs (RSS sampled every 0.1 s in the worker):",
         "",
@@ -262,14 +268,13 @@ def report(results: list[dict[str, Any]], long_results: list[dict[str, Any]], co
             f"{r['off']['rss_end_mb']:.0f} / {r['rrd']['rss_end_mb']:.0f} | {growth:+.1f} |")
     lines += [
         "",
-        "Per-step values are kept in blocks of steps (8192 for a file alone, 512 with a live viewer; "
-        "preallocated arrays the arm loop writes into and the recorder reads) and sent with `send_columns` "
-        "when a block is full, and the "
+        f"Per-step values are kept in blocks of steps ({capacity[0]} for a file alone, {capacity[1]} with a live "
+        "viewer; preallocated arrays the arm loop writes into and the recorder reads) and sent with "
+        "`send_columns` when a block is full, and the "
         "file sink writes as it goes, so the recorder's buffers do not grow with the run. "
         "What does grow, slowly, is the chunk index Rerun's `FileSink` keeps "
-        "for the `.rrd` footer (one entry per chunk, about 25 chunks per 2048 steps): about 7 MB per "
-        "225 000 arm steps (7.5 minutes at 500 Hz) when step records are replayed into the recorder "
-        "alone; the rest of the growth in the table is the simulation's own (see the column without).",
+        "for the `.rrd` footer (one entry per chunk sent, about 60 per block); the rest of the growth in the "
+        "table is the simulation's own (see the column without).",
         "",
         "These machines are shared: figures vary by about +-0.1 in the ratios between runs of this "
         "script under the load of other jobs (load average above).",
