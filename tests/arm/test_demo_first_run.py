@@ -11,7 +11,7 @@ import pytest
 
 from isf_robot.arm import kernels
 from isf_robot.cli.arm import DEMO_PLAIN_NOTICE
-from isf_robot.core.jit import COMPILE_NOTICE
+from isf_robot.core.jit import COMPILE_NOTICE, NOTICE_ENV
 
 pytestmark = pytest.mark.skipif(not kernels.available(), reason="compiled kernels off (ISF_ROBOT_JIT=0)")
 
@@ -33,7 +33,10 @@ def _held(env: dict[str, str]) -> tuple[int, int]:
 
 
 def test_the_demo_runs_the_plain_path_until_a_run_has_compiled_the_kernels(tmp_path) -> None:  # type: ignore[no-untyped-def]
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "ISF_ROBOT_JIT": "1"}
+    tmp = tmp_path / "tmp"  # (the commands' own temporary folder: where a command's notice marker lives while it runs)
+    tmp.mkdir()
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "ISF_ROBOT_JIT": "1", "TMPDIR": str(tmp)}
+    env.pop(NOTICE_ENV, None)
     held, count = _held(env)
     assert count >= 10 and held == 0  # (a fresh install: nothing compiled)
 
@@ -43,11 +46,15 @@ def test_the_demo_runs_the_plain_path_until_a_run_has_compiled_the_kernels(tmp_p
     assert _held(env) == (0, count)
     assert set(json.loads(cold.stdout)["results"]) >= {"nominal", "cbf", "isf"}
 
-    run = _cli(["run", "--scene", "panda_pole", "--filter", "isf", "--duration", "0.3", "--d-bar", "0.05"], env)
-    assert COMPILE_NOTICE in run.stderr
+    run_args = ["run", "--scene", "panda_pole", "--filter", "isf", "--duration", "0.3", "--d-bar", "0.05"]
+    run = _cli(run_args, env)
+    assert run.stderr.count(COMPILE_NOTICE) == 1  # (a cold cache says so, once)
     held, _ = _held(env)
     assert 0 < held <= count
 
     warm = _cli(DEMO, env)  # (the kernels an isf run did not need compile now, with the notice)
     assert DEMO_PLAIN_NOTICE not in warm.stderr
     assert json.loads(warm.stdout)["results"].keys() == json.loads(cold.stdout)["results"].keys()
+    again = _cli(run_args, env)  # (a warm cache says nothing)
+    assert COMPILE_NOTICE not in again.stderr
+    assert not list(tmp.glob("*compile-notice*"))  # (each command removed its marker when it ended)

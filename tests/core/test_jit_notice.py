@@ -1,11 +1,11 @@
-"""The one-line notice of a command whose run compiles the kernels (isf_robot.core.jit)."""
+"""The one-line notice of a command whose run compiles the kernels (isf_robot.core.jit).
+
+A whole command with a cold and then a warm cache: tests/arm/test_demo_first_run.py (one compile for both).
+"""
 
 from __future__ import annotations
 
 import io
-import os
-import subprocess
-import sys
 
 import pytest
 
@@ -63,18 +63,3 @@ def test_no_notice_unless_asked(monkeypatch) -> None:  # type: ignore[no-untyped
 def test_jit_switch(monkeypatch, value: str, on: bool) -> None:  # type: ignore[no-untyped-def]
     monkeypatch.setenv(jit.JIT_ENV, value)
     assert jit.jit_enabled() is on
-
-
-def test_a_cold_cache_says_so_once_and_a_warm_one_says_nothing(tmp_path) -> None:  # type: ignore[no-untyped-def]
-    tmp = tmp_path / "tmp"  # (the command's own temporary folder: where its marker lives while it runs)
-    tmp.mkdir()
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "ISF_ROBOT_JIT": "1", "TMPDIR": str(tmp)}
-    env.pop(jit.NOTICE_ENV, None)
-    cmd = [sys.executable, "-m", "isf_robot.cli", "core-demo"]
-    first = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
-    assert first.returncode == 0, first.stderr
-    assert first.stderr.count(jit.COMPILE_NOTICE) == 1
-    second = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
-    assert second.returncode == 0, second.stderr
-    assert jit.COMPILE_NOTICE not in second.stderr
-    assert not list(tmp.glob("*compile-notice*"))  # (each command removed its marker when it ended)
