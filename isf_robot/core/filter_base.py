@@ -255,7 +255,7 @@ class _FilterBase:
             t0 = time.perf_counter()
             total, low, arg, kept, n, code, slack, held, bits = passes.xi_closed_step(
                 lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, sa, xi, rows, _NONE_B, _NONE_F,
-                solver.feas_tol, solver.active_tol, solver.few_closed, u, self._res_buf)
+                solver.feas_tol, solver.active_tol, solver.few_rows, u, self._res_buf)
             short = self._closed_result(u_nom, u, code, slack, held, n, bits, t0) if code >= 0 else None
         else:  # (no thresholds: _solve_rows finds the rows it keeps)
             total, low, arg, _ = passes.xi_pass(lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, _NONE_F,
@@ -341,7 +341,7 @@ class _FilterBase:
                 t0 = time.perf_counter()
                 n, code, low, held, bits = passes.screened_closed_step(
                     xi, sa, floor, prom, arg, buf, lie.lf, lie.grad_norm, self.d_bar, av, ramp, b, lie.lg, u_nom,
-                    solver.feas_tol, solver.active_tol, solver.few_closed, u, self._res_buf)
+                    solver.feas_tol, solver.active_tol, solver.few_rows, u, self._res_buf)
                 short = self._closed_result(u_nom, u, code, low, held, n, bits, t0) if code >= 0 else _NO_CLOSED
             else:
                 n, short = passes.screened_rows(xi, sa, floor, prom, arg, buf), _NO_CLOSED

@@ -18,6 +18,7 @@ from isf_robot.core import (
     SafetyFilter,
     closed_step,
     handover,
+    projection,
     robust,
     screening,
 )
@@ -196,3 +197,28 @@ def test_the_fused_closed_steps_are_their_parts_composed_compiled_and_as_written
         assert ga[:2] == gb[:2] and ga[3:] == gb[3:] and ra == rb
         _close(ga[2], gb[2])
         _close(ua, ub)
+
+
+def test_the_few_row_closed_form_compiled_as_written() -> None:
+    """``project_few`` (what ``QPSolver(few_rows=True)`` sends 2 to FEW_ROWS rows to, either way): same code, floats."""
+    rng = np.random.default_rng(8)
+    fast = compiled(projection.project_few)
+    codes = set()
+    for _ in range(400):
+        k, m = int(rng.integers(2, projection.FEW_ROWS + 1)), int(rng.integers(1, 8))
+        A = rng.normal(size=(k, m)) * rng.choice([1e-2, 1.0, 1e2])
+        u_nom = rng.normal(size=m)
+        lb = A @ u_nom + rng.normal(size=k) * np.abs(A).max()
+        outs = []
+        for fn in (projection.project_few, fast):
+            u, res = np.zeros(m), np.zeros(k)
+            code, low = fn(A, lb, u_nom, projection.REL_TOL, u, res)
+            outs.append((code, low, u, res))
+        (ca, la, ua, ra), (cb, lb_, ub, rb) = outs
+        assert ca == cb
+        codes.add(ca)
+        if ca >= 0:
+            _close(la, lb_)
+            _close(ua, ub)
+            _close(ra, rb)
+    assert codes == {-1, 0, 1}
