@@ -33,7 +33,7 @@ import numpy as np
 from . import projection, robust, screening
 from .barrier import Barrier, evaluate_barriers
 from .class_k import ClassK, Linear, as_class_k
-from .closed_step import screened_closed_step, xi_closed_step
+from .closed_step import promoted_closed_step, screened_closed_step, xi_closed_step
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
 from .handover import promote_rows
 from .jit import compiled, jit_enabled
@@ -79,13 +79,14 @@ class Passes(NamedTuple):
     promote_rows: Callable[..., Any]
     xi_closed_step: Callable[..., Any]
     screened_closed_step: Callable[..., Any]
+    promoted_closed_step: Callable[..., Any]
 
     @classmethod
     def build(cls, compile_them: bool = True) -> Passes:
         """The passes compiled (where ``ISF_ROBOT_JIT`` allows; ``compile_them=False``: as written)."""
         c = compiled if compile_them else (lambda f: f)
         return cls(c(robust.xi_pass), c(robust.row_bounds), c(screening.screened_rows), c(screening.others_hold),
-                   c(promote_rows), c(xi_closed_step), c(screened_closed_step))
+                   c(promote_rows), c(xi_closed_step), c(screened_closed_step), c(promoted_closed_step))
 
 
 def core_kernels() -> list[Any]:
@@ -346,6 +347,17 @@ class _FilterBase:
             else:
                 n, short = passes.screened_rows(xi, sa, floor, prom, arg, buf), _NO_CLOSED
             rows = None if n == k else buf[:n]
+        return self._rows_solved(t, x, lie, u_nom, xi, av, promote, ramp, b, passes, rows, short)
+
+    def _rows_solved(self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, xi: np.ndarray,
+                     av: np.ndarray, promote: np.ndarray | None, ramp: np.ndarray, b: float, passes: Passes,
+                     rows: np.ndarray | None,
+                     short: tuple[QPResult | None, bool]) -> tuple[QPResult, tuple[str, ...], bool, bool]:
+        """:meth:`_solve_rows` after the screening: ``rows`` kept (``None``: every row), ``short`` their closed form.
+
+        The closed form's answer when every other row holds at it; else the rows' QP (when the closed form gave
+        none), checked on the rows screened out; every row solved when one of those binds.
+        """
         first = short[0]
         if first is not None and short[1]:
             return first, (), False, False
