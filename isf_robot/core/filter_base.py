@@ -433,7 +433,7 @@ class _FilterBase:
         u = res.u if self.fallback is None else as_vector(self.fallback(t, x, lie, res), "fallback command", lie.m)
         warnings.warn(
             f"safety filter infeasible at t={t:.6g}; applied the fallback command "
-            f"(violation {qp.max_violation(u):.3g})", IsfWarning, stacklevel=4,
+            f"(violation {qp.max_violation(u):.3g})", IsfWarning, stacklevel=5,
         )
         return QPResult(u, "fallback", res.active, res.solve_time_s, res.iterations, qp.max_violation(u), res.relaxed)
 
