@@ -8,7 +8,8 @@ The filters' semantics (when they are on, which rows they promote) are in
    (:func:`~isf_robot.core.robust.row_bounds`: robust, promoted or ramped);
 3. one of three solve paths: the closed form for one row or for a few rows without input bounds
    (:mod:`isf_robot.core.projection`, with the bounds and step 4 in one call:
-   :mod:`isf_robot.core.closed_step`; the standard filter runs steps 1 to 4 in that one call), else
+   :mod:`isf_robot.core.closed_step`; the standard filter runs steps 1 to 4 in that one call, the
+   intermittent filter's on step the choice of its promoted rows and steps 2 to 4), else
    the QP (:class:`~isf_robot.core.qp_solver.QPSolver`); promotions relaxed to the robust condition
    when the promoted QP is infeasible;
 4. the rows screened out checked at the answer (solved again with every row when one binds);
