@@ -21,13 +21,14 @@ The same clock gives the split, each phase's least time per step over the repeat
 and the filter rows; nominal; strategy = the core filter step, QP included; act = torques, ``mj_step2`` and
 the sub-steps' safety checks). ``QP/step`` is the honest QP cost: every solve of the step with its polish and
 checks, from ``QPResult.solve_time_s`` (the standard filter's closed form: its one compiled call, ``Xi_on``
-included). The QP backend comparison runs the cbf episode with ``QPSolver(backend="daqp")`` and
-``backend="proxsuite"`` in turns. With ``benchmarks/_scenes.py`` present, panda_pole with 64 extra far-away
-spheres is compared to panda_pole itself (broad-phase cost, the same step clock): the arm's own cost per step
-(the step minus one ``mj_step`` of the same episode) with and without them, since MuJoCo's own collision of
-the spheres makes ``mj_step`` itself dearer (see :func:`bench_far`). panda_pole's isf also runs without its
-designed options (the predictive off trigger, then the hand-over too) and with maneuvers by shooting, to show
-what they cost per step (:func:`bench_isf_options`).
+included; the intermittent filter's on step: its one call with the promotion pass). The QP backend comparison
+runs the cbf episode with ``QPSolver(backend="daqp")`` and ``backend="proxsuite"`` in turns. With
+``benchmarks/_scenes.py`` present, panda_pole with 64 extra far-away spheres is compared to panda_pole itself
+(broad-phase cost, the same step clock): the arm's own cost per step (the step minus one ``mj_step`` of the
+same episode) with and without them, since MuJoCo's own collision of the spheres makes ``mj_step`` itself
+dearer (see :func:`bench_far`). panda_pole's isf also runs without its designed options (the predictive off
+trigger, then the hand-over too) and with maneuvers by shooting, to show what they cost per step
+(:func:`bench_isf_options`).
 
 Results go to ``BENCHMARKS.md`` between the ``arm-bench`` markers (written atomically), with
 machine and date:
@@ -253,7 +254,8 @@ def render(scenes: list[dict], backends: dict, far: dict | None, args: argparse.
         "Split: the same per phase (the per-phase "
         "timers, about 1 us per step, are included in `us/step`); `QP/step` is the median QP cost of a step "
         "that solved one (every solve, polish and checks included; the standard filter's closed form is one "
-        "compiled call with its `Xi_on` pass); `backend` the median over the steps that "
+        "compiled call with its `Xi_on` pass, the intermittent filter's on step one with its promotion pass); "
+        "`backend` the median over the steps that "
         "went to the QP backend or, with several rows and at most two active, to its exact closed form "
         "(`QPSolver(few_rows=True)`, the arm's default; not the one-row closed form).", "",
         "| scene | strategy | us/step | mj_step [us] | x mj_step | target | sense | barriers | nominal | strategy | "

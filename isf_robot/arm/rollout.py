@@ -115,6 +115,7 @@ class ScratchRollout:
         self._nmocap = int(scene.model.nmocap)
         self._mids = np.ascontiguousarray(scene.moving_mocap_ids, dtype=np.int64) if self.moving else _NO_IDS
         self._mp_addr = int(self._data.mocap_pos.ctypes.data)  # (a kernel writes the moving obstacles' places there)
+        self._ctx: tuple | None = None  # (the collision kernel's context on the scratch data: made once)
         self.calls = 0
 
     def _whole_kernel(self) -> Any:
@@ -164,7 +165,9 @@ class ScratchRollout:
         """
         nom, coll, n = self.nominal, self.coll, self.n
         rate = nom._rate
-        c = coll._kernel_context(self._data, None, self.joints)
+        c = self._ctx
+        if c is None:  # (the scratch data without bounds: the same tables for every rollout)
+            c = self._ctx = coll._kernel_context(self._data, None, self.joints)
         blk, g, rows = coll._point_outputs(c, n)
         keys = np.empty((n, c[7]), dtype=np.int64)
         mp, ls, lin, dl = _NO_POS, _NO_LINS, coll._knolin, 0
@@ -226,22 +229,21 @@ class NominalRollout(ScratchRollout):
             return None
         c, blk, g, rows, keys, res, outs, _ = got
         m = c[7]
-        counts = res[:, 0].tolist()
 
         def point(j: int) -> LieData:  # (point j's Lie data, read from its block as the simulation's tick reads it)
-            return coll._block_lie(c, blk[j], g[j], rows[j], int(counts[j]), joints)[0]
+            return coll._block_lie(c, blk[j], g[j], rows[j], int(res[j, 0]), joints)[0]
 
         s = self._s
         if not c[13]:  # (no gradient norms in the blocks: each point's are made from its gradients)
             return [(s[j], point(j), outs[j]) for j in range(n)]
         o_gn, o_lf = c[10], c[11]  # (the block layout _block_lie reads: h, lf and |dh/dq| at these offsets)
-        nj0 = c[9]
-        kl = [int(cj) + nj0 for cj in counts]  # (pairs, then the joints' rows)
-        k = np.array(kl, dtype=np.int64)
+        k = res[:, 0].astype(np.int64)  # (each point's pairs, then the joints' rows)
+        k += c[9]
+        kl = k.tolist()
         pair_names, joint_names, nj = coll.pairs.names, joints.names, len(joints.names)
 
         def row_names(j: int, idx: list[int]) -> list[str]:  # (point j's names: its pairs', then the joints')
-            cj, rj = int(counts[j]), rows[j]
+            cj, rj = int(res[j, 0]), rows[j]
             return [pair_names[rj[i]] if i < cj else joint_names[i - cj] if i < cj + nj else str(i) for i in idx]
 
         return StackedPoints._of(s, outs, k, kl, blk[:, :m], blk[:, o_lf: o_lf + m], g, blk[:, o_gn: o_gn + m], point,

@@ -12,7 +12,9 @@ it saves their separate calls' overhead; as written it runs them in numpy.
 (``Xi_on`` of every row and the rows below their screening thresholds), the rows the filter solves
 (:func:`~isf_robot.core.screening.solved_rows`) and :func:`closed_step` on them;
 :func:`screened_closed_step` the rows kept by screening (:func:`~isf_robot.core.screening.screened_rows`:
-promoted rows always) and :func:`closed_step` on them, given ``Xi_on`` (the filters' other solves).
+promoted rows always) and :func:`closed_step` on them, given ``Xi_on`` (the filters' other solves);
+:func:`promoted_closed_step` the intermittent filter's on step: the rows it promotes
+(:func:`~isf_robot.core.handover.promote_rows`) and :func:`screened_closed_step`.
 """
 
 from __future__ import annotations
@@ -21,12 +23,13 @@ import math
 
 import numpy as np
 
+from .handover import promote_rows
 from .jit import formula
 from .projection import FEW_ROWS, REL_TOL, project_few, project_row
 from .robust import row_bound, row_bounds, xi_pass
 from .screening import others_hold, screened_rows, solved_rows
 
-__all__ = ["closed_step", "active_bits", "xi_closed_step", "screened_closed_step"]
+__all__ = ["closed_step", "active_bits", "xi_closed_step", "screened_closed_step", "promoted_closed_step"]
 
 
 @formula
@@ -92,6 +95,7 @@ def xi_closed_step(lf: np.ndarray, lg: np.ndarray, u_nom: np.ndarray, grad_norm:
     return total, low, arg, kept, n, code, slack, held, active_bits(res, n, active_tol) if code >= 0 else 0
 
 
+@formula
 def screened_closed_step(xi: np.ndarray, screen: np.ndarray, floor: float, promote: np.ndarray, argmin: int,
                          rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: float, alpha_h: np.ndarray,
                          ramp: np.ndarray, b: float, lg: np.ndarray, u_nom: np.ndarray, feas_tol: float,
@@ -105,3 +109,23 @@ def screened_closed_step(xi: np.ndarray, screen: np.ndarray, floor: float, promo
     code, slack, held = closed_step(rows[:n], lf, grad_norm, d_bar, alpha_h, promote, ramp, b, lg, u_nom, xi, feas_tol,
                                     active_tol, few, u, res)
     return n, code, slack, held, active_bits(res, n, active_tol) if code >= 0 else 0
+
+
+def promoted_closed_step(xi: np.ndarray, c: float, failing: np.ndarray, ramp_on: bool, ids: np.ndarray, W: np.ndarray,
+                         inw: np.ndarray, rate: float, promote: np.ndarray, ramp: np.ndarray, promotable: np.ndarray,
+                         screen: np.ndarray, argmin: int, rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray,
+                         d_bar: float, alpha_h: np.ndarray, b: float, lg: np.ndarray, u_nom: np.ndarray,
+                         feas_tol: float, active_tol: float, few: bool, u: np.ndarray, res: np.ndarray) -> tuple:
+    """The intermittent filter's on step in one pass: the rows it promotes, then :func:`screened_closed_step`.
+
+    :func:`~isf_robot.core.handover.promote_rows` (its arguments up to ``ramp``, which are its ``mask`` and
+    ``weights``: written here), the promotion limited to ``promotable`` (no entries: every row may be promoted),
+    then :func:`screened_closed_step` with the off margin ``c`` as the thresholds' floor (the other arguments as
+    there). Returns its ``(n, code, slack, others hold, active)``.
+    """
+    promote_rows(xi, c, failing, ramp_on, ids, W, inw, rate, promote, ramp)
+    if promotable.shape[0]:
+        for i in range(promote.shape[0]):
+            promote[i] = promote[i] and promotable[i]
+    return screened_closed_step(xi, screen, c, promote, argmin, rows, lf, grad_norm, d_bar, alpha_h, ramp, b, lg,
+                                u_nom, feas_tol, active_tol, few, u, res)

@@ -8,7 +8,8 @@ The filters' semantics (when they are on, which rows they promote) are in
    (:func:`~isf_robot.core.robust.row_bounds`: robust, promoted or ramped);
 3. one of three solve paths: the closed form for one row or for a few rows without input bounds
    (:mod:`isf_robot.core.projection`, with the bounds and step 4 in one call:
-   :mod:`isf_robot.core.closed_step`; the standard filter runs steps 1 to 4 in that one call), else
+   :mod:`isf_robot.core.closed_step`; the standard filter runs steps 1 to 4 in that one call, the
+   intermittent filter's on step the choice of its promoted rows and steps 2 to 4), else
    the QP (:class:`~isf_robot.core.qp_solver.QPSolver`); promotions relaxed to the robust condition
    when the promoted QP is infeasible;
 4. the rows screened out checked at the answer (solved again with every row when one binds);
@@ -33,7 +34,7 @@ import numpy as np
 from . import projection, robust, screening
 from .barrier import Barrier, evaluate_barriers
 from .class_k import ClassK, Linear, as_class_k
-from .closed_step import screened_closed_step, xi_closed_step
+from .closed_step import promoted_closed_step, screened_closed_step, xi_closed_step
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
 from .handover import promote_rows
 from .jit import compiled, jit_enabled
@@ -79,13 +80,14 @@ class Passes(NamedTuple):
     promote_rows: Callable[..., Any]
     xi_closed_step: Callable[..., Any]
     screened_closed_step: Callable[..., Any]
+    promoted_closed_step: Callable[..., Any]
 
     @classmethod
     def build(cls, compile_them: bool = True) -> Passes:
         """The passes compiled (where ``ISF_ROBOT_JIT`` allows; ``compile_them=False``: as written)."""
         c = compiled if compile_them else (lambda f: f)
         return cls(c(robust.xi_pass), c(robust.row_bounds), c(screening.screened_rows), c(screening.others_hold),
-                   c(promote_rows), c(xi_closed_step), c(screened_closed_step))
+                   c(promote_rows), c(xi_closed_step), c(screened_closed_step), c(promoted_closed_step))
 
 
 def core_kernels() -> list[Any]:
@@ -255,7 +257,7 @@ class _FilterBase:
             t0 = time.perf_counter()
             total, low, arg, kept, n, code, slack, held, bits = passes.xi_closed_step(
                 lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, sa, xi, rows, _NONE_B, _NONE_F,
-                solver.feas_tol, solver.active_tol, solver.few_closed, u, self._res_buf)
+                solver.feas_tol, solver.active_tol, solver.few_rows, u, self._res_buf)
             short = self._closed_result(u_nom, u, code, slack, held, n, bits, t0) if code >= 0 else None
         else:  # (no thresholds: _solve_rows finds the rows it keeps)
             total, low, arg, _ = passes.xi_pass(lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, _NONE_F,
@@ -341,11 +343,22 @@ class _FilterBase:
                 t0 = time.perf_counter()
                 n, code, low, held, bits = passes.screened_closed_step(
                     xi, sa, floor, prom, arg, buf, lie.lf, lie.grad_norm, self.d_bar, av, ramp, b, lie.lg, u_nom,
-                    solver.feas_tol, solver.active_tol, solver.few_closed, u, self._res_buf)
+                    solver.feas_tol, solver.active_tol, solver.few_rows, u, self._res_buf)
                 short = self._closed_result(u_nom, u, code, low, held, n, bits, t0) if code >= 0 else _NO_CLOSED
             else:
                 n, short = passes.screened_rows(xi, sa, floor, prom, arg, buf), _NO_CLOSED
             rows = None if n == k else buf[:n]
+        return self._rows_solved(t, x, lie, u_nom, xi, av, promote, ramp, b, passes, rows, short)
+
+    def _rows_solved(self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, xi: np.ndarray,
+                     av: np.ndarray, promote: np.ndarray | None, ramp: np.ndarray, b: float, passes: Passes,
+                     rows: np.ndarray | None,
+                     short: tuple[QPResult | None, bool]) -> tuple[QPResult, tuple[str, ...], bool, bool]:
+        """:meth:`_solve_rows` after the screening: ``rows`` kept (``None``: every row), ``short`` their closed form.
+
+        The closed form's answer when every other row holds at it; else the rows' QP (when the closed form gave
+        none), checked on the rows screened out; every row solved when one of those binds.
+        """
         first = short[0]
         if first is not None and short[1]:
             return first, (), False, False
@@ -421,7 +434,7 @@ class _FilterBase:
         u = res.u if self.fallback is None else as_vector(self.fallback(t, x, lie, res), "fallback command", lie.m)
         warnings.warn(
             f"safety filter infeasible at t={t:.6g}; applied the fallback command "
-            f"(violation {qp.max_violation(u):.3g})", IsfWarning, stacklevel=4,
+            f"(violation {qp.max_violation(u):.3g})", IsfWarning, stacklevel=5,
         )
         return QPResult(u, "fallback", res.active, res.solve_time_s, res.iterations, qp.max_violation(u), res.relaxed)
 

@@ -33,6 +33,7 @@ a screened row is never promoted; the trigger always sees every row's ``Xi_on``.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -40,8 +41,8 @@ import numpy as np
 
 from .barrier import Barrier
 from .class_k import ClassK
-from .exceptions import ConfigError
-from .filter_base import FallbackFn, FilterStep, _FilterBase
+from .exceptions import ConfigError, ShapeError
+from .filter_base import _NO_CLOSED, FallbackFn, FilterStep, _FilterBase, _Xi
 from .handover import PromotionRamp, blend_weight
 from .intermittent import FallRateBound, OffPredictor, Prediction, RolloutFn
 from .qp_solver import QPSolver
@@ -312,7 +313,14 @@ class IntermittentSafetyFilter(_FilterBase):
         if self.blend > 0:
             rate = (t - self._t_ramp) / self.blend if self._t_ramp is not None else 0.0
             self._t_ramp = t
-        promote, ramp = self._ramp(xi, c, _NONE_B if failing is None else failing, rate, lie.names)
+        fail = _NONE_B if failing is None else failing
+        if promotable is not None and promotable.shape != xi.shape:
+            raise ShapeError(f"promotable: one flag per row ({xi.shape[0]}), got shape {promotable.shape}")
+        if self.shooter is None and self.u_min is None and self.u_max is None and self.solver.closed_form:
+            res, relaxed, fb, resolved = self._promoted_solve(t, x, lie, xs, c, fail, rate, promotable, screen)
+            return self._done(FilterStep._of(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names,
+                                             resolved, c, bound, ran, held))
+        promote, ramp = self._ramp(xi, c, fail, rate, lie.names)
         if promotable is not None:
             promote &= promotable  # (the ramp's own array, rewritten by its next call)
         b, solved = self.b, None
@@ -329,6 +337,32 @@ class IntermittentSafetyFilter(_FilterBase):
                                                                 screen, xs)
         return self._done(FilterStep._of(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names,
                                          resolved, c, bound, ran, held))
+
+    def _promoted_solve(self, t: float, x: Any, lie: LieData, xs: _Xi, c: float, failing: np.ndarray,
+                        rate: float | None, promotable: np.ndarray | None,
+                        screen: float | np.ndarray | None) -> tuple[Any, tuple[str, ...], bool, bool]:
+        """The on step's promotion and solve where the closed forms serve (no input bounds, no maneuvers).
+
+        What :attr:`_ramp` and :meth:`_solve_rows` (the promoted rows, floor ``c``) do one after the other, with their
+        passes in one call (:func:`~isf_robot.core.closed_step.promoted_closed_step`): the promoted rows (limited to
+        ``promotable``), the rows kept and their closed form; then the QP where that gave no answer.
+        """
+        xi, u_nom = xs.xi, xs.u_nom
+        k = xi.shape[0]
+        ids, w, inw, promote, ramp = self._ramp.arrays(k, rate, lie.names)
+        if screen is None:
+            screen = self.screen
+        sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
+        solver, buf, b = self.solver, self._rows_buf, self.b
+        u = np.empty(u_nom.shape[0])
+        t0 = time.perf_counter()
+        n, code, low, held, bits = xs.passes.promoted_closed_step(
+            xi, c, failing, rate is not None, ids, w, inw, 0.0 if rate is None else rate, promote, ramp,
+            _NONE_B if promotable is None else promotable, sa, xs.argmin, buf, lie.lf, lie.grad_norm, self.d_bar,
+            xs.av, b, lie.lg, u_nom, solver.feas_tol, solver.active_tol, solver.few_rows, u, self._res_buf)
+        short = self._closed_result(u_nom, u, code, low, held, n, bits, t0) if code >= 0 else _NO_CLOSED
+        return self._rows_solved(t, x, lie, u_nom, xi, xs.av, promote, ramp, b, xs.passes, None if n == k else buf[:n],
+                                 short)
 
     def _failing(self, pred: Prediction, lie: LieData) -> np.ndarray:
         """The rows whose names the prediction found failing (kept while the prediction and names are the same)."""

@@ -10,7 +10,8 @@
   rows changes between steps.
 
 :func:`promote_rows` is a plain function over numpy arrays, compiled as it is by
-:func:`~isf_robot.core.jit.compiled`; :class:`PromotionRamp` keeps its per-key state.
+:func:`~isf_robot.core.jit.compiled` (alone, or within the on step's one call:
+:func:`~isf_robot.core.closed_step.promoted_closed_step`); :class:`PromotionRamp` keeps its per-key state.
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+
+from .jit import formula
 
 __all__ = ["blend_weight", "promote_rows", "PromotionRamp"]
 
@@ -33,6 +36,7 @@ def blend_weight(t: float, t_switch: float | None, blend: float) -> float:
     return min(1.0, max(0.0, 1.0 - (t - t_switch) / blend))
 
 
+@formula
 def promote_rows(xi: np.ndarray, c: float, failing: np.ndarray, ramp_on: bool, ids: np.ndarray, W: np.ndarray,
                  inw: np.ndarray, rate: float, mask: np.ndarray, weights: np.ndarray) -> None:
     """The rows the on filter promotes (``mask``) and, with ``ramp_on``, their hand-over weights.
@@ -116,18 +120,26 @@ class PromotionRamp:
             self._names, self._k, self._ids = names, k, ids
         return self._ids
 
+    def arrays(self, k: int, rate: float | None, names: tuple[str, ...]) -> tuple[np.ndarray, ...]:
+        """:func:`promote_rows`' arrays for ``k`` rows: ``(ids, W, inw, mask, weights)`` (``rate`` ``None``: no ramp).
+
+        ``ids`` and ``weights`` have no entries without the ramp; ``mask`` and ``weights`` are this object's own,
+        rewritten by the next call: they serve one filter step.
+        """
+        out = self._out.get(k)
+        if out is None:
+            out = self._out[k] = (np.empty(k, bool), np.empty(k))
+        if rate is None:
+            return _NONE_I, self._w, self._inw, out[0], _NONE_F
+        ids = self._ids_of(names, k)  # (first: new keys may replace the weight arrays)
+        return ids, self._w, self._inw, out[0], out[1]
+
     def __call__(self, xi: np.ndarray, c: float, failing: np.ndarray, rate: float | None,
                  names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
         """``(promote, ramp weights)`` of one on step (no weights without the ramp: ``rate`` ``None``).
 
-        The arrays are this object's own, rewritten by the next call: they serve one filter step.
+        The arrays of :meth:`arrays`, rewritten by the next call.
         """
-        k = xi.shape[0]
-        ramp_on = rate is not None
-        out = self._out.get(k)
-        if out is None:
-            out = self._out[k] = (np.empty(k, bool), np.empty(k))
-        mask, weights = out
-        self.kernel(xi, c, failing, ramp_on, self._ids_of(names, k) if ramp_on else _NONE_I, self._w, self._inw,
-                    rate if ramp_on else 0.0, mask, weights if ramp_on else _NONE_F)
-        return mask, weights if ramp_on else _NONE_F
+        ids, W, inw, mask, weights = self.arrays(xi.shape[0], rate, names)
+        self.kernel(xi, c, failing, rate is not None, ids, W, inw, 0.0 if rate is None else rate, mask, weights)
+        return mask, weights

@@ -237,8 +237,8 @@ def _lg_block(lg: Sequence[np.ndarray] | np.ndarray, shape: tuple[int, ...], m: 
 
 _NO_AV = np.zeros((0, 0))
 _NO_KEYS = np.zeros((0, 0), np.int64)
-def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Prediction:
-    """:func:`predict` of stacked points in one pass (:func:`~isf_robot.core.robust.predict_pass`)."""
+def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float, kernel: Callable[..., Any]) -> Prediction:
+    """:func:`predict` of stacked points in one pass of ``kernel`` (:func:`~.robust.predict_pass`, compiled or not)."""
     h, k, kl, u = points.h, points.rows, points._rows, points.u
     m = u.shape[1]
     lg = _lg_block(points.lg, h.shape, m, kl)
@@ -256,7 +256,7 @@ def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Pred
     keys, names = points.keys, points.key_names
     nk = 0 if names is None else len(names)
     out = np.empty(fails.size if keys is not None else 0, np.int64)
-    run = compiled(predict_pass) if m > 0 else predict_pass
+    run = kernel if m > 0 else predict_pass
     bad, xi_lo, found = run(points.lf, lg, np.ascontiguousarray(u), points.grad_norm, float(d_bar), h, gain, av, k,
                             xi, fails, nfail, _NO_KEYS if keys is None else keys, np.zeros(nk, np.bool_), out)
     if bad >= 0:
@@ -265,7 +265,7 @@ def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Pred
     failing: set[str] = set()
     nf = nfail.tolist()
     if any(nf):
-        first = min(s for s, c in zip(points.s, nf) if c)
+        first = min([s for s, c in zip(points.s, nf) if c])
         if keys is not None:  # (the failing rows' keys, each once, from the pass)
             if found < 0:
                 raise ShapeError(f"stacked points: a failing row's key lies outside key_names (0..{nk - 1})")
@@ -280,14 +280,17 @@ def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float) -> Pred
     return pred
 
 
-def predict(points: Sequence[tuple[float, LieData, np.ndarray]], alpha: ClassK, d_bar: float) -> Prediction:
+def predict(points: Sequence[tuple[float, LieData, np.ndarray]], alpha: ClassK, d_bar: float, *,
+            kernel: Callable[..., Any] | None = None) -> Prediction:
     """Evaluate ``Xi_on`` at every predicted point; see :class:`Prediction`.
 
     Each point's ``Xi_on`` is :func:`~isf_robot.core.robust.robust_slack` under its command;
     :class:`StackedPoints` go in one pass over every point (compiled where the kernels run).
+    ``kernel``: that pass, :func:`~isf_robot.core.robust.predict_pass` compiled or not (``None``: compiled where
+    ``ISF_ROBOT_JIT`` allows, read now; a caller that predicts often takes it once, as :class:`OffPredictor` does).
     """
     if type(points) is StackedPoints:
-        return _predict_stacked(points, alpha, d_bar)
+        return _predict_stacked(points, alpha, d_bar, compiled(predict_pass) if kernel is None else kernel)
     xi_lo = math.inf
     first: float | None = None
     failing: set[str] = set()
@@ -328,6 +331,7 @@ class OffPredictor:
             raise ConfigError(f"predict_every must be a whole number of control steps >= 1, got {every}")
         self.rollout = rollout
         self.every = int(every)
+        self._kernel = compiled(predict_pass)  # (ISF_ROBOT_JIT is read here, when the filter is built)
         self.reset()
 
     def reset(self) -> None:
@@ -346,7 +350,7 @@ class OffPredictor:
         if self.last is not None and self._since < self.every:
             self._since += 1
             return self.last, False
-        self.last = predict(self.rollout(t, x), alpha, d_bar)
+        self.last = predict(self.rollout(t, x), alpha, d_bar, kernel=self._kernel)
         self._since = 1
         self.rollouts += 1
         return self.last, True

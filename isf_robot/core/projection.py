@@ -69,8 +69,7 @@ def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float
 
     ``code`` 0: every row holds at ``u_nom`` (``u``, ``res = A u - lb`` written); 1: the solution in
     ``u`` and ``res``; -1: no such answer (see the module docstring). ``A`` (k, m) with k <= FEW_ROWS.
-    Written as loops over the few rows (what the compiled code runs fastest; as written, the
-    filters send such problems to the QP backend instead: :attr:`QPSolver.few_closed`).
+    Written as loops over the few rows (what the compiled code runs fastest).
     """
     k, m = A.shape
     r = np.empty(k)

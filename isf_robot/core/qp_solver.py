@@ -79,11 +79,11 @@ class QPSolver:
             that ``|Lg h|^2`` underflows, goes to the backend instead).
         few_rows: With ``closed_form``, solve 2 to ``FEW_ROWS`` rows without bounds exactly when
             one or two rows are active at the solution (:func:`~isf_robot.core.projection.project_few`;
-            status ``"optimal"``, every row checked; anything else goes to the backend), where the
-            kernels are compiled (as written, the enumeration costs more than the backend it saves:
-            ``few_closed`` says which). The answers equal the backend's to its accuracy (about
-            1e-12), so off by default: a chaotic caller (the satellite's post-jump problem) keeps its
-            runs; the arm turns it on.
+            status ``"optimal"``, every row checked; anything else goes to the backend), compiled or
+            as written alike (the same routing either way, so the two ways give the same commands to
+            rounding). The answers equal the backend's to its accuracy (about 1e-12), so off by
+            default: a chaotic caller (the satellite's post-jump problem) keeps its runs; the arm
+            turns it on.
         backend: One of :data:`BACKENDS` (see the module docstring).
         polish: Active-set polish of the iterative backends' answers (ProxQP).
 
@@ -114,8 +114,6 @@ class QPSolver:
         self.few_rows = bool(few_rows)
         self.project_row = compiled(project_row)  # (ISF_ROBOT_JIT is read here)
         self._project_few = compiled(project_few)
-        # as written (ISF_ROBOT_JIT=0), the few-row enumeration costs more than the backend it saves
-        self.few_closed = self.few_rows and self._project_few is not project_few
         self._cache: dict[tuple[int, int, bool], _Workspace] = {}
         self._eye: dict[int, np.ndarray] = {}
         self._upper: dict[int, np.ndarray] = {}
@@ -147,7 +145,7 @@ class QPSolver:
             if res is not None:
                 return res
             # an answer that fails the check goes to the backend
-        elif self.few_closed and 1 < k <= FEW_ROWS and not box and self.closed_form:
+        elif self.few_rows and 1 < k <= FEW_ROWS and not box and self.closed_form:
             hit = self.solve_few(qp.A, qp.lb, qp.u_nom)
             if hit is not None:  # the exact solution, checked on every row (one or two rows active)
                 u, res, rmin = hit

@@ -13,10 +13,11 @@ Lie data ``Lf h`` (drift, ``dh/dt`` included), ``Lg h`` and ``|dh/dx|``:
 
 The formulas are plain functions of floats that also take numpy arrays (elementwise); marked with
 :func:`~isf_robot.core.jit.formula`, the compiled passes below compile these same functions into
-themselves. The passes (:func:`xi_pass`, :func:`row_bounds`, :func:`predict_pass`) are written in
-numpy's array style, so each runs as it is in Python and, through
-:func:`~isf_robot.core.jit.compiled`, as one compiled call; the two agree to rounding (the order of
-the sums in ``Lg h u`` may differ: about 1e-15 relative).
+themselves. The passes (:func:`xi_pass`, :func:`row_bounds`) are written in numpy's array style, so
+each runs as it is in Python and, through :func:`~isf_robot.core.jit.compiled`, as one compiled
+call; the two agree to rounding (the order of the sums in ``Lg h u`` may differ: about 1e-15
+relative). :func:`predict_pass` is written as loops over each point's rows (what its compiled call,
+a compiled rollout's, runs fastest; as written it gives the same numbers, slowly).
 """
 
 from __future__ import annotations
@@ -122,29 +123,33 @@ def predict_pass(lf: np.ndarray, lg: np.ndarray, u: np.ndarray, grad_norm: np.nd
     are not finite (-1: none; the pass stops there), ``xi_min`` the least value before it; keys found
     -1 when a key lies outside ``seen``.
     """
-    n, K, m = lg.shape
-    lg_u = np.zeros((n, K))
-    for q in range(m):  # (every point at once: m array operations, not n matrix products)
-        lg_u += lg[:, :, q] * u[:, q:q + 1]
-    a = gain * h if gain > 0.0 else alpha_h
-    x = robust_slack(lf, lg_u, grad_norm, d_bar, a)
+    n, m = lg.shape[0], lg.shape[2]
     low = math.inf
-    for j in range(n):
+    for j in range(n):  # (loops over the rows each point has: no (n, K) temporaries)
         kj = k[j]
         nfail[j] = 0
         if kj == 0:
             continue
-        xj = x[j, :kj]
-        xi[j, :kj] = xj
-        if not math.isfinite(np.sum(xj)):
+        total, lo = 0.0, math.inf
+        for i in range(kj):
+            lg_u = 0.0
+            for q in range(m):  # (Lg h u summed in the order of q)
+                lg_u += lg[j, i, q] * u[j, q]
+            x = robust_slack(lf[j, i], lg_u, grad_norm[j, i], d_bar, gain * h[j, i] if gain > 0.0 else alpha_h[j, i])
+            xi[j, i] = x
+            total += x
+            lo = min(lo, x)
+        if not math.isfinite(total):
             return j, low, 0
-        lo = np.min(xj)
         if lo < low:
             low = lo
         if lo <= 0.0:
-            bad = np.flatnonzero(xj <= 0.0)
-            nfail[j] = bad.shape[0]
-            fails[j, :bad.shape[0]] = bad
+            nb = 0
+            for i in range(kj):
+                if xi[j, i] <= 0.0:
+                    fails[j, nb] = i
+                    nb += 1
+            nfail[j] = nb
     found = 0
     if keys.shape[0]:
         for j in range(n):

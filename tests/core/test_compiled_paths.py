@@ -18,6 +18,7 @@ from isf_robot.core import (
     SafetyFilter,
     closed_step,
     handover,
+    projection,
     robust,
     screening,
 )
@@ -196,3 +197,77 @@ def test_the_fused_closed_steps_are_their_parts_composed_compiled_and_as_written
         assert ga[:2] == gb[:2] and ga[3:] == gb[3:] and ra == rb
         _close(ga[2], gb[2])
         _close(ua, ub)
+
+
+def test_the_few_row_closed_form_compiled_as_written() -> None:
+    """``project_few`` (what ``QPSolver(few_rows=True)`` sends 2 to FEW_ROWS rows to, either way): same code, floats."""
+    rng = np.random.default_rng(8)
+    fast = compiled(projection.project_few)
+    codes = set()
+    for _ in range(400):
+        k, m = int(rng.integers(2, projection.FEW_ROWS + 1)), int(rng.integers(1, 8))
+        A = rng.normal(size=(k, m)) * rng.choice([1e-2, 1.0, 1e2])
+        u_nom = rng.normal(size=m)
+        lb = A @ u_nom + rng.normal(size=k) * np.abs(A).max()
+        outs = []
+        for fn in (projection.project_few, fast):
+            u, res = np.zeros(m), np.zeros(k)
+            code, low = fn(A, lb, u_nom, projection.REL_TOL, u, res)
+            outs.append((code, low, u, res))
+        (ca, la, ua, ra), (cb, lb_, ub, rb) = outs
+        assert ca == cb
+        codes.add(ca)
+        if ca >= 0:
+            _close(la, lb_)
+            _close(ua, ub)
+            _close(ra, rb)
+    assert codes == {-1, 0, 1}
+
+
+def test_the_fused_on_step_is_its_parts_composed_compiled_and_as_written() -> None:
+    """``promoted_closed_step`` = promote_rows, the promotable rows, screened_closed_step (floor c): same state after."""
+    rng = np.random.default_rng(6)
+    none_b, none_f, none_i = np.zeros(0, bool), np.zeros(0), np.zeros(0, np.intp)
+    fused = compiled(closed_step.promoted_closed_step)
+    promoted = 0
+    for _ in range(300):
+        k, m = int(rng.integers(1, 12)), int(rng.integers(1, 7))
+        lf, lg, u_nom, gn, h = _data(rng, k, m)
+        lf -= 1.5
+        xi = rng.normal(size=k)
+        c = float(rng.uniform(0.0, 1.0))
+        failing = rng.random(k) < 0.2 if rng.random() < 0.3 else none_b
+        ramp_on = bool(rng.random() < 0.6)
+        nid = k + 3
+        ids = rng.permutation(nid)[:k].astype(np.intp) if ramp_on else none_i
+        w0, inw0 = rng.uniform(-0.2, 1.0, nid), rng.random(nid) < 0.5
+        rate = float(rng.uniform(0.0, 0.5)) if ramp_on else 0.0
+        promotable = rng.random(k) < 0.7 if rng.random() < 0.4 else none_b
+        screen = [np.zeros(0), np.full(1, 0.4), rng.uniform(0.1, 2.0, k)][int(rng.integers(0, 3))]
+        arg = int(np.argmin(xi))
+        few = bool(rng.random() < 0.8)
+        outs = []
+        for fn in (closed_step.promoted_closed_step, fused, None):
+            W, inw = w0.copy(), inw0.copy()
+            mask, weights = np.empty(k, bool), np.empty(k) if ramp_on else none_f
+            rows, u, res = np.empty(k, np.intp), np.zeros(m), np.zeros(8)
+            if fn is None:  # (the parts, one by one)
+                handover.promote_rows(xi, c, failing, ramp_on, ids, W, inw, rate, mask, weights)
+                if promotable.shape[0]:
+                    mask &= promotable
+                got = closed_step.screened_closed_step(xi, screen, c, mask, arg, rows, lf, gn, 0.1, np.tanh(h),
+                                                       weights, 0.05, lg, u_nom, 1e-9, 1e-9, few, u, res)
+            else:
+                got = fn(xi, c, failing, ramp_on, ids, W, inw, rate, mask, weights, promotable, screen, arg, rows, lf,
+                         gn, 0.1, np.tanh(h), 0.05, lg, u_nom, 1e-9, 1e-9, few, u, res)
+            outs.append((got, rows[:got[0]].tolist(), u.copy(), mask.copy(), weights.copy(), W, inw))
+        base = outs[-1]
+        promoted += int(base[3].sum())
+        for got, rows, u, mask, weights, W, inw in outs[:-1]:
+            assert got[:2] == base[0][:2] and got[3:] == base[0][3:] and rows == base[1]
+            _close(got[2], base[0][2])
+            _close(u, base[2])
+            assert mask.tolist() == base[3].tolist() and inw.tolist() == base[6].tolist()
+            _close(weights, base[4])
+            _close(W, base[5])
+    assert promoted > 100

@@ -172,3 +172,32 @@ def test_a_key_outside_the_key_names_is_an_error(monkeypatch) -> None:  # type: 
     for args in ((keys, None), (None, ("a", "b")), (keys[:, :0], ("a", "b")), (keys.astype(np.int32), ("a", "b"))):
         with pytest.raises(ShapeError, match="keys"):
             StackedPoints(pts.s, pts.u, pts.rows, pts.h, pts.lf, pts.lg, pts.grad_norm, pts._point, None, *args)
+
+
+@pytest.mark.parametrize("gain", [0.0, 2.0])
+def test_the_prediction_pass_compiled_as_written(gain: float) -> None:
+    """``predict_pass`` as written and compiled (one source): the same values, failing rows and keys, bit for bit."""
+    from isf_robot.core.jit import compiled
+    from isf_robot.core.robust import predict_pass
+
+    rng = np.random.default_rng(4)
+    fast = compiled(predict_pass)
+    for _ in range(30):
+        n, m = int(rng.integers(1, 8)), int(rng.integers(1, 5))
+        pts, _ = _stacked(rng, n, m)
+        K = pts.h.shape[1]
+        lg = np.zeros((n, K, m))
+        for j, a in enumerate(pts.lg):
+            lg[j, :a.shape[0]] = a
+        keys = rng.integers(0, 40, size=(n, K)).astype(np.int64)
+        outs = []
+        for fn in (predict_pass, fast):
+            xi, fails, nfail = np.zeros((n, K)), np.zeros((n, K), np.int64), np.zeros(n, np.int64)
+            out, seen = np.zeros(n * K, np.int64), np.zeros(40, np.bool_)
+            got = fn(pts.lf, lg, pts.u, pts.grad_norm, 0.1, pts.h, gain, np.tanh(pts.h), pts.rows, xi, fails, nfail,
+                     keys, seen, out)
+            outs.append((got, xi, [fails[j, :c].tolist() for j, c in enumerate(nfail.tolist())], out[:got[2]]))
+        (ga, xa, fa, oa), (gb, xb, fb, ob) = outs
+        assert ga == gb and fa == fb and oa.tolist() == ob.tolist()
+        for j, k in enumerate(pts.rows.tolist()):
+            assert xa[j, :k].tobytes() == xb[j, :k].tobytes()
