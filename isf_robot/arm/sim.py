@@ -27,10 +27,10 @@ Observers (:class:`isf_robot.core.Observer`) receive ``on_start(info)`` (see
 :class:`~isf_robot.core.SwitchEvent` and ``on_finish(summary)``. The loop writes each step into a
 :class:`~isf_robot.arm.step_columns.StepColumns` block (only when an observer is attached), at the
 tick (the state the rows were computed from, the command), and the smallest true distance over
-its physics steps after them: observers that take blocks (``on_steps``, the Rerun recorder) get the block when it is full and
-at the end; the others get ``on_step`` with an :class:`~isf_robot.arm.records.ArmStepRecord`
-at every step. Timing per phase (``timing=True``) wraps the phases
-with timers; the loop itself has none.
+its physics steps after them: observers that take blocks (``on_steps``, the Rerun recorder) get
+the block when it is full and at the end; the others get ``on_step`` with an
+:class:`~isf_robot.arm.records.ArmStepRecord` at every step. Timing per phase (``timing=True``)
+wraps the phases with timers; the loop itself has none.
 """
 
 from __future__ import annotations
