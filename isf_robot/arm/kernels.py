@@ -27,6 +27,9 @@ The nominal and act phases (:func:`step_kernels`, ``_kernels_step.py``): the tra
 and the reaching controller's command (``mj_jacSite``, then the damped least squares, the speed cap
 and the rate limit), each one call.
 
+The torque level's barrier phase (:func:`phi_rate_kernel`, ``_second_order_jit.py``): the difference of ``phi``
+at ``(q + eps q_dot, t + eps)``, with the kinematics and the collision kernel at the shifted state, in one call.
+
 Without numba, or with ``ISF_ROBOT_JIT=0`` in the environment, :func:`near_kernel` and
 :func:`step_kernels` return ``None`` and the numpy paths run. The first use compiles the kernels (a few
 seconds; cached in ``__pycache__`` for later processes).
@@ -42,7 +45,8 @@ from isf_robot.core.filter_base import core_kernels
 from isf_robot.core.jit import compiled, jit_enabled
 from isf_robot.core.jit import compiled_here as jit_compiled_here
 
-__all__ = ["available", "compiled_here", "monitor_kernel", "near_kernel", "rollout_kernels", "step_kernels"]
+__all__ = ["available", "compiled_here", "monitor_kernel", "near_kernel", "phi_rate_kernel", "rollout_kernels",
+           "step_kernels"]
 
 _STATE: dict[str, Any] = {}
 
@@ -55,11 +59,12 @@ def _build() -> dict[str, Callable[..., Any]] | None:
         from . import _kernels_jit as kj
         from . import _kernels_step as ks
         from . import _rollout_jit as kr
+        from . import _second_order_jit as k2
     except ImportError:
         return None
     fns = {"near_packed_key": kj.near_packed_key, "monitor": kj.monitor, "track_apply": ks.track_apply,
            "track_step": ks.track_step, "reach": ks.reach, "monitor_apply": ks.monitor_apply,
-           "euler_step": kr.euler_step, "closed_loop_points": kr.closed_loop_points}
+           "euler_step": kr.euler_step, "closed_loop_points": kr.closed_loop_points, "phi_rate": k2.phi_rate}
     return {name: compiled(fn) for name, fn in fns.items()}
 
 
@@ -94,6 +99,12 @@ def near_kernel() -> Callable[..., Any] | None:
     """
     k = _kernels()
     return None if k is None else k["near_packed_key"]
+
+
+def phi_rate_kernel() -> Callable[..., Any] | None:
+    """The compiled difference of the torque level's ``phi`` (``_second_order_jit.phi_rate``; ``None``: use numpy)."""
+    k = _kernels()
+    return None if k is None else k["phi_rate"]
 
 
 def monitor_kernel() -> Callable[..., Any] | None:

@@ -52,11 +52,13 @@ import numpy as np
 from isf_robot.core import ConfigError, LieData
 from isf_robot.core.exceptions import IsfWarning
 
+from . import kernels
 from .collision import CollisionBarriers
 from .dynamics import DynamicsTerms
 from .joint_limits import JointLimitBarriers
+from .psi_law import obstacle_rate, phi_difference, phi_rows
 
-__all__ = ["psi_lie", "obstacle_rate", "phi_rows", "SecondOrderRows", "ObstacleClock", "PROBE_REACH"]
+__all__ = ["psi_lie", "SecondOrderRows", "ObstacleClock", "PROBE_REACH"]
 
 PROBE_REACH = 0.05
 """How far beyond the broad-phase cut-off [m] the difference of ``phi`` still sees a pair."""
@@ -64,20 +66,6 @@ PROBE_REACH = 0.05
 ObstacleClock = Callable[[mujoco.MjData, float], np.ndarray | None]
 """``(data, t) -> mocap linear velocities (nmocap, 3) or None``: puts the moving obstacles where they
 are at time ``t`` (writes ``data.mocap_pos``) and returns their velocities (``None``: static scene)."""
-
-
-def obstacle_rate(dhdt: np.ndarray, approaching: bool) -> np.ndarray:
-    """The moving obstacles' part of ``h_dot``: ``dh/dt`` itself, or ``-|dh/dt|`` with ``approaching``.
-
-    ``approaching`` takes every moving obstacle as closing in at its speed, whichever way it moves (the torque
-    level's rows: :class:`SecondOrderRows`, and its rollout's).
-    """
-    return -np.abs(dhdt) if approaching else dhdt
-
-
-def phi_rows(grad: np.ndarray, q_dot: np.ndarray, dhdt: np.ndarray) -> np.ndarray:
-    """``phi = J q_dot + dh/dt`` of rows with gradients ``grad`` (k, n) and ``dh/dt`` (k,) [m/s], shape (k,)."""
-    return grad @ q_dot + dhdt
 
 
 def psi_lie(h: np.ndarray, grad: np.ndarray, dhdt: np.ndarray, dphi: np.ndarray, q_dot: np.ndarray,
@@ -140,6 +128,11 @@ class SecondOrderRows:
             warnings.simplefilter("ignore", IsfWarning)
             self._probe = CollisionBarriers(coll.model, coll.pairs, coll.dof_adr, coll.cutoff + PROBE_REACH)
         self._at = np.full(coll.pairs.k, -1, dtype=np.int64)  # (pair -> its row in the probe's near pairs)
+        self._nmocap = coll.model.nmocap
+        # The compiled difference (kernels.phi_rate_kernel): the probe's packed kernel on the scratch data.
+        self._kargs = self._probe.packed_arguments(self._scratch)
+        self._kernel = kernels.phi_rate_kernel() if self._kargs is not None else None
+        self._kqpos = (self._scratch.qpos, self.qadr)
 
     def phi_rate(self, data: mujoco.MjData, t: float, rows: np.ndarray, q_dot: np.ndarray,
                  phi: np.ndarray) -> np.ndarray:
@@ -153,13 +146,20 @@ class SecondOrderRows:
         if rows.size == 0:
             return np.zeros(0)
         model, s, e = self.coll.model, self._scratch, self.eps
-        s.qpos[:] = data.qpos
-        s.qpos[self.qadr] = data.qpos[self.qadr] + e * q_dot
-        s.mocap_pos[:] = data.mocap_pos
-        s.mocap_quat[:] = data.mocap_quat
+        if self._nmocap:
+            s.mocap_pos[:] = data.mocap_pos
+            s.mocap_quat[:] = data.mocap_quat
         lin = self.obstacles(s, t + e) if self.obstacles is not None else None
-        mujoco.mj_kinematics(model, s)
-        mujoco.mj_comPos(model, s)
+        if self._kernel is not None:  # (shift, kinematics, rows and difference in one call; numpy below when it cannot)
+            out = np.empty(rows.size)
+            if self._kernel(*self._kargs, *self._probe.packed_velocities(lin), data.qpos, *self._kqpos, q_dot, e, rows,
+                            phi, self._at, self.approaching, out) == 0:  # (_second_order_jit.DONE)
+                return out
+        else:
+            s.qpos[:] = data.qpos
+            s.qpos[self.qadr] = data.qpos[self.qadr] + e * q_dot
+            mujoco.mj_kinematics(model, s)
+            mujoco.mj_comPos(model, s)
         near = self._probe.near(s, lin)
         at = self._at
         at[near.rows] = np.arange(near.rows.size)
@@ -168,7 +168,7 @@ class SecondOrderRows:
         if (sel < 0).any():  # (cannot happen within PROBE_REACH of the cut-off; said rather than assumed)
             raise ConfigError(f"pairs {rows[sel < 0].tolist()} left the probe's reach within eps = {e} s")
         dhdt = near.dhdt[sel]
-        return (phi_rows(near.grad[sel], q_dot, obstacle_rate(dhdt, self.approaching)) - phi) / e
+        return phi_difference(phi_rows(near.grad[sel], q_dot, obstacle_rate(dhdt, self.approaching)), phi, e)
 
     def tick(self, data: mujoco.MjData, t: float, terms: DynamicsTerms, lin: np.ndarray | None = None, *,
              coherence: object = None, witness: bool = False) -> tuple:

@@ -59,9 +59,9 @@ from isf_robot.core.intermittent import StackedPoints
 
 from .collision import CollisionBarriers
 from .joint_limits import JointLimitBarriers
+from .psi_law import obstacle_rate
 from .rollout import ScratchRollout, obstacle_tracks
 from .scene import Scene
-from .second_order import obstacle_rate
 
 __all__ = ["TorqueRollout"]
 

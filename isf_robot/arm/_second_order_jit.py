@@ -1,0 +1,67 @@
+"""The compiled difference of ``phi`` of the torque level's rows (:mod:`isf_robot.arm.kernels`; only with numba).
+
+:meth:`SecondOrderRows.phi_rate <isf_robot.arm.second_order.SecondOrderRows.phi_rate>` evaluates the velocity
+level's rows a second time, at ``(q + eps q_dot, t + eps)`` on a scratch ``MjData``, and differences their ``phi``.
+From Python that is a dozen small numpy calls and the bindings' calls around one collision kernel call: most of the
+torque level's barrier phase. :func:`phi_rate` does it in one call: the shifted ``qpos``, ``mj_kinematics`` and
+``mj_comPos`` on the scratch data, the probe's collision kernel (``_kernels_jit.near_packed_key``, on the tables of
+its context), the tick's pairs found among the probe's, and the difference, with the formulas of
+:mod:`isf_robot.arm.psi_law`, which the numpy path calls too. The two paths agree to rounding
+(``tests/arm/test_second_order_kernel.py``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._kernels_jit import com_pos, kinematics, near_packed_key  # (importing it loads libmujoco; ImportError without)
+from .narrow import P_LIVE, P_NDOF, P_NJ
+from .psi_law import obstacle_rate, phi_difference, phi_rows
+
+DONE, TOUCHING, MISSING = 0, 1, 2
+"""Returns of :func:`phi_rate`: ``out`` filled; witness points coincide at the shifted state; a pair of ``rows``
+is not among the probe's near pairs (the caller's numpy path handles both, from the shifted state left in ``sa``)."""
+
+
+def phi_rate(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, qadr, q_dot, eps, rows, phi, at,
+             approaching, out):  # pragma: no cover (compiled)
+    """``D phi`` of the pairs ``rows`` into ``out``: ``(phi(q + eps q_dot, t + eps) - phi) / eps``.
+
+    ``sa``: the scratch data (its obstacles already where they are at ``t + eps``), which gets ``qpos`` with
+    ``q_dot`` added at ``qadr`` (times ``eps``) and its kinematics. ``p``, ``blk``, ``prow``, ``cutoff``: the probe's
+    packed kernel context on ``sa`` (no joints, no coherence), an output block and rows of its layout, its
+    cut-off; ``lin``, ``dhdt_in``: the obstacles' velocities as ``near_packed_key`` takes them. ``at``: -1 per pair
+    (left so). Returns :data:`DONE`, :data:`TOUCHING` or :data:`MISSING`.
+    """
+    for i in range(qpos.size):
+        sqpos[i] = qpos[i]
+    for u in range(qadr.size):
+        sqpos[qadr[u]] = qpos[qadr[u]] + eps * q_dot[u]
+    kinematics(ma, sa)
+    com_pos(ma, sa)
+    j, _, _, _, touching, _ = near_packed_key(ma, sa, p, blk, prow, False, cutoff, cutoff, 0.0, eps_dist, 0, lin,
+                                              dhdt_in)
+    if touching:
+        return TOUCHING
+    m, n = p[P_LIVE] + p[P_NJ], p[P_NDOF]
+    g = blk[m: m + m * n].reshape((m, n))
+    lf = blk[2 * m + m * n: 3 * m + m * n]
+    for k in range(j):
+        at[prow[k]] = k
+    K = rows.size
+    grad = np.empty((K, n))
+    dhdt = np.empty(K)
+    found = True
+    for i in range(K):
+        k = at[rows[i]]
+        if k < 0:
+            found = False
+            break
+        grad[i] = g[k]
+        dhdt[i] = lf[k]
+    for k in range(j):
+        at[prow[k]] = -1
+    if not found:
+        return MISSING
+    out[:] = phi_difference(phi_rows(grad, q_dot, obstacle_rate(dhdt, approaching)), phi, eps)
+    return DONE
