@@ -7,22 +7,27 @@ torque level's barrier phase. :func:`phi_rate` does it in one call: the shifted 
 ``mj_comPos`` on the scratch data, the probe's collision kernel (``_kernels_jit.near_packed_key``, on the tables of
 its context), the tick's pairs found among the probe's, and the difference, with the formulas of
 :mod:`isf_robot.arm.psi_law`, which the numpy path calls too. The two paths agree to rounding
-(``tests/arm/test_second_order_kernel.py``).
+(``tests/arm/test_second_order_kernel.py``). :func:`psi_tick` adds the tick's ``phi`` and the ``psi`` rows'
+Lie data (:func:`~isf_robot.arm.psi_law.psi_rows`) around it: the whole barrier phase after the tick's rows.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from isf_robot.core.jit import formula
+
 from ._kernels_jit import com_pos, kinematics, near_packed_key  # (importing it loads libmujoco; ImportError without)
 from .narrow import P_LIVE, P_NDOF, P_NJ
-from .psi_law import obstacle_rate, phi_difference, phi_rows
+from .psi_law import obstacle_rate, phi_difference, phi_rows, psi_rows
 
 DONE, TOUCHING, MISSING = 0, 1, 2
-"""Returns of :func:`phi_rate`: ``out`` filled; witness points coincide at the shifted state; a pair of ``rows``
-is not among the probe's near pairs (the caller's numpy path handles both, from the shifted state left in ``sa``)."""
+"""Returns of :func:`phi_rate` and :func:`psi_tick`: ``out`` filled (the rows made); witness points coincide at
+the shifted state; a pair of ``rows`` is not among the probe's near pairs (the caller's numpy path handles both,
+from the shifted state left in ``sa``)."""
 
 
+@formula
 def phi_rate(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, qadr, q_dot, eps, rows, phi, at,
              approaching, out):  # pragma: no cover (compiled)
     """``D phi`` of the pairs ``rows`` into ``out``: ``(phi(q + eps q_dot, t + eps) - phi) / eps``.
@@ -65,3 +70,23 @@ def phi_rate(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, 
         return MISSING
     out[:] = phi_difference(phi_rows(grad, q_dot, obstacle_rate(dhdt, approaching)), phi, eps)
     return DONE
+
+
+def psi_tick(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, qadr, q_dot, eps, rows, at,
+             approaching, h, grad, dhdt, a0, minv, alpha_1):  # pragma: no cover (compiled)
+    """The tick's ``psi`` rows: ``(code, psi, Lf psi, Lg psi)`` (:func:`~isf_robot.arm.psi_law.psi_rows`).
+
+    Of the rows ``h``, ``grad``, ``dhdt`` (the pairs ``rows``, then the joint limits) on the terms ``a0``,
+    ``minv``; ``D phi`` of the pairs by :func:`phi_rate` (the same arguments), zero for the joint limits.
+    ``code``: :data:`DONE`, else :func:`phi_rate`'s (the arrays are then not the rows: the caller's numpy path).
+    """
+    phi = phi_rows(grad, q_dot, obstacle_rate(dhdt, approaching))
+    dphi = np.zeros(phi.size)
+    nc = rows.size
+    if nc:
+        code = phi_rate(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, qadr, q_dot, eps, rows,
+                        phi[:nc], at, approaching, dphi[:nc])
+        if code != DONE:
+            return code, phi, dphi, grad
+    psi, lf, lg = psi_rows(h, grad, phi, dphi, a0, minv, alpha_1)
+    return DONE, psi, lf, lg

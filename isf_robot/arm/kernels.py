@@ -27,8 +27,9 @@ The nominal and act phases (:func:`step_kernels`, ``_kernels_step.py``): the tra
 and the reaching controller's command (``mj_jacSite``, then the damped least squares, the speed cap
 and the rate limit), each one call.
 
-The torque level's barrier phase (:func:`phi_rate_kernel`, ``_second_order_jit.py``): the difference of ``phi``
-at ``(q + eps q_dot, t + eps)``, with the kinematics and the collision kernel at the shifted state, in one call.
+The torque level's barrier phase (:func:`second_order_kernels`, ``_second_order_jit.py``): the difference of
+``phi`` at ``(q + eps q_dot, t + eps)``, with the kinematics and the collision kernel at the shifted state, and the
+``psi`` rows' Lie data, in one call.
 
 Without numba, or with ``ISF_ROBOT_JIT=0`` in the environment, :func:`near_kernel` and
 :func:`step_kernels` return ``None`` and the numpy paths run. The first use compiles the kernels (a few
@@ -45,7 +46,7 @@ from isf_robot.core.filter_base import core_kernels
 from isf_robot.core.jit import compiled, jit_enabled
 from isf_robot.core.jit import compiled_here as jit_compiled_here
 
-__all__ = ["available", "compiled_here", "monitor_kernel", "near_kernel", "phi_rate_kernel", "rollout_kernels",
+__all__ = ["available", "compiled_here", "monitor_kernel", "near_kernel", "rollout_kernels", "second_order_kernels",
            "step_kernels"]
 
 _STATE: dict[str, Any] = {}
@@ -64,7 +65,8 @@ def _build() -> dict[str, Callable[..., Any]] | None:
         return None
     fns = {"near_packed_key": kj.near_packed_key, "monitor": kj.monitor, "track_apply": ks.track_apply,
            "track_step": ks.track_step, "reach": ks.reach, "monitor_apply": ks.monitor_apply,
-           "euler_step": kr.euler_step, "closed_loop_points": kr.closed_loop_points, "phi_rate": k2.phi_rate}
+           "euler_step": kr.euler_step, "closed_loop_points": kr.closed_loop_points, "phi_rate": k2.phi_rate,
+           "psi_tick": k2.psi_tick}
     return {name: compiled(fn) for name, fn in fns.items()}
 
 
@@ -101,10 +103,13 @@ def near_kernel() -> Callable[..., Any] | None:
     return None if k is None else k["near_packed_key"]
 
 
-def phi_rate_kernel() -> Callable[..., Any] | None:
-    """The compiled difference of the torque level's ``phi`` (``_second_order_jit.phi_rate``; ``None``: use numpy)."""
+def second_order_kernels() -> tuple[Callable[..., Any], Callable[..., Any]] | None:
+    """The compiled difference of the torque level's ``phi`` and its whole ``psi`` rows (``None``: use numpy).
+
+    ``(phi_rate, psi_tick)`` of ``_second_order_jit``.
+    """
     k = _kernels()
-    return None if k is None else k["phi_rate"]
+    return None if k is None else (k["phi_rate"], k["psi_tick"])
 
 
 def monitor_kernel() -> Callable[..., Any] | None:

@@ -6,6 +6,7 @@ compiled difference of ``phi`` (``_second_order_jit``, :func:`~isf_robot.core.ji
     phi   = J q_dot + dh/dt                                  (phi_rows)
     dh/dt -> -|dh/dt|  with approaching                      (obstacle_rate)
     D phi = (phi(q + eps q_dot, t + eps) - phi) / eps        (phi_difference)
+    psi = phi + alpha_1 h,  Lf psi = D phi + J a0 + alpha_1 phi,  Lg psi = J Minv      (psi_rows)
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import numpy as np
 
 from isf_robot.core.jit import formula
 
-__all__ = ["obstacle_rate", "phi_rows", "phi_difference"]
+__all__ = ["obstacle_rate", "phi_rows", "phi_difference", "psi_rows"]
 
 
 @formula
@@ -37,3 +38,13 @@ def phi_rows(grad: np.ndarray, q_dot: np.ndarray, dhdt: np.ndarray) -> np.ndarra
 def phi_difference(phi_shifted: np.ndarray, phi: np.ndarray, eps: float) -> np.ndarray:
     """``D phi`` by the forward difference ``(phi(q + eps q_dot, t + eps) - phi) / eps`` [m/s^2], shape (k,)."""
     return (phi_shifted - phi) / eps
+
+
+@formula
+def psi_rows(h: np.ndarray, grad: np.ndarray, phi: np.ndarray, dphi: np.ndarray, a0: np.ndarray, minv: np.ndarray,
+             alpha_1: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(psi, Lf psi, Lg psi)`` of rows ``h`` (k,), ``J`` (k, n), ``phi``, ``D phi`` (k,) on ``a0 + Minv tau``.
+
+    ``psi = phi + alpha_1 h`` [m/s], ``Lf psi = D phi + J a0 + alpha_1 phi`` [m/s^2], ``Lg psi = J Minv``, shape (k, n).
+    """
+    return phi + alpha_1 * h, dphi + grad @ a0 + alpha_1 * phi, grad @ minv

@@ -56,7 +56,7 @@ from . import kernels
 from .collision import CollisionBarriers
 from .dynamics import DynamicsTerms
 from .joint_limits import JointLimitBarriers
-from .psi_law import obstacle_rate, phi_difference, phi_rows
+from .psi_law import obstacle_rate, phi_difference, phi_rows, psi_rows
 
 __all__ = ["psi_lie", "SecondOrderRows", "ObstacleClock", "PROBE_REACH"]
 
@@ -90,8 +90,8 @@ def psi_lie(h: np.ndarray, grad: np.ndarray, dhdt: np.ndarray, dphi: np.ndarray,
 
     """
     phi = phi_rows(grad, q_dot, dhdt) if phi is None else phi
-    return LieData._of(phi + alpha_1 * h, dphi + grad @ terms.a0 + alpha_1 * phi, grad @ terms.minv,
-                       np.linalg.norm(grad, axis=1) if grad_norm is None else grad_norm, names)
+    psi, lf, lg = psi_rows(h, grad, phi, dphi, terms.a0, terms.minv, alpha_1)
+    return LieData._of(psi, lf, lg, np.linalg.norm(grad, axis=1) if grad_norm is None else grad_norm, names)
 
 
 class SecondOrderRows:
@@ -129,10 +129,19 @@ class SecondOrderRows:
             self._probe = CollisionBarriers(coll.model, coll.pairs, coll.dof_adr, coll.cutoff + PROBE_REACH)
         self._at = np.full(coll.pairs.k, -1, dtype=np.int64)  # (pair -> its row in the probe's near pairs)
         self._nmocap = coll.model.nmocap
-        # The compiled difference (kernels.phi_rate_kernel): the probe's packed kernel on the scratch data.
+        # The compiled difference and rows (kernels.second_order_kernels): the probe's packed kernel on the scratch.
         self._kargs = self._probe.packed_arguments(self._scratch)
-        self._kernel = kernels.phi_rate_kernel() if self._kargs is not None else None
+        ks = kernels.second_order_kernels() if self._kargs is not None else None
+        self._kernel, self._tick_kernel = (None, None) if ks is None else ks
         self._kqpos = (self._scratch.qpos, self.qadr)
+
+    def _shift_obstacles(self, data: mujoco.MjData, t: float) -> np.ndarray | None:
+        """The scratch's mocap bodies as in ``data``, the moving ones at ``t + eps``; their velocities (or None)."""
+        s = self._scratch
+        if self._nmocap:
+            s.mocap_pos[:] = data.mocap_pos
+            s.mocap_quat[:] = data.mocap_quat
+        return self.obstacles(s, t + self.eps) if self.obstacles is not None else None
 
     def phi_rate(self, data: mujoco.MjData, t: float, rows: np.ndarray, q_dot: np.ndarray,
                  phi: np.ndarray) -> np.ndarray:
@@ -146,10 +155,7 @@ class SecondOrderRows:
         if rows.size == 0:
             return np.zeros(0)
         model, s, e = self.coll.model, self._scratch, self.eps
-        if self._nmocap:
-            s.mocap_pos[:] = data.mocap_pos
-            s.mocap_quat[:] = data.mocap_quat
-        lin = self.obstacles(s, t + e) if self.obstacles is not None else None
+        lin = self._shift_obstacles(data, t)
         if self._kernel is not None:  # (shift, kinematics, rows and difference in one call; numpy below when it cannot)
             out = np.empty(rows.size)
             if self._kernel(*self._kargs, *self._probe.packed_velocities(lin), data.qpos, *self._kqpos, q_dot, e, rows,
@@ -185,8 +191,15 @@ class SecondOrderRows:
         tick = self.coll.lie_rows(data, self.joints, lin, coherence=coherence, witness=witness)  # type: ignore[arg-type]
         lie, idx = tick[0], tick[1]
         # (no copies: the rows' arrays are the tick's own, never handed out again, and only read here)
-        dhdt = obstacle_rate(lie.lf, self.approaching)
         q_dot = data.qvel[self.coll.dof_adr]
+        if self._tick_kernel is not None:  # (phi, D phi and the psi rows in one call; numpy below when it cannot)
+            lin_e = self._shift_obstacles(data, t) if idx.size else None
+            code, psi, lf, lg = self._tick_kernel(*self._kargs, *self._probe.packed_velocities(lin_e), data.qpos,
+                                                  *self._kqpos, q_dot, self.eps, idx, self._at, self.approaching,
+                                                  lie.h, lie.lg, lie.lf, terms.a0, terms.minv, self.alpha_1)
+            if code == 0:  # (_second_order_jit.DONE)
+                return LieData._of(psi, lf, lg, lie.grad_norm, lie.names), tick
+        dhdt = obstacle_rate(lie.lf, self.approaching)
         phi = phi_rows(lie.lg, q_dot, dhdt)
         dphi = np.zeros(phi.shape[0])
         nc = idx.size

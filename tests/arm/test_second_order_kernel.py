@@ -1,11 +1,10 @@
-"""The compiled difference of ``phi`` (``_second_order_jit.phi_rate``) against the numpy path of SecondOrderRows.
+"""The compiled ``psi`` rows (``_second_order_jit``: phi_rate, psi_tick) against the numpy path of SecondOrderRows.
 
-Both paths compute ``D phi`` with the same formulas (:func:`~isf_robot.arm.second_order.phi_rows`,
-``obstacle_rate``, ``phi_difference``) on the same shifted state; the tick's ``psi`` rows and their Lie data must
-agree to ``RTOL`` (relative, with a floor of ``RTOL`` times each array's scale) at
-random states with near pairs, with a moving obstacle, when the kernel hands coinciding witness points to the
-numpy path, and a pair that is not near at the shifted state is refused on both. Skipped where numba is not
-installed.
+Both paths compute the rows with the same formulas (:mod:`isf_robot.arm.psi_law`) on the same shifted state;
+the tick's ``psi`` rows and their Lie data must agree to ``RTOL`` (relative, with a floor of ``RTOL`` times each
+array's scale) at random states with near pairs, with a moving obstacle, and when the kernels hand coinciding
+witness points to the numpy path; a pair that is not near at the shifted state is refused on both. Skipped where
+numba is not installed.
 """
 
 from __future__ import annotations
@@ -35,7 +34,7 @@ def _rows(scene, monkeypatch, compiled: bool) -> SecondOrderRows:  # type: ignor
     coll, joints = CollisionBarriers.from_scene(scene), JointLimitBarriers.from_scene(scene)
     with monkeypatch.context() as m:
         if not compiled:
-            m.setattr(kernels, "phi_rate_kernel", lambda: None)
+            m.setattr(kernels, "second_order_kernels", lambda: None)
         rows = SecondOrderRows(coll, joints, scene.qpos_adr, 5.0, clock, approaching=True)
     assert (rows._kernel is not None) == compiled
     return rows
@@ -83,20 +82,25 @@ def test_compiled_phi_rate_is_the_numpy_paths(name: str, monkeypatch) -> None:  
 
 
 def test_coinciding_witness_points_go_to_the_numpy_path(monkeypatch) -> None:  # type: ignore[no-untyped-def]
-    """A kernel that reports coinciding witness points: the numpy path on the shifted state the kernel left."""
+    """Kernels that report coinciding witness points: the numpy path on the shifted state the kernel left."""
     scene = load_scene("panda_pole")
     fast, slow = _rows(scene, monkeypatch, True), _rows(scene, monkeypatch, False)
-    real, calls = fast._kernel, []
+    real_rate, real_tick, calls = fast._kernel, fast._tick_kernel, []
 
-    def touching(*args):  # type: ignore[no-untyped-def]
-        calls.append(real(*args))
+    def touching_rate(*args):  # type: ignore[no-untyped-def]
+        calls.append(real_rate(*args))
         return k2.TOUCHING
 
-    fast._kernel = touching
+    def touching_tick(*args):  # type: ignore[no-untyped-def]
+        code, *rows = real_tick(*args)
+        calls.append(code)
+        return (k2.TOUCHING, *rows)
+
+    fast._kernel, fast._tick_kernel = touching_rate, touching_tick
     dyn = ArmDynamics(scene.model, scene.dof_adr)
     for d, lin in _states(scene, np.random.default_rng(4), 5):
         _assert_same_tick(fast, slow, d, lin, dyn.terms(d))
-    assert calls and set(calls) == {k2.DONE}
+    assert len(calls) == 10 and set(calls) == {k2.DONE}
 
 
 def test_a_pair_beyond_the_probe_is_refused_on_both_paths(monkeypatch) -> None:  # type: ignore[no-untyped-def]
