@@ -9,6 +9,8 @@ its context), the tick's pairs found among the probe's, and the difference, with
 :mod:`isf_robot.arm.psi_law`, which the numpy path calls too. The two paths agree to rounding
 (``tests/arm/test_second_order_kernel.py``). :func:`psi_tick` adds the tick's ``phi`` and the ``psi`` rows'
 Lie data (:func:`~isf_robot.arm.psi_law.psi_rows`) around it: the whole barrier phase after the tick's rows.
+:func:`psi_points` is the torque rollout's (:class:`~isf_robot.arm.torque_rollout.TorqueRollout`): the ``psi`` of
+every row of the points the whole-rollout kernel made, put in the rollout's table by row key.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from isf_robot.core.jit import formula
 
 from ._kernels_jit import com_pos, kinematics, near_packed_key  # (importing it loads libmujoco; ImportError without)
 from .narrow import P_LIVE, P_NDOF, P_NJ
-from .psi_law import obstacle_rate, phi_difference, phi_rows, psi_rows
+from .psi_law import obstacle_rate, phi_difference, phi_rows, psi_rows, psi_value
 
 DONE, TOUCHING, MISSING = 0, 1, 2
 """Returns of :func:`phi_rate` and :func:`psi_tick`: ``out`` filled (the rows made); witness points coincide at
@@ -90,3 +92,23 @@ def psi_tick(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, 
             return code, phi, dphi, grad
     psi, lf, lg = psi_rows(h, grad, phi, dphi, a0, minv, alpha_1)
     return DONE, psi, lf, lg
+
+
+def psi_points(blk, keys, res, vs, nj, m, n, o_gn, o_lf, alpha_1, approaching, psi, gn, present):  # pragma: no cover
+    """Rows ``1 .. len(res)`` of the rollout's tables ``psi``, ``gn`` (``|J|``), ``present`` (points + 1, keys).
+
+    From the outputs of ``_rollout_jit.closed_loop_points`` (its rows with their ``|J|``, the joint limits'
+    after the pairs): per point ``j`` (row ``j + 1``), each row's ``psi = J v + obstacle_rate(dh/dt) + alpha_1 h``
+    with the point's joint velocity ``vs[j]``, at the column of its key ``keys[j]``.
+    """
+    for j in range(res.shape[0]):
+        k = int(res[j, 0]) + nj
+        grad = np.ascontiguousarray(blk[j, m: m + k * n]).reshape((k, n))
+        dhdt = np.ascontiguousarray(blk[j, o_lf: o_lf + k])
+        phi = phi_rows(grad, vs[j], obstacle_rate(dhdt, approaching))
+        val = psi_value(phi, blk[j, :k], alpha_1)
+        for i in range(k):
+            key = keys[j, i]
+            psi[j + 1, key] = val[i]
+            gn[j + 1, key] = blk[j, o_gn + i]
+            present[j + 1, key] = True

@@ -29,7 +29,7 @@ and the rate limit), each one call.
 
 The torque level's barrier phase (:func:`second_order_kernels`, ``_second_order_jit.py``): the difference of
 ``phi`` at ``(q + eps q_dot, t + eps)``, with the kinematics and the collision kernel at the shifted state, and the
-``psi`` rows' Lie data, in one call.
+``psi`` rows' Lie data, in one call; and the ``psi`` of the torque rollout's points.
 
 Without numba, or with ``ISF_ROBOT_JIT=0`` in the environment, :func:`near_kernel` and
 :func:`step_kernels` return ``None`` and the numpy paths run. The first use compiles the kernels (a few
@@ -66,7 +66,7 @@ def _build() -> dict[str, Callable[..., Any]] | None:
     fns = {"near_packed_key": kj.near_packed_key, "monitor": kj.monitor, "track_apply": ks.track_apply,
            "track_step": ks.track_step, "reach": ks.reach, "monitor_apply": ks.monitor_apply,
            "euler_step": kr.euler_step, "closed_loop_points": kr.closed_loop_points, "phi_rate": k2.phi_rate,
-           "psi_tick": k2.psi_tick}
+           "psi_tick": k2.psi_tick, "psi_points": k2.psi_points}
     return {name: compiled(fn) for name, fn in fns.items()}
 
 
@@ -103,13 +103,13 @@ def near_kernel() -> Callable[..., Any] | None:
     return None if k is None else k["near_packed_key"]
 
 
-def second_order_kernels() -> tuple[Callable[..., Any], Callable[..., Any]] | None:
-    """The compiled difference of the torque level's ``phi`` and its whole ``psi`` rows (``None``: use numpy).
+def second_order_kernels() -> tuple[Callable[..., Any], Callable[..., Any], Callable[..., Any]] | None:
+    """The compiled difference of the torque level's ``phi``, its ``psi`` rows and its rollout's (``None``: numpy).
 
-    ``(phi_rate, psi_tick)`` of ``_second_order_jit``.
+    ``(phi_rate, psi_tick, psi_points)`` of ``_second_order_jit``.
     """
     k = _kernels()
-    return None if k is None else (k["phi_rate"], k["psi_tick"])
+    return None if k is None else (k["phi_rate"], k["psi_tick"], k["psi_points"])
 
 
 def monitor_kernel() -> Callable[..., Any] | None:

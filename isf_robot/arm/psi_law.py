@@ -6,7 +6,8 @@ compiled difference of ``phi`` (``_second_order_jit``, :func:`~isf_robot.core.ji
     phi   = J q_dot + dh/dt                                  (phi_rows)
     dh/dt -> -|dh/dt|  with approaching                      (obstacle_rate)
     D phi = (phi(q + eps q_dot, t + eps) - phi) / eps        (phi_difference)
-    psi = phi + alpha_1 h,  Lf psi = D phi + J a0 + alpha_1 phi,  Lg psi = J Minv      (psi_rows)
+    psi   = phi + alpha_1 h                                  (psi_value)
+    Lf psi = D phi + J a0 + alpha_1 phi,  Lg psi = J Minv    (psi_rows, with psi)
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import numpy as np
 
 from isf_robot.core.jit import formula
 
-__all__ = ["obstacle_rate", "phi_rows", "phi_difference", "psi_rows"]
+__all__ = ["obstacle_rate", "phi_rows", "phi_difference", "psi_value", "psi_rows"]
 
 
 @formula
@@ -41,10 +42,16 @@ def phi_difference(phi_shifted: np.ndarray, phi: np.ndarray, eps: float) -> np.n
 
 
 @formula
+def psi_value(phi: np.ndarray, h: np.ndarray, alpha_1: float) -> np.ndarray:
+    """``psi = phi + alpha_1 h`` [m/s] of rows with ``phi`` [m/s] and ``h`` [m] (arrays or floats)."""
+    return phi + alpha_1 * h
+
+
+@formula
 def psi_rows(h: np.ndarray, grad: np.ndarray, phi: np.ndarray, dphi: np.ndarray, a0: np.ndarray, minv: np.ndarray,
              alpha_1: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(psi, Lf psi, Lg psi)`` of rows ``h`` (k,), ``J`` (k, n), ``phi``, ``D phi`` (k,) on ``a0 + Minv tau``.
 
     ``psi = phi + alpha_1 h`` [m/s], ``Lf psi = D phi + J a0 + alpha_1 phi`` [m/s^2], ``Lg psi = J Minv``, shape (k, n).
     """
-    return phi + alpha_1 * h, dphi + grad @ a0 + alpha_1 * phi, grad @ minv
+    return psi_value(phi, h, alpha_1), dphi + grad @ a0 + alpha_1 * phi, grad @ minv

@@ -132,7 +132,7 @@ class SecondOrderRows:
         # The compiled difference and rows (kernels.second_order_kernels): the probe's packed kernel on the scratch.
         self._kargs = self._probe.packed_arguments(self._scratch)
         ks = kernels.second_order_kernels() if self._kargs is not None else None
-        self._kernel, self._tick_kernel = (None, None) if ks is None else ks
+        self._kernel, self._tick_kernel = (None, None) if ks is None else ks[:2]
         self._kqpos = (self._scratch.qpos, self.qadr)
 
     def _shift_obstacles(self, data: mujoco.MjData, t: float) -> np.ndarray | None:
