@@ -200,15 +200,17 @@ class TorqueRollout(ScratchRollout):
         """Per point ``j < n`` the rows present at ``j`` and ``j + 1`` (ascending keys): ``h = psi_j``, the rate."""
         n, K, dt, mu = self.n, self._names.size, self.dt, self._dofs.size
         both = present[:-1] & present[1:]
-        jj, kk = np.nonzero(both)  # (row-major: each point's rows in ascending keys)
+        at = np.flatnonzero(both)  # (j K + key, row-major: each point's rows in ascending keys; flat: take and put)
         rows = np.count_nonzero(both, axis=1).astype(np.int64)
-        pos = np.arange(jj.size) - (np.cumsum(rows) - rows)[jj]  # (a row's place within its point)
+        kk = at % K
+        dst = at - kk + np.arange(at.size) - np.repeat(np.cumsum(rows) - rows, rows)  # (j K + the row's place in j)
         h, lf, g, keys = np.zeros((n, K)), np.zeros((n, K)), np.zeros((n, K)), np.zeros((n, K), dtype=np.int64)
-        h0 = psi[jj, kk]
-        h[jj, pos] = h0
-        lf[jj, pos] = (psi[jj + 1, kk] - h0) / dt
-        g[jj, pos] = gn[jj, kk]
-        keys[jj, pos] = kk
+        flat = psi.reshape(-1)  # (psi, gn: the (n + 1, K) tables of __call__, contiguous)
+        h0 = flat.take(at)
+        h.put(dst, h0)
+        lf.put(dst, (flat.take(at + K) - h0) / dt)
+        g.put(dst, gn.reshape(-1).take(at))
+        keys.put(dst, kk)
         if self._zeros[0].shape != (n, K, mu):
             lg0, u0 = np.zeros((n, K, mu)), np.zeros((n, mu))
             ro = lg0.view()
