@@ -75,12 +75,13 @@ def phi_rate(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, 
 
 
 def psi_tick(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, qadr, q_dot, eps, rows, at,
-             approaching, h, grad, dhdt, a0, minv, alpha_1):  # pragma: no cover (compiled)
-    """The tick's ``psi`` rows: ``(code, psi, Lf psi, Lg psi)`` (:func:`~isf_robot.arm.psi_law.psi_rows`).
+             approaching, h, grad, dhdt, a0, minv, alpha_1, out):  # pragma: no cover (compiled)
+    """The tick's ``psi`` rows (:func:`~isf_robot.arm.psi_law.psi_rows`) into ``out``: ``psi``, ``Lf psi``, ``Lg psi``.
 
-    Of the rows ``h``, ``grad``, ``dhdt`` (the pairs ``rows``, then the joint limits) on the terms ``a0``,
-    ``minv``; ``D phi`` of the pairs by :func:`phi_rate` (the same arguments), zero for the joint limits.
-    ``code``: :data:`DONE`, else :func:`phi_rate`'s (the arrays are then not the rows: the caller's numpy path).
+    Of the rows ``h``, ``grad`` (k, n), ``dhdt`` (the pairs ``rows``, then the joint limits) on the terms ``a0``,
+    ``minv``; ``D phi`` of the pairs by :func:`phi_rate` (the same arguments), zero for the joint limits. ``out``
+    (k (n + 2),): ``psi`` (k), ``Lf psi`` (k), then ``Lg psi`` row by row (an array of the caller's: the rows
+    handed to the filter are numpy's own). Returns :data:`DONE`, else :func:`phi_rate`'s code (``out`` not filled).
     """
     phi = phi_rows(grad, q_dot, obstacle_rate(dhdt, approaching))
     dphi = np.zeros(phi.size)
@@ -89,9 +90,15 @@ def psi_tick(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, 
         code = phi_rate(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, qadr, q_dot, eps, rows,
                         phi[:nc], at, approaching, dphi[:nc])
         if code != DONE:
-            return code, phi, dphi, grad
+            return code
     psi, lf, lg = psi_rows(h, grad, phi, dphi, a0, minv, alpha_1)
-    return DONE, psi, lf, lg
+    k, n = grad.shape
+    for i in range(k):
+        out[i] = psi[i]
+        out[k + i] = lf[i]
+        for c in range(n):
+            out[2 * k + i * n + c] = lg[i, c]
+    return DONE
 
 
 def psi_points(blk, keys, res, vs, nj, m, n, o_gn, o_lf, alpha_1, approaching, psi, gn, present):  # pragma: no cover

@@ -194,11 +194,12 @@ class SecondOrderRows:
         q_dot = data.qvel[self.coll.dof_adr]
         if self._tick_kernel is not None:  # (phi, D phi and the psi rows in one call; numpy below when it cannot)
             lin_e = self._shift_obstacles(data, t) if idx.size else None
-            code, psi, lf, lg = self._tick_kernel(*self._kargs, *self._probe.packed_velocities(lin_e), data.qpos,
-                                                  *self._kqpos, q_dot, self.eps, idx, self._at, self.approaching,
-                                                  lie.h, lie.lg, lie.lf, terms.a0, terms.minv, self.alpha_1)
-            if code == 0:  # (_second_order_jit.DONE)
-                return LieData._of(psi, lf, lg, lie.grad_norm, lie.names), tick
+            k, n = lie.lg.shape
+            out = np.empty(k * (n + 2))  # (fresh: the filter may keep the rows)
+            if self._tick_kernel(*self._kargs, *self._probe.packed_velocities(lin_e), data.qpos, *self._kqpos, q_dot,
+                                 self.eps, idx, self._at, self.approaching, lie.h, lie.lg, lie.lf, terms.a0, terms.minv,
+                                 self.alpha_1, out) == 0:  # (_second_order_jit.DONE)
+                return LieData._of(out[:k], out[k: 2 * k], out[2 * k:].reshape(k, n), lie.grad_norm, lie.names), tick
         dhdt = obstacle_rate(lie.lf, self.approaching)
         phi = phi_rows(lie.lg, q_dot, dhdt)
         dphi = np.zeros(phi.shape[0])
