@@ -150,7 +150,12 @@ class SecondOrderRows:
         The forward difference ``(phi(q + eps q_dot, t + eps) - phi) / eps``; ``phi``: the pairs' ``phi`` at the
         state (the tick's, :func:`phi_rows`). One evaluation of the rows per tick; the central difference took two
         for about the same figure (on 150 random states each of panda_pole and panda_moving with near pairs,
-        10309 rows: apart by 5e-7 m/s^2 at the median, 5e-4 at the 99th percentile, 0.035 at most).
+        10309 rows: apart by 5e-7 m/s^2 at the median, 5e-4 at the 99th percentile, 0.035 at most). With numba the
+        shift, the kinematics, the probe's rows and the difference are one compiled call (``_second_order_jit``).
+
+        Raises:
+            ConfigError: A pair of ``rows`` is not within the probe's cut-off at the shifted state.
+
         """
         if rows.size == 0:
             return np.zeros(0)
@@ -181,6 +186,9 @@ class SecondOrderRows:
         """The velocity level's tick rows and the torque level's Lie data at the state in ``data``.
 
         ``data`` has the kinematics of its state (after ``mj_step1``); ``lin``: the mocap velocities at ``t``.
+        After the velocity level's rows, ``phi``, ``D phi`` (:meth:`phi_rate`) and the ``psi`` rows are one compiled
+        call with numba (``_second_order_jit.psi_tick``: the formulas of :mod:`isf_robot.arm.psi_law`, which the
+        numpy path calls too); the numpy path where it cannot (coinciding witness points at the shifted state).
 
         Returns:
             ``(psi_lie, tick)``: the :func:`psi_lie` of every near pair then every joint limit, and

@@ -36,13 +36,15 @@ scratch ``MjData``. With numba, while the goal cannot change over the horizon an
 one compiled call (``_rollout_jit.closed_loop_points``: the obstacles' places, the Euler step, the kinematics, the
 controller's kernel, the error's decay, the collision kernel), as the velocity level's
 :class:`~isf_robot.arm.rollout.NominalRollout` does; otherwise each point's Euler step and kinematics are one
-call and its rows :meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`. Either way the rows' ``psi``
-and the pairing of consecutive points are a few array operations over all points, and the points go to the
-core stacked (:class:`~isf_robot.core.intermittent.StackedPoints`: one pass of ``predict``). The paths agree to
+call and its rows :meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`. The rows' ``psi`` go in a table
+(point, row key): the compiled points' by one more compiled call (``_second_order_jit.psi_points``), the others'
+by a few array operations, with the formulas of :mod:`isf_robot.arm.psi_law` either way; the pairing of
+consecutive points is a few array operations over all points (flat indices), and the points go to the core
+stacked (:class:`~isf_robot.core.intermittent.StackedPoints`: one pass of ``predict``). The paths agree to
 rounding (``tests/arm/test_torque_rollout.py``). Measured on panda_pole from its home state (130 points, a
-shared 2-core machine, 2026-11-27): rollout and ``predict`` about 2.5 ms, against 8.5 ms point by point with
-a list of points. The filter runs a rollout at most once every ``predict_every`` control steps, and only while
-it is on with every ``Xi_on`` above the margin.
+shared 2-core machine, 2026-11-28): rollout and ``predict`` 1.6 ms (2.35 ms with numpy gathers of the compiled
+points' rows; 8.5 ms point by point with a list of points). The filter runs a rollout at most once every
+``predict_every`` control steps, and only while it is on with every ``Xi_on`` above the margin.
 """
 
 from __future__ import annotations
