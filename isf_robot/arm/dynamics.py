@@ -37,6 +37,8 @@ from .scene import Scene
 
 __all__ = ["ArmDynamics", "DynamicsTerms", "torque_limits"]
 
+_new, _set = object.__new__, object.__setattr__  # (DynamicsTerms._of: a frozen dataclass's __dict__ set whole)
+
 
 @dataclass(frozen=True)
 class DynamicsTerms:
@@ -55,6 +57,16 @@ class DynamicsTerms:
     minv: np.ndarray
     a0: np.ndarray
     hold: np.ndarray
+
+    @classmethod
+    def _of(cls, mass: np.ndarray, minv: np.ndarray, a0: np.ndarray, hold: np.ndarray) -> DynamicsTerms:
+        """The terms with these fields, unchecked: :meth:`ArmDynamics.terms`'s fast path.
+
+        Same object as ``DynamicsTerms(...)`` would build, without the frozen dataclass's field-by-field ``__init__``.
+        """
+        terms = _new(cls)
+        _set(terms, "__dict__", {"mass": mass, "minv": minv, "a0": a0, "hold": hold})
+        return terms
 
     def acceleration(self, tau: np.ndarray) -> np.ndarray:
         """The model's ``q_ddot = a0 + Minv tau`` [rad/s^2] under the arm torques ``tau`` (n,)."""
@@ -78,7 +90,7 @@ class ArmDynamics:
         self.model = model
         self.dof = np.asarray(dof_adr, dtype=np.int64)
         n = self.dof.size
-        self._full = np.zeros((model.nv, model.nv))
+        self._nv2 = (model.nv, model.nv)
         self._own = mujoco.MjData(model) if own_data else None
         self._all = bool(np.array_equal(self.dof, np.arange(model.nv)))  # (the arm is every dof: no selection)
         # Right-hand sides of the one solve per state: the arm dofs' unit vectors, then the free force.
@@ -100,15 +112,15 @@ class ArmDynamics:
             mujoco.mj_fwdVelocity(self.model, own)
             data = own
         model, rhs, n = self.model, self._rhs, self.dof.size
-        mujoco.mj_fullM(model, data, self._full)
-        free = data.qfrc_passive - data.qfrc_bias
-        rhs[n] = free
+        full = np.empty(self._nv2)  # (fresh, as the solution: the terms of a state are never overwritten)
+        mujoco.mj_fullM(model, data, full)
+        free = np.subtract(data.qfrc_passive, data.qfrc_bias, out=rhs[n])
         sol = np.empty_like(rhs)
         mujoco.mj_solveM(model, data, sol, rhs)
         if self._all:
-            return DynamicsTerms(self._full.copy(), sol[:n], sol[n], -free)
+            return DynamicsTerms._of(full, sol[:n], sol[n], -free)
         dof = self.dof
-        return DynamicsTerms(self._full[np.ix_(dof, dof)], sol[:n, dof], sol[n, dof], -free[dof])
+        return DynamicsTerms._of(full[np.ix_(dof, dof)], sol[:n, dof], sol[n, dof], -free[dof])
 
 
 def torque_limits(scene: Scene) -> np.ndarray:

@@ -27,6 +27,10 @@ The nominal and act phases (:func:`step_kernels`, ``_kernels_step.py``): the tra
 and the reaching controller's command (``mj_jacSite``, then the damped least squares, the speed cap
 and the rate limit), each one call.
 
+The torque level's barrier phase (:func:`second_order_kernels`, ``_second_order_jit.py``): the difference of
+``phi`` at ``(q + eps q_dot, t + eps)``, with the kinematics and the collision kernel at the shifted state, and the
+``psi`` rows' Lie data, in one call; and the ``psi`` of the torque rollout's points.
+
 Without numba, or with ``ISF_ROBOT_JIT=0`` in the environment, :func:`near_kernel` and
 :func:`step_kernels` return ``None`` and the numpy paths run. The first use compiles the kernels (a few
 seconds; cached in ``__pycache__`` for later processes).
@@ -42,7 +46,8 @@ from isf_robot.core.filter_base import core_kernels
 from isf_robot.core.jit import compiled, jit_enabled
 from isf_robot.core.jit import compiled_here as jit_compiled_here
 
-__all__ = ["available", "compiled_here", "monitor_kernel", "near_kernel", "rollout_kernels", "step_kernels"]
+__all__ = ["available", "compiled_here", "monitor_kernel", "near_kernel", "rollout_kernels", "second_order_kernels",
+           "step_kernels"]
 
 _STATE: dict[str, Any] = {}
 
@@ -55,11 +60,13 @@ def _build() -> dict[str, Callable[..., Any]] | None:
         from . import _kernels_jit as kj
         from . import _kernels_step as ks
         from . import _rollout_jit as kr
+        from . import _second_order_jit as k2
     except ImportError:
         return None
     fns = {"near_packed_key": kj.near_packed_key, "monitor": kj.monitor, "track_apply": ks.track_apply,
            "track_step": ks.track_step, "reach": ks.reach, "monitor_apply": ks.monitor_apply,
-           "euler_step": kr.euler_step, "closed_loop_points": kr.closed_loop_points}
+           "euler_step": kr.euler_step, "closed_loop_points": kr.closed_loop_points, "phi_rate": k2.phi_rate,
+           "psi_tick": k2.psi_tick, "psi_points": k2.psi_points}
     return {name: compiled(fn) for name, fn in fns.items()}
 
 
@@ -94,6 +101,15 @@ def near_kernel() -> Callable[..., Any] | None:
     """
     k = _kernels()
     return None if k is None else k["near_packed_key"]
+
+
+def second_order_kernels() -> tuple[Callable[..., Any], Callable[..., Any], Callable[..., Any]] | None:
+    """The compiled difference of the torque level's ``phi``, its ``psi`` rows and its rollout's (``None``: numpy).
+
+    ``(phi_rate, psi_tick, psi_points)`` of ``_second_order_jit``.
+    """
+    k = _kernels()
+    return None if k is None else (k["phi_rate"], k["psi_tick"], k["psi_points"])
 
 
 def monitor_kernel() -> Callable[..., Any] | None:

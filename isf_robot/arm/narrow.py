@@ -215,6 +215,32 @@ class NarrowPhase:
                   self._knorms if joints is not None else 0, distmax, slack)
         return (data, coherence, joints, lower, p, int(data._address), arrays, *layout)
 
+    def packed_arguments(self, data: mujoco.MjData) -> tuple | None:
+        """The leading arguments of the packed kernel on ``data``, for a kernel that calls it (``None``: no kernel).
+
+        ``(model address, data address, p, blk, rows, cutoff, eps)`` of ``_kernels_jit.near_packed_key`` without
+        joint rows or coherence bounds, with an output block and rows of the context's layout that the caller
+        reuses (read within its call: ``_second_order_jit.phi_rate``). The velocities: :meth:`packed_velocities`.
+        """
+        if self._kernel is None:
+            return None
+        c = self._kernel_context(data, None, None)
+        return (self._maddr, c[5], c[4], np.empty(c[12]), np.empty(max(c[7], 1), dtype=np.int64), self.cutoff,
+                _EPS_DIST)
+
+    def packed_velocities(self, mocap_lin: np.ndarray | None) -> tuple[np.ndarray, int]:
+        """``(lin, dhdt_in)`` of the packed kernel for the mocap velocities ``mocap_lin`` (nmocap, 3) or ``None``.
+
+        The velocities flat and 1 where a pair's obstacle moves (its ``dh/dt`` made in the kernel, as :meth:`near`
+        does), else an empty array and 0.
+        """
+        if not (self._any_moving and mocap_lin is not None):
+            return self._knolin, 0
+        if mocap_lin.shape != self._lin_shape:
+            raise ShapeError(f"mocap velocities must have shape {self._lin_shape} (rows like data.mocap_pos); "
+                             f"got {mocap_lin.shape}")
+        return np.ascontiguousarray(mocap_lin, dtype=np.float64).reshape(-1), 1
+
     def _near_compiled(self, data: mujoco.MjData, mocap_lin: np.ndarray | None, mocap_ang: np.ndarray | None,
                        witness: bool, coherence: JointCoherence | None, joints: JointLimitBarriers | None,
                        tick: bool = False) -> FilterRows | TickRows:

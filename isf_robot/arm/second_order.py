@@ -52,11 +52,13 @@ import numpy as np
 from isf_robot.core import ConfigError, LieData
 from isf_robot.core.exceptions import IsfWarning
 
+from . import kernels
 from .collision import CollisionBarriers
 from .dynamics import DynamicsTerms
 from .joint_limits import JointLimitBarriers
+from .psi_law import obstacle_rate, phi_difference, phi_rows, psi_rows
 
-__all__ = ["psi_lie", "obstacle_rate", "phi_rows", "SecondOrderRows", "ObstacleClock", "PROBE_REACH"]
+__all__ = ["psi_lie", "SecondOrderRows", "ObstacleClock", "PROBE_REACH"]
 
 PROBE_REACH = 0.05
 """How far beyond the broad-phase cut-off [m] the difference of ``phi`` still sees a pair."""
@@ -64,20 +66,6 @@ PROBE_REACH = 0.05
 ObstacleClock = Callable[[mujoco.MjData, float], np.ndarray | None]
 """``(data, t) -> mocap linear velocities (nmocap, 3) or None``: puts the moving obstacles where they
 are at time ``t`` (writes ``data.mocap_pos``) and returns their velocities (``None``: static scene)."""
-
-
-def obstacle_rate(dhdt: np.ndarray, approaching: bool) -> np.ndarray:
-    """The moving obstacles' part of ``h_dot``: ``dh/dt`` itself, or ``-|dh/dt|`` with ``approaching``.
-
-    ``approaching`` takes every moving obstacle as closing in at its speed, whichever way it moves (the torque
-    level's rows: :class:`SecondOrderRows`, and its rollout's).
-    """
-    return -np.abs(dhdt) if approaching else dhdt
-
-
-def phi_rows(grad: np.ndarray, q_dot: np.ndarray, dhdt: np.ndarray) -> np.ndarray:
-    """``phi = J q_dot + dh/dt`` of rows with gradients ``grad`` (k, n) and ``dh/dt`` (k,) [m/s], shape (k,)."""
-    return grad @ q_dot + dhdt
 
 
 def psi_lie(h: np.ndarray, grad: np.ndarray, dhdt: np.ndarray, dphi: np.ndarray, q_dot: np.ndarray,
@@ -102,8 +90,8 @@ def psi_lie(h: np.ndarray, grad: np.ndarray, dhdt: np.ndarray, dphi: np.ndarray,
 
     """
     phi = phi_rows(grad, q_dot, dhdt) if phi is None else phi
-    return LieData._of(phi + alpha_1 * h, dphi + grad @ terms.a0 + alpha_1 * phi, grad @ terms.minv,
-                       np.linalg.norm(grad, axis=1) if grad_norm is None else grad_norm, names)
+    psi, lf, lg = psi_rows(h, grad, phi, dphi, terms.a0, terms.minv, alpha_1)
+    return LieData._of(psi, lf, lg, np.linalg.norm(grad, axis=1) if grad_norm is None else grad_norm, names)
 
 
 class SecondOrderRows:
@@ -140,6 +128,20 @@ class SecondOrderRows:
             warnings.simplefilter("ignore", IsfWarning)
             self._probe = CollisionBarriers(coll.model, coll.pairs, coll.dof_adr, coll.cutoff + PROBE_REACH)
         self._at = np.full(coll.pairs.k, -1, dtype=np.int64)  # (pair -> its row in the probe's near pairs)
+        self._nmocap = coll.model.nmocap
+        # The compiled difference and rows (kernels.second_order_kernels): the probe's packed kernel on the scratch.
+        self._kargs = self._probe.packed_arguments(self._scratch)
+        ks = kernels.second_order_kernels() if self._kargs is not None else None
+        self._kernel, self._tick_kernel = (None, None) if ks is None else ks[:2]
+        self._kqpos = (self._scratch.qpos, self.qadr)
+
+    def _shift_obstacles(self, data: mujoco.MjData, t: float) -> np.ndarray | None:
+        """The scratch's mocap bodies as in ``data``, the moving ones at ``t + eps``; their velocities (or None)."""
+        s = self._scratch
+        if self._nmocap:
+            s.mocap_pos[:] = data.mocap_pos
+            s.mocap_quat[:] = data.mocap_quat
+        return self.obstacles(s, t + self.eps) if self.obstacles is not None else None
 
     def phi_rate(self, data: mujoco.MjData, t: float, rows: np.ndarray, q_dot: np.ndarray,
                  phi: np.ndarray) -> np.ndarray:
@@ -148,18 +150,27 @@ class SecondOrderRows:
         The forward difference ``(phi(q + eps q_dot, t + eps) - phi) / eps``; ``phi``: the pairs' ``phi`` at the
         state (the tick's, :func:`phi_rows`). One evaluation of the rows per tick; the central difference took two
         for about the same figure (on 150 random states each of panda_pole and panda_moving with near pairs,
-        10309 rows: apart by 5e-7 m/s^2 at the median, 5e-4 at the 99th percentile, 0.035 at most).
+        10309 rows: apart by 5e-7 m/s^2 at the median, 5e-4 at the 99th percentile, 0.035 at most). With numba the
+        shift, the kinematics, the probe's rows and the difference are one compiled call (``_second_order_jit``).
+
+        Raises:
+            ConfigError: A pair of ``rows`` is not within the probe's cut-off at the shifted state.
+
         """
         if rows.size == 0:
             return np.zeros(0)
         model, s, e = self.coll.model, self._scratch, self.eps
-        s.qpos[:] = data.qpos
-        s.qpos[self.qadr] = data.qpos[self.qadr] + e * q_dot
-        s.mocap_pos[:] = data.mocap_pos
-        s.mocap_quat[:] = data.mocap_quat
-        lin = self.obstacles(s, t + e) if self.obstacles is not None else None
-        mujoco.mj_kinematics(model, s)
-        mujoco.mj_comPos(model, s)
+        lin = self._shift_obstacles(data, t)
+        if self._kernel is not None:  # (shift, kinematics, rows and difference in one call; numpy below when it cannot)
+            out = np.empty(rows.size)
+            if self._kernel(*self._kargs, *self._probe.packed_velocities(lin), data.qpos, *self._kqpos, q_dot, e, rows,
+                            phi, self._at, self.approaching, out) == 0:  # (_second_order_jit.DONE)
+                return out
+        else:
+            s.qpos[:] = data.qpos
+            s.qpos[self.qadr] = data.qpos[self.qadr] + e * q_dot
+            mujoco.mj_kinematics(model, s)
+            mujoco.mj_comPos(model, s)
         near = self._probe.near(s, lin)
         at = self._at
         at[near.rows] = np.arange(near.rows.size)
@@ -168,13 +179,16 @@ class SecondOrderRows:
         if (sel < 0).any():  # (cannot happen within PROBE_REACH of the cut-off; said rather than assumed)
             raise ConfigError(f"pairs {rows[sel < 0].tolist()} left the probe's reach within eps = {e} s")
         dhdt = near.dhdt[sel]
-        return (phi_rows(near.grad[sel], q_dot, obstacle_rate(dhdt, self.approaching)) - phi) / e
+        return phi_difference(phi_rows(near.grad[sel], q_dot, obstacle_rate(dhdt, self.approaching)), phi, e)
 
     def tick(self, data: mujoco.MjData, t: float, terms: DynamicsTerms, lin: np.ndarray | None = None, *,
              coherence: object = None, witness: bool = False) -> tuple:
         """The velocity level's tick rows and the torque level's Lie data at the state in ``data``.
 
         ``data`` has the kinematics of its state (after ``mj_step1``); ``lin``: the mocap velocities at ``t``.
+        After the velocity level's rows, ``phi``, ``D phi`` (:meth:`phi_rate`) and the ``psi`` rows are one compiled
+        call with numba (``_second_order_jit.psi_tick``: the formulas of :mod:`isf_robot.arm.psi_law`, which the
+        numpy path calls too); the numpy path where it cannot (coinciding witness points at the shifted state).
 
         Returns:
             ``(psi_lie, tick)``: the :func:`psi_lie` of every near pair then every joint limit, and
@@ -185,8 +199,16 @@ class SecondOrderRows:
         tick = self.coll.lie_rows(data, self.joints, lin, coherence=coherence, witness=witness)  # type: ignore[arg-type]
         lie, idx = tick[0], tick[1]
         # (no copies: the rows' arrays are the tick's own, never handed out again, and only read here)
-        dhdt = obstacle_rate(lie.lf, self.approaching)
         q_dot = data.qvel[self.coll.dof_adr]
+        if self._tick_kernel is not None:  # (phi, D phi and the psi rows in one call; numpy below when it cannot)
+            lin_e = self._shift_obstacles(data, t) if idx.size else None
+            k, n = lie.lg.shape
+            out = np.empty(k * (n + 2))  # (fresh: the filter may keep the rows)
+            if self._tick_kernel(*self._kargs, *self._probe.packed_velocities(lin_e), data.qpos, *self._kqpos, q_dot,
+                                 self.eps, idx, self._at, self.approaching, lie.h, lie.lg, lie.lf, terms.a0, terms.minv,
+                                 self.alpha_1, out) == 0:  # (_second_order_jit.DONE)
+                return LieData._of(out[:k], out[k: 2 * k], out[2 * k:].reshape(k, n), lie.grad_norm, lie.names), tick
+        dhdt = obstacle_rate(lie.lf, self.approaching)
         phi = phi_rows(lie.lg, q_dot, dhdt)
         dphi = np.zeros(phi.shape[0])
         nc = idx.size

@@ -36,13 +36,15 @@ scratch ``MjData``. With numba, while the goal cannot change over the horizon an
 one compiled call (``_rollout_jit.closed_loop_points``: the obstacles' places, the Euler step, the kinematics, the
 controller's kernel, the error's decay, the collision kernel), as the velocity level's
 :class:`~isf_robot.arm.rollout.NominalRollout` does; otherwise each point's Euler step and kinematics are one
-call and its rows :meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`. Either way the rows' ``psi``
-and the pairing of consecutive points are a few array operations over all points, and the points go to the
-core stacked (:class:`~isf_robot.core.intermittent.StackedPoints`: one pass of ``predict``). The paths agree to
+call and its rows :meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`. The rows' ``psi`` go in a table
+(point, row key): the compiled points' by one more compiled call (``_second_order_jit.psi_points``), the others'
+by a few array operations, with the formulas of :mod:`isf_robot.arm.psi_law` either way; the pairing of
+consecutive points is a few array operations over all points (flat indices), and the points go to the core
+stacked (:class:`~isf_robot.core.intermittent.StackedPoints`: one pass of ``predict``). The paths agree to
 rounding (``tests/arm/test_torque_rollout.py``). Measured on panda_pole from its home state (130 points, a
-shared 2-core machine, 2026-11-27): rollout and ``predict`` about 2.5 ms, against 8.5 ms point by point with
-a list of points. The filter runs a rollout at most once every ``predict_every`` control steps, and only while
-it is on with every ``Xi_on`` above the margin.
+shared 2-core machine, 2026-11-28): rollout and ``predict`` 1.6 ms (2.35 ms with numpy gathers of the compiled
+points' rows; 8.5 ms point by point with a list of points). The filter runs a rollout at most once every
+``predict_every`` control steps, and only while it is on with every ``Xi_on`` above the margin.
 """
 
 from __future__ import annotations
@@ -57,11 +59,12 @@ import numpy as np
 from isf_robot.core import ConfigError, LieData
 from isf_robot.core.intermittent import StackedPoints
 
+from . import kernels
 from .collision import CollisionBarriers
 from .joint_limits import JointLimitBarriers
+from .psi_law import obstacle_rate, psi_value
 from .rollout import ScratchRollout, obstacle_tracks
 from .scene import Scene
-from .second_order import obstacle_rate
 
 __all__ = ["TorqueRollout"]
 
@@ -99,6 +102,8 @@ class TorqueRollout(ScratchRollout):
             points = max(1, int(math.ceil(float(horizon) / float(control_period) - 1e-9))) if ok else 1
         super().__init__(scene, nominal, coll, joints, control_period, time_offset, horizon, points)
         self._whole = self._whole_kernel()
+        ks = kernels.second_order_kernels()
+        self._psi_points = ks[2] if ks is not None else None  # (the psi of the whole kernel's points)
         self.alpha_1 = float(alpha_1)
         self.decay = math.exp(-float(kd) * self.dt)
         self.approaching = bool(approaching)
@@ -124,12 +129,12 @@ class TorqueRollout(ScratchRollout):
         if self.moving:  # (the obstacles' places and velocities at every point's time, in one pass)
             mpos, lins = obstacle_tracks(self.scene, [t + j * dt + self.offset for j in range(n + 1)])
         coll, joints, jk, step, qpos = self.coll, self.joints, self._joint_keys, self._step, d.qpos
-        keys: list[np.ndarray] = []  # (per point, as lgv, lf, h, gn; put together after the loop in a few operations)
+        keys: list[np.ndarray] = []  # (per point made here, as lgv, lf, h, gn; put in the tables after the loop)
         lgv: list[np.ndarray] = []
         lf: list[np.ndarray] = []
         h: list[np.ndarray] = []
         gn: list[np.ndarray] = []
-        at: list[np.ndarray] = []  # (each entry's point, for entries made by the compiled points)
+        psi, g, present = np.empty((n + 1, K)), np.empty((n + 1, K)), np.zeros((n + 1, K), dtype=bool)
         saved = self.nominal.snapshot()
         self.calls += 1
         try:
@@ -157,68 +162,57 @@ class TorqueRollout(ScratchRollout):
                 lf.append(lie.lf)
                 h.append(lie.h)
                 gn.append(lie.grad_norm)
-                if j == 0 and self._whole is not None:  # (the other points in one compiled call, when it can)
-                    done = self._compiled(t, q, v, e, v_ref, mpos if self.moving else None,
-                                          lins if self.moving else None)
-                    if done is not None:
-                        at, pk, pl, pf, ph, pg = done
-                        keys.append(pk)
-                        lgv.append(pl)
-                        lf.append(pf)
-                        h.append(ph)
-                        gn.append(pg)
-                        break
+                if j == 0 and self._whole is not None and self._psi_points is not None and self._compiled(
+                        t, q, v, e, v_ref, mpos if self.moving else None, lins if self.moving else None, psi, g,
+                        present):  # (the other points in one compiled call, when it can)
+                    break
         finally:
             self.nominal.restore(saved)
-        rows = np.array([a.size for a in (lgv[:-1] if at else lgv)])  # (the points made one by one)
-        point = np.repeat(np.arange(rows.size), rows)
-        dhdt = np.concatenate(lf)
-        psi_all = np.concatenate(lgv) + obstacle_rate(dhdt, self.approaching) + self.alpha_1 * np.concatenate(h)
-        where = (np.concatenate((point, *at)), np.concatenate(keys))
-        psi, g, present = np.empty((n + 1, K)), np.empty((n + 1, K)), np.zeros((n + 1, K), dtype=bool)
-        psi[where], g[where], present[where] = psi_all, np.concatenate(gn), True
+        rows = np.array([a.size for a in lgv])  # (the points made here)
+        where = (np.repeat(np.arange(rows.size), rows), np.concatenate(keys))
+        phi = np.concatenate(lgv) + obstacle_rate(np.concatenate(lf), self.approaching)
+        psi[where], g[where], present[where] = psi_value(phi, np.concatenate(h), self.alpha_1), np.concatenate(gn), True
         return self._points(psi, g, present)
 
     def _compiled(self, t: float, q: np.ndarray, v: np.ndarray, e: np.ndarray, v_ref: np.ndarray,
-                  mpos: np.ndarray | None, lins: np.ndarray | None) -> tuple | None:
-        """Points ``1 .. n`` in one compiled call (``_rollout_jit.closed_loop_points``), the loop's formulas.
+                  mpos: np.ndarray | None, lins: np.ndarray | None, psi: np.ndarray, gn: np.ndarray,
+                  present: np.ndarray) -> bool:
+        """Points ``1 .. n`` in compiled calls (``_rollout_jit.closed_loop_points``, ``_second_order_jit.psi_points``).
 
         Taken after point 0 (``q``, ``v``, ``e`` and the command ``v_ref`` there) while :meth:`_steady`, as
-        :meth:`NominalRollout._compiled <isf_robot.arm.rollout.NominalRollout._compiled>`. Returns
-        ``([point of each row], keys, J v, dh/dt, h, |J|)`` of every row of those points, flat; ``None``: the loop
-        goes on (``q``, ``e`` and the controller's state as before this call), also after a point whose witness
-        points coincide.
+        :meth:`NominalRollout._compiled <isf_robot.arm.rollout.NominalRollout._compiled>`. Fills rows ``1 .. n`` of
+        the tables ``psi``, ``gn`` (``|J|``: the collision kernel's, which it computes with joint rows) and
+        ``present``; ``False``: the loop goes on (``q``, ``e`` and the controller's state as before this call), also
+        after a point whose witness points coincide.
         """
-        joints, n = self.joints, self.n
+        n = self.n
         if not self._steady(t):
-            return None
+            return False
         moving = mpos is not None and lins is not None
         got = self._run_whole(t, q, v, e, self.decay, v_ref, np.ascontiguousarray(mpos[1:]) if moving else None,
                               lins[1:].reshape(n, -1) if moving else None, command=False)
         if got is None:  # (the loop from point 1)
-            return None
-        c, blk, gr, rows, keys, res, _, vs = got
-        mr = c[7]
-        k = res[:, 0].astype(np.int64) + len(joints.names)
-        jj, ii = np.nonzero(np.arange(mr) < k[:, None])  # (each point's rows: its pairs, then the joint limits)
-        o_gn, o_lf = c[10], c[11]
-        g = gr[jj, ii]
-        gn = blk[jj, o_gn + ii] if c[13] else np.linalg.norm(g, axis=1)
-        return ([jj + 1], keys[jj, ii], np.einsum("ij,ij->i", g, vs[jj]), blk[jj, o_lf + ii], blk[jj, ii], gn)
+            return False
+        c, blk, _, _, keys, res, _, vs = got
+        self._psi_points(blk, keys, res, vs, len(self.joints.names), c[7], c[8], c[10], c[11], self.alpha_1,
+                         self.approaching, psi, gn, present)
+        return True
 
     def _points(self, psi: np.ndarray, gn: np.ndarray, present: np.ndarray) -> StackedPoints:
         """Per point ``j < n`` the rows present at ``j`` and ``j + 1`` (ascending keys): ``h = psi_j``, the rate."""
         n, K, dt, mu = self.n, self._names.size, self.dt, self._dofs.size
         both = present[:-1] & present[1:]
-        jj, kk = np.nonzero(both)  # (row-major: each point's rows in ascending keys)
+        at = np.flatnonzero(both)  # (j K + key, row-major: each point's rows in ascending keys; flat: take and put)
         rows = np.count_nonzero(both, axis=1).astype(np.int64)
-        pos = np.arange(jj.size) - (np.cumsum(rows) - rows)[jj]  # (a row's place within its point)
+        kk = at % K
+        dst = at - kk + np.arange(at.size) - np.repeat(np.cumsum(rows) - rows, rows)  # (j K + the row's place in j)
         h, lf, g, keys = np.zeros((n, K)), np.zeros((n, K)), np.zeros((n, K)), np.zeros((n, K), dtype=np.int64)
-        h0 = psi[jj, kk]
-        h[jj, pos] = h0
-        lf[jj, pos] = (psi[jj + 1, kk] - h0) / dt
-        g[jj, pos] = gn[jj, kk]
-        keys[jj, pos] = kk
+        flat = psi.reshape(-1)  # (psi, gn: the (n + 1, K) tables of __call__, contiguous)
+        h0 = flat.take(at)
+        h.put(dst, h0)
+        lf.put(dst, (flat.take(at + K) - h0) / dt)
+        g.put(dst, gn.reshape(-1).take(at))
+        keys.put(dst, kk)
         if self._zeros[0].shape != (n, K, mu):
             lg0, u0 = np.zeros((n, K, mu)), np.zeros((n, mu))
             ro = lg0.view()

@@ -222,7 +222,7 @@ class _TorqueEpisode(_Episode):
         self.tau_peak = 0.0
         self._t = 0.0
         self._last: tuple[int, np.ndarray, np.ndarray] | None = None  # (tick, q_dot, predicted q_ddot)
-        self._dofs = np.asarray(sim.scene.dof_adr)
+        self._tau, self._tau_min = np.zeros(sim.tau_max.size), -sim.tau_max  # (act's torque, its lower limit)
 
     def sense(self, k: int) -> None:
         """The velocity level's sense, then the model's terms (and the last period's model error)."""
@@ -230,9 +230,16 @@ class _TorqueEpisode(_Episode):
         sim = self.sim
         self._t = k * sim.control_period
         sim.terms = sim.dynamics.terms(self.data)
+        self._account_model_error()
+
+    def _account_model_error(self) -> None:
+        """The last period's model error ``|(q_dot - q_dot_0) / T - (a0 + Minv tau)|`` [rad/s^2] (at the next tick)."""
         if self._last is not None:
             j, v0, pred = self._last
-            self.track_err[j] = float(np.linalg.norm((self.data.qvel[self._dofs] - v0) / sim.control_period - pred))
+            e = self.data.qvel[self._dof_sel] - v0
+            e /= self.sim.control_period
+            e -= pred
+            self.track_err[j] = math.sqrt(e.dot(e))  # (np.linalg.norm of a vector, without its wrapper)
 
     def barriers(self) -> tuple[TickValues | None, LieData | None]:
         """The ``psi`` rows and the tick's safety accounting on the true geometry.
@@ -258,16 +265,19 @@ class _TorqueEpisode(_Episode):
 
     def act(self, k: int, u: np.ndarray) -> None:
         """Hold the torque ``u`` over the control period: S physics steps, each checked for safety."""
-        sim, data, model = self.sim, self.data, self.model
-        if not np.all(np.isfinite(u)):
+        sim, data, model, dofs = self.sim, self.data, self.model, self._dof_sel
+        peak = float((np.abs(u) / sim.tau_max).max())  # (not finite exactly when u is not: tau_max > 0, finite)
+        if not math.isfinite(peak):
             raise NonFiniteError(f"torque command at t = {k * sim.control_period:g} s is not finite: {u}")
-        self.tau_peak = max(self.tau_peak, float(np.max(np.abs(u) / sim.tau_max)))
-        tau = np.clip(u, -sim.tau_max, sim.tau_max)  # (the QP's answer is within them up to its tolerance)
-        v = data.qvel[self._dofs]
-        self.ref_err[k] = float(np.linalg.norm(v - sim.torque_nominal.v_ref))
+        self.tau_peak = max(self.tau_peak, peak)
+        tau = self._tau  # (the QP's answer is within the limits up to its tolerance: clipped, as np.clip)
+        np.minimum(np.maximum(u, self._tau_min, out=tau), sim.tau_max, out=tau)
+        v = data.qvel[dofs].copy()
+        e = v - sim.torque_nominal.v_ref
+        self.ref_err[k] = math.sqrt(e.dot(e))
         assert sim.terms is not None
-        self._last = (k, v.copy(), sim.terms.acceleration(tau))
-        data.qfrc_applied[self._dofs] = tau
+        self._last = (k, v, sim.terms.acceleration(tau))
+        data.qfrc_applied[dofs] = tau
         mujoco.mj_step2(model, data)
         bound, base = (self.dmin if self.recording else -math.inf), k * self.S
         for s in range(1, self.S):
@@ -282,11 +292,7 @@ class _TorqueEpisode(_Episode):
 
     def finish(self, wall: float, timings: dict[str, float]) -> RunResult:
         """The velocity level's summary with the torque level's figures."""
-        last = self._last
-        if last is not None:
-            j, v0, pred = last
-            self.track_err[j] = float(np.linalg.norm((self.data.qvel[self._dofs] - v0) / self.sim.control_period
-                                                     - pred))
+        self._account_model_error()
         res = super().finish(wall, timings)
         fields = {f.name: getattr(res, f.name) for f in dataclasses.fields(RunResult)}
         return TorqueRunResult(**fields, tau_peak_ratio=self.tau_peak,
