@@ -230,6 +230,7 @@ class ArmSimulation:
         observers, recording = self.observers, bool(self.observers)
         stepwise = Observers([o for o in observers.items if not takes_blocks(o)])
         blockwise = Observers([o for o in observers.items if takes_blocks(o)])
+        per_step = bool(stepwise)
         block = ep.block(min((getattr(o, "block_steps", BLOCK_STEPS) for o in blockwise.items),
                              default=BLOCK_STEPS)) if recording else None
         if recording:
@@ -245,12 +246,12 @@ class ArmSimulation:
                     ep.write(block, t, step, values)
                 act(k, step.u)
                 if block is not None:
-                    block.end_row(ep.dmin)
+                    full = block.end_row(ep.dmin)
                     if step.event is not None:
                         observers.on_event(step.event)
-                    if stepwise:
+                    if per_step:
                         stepwise.on_step(block.record(block.size - 1))
-                    if block.full:
+                    if full:
                         block.seal()
                         blockwise.on_steps(block)
                         block.clear()

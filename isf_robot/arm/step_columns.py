@@ -215,9 +215,16 @@ class StepColumns:
             witness[: len(self._witness)] = self._witness
             self._witness = witness
 
-    def end_row(self, dist_min: float) -> None:
-        """The smallest true signed distance [m] over the physics steps of the row just written."""
-        self.dist_min[self.size - 1] = dist_min
+    def end_row(self, dist_min: float) -> bool:
+        """The smallest true signed distance [m] over the physics steps of the row just written.
+
+        Returns:
+            Whether the block is now full (:attr:`full`: the loop then seals it, hands it on and clears it).
+
+        """
+        i = self.size
+        self.dist_min[i - 1] = dist_min
+        return i >= self.capacity
 
     def seal(self) -> None:
         """Fill the block's arrays from the rows written since the last :meth:`seal` (or :meth:`clear`).
