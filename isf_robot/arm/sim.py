@@ -253,8 +253,10 @@ class ArmSimulation:
                         stepwise.on_step(block.record(block.size - 1))
                     if full:
                         block.seal()
-                        blockwise.on_steps(block)
-                        block.clear()
+                        try:
+                            blockwise.on_steps(block)
+                        finally:
+                            block.clear()  # (handed on once, also when an observer fails or Ctrl-C comes)
         except BaseException as exc:  # an error or Ctrl-C: observers keep what they have, marked partial
             if recording:
                 if block is not None and len(block) and blockwise:

@@ -60,7 +60,8 @@ class StepColumns:
         body_pos, body_quat: Every body's pose at ``t`` ([m]; (w, x, y, z)), shape (C, B, 3) and (C, B, 4).
         on, qp_solved, fallback: Filter mode, QP solved, braking fallback applied, shape (C,) bool.
         xi_min: Smallest ``Xi_on`` the filter saw (inf for ``nominal``), shape (C,).
-        dist_min: Smallest true signed distance [m] over the step's physics steps, shape (C,).
+        dist_min: Smallest true signed distance [m] over the step's physics steps, shape (C,) (``inf`` in a row
+            whose physics steps did not finish: the last row of a run stopped by an error or Ctrl-C).
         h: Every barrier value at ``t``, shape (C, k) (pairs beyond the cut-off: ``cutoff - margin``).
         h_min: Smallest barrier value of each row, shape (C,).
         ee_pos, goal_pos: End effector at ``t`` and goal pursued [m], shape (C, 3) (goal NaN without one).
@@ -172,7 +173,8 @@ class StepColumns:
             t: Time at the start of the step [s].
             step: The strategy's step (``u``, ``u_nom``, ``on``, ``xi``, ``qp``, ``fallback``,
                 ``relaxed``, ``event``).
-            values: The tick's barrier values (copied).
+            values: The tick's barrier values: kept by reference until the next seal (like ``step.xi``), so
+                they must be arrays made for this step, not a buffer the caller fills again.
             goal_index: Goal pursued (its position: the block's goal table, NaN without one).
 
         Raises:
@@ -223,6 +225,8 @@ class StepColumns:
 
         """
         i = self.size
+        if i == 0:
+            raise IndexError("end_row follows write: the block has no row yet")
         self.dist_min[i - 1] = dist_min
         return i >= self.capacity
 
@@ -238,7 +242,6 @@ class StepColumns:
             return
         n = b - a
         t, on, qp, fallback, goal, xi, values = zip(*self._rows)
-        self._rows.clear()
         self.t[a:b], self.on[a:b], self.qp_solved[a:b] = t, on, qp
         self.fallback[a:b], self.goal_index[a:b] = fallback, goal
         rows, tick_h, witness = zip(*values)
@@ -273,6 +276,7 @@ class StepColumns:
             self.goal_pos[a:b][ok] = goals[gi[ok]]
         self.h_min[a:b] = h.min(axis=1) if h.shape[1] else math.inf
         self.sealed = b
+        self._rows.clear()  # (only now: a seal that fails keeps its rows)
 
     def closest(self, i: int, m: int = 3) -> np.ndarray:
         """Indices of the (up to) ``m`` collision pairs with the smallest ``h`` at (sealed) row ``i``, closest first."""

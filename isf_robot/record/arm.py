@@ -121,10 +121,10 @@ class ArmRecorder(RerunRecorder):
         return self.buffer.capacity
 
     def _setup(self, info: Mapping[str, Any]) -> None:
-        """Geometry and margins from the run's start info (``model``, ``qpos_adr``, ``pair_margins``)."""
+        """Geometry and margins from the run's start info (``model``, ``pair_margins``)."""
         model = info.get("model")
-        if model is None or info.get("qpos_adr") is None:
-            raise RecordError("ArmRecorder needs the arm loop's start info (model, qpos_adr, pair_margins); "
+        if model is None:
+            raise RecordError("ArmRecorder needs the arm loop's start info (model, pair_margins); "
                               "got keys: " + ", ".join(sorted(info)))
         robot = np.asarray(info.get("robot_geom_ids", ()), dtype=int).reshape(-1)
         obstacles = np.asarray(info.get("obstacle_geom_ids", ()), dtype=int).reshape(-1)

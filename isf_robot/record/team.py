@@ -90,7 +90,7 @@ class TeamSeries:
         if self.member.shape[0] != h.shape[1]:
             raise RecordError(f"the block has {h.shape[1]} collision pairs, the run's start info "
                               f"{self.member.shape[0]}")
-        out = []
+        out, goals = [], b.arm_goal  # (the goals made once for every arm)
         for i, cols in enumerate(self.joints):
             sel = self.member[:, i]
             hmin = h[:, sel].min(axis=1) if sel.any() else np.full(n, np.nan)
@@ -99,7 +99,7 @@ class TeamSeries:
                 # in the metrics accumulator's order (sums.sq_sum per row): the arm's intervention adds up the same
                 "intervention_rate": row_sq_sums(u[:, cols] - u_nom[:, cols]),
                 "min_barrier": np.where(np.isfinite(hmin), hmin, np.nan),
-                "ee": b.arm_ee[:n, i].copy(), "goal": b.arm_goal[:n, i].copy(),
+                "ee": b.arm_ee[:n, i].copy(), "goal": goals[:n, i].copy(),
             })
         return out
 

@@ -149,3 +149,30 @@ def test_team_columns_keep_each_arms_mode_end_effector_and_goal() -> None:
     assert np.isnan(goal[2:, 1]).all()
     with pytest.raises(ValueError, match="one end-effector site"):
         block.bind_arms(data.site_xpos, [0], goals)
+
+
+def test_flat_buffers_grow_rows_without_witness_points_and_blocks_reused() -> None:
+    rng = np.random.default_rng(3)
+    block, data, model = _block(60)
+    block.SEAL_ROWS = 7
+    block._pairs, block._witness = block._pairs[:5], block._witness[:5]  # (room for 5 pairs: the buffers must grow)
+    for _ in range(3):  # (three blocks through clear())
+        rows = _rows(rng, 50)
+        for i, r in enumerate(rows):
+            near, h, wit = r["values"]
+            values = TickValues(near, h, None) if i % 4 == 0 else r["values"]
+            block.write(r["t"], r["step"], values, r["goal"])
+            block.end_row(r["dist"])
+        block.seal()
+        for i, r in enumerate(rows):
+            near, h, wit = r["values"]
+            a, b = block.pair_start[i], block.pair_start[i + 1]
+            np.testing.assert_array_equal(block.pairs[a:b], near)
+            if i % 4 == 0:
+                assert np.isnan(block.witness[a:b]).all()
+            else:
+                np.testing.assert_array_equal(block.witness[a:b], wit[:, :2])
+            assert block.events.get(i) == r["step"].event
+        block.clear()
+    with pytest.raises(IndexError, match="no row"):
+        block.end_row(0.0)
