@@ -113,3 +113,16 @@ def random_states() -> Callable[..., Any]:
             yield d
 
     return states
+
+
+@pytest.fixture(scope="session")
+def goal_reached_at_once() -> Callable[..., None]:
+    """A rollout's ``goals`` hook: the current goal put at the end effector with a short dwell, so that an arrival
+    within the horizon can advance the goal (the rollouts' compiled paths must then decline)."""
+
+    def near_the_goal(nom: Any, data: Any, t: float) -> None:
+        nom.goals.reset()
+        nom.goals.dwell[:] = 0.05
+        nom.goal_positions[nom.goals.index] = nom.scene.ee_position(data)
+
+    return near_the_goal

@@ -86,13 +86,8 @@ def test_compiled_paths_give_the_numpy_loops_points(name) -> None:  # type: igno
     assert roll.moving == (name != "panda_pole")
 
 
-def test_a_goal_change_within_the_horizon_takes_the_general_loop() -> None:
-    def near_the_goal(nom, data, t):  # type: ignore[no-untyped-def]
-        nom.goals.reset()
-        nom.goals.dwell[:] = 0.05  # (an arrival within the horizon can advance the goal)
-        nom.goal_positions[nom.goals.index] = nom.scene.ee_position(data)  # (arrives at once)
-
-    roll, whole, euler = _compare("panda_pole", 6, goals=near_the_goal)
+def test_a_goal_change_within_the_horizon_takes_the_general_loop(goal_reached_at_once) -> None:  # type: ignore[no-untyped-def]
+    roll, whole, euler = _compare("panda_pole", 6, goals=goal_reached_at_once)
     assert whole == 0 and euler == 2 * 6 * roll.n  # never the whole-rollout kernel (goals.steady said no)
 
 

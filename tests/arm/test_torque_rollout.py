@@ -247,13 +247,8 @@ def test_compiled_torque_points_are_the_loops(name: str) -> None:
     assert whole == (8, 8) and euler == 8 * roll.n  # (the whole path at every state; the Euler path once per point)
 
 
-def test_a_goal_change_within_the_horizon_takes_the_loop() -> None:
-    def near_the_goal(nom, data, t):  # type: ignore[no-untyped-def]
-        nom.goals.reset()
-        nom.goals.dwell[:] = 0.05  # (an arrival within the horizon can advance the goal)
-        nom.goal_positions[nom.goals.index] = nom.scene.ee_position(data)  # (arrives at once)
-
-    roll, whole, euler = _compare_paths("panda_pole", 4, goals=near_the_goal)
+def test_a_goal_change_within_the_horizon_takes_the_loop(goal_reached_at_once) -> None:  # type: ignore[no-untyped-def]
+    roll, whole, euler = _compare_paths("panda_pole", 4, goals=goal_reached_at_once)
     assert whole == (0, 0) and euler == 2 * 4 * roll.n  # (never the kernel: goals.steady said no)
 
 
