@@ -335,7 +335,7 @@ class CentralFilter:
         mode = (False, False) if st is None else (bool(st.on), st.qp is not None)
         return [mode] * len(self.blocks)
 
-    def agent_results(self, team: DutyCycleMetrics | None = None) -> list[AgentResult]:
+    def agent_results(self, team: DutyCycleMetrics) -> list[AgentResult]:
         """Each agent's figures: the filter's duty cycle, switches and periods, its own intervention.
 
         Args:
@@ -343,9 +343,6 @@ class CentralFilter:
                 filter's duty cycle, switches and periods are every agent's).
 
         """
-        if team is None:
-            raise ConfigError("CentralFilter.agent_results needs the filter's figures (the loop's account of its "
-                              "steps: MetricsAccumulator.result())")
         return [AgentResult(n, replace(team, intervention=float(v)), *self.coordination.of(i))
                 for i, (n, v) in enumerate(zip(self.names, self.intervention.result()))]
 
@@ -443,6 +440,6 @@ class SharedFilter:
             return [(False, False)] * len(self.tallies)
         return [(bool(st.on), st.qp is not None) for st in self.last]
 
-    def agent_results(self, team: DutyCycleMetrics | None = None) -> list[AgentResult]:
+    def agent_results(self, team: DutyCycleMetrics) -> list[AgentResult]:
         """Each agent's figures, from its own filter's tally (``team``, the team's figures, is not needed)."""
         return [t.result() for t in self.tallies]
