@@ -124,11 +124,6 @@ class StepColumns:
         return self.size
 
     @property
-    def full(self) -> bool:
-        """Whether every row is written (the loop then seals it, hands it on and clears it)."""
-        return self.size >= self.capacity
-
-    @property
     def pairs(self) -> np.ndarray:
         """The written rows' near pairs, row after row, shape (A,) (see :attr:`pair_start`)."""
         return self._pairs[: self.pair_start[self.sealed]]
@@ -221,7 +216,7 @@ class StepColumns:
         """The smallest true signed distance [m] over the physics steps of the row just written.
 
         Returns:
-            Whether the block is now full (:attr:`full`: the loop then seals it, hands it on and clears it).
+            Whether every row is now written (the loop then seals the block, hands it on and clears it).
 
         """
         i = self.size
