@@ -117,7 +117,7 @@ def report(times: dict[str, list[float]], suite: tuple[float, str] | None, load0
         "",
         f"Notices on stderr: cold runs that compiled {int(sum(times['run cold compiled']))} of "
         f"{len(times['run cold'])}, cold demos on the plain path {int(sum(times['demo cold plain']))} of "
-        f"{len(times['demo cold'])}; warm demos that compiled the kernels the run before did not need "
+        f"{len(times['demo cold'])}; warm demos that compiled anything (the demo uses the kernels the cache holds, the rest as written) "
         f"{int(sum(times['demo warm compiled']))} of {len(times['demo warm'])}, warm commands on the plain path "
         f"{int(sum(times['demo warm plain']) + sum(times['run warm plain']))}, warm runs that compiled "
         f"{int(sum(times['run warm compiled']))}.",

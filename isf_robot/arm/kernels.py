@@ -32,8 +32,9 @@ The torque level's barrier phase (:func:`second_order_kernels`, ``_second_order_
 ``psi`` rows' Lie data, in one call; and the ``psi`` of the torque rollout's points.
 
 Without numba, or with ``ISF_ROBOT_JIT=0`` in the environment, :func:`near_kernel` and
-:func:`step_kernels` return ``None`` and the numpy paths run. The first use compiles the kernels (a few
-seconds; cached in ``__pycache__`` for later processes).
+:func:`step_kernels` return ``None`` and the numpy paths run. Under ``ISF_ROBOT_JIT=cached`` each getter
+returns its kernels only where numba's cache holds every one of them (the rest run as written). The first
+use compiles the kernels (a few seconds; cached in ``__pycache__`` for later processes).
 """
 
 from __future__ import annotations
@@ -77,6 +78,15 @@ def _kernels() -> dict[str, Callable[..., Any]] | None:
     return _STATE["kernels"]
 
 
+def _group(*names: str) -> tuple[Callable[..., Any], ...] | None:
+    """The kernels ``names``, or ``None`` when they are off or (``ISF_ROBOT_JIT=cached``) one is not compiled."""
+    k = _kernels()
+    if k is None:
+        return None
+    got = tuple(k[name] for name in names)
+    return got if all(hasattr(fn, "py_func") for fn in got) else None  # (a numba dispatcher, not the function)
+
+
 def compiled_here() -> tuple[int, int]:
     """How many kernels of an arm run numba's cache already holds for this machine: ``(held, kernels)``.
 
@@ -99,8 +109,8 @@ def near_kernel() -> Callable[..., Any] | None:
 
     Its tables as addresses, returning also the key of the set of near pairs (``_kernels_jit.near_packed_key``).
     """
-    k = _kernels()
-    return None if k is None else k["near_packed_key"]
+    k = _group("near_packed_key")
+    return None if k is None else k[0]
 
 
 def second_order_kernels() -> tuple[Callable[..., Any], Callable[..., Any], Callable[..., Any]] | None:
@@ -108,14 +118,13 @@ def second_order_kernels() -> tuple[Callable[..., Any], Callable[..., Any], Call
 
     ``(phi_rate, psi_tick, psi_points)`` of ``_second_order_jit``.
     """
-    k = _kernels()
-    return None if k is None else (k["phi_rate"], k["psi_tick"], k["psi_points"])
+    return _group("phi_rate", "psi_tick", "psi_points")  # type: ignore[return-value]
 
 
 def monitor_kernel() -> Callable[..., Any] | None:
     """The compiled sub-step check of :meth:`SafetyMonitor.substep` (``None``: use Python)."""
-    k = _kernels()
-    return None if k is None else k["monitor"]
+    k = _group("monitor")
+    return None if k is None else k[0]
 
 
 def step_kernels(n: int) -> dict[str, Any] | None:
@@ -125,11 +134,9 @@ def step_kernels(n: int) -> dict[str, Any] | None:
     ``monitor_apply`` (a sub-step's safety check and the tracker's apply in one call), ``reach``
     (:class:`~isf_robot.arm.nominal.ReachingController`).
     """
-    k = _kernels()
-    if k is None:
-        return None
-    return {"track_apply": k["track_apply"], "track_step": k["track_step"], "monitor_apply": k["monitor_apply"],
-            "reach": k["reach"]}
+    names = ("track_apply", "track_step", "monitor_apply", "reach")
+    k = _group(*names)
+    return None if k is None else dict(zip(names, k))
 
 
 def rollout_kernels() -> tuple[Callable[..., Any], Callable[..., Any]] | None:
@@ -138,5 +145,4 @@ def rollout_kernels() -> tuple[Callable[..., Any], Callable[..., Any]] | None:
     ``(euler_step, closed_loop_points)``: the points of :class:`~isf_robot.arm.rollout.NominalRollout` and of
     :class:`~isf_robot.arm.torque_rollout.TorqueRollout`, one kernel for both. ``None``: the numpy path.
     """
-    k = _kernels()
-    return None if k is None else (k["euler_step"], k["closed_loop_points"])
+    return _group("euler_step", "closed_loop_points")  # type: ignore[return-value]

@@ -20,7 +20,7 @@ from typing import Any
 from isf_robot.arm.config_schema import LEVELS  # (no MuJoCo: the handlers import it lazily)
 from isf_robot.core.exceptions import ConfigError
 from isf_robot.core.hooks import Observers
-from isf_robot.core.jit import JIT_ENV
+from isf_robot.core.jit import CACHED_ONLY, JIT_ENV
 from isf_robot.core.spec import PARAMETERS, Parameter
 from isf_robot.core.strategies import strategy_info, strategy_names
 from isf_robot.record.options import add_recording_args, make_observer
@@ -398,7 +398,7 @@ def _compare_levels(args: argparse.Namespace, spec: Any, scene: Any, levels: lis
 
 DEMO_PLAIN_NOTICE = ("the fast kernels are not compiled for this machine yet, so this demo runs the plain NumPy "
                      "path (the same numbers); the first `isf-robot run` or `compare` compiles them once (about "
-                     "15-30 s), and every later run, this demo included, uses them")
+                     "15-30 s), and later runs, this demo included, use them")
 
 
 @_keep_partial
@@ -407,20 +407,19 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from isf_robot.arm.compare import SceneSpec, compare_strategies, format_table
 
     held, count = kernels.compiled_here()
-    plain = bool(count) and not held  # (the first command after an install: the demo does not wait for the compiler)
-    if plain:
+    if count and not held:  # (the first command after an install)
         print(f"isf-robot demo: {DEMO_PLAIN_NOTICE}", file=sys.stderr)
     jobs = args.jobs if args.jobs is not None else max(1, min(2, os.cpu_count() or 1))
     before = os.environ.get(JIT_ENV)
-    if plain:
-        os.environ[JIT_ENV] = "0"  # (this process and the workers it starts; put back after the comparison)
+    if count:  # (the demo never waits for the compiler: the kernels numba's cache holds, the rest as written)
+        os.environ[JIT_ENV] = CACHED_ONLY  # (this process and the workers it starts; put back after the comparison)
     try:
         comp = compare_strategies(SceneSpec(name=args.scene), args.episodes, duration=args.duration,
                                   jobs=jobs, progress=_progress(False))
     finally:
-        if plain and before is None:
+        if count and before is None:
             os.environ.pop(JIT_ENV, None)
-        elif plain and before is not None:
+        elif count and before is not None:
             os.environ[JIT_ENV] = before
     if args.json:
         print(json.dumps(with_schema("isf-robot-compare", comp.as_dict())))

@@ -3,7 +3,9 @@
 The kernels (the arm's step, the filters' few-row step, the satellite's arcs) are numba functions
 cached on disk (``cache=True``): the first run on a machine compiles them (some 15-30 s of CPU in
 all), later runs load them. ``ISF_ROBOT_JIT=0`` runs the plain numpy paths instead (the same
-formulas; see the kernels' modules for the tolerance they agree to).
+formulas; see the kernels' modules for the tolerance they agree to). ``ISF_ROBOT_JIT=cached`` uses a
+kernel only where numba's cache already holds it for this machine and runs the rest as written: it
+compiles nothing (``isf-robot demo`` runs so, whatever the commands before it happened to compile).
 
 The command-line tools call :func:`announce_compiles` once: the first kernel that a command (or any
 of its worker processes) actually compiles, rather than loads from the cache, prints one line on
@@ -19,11 +21,15 @@ from collections.abc import Sequence
 from types import ModuleType
 from typing import Any, TextIO
 
-__all__ = ["JIT_ENV", "NOTICE_ENV", "COMPILE_NOTICE", "jit_enabled", "announce_compiles", "watch_compiles",
-           "end_notice", "compiled_here", "formula", "compiled", "register_formulas", "stamp_sources"]
+__all__ = ["JIT_ENV", "CACHED_ONLY", "NOTICE_ENV", "COMPILE_NOTICE", "jit_enabled", "announce_compiles",
+           "watch_compiles", "end_notice", "compiled_here", "formula", "compiled", "register_formulas", "stamp_sources"]
 
 JIT_ENV = "ISF_ROBOT_JIT"
-"""Environment variable: ``0`` (or ``false``, ``no``, ``off``) turns the compiled kernels off."""
+"""Environment variable: ``0`` (or ``false``, ``no``, ``off``) turns the compiled kernels off; ``cached`` uses
+only those numba's cache holds (:func:`compiled`)."""
+
+CACHED_ONLY = "cached"
+"""The :data:`JIT_ENV` value that uses a kernel only where numba's cache holds it, compiling nothing."""
 
 NOTICE_ENV = "ISF_ROBOT_COMPILE_NOTICE"
 """Environment variable naming the marker file of a command's compile notice (set by :func:`announce_compiles`)."""
@@ -153,17 +159,30 @@ def formula(fn: Any) -> Any:
 def compiled(fn: Any) -> Any:
     """``fn`` compiled by numba (cached on disk, made once per process), or ``fn`` itself.
 
-    ``fn`` itself when ``ISF_ROBOT_JIT`` turns the kernels off or numba is missing (read at each call:
-    a filter reads it when it is built). ``fn`` must be a module-level function whose compiled
-    callees are :func:`formula` functions of its own module (numba's cache then follows edits of
-    that one file). Creating it compiles nothing: the first call with new argument types does.
+    ``fn`` itself when ``ISF_ROBOT_JIT`` turns the kernels off or numba is missing, and under
+    ``ISF_ROBOT_JIT=cached`` when numba's cache does not hold ``fn`` for this machine yet (the
+    setting is read at each call: a filter reads it when it is built). ``fn`` must be a module-level
+    function whose compiled callees are :func:`formula` functions of its own module (numba's cache
+    then follows edits of that one file). Creating it compiles nothing: the first call with new
+    argument types does.
     """
-    got = _COMPILED.get(fn)
-    if got is not None and _ENV.get(JIT_ENV) == _COMPILED_ENV[0]:  # (the common case: no parsing of the setting)
-        return got
+    env = _ENV.get(JIT_ENV)
+    if env == _HANDED_ENV[0]:  # (the common case: no parsing of the setting)
+        got = _HANDED.get(fn)
+        if got is not None:
+            return got
+    else:
+        _HANDED.clear()
+        _HANDED_ENV[0] = env
+    got = _HANDED[fn] = _hand_out(fn, (env or "").strip().lower() == CACHED_ONLY)
+    return got
+
+
+def _hand_out(fn: Any, cached_only: bool) -> Any:
+    """:func:`compiled`'s answer for the current setting (the dispatcher is made once per process)."""
     if not jit_enabled():
         return fn
-    _COMPILED_ENV[0] = _ENV.get(JIT_ENV)
+    got = _COMPILED.get(fn)
     if got is None:
         try:
             from numba import njit
@@ -173,6 +192,8 @@ def compiled(fn: Any) -> Any:
         register_formulas()
         got = _COMPILED[fn] = njit(cache=True, nogil=True)(fn)
         stamp_sources(got, (os.path.dirname(fn.__code__.co_filename),))
+    if cached_only and compiled_here((got,))[0] == 0:
+        return fn
     return got
 
 
@@ -203,7 +224,8 @@ def register_formulas() -> None:
         register_jitable(_FORMULAS.pop())
 
 
-_COMPILED: dict[Any, Any] = {}
-_COMPILED_ENV: list[str | None] = ["?"]  # the ISF_ROBOT_JIT value the kernels were last handed out under
+_COMPILED: dict[Any, Any] = {}  # (a function's numba dispatcher, made once per process)
+_HANDED: dict[Any, Any] = {}  # (what compiled() hands out for a function under the setting below)
+_HANDED_ENV: list[str | None] = ["?"]  # (the ISF_ROBOT_JIT value _HANDED was made under)
 _ENV = os.environ
 _FORMULAS: list[Any] = []
