@@ -78,9 +78,10 @@ class StepColumns:
         n_collision: ``k_c``.
 
     Cost: a step's vectors that live in MuJoCo's data or may be reused by their owner (the state,
-    ``u``, ``u_nom``, the end effector) are copied into their row, from views of ``data`` made once
-    by :meth:`bind`; the rest of the step goes to one tuple (its scalars, and the arrays the loop
-    makes fresh at every step, ``Xi_on`` and the tick's values, by reference). :meth:`seal` turns
+    ``u``, ``u_nom``, the end effector) are copied into their row in one call, from views of ``data``
+    made once by :meth:`bind` (the columns ``q`` to ``u_nom`` are views of one array); the rest of the
+    step goes to one tuple (its scalars, and the arrays the loop makes fresh at every step, ``Xi_on``
+    and the tick's values, by reference). :meth:`seal` turns
     those tuples into the block's arrays with a few NumPy calls over the whole stretch of rows, and
     runs every :attr:`SEAL_ROWS` rows: a kept view keeps alive the kernel's output block it points
     into, and a long run of them makes every phase of the loop slower. A step inside a control loop
@@ -102,10 +103,18 @@ class StepColumns:
         self.h_far = (np.full(self.n_collision, np.inf) if h_far is None
                       else np.asarray(h_far, dtype=float).reshape(self.n_collision))
         self.size = 0
-        self.q, self.qd, self.u, self.u_nom = (np.zeros((c, n)) for _ in range(4))
-        self.body_pos, self.body_quat = np.zeros((c, int(nbody), 3)), np.zeros((c, int(nbody), 4))
-        self.ee_pos, self.goal_pos = np.zeros((c, 3)), np.zeros((c, 3))
-        self.mocap_pos, self.mocap_quat = np.zeros((c, nmocap, 3)), np.zeros((c, nmocap, 4))
+        # A row's state and commands side by side in one array, copied in one call (:meth:`write`); the
+        # columns are views of it.
+        b, m = int(nbody), int(nmocap)
+        widths = (n, n, 3, 3 * b, 4 * b, 3 * m, 4 * m, n, n)
+        self._row_state = np.zeros((c, sum(widths)))
+        ends = np.cumsum(widths).tolist()
+        cols = [self._row_state[:, e - w: e] for w, e in zip(widths, ends)]
+        self.q, self.qd, self.ee_pos = cols[0], cols[1], cols[2]
+        self.body_pos, self.body_quat = cols[3].reshape(c, b, 3), cols[4].reshape(c, b, 4)
+        self.mocap_pos, self.mocap_quat = cols[5].reshape(c, m, 3), cols[6].reshape(c, m, 4)
+        self.u, self.u_nom = cols[7], cols[8]
+        self.goal_pos = np.zeros((c, 3))
         self._goals = None if goals is None else np.asarray(goals, dtype=float).reshape(-1, 3).copy()
         self.t, self.on, self.qp_solved, self.fallback = np.zeros(c), *(np.zeros(c, dtype=bool) for _ in range(3))
         self.xi_min, self.dist_min, self.h_min = np.zeros(c), np.full(c, math.inf), np.zeros(c)
@@ -113,7 +122,8 @@ class StepColumns:
         self.h = np.zeros((c, k))
         self.pair_start = np.zeros(c + 1, dtype=np.int64)
         per_row = max(1, min(self.n_collision, 8))  # (first guess of the near pairs per row: the buffers grow)
-        self._pairs, self._witness = np.zeros(c * per_row, dtype=np.int64), np.full((c * per_row, 2, 3), np.nan)
+        # (each seal fills its rows' stretch of the flat buffers; nothing reads past it, so they start unfilled)
+        self._pairs, self._witness = np.empty(c * per_row, dtype=np.int64), np.empty((c * per_row, 2, 3))
         self._rows: list[tuple[Any, ...]] = []  # (the rows not sealed yet: t, on, QP, fallback, goal, Xi_on, values)
         self.relaxed: dict[int, tuple[str, ...]] = {}
         self.events: dict[int, Any] = {}
@@ -147,11 +157,15 @@ class StepColumns:
         nbody = self.body_pos.shape[1]
         if nbody not in (0, data.xpos.shape[0]):
             raise ValueError(f"the block keeps {nbody} body poses; the data has {data.xpos.shape[0]} bodies")
-        view = (lambda a, adr: a[adr] if isinstance(adr, slice) else None)
-        self._state = (data, qpos_adr, dof_adr, view(data.qpos, qpos_adr), view(data.qvel, dof_adr),
-                       data.xpos if nbody else None, data.xquat if nbody else None,
-                       data.mocap_pos if self.mocap_pos.shape[1] else None,
-                       data.mocap_quat if self.mocap_pos.shape[1] else None, ee_pos)
+        rest = (np.asarray(ee_pos).reshape(3),)  # (views: what the tick's state is read from, in the row's order)
+        if nbody:
+            rest += (data.xpos.reshape(-1), data.xquat.reshape(-1))
+        if self.mocap_pos.shape[1]:
+            rest += (data.mocap_pos.reshape(-1), data.mocap_quat.reshape(-1))
+        if isinstance(qpos_adr, slice) and isinstance(dof_adr, slice):
+            self._state = ((data.qpos[qpos_adr], data.qvel[dof_adr], *rest), None)
+        else:  # (the arm's joints scattered: picked at each step)
+            self._state = (rest, (data, qpos_adr, dof_adr))
 
     def clear(self) -> None:
         """Start the next block (the arrays are reused: observers must not keep views past ``on_steps``)."""
@@ -182,18 +196,12 @@ class StepColumns:
             raise IndexError(f"the block is full ({self.capacity} steps)")
         if not self._state:
             raise RuntimeError("StepColumns.write needs bind(data, qpos_adr, dof_adr, ee_pos) first")
-        data, qpos_adr, dof_adr, q, qd, xpos, xquat, mpos, mquat, ee = self._state
-        self.q[i] = data.qpos[qpos_adr] if q is None else q
-        self.qd[i] = data.qvel[dof_adr] if qd is None else qd
-        self.u[i] = step.u
-        self.u_nom[i] = step.u_nom
-        self.ee_pos[i] = ee
-        if xpos is not None:
-            self.body_pos[i] = xpos
-            self.body_quat[i] = xquat
-        if mpos is not None:
-            self.mocap_pos[i] = mpos
-            self.mocap_quat[i] = mquat
+        src, pick = self._state
+        if pick is None:  # (the row's state and commands: one copy)
+            np.concatenate((*src, step.u, step.u_nom), out=self._row_state[i])
+        else:
+            data, qpos_adr, dof_adr = pick
+            np.concatenate((data.qpos[qpos_adr], data.qvel[dof_adr], *src, step.u, step.u_nom), out=self._row_state[i])
         self._rows.append((t, step.on, step.qp is not None, step.fallback, goal_index, step.xi, values))
         if step.relaxed:
             self.relaxed[i] = tuple(step.relaxed)
@@ -207,10 +215,10 @@ class StepColumns:
         """Room for at least ``pairs`` near pairs (and their witness points) in the flat buffers."""
         if pairs > len(self._pairs):
             size = max(pairs, 2 * len(self._pairs))
-            self._pairs = np.resize(self._pairs, size)
-            witness = np.full((size, 2, 3), np.nan)
-            witness[: len(self._witness)] = self._witness
-            self._witness = witness
+            used = int(self.pair_start[self.sealed])
+            pairs, witness = np.empty(size, dtype=np.int64), np.empty((size, 2, 3))
+            pairs[:used], witness[:used] = self._pairs[:used], self._witness[:used]
+            self._pairs, self._witness = pairs, witness
 
     def end_row(self, dist_min: float) -> bool:
         """The smallest true signed distance [m] over the physics steps of the row just written.
@@ -256,9 +264,9 @@ class StepColumns:
             pairs = self._pairs[p0:p1] = np.concatenate(rows)
             h[np.repeat(np.arange(n), counts), pairs] = flat[np.repeat(start - (np.cumsum(counts) - counts), counts)
                                                               + np.arange(p1 - p0)]
-            if not any(w is None for w in witness):
+            try:
                 self._witness[p0:p1] = np.concatenate(witness)[:, :2]
-            else:  # (rows without witness points: NaN there)
+            except (TypeError, ValueError):  # (rows without witness points, None: NaN there)
                 for r, w in enumerate(witness):
                     self._witness[self.pair_start[a + r]: self.pair_start[a + r + 1]] = (
                         math.nan if w is None else w[:, :2])
@@ -266,9 +274,12 @@ class StepColumns:
             h[:, nc:] = flat[(start + counts)[:, None] + np.arange(nj)]
         goals, gi = self._goals, self.goal_index[a:b]
         ok = (gi >= 0) & (gi < (0 if goals is None else len(goals)))
-        self.goal_pos[a:b] = math.nan
-        if goals is not None and ok.any():
-            self.goal_pos[a:b][ok] = goals[gi[ok]]
+        if goals is not None and ok.all():
+            np.take(goals, gi, axis=0, out=self.goal_pos[a:b])
+        else:
+            self.goal_pos[a:b] = math.nan
+            if goals is not None and ok.any():
+                self.goal_pos[a:b][ok] = goals[gi[ok]]
         self.h_min[a:b] = h.min(axis=1) if h.shape[1] else math.inf
         self.sealed = b
         self._rows.clear()  # (only now: a seal that fails keeps its rows)
