@@ -257,6 +257,13 @@ class ArmSimulation:
                             blockwise.on_steps(block)
                         finally:
                             block.clear()  # (handed on once, also when an observer fails or Ctrl-C comes)
+            if block is not None and len(block) and blockwise:  # (the last steps)
+                block.seal()
+                try:
+                    blockwise.on_steps(block)
+                finally:
+                    block.clear()
+            result = ep.finish(time.perf_counter() - wall0, timers.totals if timers else {})
         except BaseException as exc:  # an error or Ctrl-C: observers keep what they have, marked partial
             if recording:
                 if block is not None and len(block) and blockwise:
@@ -267,10 +274,6 @@ class ArmSimulation:
                         pass
                 observers.on_abort(exc)
             raise
-        if block is not None and len(block) and blockwise:
-            block.seal()
-            blockwise.on_steps(block)
-        result = ep.finish(time.perf_counter() - wall0, timers.totals if timers else {})
         if recording:
             observers.on_finish(result.as_dict())
         return result

@@ -176,3 +176,35 @@ def test_flat_buffers_grow_rows_without_witness_points_and_blocks_reused() -> No
         block.clear()
     with pytest.raises(IndexError, match="no row"):
         block.end_row(0.0)
+
+
+@pytest.mark.parametrize("fail_in", ["on_steps", "finish"])
+def test_a_failure_after_the_last_step_aborts_the_observers_once(monkeypatch, fail_in: str) -> None:
+    """The run's last block and its summary are inside the run's error handling: observers get ``on_abort``."""
+    from isf_robot.arm import sim as arm_sim
+    from isf_robot.arm.params import resolve_params
+    from isf_robot.arm.scene import load_scene
+
+    calls: list[str] = []
+
+    class Blocks:
+        def on_start(self, info): calls.append("start")  # type: ignore[no-untyped-def]
+        def on_event(self, ev): ...  # type: ignore[no-untyped-def]
+        def on_finish(self, summary): calls.append("finish")  # type: ignore[no-untyped-def]
+        def on_abort(self, exc): calls.append(f"abort:{exc}")  # type: ignore[no-untyped-def]
+
+        def on_steps(self, block):  # type: ignore[no-untyped-def]
+            calls.append(f"steps:{len(block)}")
+            if fail_in == "on_steps":
+                raise RuntimeError("disk full")
+
+    if fail_in == "finish":
+        def finish(self, wall, timings):  # type: ignore[no-untyped-def]
+            raise RuntimeError("disk full")
+        monkeypatch.setattr(arm_sim._Episode, "finish", finish)
+    scene = load_scene("panda_pole")
+    sim = arm_sim.ArmSimulation(scene, "nominal", seed=0, params=resolve_params(scene), observers=[Blocks()])
+    with pytest.raises(RuntimeError, match="disk full"):
+        sim.run(0.05)  # (fewer steps than a block: all of them go on after the loop)
+    steps = int(round(0.05 / sim.control_period))
+    assert calls == ["start", f"steps:{steps}", "abort:disk full"]  # (the block handed on once, then the abort)
