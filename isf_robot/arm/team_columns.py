@@ -41,21 +41,24 @@ class TeamStepColumns(StepColumns):
         self.arm_ee = np.zeros((c, a, 3))
         self.arm_goal_index = np.full((c, a), -1, dtype=np.int64)
         self._arm_goals: list[np.ndarray] = [np.zeros((0, 3))] * a
-        self._arm_ee: tuple[np.ndarray, np.ndarray] | None = None
+        self._arm_ee: tuple[np.ndarray, ...] | None = None
 
     def bind_arms(self, site_xpos: np.ndarray, ee_sites: Sequence[int], goals: Sequence[np.ndarray]) -> None:
         """Where :meth:`write_arms` reads each arm's end effector, and each arm's goal table.
 
         Args:
             site_xpos: The run's ``data.site_xpos`` (a view into MuJoCo's data).
-            ee_sites: Each arm's end-effector site.
+            ee_sites: Each arm's end-effector site (-1: none; its ``arm_ee`` is NaN).
             goals: Each arm's goal positions [m], shape (g_i, 3).
 
         """
         if len(ee_sites) != len(self.arm_names) or len(goals) != len(self.arm_names):
             raise ValueError(f"one end-effector site and one goal table per arm ({len(self.arm_names)}), got "
                              f"{len(ee_sites)} and {len(goals)}")
-        self._arm_ee = (site_xpos, np.asarray(ee_sites, dtype=np.intp))
+        sites = np.asarray(ee_sites, dtype=np.intp)
+        has = sites >= 0
+        self.arm_ee[:, ~has] = np.nan
+        self._arm_ee = (site_xpos, sites) if has.all() else (site_xpos, sites[has], np.flatnonzero(has))
         self._arm_goals = [np.asarray(g, dtype=float).reshape(-1, 3) for g in goals]
 
     def write_arms(self, modes: Sequence[tuple[bool, bool]], goal_index: Sequence[int]) -> None:
@@ -66,7 +69,10 @@ class TeamStepColumns(StepColumns):
         if self._arm_ee is None:
             raise RuntimeError("TeamStepColumns.write_arms needs bind_arms(site_xpos, ee_sites, goals) first")
         self.arm_on[i], self.arm_qp[i] = zip(*modes)
-        self.arm_ee[i] = self._arm_ee[0][self._arm_ee[1]]
+        if len(self._arm_ee) == 2:
+            self.arm_ee[i] = self._arm_ee[0][self._arm_ee[1]]
+        else:  # (arms without an end-effector site keep NaN)
+            self.arm_ee[i, self._arm_ee[2]] = self._arm_ee[0][self._arm_ee[1]]
         self.arm_goal_index[i] = goal_index
 
     @property

@@ -150,6 +150,14 @@ def test_team_columns_keep_each_arms_mode_end_effector_and_goal() -> None:
     with pytest.raises(ValueError, match="one end-effector site"):
         block.bind_arms(data.site_xpos, [0], goals)
 
+    block.clear()  # (an arm without an end-effector site: NaN, not the model's last site)
+    block.bind_arms(data.site_xpos, [-1, 0], goals)
+    for r in rows[:2]:
+        block.write(r["t"], r["step"], r["values"], r["goal"])
+        block.write_arms([(False, False), (True, True)], [0, 0])
+    assert np.isnan(block.arm_ee[:2, 0]).all()
+    np.testing.assert_array_equal(block.arm_ee[:2, 1], [data.site_xpos[0]] * 2)
+
 
 def test_flat_buffers_grow_rows_without_witness_points_and_blocks_reused() -> None:
     rng = np.random.default_rng(3)
