@@ -322,11 +322,6 @@ def filter_findings(scene: Scene) -> list[Finding]:
     risk = chatter_risk(with_design(scene.config, lead=servo_lead(scene)), scene.config.control.period)
     if risk is None:
         return []
-    if scene.arms:  # (not the one-arm advice: a team's filters have no predictive off trigger by design)
-        risk = ("a team's intermittent filters switch off only once their off condition has held a while (the off "
-                "hold), with no predictive off trigger by design: with the hold it made the command jump "
-                "(RESULTS.md, 'Arms sharing a workspace'); off periods may fall under 0.25 s, and `compare` reports "
-                "them per arm")
     return [Finding("chatter-risk", f"[filter]: {risk}")]
 
 

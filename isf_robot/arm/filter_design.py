@@ -30,10 +30,9 @@ tuned. Both come from numbers the scene already states:
   rollouts, and no more (a longer one holds the filter on where it pushes far pairs; see
   :func:`~isf_robot.core.chatter.horizon_for`). Every shipped one-arm scene: 0.25 + 5 x 0.002 = 0.26 s.
 
-A scene with several arms (``[[arm]]`` tables) gets no predictive off trigger by design: its team filters
-switch off only after the off condition held for a while (:class:`isf_robot.core.team.OffHold`), and the
-two together made the command jump between control steps, far beyond ``d_bar`` (RESULTS.md, "Arms sharing
-a workspace"). An explicit horizon still applies.
+A scene with several arms (``[[arm]]`` tables) gets the same horizon: its team filters also switch off
+only after the off condition held for a while (:class:`isf_robot.core.team.OffHold`), and the rollout
+removes most of the short off periods the hold leaves (RESULTS.md, "Arms sharing a workspace").
 
 An explicit value (``blend = 0``, ``--horizon 0``) turns either off. ``isf-robot run`` and ``compare``
 report chatter (off periods under 0.25 s) with the change that would fix it
@@ -76,8 +75,8 @@ def designed_options(config: SceneConfig, spec: FilterSpec, lead: float = 0.0) -
     out: dict[str, float] = {}
     if spec.blend is None:
         out["blend"] = max(designed_blend(config), float(lead))
-    if spec.horizon is None:  # (a team of arms: none; its filters are held on by the team's off hold instead)
-        out["horizon"] = 0.0 if config.arms else horizon_for(spec.predict_every, config.control.period)
+    if spec.horizon is None:
+        out["horizon"] = horizon_for(spec.predict_every, config.control.period)
     return out
 
 

@@ -93,7 +93,11 @@ class NominalController(ABC):
 
     @abstractmethod
     def __call__(self, t: float, data: mujoco.MjData) -> np.ndarray:
-        """The nominal command at time ``t`` [s]; shape (n,) [rad/s]. May reuse a buffer."""
+        """The nominal command at time ``t`` [s]; shape (n,) [rad/s], a fresh array.
+
+        Fresh, not a buffer the controller writes again: a step keeps its nominal command while the
+        intermittent filter's rollout calls the controller at predicted states.
+        """
 
 
 class _RateLimit:

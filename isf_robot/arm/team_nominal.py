@@ -35,7 +35,6 @@ class TeamReaching(NominalController):
                      for i, a in enumerate(scene.arms)]
         self.slices = [a.joints for a in scene.arms]
         self.goal_positions = g
-        self._u = np.zeros(self.n)
 
     @property
     def goal_index(self) -> int:
@@ -72,8 +71,12 @@ class TeamReaching(NominalController):
             c.restore(s)
 
     def __call__(self, t: float, data: mujoco.MjData) -> np.ndarray:
-        """Every arm's command at ``t``, stacked; shape (n,) [rad/s] (a buffer reused between calls)."""
-        u = self._u
+        """Every arm's command at ``t``, stacked; shape (n,) [rad/s] (a fresh array).
+
+        Fresh, not a buffer used again: the step keeps its nominal command while a rollout calls the
+        controller at predicted states.
+        """
+        u = np.empty(self.n)
         for c, sl in zip(self.arms, self.slices):
             u[sl] = c(t, data)
         return u
