@@ -5,14 +5,18 @@ hands them out; its cache is keyed on every source file of this folder, so an ed
 formula this calls compiles it again). MuJoCo's ``mj_kinematics`` and ``mj_comPos`` are called on the
 raw addresses of the ``MjModel``/``MjData`` the bindings hold; :func:`closed_loop_points` calls the
 reaching controller's kernel (``_kernels_step.reach``) and the collision kernel
-(``_kernels_jit.near_packed_key``).
+(``_kernels_jit.near_packed_key``); :func:`closed_loop_predict` calls it and then the core's prediction pass
+(:func:`~isf_robot.core.robust.predict_pass`), so its cache is keyed on the core's sources too
+(:func:`isf_robot.arm.rollout.predict_kernel`).
 """
 
 from __future__ import annotations
 
+import numpy as np
 from numba import carray
 
 from isf_robot.core.jit import formula
+from isf_robot.core.robust import predict_pass
 
 from ._kernels_jit import com_pos, f64p, kinematics, near_packed_key  # (loads libmujoco; ImportError without it)
 from ._kernels_step import reach
@@ -76,3 +80,31 @@ def closed_loop_points(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs,
         if touching:
             return j + 1
     return outs.shape[0]
+
+
+def closed_loop_predict(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs, vs, n, nv, dof0, site, index, t_prev,
+                        a_max, kp, max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff, distmax, slack, eps,
+                        norms_in, lin, dhdt_in, mp_addr, nmocap, mids, mpos, lins, lg, nj, o_lf, o_gn, gain, d_bar, k,
+                        xi, fails, nfail, seen, out):  # pragma: no cover (compiled)
+    """:func:`closed_loop_points` and ``Xi_on`` at its points (:func:`~isf_robot.core.robust.predict_pass`) in one call.
+
+    The arguments up to ``lins`` are :func:`closed_loop_points`'; the blocks ``blks`` hold each point's ``h`` (its
+    first ``K = keys.shape[1]`` entries), ``Lf h`` (from ``o_lf``) and ``|dh/dq|`` (from ``o_gn``), ``lg`` is
+    their ``Lg h`` (n, K, nv) and ``nj`` the joint rows after each point's pairs. The prediction pass with
+    ``alpha(h) = gain h`` (``gain > 0``) and ``d_bar`` on the commands ``outs``: each point's rows to ``k``, then
+    ``xi``, ``fails``, ``nfail``, ``seen`` (cleared first) and ``out`` as :func:`predict_pass` writes them.
+    Returns ``(done, bad, xi_min, found)``: the points done (fewer than them all, or the last touching: no pass,
+    ``bad = -1``) and :func:`predict_pass`'s answer.
+    """
+    done = closed_loop_points(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs, vs, n, nv, dof0, site, index,
+                              t_prev, a_max, kp, max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff,
+                              distmax, slack, eps, norms_in, lin, dhdt_in, mp_addr, nmocap, mids, mpos, lins)
+    if done < outs.shape[0] or res[done - 1, 4] != 0.0:
+        return done, -1, np.inf, 0
+    m = keys.shape[1]
+    for j in range(done):
+        k[j] = int(res[j, 0]) + nj
+    seen[:] = False
+    bad, low, found = predict_pass(blks[:, o_lf: o_lf + m], lg, outs, blks[:, o_gn: o_gn + m], d_bar, blks[:, :m],
+                                   gain, np.zeros((0, 0)), k, xi, fails, nfail, keys, seen, out)
+    return done, bad, low, found
