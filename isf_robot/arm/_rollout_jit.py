@@ -84,20 +84,25 @@ def closed_loop_points(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs,
 
 def closed_loop_predict(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs, vs, n, nv, dof0, site, index, t_prev,
                         a_max, kp, max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff, distmax, slack, eps,
-                        norms_in, lin, dhdt_in, mp_addr, nmocap, mids, mpos, lins, lg, nj, o_lf, o_gn, gain, d_bar, k,
-                        xi, fails, nfail, seen, out):  # pragma: no cover (compiled)
-    """:func:`closed_loop_points` and ``Xi_on`` at its points (:func:`~isf_robot.core.robust.predict_pass`) in one call.
+                        norms_in, lin, dhdt_in, mp_addr, nmocap, mids, mpos, lins, dx, rpx, lg, nj, o_lf, o_gn, gain,
+                        d_bar, k, xi, fails, nfail, seen, out):  # pragma: no cover (compiled)
+    """The command now, :func:`closed_loop_points` from it and ``Xi_on`` at the points, in one call.
 
-    The arguments up to ``lins`` are :func:`closed_loop_points`'; the blocks ``blks`` hold each point's ``h`` (its
-    first ``K = keys.shape[1]`` entries), ``Lf h`` (from ``o_lf``) and ``|dh/dq|`` (from ``o_gn``), ``lg`` is
-    their ``Lg h`` (n, K, nv) and ``nj`` the joint rows after each point's pairs. The prediction pass with
+    The command now: the reaching controller's at time ``t`` on the episode's data (address ``dx``, addresses
+    ``rpx`` as ``rp``) toward goal ``index``, rate-limited from the command of ``t_prev``, into ``v0``: what
+    :meth:`~isf_robot.arm.nominal.ReachingController.__call__` computes when its goal stays (the caller
+    checks that). The other arguments up to ``lins`` are :func:`closed_loop_points`' (it runs from ``v0``, with
+    the rate limit's previous command that of ``t``); the blocks ``blks`` hold each point's ``h`` (its first
+    ``K = keys.shape[1]`` entries), ``Lf h`` (from ``o_lf``) and ``|dh/dq|`` (from ``o_gn``), ``lg`` is their
+    ``Lg h`` (n, K, nv) and ``nj`` the joint rows after each point's pairs. The prediction pass with
     ``alpha(h) = gain h`` (``gain > 0``) and ``d_bar`` on the commands ``outs``: each point's rows to ``k``, then
     ``xi``, ``fails``, ``nfail``, ``seen`` (cleared first) and ``out`` as :func:`predict_pass` writes them.
     Returns ``(done, bad, xi_min, found)``: the points done (fewer than them all, or the last touching: no pass,
     ``bad = -1``) and :func:`predict_pass`'s answer.
     """
+    reach(ma, dx, rpx, nb, v0, n, nv, dof0, site, index, False, t, t_prev, True, a_max, kp, max_ee, max_js, lam2)
     done = closed_loop_points(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs, vs, n, nv, dof0, site, index,
-                              t_prev, a_max, kp, max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff,
+                              t, a_max, kp, max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff,
                               distmax, slack, eps, norms_in, lin, dhdt_in, mp_addr, nmocap, mids, mpos, lins)
     if done < outs.shape[0] or res[done - 1, 4] != 0.0:
         return done, -1, np.inf, 0

@@ -185,8 +185,12 @@ class ScratchRollout:
 
     def _whole_args(self, t: float, q: np.ndarray, v0: np.ndarray, e: np.ndarray, decay: float,
                     mpos: np.ndarray | None, lins: np.ndarray | None, c: tuple, outs: np.ndarray, vs: np.ndarray,
-                    blk: np.ndarray, rows: np.ndarray, keys: np.ndarray, res: np.ndarray) -> tuple:
-        """The arguments of ``_rollout_jit.closed_loop_points`` (see :meth:`_run_whole`) with these outputs."""
+                    blk: np.ndarray, rows: np.ndarray, keys: np.ndarray, res: np.ndarray,
+                    nb: np.ndarray | None = None) -> tuple:
+        """The arguments of ``_rollout_jit.closed_loop_points`` (see :meth:`_run_whole`) with these outputs.
+
+        ``nb``: the controller's buffer to use (``None``: its own).
+        """
         nom, coll = self.nominal, self.coll
         rate = nom._rate
         mp, ls, lin, dl = _NO_POS, _NO_LINS, coll._knolin, 0
@@ -194,11 +198,11 @@ class ScratchRollout:
             mp, ls = mpos, lins
             if coll._any_moving:
                 lin, dl = ls[0], coll._kdhdt
-        return (*self._addr, q, v0, e, decay, t, self.dt, self._data.qpos, self._qadr, nom._ptrs, nom._buf, outs, vs,
-                v0.size, nom._jac.shape[1], nom._dof0, nom.scene.ee_site_id, nom.goals.index, rate.t_prev, rate.a_max,
-                nom.kp, nom.max_ee_speed, nom.max_joint_speed, nom._lam2, c[4], blk, rows, keys, len(coll.pairs.names),
-                res, coll.cutoff, c[14], c[15], narrow._EPS_DIST, c[13], lin, dl, self._mp_addr, self._nmocap,
-                self._mids, mp, ls if dl else _NO_LINS)
+        return (*self._addr, q, v0, e, decay, t, self.dt, self._data.qpos, self._qadr, nom._ptrs,
+                nom._buf if nb is None else nb, outs, vs, v0.size, nom._jac.shape[1], nom._dof0, nom.scene.ee_site_id,
+                nom.goals.index, rate.t_prev, rate.a_max, nom.kp, nom.max_ee_speed, nom.max_joint_speed, nom._lam2,
+                c[4], blk, rows, keys, len(coll.pairs.names), res, coll.cutoff, c[14], c[15], narrow._EPS_DIST, c[13],
+                lin, dl, self._mp_addr, self._nmocap, self._mids, mp, ls if dl else _NO_LINS)
 
     def _run_whole(self, t: float, q: np.ndarray, v0: np.ndarray, e: np.ndarray, decay: float, prev: np.ndarray,
                    mpos: np.ndarray | None, lins: np.ndarray | None, command: bool) -> tuple | None:
@@ -245,6 +249,7 @@ class NominalRollout(ScratchRollout):
         self._kn: tuple = (None, None, ())
         self._fused = predict_kernel() if self._whole is not None else None  # (points and Xi_on in one call)
         self._scratch: tuple | None = None  # (the one call's outputs, made once: see prediction)
+        self._xbind: tuple = (None, 0, 0)  # (the episode's data, its address and site_xpos address)
 
     def _rows(self, data: mujoco.MjData, lin: np.ndarray | None) -> LieData:
         """The filter's rows at the state in ``data`` (kinematics done), ``lin``: the mocap velocities or ``None``."""
@@ -288,38 +293,41 @@ class NominalRollout(ScratchRollout):
                                  row_names, keys, self._key_names(pair_names, joint_names))  # (its layout: unchecked)
 
     def prediction(self, t: float, x: Any, alpha: ClassK, d_bar: float) -> Prediction | None:
-        """``predict(self(t, x), alpha, d_bar)`` with the points and their ``Xi_on`` in one compiled call, or ``None``.
+        """``predict(self(t, x), alpha, d_bar)`` with the command now, the points and their ``Xi_on`` in one call.
 
-        The off trigger's question (:class:`~isf_robot.core.intermittent.OffPredictor`): the points of
-        :meth:`_compiled` and :func:`~isf_robot.core.robust.predict_pass` over them in
-        ``_rollout_jit.closed_loop_predict``, into outputs kept on the rollout (no points are handed out, so
-        nothing keeps them). ``None`` (the caller rolls out and predicts): without the compiled kernels, for a
-        class-K function other than :class:`~isf_robot.core.Linear`, where :meth:`_compiled` would not run, and
-        after a point whose witness points coincide; the controller's state and the episode as before.
+        The off trigger's question (:class:`~isf_robot.core.intermittent.OffPredictor`), in
+        ``_rollout_jit.closed_loop_predict``: the reaching controller's command at ``t`` (its compiled kernel, as
+        its call computes it while the goal stays), the points of :meth:`_compiled` and
+        :func:`~isf_robot.core.robust.predict_pass` over them, into outputs kept on the rollout (no points are
+        handed out, so nothing keeps them) and a copy of the controller's buffer (the controller is not called:
+        nothing to put back). ``None`` (the caller rolls out and predicts): without the compiled kernels, for a
+        class-K function other than :class:`~isf_robot.core.Linear`, before the controller's first command, when
+        the goal could change from ``t`` to the horizon (:meth:`GoalSequence.steady`, from ``t`` itself: the
+        controller's update at ``t`` included), where :meth:`_compiled` would not run, and after a point whose
+        witness points coincide; the controller and the episode as before.
         """
         if self._fused is None or type(alpha) is not Linear:
             return None
-        coll, n = self.coll, self.n
+        nom, coll, n = self.nominal, self.coll, self.n
         c = self._context()
-        if not c[13]:  # (no gradient norms in the blocks: the points' Lie data make them)
+        d = self._load(x)
+        if (not c[13] or nom._rate.t_prev is None or coll._any_moving and not coll._kdhdt  # (as _steady)
+                or not nom.goals.steady(t, t + n * self.dt) or not nom._bound(d)):
             return None
         sc = self._scratch
         if sc is None:
             sc = self._scratch = self._outputs(c)
-        q, outs, blk, g, rows, keys, res, k, xi, fails, nfail, seen, out = sc
-        self._load(x)
+        q, u, nb, rpx, outs, blk, g, rows, keys, res, k, xi, fails, nfail, seen, out = sc
         q[:] = x.qpos[self._qsel]
-        saved = self.nominal.snapshot()
-        try:
-            u = np.array(self.nominal(t, x), dtype=float)  # the command now (the controller's next call)
-            if u.shape != q.shape or u.ndim != 1 or not self._steady(t):
-                return None
-            mpos, lins = self._tracks(t) if self.moving else (None, None)
-            done, bad, xi_lo, found = self._fused(
-                *self._whole_args(t, q, u, self._no_error, 0.0, mpos, lins, c, outs, outs, blk, rows, keys, res),
-                g, c[9], c[11], c[10], alpha.gain, float(d_bar), k, xi, fails, nfail, seen, out)
-        finally:
-            self.nominal.restore(saved)
+        nb[:] = nom._buf  # (the rate limit's previous command: the kernel's to change)
+        xb = self._xbind
+        if xb[0] is not x:  # (the episode's data: its address and site_xpos', kept)
+            xb = self._xbind = (x, int(x._address), x.site_xpos.ctypes.data)
+        rpx[0], rpx[1] = nom._ptrs[0], xb[2]  # (the goal positions, the episode's site_xpos)
+        mpos, lins = self._tracks(t) if self.moving else (None, None)  # (each point's obstacle places, velocities)
+        done, bad, xi_lo, found = self._fused(
+            *self._whole_args(t, q, u, self._no_error, 0.0, mpos, lins, c, outs, outs, blk, rows, keys, res, nb),
+            xb[1], rpx, g, c[9], c[11], c[10], alpha.gain, float(d_bar), k, xi, fails, nfail, seen, out)
         if done < n or res[n - 1, 4]:  # (touching witness points: the general loop's case)
             return None
         self.calls += 1
@@ -327,13 +335,18 @@ class NominalRollout(ScratchRollout):
                                self._key_names(coll.pairs.names, self.joints.names))
 
     def _outputs(self, c: tuple) -> tuple:
-        """The outputs of :meth:`prediction`'s call for context ``c``: its points' and the prediction pass's."""
+        """The outputs of :meth:`prediction`'s call for context ``c``.
+
+        The joint positions, the command, the controller's buffer and addresses, the points' and the prediction
+        pass's arrays.
+        """
         n, nq, m = self.n, self._qadr.size, c[7]
         blk, g, rows = self.coll._point_outputs(c, n)
         keys, fails = np.empty((n, m), dtype=np.int64), np.empty((n, m), dtype=np.int64)
         nk = len(self.coll.pairs.names) + len(self.joints.names)
-        return (np.empty(nq), np.empty((n, nq)), blk, g, rows, keys, np.empty((n, 6)), np.empty(n, np.int64),
-                np.empty((n, m)), fails, np.empty(n, np.int64), np.zeros(nk, np.bool_), np.empty(n * m, np.int64))
+        return (np.empty(nq), np.empty(nq), np.empty_like(self.nominal._buf), np.zeros(2, np.int64), np.empty((n, nq)),
+                blk, g, rows, keys, np.empty((n, 6)), np.empty(n, np.int64), np.empty((n, m)), fails,
+                np.empty(n, np.int64), np.zeros(nk, np.bool_), np.empty(n * m, np.int64))
 
     def _tracks(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The moving obstacles' places (n, p, 3) and every mocap body's velocity (n, nmocap * 3) at the points' times.

@@ -39,6 +39,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from itertools import compress
 from typing import Any
 
 import numpy as np
@@ -242,6 +243,7 @@ def _lg_block(lg: Sequence[np.ndarray] | np.ndarray, shape: tuple[int, ...], m: 
 
 _NO_AV = np.zeros((0, 0))
 _NO_KEYS = np.zeros((0, 0), np.int64)
+_NO_NAMES: frozenset[str] = frozenset()
 
 
 def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float, kernel: Callable[..., Any]) -> Prediction:
@@ -280,23 +282,24 @@ def pass_prediction(s: Sequence[float], rows: np.ndarray, xi: np.ndarray, fails:
     """
     if bad >= 0:
         raise NonFiniteError(f"predicted Xi_on not finite {s[bad]:.3g} s ahead: {xi[bad, :rows[bad]]}")
-    first: float | None = None
-    failing: set[str] = set()
     nf = nfail.tolist()
-    if any(nf):
-        first = min([sj for sj, c in zip(s, nf) if c])
+    first = min(compress(s, nf), default=None)  # (the first time ahead with failing rows)
+    failing = _NO_NAMES
+    if first is not None:
         if key_names is not None:  # (the failing rows' keys, each once, from the pass)
             if found < 0:
                 nk = len(key_names)
                 raise ShapeError(f"stacked points: a failing row's key lies outside key_names (0..{nk - 1})")
-            failing.update(key_names[i] for i in out[:found].tolist())
+            failing = frozenset([key_names[i] for i in out[:found].tolist()])
         elif points is not None:
+            names: set[str] = set()
             for j, c in enumerate(nf):
                 if c:
-                    failing.update(points.row_names(j, fails[j, :c].tolist()))
+                    names.update(points.row_names(j, fails[j, :c].tolist()))
+            failing = frozenset(names)
     pred = _new(Prediction)  # (a frozen dataclass's __dict__ set whole, without the field-by-field __init__)
-    _set(pred, "__dict__", {"ok": first is None, "xi_min": float(xi_lo), "first_fail_s": first,
-                            "failing": frozenset(failing), "points": len(nf)})
+    _set(pred, "__dict__", {"ok": first is None, "xi_min": float(xi_lo), "first_fail_s": first, "failing": failing,
+                            "points": len(nf)})
     return pred
 
 

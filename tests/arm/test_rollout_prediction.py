@@ -4,8 +4,9 @@
 give what ``predict(rollout(t, x), alpha, d_bar)`` gives from the same state: bit for bit against the
 compiled rollout's stacked points, and against the numpy loop's points predicted by numpy (the plain path,
 as under ``ISF_ROBOT_JIT=0``) the same ``ok``, ``first_fail_s``, ``failing`` and ``points`` with ``xi_min`` to
-1e-12 relative. It leaves the controller and the episode's data as they were, and answers ``None`` (the
-off trigger then rolls out and predicts) where its path does not serve. Skipped without numba.
+1e-12 relative. It leaves the controller and the episode's data as they were (it computes the command now
+itself, as the controller does while its goal stays), and answers ``None`` (the off trigger then rolls out
+and predicts) where its path does not serve. Skipped without numba.
 """
 
 from __future__ import annotations
@@ -33,8 +34,8 @@ def _setup(name: str, seed: int = 3):  # type: ignore[no-untyped-def]
     return scene, params, sim, sim.strategy.predictor.rollout
 
 
-def _states(scene, sim, count: int):  # type: ignore[no-untyped-def]
-    """Random states ``(t, data)`` with a previous command for the rate limit."""
+def _states(scene, sim, count: int, goals=None):  # type: ignore[no-untyped-def]
+    """Random states ``(t, data)`` with a previous command for the rate limit (``goals``: a hook on the goals)."""
     rng = np.random.default_rng(7)
     data = mujoco.MjData(scene.model)
     nom = sim.nominal
@@ -44,6 +45,8 @@ def _states(scene, sim, count: int):  # type: ignore[no-untyped-def]
         data.qpos[scene.qpos_adr] = sim.setup.q0 + rng.normal(scale=0.4, size=scene.n_joints)
         scene.set_moving_obstacles(data, t + sim.setup.time_offset)
         mujoco.mj_forward(scene.model, data)
+        if goals is not None:
+            goals(nom, data, t)
         nom(t - 0.01, data)
         yield t, data
 
@@ -103,3 +106,17 @@ def test_where_the_one_call_does_not_serve_it_answers_none(monkeypatch) -> None:
     # and the off trigger then rolls out (the general loop) and predicts
     pred, ran = sim.strategy.predictor.check(t, data, Linear(params.alpha), params.d_bar)
     assert ran and roll.calls == calls + 1 and pred.points == roll.n
+
+
+def test_a_goal_that_may_change_from_now_takes_the_long_way(goal_reached_at_once) -> None:  # type: ignore[no-untyped-def]
+    scene, params, sim, roll = _setup("panda_pole")
+    alpha = Linear(params.alpha)
+    for t, data in _states(scene, sim, 3, goals=goal_reached_at_once):
+        before = _state_of(sim.nominal, data)
+        assert roll.prediction(t, data, alpha, params.d_bar) is None
+        assert _state_of(sim.nominal, data) == before
+        pred, ran = sim.strategy.predictor.check(t, data, alpha, params.d_bar)
+        assert ran and repr(pred) == repr(predict(roll(t, data), alpha, params.d_bar))
+        sim.strategy.predictor.idle()
+    sim.nominal.reset()  # (no previous command: the rate limit's first call is the controller's own)
+    assert roll.prediction(t, data, alpha, params.d_bar) is None
