@@ -5,9 +5,9 @@ hands them out; its cache is keyed on every source file of this folder, so an ed
 formula this calls compiles it again). MuJoCo's ``mj_kinematics`` and ``mj_comPos`` are called on the
 raw addresses of the ``MjModel``/``MjData`` the bindings hold; :func:`closed_loop_points` calls the
 reaching controller's kernel (``_kernels_step.reach``) and the collision kernel
-(``_kernels_jit.near_packed_key``); :func:`closed_loop_predict` calls it and then the core's prediction pass
-(:func:`~isf_robot.core.robust.predict_pass`), so its cache is keyed on the core's sources too
-(:func:`isf_robot.arm.rollout.predict_kernel`).
+(``_kernels_jit.near_packed_key``); :func:`closed_loop_predict` computes the command now (``reach``), calls it
+and then the core's prediction pass (:func:`~isf_robot.core.robust.predict_pass`), so its cache is keyed on the
+core's sources too (:func:`isf_robot.arm.rollout.predict_kernel`).
 """
 
 from __future__ import annotations

@@ -25,12 +25,14 @@ its block only when asked for, so ``predict`` evaluates every point in one compi
 each point's Euler step and kinematics are one call and its rows
 :meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`. Every path computes the numpy loop's
 points with the same formulas (equal to rounding). The off trigger asks :meth:`NominalRollout.prediction`
-first: on the one-call path, the points and their ``Xi_on`` (the core's
+first: on the one-call path, the command now, the points and their ``Xi_on`` (the core's
 :func:`~isf_robot.core.robust.predict_pass`) in one compiled call (``_rollout_jit.closed_loop_predict``) into
-outputs kept on the rollout, so no points, arrays or Lie data are made (2026-11-28, panda_pole: about 59 us
-per rollout and prediction in a loop, 84 us through the stacked points). Measured on panda_pole (10 points,
-process time, 2026-11-23): about 120 us per rollout outside the loop in one call (190 us point by point),
-mostly the collision kernel's distance calls.
+outputs kept on the rollout, so no points, arrays or Lie data are made and the controller is neither called nor
+put back (2026-11-28, panda_pole: about 50 us per rollout and prediction repeated in a loop, 84 us through the
+stacked points; in the episode, where the rollout's code and data are cold, about 64 us against 100, of which
+the kernel's work is about 42: the kinematics 10, the controller's command 3, the collision pairs 22).
+Measured on panda_pole (10 points, process time, 2026-11-23): about 120 us per rollout outside the loop in one
+call (190 us point by point), mostly the collision kernel's distance calls.
 """
 
 from __future__ import annotations

@@ -338,8 +338,9 @@ class OffPredictor:
 
     :meth:`check` is called at each step where the off condition holds; it runs the rollout on
     the first such step and then every ``every``-th step while the condition keeps holding,
-    returning the last outcome in between. :meth:`idle` (the condition does not hold, or the
-    filter switched) restarts the count.
+    returning the last outcome in between (the rollout's own ``prediction`` where it offers one and
+    answers, else :func:`predict` of its points: see :data:`RolloutFn`). :meth:`idle` (the condition does not
+    hold, or the filter switched) restarts the count.
 
     Args:
         rollout: The rollout callback (:data:`RolloutFn`).
