@@ -40,7 +40,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, cast
 
 import mujoco
 import numpy as np
@@ -329,7 +329,7 @@ class NominalRollout(ScratchRollout):
         mpos, lins = self._tracks(t) if self.moving else (None, None)  # (each point's obstacle places, velocities)
         done, bad, xi_lo, found = self._fused(
             *self._whole_args(t, q, u, self._no_error, 0.0, mpos, lins, c, outs, outs, blk, rows, keys, res, nb),
-            xb[1], rpx, g, c[9], c[11], c[10], alpha.gain, float(d_bar), k, xi, fails, nfail, seen, out)
+            xb[1], rpx, g, c[9], c[11], c[10], cast(Linear, alpha).gain, float(d_bar), k, xi, fails, nfail, seen, out)
         if done < n or res[n - 1, 4]:  # (touching witness points: the general loop's case)
             return None
         self.calls += 1
