@@ -320,17 +320,15 @@ class NominalRollout(ScratchRollout):
         if sc is None:
             sc = self._scratch = self._outputs(c)
         q, u, nb, rpx, outs, blk, g, rows, keys, res, k, xi, fails, nfail, seen, out = sc
-        q[:] = x.qpos[self._qsel]
-        nb[:] = nom._buf  # (the rate limit's previous command: the kernel's to change)
         xb = self._xbind
         if xb[0] is not x:  # (the episode's data: its address and site_xpos', kept)
             xb = self._xbind = (x, int(x._address), x.site_xpos.ctypes.data)
-        rpx[0], rpx[1] = nom._ptrs[0], xb[2]  # (the goal positions, the episode's site_xpos)
         mpos, lins = self._tracks(t) if self.moving else (None, None)  # (each point's obstacle places, velocities)
-        done, bad, xi_lo, found = self._fused(
+        done, bad, xi_lo, found = self._fused(  # (q from the scratch data, nb a copy of the controller's buffer)
             *self._whole_args(t, q, u, self._no_error, 0.0, mpos, lins, c, outs, outs, blk, rows, keys, res, nb),
-            xb[1], rpx, g, c[9], c[11], c[10], cast(Linear, alpha).gain, float(d_bar), k, xi, fails, nfail, seen, out)
-        if done < n or res[n - 1, 4]:  # (touching witness points: the general loop's case)
+            nom._buf, xb[1], xb[2], rpx, g, c[9], c[11], c[10], cast(Linear, alpha).gain, float(d_bar), k, xi, fails,
+            nfail, seen, out)
+        if done < 0:  # (touching witness points: the general loop's case)
             return None
         self.calls += 1
         return pass_prediction(self._s, k, xi, fails, bad, xi_lo, nfail, found, out,
