@@ -177,7 +177,6 @@ class ScratchRollout:
             d.mocap_quat[:] = x.mocap_quat
         return d
 
-
     def _context(self) -> tuple:
         """The collision kernel's context on the scratch data (without bounds: the same tables for every rollout)."""
         c = self._ctx
