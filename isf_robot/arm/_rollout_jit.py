@@ -5,14 +5,18 @@ hands them out; its cache is keyed on every source file of this folder, so an ed
 formula this calls compiles it again). MuJoCo's ``mj_kinematics`` and ``mj_comPos`` are called on the
 raw addresses of the ``MjModel``/``MjData`` the bindings hold; :func:`closed_loop_points` calls the
 reaching controller's kernel (``_kernels_step.reach``) and the collision kernel
-(``_kernels_jit.near_packed_key``).
+(``_kernels_jit.near_packed_key``); :func:`closed_loop_predict` computes the command now (``reach``), calls it
+and then the core's prediction pass (:func:`~isf_robot.core.robust.predict_pass`), so its cache is keyed on the
+core's sources too (:func:`isf_robot.arm.rollout.predict_kernel`).
 """
 
 from __future__ import annotations
 
+import numpy as np
 from numba import carray
 
 from isf_robot.core.jit import formula
+from isf_robot.core.robust import predict_pass
 
 from ._kernels_jit import com_pos, f64p, kinematics, near_packed_key  # (loads libmujoco; ImportError without it)
 from ._kernels_step import reach
@@ -76,3 +80,42 @@ def closed_loop_points(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs,
         if touching:
             return j + 1
     return outs.shape[0]
+
+
+def closed_loop_predict(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs, vs, n, nv, dof0, site, index, t_prev,
+                        a_max, kp, max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff, distmax, slack, eps,
+                        norms_in, lin, dhdt_in, mp_addr, nmocap, mids, mpos, lins, nb0, dx, xsite, rpx, lg, nj, o_lf,
+                        o_gn, gain, d_bar, k, xi, fails, nfail, seen, out):  # pragma: no cover (compiled)
+    """The command now, :func:`closed_loop_points` from it and ``Xi_on`` at the points, in one call.
+
+    First ``q`` is read from ``qpos`` (the scratch data, loaded with the episode's positions) and the buffer ``nb``
+    from the controller's ``nb0``. The command now: the reaching controller's at time ``t`` on the episode's data
+    (address ``dx``, its ``site_xpos`` at ``xsite``; ``rpx`` takes the addresses as ``rp`` holds them) toward goal
+    ``index``, rate-limited from the command of ``t_prev``, into ``v0``: what
+    :meth:`~isf_robot.arm.nominal.ReachingController.__call__` computes when its goal stays (the caller
+    checks that). The other arguments up to ``lins`` are :func:`closed_loop_points`' (it runs from ``v0``, with
+    the rate limit's previous command that of ``t``); the blocks ``blks`` hold each point's ``h`` (its first
+    ``K = keys.shape[1]`` entries), ``Lf h`` (from ``o_lf``) and ``|dh/dq|`` (from ``o_gn``), ``lg`` is their
+    ``Lg h`` (n, K, nv) and ``nj`` the joint rows after each point's pairs. The prediction pass with
+    ``alpha(h) = gain h`` (``gain > 0``) and ``d_bar`` on the commands ``outs``: each point's rows to ``k``, then
+    ``xi``, ``fails``, ``nfail``, ``seen`` (cleared first) and ``out`` as :func:`predict_pass` writes them.
+    Returns ``(done, bad, xi_min, found)``: the points done (-1 after a point with touching witness points: no
+    pass, ``bad = -1``) and :func:`predict_pass`'s answer.
+    """
+    for i in range(q.shape[0]):
+        q[i] = qpos[qadr[i]]
+    nb[:] = nb0
+    rpx[0], rpx[1] = rp[0], xsite
+    reach(ma, dx, rpx, nb, v0, n, nv, dof0, site, index, False, t, t_prev, True, a_max, kp, max_ee, max_js, lam2)
+    done = closed_loop_points(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs, vs, n, nv, dof0, site, index,
+                              t, a_max, kp, max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff,
+                              distmax, slack, eps, norms_in, lin, dhdt_in, mp_addr, nmocap, mids, mpos, lins)
+    if done < outs.shape[0] or res[done - 1, 4] != 0.0:
+        return -1, -1, np.inf, 0
+    m = keys.shape[1]
+    for j in range(done):
+        k[j] = int(res[j, 0]) + nj
+    seen[:] = False
+    bad, low, found = predict_pass(blks[:, o_lf: o_lf + m], lg, outs, blks[:, o_gn: o_gn + m], d_bar, blks[:, :m],
+                                   gain, np.zeros((0, 0)), k, xi, fails, nfail, keys, seen, out)
+    return done, bad, low, found

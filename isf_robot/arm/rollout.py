@@ -24,22 +24,31 @@ handed over stacked
 its block only when asked for, so ``predict`` evaluates every point in one compiled pass); otherwise
 each point's Euler step and kinematics are one call and its rows
 :meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`. Every path computes the numpy loop's
-points with the same formulas (equal to rounding). Measured on panda_pole (10 points, process time,
-2026-11-23): about 120 us per rollout outside the loop in one call (190 us point by point), mostly the
-collision kernel's distance calls.
+points with the same formulas (equal to rounding). The off trigger asks :meth:`NominalRollout.prediction`
+first: on the one-call path, the command now, the points and their ``Xi_on`` (the core's
+:func:`~isf_robot.core.robust.predict_pass`) in one compiled call (``_rollout_jit.closed_loop_predict``) into
+outputs kept on the rollout, so no points, arrays or Lie data are made and the controller is neither called nor
+put back (2026-11-28, panda_pole: about 50 us per rollout and prediction repeated in a loop, 84 us through the
+stacked points; in the episode, where the rollout's code and data are cold, about 64 us against 100, of which
+the kernel's work is about 42: the kinematics 10, the controller's command 3, the collision pairs 22).
+Measured on panda_pole (10 points, process time, 2026-11-23): about 120 us per rollout outside the loop in one
+call (190 us point by point), mostly the collision kernel's distance calls.
 """
 
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, cast
 
 import mujoco
 import numpy as np
 
-from isf_robot.core import ConfigError, LieData
-from isf_robot.core.intermittent import StackedPoints
+from isf_robot.core import ConfigError, LieData, Linear
+from isf_robot.core.class_k import ClassK
+from isf_robot.core.intermittent import Prediction, StackedPoints, pass_prediction
+from isf_robot.core.jit import compiled, stamp_sources
 
 from . import kernels, narrow
 from .collision import CollisionBarriers
@@ -70,6 +79,23 @@ def obstacle_tracks(scene: Scene, times: Sequence[float]) -> tuple[np.ndarray, n
         mpos[:, r] = pos
         lins[:, mids[r]] = vel
     return mpos, lins
+
+
+def predict_kernel() -> Any:
+    """``_rollout_jit.closed_loop_predict`` compiled (``None`` without the compiled kernels).
+
+    It compiles the core's :func:`~isf_robot.core.robust.predict_pass` into itself, so its disk cache is keyed on
+    the core's sources as well as this folder's (:func:`~isf_robot.core.jit.stamp_sources`).
+    """
+    if kernels.rollout_kernels() is None:
+        return None
+    from isf_robot.core import robust
+
+    from . import _rollout_jit
+
+    fn = compiled(_rollout_jit.closed_loop_predict)
+    stamp_sources(fn, (os.path.dirname(_rollout_jit.__file__), os.path.dirname(robust.__file__)))
+    return fn
 
 
 class ScratchRollout:
@@ -151,6 +177,33 @@ class ScratchRollout:
             d.mocap_quat[:] = x.mocap_quat
         return d
 
+    def _context(self) -> tuple:
+        """The collision kernel's context on the scratch data (without bounds: the same tables for every rollout)."""
+        c = self._ctx
+        if c is None:
+            c = self._ctx = self.coll._kernel_context(self._data, None, self.joints)
+        return c
+
+    def _whole_args(self, t: float, q: np.ndarray, v0: np.ndarray, e: np.ndarray, decay: float,
+                    mpos: np.ndarray | None, lins: np.ndarray | None, c: tuple, outs: np.ndarray, vs: np.ndarray,
+                    blk: np.ndarray, rows: np.ndarray, keys: np.ndarray, res: np.ndarray,
+                    nb: np.ndarray | None = None) -> tuple:
+        """The arguments of ``_rollout_jit.closed_loop_points`` (see :meth:`_run_whole`) with these outputs.
+
+        ``nb``: the controller's buffer to use (``None``: its own).
+        """
+        nom, coll = self.nominal, self.coll
+        rate = nom._rate
+        mp, ls, lin, dl = _NO_POS, _NO_LINS, coll._knolin, 0
+        if mpos is not None and lins is not None:
+            mp, ls = mpos, lins
+            if coll._any_moving:
+                lin, dl = ls[0], coll._kdhdt
+        return (*self._addr, q, v0, e, decay, t, self.dt, self._data.qpos, self._qadr, nom._ptrs,
+                nom._buf if nb is None else nb, outs, vs, v0.size, nom._jac.shape[1], nom._dof0, nom.scene.ee_site_id,
+                nom.goals.index, rate.t_prev, rate.a_max, nom.kp, nom.max_ee_speed, nom.max_joint_speed, nom._lam2,
+                c[4], blk, rows, keys, len(coll.pairs.names), res, coll.cutoff, c[14], c[15], narrow._EPS_DIST, c[13],
+                lin, dl, self._mp_addr, self._nmocap, self._mids, mp, ls if dl else _NO_LINS)
 
     def _run_whole(self, t: float, q: np.ndarray, v0: np.ndarray, e: np.ndarray, decay: float, prev: np.ndarray,
                    mpos: np.ndarray | None, lins: np.ndarray | None, command: bool) -> tuple | None:
@@ -163,28 +216,16 @@ class ScratchRollout:
         point whose witness points coincide (the general loop's case): ``q``, ``e`` and the controller's state as
         before the call (the kernel's only change to the controller is the rate limit's last command: ``prev``).
         """
-        nom, coll, n = self.nominal, self.coll, self.n
-        rate = nom._rate
-        c = self._ctx
-        if c is None:  # (the scratch data without bounds: the same tables for every rollout)
-            c = self._ctx = coll._kernel_context(self._data, None, self.joints)
+        coll, n = self.coll, self.n
+        c = self._context()
         blk, g, rows = coll._point_outputs(c, n)
         keys = np.empty((n, c[7]), dtype=np.int64)
-        mp, ls, lin, dl = _NO_POS, _NO_LINS, coll._knolin, 0
-        if mpos is not None and lins is not None:
-            mp, ls = mpos, lins
-            if coll._any_moving:
-                lin, dl = ls[0], coll._kdhdt
         nq = v0.size
         outs, res, q0, e0 = np.empty((n, nq)), np.empty((n, 6)), q.copy(), e.copy()
         vs = outs if command else np.empty((n, nq))
-        done = self._whole(*self._addr, q, v0, e, decay, t, self.dt, self._data.qpos, self._qadr, nom._ptrs, nom._buf,
-                           outs, vs, nq, nom._jac.shape[1], nom._dof0, nom.scene.ee_site_id, nom.goals.index,
-                           rate.t_prev, rate.a_max, nom.kp, nom.max_ee_speed, nom.max_joint_speed, nom._lam2, c[4],
-                           blk, rows, keys, len(coll.pairs.names), res, coll.cutoff, c[14], c[15], narrow._EPS_DIST,
-                           c[13], lin, dl, self._mp_addr, self._nmocap, self._mids, mp, ls if dl else _NO_LINS)
+        done = self._whole(*self._whole_args(t, q, v0, e, decay, mpos, lins, c, outs, vs, blk, rows, keys, res))
         if done < n or res[n - 1, 4]:  # (touching witness points)
-            rate.prev[:] = prev
+            self.nominal._rate.prev[:] = prev
             q[:], e[:] = q0, e0
             return None
         return c, blk, g, rows, keys, res, outs, vs
@@ -207,6 +248,9 @@ class NominalRollout(ScratchRollout):
         contiguous = qa.size and bool((np.diff(qa) == 1).all())
         self._qsel = slice(int(qa[0]), int(qa[0]) + qa.size) if contiguous else qa  # (a slice: a cheaper copy)
         self._kn: tuple = (None, None, ())
+        self._fused = predict_kernel() if self._whole is not None else None  # (points and Xi_on in one call)
+        self._scratch: tuple | None = None  # (the one call's outputs, made once: see prediction)
+        self._xbind: tuple = (None, 0, 0)  # (the episode's data, its address and site_xpos address)
 
     def _rows(self, data: mujoco.MjData, lin: np.ndarray | None) -> LieData:
         """The filter's rows at the state in ``data`` (kinematics done), ``lin``: the mocap velocities or ``None``."""
@@ -248,6 +292,60 @@ class NominalRollout(ScratchRollout):
 
         return StackedPoints._of(s, outs, k, kl, blk[:, :m], blk[:, o_lf: o_lf + m], g, blk[:, o_gn: o_gn + m], point,
                                  row_names, keys, self._key_names(pair_names, joint_names))  # (its layout: unchecked)
+
+    def prediction(self, t: float, x: Any, alpha: ClassK, d_bar: float) -> Prediction | None:
+        """``predict(self(t, x), alpha, d_bar)`` with the command now, the points and their ``Xi_on`` in one call.
+
+        The off trigger's question (:class:`~isf_robot.core.intermittent.OffPredictor`), in
+        ``_rollout_jit.closed_loop_predict``: the reaching controller's command at ``t`` (its compiled kernel, as
+        its call computes it while the goal stays), the points of :meth:`_compiled` and
+        :func:`~isf_robot.core.robust.predict_pass` over them, into outputs kept on the rollout (no points are
+        handed out, so nothing keeps them) and a copy of the controller's buffer (the controller is not called:
+        nothing to put back). ``None`` (the caller rolls out and predicts): without the compiled kernels, for a
+        class-K function other than :class:`~isf_robot.core.Linear`, before the controller's first command, when
+        the goal could change from ``t`` to the horizon (:meth:`GoalSequence.steady`, from ``t`` itself: the
+        controller's update at ``t`` included), where :meth:`_compiled` would not run, and after a point whose
+        witness points coincide; the controller and the episode as before.
+        """
+        if self._fused is None or type(alpha) is not Linear:
+            return None
+        nom, coll, n = self.nominal, self.coll, self.n
+        c = self._context()
+        d = self._load(x)
+        if (not c[13] or nom._rate.t_prev is None or coll._any_moving and not coll._kdhdt  # (as _steady)
+                or not nom.goals.steady(t, t + n * self.dt) or not nom._bound(d)):
+            return None
+        sc = self._scratch
+        if sc is None:
+            sc = self._scratch = self._outputs(c)
+        q, u, nb, rpx, outs, blk, g, rows, keys, res, k, xi, fails, nfail, seen, out = sc
+        xb = self._xbind
+        if xb[0] is not x:  # (the episode's data: its address and site_xpos', kept)
+            xb = self._xbind = (x, int(x._address), x.site_xpos.ctypes.data)
+        mpos, lins = self._tracks(t) if self.moving else (None, None)  # (each point's obstacle places, velocities)
+        done, bad, xi_lo, found = self._fused(  # (q from the scratch data, nb a copy of the controller's buffer)
+            *self._whole_args(t, q, u, self._no_error, 0.0, mpos, lins, c, outs, outs, blk, rows, keys, res, nb),
+            nom._buf, xb[1], xb[2], rpx, g, c[9], c[11], c[10], cast(Linear, alpha).gain, float(d_bar), k, xi, fails,
+            nfail, seen, out)
+        if done < 0:  # (touching witness points: the general loop's case)
+            return None
+        self.calls += 1
+        return pass_prediction(self._s, k, xi, fails, bad, xi_lo, nfail, found, out,
+                               self._key_names(coll.pairs.names, self.joints.names))
+
+    def _outputs(self, c: tuple) -> tuple:
+        """The outputs of :meth:`prediction`'s call for context ``c``.
+
+        The joint positions, the command, the controller's buffer and addresses, the points' and the prediction
+        pass's arrays.
+        """
+        n, nq, m = self.n, self._qadr.size, c[7]
+        blk, g, rows = self.coll._point_outputs(c, n)
+        keys, fails = np.empty((n, m), dtype=np.int64), np.empty((n, m), dtype=np.int64)
+        nk = len(self.coll.pairs.names) + len(self.joints.names)
+        return (np.empty(nq), np.empty(nq), np.empty_like(self.nominal._buf), np.zeros(2, np.int64), np.empty((n, nq)),
+                blk, g, rows, keys, np.empty((n, 6)), np.empty(n, np.int64), np.empty((n, m)), fails,
+                np.empty(n, np.int64), np.zeros(nk, np.bool_), np.empty(n * m, np.int64))
 
     def _tracks(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The moving obstacles' places (n, p, 3) and every mocap body's velocity (n, nmocap * 3) at the points' times.

@@ -39,6 +39,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from itertools import compress
 from typing import Any
 
 import numpy as np
@@ -51,7 +52,7 @@ from .robust import predict_pass, robust_slack
 from .system import LieData
 from .validation import check_nonnegative
 
-__all__ = ["FallRateBound", "OffPredictor", "Prediction", "RolloutFn", "StackedPoints"]
+__all__ = ["FallRateBound", "OffPredictor", "Prediction", "RolloutFn", "StackedPoints", "pass_prediction"]
 
 _F64 = np.dtype(np.float64)
 _new, _set = object.__new__, object.__setattr__
@@ -59,7 +60,12 @@ _new, _set = object.__new__, object.__setattr__
 RolloutFn = Callable[[float, Any], Sequence[tuple[float, LieData, np.ndarray]]]
 """``rollout(t, x) -> [(s, lie, u_nom), ...]``: predicted barrier data and nominal command at times
 ``t + s`` (``0 < s <= horizon``) of the nominal controller rolled forward on the reduced model from
-the state ``x`` the adapter passed to ``step_lie`` (``None`` if it passed none)."""
+the state ``x`` the adapter passed to ``step_lie`` (``None`` if it passed none).
+
+A rollout may also offer ``rollout.prediction(t, x, alpha, d_bar) -> Prediction | None``: what
+:func:`predict` of ``rollout(t, x)`` gives, in one go (the arm's compiled rollout: its points and their
+``Xi_on`` in one call), or ``None`` where it cannot (:class:`OffPredictor` then takes the points and
+predicts)."""
 
 
 class FallRateBound:
@@ -237,6 +243,9 @@ def _lg_block(lg: Sequence[np.ndarray] | np.ndarray, shape: tuple[int, ...], m: 
 
 _NO_AV = np.zeros((0, 0))
 _NO_KEYS = np.zeros((0, 0), np.int64)
+_NO_NAMES: frozenset[str] = frozenset()
+
+
 def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float, kernel: Callable[..., Any]) -> Prediction:
     """:func:`predict` of stacked points in one pass of ``kernel`` (:func:`~.robust.predict_pass`, compiled or not)."""
     h, k, kl, u = points.h, points.rows, points._rows, points.u
@@ -259,24 +268,38 @@ def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float, kernel:
     run = kernel if m > 0 else predict_pass
     bad, xi_lo, found = run(points.lf, lg, np.ascontiguousarray(u), points.grad_norm, float(d_bar), h, gain, av, k,
                             xi, fails, nfail, _NO_KEYS if keys is None else keys, np.zeros(nk, np.bool_), out)
+    return pass_prediction(points.s, k, xi, fails, bad, xi_lo, nfail, found, out, names, points)
+
+
+def pass_prediction(s: Sequence[float], rows: np.ndarray, xi: np.ndarray, fails: np.ndarray, bad: int, xi_lo: float,
+                    nfail: np.ndarray, found: int, out: np.ndarray, key_names: Sequence[str] | None,
+                    points: StackedPoints | None = None) -> Prediction:
+    """The :class:`Prediction` from the answer of :func:`~isf_robot.core.robust.predict_pass` over stacked points.
+
+    ``s``: the points' times ahead; ``rows``, ``xi``, ``fails``, ``nfail``, ``out``: the pass's arrays, ``(bad, xi_lo,
+    found)`` its answer. The failing rows' names: ``key_names`` of the keys in ``out[:found]`` or, without key
+    names, ``points.row_names``. Raises :class:`NonFiniteError` at a point whose values are not finite.
+    """
     if bad >= 0:
-        raise NonFiniteError(f"predicted Xi_on not finite {points.s[bad]:.3g} s ahead: {xi[bad, :kl[bad]]}")
-    first: float | None = None
-    failing: set[str] = set()
+        raise NonFiniteError(f"predicted Xi_on not finite {s[bad]:.3g} s ahead: {xi[bad, :rows[bad]]}")
     nf = nfail.tolist()
-    if any(nf):
-        first = min([s for s, c in zip(points.s, nf) if c])
-        if keys is not None:  # (the failing rows' keys, each once, from the pass)
+    first = min(compress(s, nf), default=None)  # (the first time ahead with failing rows)
+    failing = _NO_NAMES
+    if first is not None:
+        if key_names is not None:  # (the failing rows' keys, each once, from the pass)
             if found < 0:
+                nk = len(key_names)
                 raise ShapeError(f"stacked points: a failing row's key lies outside key_names (0..{nk - 1})")
-            failing.update(names[i] for i in out[:found].tolist())  # type: ignore[index]
-        else:
+            failing = frozenset([key_names[i] for i in out[:found].tolist()])
+        elif points is not None:
+            names: set[str] = set()
             for j, c in enumerate(nf):
                 if c:
-                    failing.update(points.row_names(j, fails[j, :c].tolist()))
+                    names.update(points.row_names(j, fails[j, :c].tolist()))
+            failing = frozenset(names)
     pred = _new(Prediction)  # (a frozen dataclass's __dict__ set whole, without the field-by-field __init__)
-    _set(pred, "__dict__", {"ok": first is None, "xi_min": float(xi_lo), "first_fail_s": first,
-                            "failing": frozenset(failing), "points": len(kl)})
+    _set(pred, "__dict__", {"ok": first is None, "xi_min": float(xi_lo), "first_fail_s": first, "failing": failing,
+                            "points": len(nf)})
     return pred
 
 
@@ -315,8 +338,9 @@ class OffPredictor:
 
     :meth:`check` is called at each step where the off condition holds; it runs the rollout on
     the first such step and then every ``every``-th step while the condition keeps holding,
-    returning the last outcome in between. :meth:`idle` (the condition does not hold, or the
-    filter switched) restarts the count.
+    returning the last outcome in between (the rollout's own ``prediction`` where it offers one and
+    answers, else :func:`predict` of its points: see :data:`RolloutFn`). :meth:`idle` (the condition does not
+    hold, or the filter switched) restarts the count.
 
     Args:
         rollout: The rollout callback (:data:`RolloutFn`).
@@ -332,6 +356,8 @@ class OffPredictor:
         self.rollout = rollout
         self.every = int(every)
         self._kernel = compiled(predict_pass)  # (ISF_ROBOT_JIT is read here, when the filter is built)
+        fused = getattr(rollout, "prediction", None)
+        self._fused = fused if callable(fused) else None  # (the rollout's own prediction: see RolloutFn)
         self.reset()
 
     def reset(self) -> None:
@@ -350,7 +376,8 @@ class OffPredictor:
         if self.last is not None and self._since < self.every:
             self._since += 1
             return self.last, False
-        self.last = predict(self.rollout(t, x), alpha, d_bar, kernel=self._kernel)
+        pred = None if self._fused is None else self._fused(t, x, alpha, d_bar)
+        self.last = predict(self.rollout(t, x), alpha, d_bar, kernel=self._kernel) if pred is None else pred
         self._since = 1
         self.rollouts += 1
         return self.last, True

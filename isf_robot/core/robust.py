@@ -17,7 +17,8 @@ themselves. The passes (:func:`xi_pass`, :func:`row_bounds`) are written in nump
 each runs as it is in Python and, through :func:`~isf_robot.core.jit.compiled`, as one compiled
 call; the two agree to rounding (the order of the sums in ``Lg h u`` may differ: about 1e-15
 relative). :func:`predict_pass` is written as loops over each point's rows (what its compiled call,
-a compiled rollout's, runs fastest; as written it gives the same numbers, slowly).
+a compiled rollout's, runs fastest; as written it gives the same numbers, slowly); marked a formula too,
+the arm's compiled rollout compiles it into its own call (``isf_robot.arm._rollout_jit.closed_loop_predict``).
 """
 
 from __future__ import annotations
@@ -111,6 +112,7 @@ def row_bounds(rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: f
     return lb
 
 
+@formula
 def predict_pass(lf: np.ndarray, lg: np.ndarray, u: np.ndarray, grad_norm: np.ndarray, d_bar: float,
                  h: np.ndarray, gain: float, alpha_h: np.ndarray, k: np.ndarray, xi: np.ndarray, fails: np.ndarray,
                  nfail: np.ndarray, keys: np.ndarray, seen: np.ndarray, out: np.ndarray) -> tuple:

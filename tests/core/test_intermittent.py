@@ -316,3 +316,30 @@ def test_reset_returns_every_filter_to_off_and_forgets_its_history() -> None:
     assert cbf.step_lie(0.0, lie_bad, np.zeros(1)).on
     cbf.reset()
     assert not cbf.on and cbf.qp_solves == 0
+
+
+def test_the_off_predictor_takes_a_rollouts_own_prediction_where_it_answers():
+    """A rollout with ``prediction(t, x, alpha, d_bar)`` answers the check itself; ``None`` sends it the long way."""
+
+    class Rollout:
+        def __init__(self) -> None:
+            self.answer = None
+            self.asked: list[str] = []
+
+        def __call__(self, t, x):  # type: ignore[no-untyped-def]
+            self.asked.append("points")
+            return [(0.1, _one_row(-0.5), np.zeros(1))]
+
+        def prediction(self, t, x, alpha, d_bar):  # type: ignore[no-untyped-def]
+            self.asked.append("prediction")
+            return self.answer
+
+    roll = Rollout()
+    pred = OffPredictor(roll, every=1)
+    got, ran = pred.check(0.0, None, Linear(1.0), 0.0)
+    assert ran and roll.asked == ["prediction", "points"]
+    assert repr(got) == repr(predict(roll(0.0, None), Linear(1.0), 0.0)) and not got.ok and got.failing == {"a"}
+    roll.asked.clear()
+    roll.answer = predict([(0.1, _one_row(0.5), np.zeros(1))], Linear(1.0), 0.0)
+    got, ran = pred.check(0.01, None, Linear(1.0), 0.0)
+    assert ran and got is roll.answer and roll.asked == ["prediction"]

@@ -1,0 +1,122 @@
+"""The rollout's prediction in one compiled call (``_rollout_jit.closed_loop_predict``): the loop's Prediction.
+
+``NominalRollout.prediction(t, x, alpha, d_bar)`` runs the points and their ``Xi_on`` in one call; it must
+give what ``predict(rollout(t, x), alpha, d_bar)`` gives from the same state: bit for bit against the
+compiled rollout's stacked points, and against the numpy loop's points predicted by numpy (the plain path,
+as under ``ISF_ROBOT_JIT=0``) the same ``ok``, ``first_fail_s``, ``failing`` and ``points`` with ``xi_min`` to
+1e-12 relative. It leaves the controller and the episode's data as they were (it computes the command now
+itself, as the controller does while its goal stays), and answers ``None`` (the off trigger then rolls out
+and predicts) where its path does not serve. Skipped without numba.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from isf_robot.arm import ArmSimulation, kernels, load_scene
+from isf_robot.arm import narrow as narrow_module
+from isf_robot.arm.params import resolve_params
+from isf_robot.core import Linear, Power
+from isf_robot.core.intermittent import StackedPoints, predict
+from isf_robot.core.robust import predict_pass
+
+pytestmark = pytest.mark.skipif(not kernels.available(), reason="compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
+
+RTOL = 1e-12
+
+
+def _setup(name: str, seed: int = 3):  # type: ignore[no-untyped-def]
+    scene = load_scene(name)
+    params = resolve_params(scene, d_bar=0.05, horizon=0.3, calibrate=False)
+    sim = ArmSimulation(scene, "isf", seed=seed, params=params)
+    return scene, params, sim, sim.strategy.predictor.rollout
+
+
+def _states(scene, sim, count: int, goals=None):  # type: ignore[no-untyped-def]
+    """Random states ``(t, data)`` with a previous command for the rate limit (``goals``: a hook on the goals)."""
+    rng = np.random.default_rng(7)
+    data = mujoco.MjData(scene.model)
+    nom = sim.nominal
+    nom.reset()
+    for k in range(count):
+        t = 0.2 + 0.05 * k
+        data.qpos[scene.qpos_adr] = sim.setup.q0 + rng.normal(scale=0.4, size=scene.n_joints)
+        scene.set_moving_obstacles(data, t + sim.setup.time_offset)
+        mujoco.mj_forward(scene.model, data)
+        if goals is not None:
+            goals(nom, data, t)
+        nom(t - 0.01, data)
+        yield t, data
+
+
+def _state_of(nom, data) -> tuple:  # type: ignore[no-untyped-def]
+    goals, prev, t_prev = nom.snapshot()
+    return repr(sorted(goals.items())), prev.tolist(), t_prev, data.qpos.tolist(), data.mocap_pos.tolist()
+
+
+@pytest.mark.parametrize("name", ["panda_pole", "panda_moving"])
+def test_the_one_call_prediction_is_the_loops(name) -> None:  # type: ignore[no-untyped-def]
+    scene, params, sim, roll = _setup(name)
+    assert roll._fused is not None
+    alpha = Linear(params.alpha)
+    outcomes = set()
+    for t, data in _states(scene, sim, 12):
+        before = _state_of(sim.nominal, data)
+        calls = roll.calls
+        got = roll.prediction(t, data, alpha, params.d_bar)
+        assert got is not None and roll.calls == calls + 1
+        assert _state_of(sim.nominal, data) == before  # (the controller and the episode as they were)
+        pts = roll(t, data)
+        assert type(pts) is StackedPoints
+        assert repr(predict(pts, alpha, params.d_bar)) == repr(got)  # (the compiled pass over the same points)
+        whole, step = roll._whole, roll._step
+        roll._whole = roll._step = None  # (the numpy loop's points, predicted by the pass as written)
+        try:
+            ref = predict(list(roll(t, data)), alpha, params.d_bar, kernel=predict_pass)
+        finally:
+            roll._whole, roll._step = whole, step
+        assert (got.ok, got.first_fail_s, got.failing, got.points) == (ref.ok, ref.first_fail_s, ref.failing,
+                                                                       ref.points)
+        assert got.xi_min == pytest.approx(ref.xi_min, rel=RTOL, abs=RTOL)
+        outcomes.add(got.ok)
+    assert outcomes == {True, False}
+
+
+def test_the_off_trigger_takes_the_one_call_prediction() -> None:
+    scene, params, sim, roll = _setup("panda_pole")
+    predictor = sim.strategy.predictor
+    assert predictor._fused == roll.prediction
+    (t, data), = _states(scene, sim, 1)
+    alpha = Linear(params.alpha)
+    pred, ran = predictor.check(t, data, alpha, params.d_bar)
+    assert ran and repr(pred) == repr(predict(roll(t, data), alpha, params.d_bar))
+
+
+def test_where_the_one_call_does_not_serve_it_answers_none(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    scene, params, sim, roll = _setup("panda_pole")
+    (t, data), = _states(scene, sim, 1)
+    before = _state_of(sim.nominal, data)
+    assert roll.prediction(t, data, Power(3.0, 0.7), params.d_bar) is None  # (alpha(h) not linear)
+    monkeypatch.setattr(narrow_module, "_EPS_DIST", 10.0)  # every near pair counts as touching
+    calls = roll.calls
+    assert roll.prediction(t, data, Linear(params.alpha), params.d_bar) is None and roll.calls == calls
+    assert _state_of(sim.nominal, data) == before
+    # and the off trigger then rolls out (the general loop) and predicts
+    pred, ran = sim.strategy.predictor.check(t, data, Linear(params.alpha), params.d_bar)
+    assert ran and roll.calls == calls + 1 and pred.points == roll.n
+
+
+def test_a_goal_that_may_change_from_now_takes_the_long_way(goal_reached_at_once) -> None:  # type: ignore[no-untyped-def]
+    scene, params, sim, roll = _setup("panda_pole")
+    alpha = Linear(params.alpha)
+    for t, data in _states(scene, sim, 3, goals=goal_reached_at_once):
+        before = _state_of(sim.nominal, data)
+        assert roll.prediction(t, data, alpha, params.d_bar) is None
+        assert _state_of(sim.nominal, data) == before
+        pred, ran = sim.strategy.predictor.check(t, data, alpha, params.d_bar)
+        assert ran and repr(pred) == repr(predict(roll(t, data), alpha, params.d_bar))
+        sim.strategy.predictor.idle()
+    sim.nominal.reset()  # (no previous command: the rate limit's first call is the controller's own)
+    assert roll.prediction(t, data, alpha, params.d_bar) is None
