@@ -48,7 +48,7 @@ import numpy as np
 from isf_robot.core import ConfigError, LieData, Linear
 from isf_robot.core.class_k import ClassK
 from isf_robot.core.intermittent import Prediction, StackedPoints, pass_prediction
-from isf_robot.core.jit import compiled, stamp_sources
+from isf_robot.core.jit import compiled
 
 from . import kernels, narrow
 from .collision import CollisionBarriers
@@ -85,7 +85,8 @@ def predict_kernel() -> Any:
     """``_rollout_jit.closed_loop_predict`` compiled (``None`` without the compiled kernels).
 
     It compiles the core's :func:`~isf_robot.core.robust.predict_pass` into itself, so its disk cache is keyed on
-    the core's sources as well as this folder's (:func:`~isf_robot.core.jit.stamp_sources`).
+    the core's sources as well as this folder's (:func:`~isf_robot.core.jit.stamp_sources`). ``None`` also under
+    ``ISF_ROBOT_JIT=cached`` while numba's cache does not hold it.
     """
     if kernels.rollout_kernels() is None:
         return None
@@ -93,9 +94,8 @@ def predict_kernel() -> Any:
 
     from . import _rollout_jit
 
-    fn = compiled(_rollout_jit.closed_loop_predict)
-    stamp_sources(fn, (os.path.dirname(_rollout_jit.__file__), os.path.dirname(robust.__file__)))
-    return fn
+    fn = compiled(_rollout_jit.closed_loop_predict, (os.path.dirname(robust.__file__),))
+    return fn if hasattr(fn, "py_func") else None  # (ISF_ROBOT_JIT=cached before it is compiled: the points' path)
 
 
 class ScratchRollout:

@@ -156,15 +156,15 @@ def formula(fn: Any) -> Any:
     return fn
 
 
-def compiled(fn: Any) -> Any:
+def compiled(fn: Any, sources: Sequence[str] = ()) -> Any:
     """``fn`` compiled by numba (cached on disk, made once per process), or ``fn`` itself.
 
     ``fn`` itself when ``ISF_ROBOT_JIT`` turns the kernels off or numba is missing, and under
     ``ISF_ROBOT_JIT=cached`` when numba's cache does not hold ``fn`` for this machine yet (the
     setting is read at each call: a filter reads it when it is built). ``fn`` must be a module-level
-    function whose compiled callees are :func:`formula` functions of its own module (numba's cache
-    then follows edits of that one file). Creating it compiles nothing: the first call with new
-    argument types does.
+    function whose compiled callees are :func:`formula` functions of its own folder, or of the folders
+    ``sources`` (numba's cache then follows edits of those files: :func:`stamp_sources`; the same
+    ``sources`` at every call). Creating it compiles nothing: the first call with new argument types does.
     """
     env = _ENV.get(JIT_ENV)
     if env == _HANDED_ENV[0]:  # (the common case: no parsing of the setting)
@@ -174,11 +174,11 @@ def compiled(fn: Any) -> Any:
     else:
         _HANDED.clear()
         _HANDED_ENV[0] = env
-    got = _HANDED[fn] = _hand_out(fn, (env or "").strip().lower() == CACHED_ONLY)
+    got = _HANDED[fn] = _hand_out(fn, (env or "").strip().lower() == CACHED_ONLY, sources)
     return got
 
 
-def _hand_out(fn: Any, cached_only: bool) -> Any:
+def _hand_out(fn: Any, cached_only: bool, sources: Sequence[str]) -> Any:
     """:func:`compiled`'s answer for the current setting (the dispatcher is made once per process)."""
     if not jit_enabled():
         return fn
@@ -191,7 +191,7 @@ def _hand_out(fn: Any, cached_only: bool) -> Any:
         watch_compiles()
         register_formulas()
         got = _COMPILED[fn] = njit(cache=True, nogil=True)(fn)
-        stamp_sources(got, (os.path.dirname(fn.__code__.co_filename),))
+        stamp_sources(got, (os.path.dirname(fn.__code__.co_filename), *sources))
     if cached_only and compiled_here((got,))[0] == 0:
         return fn
     return got

@@ -120,3 +120,25 @@ def test_a_goal_that_may_change_from_now_takes_the_long_way(goal_reached_at_once
         sim.strategy.predictor.idle()
     sim.nominal.reset()  # (no previous command: the rate limit's first call is the controller's own)
     assert roll.prediction(t, data, alpha, params.d_bar) is None
+
+
+def test_cached_mode_without_the_fused_kernel_takes_the_points_path(monkeypatch) -> None:
+    """``ISF_ROBOT_JIT=cached`` with the rollout's kernels in numba's cache but not the fused prediction: the
+    rollout has no ``_fused`` (never the plain function in its place) and the run is the compiled one."""
+    from isf_robot.core import jit
+
+    scene = load_scene("panda_pole")
+    params = resolve_params(scene, d_bar=0.05, horizon=0.3, calibrate=False)
+    full = ArmSimulation(scene, "isf", seed=3, params=params).run(0.6)
+
+    def held(kernels_):  # type: ignore[no-untyped-def]  (every kernel in the cache but the fused prediction)
+        return (0, 1) if any(getattr(k, "__name__", "") == "closed_loop_predict" for k in kernels_) else (1, 1)
+
+    monkeypatch.setattr(jit, "compiled_here", held)
+    monkeypatch.setenv("ISF_ROBOT_JIT", jit.CACHED_ONLY)
+    sim = ArmSimulation(scene, "isf", seed=3, params=params)
+    rollout = sim.strategy.predictor.rollout
+    assert rollout._whole is not None and rollout._fused is None
+    got = sim.run(0.6)
+    assert (got.on_switches, got.qp_solves) == (full.on_switches, full.qp_solves)
+    assert got.duty_cycle == pytest.approx(full.duty_cycle, abs=1e-12)
