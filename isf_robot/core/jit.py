@@ -4,8 +4,9 @@ The kernels (the arm's step, the filters' few-row step, the satellite's arcs) ar
 cached on disk (``cache=True``): the first run on a machine compiles them (some 15-30 s of CPU in
 all), later runs load them. ``ISF_ROBOT_JIT=0`` runs the plain numpy paths instead (the same
 formulas; see the kernels' modules for the tolerance they agree to). ``ISF_ROBOT_JIT=cached`` uses a
-kernel only where numba's cache already holds it for this machine and runs the rest as written: it
-compiles nothing (``isf-robot demo`` runs so, whatever the commands before it happened to compile).
+kernel handed out by :func:`compiled` only where numba's cache already holds it for this machine and runs
+the rest as written: it compiles nothing (``isf-robot demo`` runs so, whatever the commands before it
+happened to compile; the satellite's kernels, made by :mod:`satellite.compiled`, compile as usual).
 
 The command-line tools call :func:`announce_compiles` once: the first kernel that a command (or any
 of its worker processes) actually compiles, rather than loads from the cache, prints one line on
