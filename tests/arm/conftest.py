@@ -126,3 +126,27 @@ def goal_reached_at_once() -> Callable[..., None]:
         nom.goal_positions[nom.goals.index] = nom.scene.ee_position(data)
 
     return near_the_goal
+
+
+@pytest.fixture(scope="session")
+def rollout_states() -> Callable[..., Iterator[tuple[float, mujoco.MjData]]]:
+    """Random states ``(t, data)`` for an isf simulation's rollout: the arm about its start, moving obstacles placed,
+    a previous command for the rate limit (the controller reset first; ``goals``: a hook on the goals)."""
+
+    def states(scene: Scene, sim: Any, count: int, goals: Callable[..., None] | None = None
+               ) -> Iterator[tuple[float, mujoco.MjData]]:
+        rng = np.random.default_rng(7)
+        data = mujoco.MjData(scene.model)
+        nom = sim.nominal
+        nom.reset()
+        for k in range(count):
+            t = 0.2 + 0.05 * k
+            data.qpos[scene.qpos_adr] = sim.setup.q0 + rng.normal(scale=0.4, size=scene.n_joints)
+            scene.set_moving_obstacles(data, t + sim.setup.time_offset)
+            mujoco.mj_forward(scene.model, data)
+            if goals is not None:
+                goals(nom, data, t)
+            nom(t - 0.01, data)
+            yield t, data
+
+    return states

@@ -10,7 +10,6 @@ coincide (the numpy narrow phase's case). Skipped without numba.
 
 from __future__ import annotations
 
-import mujoco
 import numpy as np
 import pytest
 
@@ -42,7 +41,7 @@ def _counted(fn, calls):  # type: ignore[no-untyped-def]
     return None if fn is None else (lambda *a: calls.append(1) or fn(*a))
 
 
-def _compare(name: str, states: int, monkeypatch=None, seed: int = 3, goals=None):  # type: ignore[no-untyped-def]
+def _compare(states_of, name: str, states: int, monkeypatch=None, seed: int = 3, goals=None):  # type: ignore[no-untyped-def]
     """Rollouts from random states with each path in turn; returns (points compared, whole-path calls, Euler calls)."""
     scene = load_scene(name)
     params = resolve_params(scene, d_bar=0.05, horizon=0.3, calibrate=False)
@@ -52,19 +51,8 @@ def _compare(name: str, states: int, monkeypatch=None, seed: int = 3, goals=None
     assert step is not None and whole is not None
     wc: list[int] = []
     sc: list[int] = []
-    rng = np.random.default_rng(7)
-    data = mujoco.MjData(scene.model)
-    nom = sim.nominal
-    nom.reset()
     near = 0
-    for k in range(states):
-        t = 0.2 + 0.05 * k
-        data.qpos[scene.qpos_adr] = sim.setup.q0 + rng.normal(scale=0.4, size=scene.n_joints)
-        scene.set_moving_obstacles(data, t + sim.setup.time_offset)
-        mujoco.mj_forward(scene.model, data)
-        if goals is not None:
-            goals(nom, data, t)
-        nom(t - 0.01, data)  # (a previous command for the rate limit)
+    for t, data in states_of(scene, sim, states, goals):
         roll._whole, roll._step = _counted(whole, wc), _counted(step, sc)
         fast = _points(roll, t, data)
         roll._whole = None
@@ -78,20 +66,20 @@ def _compare(name: str, states: int, monkeypatch=None, seed: int = 3, goals=None
 
 
 @pytest.mark.parametrize("name", ["panda_pole", "planar_moving", "panda_moving"])
-def test_compiled_paths_give_the_numpy_loops_points(name) -> None:  # type: ignore[no-untyped-def]
-    roll, whole, euler = _compare(name, 10)
+def test_compiled_paths_give_the_numpy_loops_points(name, rollout_states) -> None:  # type: ignore[no-untyped-def]
+    roll, whole, euler = _compare(rollout_states, name, 10)
     # the whole rollout in one call at each state (moving obstacles placed by the kernel), then the
     # Euler-step path once per point
     assert whole == 10 and euler == 10 * roll.n
     assert roll.moving == (name != "panda_pole")
 
 
-def test_a_goal_change_within_the_horizon_takes_the_general_loop(goal_reached_at_once) -> None:  # type: ignore[no-untyped-def]
-    roll, whole, euler = _compare("panda_pole", 6, goals=goal_reached_at_once)
+def test_a_goal_change_within_the_horizon_takes_the_general_loop(goal_reached_at_once, rollout_states) -> None:  # type: ignore[no-untyped-def]
+    roll, whole, euler = _compare(rollout_states, "panda_pole", 6, goals=goal_reached_at_once)
     assert whole == 0 and euler == 2 * 6 * roll.n  # never the whole-rollout kernel (goals.steady said no)
 
 
-def test_coinciding_witness_points_fall_back_to_the_general_loop(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+def test_coinciding_witness_points_fall_back_to_the_general_loop(monkeypatch, rollout_states) -> None:  # type: ignore[no-untyped-def]
     monkeypatch.setattr(narrow_module, "_EPS_DIST", 10.0)  # every near pair counts as touching
-    roll, whole, euler = _compare("panda_pole", 4)
+    roll, whole, euler = _compare(rollout_states, "panda_pole", 4)
     assert whole == 4  # the kernel ran, stopped at the first touching point, and the general loop redid the rollout

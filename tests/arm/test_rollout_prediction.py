@@ -11,8 +11,6 @@ and predicts) where its path does not serve. Skipped without numba.
 
 from __future__ import annotations
 
-import mujoco
-import numpy as np
 import pytest
 
 from isf_robot.arm import ArmSimulation, kernels, load_scene
@@ -34,35 +32,18 @@ def _setup(name: str, seed: int = 3):  # type: ignore[no-untyped-def]
     return scene, params, sim, sim.strategy.predictor.rollout
 
 
-def _states(scene, sim, count: int, goals=None):  # type: ignore[no-untyped-def]
-    """Random states ``(t, data)`` with a previous command for the rate limit (``goals``: a hook on the goals)."""
-    rng = np.random.default_rng(7)
-    data = mujoco.MjData(scene.model)
-    nom = sim.nominal
-    nom.reset()
-    for k in range(count):
-        t = 0.2 + 0.05 * k
-        data.qpos[scene.qpos_adr] = sim.setup.q0 + rng.normal(scale=0.4, size=scene.n_joints)
-        scene.set_moving_obstacles(data, t + sim.setup.time_offset)
-        mujoco.mj_forward(scene.model, data)
-        if goals is not None:
-            goals(nom, data, t)
-        nom(t - 0.01, data)
-        yield t, data
-
-
 def _state_of(nom, data) -> tuple:  # type: ignore[no-untyped-def]
     goals, prev, t_prev = nom.snapshot()
     return repr(sorted(goals.items())), prev.tolist(), t_prev, data.qpos.tolist(), data.mocap_pos.tolist()
 
 
 @pytest.mark.parametrize("name", ["panda_pole", "panda_moving"])
-def test_the_one_call_prediction_is_the_loops(name) -> None:  # type: ignore[no-untyped-def]
+def test_the_one_call_prediction_is_the_loops(name, rollout_states) -> None:  # type: ignore[no-untyped-def]
     scene, params, sim, roll = _setup(name)
     assert roll._fused is not None
     alpha = Linear(params.alpha)
     outcomes = set()
-    for t, data in _states(scene, sim, 12):
+    for t, data in rollout_states(scene, sim, 12):
         before = _state_of(sim.nominal, data)
         calls = roll.calls
         got = roll.prediction(t, data, alpha, params.d_bar)
@@ -84,19 +65,19 @@ def test_the_one_call_prediction_is_the_loops(name) -> None:  # type: ignore[no-
     assert outcomes == {True, False}
 
 
-def test_the_off_trigger_takes_the_one_call_prediction() -> None:
+def test_the_off_trigger_takes_the_one_call_prediction(rollout_states) -> None:  # type: ignore[no-untyped-def]
     scene, params, sim, roll = _setup("panda_pole")
     predictor = sim.strategy.predictor
     assert predictor._fused == roll.prediction
-    (t, data), = _states(scene, sim, 1)
+    (t, data), = rollout_states(scene, sim, 1)
     alpha = Linear(params.alpha)
     pred, ran = predictor.check(t, data, alpha, params.d_bar)
     assert ran and repr(pred) == repr(predict(roll(t, data), alpha, params.d_bar))
 
 
-def test_where_the_one_call_does_not_serve_it_answers_none(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+def test_where_the_one_call_does_not_serve_it_answers_none(monkeypatch, rollout_states) -> None:  # type: ignore[no-untyped-def]
     scene, params, sim, roll = _setup("panda_pole")
-    (t, data), = _states(scene, sim, 1)
+    (t, data), = rollout_states(scene, sim, 1)
     before = _state_of(sim.nominal, data)
     assert roll.prediction(t, data, Power(3.0, 0.7), params.d_bar) is None  # (alpha(h) not linear)
     monkeypatch.setattr(narrow_module, "_EPS_DIST", 10.0)  # every near pair counts as touching
@@ -108,10 +89,10 @@ def test_where_the_one_call_does_not_serve_it_answers_none(monkeypatch) -> None:
     assert ran and roll.calls == calls + 1 and pred.points == roll.n
 
 
-def test_a_goal_that_may_change_from_now_takes_the_long_way(goal_reached_at_once) -> None:  # type: ignore[no-untyped-def]
+def test_a_goal_that_may_change_from_now_takes_the_long_way(goal_reached_at_once, rollout_states) -> None:  # type: ignore[no-untyped-def]
     scene, params, sim, roll = _setup("panda_pole")
     alpha = Linear(params.alpha)
-    for t, data in _states(scene, sim, 3, goals=goal_reached_at_once):
+    for t, data in rollout_states(scene, sim, 3, goals=goal_reached_at_once):
         before = _state_of(sim.nominal, data)
         assert roll.prediction(t, data, alpha, params.d_bar) is None
         assert _state_of(sim.nominal, data) == before
