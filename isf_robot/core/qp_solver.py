@@ -33,6 +33,7 @@ from .exceptions import ConfigError, SolverError
 from .jit import compiled
 from .projection import FEW_ROWS, REL_TOL, project_few, project_row
 from .qp import FilterQP, QPResult
+from .qp_check import NO_BOUND, answer_violation
 from .validation import check_positive
 
 __all__ = ["QPSolver", "BACKENDS"]
@@ -48,6 +49,11 @@ _PROXQP_INNER = 50
 """ProxQP's inner iterations per outer one. Its default (1500) let a filter solve on rows of scale 1e-12 run
 4e5 iterations (1.2 s; 5 s at 1e-155) before giving up; well-scaled filter problems need a few per outer
 iteration (``tests/core/test_qp.py``). A solve stopped at the limit is "unsolved", as at ``max_iter``."""
+
+
+def _bound(b: np.ndarray | None) -> np.ndarray:
+    """An input bound as :func:`~isf_robot.core.qp_check.answer_violation` takes it (``None``: none)."""
+    return NO_BOUND if b is None else b
 
 
 class _Workspace:
@@ -114,6 +120,7 @@ class QPSolver:
         self.few_rows = bool(few_rows)
         self.project_row = compiled(project_row)  # (ISF_ROBOT_JIT is read here)
         self._project_few = compiled(project_few)
+        self._check = compiled(answer_violation)
         self._cache: dict[tuple[int, int, bool], _Workspace] = {}
         self._eye: dict[int, np.ndarray] = {}
         self._upper: dict[int, np.ndarray] = {}
@@ -165,19 +172,11 @@ class QPSolver:
                             max_violation=qp.max_violation(u))
         if self.polish and self.backend != "daqp":
             u = self._polish(qp, u)
-        if k:
-            res = qp.A.dot(u) - qp.lb  # (dot: the BLAS product of @)
-            rmin = min(res.tolist())  # (u finite, checked below, so res is; the minimum is exact)
-            viol = max(0.0, -rmin)
-        else:
-            res = np.zeros(0)
-            rmin = viol = 0.0
-        if box:
-            viol = max(viol, qp.max_violation(u))
-        if not math.isfinite(sum(u.tolist())) or self._distance_violation(qp, u, res, rmin) > self.feas_tol:
-            raise SolverError(
-                f"{self.backend} returned a command violating the constraints by {viol:.3g} "
-                f"({iters} iterations)", qp=qp)
+        res = qp.A.dot(u) - qp.lb  # (dot: the BLAS product of @)
+        viol, dist = self._check(qp.A, res, u, qp.u_nom, _bound(qp.u_min), _bound(qp.u_max))
+        if not dist <= self.feas_tol:  # (a non-finite command: dist inf)
+            what = "a non-finite command" if math.isnan(viol) else f"a command violating the constraints by {viol:.3g}"
+            raise SolverError(f"{self.backend} returned {what} ({iters} iterations)", qp=qp)
         return QPResult._of(u, "optimal", res <= self.active_tol, time.perf_counter() - t0, iters, viol)
 
     def solve_row(self, u_nom: np.ndarray, a: np.ndarray, lb: float, t0: float | None = None) -> QPResult | None:
@@ -211,28 +210,12 @@ class QPSolver:
             return None
         return u, res, float(low)
 
-    @staticmethod
-    def _distance_violation(qp: FilterQP, u: np.ndarray, res: np.ndarray, rmin: float | None = None) -> float:
-        """How far ``u`` lies outside the feasible set, relative to the size of the problem.
+    def _distance_violation(self, qp: FilterQP, u: np.ndarray) -> float:
+        """How far ``u`` lies outside the feasible set, relative to the size of the problem (inf: not finite).
 
-        Each row's violation is measured as the distance to its half-space (``-res_i / |a_i|``;
-        a zero row keeps its absolute violation), the bounds' as they are, and the largest is
-        divided by ``max(1, |u|, |u_nom|)``: a solver's rounding is relative to the iterates, so
-        rows of 1e9 or 1e-9 are judged alike. ``rmin``: ``res.min()``, when the caller has it.
+        :func:`~isf_robot.core.qp_check.answer_violation`'s ``distance``, compiled or as written.
         """
-        worst = 0.0
-        if res.size and (float(res.min()) if rmin is None else rmin) < 0.0:  # (all satisfied: distances <= 0)
-            nrm = np.sqrt(np.einsum("ij,ij->i", qp.A, qp.A))
-            d = np.where(nrm > 0.0, -res / np.where(nrm > 0.0, nrm, 1.0), -res)
-            worst = max(0.0, float(d.max()))
-        if qp.u_min is not None:
-            worst = max(worst, float(np.max(qp.u_min - u, initial=0.0)))
-        if qp.u_max is not None:
-            worst = max(worst, float(np.max(u - qp.u_max, initial=0.0)))
-        if worst == 0.0:
-            return 0.0
-        size = max(1.0, float(np.abs(u).max(initial=0.0)), float(np.abs(qp.u_nom).max(initial=0.0)))
-        return worst / size
+        return self._check(qp.A, qp.A.dot(u) - qp.lb, u, qp.u_nom, _bound(qp.u_min), _bound(qp.u_max))[1]
 
     # -- backends: each returns (u, iterations, "solved" | "unsolved") -------------------------
     def _identity(self, m: int) -> np.ndarray:
@@ -327,7 +310,7 @@ class QPSolver:
             if not np.all(np.isfinite(guess)):
                 continue
             exact = self._polish(qp, guess)
-            if exact is not guess and self._distance_violation(qp, exact, qp.A @ exact - qp.lb) <= self.feas_tol:
+            if exact is not guess and self._distance_violation(qp, exact) <= self.feas_tol:
                 return exact, "solved"
         if violation > self.feas_tol:
             return u_least, "infeasible"

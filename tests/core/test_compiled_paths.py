@@ -19,6 +19,7 @@ from isf_robot.core import (
     closed_step,
     handover,
     projection,
+    qp_check,
     robust,
     screening,
 )
@@ -222,6 +223,32 @@ def test_the_few_row_closed_form_compiled_as_written() -> None:
             _close(ua, ub)
             _close(ra, rb)
     assert codes == {-1, 0, 1}
+
+
+def test_the_answer_check_compiled_as_written() -> None:
+    """``answer_violation`` (every QP answer's check, either way): the same figures, feasible or not, bounds or none."""
+    rng = np.random.default_rng(9)
+    fast = compiled(qp_check.answer_violation)
+    seen = set()
+    for _ in range(400):
+        k, m = int(rng.integers(0, 60)), int(rng.integers(1, 8))
+        A = rng.normal(size=(k, m)) * rng.choice([1e-6, 1.0, 1e6])
+        if k and rng.random() < 0.2:
+            A[int(rng.integers(0, k))] = 0.0  # (a zero row: its absolute violation)
+        u, u_nom = rng.normal(size=m) * rng.choice([0.1, 10.0]), rng.normal(size=m) * rng.choice([0.1, 10.0])
+        res = rng.normal(size=k) * rng.choice([1e-12, 1e-3, 1.0])
+        if rng.random() < 0.5:
+            res = np.abs(res)  # (every row holds)
+        lo = qp_check.NO_BOUND if rng.random() < 0.3 else u - rng.uniform(-1e-3, 1.0, m)
+        hi = qp_check.NO_BOUND if rng.random() < 0.3 else u + rng.uniform(-1e-3, 1.0, m)
+        if rng.random() < 0.05:
+            u[int(rng.integers(0, m))] = rng.choice([np.nan, np.inf])
+        if k and rng.random() < 0.05:
+            res[int(rng.integers(0, k))] = np.nan
+        (va, da), (vb, db) = (fn(A, res, u, u_nom, lo, hi) for fn in (qp_check.answer_violation, fast))
+        assert (va == vb or (va != va and vb != vb)) and (da == db or abs(da - db) <= REL * abs(da))
+        seen.add("nan" if va != va else "feasible" if da == 0.0 else "violated")
+    assert seen == {"nan", "feasible", "violated"}
 
 
 def test_the_fused_on_step_is_its_parts_composed_compiled_and_as_written() -> None:
