@@ -38,7 +38,7 @@ def answer_violation(A: np.ndarray, res: np.ndarray, u: np.ndarray, u_nom: np.nd
     """
     total = 0.0
     for j in range(u.shape[0]):
-        total += u[j]
+        total += float(u[j])  # (Python floats as written: an overflow is inf, without a numpy warning)
     if not math.isfinite(total):
         return math.nan, math.inf
     viol = 0.0
