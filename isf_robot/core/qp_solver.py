@@ -124,6 +124,7 @@ class QPSolver:
         self._cache: dict[tuple[int, int, bool], _Workspace] = {}
         self._eye: dict[int, np.ndarray] = {}
         self._upper: dict[int, np.ndarray] = {}
+        self._bounds: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}  # (daqp's lower, upper with bounds)
         self.solves = 0
 
     # -- the solve step ----------------------------------------------------------------------
@@ -143,8 +144,8 @@ class QPSolver:
 
         """
         t0 = time.perf_counter()
-        k = qp.k
-        box = qp.has_bounds
+        k = qp.A.shape[0]  # (qp.k and qp.has_bounds, without the properties' calls)
+        box = qp.u_min is not None or qp.u_max is not None
         if k == 0 and not box:
             return QPResult(qp.u_nom.copy(), "unconstrained", np.zeros(0, bool), time.perf_counter() - t0)
         if k == 1 and not box and self.closed_form:
@@ -227,13 +228,17 @@ class QPSolver:
     def _solve_daqp(self, qp: FilterQP) -> tuple[np.ndarray, int, str]:
         import daqp
 
-        m, k = qp.m, qp.k
+        m, k = qp.u_nom.shape[0], qp.A.shape[0]
         lower = qp.lb
-        if qp.has_bounds:
-            lo = qp.u_min if qp.u_min is not None else np.full(m, -_INF)
-            hi = qp.u_max if qp.u_max is not None else np.full(m, _INF)
-            lower = np.concatenate((lo, lower))
-            upper = np.concatenate((hi, np.full(k, _INF)))
+        if qp.u_min is not None or qp.u_max is not None:  # (the bounds first, then the rows: daqp's order)
+            bufs = self._bounds.get((m, k))
+            if bufs is None:
+                bufs = self._bounds[(m, k)] = (np.empty(m + k), np.empty(m + k))
+            lower, upper = bufs  # (refilled whole at every solve; daqp only reads them, during the call)
+            lower[:m] = -_INF if qp.u_min is None else qp.u_min
+            lower[m:] = qp.lb
+            upper[:m] = _INF if qp.u_max is None else qp.u_max
+            upper[m:] = _INF
         else:
             upper = self._upper.get(k)
             if upper is None:
