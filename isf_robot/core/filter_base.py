@@ -31,7 +31,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from . import projection, robust, screening
+from . import projection, qp_check, robust, screening
 from .barrier import Barrier, evaluate_barriers
 from .class_k import ClassK, Linear, as_class_k
 from .closed_step import promoted_closed_step, screened_closed_step, xi_closed_step
@@ -98,7 +98,7 @@ def core_kernels() -> list[Any]:
     if not jit_enabled():
         return []
     return [*Passes.build(), compiled(projection.project_row), compiled(projection.project_few),
-            compiled(robust.predict_pass)]
+            compiled(projection.project_few_within), compiled(qp_check.answer_violation), compiled(robust.predict_pass)]
 
 
 class _Xi(NamedTuple):

@@ -9,7 +9,8 @@ and, the problem being convex, any ``u`` that meets them is the (unique) solutio
 ``r = A u_nom - lb`` (the residuals at ``u_nom``) and ``G = A A^T``:
 
 * one row (:func:`project_row`): ``u = u_nom + max(0, -r) / |a|^2 a``;
-* a few rows (:func:`project_few`, at most :data:`FEW_ROWS`): ``S = {}`` when every ``r_i >= 0``;
+* a few rows (:func:`project_few`, at most :data:`FEW_ROWS`; with input bounds, :func:`project_few_within`
+  keeps its answer when it satisfies them): ``S = {}`` when every ``r_i >= 0``;
   ``S = {i}`` with ``lam = -r_i / G_ii``; ``S = {i, j}`` by Cramer's rule, skipped when the two rows
   are nearly parallel (``det <= 1e-12 G_ii G_jj``). Candidates are screened with ``G`` (most violated
   row first) and the first that meets the conditions is confirmed on the rows themselves (``A u - lb``
@@ -29,7 +30,7 @@ import numpy as np
 
 from .jit import formula
 
-__all__ = ["project_row", "project_few", "FEW_ROWS", "REL_TOL"]
+__all__ = ["project_row", "project_few", "project_few_within", "FEW_ROWS", "REL_TOL"]
 
 FEW_ROWS = 8
 """Largest number of rows :func:`project_few` enumerates (the pairs grow as k^2)."""
@@ -161,6 +162,28 @@ def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float
                 if got == got:
                     return 1, got
     return -1, 0.0
+
+
+@formula
+def project_few_within(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float, u_min: np.ndarray,
+                       u_max: np.ndarray, u: np.ndarray, res: np.ndarray) -> tuple:
+    """:func:`project_few`'s answer kept only when it lies within ``u_min <= u <= u_max``: ``(code, min residual)``.
+
+    The optimum of the rows alone, when it satisfies the bounds, is the optimum with the bounds too (a subset of
+    the feasible set that holds the optimum; the bounds take no multiplier). ``u_min``, ``u_max``: length 0 for
+    none. ``code`` as :func:`project_few`'s; -1 also when a bound fails (exactly, no tolerance: a bound that the
+    answer crosses by any amount binds at the bounded optimum, which the caller's backend finds).
+    """
+    code, low = project_few(A, lb, u_nom, rel_tol, u, res)
+    if code < 0:
+        return code, low
+    for q in range(u_min.shape[0]):
+        if not u[q] >= u_min[q]:
+            return -1, 0.0
+    for q in range(u_max.shape[0]):
+        if not u[q] <= u_max[q]:
+            return -1, 0.0
+    return code, low
 
 
 @formula

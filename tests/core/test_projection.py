@@ -30,6 +30,15 @@ def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray):  # type: igno
     return None if code < 0 else (u, res, low)
 
 
+def project_few_within(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, lo: np.ndarray, hi: np.ndarray):  # type: ignore[no-untyped-def]
+    """``(u, A u - lb, min)`` or ``None``: :func:`project_few`'s answer kept only within ``lo <= u <= hi``."""
+    fn = projection.project_few_within if _WAY[0] == "plain" else compiled(projection.project_few_within)
+    u, res = np.empty(A.shape[1]), np.empty(A.shape[0])
+    code, low = fn(np.ascontiguousarray(A, dtype=float), np.asarray(lb, dtype=float),
+                   np.asarray(u_nom, dtype=float), REL_TOL, lo, hi, u, res)
+    return None if code < 0 else (u, res, low)
+
+
 def project_row(a: np.ndarray, lb: float, u_nom: np.ndarray, feas_tol: float = 1e-7):  # type: ignore[no-untyped-def]
     fn = projection.project_row if _WAY[0] == "plain" else compiled(projection.project_row)
     u = np.empty(u_nom.shape[0])
@@ -167,3 +176,52 @@ def test_off_by_default_and_only_with_the_closed_forms() -> None:
         r = solver.solve(qp)
         assert r.status == "optimal" and solver.solves == backend_calls
         np.testing.assert_allclose(r.u, [1.0, 1.0], atol=1e-12)
+
+
+def test_bounded_few_rows_are_answered_only_within_the_bounds() -> None:
+    """With input bounds: the rows' closed form is kept exactly when it satisfies every bound (then it is the bounded
+    optimum: the backend's, KKT with no bound active); a problem whose optimum has a bound active goes to the backend."""
+    from isf_robot.core.qp_check import NO_BOUND
+
+    rng = np.random.default_rng(11)
+    daqp, ours = QPSolver(closed_form=False), QPSolver(few_rows=True)
+    seen = {"within": 0, "bound binds": 0, "left": 0}
+    for n in range(300):
+        k, m = int(rng.integers(1, FEW_ROWS + 1)), int(rng.integers(2, 8))
+        A = rng.normal(size=(k, m))
+        u_nom = rng.normal(size=m) * 2.0
+        x = rng.uniform(-0.5, 0.5, m)  # a feasible point within the bounds: the problem is feasible
+        lb = A @ x - np.abs(rng.normal(size=k)) * 0.7
+        width = rng.uniform(0.6, 4.0)
+        lo, hi = [(np.full(m, -width), np.full(m, width)), (np.full(m, -width), NO_BOUND),
+                  (NO_BOUND, np.full(m, width))][n % 3]
+        qp = FilterQP(u_nom, A, lb, None if lo is NO_BOUND else lo, None if hi is NO_BOUND else hi)
+        r = daqp.solve(qp)
+        hit = project_few_within(A, lb, u_nom, lo, hi)
+        binds = bool((lo.size and (r.u <= lo + 1e-9).any()) or (hi.size and (r.u >= hi - 1e-9).any()))
+        mine = ours.solve(qp)
+        np.testing.assert_allclose(mine.u, r.u, rtol=0, atol=1e-8 * max(1.0, np.abs(r.u).max()))
+        if hit is None:
+            seen["bound binds" if binds else "left"] += 1
+            continue
+        seen["within"] += 1
+        assert not binds
+        assert (lo.size == 0 or (hit[0] >= lo).all()) and (hi.size == 0 or (hit[0] <= hi).all())
+        _kkt(A, lb, u_nom, hit[0])
+        np.testing.assert_allclose(hit[0], r.u, rtol=0, atol=1e-8 * max(1.0, np.abs(r.u).max()))
+        np.testing.assert_array_equal(mine.u, hit[0])  # (the solver took the closed form)
+    assert min(seen.values()) > 10, seen
+
+
+def test_bounded_few_rows_only_with_few_rows_and_within_the_bounds() -> None:
+    A, lb = np.eye(2), np.ones(2)
+    for hi, few, backend_calls in ((2.0, False, 1), (2.0, True, 0), (0.5, True, 1)):
+        solver = QPSolver(few_rows=few)
+        qp = FilterQP(np.zeros(2), A, lb, u_max=np.full(2, hi))
+        r = solver.solve(qp)
+        assert solver.solves == backend_calls
+        if hi > 1.0:
+            assert r.status == "optimal" and r.active.all()
+            np.testing.assert_allclose(r.u, [1.0, 1.0], atol=1e-12)
+        else:  # (rows u >= 1 against u <= 0.5: infeasible, the backend says so)
+            assert r.status == "infeasible"
