@@ -30,7 +30,7 @@ import numpy as np
 
 from .jit import formula
 
-__all__ = ["project_row", "project_few", "project_few_within", "FEW_ROWS", "REL_TOL"]
+__all__ = ["project_row", "project_few", "project_few_within", "within_bounds", "FEW_ROWS", "REL_TOL"]
 
 FEW_ROWS = 8
 """Largest number of rows :func:`project_few` enumerates (the pairs grow as k^2)."""
@@ -177,13 +177,21 @@ def project_few_within(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol
     code, low = project_few(A, lb, u_nom, rel_tol, u, res)
     if code < 0:
         return code, low
+    if not within_bounds(u, u_min, u_max):
+        return -1, 0.0
+    return code, low
+
+
+@formula
+def within_bounds(u: np.ndarray, u_min: np.ndarray, u_max: np.ndarray) -> bool:
+    """``u_min <= u <= u_max`` exactly (length 0: no bound; NaN: false)."""
     for q in range(u_min.shape[0]):
         if not u[q] >= u_min[q]:
-            return -1, 0.0
+            return False
     for q in range(u_max.shape[0]):
         if not u[q] <= u_max[q]:
-            return -1, 0.0
-    return code, low
+            return False
+    return True
 
 
 @formula

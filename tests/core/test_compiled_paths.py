@@ -154,6 +154,13 @@ def test_filters_compiled_and_as_written_give_the_same_steps(kind: str, monkeypa
     assert switches > 5
 
 
+def _bounds(rng: np.random.Generator, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Input bounds for a closed step: none (length 0), or a box that the answer may or may not leave."""
+    w = float(rng.uniform(0.3, 3.0))
+    return [(qp_check.NO_BOUND, qp_check.NO_BOUND), (np.full(m, -w), np.full(m, w)), (qp_check.NO_BOUND, np.full(m, w)),
+            (np.full(m, -w), qp_check.NO_BOUND)][int(rng.integers(0, 4))]
+
+
 def test_the_fused_closed_steps_are_their_parts_composed_compiled_and_as_written() -> None:
     """``xi_closed_step`` = xi_pass, solved_rows, closed_step; ``screened_closed_step`` = screened_rows, closed_step."""
     rng = np.random.default_rng(5)
@@ -165,6 +172,7 @@ def test_the_fused_closed_steps_are_their_parts_composed_compiled_and_as_written
         lf -= 1.5  # (some rows violated at u_nom)
         screen = [np.zeros(0), np.full(1, 0.4), rng.uniform(0.1, 2.0, k)][int(rng.integers(0, 3))]
         few = bool(rng.random() < 0.8)
+        lo, hi = _bounds(rng, m)
         outs = []
         for fn in (closed_step.xi_closed_step, fused_xi, None):
             av, xi, rows, u, res = np.empty(k), np.empty(k), np.empty(k, np.intp), np.zeros(m), np.zeros(8)
@@ -172,10 +180,12 @@ def test_the_fused_closed_steps_are_their_parts_composed_compiled_and_as_written
                 total, low, arg, kept = robust.xi_pass(lf, lg, u_nom, gn, 0.1, h, 2.0, av, screen, xi, rows)
                 n = screening.solved_rows(kept, arg, k, rows)
                 got = (total, low, arg, kept, n, *closed_step.closed_step(rows[:n], lf, gn, 0.1, av, none_b, none_f,
-                                                                          0.0, lg, u_nom, xi, 1e-9, 1e-9, few, u, res))
+                                                                          0.0, lg, u_nom, xi, 1e-9, 1e-9, few, lo, hi, u,
+                                                                          res))
                 got += (sum(1 << i for i in range(n) if res[i] <= 1e-9) if got[5] >= 0 else 0,)
             else:
-                got = fn(lf, lg, u_nom, gn, 0.1, h, 2.0, av, screen, xi, rows, none_b, none_f, 1e-9, 1e-9, few, u, res)
+                got = fn(lf, lg, u_nom, gn, 0.1, h, 2.0, av, screen, xi, rows, none_b, none_f, 1e-9, 1e-9, few, lo, hi,
+                         u, res)
             outs.append((got, rows[:got[4]].tolist(), u.copy(), xi.copy()))
         for got, rows, u, xi in outs[1:]:
             assert got[2:6] == outs[0][0][2:6] and got[7:] == outs[0][0][7:] and rows == outs[0][1]
@@ -190,7 +200,7 @@ def test_the_fused_closed_steps_are_their_parts_composed_compiled_and_as_written
         for fn in (closed_step.screened_closed_step, fused_screened):
             rows, u, res = np.empty(k, np.intp), np.zeros(m), np.zeros(8)
             got = fn(xi, screen, 0.2, prom, arg, rows, lf, gn, 0.1, np.tanh(h), ramp, 0.05, lg, u_nom, 1e-9, 1e-9,
-                     few, u, res)
+                     few, lo, hi, u, res)
             n = screening.screened_rows(xi, screen, 0.2, prom, arg, np.empty(k, np.intp))
             assert got[0] == n and (n == k if not screen.shape[0] else True)
             outs.append((got, rows[:n].tolist(), u.copy()))
@@ -301,6 +311,7 @@ def test_the_fused_on_step_is_its_parts_composed_compiled_and_as_written() -> No
         screen = [np.zeros(0), np.full(1, 0.4), rng.uniform(0.1, 2.0, k)][int(rng.integers(0, 3))]
         arg = int(np.argmin(xi))
         few = bool(rng.random() < 0.8)
+        lo, hi = _bounds(rng, m)
         outs = []
         for fn in (closed_step.promoted_closed_step, fused, None):
             W, inw = w0.copy(), inw0.copy()
@@ -311,10 +322,11 @@ def test_the_fused_on_step_is_its_parts_composed_compiled_and_as_written() -> No
                 if promotable.shape[0]:
                     mask &= promotable
                 got = closed_step.screened_closed_step(xi, screen, c, mask, arg, rows, lf, gn, 0.1, np.tanh(h),
-                                                       weights, 0.05, lg, u_nom, 1e-9, 1e-9, few, u, res)
+                                                       weights, 0.05, lg, u_nom, 1e-9, 1e-9, few, lo, hi, u,
+                                                       res)
             else:
                 got = fn(xi, c, failing, ramp_on, ids, W, inw, rate, mask, weights, promotable, screen, arg, rows, lf,
-                         gn, 0.1, np.tanh(h), 0.05, lg, u_nom, 1e-9, 1e-9, few, u, res)
+                         gn, 0.1, np.tanh(h), 0.05, lg, u_nom, 1e-9, 1e-9, few, lo, hi, u, res)
             outs.append((got, rows[:got[0]].tolist(), u.copy(), mask.copy(), weights.copy(), W, inw))
         base = outs[-1]
         promoted += int(base[3].sum())
