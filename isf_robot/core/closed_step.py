@@ -3,7 +3,8 @@
 One call for what most control steps of a robot need (the rows that can bind are one or a few; input
 bounds, with ``few``, that the answer satisfies): :func:`~isf_robot.core.robust.row_bounds` of the kept rows,
 :func:`~isf_robot.core.projection.project_row` (one row) or
-:func:`~isf_robot.core.projection.project_few` (2 to ``FEW_ROWS`` rows), and
+:func:`~isf_robot.core.projection.project_few` (2 to ``FEW_ROWS`` rows; where it has no answer,
+:func:`~isf_robot.core.projection.project_active`), and
 :func:`~isf_robot.core.screening.others_hold` on the rows screened out. The same functions the
 general path calls one by one, composed: compiled as one call (:func:`~isf_robot.core.jit.compiled`)
 it saves their separate calls' overhead; as written it runs them in numpy.
@@ -25,7 +26,7 @@ import numpy as np
 
 from .handover import promote_rows
 from .jit import formula
-from .projection import FEW_ROWS, REL_TOL, project_few, project_row, within_bounds
+from .projection import FEW_ROWS, REL_TOL, project_active, project_few, project_row, within_bounds
 from .robust import row_bound, row_bounds, xi_pass
 from .screening import others_hold, screened_rows, solved_rows
 
@@ -58,8 +59,10 @@ def closed_step(rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: 
                                 feas_tol, u)
         res[0] = low
     else:
-        code, low = project_few(lg[rows], row_bounds(rows, lf, grad_norm, d_bar, alpha_h, promote, ramp, b), u_nom,
-                                REL_TOL, u, res[:n])
+        A, lb = lg[rows], row_bounds(rows, lf, grad_norm, d_bar, alpha_h, promote, ramp, b)
+        code, low = project_few(A, lb, u_nom, REL_TOL, u, res[:n])
+        if code < 0:  # (three or more rows active, or nearly parallel ones: the active-set iteration, certified)
+            code, low = project_active(A, lb, u_nom, REL_TOL, u, res[:n])
     if code < 0:
         return code, 0.0, False
     if bounded and not within_bounds(u_nom if code == 0 else u, u_min, u_max):

@@ -31,7 +31,7 @@ import numpy as np
 
 from .exceptions import ConfigError, SolverError
 from .jit import compiled
-from .projection import FEW_ROWS, REL_TOL, project_few, project_few_within, project_row
+from .projection import FEW_ROWS, REL_TOL, project_few_within, project_row
 from .qp import FilterQP, QPResult
 from .qp_check import NO_BOUND, answer_violation
 from .validation import check_positive
@@ -83,10 +83,12 @@ class QPSolver:
         closed_form: Use :func:`~isf_robot.core.projection.project_row` for a single row without
             bounds (its answer is checked like any other; a violating one, or a row so small
             that ``|Lg h|^2`` underflows, goes to the backend instead).
-        few_rows: With ``closed_form``, solve 2 to ``FEW_ROWS`` rows without bounds exactly when
-            one or two rows are active at the solution (:func:`~isf_robot.core.projection.project_few`;
-            status ``"optimal"``, every row checked; anything else goes to the backend); with bounds, 1 to
-            ``FEW_ROWS`` rows the same way when that answer satisfies every bound (then no bound is active:
+        few_rows: With ``closed_form``, solve 2 to ``FEW_ROWS`` rows without bounds exactly
+            (:func:`~isf_robot.core.projection.project_few` when one or two rows are active at the
+            solution, else the certified active-set iteration
+            :func:`~isf_robot.core.projection.project_active`; status ``"optimal"``, every row checked;
+            anything else goes to the backend); with bounds, 1 to ``FEW_ROWS`` rows the same way when
+            that answer satisfies every bound (then no bound is active:
             :func:`~isf_robot.core.projection.project_few_within`; the torque level's limits), compiled or
             as written alike (the same routing either way, so the two ways give the same commands to
             rounding). The answers equal the backend's to its accuracy (about 1e-12), so off by
@@ -121,7 +123,6 @@ class QPSolver:
         self.polish = bool(polish)
         self.few_rows = bool(few_rows)
         self.project_row = compiled(project_row)  # (ISF_ROBOT_JIT is read here)
-        self._project_few = compiled(project_few)
         self._project_few_within = compiled(project_few_within)
         self._check = compiled(answer_violation)
         self._cache: dict[tuple[int, int, bool], _Workspace] = {}
@@ -157,8 +158,7 @@ class QPSolver:
                 return res
             # an answer that fails the check goes to the backend
         elif self.few_rows and self.closed_form and (1 < k <= FEW_ROWS or (box and k == 1)):
-            hit = self.solve_few(qp.A, qp.lb, qp.u_nom, qp.u_min, qp.u_max) if box else \
-                self.solve_few(qp.A, qp.lb, qp.u_nom)
+            hit = self.solve_few(qp.A, qp.lb, qp.u_nom, qp.u_min, qp.u_max)
             if hit is not None:  # the exact solution, checked on every row (one or two rows active) and bound
                 u, res, rmin = hit
                 return QPResult._of(u, "optimal", res <= self.active_tol, time.perf_counter() - t0, 0,
@@ -202,23 +202,19 @@ class QPSolver:
 
     def solve_few(self, A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, u_min: np.ndarray | None = None,
                   u_max: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float] | None:
-        """1 to ``FEW_ROWS`` rows when one or two are active, within the bounds: ``(u, A u - lb, min)``, or ``None``.
+        """1 to ``FEW_ROWS`` rows by closed form, within the bounds: ``(u, A u - lb, min)``, or ``None``.
 
-        :func:`~isf_robot.core.projection.project_few`, every row checked; with bounds
-        (:func:`~isf_robot.core.projection.project_few_within`) kept only when every bound holds (then it is the
-        bounded problem's optimum too). ``None``: the backend decides.
+        :func:`~isf_robot.core.projection.project_few_within` (``project_few``, else ``project_active``), every
+        row checked, kept only when every bound holds (then it is the bounded problem's optimum too). ``None``:
+        the backend decides.
         """
         k, m = A.shape
         u, res = np.empty(m), np.empty(k)
-        f64 = A.dtype == np.float64 and lb.dtype == np.float64 and u_nom.dtype == np.float64 and m > 0
-        if u_min is None and u_max is None:
-            few = self._project_few if f64 else project_few
-            code, low = few(np.ascontiguousarray(A), lb, u_nom, REL_TOL, u, res)
-        else:
-            lo, hi = _bound(u_min), _bound(u_max)
-            within = self._project_few_within if (f64 and lo.dtype == np.float64
-                                                  and hi.dtype == np.float64) else project_few_within
-            code, low = within(np.ascontiguousarray(A), lb, u_nom, REL_TOL, lo, hi, u, res)
+        lo, hi = _bound(u_min), _bound(u_max)
+        within = self._project_few_within if (A.dtype == np.float64 and lb.dtype == np.float64
+                                              and u_nom.dtype == np.float64 and m > 0 and lo.dtype == np.float64
+                                              and hi.dtype == np.float64) else project_few_within
+        code, low = within(np.ascontiguousarray(A), lb, u_nom, REL_TOL, lo, hi, u, res)
         if code < 0:
             return None
         return u, res, float(low)

@@ -263,6 +263,31 @@ def test_the_bounded_few_row_closed_form_compiled_as_written() -> None:
     assert codes == {-1, 0, 1}
 
 
+def test_the_active_set_iteration_compiled_as_written() -> None:
+    """``project_active`` (the few-row problems with three or more active rows, either way): same codes and floats."""
+    rng = np.random.default_rng(13)
+    fast = compiled(projection.project_active)
+    codes = set()
+    for _ in range(400):
+        k, m = int(rng.integers(1, projection.FEW_ROWS + 1)), int(rng.integers(1, 8))
+        A = rng.normal(size=(k, m)) * rng.choice([1e-2, 1.0, 1e2])
+        u_nom = rng.normal(size=m)
+        lb = A @ u_nom + rng.normal(size=k) * np.abs(A).max()
+        outs = []
+        for fn in (projection.project_active, fast):
+            u, res = np.zeros(m), np.zeros(k)
+            code, low = fn(A, lb, u_nom, projection.REL_TOL, u, res)
+            outs.append((code, low, u, res))
+        (ca, la, ua, ra), (cb, lb_, ub, rb) = outs
+        assert ca == cb
+        codes.add(ca)
+        if ca >= 0:
+            _close(la, lb_)
+            _close(ua, ub)
+            _close(ra, rb)
+    assert codes == {-1, 0, 1}
+
+
 def test_the_answer_check_compiled_as_written() -> None:
     """``answer_violation`` (every QP answer's check, either way): the same figures, feasible or not, bounds or none."""
     rng = np.random.default_rng(9)
