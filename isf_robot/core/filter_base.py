@@ -163,6 +163,7 @@ class _FilterBase:
         self._plain = Passes.build(False)  # (inputs the compiled passes do not take: other dtypes, no inputs)
         self._lo = qp_check.NO_BOUND if self.u_min is None else self.u_min  # (the closed steps' bounds: length 0 none)
         self._hi = qp_check.NO_BOUND if self.u_max is None else self.u_max
+        self._within = compiled(projection.within_bounds)  # (ISF_ROBOT_JIT is read here)
         self._rows_buf = np.empty(256, np.intp)
         self._res_buf = np.empty(FEW_ROWS)
         self._screens: dict[float, np.ndarray] = {}
@@ -214,9 +215,16 @@ class _FilterBase:
         raise NotImplementedError
 
     def _within_bounds(self, u: np.ndarray) -> bool:
-        """``u`` satisfies the input bounds the filter was given (true without bounds)."""
-        return not ((self.u_min is not None and bool(np.any(u < self.u_min)))
-                    or (self.u_max is not None and bool(np.any(u > self.u_max))))
+        """``u`` satisfies the input bounds the filter was given (true without bounds; a NaN entry: false).
+
+        :func:`~isf_robot.core.projection.within_bounds`, compiled for float64 commands.
+        """
+        lo, hi = self._lo, self._hi
+        if (lo.shape[0] and lo.shape != u.shape) or (hi.shape[0] and hi.shape != u.shape):
+            raise ShapeError(f"a command of shape {u.shape} against input bounds of shape {lo.shape}, {hi.shape}")
+        if u.dtype == np.float64 and u.shape[0]:
+            return bool(self._within(u, lo, hi))
+        return bool(projection.within_bounds(u, lo, hi))
 
     def _closed_forms(self) -> bool:
         """Whether the closed steps serve: the solver's closed forms, and its ``few_rows`` when there are input bounds.

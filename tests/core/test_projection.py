@@ -295,3 +295,15 @@ def test_random_active_sets_are_the_backends_or_left_to_it() -> None:
         l1 = float(a @ u_nom) + rng.uniform(0.1, 1.0)
         lb = np.concatenate(([l1, -(l1 - rng.uniform(0.05, 1.0))], np.full(A.shape[0] - 2, -1e3)))
         assert project_active(A, lb, u_nom) is None
+
+
+def test_within_bounds_known_answers() -> None:
+    from isf_robot.core.qp_check import NO_BOUND
+
+    fn = projection.within_bounds if _WAY[0] == "plain" else compiled(projection.within_bounds)
+    lo, hi = np.array([-1.0, -2.0]), np.array([1.0, 2.0])
+    assert fn(np.array([1.0, -2.0]), lo, hi)  # (on the bounds: within)
+    assert not fn(np.array([1.0 + 1e-15, 0.0]), lo, hi) and not fn(np.array([0.0, -2.5]), lo, hi)
+    assert fn(np.array([5.0, -5.0]), NO_BOUND, NO_BOUND)
+    assert fn(np.array([5.0, 0.0]), lo, NO_BOUND) and not fn(np.array([5.0, 0.0]), NO_BOUND, hi)
+    assert not fn(np.array([np.nan, 0.0]), lo, hi)
