@@ -159,7 +159,7 @@ class QPSolver:
             # an answer that fails the check goes to the backend
         elif self.few_rows and self.closed_form and (1 < k <= FEW_ROWS or (box and k == 1)):
             hit = self.solve_few(qp.A, qp.lb, qp.u_nom, qp.u_min, qp.u_max)
-            if hit is not None:  # the exact solution, checked on every row (one or two rows active) and bound
+            if hit is not None:  # the exact solution (closed form or certified active set), every row and bound checked
                 u, res, rmin = hit
                 return QPResult._of(u, "optimal", res <= self.active_tol, time.perf_counter() - t0, 0,
                                     max(0.0, -rmin))
