@@ -256,8 +256,9 @@ def render(scenes: list[dict], backends: dict, far: dict | None, args: argparse.
         "that solved one (every solve, polish and checks included; the standard filter's closed form is one "
         "compiled call with its `Xi_on` pass, the intermittent filter's on step one with its promotion pass); "
         "`backend` the median over the steps that "
-        "went to the QP backend or, with several rows and at most two active, to its exact closed form "
-        "(`QPSolver(few_rows=True)`, the arm's default; not the one-row closed form).", "",
+        "went to the QP backend or, with several rows (at most `FEW_ROWS`), to its exact closed forms (one or two "
+        "active; else the certified active-set iteration) (`QPSolver(few_rows=True)`, the arm's default; not the "
+        "one-row closed form).", "",
         "| scene | strategy | us/step | mj_step [us] | x mj_step | target | sense | barriers | nominal | strategy | "
         "act | duty | QP steps | closed form | re-solves | QP/step [us] | backend [us] |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",

@@ -58,6 +58,7 @@ import numpy as np
 
 from isf_robot.core import ConfigError, LieData
 from isf_robot.core.intermittent import StackedPoints
+from isf_robot.core.jit import compiled
 
 from . import kernels
 from .collision import CollisionBarriers
@@ -66,7 +67,7 @@ from .psi_law import obstacle_rate, psi_value
 from .rollout import ScratchRollout, obstacle_tracks
 from .scene import Scene
 
-__all__ = ["TorqueRollout"]
+__all__ = ["TorqueRollout", "pack_points"]
 
 
 class TorqueRollout(ScratchRollout):
@@ -113,6 +114,7 @@ class TorqueRollout(ScratchRollout):
         self._key_names = tuple(self._names.tolist())
         self._s = [j * self.dt for j in range(self.n)]  # (the points' times ahead)
         self._zeros: tuple = (np.zeros((0, 0, 0)),)  # (Lg and u of every point: zero blocks, made once per size)
+        self._pack = compiled(pack_points)  # (ISF_ROBOT_JIT is read here)
 
     def __call__(self, t: float, x: Any,
                  first: np.ndarray | None = None) -> Sequence[tuple[float, LieData, np.ndarray]]:
@@ -201,18 +203,9 @@ class TorqueRollout(ScratchRollout):
     def _points(self, psi: np.ndarray, gn: np.ndarray, present: np.ndarray) -> StackedPoints:
         """Per point ``j < n`` the rows present at ``j`` and ``j + 1`` (ascending keys): ``h = psi_j``, the rate."""
         n, K, dt, mu = self.n, self._names.size, self.dt, self._dofs.size
-        both = present[:-1] & present[1:]
-        at = np.flatnonzero(both)  # (j K + key, row-major: each point's rows in ascending keys; flat: take and put)
-        rows = np.count_nonzero(both, axis=1).astype(np.int64)
-        kk = at % K
-        dst = at - kk + np.arange(at.size) - np.repeat(np.cumsum(rows) - rows, rows)  # (j K + the row's place in j)
         h, lf, g, keys = np.zeros((n, K)), np.zeros((n, K)), np.zeros((n, K)), np.zeros((n, K), dtype=np.int64)
-        flat = psi.reshape(-1)  # (psi, gn: the (n + 1, K) tables of __call__, contiguous)
-        h0 = flat.take(at)
-        h.put(dst, h0)
-        lf.put(dst, (flat.take(at + K) - h0) / dt)
-        g.put(dst, gn.reshape(-1).take(at))
-        keys.put(dst, kk)
+        rows = np.empty(n, dtype=np.int64)
+        self._pack(psi, gn, present, dt, h, lf, g, keys, rows)
         if self._zeros[0].shape != (n, K, mu):
             lg0, u0 = np.zeros((n, K, mu)), np.zeros((n, mu))
             ro = lg0.view()
@@ -227,3 +220,26 @@ class TorqueRollout(ScratchRollout):
             return LieData._of(h[j, :k], lf[j, :k], ro[j, :k], g[j, :k], tuple(names[keys[j, :k]].tolist()))
 
         return StackedPoints._of(self._s, u0, rows, kl, h, lf, lg0, g, point, None, keys, self._key_names)
+
+
+def pack_points(psi: np.ndarray, gn: np.ndarray, present: np.ndarray, dt: float, h: np.ndarray, lf: np.ndarray,
+                g: np.ndarray, keys: np.ndarray, rows: np.ndarray) -> None:
+    """Per point ``j < n`` the rows present at ``j`` and ``j + 1``, ascending keys, packed to the front of row ``j``.
+
+    From the ``(n + 1, K)`` tables ``psi``, ``gn`` (``|J|``) and ``present`` of :meth:`TorqueRollout.__call__`: into
+    the ``(n, K)`` tables (zeros beyond each point's rows), ``h = psi_j``, ``lf = (psi_{j+1} - psi_j) / dt``,
+    ``g = gn_j`` and the row's key; ``rows[j]`` the count. A plain function of loops, compiled by
+    :func:`~isf_robot.core.jit.compiled` (one call instead of a dozen numpy passes per rollout).
+    """
+    n, K = h.shape
+    for j in range(n):
+        c = 0
+        for key in range(K):
+            if present[j, key] and present[j + 1, key]:
+                h0 = psi[j, key]
+                h[j, c] = h0
+                lf[j, c] = (psi[j + 1, key] - h0) / dt
+                g[j, c] = gn[j, key]
+                keys[j, c] = key
+                c += 1
+        rows[j] = c

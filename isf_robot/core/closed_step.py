@@ -1,9 +1,10 @@
 """A filter solve without the QP backend: the kept rows' bounds, their closed form, the check of the other rows.
 
-One call for what most control steps of a robot need (the rows that can bind are one or a few, no
-input bounds): :func:`~isf_robot.core.robust.row_bounds` of the kept rows,
+One call for what most control steps of a robot need (the rows that can bind are one or a few; input
+bounds, with ``few``, that the answer satisfies): :func:`~isf_robot.core.robust.row_bounds` of the kept rows,
 :func:`~isf_robot.core.projection.project_row` (one row) or
-:func:`~isf_robot.core.projection.project_few` (2 to ``FEW_ROWS`` rows), and
+:func:`~isf_robot.core.projection.project_few` (2 to ``FEW_ROWS`` rows; where it has no answer,
+:func:`~isf_robot.core.projection.project_active`), and
 :func:`~isf_robot.core.screening.others_hold` on the rows screened out. The same functions the
 general path calls one by one, composed: compiled as one call (:func:`~isf_robot.core.jit.compiled`)
 it saves their separate calls' overhead; as written it runs them in numpy.
@@ -25,7 +26,7 @@ import numpy as np
 
 from .handover import promote_rows
 from .jit import formula
-from .projection import FEW_ROWS, REL_TOL, project_few, project_row
+from .projection import FEW_ROWS, REL_TOL, project_active, project_few, project_row, within_bounds
 from .robust import row_bound, row_bounds, xi_pass
 from .screening import others_hold, screened_rows, solved_rows
 
@@ -35,17 +36,22 @@ __all__ = ["closed_step", "active_bits", "xi_closed_step", "screened_closed_step
 @formula
 def closed_step(rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: float, alpha_h: np.ndarray,
                 promote: np.ndarray, ramp: np.ndarray, b: float, lg: np.ndarray, u_nom: np.ndarray, xi: np.ndarray,
-                feas_tol: float, active_tol: float, few: bool, u: np.ndarray, res: np.ndarray) -> tuple:
+                feas_tol: float, active_tol: float, few: bool, u_min: np.ndarray, u_max: np.ndarray, u: np.ndarray,
+                res: np.ndarray) -> tuple:
     """The filter QP on the rows ``rows`` (ascending) by its closed form: ``(code, least slack, others hold)``.
 
     ``code`` 0: the rows hold at ``u_nom`` (the answer is ``u_nom``); 1: the answer is in ``u``;
     -1: no closed-form answer (the QP decides); -2: not a closed-form problem (more than one row
-    without ``few``, or more than ``FEW_ROWS``). ``res[:n]``: the rows' slacks ``A u - lb`` (one row:
-    ``res[0]``). ``others hold``: every row not in ``rows`` keeps ``xi + Lg h (u - u_nom) >=
-    active_tol`` (true when every row is kept).
+    without ``few``, or more than ``FEW_ROWS``; input bounds without ``few``). ``res[:n]``: the rows'
+    slacks ``A u - lb`` (one row: ``res[0]``). ``others hold``: every row not in ``rows`` keeps
+    ``xi + Lg h (u - u_nom) >= active_tol`` (true when every row is kept). ``u_min``, ``u_max``: input
+    bounds (length 0: none); the rows' answer is kept only when it satisfies them
+    (:func:`~isf_robot.core.projection.within_bounds`: then no bound is active and it is the bounded
+    optimum), else -1.
     """
     n = rows.shape[0]
-    if n == 0 or (n > 1 and not few) or n > FEW_ROWS:
+    bounded = u_min.shape[0] > 0 or u_max.shape[0] > 0
+    if n == 0 or ((n > 1 or bounded) and not few) or n > FEW_ROWS:
         return -2, 0.0, False
     if n == 1:
         i = rows[0]
@@ -53,10 +59,14 @@ def closed_step(rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: 
                                 feas_tol, u)
         res[0] = low
     else:
-        code, low = project_few(lg[rows], row_bounds(rows, lf, grad_norm, d_bar, alpha_h, promote, ramp, b), u_nom,
-                                REL_TOL, u, res[:n])
+        A, lb = lg[rows], row_bounds(rows, lf, grad_norm, d_bar, alpha_h, promote, ramp, b)
+        code, low = project_few(A, lb, u_nom, REL_TOL, u, res[:n])
+        if code < 0:  # (three or more rows active, or nearly parallel ones: the active-set iteration, certified)
+            code, low = project_active(A, lb, u_nom, REL_TOL, u, res[:n])
     if code < 0:
         return code, 0.0, False
+    if bounded and not within_bounds(u_nom if code == 0 else u, u_min, u_max):
+        return -1, 0.0, False
     if n == xi.shape[0]:
         return code, low, True
     if code == 0:
@@ -77,7 +87,7 @@ def active_bits(res: np.ndarray, n: int, active_tol: float) -> int:
 def xi_closed_step(lf: np.ndarray, lg: np.ndarray, u_nom: np.ndarray, grad_norm: np.ndarray, d_bar: float,
                    h: np.ndarray, gain: float, av: np.ndarray, screen: np.ndarray, xi: np.ndarray, rows: np.ndarray,
                    promote: np.ndarray, ramp: np.ndarray, feas_tol: float, active_tol: float, few: bool,
-                   u: np.ndarray, res: np.ndarray) -> tuple:
+                   u_min: np.ndarray, u_max: np.ndarray, u: np.ndarray, res: np.ndarray) -> tuple:
     """The standard filter's step in one pass: ``Xi_on`` of every row, then the robust rows it keeps by closed form.
 
     :func:`~isf_robot.core.robust.xi_pass` (arguments as there; at least one row), the rows
@@ -91,7 +101,7 @@ def xi_closed_step(lf: np.ndarray, lg: np.ndarray, u_nom: np.ndarray, grad_norm:
         return total, low, arg, kept, 0, -3, 0.0, False, 0
     n = solved_rows(kept, arg, xi.shape[0], rows)
     code, slack, held = closed_step(rows[:n], lf, grad_norm, d_bar, av, promote, ramp, 0.0, lg, u_nom, xi, feas_tol,
-                                    active_tol, few, u, res)
+                                    active_tol, few, u_min, u_max, u, res)
     return total, low, arg, kept, n, code, slack, held, active_bits(res, n, active_tol) if code >= 0 else 0
 
 
@@ -99,7 +109,8 @@ def xi_closed_step(lf: np.ndarray, lg: np.ndarray, u_nom: np.ndarray, grad_norm:
 def screened_closed_step(xi: np.ndarray, screen: np.ndarray, floor: float, promote: np.ndarray, argmin: int,
                          rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: float, alpha_h: np.ndarray,
                          ramp: np.ndarray, b: float, lg: np.ndarray, u_nom: np.ndarray, feas_tol: float,
-                         active_tol: float, few: bool, u: np.ndarray, res: np.ndarray) -> tuple:
+                         active_tol: float, few: bool, u_min: np.ndarray, u_max: np.ndarray, u: np.ndarray,
+                         res: np.ndarray) -> tuple:
     """The rows a filter step solves and their closed form, in one pass: ``(n, code, slack, others hold, active)``.
 
     :func:`~isf_robot.core.screening.screened_rows` (the ``n`` rows, written to ``rows``),
@@ -107,7 +118,7 @@ def screened_closed_step(xi: np.ndarray, screen: np.ndarray, floor: float, promo
     """
     n = screened_rows(xi, screen, floor, promote, argmin, rows)
     code, slack, held = closed_step(rows[:n], lf, grad_norm, d_bar, alpha_h, promote, ramp, b, lg, u_nom, xi, feas_tol,
-                                    active_tol, few, u, res)
+                                    active_tol, few, u_min, u_max, u, res)
     return n, code, slack, held, active_bits(res, n, active_tol) if code >= 0 else 0
 
 
@@ -115,7 +126,8 @@ def promoted_closed_step(xi: np.ndarray, c: float, failing: np.ndarray, ramp_on:
                          inw: np.ndarray, rate: float, promote: np.ndarray, ramp: np.ndarray, promotable: np.ndarray,
                          screen: np.ndarray, argmin: int, rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray,
                          d_bar: float, alpha_h: np.ndarray, b: float, lg: np.ndarray, u_nom: np.ndarray,
-                         feas_tol: float, active_tol: float, few: bool, u: np.ndarray, res: np.ndarray) -> tuple:
+                         feas_tol: float, active_tol: float, few: bool, u_min: np.ndarray, u_max: np.ndarray,
+                         u: np.ndarray, res: np.ndarray) -> tuple:
     """The intermittent filter's on step in one pass: the rows it promotes, then :func:`screened_closed_step`.
 
     :func:`~isf_robot.core.handover.promote_rows` (its arguments up to ``ramp``, which are its ``mask`` and
@@ -128,4 +140,4 @@ def promoted_closed_step(xi: np.ndarray, c: float, failing: np.ndarray, ramp_on:
         for i in range(promote.shape[0]):
             promote[i] = promote[i] and promotable[i]
     return screened_closed_step(xi, screen, c, promote, argmin, rows, lf, grad_norm, d_bar, alpha_h, ramp, b, lg,
-                                u_nom, feas_tol, active_tol, few, u, res)
+                                u_nom, feas_tol, active_tol, few, u_min, u_max, u, res)

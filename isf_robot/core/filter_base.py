@@ -31,7 +31,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from . import projection, robust, screening
+from . import projection, qp_check, robust, screening
 from .barrier import Barrier, evaluate_barriers
 from .class_k import ClassK, Linear, as_class_k
 from .closed_step import promoted_closed_step, screened_closed_step, xi_closed_step
@@ -97,8 +97,8 @@ def core_kernels() -> list[Any]:
     """
     if not jit_enabled():
         return []
-    return [*Passes.build(), compiled(projection.project_row), compiled(projection.project_few),
-            compiled(robust.predict_pass)]
+    return [*Passes.build(), compiled(projection.project_row), compiled(projection.project_few_within),
+            compiled(qp_check.answer_violation), compiled(robust.predict_pass)]
 
 
 class _Xi(NamedTuple):
@@ -161,6 +161,9 @@ class _FilterBase:
         self.screen = self._check_screen(screen)
         self._passes = Passes.build()  # (ISF_ROBOT_JIT is read when the filter is built)
         self._plain = Passes.build(False)  # (inputs the compiled passes do not take: other dtypes, no inputs)
+        self._lo = qp_check.NO_BOUND if self.u_min is None else self.u_min  # (the closed steps' bounds: length 0 none)
+        self._hi = qp_check.NO_BOUND if self.u_max is None else self.u_max
+        self._within = compiled(projection.within_bounds)  # (ISF_ROBOT_JIT is read here)
         self._rows_buf = np.empty(256, np.intp)
         self._res_buf = np.empty(FEW_ROWS)
         self._screens: dict[float, np.ndarray] = {}
@@ -212,9 +215,25 @@ class _FilterBase:
         raise NotImplementedError
 
     def _within_bounds(self, u: np.ndarray) -> bool:
-        """``u`` satisfies the input bounds the filter was given (true without bounds)."""
-        return not ((self.u_min is not None and bool(np.any(u < self.u_min)))
-                    or (self.u_max is not None and bool(np.any(u > self.u_max))))
+        """``u`` satisfies the input bounds the filter was given (true without bounds; a NaN entry: false).
+
+        :func:`~isf_robot.core.projection.within_bounds`, compiled for float64 commands.
+        """
+        lo, hi = self._lo, self._hi
+        if (lo.shape[0] and lo.shape != u.shape) or (hi.shape[0] and hi.shape != u.shape):
+            raise ShapeError(f"a command of shape {u.shape} against input bounds of shape {lo.shape}, {hi.shape}")
+        if u.dtype == np.float64 and u.shape[0]:
+            return bool(self._within(u, lo, hi))
+        return bool(projection.within_bounds(u, lo, hi))
+
+    def _closed_forms(self) -> bool:
+        """Whether the closed steps serve: the solver's closed forms, and its ``few_rows`` when there are input bounds.
+
+        With bounds a closed step's answer is kept only when it satisfies them (no bound active: the bounded optimum
+        too); the solver's own closed forms follow the same rule (:class:`~isf_robot.core.qp_solver.QPSolver`).
+        """
+        solver = self.solver
+        return solver.closed_form and (solver.few_rows or (self.u_min is None and self.u_max is None))
 
     def _passes_for(self, lie: LieData, u_nom: np.ndarray) -> Passes:
         """The compiled passes for float64 data with inputs; the plain ones otherwise (numpy decides)."""
@@ -231,9 +250,10 @@ class _FilterBase:
 
         ``closed``: also the robust rows' closed form (of the rows :meth:`_solve_rows` keeps without
         promotions, ``screen`` their thresholds) in the same compiled call
-        (:func:`~isf_robot.core.closed_step.xi_closed_step`) where the filter has no input bounds and its
-        solver the closed forms: the field ``closed`` when it answered (else ``None``). A non-finite input
-        raises NonFiniteError (a finite ``Xi_on`` also means finite ``Lg h`` and ``u_nom``).
+        (:func:`~isf_robot.core.closed_step.xi_closed_step`) where the closed forms serve
+        (:meth:`_closed_forms`; with input bounds, an answer within them): the field ``closed`` when it
+        answered (else ``None``). A non-finite input raises NonFiniteError (a finite ``Xi_on`` also means
+        finite ``Lg h`` and ``u_nom``).
         """
         if self.validate:
             lie.validate()
@@ -251,13 +271,13 @@ class _FilterBase:
         xi = np.empty(k)
         passes = self._passes_for(lie, u_nom)
         solver = self.solver
-        if closed and self.u_min is None and self.u_max is None and solver.closed_form:
+        if closed and self._closed_forms():
             sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
             u = np.empty(u_nom.shape[0])
             t0 = time.perf_counter()
             total, low, arg, kept, n, code, slack, held, bits = passes.xi_closed_step(
                 lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, sa, xi, rows, _NONE_B, _NONE_F,
-                solver.feas_tol, solver.active_tol, solver.few_rows, u, self._res_buf)
+                solver.feas_tol, solver.active_tol, solver.few_rows, self._lo, self._hi, u, self._res_buf)
             short = self._closed_result(u_nom, u, code, slack, held, n, bits, t0) if code >= 0 else None
         else:  # (no thresholds: _solve_rows finds the rows it keeps)
             total, low, arg, _ = passes.xi_pass(lie.lf, lie.lg, u_nom, lie.grad_norm, self.d_bar, h, gain, av, _NONE_F,
@@ -338,12 +358,12 @@ class _FilterBase:
             sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
             prom, arg = _NONE_B if promote is None else promote, -1 if xs is None else xs.argmin
             buf, solver = self._rows_buf, self.solver
-            if self.u_min is None and self.u_max is None and solver.closed_form:
+            if self._closed_forms():
                 u = np.empty(u_nom.shape[0])
                 t0 = time.perf_counter()
                 n, code, low, held, bits = passes.screened_closed_step(
                     xi, sa, floor, prom, arg, buf, lie.lf, lie.grad_norm, self.d_bar, av, ramp, b, lie.lg, u_nom,
-                    solver.feas_tol, solver.active_tol, solver.few_rows, u, self._res_buf)
+                    solver.feas_tol, solver.active_tol, solver.few_rows, self._lo, self._hi, u, self._res_buf)
                 short = self._closed_result(u_nom, u, code, low, held, n, bits, t0) if code >= 0 else _NO_CLOSED
             else:
                 n, short = passes.screened_rows(xi, sa, floor, prom, arg, buf), _NO_CLOSED

@@ -316,7 +316,7 @@ class IntermittentSafetyFilter(_FilterBase):
         fail = _NONE_B if failing is None else failing
         if promotable is not None and promotable.shape != xi.shape:
             raise ShapeError(f"promotable: one flag per row ({xi.shape[0]}), got shape {promotable.shape}")
-        if self.shooter is None and self.u_min is None and self.u_max is None and self.solver.closed_form:
+        if self.shooter is None and self._closed_forms():
             res, relaxed, fb, resolved = self._promoted_solve(t, x, lie, xs, c, fail, rate, promotable, screen)
             return self._done(FilterStep._of(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names,
                                              resolved, c, bound, ran, held))
@@ -341,7 +341,7 @@ class IntermittentSafetyFilter(_FilterBase):
     def _promoted_solve(self, t: float, x: Any, lie: LieData, xs: _Xi, c: float, failing: np.ndarray,
                         rate: float | None, promotable: np.ndarray | None,
                         screen: float | np.ndarray | None) -> tuple[Any, tuple[str, ...], bool, bool]:
-        """The on step's promotion and solve where the closed forms serve (no input bounds, no maneuvers).
+        """The on step's promotion and solve where the closed forms serve (:meth:`_closed_forms`; no maneuvers).
 
         What :attr:`_ramp` and :meth:`_solve_rows` (the promoted rows, floor ``c``) do one after the other, with their
         passes in one call (:func:`~isf_robot.core.closed_step.promoted_closed_step`): the promoted rows (limited to
@@ -359,7 +359,8 @@ class IntermittentSafetyFilter(_FilterBase):
         n, code, low, held, bits = xs.passes.promoted_closed_step(
             xi, c, failing, rate is not None, ids, w, inw, 0.0 if rate is None else rate, promote, ramp,
             _NONE_B if promotable is None else promotable, sa, xs.argmin, buf, lie.lf, lie.grad_norm, self.d_bar,
-            xs.av, b, lie.lg, u_nom, solver.feas_tol, solver.active_tol, solver.few_rows, u, self._res_buf)
+            xs.av, b, lie.lg, u_nom, solver.feas_tol, solver.active_tol, solver.few_rows, self._lo, self._hi, u,
+            self._res_buf)
         short = self._closed_result(u_nom, u, code, low, held, n, bits, t0) if code >= 0 else _NO_CLOSED
         return self._rows_solved(t, x, lie, u_nom, xi, xs.av, promote, ramp, b, xs.passes, None if n == k else buf[:n],
                                  short)

@@ -25,7 +25,9 @@ from typing import Literal
 import numpy as np
 
 from .exceptions import ShapeError, SolverError
+from .jit import compiled
 from .projection import project_row
+from .qp_check import NO_BOUND, answer_violation
 from .robust import row_lower
 
 __all__ = ["FilterQP", "QPResult", "build_filter_qp", "project_halfspace"]
@@ -92,15 +94,14 @@ class FilterQP:
         return self.A @ u - self.lb
 
     def max_violation(self, u: np.ndarray) -> float:
-        """Largest constraint violation (rows and bounds) of ``u``; 0 when feasible."""
-        v = 0.0
-        if self.k:
-            v = max(v, float(np.max(-self.residuals(u), initial=0.0)))
-        if self.u_min is not None:
-            v = max(v, float(np.max(self.u_min - u, initial=0.0)))
-        if self.u_max is not None:
-            v = max(v, float(np.max(u - self.u_max, initial=0.0)))
-        return v
+        """Largest constraint violation (rows and bounds) of ``u``; 0 when feasible, NaN when ``u`` is not finite.
+
+        :func:`~isf_robot.core.qp_check.answer_violation`'s ``violation`` (compiled or as written).
+        """
+        u = np.asarray(u, dtype=float)
+        lo = NO_BOUND if self.u_min is None else self.u_min
+        hi = NO_BOUND if self.u_max is None else self.u_max
+        return float(compiled(answer_violation)(self.A, self.residuals(u), u, self.u_nom, lo, hi)[0])
 
 
 @dataclass(frozen=True)

@@ -31,8 +31,9 @@ import numpy as np
 
 from .exceptions import ConfigError, SolverError
 from .jit import compiled
-from .projection import FEW_ROWS, REL_TOL, project_few, project_row
+from .projection import FEW_ROWS, REL_TOL, project_few_within, project_row
 from .qp import FilterQP, QPResult
+from .qp_check import NO_BOUND, answer_violation
 from .validation import check_positive
 
 __all__ = ["QPSolver", "BACKENDS"]
@@ -48,6 +49,11 @@ _PROXQP_INNER = 50
 """ProxQP's inner iterations per outer one. Its default (1500) let a filter solve on rows of scale 1e-12 run
 4e5 iterations (1.2 s; 5 s at 1e-155) before giving up; well-scaled filter problems need a few per outer
 iteration (``tests/core/test_qp.py``). A solve stopped at the limit is "unsolved", as at ``max_iter``."""
+
+
+def _bound(b: np.ndarray | None) -> np.ndarray:
+    """An input bound as :func:`~isf_robot.core.qp_check.answer_violation` takes it (``None``: none)."""
+    return NO_BOUND if b is None else b
 
 
 class _Workspace:
@@ -77,9 +83,13 @@ class QPSolver:
         closed_form: Use :func:`~isf_robot.core.projection.project_row` for a single row without
             bounds (its answer is checked like any other; a violating one, or a row so small
             that ``|Lg h|^2`` underflows, goes to the backend instead).
-        few_rows: With ``closed_form``, solve 2 to ``FEW_ROWS`` rows without bounds exactly when
-            one or two rows are active at the solution (:func:`~isf_robot.core.projection.project_few`;
-            status ``"optimal"``, every row checked; anything else goes to the backend), compiled or
+        few_rows: With ``closed_form``, solve 2 to ``FEW_ROWS`` rows without bounds exactly
+            (:func:`~isf_robot.core.projection.project_few` when one or two rows are active at the
+            solution, else the certified active-set iteration
+            :func:`~isf_robot.core.projection.project_active`; status ``"optimal"``, every row checked;
+            anything else goes to the backend); with bounds, 1 to ``FEW_ROWS`` rows the same way when
+            that answer satisfies every bound (then no bound is active:
+            :func:`~isf_robot.core.projection.project_few_within`; the torque level's limits), compiled or
             as written alike (the same routing either way, so the two ways give the same commands to
             rounding). The answers equal the backend's to its accuracy (about 1e-12), so off by
             default: a chaotic caller (the satellite's post-jump problem) keeps its runs; the arm
@@ -113,10 +123,12 @@ class QPSolver:
         self.polish = bool(polish)
         self.few_rows = bool(few_rows)
         self.project_row = compiled(project_row)  # (ISF_ROBOT_JIT is read here)
-        self._project_few = compiled(project_few)
+        self._project_few_within = compiled(project_few_within)
+        self._check = compiled(answer_violation)
         self._cache: dict[tuple[int, int, bool], _Workspace] = {}
         self._eye: dict[int, np.ndarray] = {}
         self._upper: dict[int, np.ndarray] = {}
+        self._bounds: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}  # (daqp's lower, upper with bounds)
         self.solves = 0
 
     # -- the solve step ----------------------------------------------------------------------
@@ -136,8 +148,8 @@ class QPSolver:
 
         """
         t0 = time.perf_counter()
-        k = qp.k
-        box = qp.has_bounds
+        k = qp.A.shape[0]  # (qp.k and qp.has_bounds, without the properties' calls)
+        box = qp.u_min is not None or qp.u_max is not None
         if k == 0 and not box:
             return QPResult(qp.u_nom.copy(), "unconstrained", np.zeros(0, bool), time.perf_counter() - t0)
         if k == 1 and not box and self.closed_form:
@@ -145,9 +157,9 @@ class QPSolver:
             if res is not None:
                 return res
             # an answer that fails the check goes to the backend
-        elif self.few_rows and 1 < k <= FEW_ROWS and not box and self.closed_form:
-            hit = self.solve_few(qp.A, qp.lb, qp.u_nom)
-            if hit is not None:  # the exact solution, checked on every row (one or two rows active)
+        elif self.few_rows and self.closed_form and (1 < k <= FEW_ROWS or (box and k == 1)):
+            hit = self.solve_few(qp.A, qp.lb, qp.u_nom, qp.u_min, qp.u_max)
+            if hit is not None:  # the exact solution (closed form or certified active set), every row and bound checked
                 u, res, rmin = hit
                 return QPResult._of(u, "optimal", res <= self.active_tol, time.perf_counter() - t0, 0,
                                     max(0.0, -rmin))
@@ -165,19 +177,11 @@ class QPSolver:
                             max_violation=qp.max_violation(u))
         if self.polish and self.backend != "daqp":
             u = self._polish(qp, u)
-        if k:
-            res = qp.A.dot(u) - qp.lb  # (dot: the BLAS product of @)
-            rmin = min(res.tolist())  # (u finite, checked below, so res is; the minimum is exact)
-            viol = max(0.0, -rmin)
-        else:
-            res = np.zeros(0)
-            rmin = viol = 0.0
-        if box:
-            viol = max(viol, qp.max_violation(u))
-        if not math.isfinite(sum(u.tolist())) or self._distance_violation(qp, u, res, rmin) > self.feas_tol:
-            raise SolverError(
-                f"{self.backend} returned a command violating the constraints by {viol:.3g} "
-                f"({iters} iterations)", qp=qp)
+        res = qp.A.dot(u) - qp.lb  # (dot: the BLAS product of @)
+        viol, dist = self._check(qp.A, res, u, qp.u_nom, _bound(qp.u_min), _bound(qp.u_max))
+        if not dist <= self.feas_tol:  # (a non-finite command: dist inf)
+            what = "a non-finite command" if math.isnan(viol) else f"a command violating the constraints by {viol:.3g}"
+            raise SolverError(f"{self.backend} returned {what} ({iters} iterations)", qp=qp)
         return QPResult._of(u, "optimal", res <= self.active_tol, time.perf_counter() - t0, iters, viol)
 
     def solve_row(self, u_nom: np.ndarray, a: np.ndarray, lb: float, t0: float | None = None) -> QPResult | None:
@@ -196,43 +200,31 @@ class QPSolver:
         return QPResult._of(u_nom.copy() if code == 0 else u, "closed_form", np.array([slack <= self.active_tol]),
                             time.perf_counter() - t0)
 
-    def solve_few(self, A: np.ndarray, lb: np.ndarray,
-                  u_nom: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
-        """2 to ``FEW_ROWS`` rows without bounds when one or two are active: ``(u, A u - lb, min)``, or ``None``.
+    def solve_few(self, A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, u_min: np.ndarray | None = None,
+                  u_max: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float] | None:
+        """1 to ``FEW_ROWS`` rows by closed form, within the bounds: ``(u, A u - lb, min)``, or ``None``.
 
-        :func:`~isf_robot.core.projection.project_few`, every row checked; ``None``: the backend decides.
+        :func:`~isf_robot.core.projection.project_few_within` (``project_few``, else ``project_active``), every
+        row checked, kept only when every bound holds (then it is the bounded problem's optimum too). ``None``:
+        the backend decides.
         """
         k, m = A.shape
         u, res = np.empty(m), np.empty(k)
-        few = self._project_few if (A.dtype == np.float64 and lb.dtype == np.float64 and u_nom.dtype == np.float64
-                                    and m > 0) else project_few
-        code, low = few(np.ascontiguousarray(A), lb, u_nom, REL_TOL, u, res)
+        lo, hi = _bound(u_min), _bound(u_max)
+        within = self._project_few_within if (A.dtype == np.float64 and lb.dtype == np.float64
+                                              and u_nom.dtype == np.float64 and m > 0 and lo.dtype == np.float64
+                                              and hi.dtype == np.float64) else project_few_within
+        code, low = within(np.ascontiguousarray(A), lb, u_nom, REL_TOL, lo, hi, u, res)
         if code < 0:
             return None
         return u, res, float(low)
 
-    @staticmethod
-    def _distance_violation(qp: FilterQP, u: np.ndarray, res: np.ndarray, rmin: float | None = None) -> float:
-        """How far ``u`` lies outside the feasible set, relative to the size of the problem.
+    def _distance_violation(self, qp: FilterQP, u: np.ndarray) -> float:
+        """How far ``u`` lies outside the feasible set, relative to the size of the problem (inf: not finite).
 
-        Each row's violation is measured as the distance to its half-space (``-res_i / |a_i|``;
-        a zero row keeps its absolute violation), the bounds' as they are, and the largest is
-        divided by ``max(1, |u|, |u_nom|)``: a solver's rounding is relative to the iterates, so
-        rows of 1e9 or 1e-9 are judged alike. ``rmin``: ``res.min()``, when the caller has it.
+        :func:`~isf_robot.core.qp_check.answer_violation`'s ``distance``, compiled or as written.
         """
-        worst = 0.0
-        if res.size and (float(res.min()) if rmin is None else rmin) < 0.0:  # (all satisfied: distances <= 0)
-            nrm = np.sqrt(np.einsum("ij,ij->i", qp.A, qp.A))
-            d = np.where(nrm > 0.0, -res / np.where(nrm > 0.0, nrm, 1.0), -res)
-            worst = max(0.0, float(d.max()))
-        if qp.u_min is not None:
-            worst = max(worst, float(np.max(qp.u_min - u, initial=0.0)))
-        if qp.u_max is not None:
-            worst = max(worst, float(np.max(u - qp.u_max, initial=0.0)))
-        if worst == 0.0:
-            return 0.0
-        size = max(1.0, float(np.abs(u).max(initial=0.0)), float(np.abs(qp.u_nom).max(initial=0.0)))
-        return worst / size
+        return self._check(qp.A, qp.A.dot(u) - qp.lb, u, qp.u_nom, _bound(qp.u_min), _bound(qp.u_max))[1]
 
     # -- backends: each returns (u, iterations, "solved" | "unsolved") -------------------------
     def _identity(self, m: int) -> np.ndarray:
@@ -244,13 +236,17 @@ class QPSolver:
     def _solve_daqp(self, qp: FilterQP) -> tuple[np.ndarray, int, str]:
         import daqp
 
-        m, k = qp.m, qp.k
+        m, k = qp.u_nom.shape[0], qp.A.shape[0]
         lower = qp.lb
-        if qp.has_bounds:
-            lo = qp.u_min if qp.u_min is not None else np.full(m, -_INF)
-            hi = qp.u_max if qp.u_max is not None else np.full(m, _INF)
-            lower = np.concatenate((lo, lower))
-            upper = np.concatenate((hi, np.full(k, _INF)))
+        if qp.u_min is not None or qp.u_max is not None:  # (the bounds first, then the rows: daqp's order)
+            bufs = self._bounds.get((m, k))
+            if bufs is None:
+                bufs = self._bounds[(m, k)] = (np.empty(m + k), np.empty(m + k))
+            lower, upper = bufs  # (refilled whole at every solve; daqp only reads them, during the call)
+            lower[:m] = -_INF if qp.u_min is None else qp.u_min
+            lower[m:] = qp.lb
+            upper[:m] = _INF if qp.u_max is None else qp.u_max
+            upper[m:] = _INF
         else:
             upper = self._upper.get(k)
             if upper is None:
@@ -327,7 +323,7 @@ class QPSolver:
             if not np.all(np.isfinite(guess)):
                 continue
             exact = self._polish(qp, guess)
-            if exact is not guess and self._distance_violation(qp, exact, qp.A @ exact - qp.lb) <= self.feas_tol:
+            if exact is not guess and self._distance_violation(qp, exact) <= self.feas_tol:
                 return exact, "solved"
         if violation > self.feas_tol:
             return u_least, "infeasible"

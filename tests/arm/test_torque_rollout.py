@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from isf_robot.arm import load_scene
-from isf_robot.arm.torque_rollout import TorqueRollout
+from isf_robot.arm.torque_rollout import TorqueRollout, pack_points
 from isf_robot.arm.torque_sim import TorqueSimulation, resolve_torque_params
 from isf_robot.core import ConfigError
+from isf_robot.core.jit import compiled
 
 D_BAR = 0.6  # [rad/s^2] (about panda_pole's calibrated figure; passed so that no test calibrates)
 
@@ -260,3 +261,31 @@ def test_coinciding_witness_points_fall_back_to_the_loop(monkeypatch) -> None:  
     monkeypatch.setattr(narrow_module, "_EPS_DIST", 10.0)
     roll, whole, euler = _compare_paths("panda_pole", 4)
     assert whole == (4, 0) and euler == 2 * 4 * roll.n  # (the kernel ran at every state and stopped early)
+
+
+def test_pack_points_known_answer_and_compiled_as_written() -> None:
+    """The rollout's tables packed per point: the rows present at j and j + 1, ascending keys, psi's difference."""
+    psi = np.array([[1.0, 2.0, 3.0], [1.5, 9.0, 2.0], [0.0, 4.0, 1.0]])
+    gn = np.arange(9.0).reshape(3, 3)
+    present = np.array([[True, False, True], [True, True, True], [False, True, True]])
+    h, lf, g, keys, rows = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 3), np.int64), \
+        np.empty(2, np.int64)
+    pack_points(psi, gn, present, 0.5, h, lf, g, keys, rows)
+    assert rows.tolist() == [2, 2]
+    np.testing.assert_array_equal(h, [[1.0, 3.0, 0.0], [9.0, 2.0, 0.0]])
+    np.testing.assert_array_equal(lf, [[1.0, -2.0, 0.0], [-10.0, -2.0, 0.0]])
+    np.testing.assert_array_equal(g, [[0.0, 2.0, 0.0], [4.0, 5.0, 0.0]])
+    np.testing.assert_array_equal(keys, [[0, 2, 0], [1, 2, 0]])
+    rng = np.random.default_rng(0)
+    fast = compiled(pack_points)
+    for _ in range(50):
+        n, K = int(rng.integers(1, 30)), int(rng.integers(1, 60))
+        psi, gn, present = rng.normal(size=(n + 1, K)), rng.uniform(size=(n + 1, K)), rng.random((n + 1, K)) < 0.6
+        outs = []
+        for fn in (pack_points, fast):
+            out = (np.zeros((n, K)), np.zeros((n, K)), np.zeros((n, K)), np.zeros((n, K), np.int64),
+                   np.empty(n, np.int64))
+            fn(psi, gn, present, 0.01, *out)
+            outs.append(out)
+        for a, b in zip(*outs):
+            np.testing.assert_array_equal(a, b)  # (the same operations in the same order: the same bits)

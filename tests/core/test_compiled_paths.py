@@ -19,6 +19,7 @@ from isf_robot.core import (
     closed_step,
     handover,
     projection,
+    qp_check,
     robust,
     screening,
 )
@@ -153,6 +154,13 @@ def test_filters_compiled_and_as_written_give_the_same_steps(kind: str, monkeypa
     assert switches > 5
 
 
+def _bounds(rng: np.random.Generator, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Input bounds for a closed step: none (length 0), or a box that the answer may or may not leave."""
+    w = float(rng.uniform(0.3, 3.0))
+    return [(qp_check.NO_BOUND, qp_check.NO_BOUND), (np.full(m, -w), np.full(m, w)), (qp_check.NO_BOUND, np.full(m, w)),
+            (np.full(m, -w), qp_check.NO_BOUND)][int(rng.integers(0, 4))]
+
+
 def test_the_fused_closed_steps_are_their_parts_composed_compiled_and_as_written() -> None:
     """``xi_closed_step`` = xi_pass, solved_rows, closed_step; ``screened_closed_step`` = screened_rows, closed_step."""
     rng = np.random.default_rng(5)
@@ -164,6 +172,7 @@ def test_the_fused_closed_steps_are_their_parts_composed_compiled_and_as_written
         lf -= 1.5  # (some rows violated at u_nom)
         screen = [np.zeros(0), np.full(1, 0.4), rng.uniform(0.1, 2.0, k)][int(rng.integers(0, 3))]
         few = bool(rng.random() < 0.8)
+        lo, hi = _bounds(rng, m)
         outs = []
         for fn in (closed_step.xi_closed_step, fused_xi, None):
             av, xi, rows, u, res = np.empty(k), np.empty(k), np.empty(k, np.intp), np.zeros(m), np.zeros(8)
@@ -171,10 +180,12 @@ def test_the_fused_closed_steps_are_their_parts_composed_compiled_and_as_written
                 total, low, arg, kept = robust.xi_pass(lf, lg, u_nom, gn, 0.1, h, 2.0, av, screen, xi, rows)
                 n = screening.solved_rows(kept, arg, k, rows)
                 got = (total, low, arg, kept, n, *closed_step.closed_step(rows[:n], lf, gn, 0.1, av, none_b, none_f,
-                                                                          0.0, lg, u_nom, xi, 1e-9, 1e-9, few, u, res))
+                                                                          0.0, lg, u_nom, xi, 1e-9, 1e-9, few, lo, hi, u,
+                                                                          res))
                 got += (sum(1 << i for i in range(n) if res[i] <= 1e-9) if got[5] >= 0 else 0,)
             else:
-                got = fn(lf, lg, u_nom, gn, 0.1, h, 2.0, av, screen, xi, rows, none_b, none_f, 1e-9, 1e-9, few, u, res)
+                got = fn(lf, lg, u_nom, gn, 0.1, h, 2.0, av, screen, xi, rows, none_b, none_f, 1e-9, 1e-9, few, lo, hi,
+                         u, res)
             outs.append((got, rows[:got[4]].tolist(), u.copy(), xi.copy()))
         for got, rows, u, xi in outs[1:]:
             assert got[2:6] == outs[0][0][2:6] and got[7:] == outs[0][0][7:] and rows == outs[0][1]
@@ -189,7 +200,7 @@ def test_the_fused_closed_steps_are_their_parts_composed_compiled_and_as_written
         for fn in (closed_step.screened_closed_step, fused_screened):
             rows, u, res = np.empty(k, np.intp), np.zeros(m), np.zeros(8)
             got = fn(xi, screen, 0.2, prom, arg, rows, lf, gn, 0.1, np.tanh(h), ramp, 0.05, lg, u_nom, 1e-9, 1e-9,
-                     few, u, res)
+                     few, lo, hi, u, res)
             n = screening.screened_rows(xi, screen, 0.2, prom, arg, np.empty(k, np.intp))
             assert got[0] == n and (n == k if not screen.shape[0] else True)
             outs.append((got, rows[:n].tolist(), u.copy()))
@@ -224,6 +235,85 @@ def test_the_few_row_closed_form_compiled_as_written() -> None:
     assert codes == {-1, 0, 1}
 
 
+def test_the_bounded_few_row_closed_form_compiled_as_written() -> None:
+    """``project_few_within`` (the torque level's bounded few-row problems, either way): same codes and floats."""
+    rng = np.random.default_rng(10)
+    fast = compiled(projection.project_few_within)
+    codes = set()
+    for _ in range(400):
+        k, m = int(rng.integers(1, projection.FEW_ROWS + 1)), int(rng.integers(1, 8))
+        A = rng.normal(size=(k, m)) * rng.choice([1e-2, 1.0, 1e2])
+        u_nom = rng.normal(size=m)
+        lb = A @ u_nom + rng.normal(size=k) * np.abs(A).max()
+        w = rng.uniform(0.2, 3.0)
+        lo = qp_check.NO_BOUND if rng.random() < 0.3 else np.full(m, -w)
+        hi = qp_check.NO_BOUND if rng.random() < 0.3 else np.full(m, w)
+        outs = []
+        for fn in (projection.project_few_within, fast):
+            u, res = np.zeros(m), np.zeros(k)
+            code, low = fn(A, lb, u_nom, projection.REL_TOL, lo, hi, u, res)
+            outs.append((code, low, u, res))
+        (ca, la, ua, ra), (cb, lb_, ub, rb) = outs
+        assert ca == cb
+        codes.add(ca)
+        if ca >= 0:
+            _close(la, lb_)
+            _close(ua, ub)
+            _close(ra, rb)
+    assert codes == {-1, 0, 1}
+
+
+def test_the_active_set_iteration_compiled_as_written() -> None:
+    """``project_active`` (the few-row problems with three or more active rows, either way): same codes and floats."""
+    rng = np.random.default_rng(13)
+    fast = compiled(projection.project_active)
+    codes = set()
+    for _ in range(400):
+        k, m = int(rng.integers(1, projection.FEW_ROWS + 1)), int(rng.integers(1, 8))
+        A = rng.normal(size=(k, m)) * rng.choice([1e-2, 1.0, 1e2])
+        u_nom = rng.normal(size=m)
+        lb = A @ u_nom + rng.normal(size=k) * np.abs(A).max()
+        outs = []
+        for fn in (projection.project_active, fast):
+            u, res = np.zeros(m), np.zeros(k)
+            code, low = fn(A, lb, u_nom, projection.REL_TOL, u, res)
+            outs.append((code, low, u, res))
+        (ca, la, ua, ra), (cb, lb_, ub, rb) = outs
+        assert ca == cb
+        codes.add(ca)
+        if ca >= 0:
+            _close(la, lb_)
+            _close(ua, ub)
+            _close(ra, rb)
+    assert codes == {-1, 0, 1}
+
+
+def test_the_answer_check_compiled_as_written() -> None:
+    """``answer_violation`` (every QP answer's check, either way): the same figures, feasible or not, bounds or none."""
+    rng = np.random.default_rng(9)
+    fast = compiled(qp_check.answer_violation)
+    seen = set()
+    for _ in range(400):
+        k, m = int(rng.integers(0, 60)), int(rng.integers(1, 8))
+        A = rng.normal(size=(k, m)) * rng.choice([1e-6, 1.0, 1e6])
+        if k and rng.random() < 0.2:
+            A[int(rng.integers(0, k))] = 0.0  # (a zero row: its absolute violation)
+        u, u_nom = rng.normal(size=m) * rng.choice([0.1, 10.0]), rng.normal(size=m) * rng.choice([0.1, 10.0])
+        res = rng.normal(size=k) * rng.choice([1e-12, 1e-3, 1.0])
+        if rng.random() < 0.5:
+            res = np.abs(res)  # (every row holds)
+        lo = qp_check.NO_BOUND if rng.random() < 0.3 else u - rng.uniform(-1e-3, 1.0, m)
+        hi = qp_check.NO_BOUND if rng.random() < 0.3 else u + rng.uniform(-1e-3, 1.0, m)
+        if rng.random() < 0.05:
+            u[int(rng.integers(0, m))] = rng.choice([np.nan, np.inf])
+        if k and rng.random() < 0.05:
+            res[int(rng.integers(0, k))] = np.nan
+        (va, da), (vb, db) = (fn(A, res, u, u_nom, lo, hi) for fn in (qp_check.answer_violation, fast))
+        assert (va == vb or (va != va and vb != vb)) and (da == db or abs(da - db) <= REL * abs(da))
+        seen.add("nan" if va != va else "feasible" if da == 0.0 else "violated")
+    assert seen == {"nan", "feasible", "violated"}
+
+
 def test_the_fused_on_step_is_its_parts_composed_compiled_and_as_written() -> None:
     """``promoted_closed_step`` = promote_rows, the promotable rows, screened_closed_step (floor c): same state after."""
     rng = np.random.default_rng(6)
@@ -246,6 +336,7 @@ def test_the_fused_on_step_is_its_parts_composed_compiled_and_as_written() -> No
         screen = [np.zeros(0), np.full(1, 0.4), rng.uniform(0.1, 2.0, k)][int(rng.integers(0, 3))]
         arg = int(np.argmin(xi))
         few = bool(rng.random() < 0.8)
+        lo, hi = _bounds(rng, m)
         outs = []
         for fn in (closed_step.promoted_closed_step, fused, None):
             W, inw = w0.copy(), inw0.copy()
@@ -256,10 +347,11 @@ def test_the_fused_on_step_is_its_parts_composed_compiled_and_as_written() -> No
                 if promotable.shape[0]:
                     mask &= promotable
                 got = closed_step.screened_closed_step(xi, screen, c, mask, arg, rows, lf, gn, 0.1, np.tanh(h),
-                                                       weights, 0.05, lg, u_nom, 1e-9, 1e-9, few, u, res)
+                                                       weights, 0.05, lg, u_nom, 1e-9, 1e-9, few, lo, hi, u,
+                                                       res)
             else:
                 got = fn(xi, c, failing, ramp_on, ids, W, inw, rate, mask, weights, promotable, screen, arg, rows, lf,
-                         gn, 0.1, np.tanh(h), 0.05, lg, u_nom, 1e-9, 1e-9, few, u, res)
+                         gn, 0.1, np.tanh(h), 0.05, lg, u_nom, 1e-9, 1e-9, few, lo, hi, u, res)
             outs.append((got, rows[:got[0]].tolist(), u.copy(), mask.copy(), weights.copy(), W, inw))
         base = outs[-1]
         promoted += int(base[3].sum())

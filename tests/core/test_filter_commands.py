@@ -53,18 +53,20 @@ def _check(step, lie: LieData, alpha: Linear, d_bar: float, lo: np.ndarray, hi: 
 
 @settings(max_examples=200, deadline=None, derandomize=True)  # (the same 200 cases every run)
 @given(seed=st.integers(0, 2**31 - 1), k=st.integers(1, 5), m=st.integers(1, 4), scale=SCALES,
-       degenerate=st.booleans(), backend=st.sampled_from(BACKENDS), policy=st.sampled_from(["raise", "fallback"]))
+       degenerate=st.booleans(), backend=st.sampled_from(BACKENDS), policy=st.sampled_from(["raise", "fallback"]),
+       few=st.booleans())
 def test_every_returned_command_is_finite_and_feasible(seed: int, k: int, m: int, scale: float, degenerate: bool,
-                                                       backend: str, policy: str) -> None:
+                                                       backend: str, policy: str, few: bool) -> None:
     rng = np.random.default_rng(seed)
     lie = _lie(rng, k, m, scale, degenerate)
     lo, hi = -np.full(m, 2.0), np.full(m, 2.0)
     alpha, d_bar = Linear(2.0), 0.05
     u_nom = rng.normal(size=m) * 3.0  # often outside the bounds
     filters = [
-        SafetyFilter(alpha, d_bar, u_min=lo, u_max=hi, solver=QPSolver(backend=backend), on_infeasible=policy),
-        IntermittentSafetyFilter(alpha, 0.1, 0.05, d_bar, u_min=lo, u_max=hi, solver=QPSolver(backend=backend),
-                                 on_infeasible=policy),
+        SafetyFilter(alpha, d_bar, u_min=lo, u_max=hi, solver=QPSolver(backend=backend, few_rows=few),
+                     on_infeasible=policy),
+        IntermittentSafetyFilter(alpha, 0.1, 0.05, d_bar, u_min=lo, u_max=hi,
+                                 solver=QPSolver(backend=backend, few_rows=few), on_infeasible=policy),
     ]
     for f in filters:
         for t in (0.0, 0.01):
@@ -88,3 +90,29 @@ def test_off_mode_respects_the_input_bounds() -> None:
     np.testing.assert_allclose(step.u, [1.0, -1.0], atol=1e-9)  # the nearest command within the bounds
     inside = f.step_lie(0.01, lie, np.array([0.5, 0.2]))
     assert not inside.on and inside.qp is None and np.array_equal(inside.u, [0.5, 0.2])
+
+
+def test_bounded_closed_steps_give_the_backends_commands() -> None:
+    """With input bounds and ``few_rows``, the closed steps answer (within the bounds) what daqp answers."""
+    rng = np.random.default_rng(4)
+    alpha, d_bar = Linear(2.0), 0.05
+    closed = backend = 0
+    for n in range(150):
+        k, m = int(rng.integers(1, 12)), int(rng.integers(2, 7))
+        lie = _lie(rng, k, m, 1.0, False)
+        lo, hi = -np.full(m, 2.5), np.full(m, 2.5)
+        u_nom = rng.normal(size=m) * 1.5
+        make = (lambda s: SafetyFilter(alpha, d_bar, u_min=lo, u_max=hi, solver=s, on_infeasible="fallback",
+                                       screen=0.5)) if n % 2 else (
+            lambda s: IntermittentSafetyFilter(alpha, 0.1, 0.05, d_bar, u_min=lo, u_max=hi, solver=s,
+                                               on_infeasible="fallback", screen=0.5))
+        fast, slow = make(QPSolver(few_rows=True)), make(QPSolver())
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", IsfWarning)
+            a, b = fast.step_lie(0.0, lie, u_nom), slow.step_lie(0.0, lie, u_nom)
+        assert a.on == b.on and a.fallback == b.fallback
+        np.testing.assert_allclose(a.u, b.u, rtol=0, atol=1e-9 * max(1.0, float(np.abs(b.u).max())))
+        if b.qp is not None and b.qp.status == "optimal":
+            closed += fast.solver.solves < slow.solver.solves
+            backend += fast.solver.solves == slow.solver.solves
+    assert closed > 20 and backend > 5, (closed, backend)

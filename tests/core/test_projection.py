@@ -30,6 +30,24 @@ def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray):  # type: igno
     return None if code < 0 else (u, res, low)
 
 
+def project_few_within(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, lo: np.ndarray, hi: np.ndarray):  # type: ignore[no-untyped-def]
+    """``(u, A u - lb, min)`` or ``None``: :func:`project_few`'s answer kept only within ``lo <= u <= hi``."""
+    fn = projection.project_few_within if _WAY[0] == "plain" else compiled(projection.project_few_within)
+    u, res = np.empty(A.shape[1]), np.empty(A.shape[0])
+    code, low = fn(np.ascontiguousarray(A, dtype=float), np.asarray(lb, dtype=float),
+                   np.asarray(u_nom, dtype=float), REL_TOL, lo, hi, u, res)
+    return None if code < 0 else (u, res, low)
+
+
+def project_active(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray):  # type: ignore[no-untyped-def]
+    """``(u, A u - lb, min)`` or ``None``: the certified active-set iteration."""
+    fn = projection.project_active if _WAY[0] == "plain" else compiled(projection.project_active)
+    u, res = np.empty(A.shape[1]), np.empty(A.shape[0])
+    code, low = fn(np.ascontiguousarray(A, dtype=float), np.asarray(lb, dtype=float),
+                   np.asarray(u_nom, dtype=float), REL_TOL, u, res)
+    return None if code < 0 else (u, res, low)
+
+
 def project_row(a: np.ndarray, lb: float, u_nom: np.ndarray, feas_tol: float = 1e-7):  # type: ignore[no-untyped-def]
     fn = projection.project_row if _WAY[0] == "plain" else compiled(projection.project_row)
     u = np.empty(u_nom.shape[0])
@@ -89,8 +107,8 @@ def test_three_active_rows_infeasible_and_non_finite_go_to_the_backend() -> None
         assert project_few(eye[:2], np.ones(2), np.array([np.inf, 0.0, 0.0])) is None
     solver = QPSolver(few_rows=True)
     r = solver.solve(FilterQP(np.zeros(3), eye, np.ones(3)))
-    assert r.status == "optimal" and solver.solves == 1  # the backend's answer
-    np.testing.assert_allclose(r.u, np.ones(3), atol=1e-9)
+    assert r.status == "optimal" and solver.solves == 0  # (project_active's certified answer: no backend call)
+    np.testing.assert_allclose(r.u, np.ones(3), atol=1e-15)
     r = solver.solve(FilterQP(np.zeros(2), np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([1.0, 0.0])))
     assert r.status == "infeasible" and not r.ok  # never presented as a safe answer
 
@@ -167,3 +185,125 @@ def test_off_by_default_and_only_with_the_closed_forms() -> None:
         r = solver.solve(qp)
         assert r.status == "optimal" and solver.solves == backend_calls
         np.testing.assert_allclose(r.u, [1.0, 1.0], atol=1e-12)
+
+
+def test_bounded_few_rows_are_answered_only_within_the_bounds() -> None:
+    """With input bounds: the rows' closed form is kept exactly when it satisfies every bound (then it is the bounded
+    optimum: the backend's, KKT with no bound active); a problem whose optimum has a bound active goes to the backend."""
+    from isf_robot.core.qp_check import NO_BOUND
+
+    rng = np.random.default_rng(11)
+    daqp, ours = QPSolver(closed_form=False), QPSolver(few_rows=True)
+    seen = {"within": 0, "bound binds": 0}
+    for n in range(300):
+        k, m = int(rng.integers(1, FEW_ROWS + 1)), int(rng.integers(2, 8))
+        A = rng.normal(size=(k, m))
+        u_nom = rng.normal(size=m) * 2.0
+        x = rng.uniform(-0.5, 0.5, m)  # a feasible point within the bounds: the problem is feasible
+        lb = A @ x - np.abs(rng.normal(size=k)) * 0.7
+        width = rng.uniform(0.6, 4.0)
+        lo, hi = [(np.full(m, -width), np.full(m, width)), (np.full(m, -width), NO_BOUND),
+                  (NO_BOUND, np.full(m, width))][n % 3]
+        qp = FilterQP(u_nom, A, lb, None if lo is NO_BOUND else lo, None if hi is NO_BOUND else hi)
+        r = daqp.solve(qp)
+        hit = project_few_within(A, lb, u_nom, lo, hi)
+        binds = bool((lo.size and (r.u <= lo + 1e-9).any()) or (hi.size and (r.u >= hi - 1e-9).any()))
+        mine = ours.solve(qp)
+        np.testing.assert_allclose(mine.u, r.u, rtol=0, atol=1e-8 * max(1.0, np.abs(r.u).max()))
+        if hit is None:  # (a bound binds, or the rows' closed forms had no certified answer)
+            seen["bound binds"] += binds
+            continue
+        seen["within"] += 1
+        assert not binds
+        assert (lo.size == 0 or (hit[0] >= lo).all()) and (hi.size == 0 or (hit[0] <= hi).all())
+        _kkt(A, lb, u_nom, hit[0])
+        np.testing.assert_allclose(hit[0], r.u, rtol=0, atol=1e-8 * max(1.0, np.abs(r.u).max()))
+        np.testing.assert_array_equal(mine.u, hit[0])  # (the solver took the closed form)
+    assert min(seen.values()) > 10, seen
+
+
+def test_bounded_few_rows_only_with_few_rows_and_within_the_bounds() -> None:
+    A, lb = np.eye(2), np.ones(2)
+    for hi, few, backend_calls in ((2.0, False, 1), (2.0, True, 0), (0.5, True, 1)):
+        solver = QPSolver(few_rows=few)
+        qp = FilterQP(np.zeros(2), A, lb, u_max=np.full(2, hi))
+        r = solver.solve(qp)
+        assert solver.solves == backend_calls
+        if hi > 1.0:
+            assert r.status == "optimal" and r.active.all()
+            np.testing.assert_allclose(r.u, [1.0, 1.0], atol=1e-12)
+        else:  # (rows u >= 1 against u <= 0.5: infeasible, the backend says so)
+            assert r.status == "infeasible"
+
+
+def test_active_set_iteration_known_answers_and_refusals() -> None:
+    eye = np.eye(3)
+    u, res, low = project_active(eye, np.ones(3), np.zeros(3))  # three rows active: (1, 1, 1)
+    np.testing.assert_array_equal(u, np.ones(3))
+    assert low == 0.0 and np.array_equal(res, np.zeros(3))
+    u, _, _ = project_active(eye, -np.ones(3), np.zeros(3))  # none violated: u_nom
+    np.testing.assert_array_equal(u, np.zeros(3))
+    # a row that must be dropped: x + y >= 2 first (most violated), then x >= 1.5 binds and the first row goes slack
+    A = np.array([[1.0, 1.0], [1.0, 0.0], [0.0, 1.0]])
+    u, res, _ = project_active(A, np.array([2.0, 1.5, 0.7]), np.zeros(2))
+    np.testing.assert_allclose(u, [1.5, 0.7], atol=1e-15)
+    _kkt(A, np.array([2.0, 1.5, 0.7]), np.zeros(2), u)
+    assert project_active(np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([1.0, 0.0]), np.zeros(2)) is None  # infeasible
+    # three rows through one point of the plane (dependent): the answer (1, 1) on two of them, certified
+    hit = project_active(np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]), np.array([1.0, 1.0, 2.0]), np.zeros(2))
+    assert hit is not None
+    np.testing.assert_allclose(hit[0], [1.0, 1.0], atol=1e-15)
+    assert project_active(eye[:2], np.array([np.nan, 0.0]), np.zeros(3)) is None
+    # a violated row so small that |a|^2 underflows: never added, never answered (found by test_filter_commands)
+    assert project_active(np.array([[3.5e-156, 8.2e-156]]), np.array([1.0]), np.zeros(2)) is None
+
+
+def test_random_active_sets_are_the_backends_or_left_to_it() -> None:
+    """Up to FEW_ROWS rows, any number active: an answer meets the KKT conditions and equals daqp's; infeasible problems
+    are never answered."""
+    rng = np.random.default_rng(12)
+    daqp = QPSolver(closed_form=False)
+    sizes: dict[int, int] = {}
+    left = 0
+    for n in range(300):
+        k, m = int(rng.integers(1, FEW_ROWS + 1)), int(rng.integers(2, 8))
+        A = rng.normal(size=(k, m)) * rng.choice([1e-2, 1.0, 1e2])
+        if k > 1 and n % 10 == 0:
+            A[1] = A[0] * 2.0  # (parallel rows)
+        u_nom = rng.normal(size=m)
+        x = rng.normal(size=m)  # a feasible point: the problem is feasible by construction
+        lb = A @ x - np.abs(rng.normal(size=k)) * np.abs(A).max() * rng.choice([0.0, 0.3])
+        hit = project_active(A, lb, u_nom)
+        if hit is None:
+            left += 1
+            continue
+        u = hit[0]
+        scale = max(1.0, float(np.abs(lb).max()), float(np.abs(u).max()))
+        assert (A @ u - lb).min() >= -1e-12 * scale
+        r = daqp.solve(FilterQP(u_nom, A, lb))
+        np.testing.assert_allclose(u, r.u, rtol=0, atol=1e-8 * max(1.0, np.abs(r.u).max()))
+        act = int((hit[1] <= 1e-9 * scale).sum())
+        if act <= m and n % 10:  # (independent active rows: their least-squares multipliers are the multipliers)
+            _kkt(A, lb, u_nom, u)
+        sizes[act] = sizes.get(act, 0) + 1
+    assert sum(v for a, v in sizes.items() if a >= 3) > 30 and left < 60, (sizes, left)
+    for _ in range(40):  # infeasible: a u >= l1 and a u <= l2 < l1 among other rows
+        m = int(rng.integers(2, 6))
+        a = rng.normal(size=m)
+        A = np.vstack([a, -a, rng.normal(size=(int(rng.integers(0, 4)), m))])
+        u_nom = rng.normal(size=m)
+        l1 = float(a @ u_nom) + rng.uniform(0.1, 1.0)
+        lb = np.concatenate(([l1, -(l1 - rng.uniform(0.05, 1.0))], np.full(A.shape[0] - 2, -1e3)))
+        assert project_active(A, lb, u_nom) is None
+
+
+def test_within_bounds_known_answers() -> None:
+    from isf_robot.core.qp_check import NO_BOUND
+
+    fn = projection.within_bounds if _WAY[0] == "plain" else compiled(projection.within_bounds)
+    lo, hi = np.array([-1.0, -2.0]), np.array([1.0, 2.0])
+    assert fn(np.array([1.0, -2.0]), lo, hi)  # (on the bounds: within)
+    assert not fn(np.array([1.0 + 1e-15, 0.0]), lo, hi) and not fn(np.array([0.0, -2.5]), lo, hi)
+    assert fn(np.array([5.0, -5.0]), NO_BOUND, NO_BOUND)
+    assert fn(np.array([5.0, 0.0]), lo, NO_BOUND) and not fn(np.array([5.0, 0.0]), NO_BOUND, hi)
+    assert not fn(np.array([np.nan, 0.0]), lo, hi)

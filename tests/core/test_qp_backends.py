@@ -96,3 +96,48 @@ def test_proxqp_matches_projection_on_a_nearly_degenerate_row():
     np.testing.assert_allclose(res.u, project_halfspace(u_nom, a, 0.0), atol=1e-8, rtol=0)
     raw = QPSolver(backend="proxsuite", closed_form=False, polish=False).solve(FilterQP(u_nom, a[None, :], np.array([0.0])))
     assert raw.status == "optimal"  # the unpolished answer is what the polish exists for
+
+
+def test_answer_violation_known_answers() -> None:
+    """The check's two figures: the violation in the constraints' units, the distance relative to the problem."""
+    from isf_robot.core.qp_check import NO_BOUND, answer_violation
+
+    A = np.array([[3.0, 4.0], [0.0, 0.0], [1.0, 0.0]])
+    u = np.array([0.5, -0.2])
+    # row 0 violated by 1 (distance 1/5), the zero row by 0.3 (as it is), row 2 holds; no bounds; |u|, |u_nom| < 1
+    assert answer_violation(A, np.array([-1.0, -0.3, 2.0]), u, np.zeros(2), NO_BOUND, NO_BOUND) == (1.0, 0.3)
+    # every row holds: 0, 0
+    assert answer_violation(A, np.array([0.0, 1.0, 2.0]), u, np.zeros(2), NO_BOUND, NO_BOUND) == (0.0, 0.0)
+    # a bound violated by 0.7, the distance divided by max(1, |u|, |u_nom|) = 4
+    v, d = answer_violation(A, np.ones(3), u, np.array([0.0, -4.0]), np.array([1.2, -1.0]), NO_BOUND)
+    assert v == pytest.approx(0.7) and d == pytest.approx(0.7 / 4.0)
+    v, d = answer_violation(A, np.ones(3), u, np.zeros(2), NO_BOUND, np.array([0.0, 0.0]))
+    assert v == 0.5 and d == 0.5
+    # not finite: never feasible
+    for bad in (np.array([np.nan, 0.0]), np.array([np.inf, 0.0]), np.array([1e308, 1e308])):
+        v, d = answer_violation(A, np.ones(3), bad, np.zeros(2), NO_BOUND, NO_BOUND)
+        assert v != v and d == np.inf
+    v, d = answer_violation(A, np.array([1.0, np.nan, 1.0]), u, np.zeros(2), NO_BOUND, NO_BOUND)
+    assert v != v and d == np.inf
+    qp = FilterQP(np.zeros(2), A, np.zeros(3))
+    assert qp.max_violation(np.array([np.nan, 0.0])) != qp.max_violation(np.array([np.nan, 0.0]))
+
+
+@pytest.mark.filterwarnings("ignore:invalid value encountered")
+@pytest.mark.parametrize("how", ["row", "bound", "nan", "inf"])
+def test_a_backend_answer_that_violates_the_constraints_is_never_returned(how: str, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    A = np.array([[1.0, 2.0], [0.0, 1.0]])
+    qp = FilterQP(np.zeros(2), A, np.array([1.0, -5.0]), np.array([-3.0, -3.0]), np.array([3.0, 3.0]))
+    s = QPSolver()
+    good = s.solve(qp)
+    assert good.status == "optimal" and good.max_violation <= 1e-12
+    bad = {"row": good.u - 1e-3 * A[0], "bound": np.array([3.5, 0.0]), "nan": np.array([np.nan, 1.0]),
+           "inf": np.array([np.inf, 1.0])}[how]
+    monkeypatch.setattr(s, "_solve_daqp", lambda qp: (bad.copy(), 1, "solved"))
+    with pytest.raises(SolverError, match="non-finite" if how in ("nan", "inf") else "violating the constraints"):
+        s.solve(qp)
+    # rounding far below feas_tol (relative to the problem's size) is accepted, and reported
+    close = good.u - 1e-12 * A[0]
+    monkeypatch.setattr(s, "_solve_daqp", lambda qp: (close.copy(), 1, "solved"))
+    r = s.solve(qp)
+    assert r.status == "optimal" and r.max_violation == pytest.approx(5e-12, rel=1e-3)
