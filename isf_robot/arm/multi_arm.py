@@ -185,7 +185,8 @@ class MultiArmSimulation(ArmSimulation):
         seed: Episode seed (as :class:`ArmSimulation`; goals jittered per arm).
         nominal: Default :class:`TeamReaching` through the (seeded) goals.
         off_hold: Seconds an intermittent filter's off condition must hold before it switches off
-            (:class:`~isf_robot.core.team.OffHold`; default :data:`OFF_HOLD_S`, 0: none).
+            (:class:`~isf_robot.core.team.OffHold`; default the parameters' ``off_hold``, else
+            :data:`OFF_HOLD_S`; 0: none).
         **kwargs: As :class:`ArmSimulation` (``params``, ``alpha``, ..., ``observers``, ``timing``).
 
     Raises:
@@ -199,7 +200,7 @@ class MultiArmSimulation(ArmSimulation):
     """The state of the last run (its clearance and contacts by kind)."""
 
     def __init__(self, scene: Scene, strategy: str = "isf", *, coordination: str = "central",
-                 seed: int | None = 0, nominal: NominalController | None = None, off_hold: float = OFF_HOLD_S,
+                 seed: int | None = 0, nominal: NominalController | None = None, off_hold: float | None = None,
                  **kwargs: Any) -> None:
         if not scene.arms:
             raise ConfigError(f"scene {scene.name!r} has one arm: run it with ArmSimulation (a scene with "
@@ -222,9 +223,12 @@ class MultiArmSimulation(ArmSimulation):
 
     def _make_strategy(self, strategy: str, solver: QPSolver) -> CentralFilter | SharedFilter:
         """One filter over every arm's joints (central), or one per arm with its shares (decentral)."""
+        hold = self._off_hold if self._off_hold is not None else self.params.off_hold
+        if hold is None:
+            hold = OFF_HOLD_S
         if self.coordination == "central":
             return CentralFilter(super()._make_strategy(strategy, solver), self.blocks, self.arm_names,
-                                 self.control_period, off_hold=self._off_hold)
+                                 self.control_period, off_hold=hold)
         spec, wiring = filter_options(self)
         cache: dict[str, Any] = {}
         per_arm = []
@@ -235,7 +239,7 @@ class MultiArmSimulation(ArmSimulation):
             arm_solver = solver if self._solver_given else QPSolver(few_rows=True)  # (a given one serves every arm)
             per_arm.append(make_strategy(strategy, spec, **w, solver=arm_solver, on_infeasible="fallback",
                                          fallback=_brake, validate=False))
-        return SharedFilter(per_arm, self.blocks, self.arm_names, self.control_period, off_hold=self._off_hold)
+        return SharedFilter(per_arm, self.blocks, self.arm_names, self.control_period, off_hold=hold)
 
     def start_info(self, duration: float) -> dict[str, Any]:
         """As :meth:`ArmSimulation.start_info`, plus the arms and the coordination.

@@ -70,6 +70,9 @@ class FilterSpec:
         shoot: Maneuvers by shooting: the horizon [s] of the rollout that scores each candidate promotion
             level (``b``, ``3 b``, ``10 b``) by the predicted re-trigger of the nominal after it
             (:mod:`isf_robot.core.shooting`; 0: always ``b``; the adapter rolls out).
+        off_hold: A team's intermittent filters switch off only once their off condition has held this long
+            [s] at every step (:class:`~isf_robot.core.team.OffHold`; ``None``: the adapter's default; 0:
+            none). Only teams of agents use it.
 
     """
 
@@ -91,6 +94,9 @@ class FilterSpec:
                             "off as soon as it is predicted safe instead of at Xi_on >= c)", "C")
     shoot: float = _p(0.0, "maneuvers by shooting: while on, push with b, 3b or 10b, whichever the nominal, rolled "
                            "forward this long [s] after it, re-triggers latest on (0: always b)", "S")
+    off_hold: float | None = _p(None, "arms sharing a workspace: their intermittent filters switch off only once the "
+                                      "off condition has held this long [s] (longer: fewer short off periods, more "
+                                      "time on; default 0.1; 0: none)", "S")
 
     def __post_init__(self) -> None:
         alpha = self.alpha
@@ -101,7 +107,7 @@ class FilterSpec:
         _number(self, "b", positive=True)
         for name in ("min_off", "fall_rate_prior", "c_pred", "shoot"):
             _number(self, name, nonneg=True)
-        for name in ("blend", "horizon"):
+        for name in ("blend", "horizon", "off_hold"):
             if getattr(self, name) is not None:
                 _number(self, name, nonneg=True)
         _number(self, "fall_rate_forget", positive=True, infinite=True)
@@ -164,6 +170,8 @@ class FilterSpec:
             out["c_pred"] = self.c_pred
         if self.shoot:
             out["shoot"] = self.shoot
+        if self.off_hold is not None:
+            out["off_hold"] = self.off_hold
         for name in ("fall_rate_prior", "fall_rate_forget"):
             if getattr(self, name) != getattr(default, name):
                 out[name] = getattr(self, name)

@@ -752,3 +752,30 @@ def test_each_way_builds_only_its_own_filters(two_arms, monkeypatch) -> None:  #
     assert len(made) == 2 and isinstance(decentral.strategy, SharedFilter)
     a, b = decentral.strategy.agents
     assert a.solver is not b.solver
+
+
+def test_the_off_hold_is_a_filter_parameter_of_teams(two_arms) -> None:  # type: ignore[no-untyped-def]
+    """`off_hold` ([filter] key, --off-hold): the team's filters take it; validated; recorded; one arm refuses it."""
+    from isf_robot.arm import ArmSimulation
+    from isf_robot.arm.multi_arm import OFF_HOLD_S
+    from isf_robot.arm.params import resolve_params
+
+    base = resolve_params(two_arms, d_bar=0.1, calibrate=False)
+    assert base.off_hold is None and "off_hold" not in base.as_info()
+    for way in ("central", "decentral"):
+        sim = MultiArmSimulation(two_arms, "isf", coordination=way, params=base)
+        holds = [sim.strategy.hold] if way == "central" else sim.strategy.holds
+        assert {h.hold_s for h in holds} == {OFF_HOLD_S}  # (the default)
+        sim = MultiArmSimulation(two_arms, "isf", coordination=way, params=base.replace(off_hold=0.25))
+        holds = [sim.strategy.hold] if way == "central" else sim.strategy.holds
+        assert {h.hold_s for h in holds} == {0.25}
+        sim = MultiArmSimulation(two_arms, "isf", coordination=way, params=base.replace(off_hold=0.25), off_hold=0.0)
+        holds = [sim.strategy.hold] if way == "central" else sim.strategy.holds
+        assert {h.hold_s for h in holds} == {0.0}  # (the argument first)
+    assert base.replace(off_hold=0.3).as_info()["off_hold"] == 0.3
+    with pytest.raises(ConfigError, match="off_hold must be >= 0"):
+        base.replace(off_hold=-0.1)
+    assert FilterSpec.from_mapping({"off_hold": 0.2}).off_hold == 0.2
+    pole = load_scene("panda_pole")
+    with pytest.raises(ConfigError, match="off_hold applies to scenes with several arms"):
+        ArmSimulation(pole, "isf", params=resolve_params(pole, d_bar=0.1, off_hold=0.2, calibrate=False))
