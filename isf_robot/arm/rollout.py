@@ -155,16 +155,18 @@ class ScratchRollout:
                  and nom.scene.model is self.scene.model)
         return ks[1] if ks is not None and reach and self.coll._kernel is not None else None
 
-    def _steady(self, t: float) -> bool:
+    def _steady(self, t: float, first: float | None = None) -> bool:
         """Whether the points after ``t`` can be one compiled call.
 
-        The goal index cannot change over the horizon (:meth:`GoalSequence.steady`: the kernel holds it; the goal
-        bookkeeping is put back after the rollout anyway), the controller has a previous command (its rate limit)
-        and its compiled command is bound to the scratch data, and the collision kernel computes ``dh/dt``.
+        The goal index cannot change over the horizon, from ``first`` (default the first point, ``t + dt``) to
+        its end (:meth:`GoalSequence.steady`: the kernel holds it; the goal bookkeeping is put back after the
+        rollout anyway), the controller has a previous command (its rate limit) and its compiled command is bound
+        to the scratch data, and the collision kernel computes ``dh/dt``.
         """
         nom, coll = self.nominal, self.coll
         return (nom._rate.t_prev is not None and not (coll._any_moving and not coll._kdhdt)
-                and nom.goals.steady(t + 1 * self.dt, t + self.n * self.dt) and nom._bound(self._data))
+                and nom.goals.steady(t + self.dt if first is None else first, t + self.n * self.dt)
+                and nom._bound(self._data))
 
     def _load(self, x: Any) -> mujoco.MjData:
         """The scratch data with the episode's positions and mocap bodies (``x``: the episode's ``MjData``)."""
@@ -309,11 +311,10 @@ class NominalRollout(ScratchRollout):
         """
         if self._fused is None or type(alpha) is not Linear:
             return None
-        nom, coll, n = self.nominal, self.coll, self.n
+        nom = self.nominal
         c = self._context()
-        d = self._load(x)
-        if (not c[13] or nom._rate.t_prev is None or coll._any_moving and not coll._kdhdt  # (as _steady)
-                or not nom.goals.steady(t, t + n * self.dt) or not nom._bound(d)):
+        self._load(x)
+        if not c[13] or not self._steady(t, t):  # (the goal steady from t itself: the command at t is computed too)
             return None
         sc = self._scratch
         if sc is None:
@@ -331,7 +332,7 @@ class NominalRollout(ScratchRollout):
             return None
         self.calls += 1
         return pass_prediction(self._s, k, xi, fails, bad, xi_lo, nfail, found, out,
-                               self._key_names(coll.pairs.names, self.joints.names))
+                               self._key_names(self.coll.pairs.names, self.joints.names))
 
     def _outputs(self, c: tuple) -> tuple:
         """The outputs of :meth:`prediction`'s call for context ``c``.

@@ -106,6 +106,7 @@ class StepColumns:
         # A row's state and commands side by side in one array, copied in one call (:meth:`write`); the
         # columns are views of it.
         b, m = int(nbody), int(nmocap)
+        self._n = int(n)
         widths = (n, n, 3, 3 * b, 4 * b, 3 * m, 4 * m, n, n)
         self._row_state = np.zeros((c, sum(widths)))
         ends = np.cumsum(widths).tolist()
@@ -197,6 +198,8 @@ class StepColumns:
         if not self._state:
             raise RuntimeError("StepColumns.write needs bind(data, qpos_adr, dof_adr, ee_pos) first")
         src, pick = self._state
+        if step.u.shape[0] != self._n or step.u_nom.shape[0] != self._n:  # (one copy checks only the total width)
+            raise ValueError(f"commands of {step.u.shape[0]} and {step.u_nom.shape[0]} joints for a block of {self._n}")
         if pick is None:  # (the row's state and commands: one copy)
             np.concatenate((*src, step.u, step.u_nom), out=self._row_state[i])
         else:
@@ -265,11 +268,19 @@ class StepColumns:
             h[np.repeat(np.arange(n), counts), pairs] = flat[np.repeat(start - (np.cumsum(counts) - counts), counts)
                                                               + np.arange(p1 - p0)]
             try:
-                self._witness[p0:p1] = np.concatenate(witness)[:, :2]
-            except (TypeError, ValueError):  # (rows without witness points, None: NaN there)
+                cat = np.concatenate(witness)
+            except (TypeError, ValueError):  # (rows without witness points, None, or of other widths: row by row)
+                cat = None
+            if cat is not None:
+                if cat.shape[0] != p1 - p0:
+                    raise ValueError(f"witness points of {cat.shape[0]} pairs for {p1 - p0} near pairs")
+                self._witness[p0:p1] = cat[:, :2]
+            else:
                 for r, w in enumerate(witness):
-                    self._witness[self.pair_start[a + r]: self.pair_start[a + r + 1]] = (
-                        math.nan if w is None else w[:, :2])
+                    lo, hi = int(self.pair_start[a + r]), int(self.pair_start[a + r + 1])
+                    if w is not None and len(w) != hi - lo:
+                        raise ValueError(f"row {a + r}: witness points of {len(w)} pairs for {hi - lo} near pairs")
+                    self._witness[lo:hi] = math.nan if w is None else w[:, :2]
         if nj:
             h[:, nc:] = flat[(start + counts)[:, None] + np.arange(nj)]
         goals, gi = self._goals, self.goal_index[a:b]

@@ -26,7 +26,7 @@ import numpy as np
 
 from .handover import promote_rows
 from .jit import formula
-from .projection import FEW_ROWS, REL_TOL, project_active, project_few, project_row, within_bounds
+from .projection import FEW_ROWS, REL_TOL, project_few_within, project_row, within_bounds
 from .robust import row_bound, row_bounds, xi_pass
 from .screening import others_hold, screened_rows, solved_rows
 
@@ -58,15 +58,13 @@ def closed_step(rows: np.ndarray, lf: np.ndarray, grad_norm: np.ndarray, d_bar: 
         code, low = project_row(lg[i], row_bound(i, lf, grad_norm, d_bar, alpha_h, promote, ramp, b), u_nom,
                                 feas_tol, u)
         res[0] = low
-    else:
+        if code >= 0 and bounded and not within_bounds(u_nom if code == 0 else u, u_min, u_max):
+            code = -1
+    else:  # (project_few, else the certified active-set iteration, kept within the bounds)
         A, lb = lg[rows], row_bounds(rows, lf, grad_norm, d_bar, alpha_h, promote, ramp, b)
-        code, low = project_few(A, lb, u_nom, REL_TOL, u, res[:n])
-        if code < 0:  # (three or more rows active, or nearly parallel ones: the active-set iteration, certified)
-            code, low = project_active(A, lb, u_nom, REL_TOL, u, res[:n])
+        code, low = project_few_within(A, lb, u_nom, REL_TOL, u_min, u_max, u, res[:n])
     if code < 0:
         return code, 0.0, False
-    if bounded and not within_bounds(u_nom if code == 0 else u, u_min, u_max):
-        return -1, 0.0, False
     if n == xi.shape[0]:
         return code, low, True
     if code == 0:

@@ -98,7 +98,7 @@ def core_kernels() -> list[Any]:
     if not jit_enabled():
         return []
     return [*Passes.build(), compiled(projection.project_row), compiled(projection.project_few_within),
-            compiled(qp_check.answer_violation), compiled(robust.predict_pass)]
+            compiled(projection.within_bounds), compiled(qp_check.answer_violation), compiled(robust.predict_pass)]
 
 
 class _Xi(NamedTuple):

@@ -68,7 +68,7 @@ class FilterStats:
         relaxations: Steps where promotions were relaxed to the robust condition.
         resolves: Steps where a screened-out row was needed, so the QP was solved again with
             every row (screening never changes a command).
-        qp_closed_form: QP solves done in closed form (one row, no bounds).
+        qp_closed_form: QP solves answered by the one-row closed form (within the input bounds, if any).
         qp_time_median_us: Median wall time of a step's QP work [us] (every solve of the step,
             polish and checks included), ``None`` without QPs.
         solver_time_median_us: The same over the steps that went to the QP backend (not the

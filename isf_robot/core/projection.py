@@ -72,6 +72,38 @@ def project_row(a: np.ndarray, lb: float, u_nom: np.ndarray, feas_tol: float, u:
 
 
 @formula
+def _residuals(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float) -> tuple:
+    """``(r, tol, total)``: the rows' residuals ``a_i u_nom - lb_i``, tolerances ``rel_tol max(1, |lb_i|)``, and sum."""
+    k, m = A.shape
+    r = np.empty(k)
+    tol = np.empty(k)
+    total = 0.0
+    for i in range(k):
+        s = -lb[i]
+        for q in range(m):
+            s += A[i, q] * u_nom[q]
+        r[i] = s
+        total += s
+        tol[i] = rel_tol * max(1.0, abs(lb[i]))
+    return r, tol, total
+
+
+@formula
+def _gram(A: np.ndarray) -> np.ndarray:
+    """``G = A A^T`` (k, k), each entry summed in the order of the inputs."""
+    k, m = A.shape
+    G = np.empty((k, k))
+    for i in range(k):
+        for j in range(i, k):
+            s = 0.0
+            for q in range(m):
+                s += A[i, q] * A[j, q]
+            G[i, j] = s
+            G[j, i] = s
+    return G
+
+
+@formula
 def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float, u: np.ndarray,
                 res: np.ndarray) -> tuple:
     """``min |u - u_nom|^2  s.t.  A u >= lb`` when at most two rows are active there: ``(code, min residual)``.
@@ -81,35 +113,20 @@ def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: float
     Written as loops over the few rows (what the compiled code runs fastest).
     """
     k, m = A.shape
-    r = np.empty(k)
-    tol = np.empty(k)
-    low = math.inf
-    total = 0.0
-    nneg = 0
-    for i in range(k):
-        s = -lb[i]
-        for q in range(m):
-            s += A[i, q] * u_nom[q]
-        r[i] = s
-        total += s
-        tol[i] = rel_tol * max(1.0, abs(lb[i]))
-        if s < -tol[i]:
-            nneg += 1
-        low = min(low, s)
+    r, tol, total = _residuals(A, lb, u_nom, rel_tol)
     if not math.isfinite(total):
         return -1, 0.0
+    low = math.inf
+    nneg = 0
+    for i in range(k):
+        if r[i] < -tol[i]:
+            nneg += 1
+        low = min(low, r[i])
     if nneg == 0:
         u[:] = u_nom
         res[:k] = r
         return 0, low
-    G = np.empty((k, k))
-    for i in range(k):
-        for j in range(i, k):
-            s = 0.0
-            for q in range(m):
-                s += A[i, q] * A[j, q]
-            G[i, j] = s
-            G[j, i] = s
+    G = _gram(A)
     order = np.empty(k, np.int64)  # the violated rows, most violated first (a stable insertion sort)
     keys = np.empty(k)
     violated = np.zeros(k, np.bool_)
@@ -204,32 +221,18 @@ def project_active(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: fl
     most negative multiplier until every ``lam >= 0``; until no row is violated (at most ``3 k + 3`` additions). An
     answer is returned only with its certificate, the KKT conditions: ``lam >= 0`` and every row holding to
     ``rel_tol max(1, |lb_i|) max(1, |u|_inf)`` (:func:`_confirm`; stationarity and ``A_S u = lb_S`` by
-    construction), so it is the optimum. ``(code, min residual)`` as :func:`project_few`'s (``res = A u - lb``);
-    -1 (the caller's backend decides): more active rows than inputs, a (nearly) singular ``G_SS`` (pivot below
-    ``1e-12`` of ``G``'s largest diagonal), no convergence, or an answer without its certificate.
+    construction): the optimum to that tolerance. ``(code, min residual)`` as :func:`project_few`'s
+    (``res = A u - lb``); -1 (the caller's backend decides): more active rows than inputs, a (nearly) singular
+    ``G_SS`` (pivot below ``1e-12`` of ``G``'s largest diagonal), no convergence, or an answer without its
+    certificate.
     """
     k, m = A.shape
-    r = np.empty(k)
-    tol = np.empty(k)
-    total = 0.0
-    for i in range(k):
-        s = -lb[i]
-        for q in range(m):
-            s += A[i, q] * u_nom[q]
-        r[i] = s
-        total += s
-        tol[i] = rel_tol * max(1.0, abs(lb[i]))
+    r, tol, total = _residuals(A, lb, u_nom, rel_tol)
     if not math.isfinite(total):
         return -1, 0.0
-    G = np.empty((k, k))
+    G = _gram(A)
     gmax = 0.0
     for i in range(k):
-        for j in range(i, k):
-            s = 0.0
-            for q in range(m):
-                s += A[i, q] * A[j, q]
-            G[i, j] = s
-            G[j, i] = s
         gmax = max(gmax, G[i, i])
     S = np.empty(k, np.int64)
     inS = np.zeros(k, np.bool_)
@@ -311,7 +314,10 @@ def project_active(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, rel_tol: fl
 
 @formula
 def within_bounds(u: np.ndarray, u_min: np.ndarray, u_max: np.ndarray) -> bool:
-    """``u_min <= u <= u_max`` exactly (length 0: no bound; NaN: false)."""
+    """``u_min <= u <= u_max`` exactly (length 0: no bound; NaN: false; a bound not of ``u``'s length: false)."""
+    m = u.shape[0]
+    if (u_min.shape[0] != 0 and u_min.shape[0] != m) or (u_max.shape[0] != 0 and u_max.shape[0] != m):
+        return False
     for q in range(u_min.shape[0]):
         if not u[q] >= u_min[q]:
             return False

@@ -94,8 +94,9 @@ class FilterQP:
         return self.A @ u - self.lb
 
     def max_violation(self, u: np.ndarray) -> float:
-        """Largest constraint violation (rows and bounds) of ``u``; 0 when feasible, NaN when ``u`` is not finite.
+        """Largest constraint violation (rows and bounds) of ``u``; 0 when feasible, NaN when it cannot be told.
 
+        NaN: ``u`` or a row's slack not finite, or the command's sum overflowing.
         :func:`~isf_robot.core.qp_check.answer_violation`'s ``violation`` (compiled or as written).
         """
         u = np.asarray(u, dtype=float)

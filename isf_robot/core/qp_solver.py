@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from .exceptions import ConfigError, SolverError
+from .exceptions import ConfigError, ShapeError, SolverError
 from .jit import compiled
 from .projection import FEW_ROWS, REL_TOL, project_few_within, project_row
 from .qp import FilterQP, QPResult
@@ -150,6 +150,11 @@ class QPSolver:
         t0 = time.perf_counter()
         k = qp.A.shape[0]  # (qp.k and qp.has_bounds, without the properties' calls)
         box = qp.u_min is not None or qp.u_max is not None
+        if box:
+            m = qp.u_nom.shape[0]
+            for name, bound in (("u_min", qp.u_min), ("u_max", qp.u_max)):
+                if bound is not None and bound.shape != (m,):
+                    raise ShapeError(f"input bound {name} has shape {bound.shape}; the command has {m} inputs")
         if k == 0 and not box:
             return QPResult(qp.u_nom.copy(), "unconstrained", np.zeros(0, bool), time.perf_counter() - t0)
         if k == 1 and not box and self.closed_form:
@@ -160,9 +165,9 @@ class QPSolver:
         elif self.few_rows and self.closed_form and (1 < k <= FEW_ROWS or (box and k == 1)):
             hit = self.solve_few(qp.A, qp.lb, qp.u_nom, qp.u_min, qp.u_max)
             if hit is not None:  # the exact solution (closed form or certified active set), every row and bound checked
-                u, res, rmin = hit
-                return QPResult._of(u, "optimal", res <= self.active_tol, time.perf_counter() - t0, 0,
-                                    max(0.0, -rmin))
+                u, res, rmin = hit  # (one row: "closed_form", as the filters' fused steps report it)
+                return QPResult._of(u, "closed_form" if k == 1 else "optimal", res <= self.active_tol,
+                                    time.perf_counter() - t0, 0, max(0.0, -rmin))
         self.solves += 1
         if self.backend == "daqp":
             u, iters, status = self._solve_daqp(qp)

@@ -120,6 +120,22 @@ def test_write_checks() -> None:
         block.write(0.002, r[1]["step"], r[1]["values"], 0)
     block.clear()
     assert len(block) == 0 and block.dist_min[0] == math.inf
+    bad = SimpleNamespace(**{**vars(r[0]["step"]), "u": np.arange(3.0), "u_nom": np.arange(1.0)})
+    with pytest.raises(ValueError, match="commands of 3 and 1 joints"):  # (the total width matches; the split not)
+        block.write(0.0, bad, r[0]["values"], 0)
+
+
+@pytest.mark.parametrize("witness_of", ["one", "none"])
+def test_a_row_whose_witness_points_do_not_match_its_pairs_is_an_error(witness_of: str) -> None:
+    block, _, _ = _block(4)
+    near = np.array([1, 3], dtype=np.int64)
+    rows = _rows(np.random.default_rng(3), 2)
+    for i, r in enumerate(rows):
+        wit = np.zeros((1, 3, 3)) if i == 0 else (None if witness_of == "none" else np.zeros((2, 3, 3)))
+        block.write(r["t"], r["step"], TickValues(near, np.zeros(near.size + NJ), wit), 0)
+        block.end_row(0.1)
+    with pytest.raises(ValueError, match=r"witness points of [13] pairs for [24] near pairs"):
+        block.seal()
 
 
 def test_team_columns_keep_each_arms_mode_end_effector_and_goal() -> None:

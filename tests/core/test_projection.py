@@ -307,3 +307,20 @@ def test_within_bounds_known_answers() -> None:
     assert fn(np.array([5.0, -5.0]), NO_BOUND, NO_BOUND)
     assert fn(np.array([5.0, 0.0]), lo, NO_BOUND) and not fn(np.array([5.0, 0.0]), NO_BOUND, hi)
     assert not fn(np.array([np.nan, 0.0]), lo, hi)
+    assert not fn(np.array([0.0]), lo, hi) and not fn(np.array([0.0, 0.0, 0.0]), lo, NO_BOUND)  # (not u's length)
+
+
+def test_bounds_not_of_the_commands_length_are_refused_on_every_path() -> None:
+    """A bound of another length than the command is a shape error, whichever path would answer the problem."""
+    from isf_robot.core import SafetyFilter, ShapeError
+    from isf_robot.core.system import LieData
+
+    qp = FilterQP._of(np.zeros(2), np.eye(2), np.ones(2), np.full(3, -5.0), np.full(3, 5.0))
+    for solver in (QPSolver(few_rows=True), QPSolver()):
+        with pytest.raises(ShapeError, match="u_min has shape"):
+            solver.solve(qp)
+    lie = LieData(h=np.array([0.01]), lf=np.array([-1.0]), lg=np.array([[1.0, 0.5]]), grad_norm=np.array([1.0]))
+    for few in (True, False):
+        filt = SafetyFilter(alpha=1.0, u_min=np.full(3, -5.0), u_max=np.full(3, 5.0), solver=QPSolver(few_rows=few))
+        with pytest.raises(ShapeError):
+            filt.step_lie(0.0, lie, np.zeros(2))
