@@ -13,6 +13,11 @@ from collections.abc import Iterator
 
 import pytest
 
+# The commands the tests start (``python -m isf_robot.cli``, ...) import the package the tests import (the installed
+# one), not a checkout's copy from their working folder: one copy, so one disk cache of compiled kernels (in a clone
+# with a non-editable install, two copies compiled every kernel twice: the suite took about 75 s longer).
+os.environ.setdefault("PYTHONSAFEPATH", "1")
+
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     if os.environ.get("ISF_ROBOT_JIT", "1").strip().lower() in ("0", "false", "no", "off"):
