@@ -210,73 +210,32 @@ def test_the_fused_closed_steps_are_their_parts_composed_compiled_and_as_written
         _close(ua, ub)
 
 
-def test_the_few_row_closed_form_compiled_as_written() -> None:
-    """``project_few`` (what ``QPSolver(few_rows=True)`` sends 2 to FEW_ROWS rows to, either way): same code, floats."""
-    rng = np.random.default_rng(8)
-    fast = compiled(projection.project_few)
+@pytest.mark.parametrize("name, seed, k_min, bounded", [
+    ("project_few", 8, 2, False),  # (what QPSolver(few_rows=True) sends 2 to FEW_ROWS rows to, either way)
+    ("project_few_within", 10, 1, True),  # (the torque level's bounded few-row problems)
+    ("project_active", 13, 1, False),  # (the few-row problems with three or more active rows)
+])
+def test_the_few_row_projections_compiled_as_written(name: str, seed: int, k_min: int, bounded: bool) -> None:
+    """Each few-row projection compiled and as written: the same codes, the same floats to the tolerance."""
+    rng = np.random.default_rng(seed)
+    plain = getattr(projection, name)
+    fast = compiled(plain)
     codes = set()
     for _ in range(400):
-        k, m = int(rng.integers(2, projection.FEW_ROWS + 1)), int(rng.integers(1, 8))
+        k, m = int(rng.integers(k_min, projection.FEW_ROWS + 1)), int(rng.integers(1, 8))
         A = rng.normal(size=(k, m)) * rng.choice([1e-2, 1.0, 1e2])
         u_nom = rng.normal(size=m)
         lb = A @ u_nom + rng.normal(size=k) * np.abs(A).max()
+        bounds: tuple[np.ndarray, ...] = ()
+        if bounded:
+            w = rng.uniform(0.2, 3.0)
+            lo = qp_check.NO_BOUND if rng.random() < 0.3 else np.full(m, -w)
+            hi = qp_check.NO_BOUND if rng.random() < 0.3 else np.full(m, w)
+            bounds = (lo, hi)
         outs = []
-        for fn in (projection.project_few, fast):
+        for fn in (plain, fast):
             u, res = np.zeros(m), np.zeros(k)
-            code, low = fn(A, lb, u_nom, projection.REL_TOL, u, res)
-            outs.append((code, low, u, res))
-        (ca, la, ua, ra), (cb, lb_, ub, rb) = outs
-        assert ca == cb
-        codes.add(ca)
-        if ca >= 0:
-            _close(la, lb_)
-            _close(ua, ub)
-            _close(ra, rb)
-    assert codes == {-1, 0, 1}
-
-
-def test_the_bounded_few_row_closed_form_compiled_as_written() -> None:
-    """``project_few_within`` (the torque level's bounded few-row problems, either way): same codes and floats."""
-    rng = np.random.default_rng(10)
-    fast = compiled(projection.project_few_within)
-    codes = set()
-    for _ in range(400):
-        k, m = int(rng.integers(1, projection.FEW_ROWS + 1)), int(rng.integers(1, 8))
-        A = rng.normal(size=(k, m)) * rng.choice([1e-2, 1.0, 1e2])
-        u_nom = rng.normal(size=m)
-        lb = A @ u_nom + rng.normal(size=k) * np.abs(A).max()
-        w = rng.uniform(0.2, 3.0)
-        lo = qp_check.NO_BOUND if rng.random() < 0.3 else np.full(m, -w)
-        hi = qp_check.NO_BOUND if rng.random() < 0.3 else np.full(m, w)
-        outs = []
-        for fn in (projection.project_few_within, fast):
-            u, res = np.zeros(m), np.zeros(k)
-            code, low = fn(A, lb, u_nom, projection.REL_TOL, lo, hi, u, res)
-            outs.append((code, low, u, res))
-        (ca, la, ua, ra), (cb, lb_, ub, rb) = outs
-        assert ca == cb
-        codes.add(ca)
-        if ca >= 0:
-            _close(la, lb_)
-            _close(ua, ub)
-            _close(ra, rb)
-    assert codes == {-1, 0, 1}
-
-
-def test_the_active_set_iteration_compiled_as_written() -> None:
-    """``project_active`` (the few-row problems with three or more active rows, either way): same codes and floats."""
-    rng = np.random.default_rng(13)
-    fast = compiled(projection.project_active)
-    codes = set()
-    for _ in range(400):
-        k, m = int(rng.integers(1, projection.FEW_ROWS + 1)), int(rng.integers(1, 8))
-        A = rng.normal(size=(k, m)) * rng.choice([1e-2, 1.0, 1e2])
-        u_nom = rng.normal(size=m)
-        lb = A @ u_nom + rng.normal(size=k) * np.abs(A).max()
-        outs = []
-        for fn in (projection.project_active, fast):
-            u, res = np.zeros(m), np.zeros(k)
-            code, low = fn(A, lb, u_nom, projection.REL_TOL, u, res)
+            code, low = fn(A, lb, u_nom, projection.REL_TOL, *bounds, u, res)
             outs.append((code, low, u, res))
         (ca, la, ua, ra), (cb, lb_, ub, rb) = outs
         assert ca == cb

@@ -21,31 +21,29 @@ def way(request):  # type: ignore[no-untyped-def]
 _WAY = ["plain"]
 
 
-def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray):  # type: ignore[no-untyped-def]
-    """``(u, A u - lb, min)`` or ``None`` (no closed-form answer)."""
-    fn = projection.project_few if _WAY[0] == "plain" else compiled(projection.project_few)
+def _answer(name: str, A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, *bounds: np.ndarray):  # type: ignore[no-untyped-def]
+    """``(u, A u - lb, min)`` of the projection ``name`` (as the test's way runs it), or ``None`` (no answer)."""
+    fn = getattr(projection, name)
+    fn = fn if _WAY[0] == "plain" else compiled(fn)
     u, res = np.empty(A.shape[1]), np.empty(A.shape[0])
     code, low = fn(np.ascontiguousarray(A, dtype=float), np.asarray(lb, dtype=float),
-                   np.asarray(u_nom, dtype=float), REL_TOL, u, res)
+                   np.asarray(u_nom, dtype=float), REL_TOL, *bounds, u, res)
     return None if code < 0 else (u, res, low)
+
+
+def project_few(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray):  # type: ignore[no-untyped-def]
+    """``(u, A u - lb, min)`` or ``None`` (no closed-form answer)."""
+    return _answer("project_few", A, lb, u_nom)
 
 
 def project_few_within(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray, lo: np.ndarray, hi: np.ndarray):  # type: ignore[no-untyped-def]
     """``(u, A u - lb, min)`` or ``None``: :func:`project_few`'s answer kept only within ``lo <= u <= hi``."""
-    fn = projection.project_few_within if _WAY[0] == "plain" else compiled(projection.project_few_within)
-    u, res = np.empty(A.shape[1]), np.empty(A.shape[0])
-    code, low = fn(np.ascontiguousarray(A, dtype=float), np.asarray(lb, dtype=float),
-                   np.asarray(u_nom, dtype=float), REL_TOL, lo, hi, u, res)
-    return None if code < 0 else (u, res, low)
+    return _answer("project_few_within", A, lb, u_nom, lo, hi)
 
 
 def project_active(A: np.ndarray, lb: np.ndarray, u_nom: np.ndarray):  # type: ignore[no-untyped-def]
     """``(u, A u - lb, min)`` or ``None``: the certified active-set iteration."""
-    fn = projection.project_active if _WAY[0] == "plain" else compiled(projection.project_active)
-    u, res = np.empty(A.shape[1]), np.empty(A.shape[0])
-    code, low = fn(np.ascontiguousarray(A, dtype=float), np.asarray(lb, dtype=float),
-                   np.asarray(u_nom, dtype=float), REL_TOL, u, res)
-    return None if code < 0 else (u, res, low)
+    return _answer("project_active", A, lb, u_nom)
 
 
 def project_row(a: np.ndarray, lb: float, u_nom: np.ndarray, feas_tol: float = 1e-7):  # type: ignore[no-untyped-def]
