@@ -47,6 +47,13 @@ def _time_limit(request: pytest.FixtureRequest) -> Iterator[None]:
         signal.signal(signal.SIGALRM, old)
 
 
+@pytest.fixture
+def outside_checkout(tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The test's working folder is an empty one, not the checkout: Ray adds the driver's working folder to its
+    workers' import path, so from a clone's root they would import the clone's copy of the package and compile
+    every kernel again for it (about 50 s per test in CI's clone, where the tests import the installed copy)."""
+    monkeypatch.chdir(tmp_path)
+
 
 @pytest.fixture(scope="session")
 def arm_compiled() -> None:

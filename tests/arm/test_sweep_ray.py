@@ -18,7 +18,7 @@ from isf_robot.arm.sweep import SweepPoint, run_sweep
 from isf_robot.cli import main
 from isf_robot.paths import models_dir
 
-pytestmark = pytest.mark.usefixtures("arm_compiled")  # (compiled before a clock starts: tests/conftest.py)
+pytestmark = pytest.mark.usefixtures("arm_compiled", "outside_checkout")  # (tests/conftest.py)
 
 try:
     import ray  # noqa: F401

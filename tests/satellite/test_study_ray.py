@@ -26,6 +26,7 @@ def _numbers(doc: dict) -> dict:
             "orbits_done": doc["orbits_done"]}
 
 
+@pytest.mark.usefixtures("outside_checkout")  # Ray's workers import the installed package (tests/conftest.py)
 @pytest.mark.skipif(not HAVE_RAY and not os.environ.get("CI"),
                     reason="ray not installed (pip install '.[ray]'); CI installs it with the test extra")
 def test_study_on_local_ray_equals_local_processes() -> None:
