@@ -31,7 +31,8 @@ tuned. Both come from numbers the scene already states:
   :func:`~isf_robot.core.chatter.horizon_for`). Every shipped one-arm scene: 0.25 + 5 x 0.002 = 0.26 s.
 
 A scene with several arms (``[[arm]]`` tables) gets the same horizon: its team filters also switch off
-only after the off condition held for a while (:class:`isf_robot.core.team.OffHold`), and the rollout
+only after the off condition held for a while (``off_hold``, 0.1 s, :data:`isf_robot.arm.multi_arm.OFF_HOLD_S`;
+one arm: none unless asked for, :class:`isf_robot.core.triggers.OnOffTrigger`), and the rollout
 removes most of the short off periods the hold leaves (RESULTS.md, "Arms sharing a workspace").
 
 An explicit value (``blend = 0``, ``--horizon 0``) turns either off. ``isf-robot run`` and ``compare``

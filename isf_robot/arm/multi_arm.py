@@ -53,8 +53,8 @@ COORDINATIONS = {
 """How the arms of a scene are filtered: name -> one line for ``--help``."""
 
 OFF_HOLD_S = 0.1
-"""An intermittent team filter switches off only after its off condition has held this long [s]
-(:class:`~isf_robot.core.team.OffHold`)."""
+"""An intermittent team filter switches off only after its off condition has held this long [s] (the trigger's
+``off_hold``, :class:`~isf_robot.core.triggers.OnOffTrigger`), unless the parameters say otherwise."""
 
 
 class _ArmRollout:
@@ -184,9 +184,8 @@ class MultiArmSimulation(ArmSimulation):
         coordination: A name of :data:`COORDINATIONS`.
         seed: Episode seed (as :class:`ArmSimulation`; goals jittered per arm).
         nominal: Default :class:`TeamReaching` through the (seeded) goals.
-        off_hold: Seconds an intermittent filter's off condition must hold before it switches off
-            (:class:`~isf_robot.core.team.OffHold`; default the parameters' ``off_hold``, else
-            :data:`OFF_HOLD_S`; 0: none).
+        off_hold: Seconds an intermittent filter's off condition must hold before it switches off (the
+            trigger's ``off_hold``; default the parameters' ``off_hold``, else :data:`OFF_HOLD_S`; 0: none).
         **kwargs: As :class:`ArmSimulation` (``params``, ``alpha``, ..., ``observers``, ``timing``).
 
     Raises:
@@ -224,11 +223,10 @@ class MultiArmSimulation(ArmSimulation):
     def _make_strategy(self, strategy: str, solver: QPSolver) -> CentralFilter | SharedFilter:
         """One filter over every arm's joints (central), or one per arm with its shares (decentral)."""
         hold = self._off_hold if self._off_hold is not None else self.params.off_hold
-        if hold is None:
-            hold = OFF_HOLD_S
+        self.params = self.params.replace(off_hold=OFF_HOLD_S if hold is None else hold)  # (recorded as run)
         if self.coordination == "central":
             return CentralFilter(super()._make_strategy(strategy, solver), self.blocks, self.arm_names,
-                                 self.control_period, off_hold=hold)
+                                 self.control_period)
         spec, wiring = filter_options(self)
         cache: dict[str, Any] = {}
         per_arm = []
@@ -239,7 +237,7 @@ class MultiArmSimulation(ArmSimulation):
             arm_solver = solver if self._solver_given else QPSolver(few_rows=True)  # (a given one serves every arm)
             per_arm.append(make_strategy(strategy, spec, **w, solver=arm_solver, on_infeasible="fallback",
                                          fallback=_brake, validate=False))
-        return SharedFilter(per_arm, self.blocks, self.arm_names, self.control_period, off_hold=hold)
+        return SharedFilter(per_arm, self.blocks, self.arm_names, self.control_period)
 
     def start_info(self, duration: float) -> dict[str, Any]:
         """As :meth:`ArmSimulation.start_info`, plus the arms and the coordination.

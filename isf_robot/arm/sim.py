@@ -139,9 +139,6 @@ class ArmSimulation:
             raise ConfigError(f"nominal controller has {self.nominal.n} joints, the scene {scene.n_joints}")
         self.tracker = self._make_tracker(tracker)
         self.params = p = params if params is not None else resolve_params(scene, alpha, c, b, d_bar, calibrate=False)
-        if p.off_hold and not scene.arms:
-            raise ConfigError(f"filter parameter off_hold applies to scenes with several arms ([[arm]] tables); "
-                              f"scene {scene.name!r} has one arm")
         self.coll = CollisionBarriers.from_scene(scene)
         self.joints = JointLimitBarriers.from_scene(scene)
         self.names = self.coll.names + self.joints.names

@@ -157,6 +157,8 @@ class IntermittentSafetyFilter(_FilterBase):
             predicted to re-trigger latest (:class:`~isf_robot.core.shooting.ManeuverShooter`).
         shoot_rollout: The rollout that scores the levels (:data:`~isf_robot.core.intermittent.RolloutFn`
             taking ``first=u``); needed when ``shoot > 0``.
+        off_hold: Off only once the off condition has held this long [s] (the trigger's off hold,
+            :class:`~isf_robot.core.triggers.OnOffTrigger`; 0: none).
 
     """
 
@@ -189,6 +191,7 @@ class IntermittentSafetyFilter(_FilterBase):
         c_pred: float | None = None,
         shoot: float = 0.0,
         shoot_rollout: Callable[..., Any] | None = None,
+        off_hold: float = 0.0,
     ) -> None:
         super().__init__(alpha, d_bar, system=system, barriers=barriers, u_min=u_min, u_max=u_max,
                          solver=solver, on_infeasible=on_infeasible, fallback=fallback, validate=validate,
@@ -196,7 +199,7 @@ class IntermittentSafetyFilter(_FilterBase):
         self.spec = spec = FilterSpec(
             alpha=self.alpha, d_bar=self.d_bar, c=c, b=b, min_off=0.0 if min_off is None else min_off, c_max=c_max,
             fall_rate_prior=fall_rate_prior, fall_rate_forget=fall_rate_forget, blend=blend,
-            predict_every=predict_every, c_pred=0.0 if c_pred is None else c_pred, shoot=shoot)
+            predict_every=predict_every, c_pred=0.0 if c_pred is None else c_pred, shoot=shoot, off_hold=off_hold)
         self.c, self.b, self.c_max, self.blend = spec.c, spec.b, spec.c_max, spec.blend
         self.min_off = spec.min_off or None
         self.c_pred = spec.c_pred or None
@@ -207,7 +210,7 @@ class IntermittentSafetyFilter(_FilterBase):
         if spec.shoot and shoot_rollout is None:
             raise ConfigError("shoot (maneuvers by shooting) needs its rollout: shoot_rollout(t, x, first=u)")
         self.shooter = ManeuverShooter(shoot_rollout, spec.predict_every, self.blend) if spec.shoot else None
-        self.trigger = OnOffTrigger(self.c if self.c_pred is None else self.c_pred, t0)
+        self.trigger = OnOffTrigger(self.c if self.c_pred is None else self.c_pred, t0, off_hold=off_hold)
         self.reset(t0)
 
     @classmethod
@@ -247,16 +250,14 @@ class IntermittentSafetyFilter(_FilterBase):
         return self.fall_rate.margin(self.min_off, self.c, self.c_max)
 
     def step_lie(self, t: float, lie: LieData, u_nom: np.ndarray, x: np.ndarray | None = None, *,
-                 screen: float | np.ndarray | None = None, promotable: np.ndarray | None = None,
-                 hold: bool = False) -> FilterStep:
+                 screen: float | np.ndarray | None = None, promotable: np.ndarray | None = None) -> FilterStep:
         """As :meth:`step`, given precomputed barrier data.
 
         ``screen`` overrides the constructor's row-screening threshold for this step (scalar or
         one per row of ``lie``). ``promotable`` (bool, one per row; ``None``: every row) limits the
         promotion to those rows: the others keep the robust condition while the filter is on (a team
         of arms leaves its inter-arm rows unpromoted, :mod:`isf_robot.core.team`). The trigger still
-        sees every row. ``hold``: the filter does not switch off at this step (it may switch on; a team
-        holds it on until the off condition has held for a while, :class:`~isf_robot.core.team.OffHold`).
+        sees every row.
         """
         xs = self._xi(t, lie, u_nom)
         u_nom, xi, xi_min = xs.u_nom, xs.xi, xs.xi_min
@@ -274,7 +275,7 @@ class IntermittentSafetyFilter(_FilterBase):
         held = pred is not None and not pred.ok
         if pred is not None and pred.ok:
             c = gate  # predicted safe over the horizon: off at the lower margin
-        event = trigger.update(t, xi_min, c, not (held or hold))
+        event = trigger.update(t, xi_min, c, not held)
         bound = None
         if event is not None:
             if event.kind == "off":

@@ -70,9 +70,9 @@ class FilterSpec:
         shoot: Maneuvers by shooting: the horizon [s] of the rollout that scores each candidate promotion
             level (``b``, ``3 b``, ``10 b``) by the predicted re-trigger of the nominal after it
             (:mod:`isf_robot.core.shooting`; 0: always ``b``; the adapter rolls out).
-        off_hold: A team's intermittent filters switch off only once their off condition has held this long
-            [s] at every step (:class:`~isf_robot.core.team.OffHold`; ``None``: the adapter's default; 0:
-            none). Only teams of agents use it.
+        off_hold: The intermittent filter switches off only once its off condition has held this long [s]
+            at every step (:class:`~isf_robot.core.triggers.OnOffTrigger`; ``None``: the adapter's default,
+            0 for the core filter alone; 0: none).
 
     """
 
@@ -94,9 +94,9 @@ class FilterSpec:
                             "off as soon as it is predicted safe instead of at Xi_on >= c)", "C")
     shoot: float = _p(0.0, "maneuvers by shooting: while on, push with b, 3b or 10b, whichever the nominal, rolled "
                            "forward this long [s] after it, re-triggers latest on (0: always b)", "S")
-    off_hold: float | None = _p(None, "arms sharing a workspace: their intermittent filters switch off only once the "
-                                      "off condition has held this long [s] (longer: fewer short off periods, more "
-                                      "time on; default 0.1; 0: none)", "S")
+    off_hold: float | None = _p(None, "switch off only once the off condition has held this long [s] (longer: "
+                                      "fewer short off periods, more time on; default 0.1 for arms sharing a "
+                                      "workspace, 0 for one arm; 0: none)", "S")
 
     def __post_init__(self) -> None:
         alpha = self.alpha
@@ -145,7 +145,8 @@ class FilterSpec:
         """The intermittent filter's options (:class:`~isf_robot.core.filters.IntermittentSafetyFilter`)."""
         return {"min_off": self.min_off or None, "c_max": self.c_max, "fall_rate_prior": self.fall_rate_prior,
                 "fall_rate_forget": self.fall_rate_forget, "predict_every": self.predict_every,
-                "blend": self.blend or 0.0, "c_pred": self.c_pred or None, "shoot": self.shoot}
+                "blend": self.blend or 0.0, "c_pred": self.c_pred or None, "shoot": self.shoot,
+                "off_hold": self.off_hold or 0.0}
 
     def as_info(self, intermittent: bool = True) -> dict[str, Any]:
         """The parameters a run records: the four of the paper, and each intermittent option that is set.

@@ -25,16 +25,17 @@ trigger's ``Xi_on``, promotion ``>= b``, screening). Agent ``j``'s motion enters
 through the state (h and its gradient at the current configuration, which every agent senses), never
 through agent ``j``'s command.
 
-*Promotion and the off hold* (both ways, intermittent strategies). Rows shared by several agents are never
+*Promotion* (both ways, intermittent strategies). Rows shared by several agents are never
 promoted (``promotable`` of :meth:`~isf_robot.core.filters.IntermittentSafetyFilter.step_lie`): they keep
 the robust condition (their share of it) while the filter is on; the agents' own rows (obstacles, joint
 limits, self pairs) are promoted as for one arm. Promoting a shared row asks the pair to open at rate
 ``b`` from the moment the filter is on: two arms on crossing paths may then never come closer, while
 passing each other needs them to, so the filter stayed on with the arms held apart until their goals
-timed out (panda_pair, RESULTS.md). ``promote_shared=True`` restores the promotion. The filter switches
-off only when its off condition has held for ``off_hold`` seconds (:class:`OffHold`): a shared row's
-``Xi_on`` can flip sign between control steps where the closest points of two links jump between
-features. Neither change weakens the robust condition, which holds on every row at every on step.
+timed out (panda_pair, RESULTS.md). ``promote_shared=True`` restores the promotion. This does not weaken
+the robust condition, which holds on every row at every on step. (A team's intermittent filters are built
+with an off hold, the trigger's ``off_hold``, :class:`~isf_robot.core.triggers.OnOffTrigger`: a shared
+row's ``Xi_on`` can flip sign between control steps where the closest points of two links jump between
+features.)
 
 *Safety argument.* The shares of a row sum to 1. If every agent's command meets its share, adding the
 (share i) conditions over ``i`` in ``S`` gives (team): the pair's robust condition holds, so the barrier
@@ -70,7 +71,7 @@ from .strategies import Strategy
 from .switches import SwitchCounter
 from .system import LieData
 
-__all__ = ["Coordination", "AgentTally", "AgentResult", "BlockIntervention", "OffHold", "CentralFilter", "SharedFilter"]
+__all__ = ["Coordination", "AgentTally", "AgentResult", "BlockIntervention", "CentralFilter", "SharedFilter"]
 
 
 @dataclass(frozen=True)
@@ -233,35 +234,6 @@ class BlockIntervention:
         return self.sums.copy()
 
 
-class OffHold:
-    """Hold an intermittent filter on until its off condition has held for ``hold_s`` seconds.
-
-    Between two arms the distance's gradient can turn where the closest points jump from one feature
-    of a link to another: ``Xi_on`` of that row then flips sign from one control step to the next and
-    the filter would switch off and on within milliseconds. The hold asks the off condition (every
-    ``Xi_on`` at least the margin in force) to have held at every step of the last ``hold_s`` seconds
-    before the filter may switch off; it only keeps the filter on (the robust condition enforced), never
-    off, so it changes nothing in the safety argument. ``hold_s = 0``: no hold.
-    """
-
-    def __init__(self, hold_s: float) -> None:
-        self.hold_s = float(hold_s)
-        self.reset()
-
-    def reset(self) -> None:
-        """Forget the last failure of the off condition."""
-        self._t_fail = -np.inf
-
-    def __call__(self, t: float) -> bool:
-        """Whether the filter must stay on at ``t`` (the off condition failed within ``hold_s``)."""
-        return self.hold_s > 0.0 and t - self._t_fail < self.hold_s
-
-    def record(self, step: FilterStep) -> None:
-        """Note the step's outcome: an on step whose smallest ``Xi_on`` is below its margin."""
-        if self.hold_s > 0.0 and step.on and step.xi.size and float(step.xi.min()) < (step.margin or 0.0):
-            self._t_fail = step.t
-
-
 def _check_blocks(blocks: Sequence[slice], names: Sequence[str]) -> None:
     if len(blocks) != len(names) or len(blocks) < 1:
         raise ConfigError(f"a team needs one name per block of columns, got {len(blocks)} blocks, {len(names)} names")
@@ -276,17 +248,15 @@ class CentralFilter:
         names: Agent names.
         period: Control period [s] (each step's duration in the tallies).
         promote_shared: Promote rows shared by several agents too (default: only the agents' own rows).
-        off_hold: Seconds the off condition must hold before an intermittent strategy switches off.
 
     """
 
     def __init__(self, strategy: Strategy, blocks: Sequence[slice], names: Sequence[str], period: float, *,
-                 promote_shared: bool = False, off_hold: float = 0.0) -> None:
+                 promote_shared: bool = False) -> None:
         _check_blocks(blocks, names)
         self.inner, self.blocks, self.period = strategy, tuple(blocks), float(period)
         self.names = tuple(names)
         self.promote_shared = promote_shared
-        self.hold = OffHold(off_hold if strategy.intermittent else 0.0)
         self.uses_rows, self.intermittent = strategy.uses_rows, strategy.intermittent
         self.shared_rows = SharedRows(self.blocks)
         self.intervention = BlockIntervention(self.blocks)
@@ -302,7 +272,6 @@ class CentralFilter:
     def reset(self, t0: float = 0.0) -> None:
         """Start again."""
         self.inner.reset(t0)
-        self.hold.reset()
         self._last = None
         self.intervention.reset()
         self.coordination.reset()
@@ -310,7 +279,7 @@ class CentralFilter:
     def step_lie(self, t: float, lie: LieData | None, u_nom: np.ndarray, x: Any = None, **kw: Any) -> FilterStep:
         """The strategy's step, accounted for every agent.
 
-        An intermittent strategy promotes no shared row and is held on by :class:`OffHold` (module docstring).
+        An intermittent strategy promotes no shared row (module docstring).
         """
         if lie is None:
             step = self.inner.step_lie(t, lie, u_nom)  # type: ignore[arg-type]  # (no rows: NominalStrategy)
@@ -319,10 +288,7 @@ class CentralFilter:
             rows = self.shared_rows(lie)
             if self.intermittent and not self.promote_shared:
                 kw["promotable"] = ~rows.shared
-            if self.hold(t):
-                kw["hold"] = True
             step = self.inner.step_lie(t, lie, u_nom, x, **kw)
-            self.hold.record(step)
             need = Coordination.needs(step, rows.shared, rows.inv) if lie.k == step.xi.shape[0] else self._nobody
         self.intervention.add(step.u, step.u_nom, self.period)
         self.coordination.add(need, self.period)
@@ -356,7 +322,6 @@ class SharedFilter:
         names: Agent names.
         period: Control period [s].
         promote_shared: As :class:`CentralFilter`.
-        off_hold: As :class:`CentralFilter` (each agent's filter its own hold).
 
     The team's step: the agents' commands stacked, ``on`` when any agent's filter is on (with its own
     switch events), ``xi`` per row the smallest of the agents' ``Xi_on`` of that row (rows that involve
@@ -365,7 +330,7 @@ class SharedFilter:
     """
 
     def __init__(self, strategies: Sequence[Strategy], blocks: Sequence[slice], names: Sequence[str],
-                 period: float, *, promote_shared: bool = False, off_hold: float = 0.0) -> None:
+                 period: float, *, promote_shared: bool = False) -> None:
         _check_blocks(blocks, names)
         if len(strategies) != len(blocks):
             raise ConfigError(f"a shared filter needs one strategy per agent, got {len(strategies)} for {len(blocks)}")
@@ -373,7 +338,6 @@ class SharedFilter:
         self.uses_rows = any(s.uses_rows for s in strategies)
         self.intermittent = any(s.intermittent for s in strategies)
         self.promote_shared = promote_shared
-        self.holds = [OffHold(off_hold if s.intermittent else 0.0) for s in strategies]
         self.tallies = [AgentTally(n) for n in names]
         self.last: list[FilterStep] = []
         self._switch = SwitchCounter()
@@ -390,8 +354,6 @@ class SharedFilter:
             s.reset(t0)
             tally.reset()
         self._switch.reset()
-        for hold in self.holds:
-            hold.reset()
 
     def split(self, lie: LieData) -> list[tuple[np.ndarray, LieData, np.ndarray]]:
         """Each agent's ``(rows, its Lie data, which of those rows are shared)`` (:func:`~.shares.agent_lie`)."""
@@ -411,16 +373,13 @@ class SharedFilter:
         else:
             parts = self.split(lie)
             xi = np.full(lie.k, np.inf)
-            for s, b, (rows, sub, shared), hold in zip(self.agents, self.blocks, parts, self.holds):
+            for s, b, (rows, sub, shared) in zip(self.agents, self.blocks, parts):
                 extra = dict(kw)
                 if screen is not None:
                     extra["screen"] = screen[rows]
                 if s.intermittent and not self.promote_shared:
                     extra["promotable"] = ~shared
-                if hold(t):
-                    extra["hold"] = True
                 st = s.step_lie(t, sub, u_nom[b], x, **extra)
-                hold.record(st)
                 xi[rows] = np.minimum(xi[rows], st.xi)
                 steps.append(st)
         for i, (b, st) in enumerate(zip(self.blocks, steps)):

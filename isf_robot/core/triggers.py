@@ -12,6 +12,8 @@ an on-time with ``Xi_on >= c``. On at ``Xi_on <= 0``, off at ``Xi_on >= c``: hys
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .class_k import ClassK
@@ -20,7 +22,7 @@ from .jit import formula
 from .robust import robust_slack
 from .switches import SwitchCounter, SwitchEvent
 from .system import LieData
-from .validation import check_finite_scalar, check_positive
+from .validation import check_finite_scalar, check_nonnegative, check_positive
 
 __all__ = ["SwitchEvent", "OnOffTrigger", "xi_on", "xi_on_scalar", "xi_tau"]
 
@@ -89,20 +91,30 @@ class OnOffTrigger:
     With several barriers, pass ``min_i Xi_on,i``: the filter turns on when any barrier's
     value reaches 0 and off when every barrier's value is at least ``c``.
 
+    *Off hold* (``off_hold > 0``): the off trigger asks its condition (``xi_min`` at least the margin) to
+    have held at every update of the last ``off_hold`` seconds while on, the update that switched on
+    included (where it failed). Where ``Xi_on`` can flip sign between control steps (the closest points of
+    two links jumping between features; a torque-level barrier's curvature term) the filter would switch
+    off and on within milliseconds; the hold keeps it on instead. It only ever keeps the filter on (the
+    filter's constraints enforced), never off, so the safety argument is unchanged.
+
     Args:
         c: Margin ``c > 0`` required before the filter may turn off.
         t0: Start time [s].
         start_on: Start in the on mode.
+        off_hold: Seconds the off condition must have held before the filter turns off (0: none).
 
     """
 
-    def __init__(self, c: float, t0: float = 0.0, start_on: bool = False) -> None:
+    def __init__(self, c: float, t0: float = 0.0, start_on: bool = False, off_hold: float = 0.0) -> None:
         self.c = check_positive(c, "c (off-trigger margin)")
+        self.off_hold = check_nonnegative(off_hold, "off_hold (off hold [s])")
         self.reset(t0, start_on)
 
     def reset(self, t0: float = 0.0, start_on: bool = False) -> None:
         """Forget history; start at ``t0`` in the given mode."""
         self._t_last = check_finite_scalar(t0, "t0")
+        self._t_fail = t0 if start_on else -math.inf  # the last update at which the off condition failed while on
         self._switches = SwitchCounter(start_on)
 
     @property
@@ -140,9 +152,13 @@ class OnOffTrigger:
         if xi_min != xi_min:  # NaN
             raise ConfigError(f"trigger value is NaN at t={t}")
         self._t_last = t
-        on = self._switches.on
-        if not on and xi_min <= 0.0:
-            return self._switches.update(t, True, xi_min)
-        if on and allow_off and xi_min >= (self.c if margin is None else max(margin, self.c)):
+        if not self._switches.on:
+            if xi_min <= 0.0:
+                self._t_fail = t
+                return self._switches.update(t, True, xi_min)
+            return None
+        if xi_min < (self.c if margin is None else max(margin, self.c)):
+            self._t_fail = t
+        elif allow_off and t - self._t_fail >= self.off_hold:
             return self._switches.update(t, False, xi_min)
         return None

@@ -18,7 +18,7 @@ from isf_robot.arm.team_nominal import TeamReaching
 from isf_robot.core import ConfigError, FilterSpec, LieData, QPSolver, UnknownNameError
 from isf_robot.core.shares import row_agents
 from isf_robot.core.strategies import make_strategy
-from isf_robot.core.team import CentralFilter, OffHold, SharedFilter
+from isf_robot.core.team import CentralFilter, SharedFilter
 
 
 def _arm(p: str, x: float, yaw: float) -> str:
@@ -407,22 +407,13 @@ def test_unpromotable_row_keeps_the_robust_condition_only() -> None:
     assert u[False] == pytest.approx(-0.05, abs=1e-6)  # robust condition: may close at alpha h
 
 
-def test_hold_keeps_the_filter_on_until_released() -> None:
-    spec = FilterSpec(alpha=5.0, c=0.05, b=0.02, d_bar=0.0, blend=0.0, horizon=0.0)
-    f = make_strategy("isf", spec)
-    assert f.step_lie(0.0, _one_row(), np.array([-1.0])).on
-    assert f.step_lie(0.002, _one_row(), np.array([1.0]), hold=True).on  # off condition holds, but held
-    step = f.step_lie(0.004, _one_row(), np.array([1.0]))
-    assert not step.on and step.event is not None and step.event.kind == "off"
-
-
 def test_team_promotes_no_shared_row_and_holds_off() -> None:
     """Central and per arm: a shared row keeps its (share of the) robust condition; off only after the hold."""
-    spec = FilterSpec(alpha=5.0, c=0.05, b=0.02, d_bar=0.0, blend=0.0, horizon=0.0)
+    spec = FilterSpec(alpha=5.0, c=0.05, b=0.02, d_bar=0.0, blend=0.0, horizon=0.0, off_hold=0.01)
     blocks = (slice(0, 1), slice(1, 2))
     lie = LieData(np.array([0.01]), np.zeros(1), np.array([[1.0, 1.0]]), np.ones(1) * np.sqrt(2))  # shared row
-    teams = [CentralFilter(make_strategy("isf", spec), blocks, ("a", "b"), 0.002, off_hold=0.01),
-             SharedFilter([make_strategy("isf", spec) for _ in blocks], blocks, ("a", "b"), 0.002, off_hold=0.01)]
+    teams = [CentralFilter(make_strategy("isf", spec), blocks, ("a", "b"), 0.002),
+             SharedFilter([make_strategy("isf", spec) for _ in blocks], blocks, ("a", "b"), 0.002)]
     for team in teams:
         step = team.step_lie(0.0, lie, np.array([-1.0, -1.0]))
         assert step.on and float(lie.lg[0] @ step.u) == pytest.approx(-0.05, abs=1e-6)  # not held apart at b
@@ -431,20 +422,7 @@ def test_team_promotes_no_shared_row_and_holds_off() -> None:
             offs.append((t, team.step_lie(t, lie, np.array([1.0, 1.0])).on))
             t += 0.002
         first_off = next(s for s, on in offs if not on)
-        assert 0.01 <= first_off <= 0.014  # the off condition held since 0.002: off once it held 0.01 s
-    hold = OffHold(0.1)
-    assert not hold(0.0)
-    # a failure of the off condition at t = 1 holds the filter on for 0.1 s after it, and only a failure does
-    from types import SimpleNamespace as NS
-
-    hold.record(NS(t=1.0, on=True, xi=np.array([0.2, 0.01]), margin=0.05))
-    assert hold(1.0) and hold(1.099) and not hold(1.1)
-    hold.record(NS(t=1.2, on=True, xi=np.array([0.2, 0.06]), margin=0.05))  # (every Xi_on above the margin)
-    hold.record(NS(t=1.3, on=False, xi=np.array([-1.0]), margin=0.05))  # (an off step is no failure)
-    assert not hold(1.35)
-    never = OffHold(0.0)
-    never.record(NS(t=1.0, on=True, xi=np.array([-1.0]), margin=0.05))
-    assert not never(1.0)
+        assert 0.01 <= first_off <= 0.0101  # on at 0 (the condition failed there): off once it held 0.01 s
 
 
 def test_isf_team_passes_the_head_on_crossing() -> None:
@@ -755,7 +733,8 @@ def test_each_way_builds_only_its_own_filters(two_arms, monkeypatch) -> None:  #
 
 
 def test_the_off_hold_is_a_filter_parameter_of_teams(two_arms) -> None:  # type: ignore[no-untyped-def]
-    """`off_hold` ([filter] key, --off-hold): the team's filters take it; validated; recorded; one arm refuses it."""
+    """`off_hold` ([filter] key, --off-hold): the team's filters take it; validated; recorded; one arm's is 0 unless
+    given."""
     from isf_robot.arm import ArmSimulation
     from isf_robot.arm.multi_arm import OFF_HOLD_S
     from isf_robot.arm.params import resolve_params
@@ -764,18 +743,25 @@ def test_the_off_hold_is_a_filter_parameter_of_teams(two_arms) -> None:  # type:
     assert base.off_hold is None and "off_hold" not in base.as_info()
     for way in ("central", "decentral"):
         sim = MultiArmSimulation(two_arms, "isf", coordination=way, params=base)
-        holds = [sim.strategy.hold] if way == "central" else sim.strategy.holds
-        assert {h.hold_s for h in holds} == {OFF_HOLD_S}  # (the default)
+        assert _holds(sim) == {OFF_HOLD_S} and sim.params.off_hold == OFF_HOLD_S  # (the default, recorded)
         sim = MultiArmSimulation(two_arms, "isf", coordination=way, params=base.replace(off_hold=0.25))
-        holds = [sim.strategy.hold] if way == "central" else sim.strategy.holds
-        assert {h.hold_s for h in holds} == {0.25}
+        assert _holds(sim) == {0.25}
         sim = MultiArmSimulation(two_arms, "isf", coordination=way, params=base.replace(off_hold=0.25), off_hold=0.0)
-        holds = [sim.strategy.hold] if way == "central" else sim.strategy.holds
-        assert {h.hold_s for h in holds} == {0.0}  # (the argument first)
+        assert _holds(sim) == {0.0}  # (the argument first)
     assert base.replace(off_hold=0.3).as_info()["off_hold"] == 0.3
     with pytest.raises(ConfigError, match="off_hold must be >= 0"):
         base.replace(off_hold=-0.1)
     assert FilterSpec.from_mapping({"off_hold": 0.2}).off_hold == 0.2
     pole = load_scene("panda_pole")
-    with pytest.raises(ConfigError, match="off_hold applies to scenes with several arms"):
-        ArmSimulation(pole, "isf", params=resolve_params(pole, d_bar=0.1, off_hold=0.2, calibrate=False))
+    assert ArmSimulation(pole, "isf", params=resolve_params(pole, d_bar=0.1, calibrate=False)).strategy.trigger.off_hold == 0
+    one = ArmSimulation(pole, "isf", params=resolve_params(pole, d_bar=0.1, off_hold=0.2, calibrate=False))
+    assert one.strategy.trigger.off_hold == 0.2
+    from isf_robot.arm.torque_sim import TorqueSimulation, resolve_torque_params
+
+    torque = resolve_torque_params(pole, d_bar=0.5, off_hold=0.2, calibrate=False)
+    assert TorqueSimulation(pole, "isf", params=torque).strategy.trigger.off_hold == 0.2  # (the torque level too)
+
+
+def _holds(sim: MultiArmSimulation) -> set[float]:
+    agents = [sim.strategy.inner] if sim.coordination == "central" else sim.strategy.agents
+    return {a.trigger.off_hold for a in agents}

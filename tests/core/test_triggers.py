@@ -73,6 +73,45 @@ def test_time_must_not_go_backwards_and_nan_rejected():
         trig.update(2.0, float("nan"))
 
 
+def test_off_hold_asks_the_off_condition_to_have_held_that_long():
+    # clock 0.125 s (exact in binary); hold 0.375 s: on at 0.125 (Xi <= 0: the condition fails there); the
+    # condition (Xi >= c = 1) holds from 0.25, fails again at 0.5 (the hold starts over), holds from 0.625: off at
+    # 0.875, 0.375 s after the last failure
+    script = [-1.0, 2.0, 2.0, 0.5, 2.0, 2.0, 2.0, 2.0]
+    trig = OnOffTrigger(c=1.0, off_hold=0.375)
+    modes, events = drive(trig, script, FakeClock(0.125))
+    assert modes == [True, True, True, True, True, True, False, False]
+    assert [(e.kind, e.t) for e in events] == [("on", 0.125), ("off", 0.875)]
+    # without the hold: off at the first sample at or above c, as before
+    modes, _ = drive(OnOffTrigger(c=1.0), script, FakeClock(0.125))
+    assert modes == [True, False, False, False, False, False, False, False]
+    # a hold never delays the on trigger, and a filter that was never on has nothing to hold
+    trig = OnOffTrigger(c=1.0, off_hold=10.0)
+    assert drive(trig, [2.0, 2.0, 0.0])[0] == [False, False, True]
+    # reset forgets the last failure; starting on counts as failing at t0
+    trig.reset(5.0, start_on=True)
+    assert trig.update(5.2, 2.0) is None and trig.on  # held 0.2 < 10
+    trig.reset(0.0)
+    assert not trig.on
+    with pytest.raises(ConfigError, match="off_hold"):
+        OnOffTrigger(c=1.0, off_hold=-0.1)
+
+
+def test_the_filters_off_hold_keeps_it_on_and_its_constraints_enforced():
+    # Xi_on = u_nom + h (one row, Lg h = 1); on at Xi <= 0, pushed at b while held, off after 0.03 s of Xi >= c
+    f = IntermittentSafetyFilter(Linear(1.0), c=0.5, b=0.2, off_hold=0.375)
+    clock = FakeClock(0.125)
+    lie = LieData(np.array([0.1]), np.zeros(1), np.ones((1, 1)), np.ones(1), ("b",))
+    assert f.step_lie(clock.tick(), lie, np.array([-0.2])).on
+    steps = [f.step_lie(clock.tick(), lie, np.array([0.0 if k < 3 else 1.0])) for k in range(7)]
+    # Xi 0.1 (< c) at 0.25-0.5, 1.1 from 0.625: the condition last failed at 0.5, off at 0.875
+    assert [s.on for s in steps] == [True] * 5 + [False] * 2
+    assert all(s.u[0] >= 0.2 - 1e-9 for s in steps[:5])  # promoted while held on (u >= b)
+    assert steps[5].event is not None and steps[5].event.kind == "off" and steps[5].t == 0.875
+    f.reset()
+    assert not f.on and f.trigger.off_hold == 0.375
+
+
 def test_intermittent_filter_modes_follow_trigger_with_scripted_xi():
     # one barrier with Lg h = 1, Lf h = 0, alpha = 1*h: Xi_on = u_nom + h
     f = IntermittentSafetyFilter(Linear(1.0), c=0.5, b=0.2)
