@@ -25,7 +25,7 @@ import numpy as np
 
 from isf_robot.core import LieData
 from isf_robot.core.exceptions import ShapeError
-from isf_robot.core.jit import formula
+from isf_robot.core.jit import direct, formula
 
 from .rows import FilterRows, NearPairs, TickRows
 
@@ -271,9 +271,12 @@ class NarrowPhase:
                 raise ShapeError(f"mocap velocities must have shape {self._lin_shape} (rows like data.mocap_pos); "
                                  f"got {mocap_lin.shape}")  # type: ignore[union-attr]
             lin, dhdt_in = np.ascontiguousarray(mocap_lin, dtype=np.float64).reshape(-1), self._kdhdt
-        j, h_min, dist_min, jmin, touching, key = self._kernel(self._maddr, daddr, p, blk, rows, coherence is not None,
-                                                          self.cutoff, distmax, slack, _EPS_DIST, norms_in, lin,
-                                                          dhdt_in)
+        args = (self._maddr, daddr, p, blk, rows, coherence is not None, self.cutoff, distmax, slack, _EPS_DIST,
+                norms_in, lin, dhdt_in)
+        kd = self._kdirect
+        if kd[0] is not self._kernel:  # (its arrays are of fixed types: the context's and the output blocks')
+            kd = self._kdirect = (self._kernel, direct(self._kernel, args))
+        j, h_min, dist_min, jmin, touching, key = kd[1](*args)
         k = j + nj
         if touching:  # coinciding witness points: the numpy path (the same rows without the bounds)
             near = self._near_numpy(data, mocap_lin, mocap_ang, witness, None)
