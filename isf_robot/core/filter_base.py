@@ -37,7 +37,7 @@ from .class_k import ClassK, Linear, as_class_k
 from .closed_step import promoted_closed_step, screened_closed_step, xi_closed_step
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
 from .handover import promote_rows
-from .jit import compiled, jit_enabled
+from .jit import compiled, direct, jit_enabled
 from .projection import FEW_ROWS
 from .qp import FilterQP, QPResult
 from .qp_solver import QPSolver
@@ -88,6 +88,31 @@ class Passes(NamedTuple):
         c = compiled if compile_them else (lambda f: f)
         return cls(c(robust.xi_pass), c(robust.row_bounds), c(screening.screened_rows), c(screening.others_hold),
                    c(promote_rows), c(xi_closed_step), c(screened_closed_step), c(promoted_closed_step))
+
+
+class _DirectPasses:
+    """:class:`Passes`' compiled code called without numba's dispatch (:func:`~isf_robot.core.jit.direct`).
+
+    Each pass is resolved at its first call, for that call's argument types; the filter hands these passes
+    only inputs :meth:`_FilterBase._passes_for` admits (float64, C-contiguous, one dimension, ``Lg h`` two; a
+    linear class-K function), so every later call passes arrays of the same types: those, the filter's own
+    buffers and flags, and screening thresholds made C-contiguous float64 (:meth:`_FilterBase._screen_array`).
+    """
+
+    __slots__ = (*Passes._fields, "_of")
+
+    def __init__(self, passes: Passes) -> None:
+        self._of = passes
+
+    def __getattr__(self, name: str) -> Any:  # (a pass not called yet: resolved at this call)
+        kernel = getattr(self._of, name)
+
+        def first(*args: Any) -> Any:
+            code = direct(kernel, args)
+            setattr(self, name, code)
+            return code(*args)
+
+        return first
 
 
 def core_kernels() -> list[Any]:
@@ -161,6 +186,7 @@ class _FilterBase:
         self.screen = self._check_screen(screen)
         self._passes = Passes.build()  # (ISF_ROBOT_JIT is read when the filter is built)
         self._plain = Passes.build(False)  # (inputs the compiled passes do not take: other dtypes, no inputs)
+        self._direct = _DirectPasses(self._passes)  # (the compiled passes for inputs of fixed types: _passes_for)
         self._lo = qp_check.NO_BOUND if self.u_min is None else self.u_min  # (the closed steps' bounds: length 0 none)
         self._hi = qp_check.NO_BOUND if self.u_max is None else self.u_max
         self._within = compiled(projection.within_bounds)  # (ISF_ROBOT_JIT is read here)
@@ -182,14 +208,14 @@ class _FilterBase:
 
     def _screen_array(self, screen: float | np.ndarray, k: int) -> np.ndarray:
         """Thresholds as the passes take them: one for every row, or one per row of ``k``."""
-        if type(screen) is np.ndarray and screen.dtype is _F64 and screen.ndim == 1:
+        if type(screen) is np.ndarray and screen.dtype is _F64 and screen.ndim == 1 and screen.flags.c_contiguous:
             sa = screen
         elif type(screen) is float:
             sa = self._screens.get(screen)
             if sa is None:
                 sa = self._screens[screen] = np.full(1, screen)
-        else:
-            sa = np.asarray(screen, dtype=float).reshape(-1)
+        else:  # (C-contiguous float64, as the passes take them: _DirectPasses)
+            sa = np.ascontiguousarray(screen, dtype=float).reshape(-1)
         if sa.shape[0] != k and sa.shape[0] != 1:
             raise ShapeError(f"screen thresholds: one, or one per row ({k}); got {sa.shape[0]}")
         return sa
@@ -236,11 +262,19 @@ class _FilterBase:
         return solver.closed_form and (solver.few_rows or (self.u_min is None and self.u_max is None))
 
     def _passes_for(self, lie: LieData, u_nom: np.ndarray) -> Passes:
-        """The compiled passes for float64 data with inputs; the plain ones otherwise (numpy decides)."""
-        lg = lie.lg
+        """The compiled passes for float64 data with inputs; the plain ones otherwise (numpy decides).
+
+        Called without numba's dispatch (:class:`_DirectPasses`) where every array is C-contiguous and of one
+        dimension (``Lg h`` two) and the class-K function linear: the types those calls were resolved for.
+        """
+        lg, h, lf, gn = lie.lg, lie.h, lie.lf, lie.grad_norm
         f64 = _F64
-        if (lg.dtype is f64 and u_nom.dtype is f64 and lie.h.dtype is f64 and lie.lf.dtype is f64
-                and lie.grad_norm.dtype is f64 and lg.ndim == 2 and u_nom.shape[0] and lg.flags.c_contiguous):
+        if (lg.dtype is f64 and u_nom.dtype is f64 and h.dtype is f64 and lf.dtype is f64
+                and gn.dtype is f64 and lg.ndim == 2 and u_nom.shape[0] and lg.flags.c_contiguous):
+            if (type(self.alpha) is Linear and h.ndim == 1 and lf.ndim == 1 and gn.ndim == 1 and u_nom.ndim == 1
+                    and h.flags.c_contiguous and lf.flags.c_contiguous and gn.flags.c_contiguous
+                    and u_nom.flags.c_contiguous):
+                return self._direct  # type: ignore[return-value]
             return self._passes
         return self._plain
 

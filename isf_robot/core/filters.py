@@ -354,11 +354,15 @@ class IntermittentSafetyFilter(_FilterBase):
             screen = self.screen
         sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
         solver, buf, b = self.solver, self._rows_buf, self.b
+        if promotable is None:
+            promotable = _NONE_B
+        elif promotable.dtype != bool or promotable.ndim != 1 or not promotable.flags.c_contiguous:
+            promotable = np.ascontiguousarray(promotable, dtype=bool).reshape(-1)  # (the type the passes take)
         u = np.empty(u_nom.shape[0])
         t0 = time.perf_counter()
         n, code, low, held, bits = xs.passes.promoted_closed_step(
             xi, c, failing, rate is not None, ids, w, inw, 0.0 if rate is None else rate, promote, ramp,
-            _NONE_B if promotable is None else promotable, sa, xs.argmin, buf, lie.lf, lie.grad_norm, self.d_bar,
+            promotable, sa, xs.argmin, buf, lie.lf, lie.grad_norm, self.d_bar,
             xs.av, b, lie.lg, u_nom, solver.feas_tol, solver.active_tol, solver.few_rows, self._lo, self._hi, u,
             self._res_buf)
         short = self._closed_result(u_nom, u, code, low, held, n, bits, t0) if code >= 0 else _NO_CLOSED
