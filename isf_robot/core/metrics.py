@@ -181,7 +181,7 @@ class MetricsAccumulator:
 
     def __init__(self) -> None:
         self._steps: list[tuple[float, float, bool, bool]] = []  # (t, dt, on, solved)
-        self._rates: list[float] = []  # |u - u_nom|^2 of those steps (a batch's: 0.0 until it is made)
+        self._rates: list[float] = []  # |u - u_nom|^2 of those steps (a batch's: added when it is made)
         self._packed: list[dict[str, np.ndarray]] = []  # earlier steps, as arrays
         self._n_packed = 0
         self._qp_times: list[float] = []
@@ -195,11 +195,12 @@ class MetricsAccumulator:
         self._nb: list[bytes] = []  # the nominal commands of the batch's steps with u not u_nom, in step order
         self._u0 = b""  # the command before the batch
         self._shape: tuple[int, ...] = ()  # the batch's command shape
-        self._rix: list[tuple[int, int]] = []  # (batch row, index in _rates) of the steps with u not u_nom
+        self._rix: list[int] = []  # batch rows of the steps with u not u_nom
         self._ev: list[int] = []  # batch rows of the steps with a switch event
 
     def add(self, t: float, dt: float, on: bool, u: np.ndarray, u_nom: np.ndarray, solved: bool) -> None:
         """Record one step."""
+        self._flush()  # (the batch's steps first: their figures go to the columns in step order)
         rate = sq_sum(u - u_nom)  # (sums' written order: the same figure on every machine)
         self._steps.append((t, dt, bool(on), bool(solved)))
         self._rates.append(rate)
@@ -223,13 +224,14 @@ class MetricsAccumulator:
             n = len(ub)
             if not same:
                 self._nb.append(u_nom.tobytes())
-                self._rix.append((n, len(self._rates)))
-            self._rates.append(0.0)
+                self._rix.append(n)
             if step.event is not None:
                 self._ev.append(n)
             self._steps.append((step.t, dt, bool(step.on), qp is not None))
             if n == _BATCH:
                 self._flush()
+                if len(self._steps) >= _CHUNK:
+                    self._pack()
         else:  # (the first step, or a command of another shape: step by step)
             self._flush()
             rate = 0.0
@@ -245,8 +247,8 @@ class MetricsAccumulator:
                 self._ub, self._shape, self._u0 = [], u.shape, u.tobytes()
             else:
                 self._ub = None
-        if len(self._steps) >= _CHUNK:
-            self._pack()
+            if len(self._steps) >= _CHUNK:
+                self._pack()
         if qp is not None:
             self._qp_times.append(qp.solve_time_s)
             if qp.status == "closed_form":
@@ -275,7 +277,7 @@ class MetricsAccumulator:
         ub = self._ub
         if not ub:
             return
-        n, width, rates = len(ub), self._shape[0], self._rates
+        n, width = len(ub), self._shape[0]
         U = np.frombuffer(b"".join((self._u0, *ub)), dtype=_F64).reshape(n + 1, width)  # row 0: the one before
         d = U[1:] - U[:n]  # row j: command j + 1 minus command j (elementwise, exact)
         jumps = row_sq_sums(d).tolist()  # (each row's sq_sum, in one pass)
@@ -290,15 +292,15 @@ class MetricsAccumulator:
             if top is None or v > top:
                 top = v
         self._switch_jump2 = top
-        rix = self._rix
+        rix, rates = self._rix, [0.0] * n  # (the batch's steps' rates, in step order: 0 where u is u_nom)
         if rix:
-            rows = [row for row, _ in rix]
-            N = np.frombuffer(b"".join(self._nb), dtype=_F64).reshape(len(rows), width)
-            r = U[rows] - N  # (the steps with u not u_nom: u - u_nom)
-            for (_, i), v in zip(rix, row_sq_sums(r).tolist()):
-                rates[i] = v
+            N = np.frombuffer(b"".join(self._nb), dtype=_F64).reshape(len(rix), width)
+            r = U[rix] - N  # (the steps with u not u_nom: u - u_nom)
+            for row, v in zip(rix, row_sq_sums(r).tolist()):
+                rates[row - 1] = v
             rix.clear()
             self._nb.clear()
+        self._rates += rates
         self._ev.clear()
         self._u0 = ub[-1]
         self._u_prev = U[n].copy()
