@@ -187,6 +187,7 @@ class _FilterBase:
         self._passes = Passes.build()  # (ISF_ROBOT_JIT is read when the filter is built)
         self._plain = Passes.build(False)  # (inputs the compiled passes do not take: other dtypes, no inputs)
         self._direct = _DirectPasses(self._passes)  # (the compiled passes for inputs of fixed types: _passes_for)
+        self._closed = self._closed_forms()  # (the solver's options and the bounds are read when the filter is built)
         self._lo = qp_check.NO_BOUND if self.u_min is None else self.u_min  # (the closed steps' bounds: length 0 none)
         self._hi = qp_check.NO_BOUND if self.u_max is None else self.u_max
         self._within = compiled(projection.within_bounds)  # (ISF_ROBOT_JIT is read here)
@@ -257,6 +258,7 @@ class _FilterBase:
 
         With bounds a closed step's answer is kept only when it satisfies them (no bound active: the bounded optimum
         too); the solver's own closed forms follow the same rule (:class:`~isf_robot.core.qp_solver.QPSolver`).
+        Read once, when the filter is built (``_closed``): not in every step.
         """
         solver = self.solver
         return solver.closed_form and (solver.few_rows or (self.u_min is None and self.u_max is None))
@@ -305,7 +307,7 @@ class _FilterBase:
         xi = np.empty(k)
         passes = self._passes_for(lie, u_nom)
         solver = self.solver
-        if closed and self._closed_forms():
+        if closed and self._closed:
             sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
             u = np.empty(u_nom.shape[0])
             t0 = time.perf_counter()
@@ -392,7 +394,7 @@ class _FilterBase:
             sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
             prom, arg = _NONE_B if promote is None else promote, -1 if xs is None else xs.argmin
             buf, solver = self._rows_buf, self.solver
-            if self._closed_forms():
+            if self._closed:
                 u = np.empty(u_nom.shape[0])
                 t0 = time.perf_counter()
                 n, code, low, held, bits = passes.screened_closed_step(

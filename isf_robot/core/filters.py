@@ -316,7 +316,7 @@ class IntermittentSafetyFilter(_FilterBase):
         fail = _NONE_B if failing is None else failing
         if promotable is not None and promotable.shape != xi.shape:
             raise ShapeError(f"promotable: one flag per row ({xi.shape[0]}), got shape {promotable.shape}")
-        if self.shooter is None and self._closed_forms():
+        if self.shooter is None and self._closed:
             res, relaxed, fb, resolved = self._promoted_solve(t, x, lie, xs, c, fail, rate, promotable, screen)
             return self._done(FilterStep._of(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names,
                                              resolved, c, bound, ran, held))
