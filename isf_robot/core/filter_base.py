@@ -57,7 +57,7 @@ _NONE_F = np.zeros(0)  # "no thresholds" / "every ramp weight 1"
 _KINDS = ("robust", "promote")  # a row's kind by its promotion flag
 _ACTIVE: dict[int, tuple[np.ndarray, ...]] = {}  # n rows' activity masks by their bits, shared (read-only)
 _tuple_new = tuple.__new__  # (builds a _Xi without its generated __new__)
-_NO_CLOSED = (None, False)  # "no closed-form answer" (see _FilterBase._solve_rows)
+_NO_CLOSED = (None, False, False)  # "no closed-form answer" (see _FilterBase._solve_rows)
 
 
 def _masks(n: int) -> tuple[np.ndarray, ...]:
@@ -135,7 +135,7 @@ class _Xi(NamedTuple):
     av: np.ndarray  # alpha(h) per row
     argmin: int  # first row of least Xi_on
     passes: Passes  # the passes these inputs take (compiled, or as written)
-    closed: tuple[QPResult, bool] | None  # the robust rows' closed form (_closed_result), made with Xi_on, if answered
+    closed: tuple[QPResult, bool, bool] | None  # the robust rows' closed form (_closed_result) with Xi_on, if answered
 
 
 class _FilterBase:
@@ -385,7 +385,7 @@ class _FilterBase:
         """
         k = xi.shape[0]
         passes = xs.passes if xs is not None else self._passes_for(lie, u_nom)
-        short: tuple[QPResult | None, bool]
+        short: tuple[QPResult | None, bool, bool]
         if xs is not None and xs.closed is not None and promote is None and not floor > 0.0:
             short, rows = xs.closed, None  # (made with Xi_on for the same rows, and answered: no rows needed below)
         else:
@@ -409,7 +409,7 @@ class _FilterBase:
     def _rows_solved(self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, xi: np.ndarray,
                      av: np.ndarray, promote: np.ndarray | None, ramp: np.ndarray, b: float, passes: Passes,
                      rows: np.ndarray | None,
-                     short: tuple[QPResult | None, bool]) -> tuple[QPResult, tuple[str, ...], bool, bool]:
+                     short: tuple[QPResult | None, bool, bool]) -> tuple[QPResult, tuple[str, ...], bool, bool]:
         """:meth:`_solve_rows` after the screening: ``rows`` kept (``None``: every row), ``short`` their closed form.
 
         The closed form's answer when every other row holds at it; else the rows' QP (when the closed form gave
@@ -427,8 +427,10 @@ class _FilterBase:
         return replace(res, solve_time_s=res.solve_time_s + first.solve_time_s), relaxed, fb, True
 
     def _closed_result(self, u_nom: np.ndarray, u: np.ndarray, code: int, low: float, held: bool, n: int, bits: int,
-                       t0: float) -> tuple[QPResult, bool]:
-        """``(result, every other row holds)`` of a closed-form answer (``code`` >= 0) on ``n`` rows, from ``t0``.
+                       t0: float) -> tuple[QPResult, bool, bool]:
+        """``(result, every other row holds, a row is active)`` of a closed-form answer (``code`` >= 0) on ``n`` rows.
+
+        ``t0``: when its solve began.
 
         ``bits``: the active rows (:func:`~isf_robot.core.closed_step.active_bits`); the result's ``active``
         is a shared read-only mask.
@@ -439,8 +441,8 @@ class _FilterBase:
         if masks is None:
             masks = _ACTIVE[n] = _masks(n)
         if n == 1:
-            return QPResult._of(u_nom if code == 0 else u, "closed_form", masks[bits], spent), bool(held)
-        return QPResult._of(u, "optimal", masks[bits], spent, 0, max(0.0, -float(low))), bool(held)
+            return QPResult._of(u_nom if code == 0 else u, "closed_form", masks[bits], spent), bool(held), bits != 0
+        return QPResult._of(u, "optimal", masks[bits], spent, 0, max(0.0, -float(low))), bool(held), bits != 0
 
     def _solve_block(
         self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, av: np.ndarray,

@@ -105,15 +105,14 @@ class SafetyFilter(_FilterBase):
         """
         screen = self.screen if screen is None else screen
         xs = self._xi(t, lie, u_nom, screen, True)
-        u_nom, xi = xs.u_nom, xs.xi
-        short = xs.closed
+        u_nom, xi, xi_min, av, _, _, short = xs
         if short is not None and short[1]:  # (the rows' closed form, every other row holding: solved with Xi_on)
-            res, fb, resolved = short[0], False, False
+            res, fb, resolved, on = short[0], False, False, short[2]
         else:
-            res, _, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, xs.av, None, _NONE_F, 0.0, 0.0, screen, xs)
-        on = fb or any(res.active.tolist())
+            res, _, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, av, None, _NONE_F, 0.0, 0.0, screen, xs)
+            on = fb or any(res.active.tolist())
         sw = self._switches
-        event = None if on == sw.on else sw.update(t, on, xs.xi_min)
+        event = None if on == sw.on else sw.update(t, on, xi_min)
         return FilterStep._of(t, res.u, u_nom, on, lie.h, xi, event, res, (), fb, lie.names, resolved)
 
 
@@ -259,7 +258,7 @@ class IntermittentSafetyFilter(_FilterBase):
         holds it on until the off condition has held for a while, :class:`~isf_robot.core.team.OffHold`).
         """
         xs = self._xi(t, lie, u_nom)
-        u_nom, xi, xi_min = xs.u_nom, xs.xi, xs.xi_min
+        u_nom, xi, xi_min, _, _, _, _ = xs
         trigger = self.trigger
         was_on = trigger.on
         self.fall_rate.observe(t, xi_min, not was_on)
