@@ -271,12 +271,13 @@ class NarrowPhase:
                 raise ShapeError(f"mocap velocities must have shape {self._lin_shape} (rows like data.mocap_pos); "
                                  f"got {mocap_lin.shape}")  # type: ignore[union-attr]
             lin, dhdt_in = np.ascontiguousarray(mocap_lin, dtype=np.float64).reshape(-1), self._kdhdt
-        args = (self._maddr, daddr, p, blk, rows, coherence is not None, self.cutoff, distmax, slack, _EPS_DIST,
-                norms_in, lin, dhdt_in)
         kd = self._kdirect
         if kd[0] is not self._kernel:  # (its arrays are of fixed types: the context's and the output blocks')
-            kd = self._kdirect = (self._kernel, direct(self._kernel, args))
-        j, h_min, dist_min, jmin, touching, key = kd[1](*args)
+            kd = self._kdirect = (self._kernel, direct(self._kernel, (
+                self._maddr, daddr, p, blk, rows, coherence is not None, self.cutoff, distmax, slack, _EPS_DIST,
+                norms_in, lin, dhdt_in)))
+        j, h_min, dist_min, jmin, touching, key = kd[1](self._maddr, daddr, p, blk, rows, coherence is not None,
+                                                        self.cutoff, distmax, slack, _EPS_DIST, norms_in, lin, dhdt_in)
         k = j + nj
         if touching:  # coinciding witness points: the numpy path (the same rows without the bounds)
             near = self._near_numpy(data, mocap_lin, mocap_ang, witness, None)
