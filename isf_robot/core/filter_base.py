@@ -104,7 +104,12 @@ class _DirectPasses:
     def __init__(self, passes: Passes) -> None:
         self._of = passes
 
+    def __reduce__(self) -> tuple[Any, ...]:  # (a copy resolves its passes again: compiled code does not pickle)
+        return _DirectPasses, (self._of,)
+
     def __getattr__(self, name: str) -> Any:  # (a pass not called yet: resolved at this call)
+        if name.startswith("_"):  # (not a pass; also _of before __init__, as a copy is being made)
+            raise AttributeError(name)
         kernel = getattr(self._of, name)
 
         def first(*args: Any) -> Any:
