@@ -1,8 +1,8 @@
 """jit.direct: a kernel's compiled code called without numba's dispatch gives the dispatching call's answers.
 
 The filters call their passes so (``_DirectPasses``) only for inputs of the types those calls were resolved
-for; other inputs (strided rows, a strided screen, a non-linear class-K function) take the dispatching passes:
-the same commands, modes and switches either way, whatever the order the inputs come in.
+for: strided rows or commands and a non-linear class-K function take the dispatching passes, a strided screen is
+made C-contiguous (the same commands, modes and switches).
 """
 
 from __future__ import annotations
@@ -50,27 +50,33 @@ def _lie(rng: np.random.Generator, k: int, m: int) -> LieData:
 
 @pytest.mark.parametrize("make", [lambda: SafetyFilter(2.0, 0.01, screen=0.2, on_infeasible="fallback"),
                                   lambda: IntermittentSafetyFilter(2.0, 0.05, 0.1, 0.01, screen=0.2,
-                                                                            on_infeasible="fallback")])
+                                                                   on_infeasible="fallback")])
 @pytest.mark.filterwarnings("ignore::isf_robot.core.IsfWarning")
-def test_filters_answer_alike_for_inputs_of_every_layout_in_any_order(make) -> None:  # type: ignore[no-untyped-def]
+def test_filters_answer_alike_with_screens_of_every_layout(make) -> None:  # type: ignore[no-untyped-def]
     rng = np.random.default_rng(7)
     k, m, n = 6, 3, 60
     steps = [(_lie(rng, k, m), rng.normal(size=m)) for _ in range(n)]
     ref, mixed = make(), make()
     for i, (lie, u_nom) in enumerate(steps):
         want = ref.step_lie(i * 1e-3, lie, u_nom)
-        if i % 3 == 1:  # strided rows and command
-            lie = LieData(np.repeat(lie.h, 2)[::2], np.repeat(lie.lf, 2)[::2], lie.lg, lie.grad_norm)
-            u_nom = np.repeat(u_nom, 2)[::2]
-        elif i % 3 == 2:  # a strided screen
-            got = mixed.step_lie(i * 1e-3, lie, u_nom, screen=np.repeat(np.full(k, 0.2), 2)[::2])
-            np.testing.assert_allclose(got.u, want.u, rtol=1e-12, atol=1e-12)
-            assert got.on == want.on and (got.event is None) == (want.event is None)
-            continue
-        got = mixed.step_lie(i * 1e-3, lie, u_nom)
+        screen = np.repeat(np.full(k, 0.2), 2)[::2] if i % 2 else None  # (strided: made C-contiguous for the passes)
+        got = mixed.step_lie(i * 1e-3, lie, u_nom, screen=screen)
         np.testing.assert_allclose(got.u, want.u, rtol=1e-12, atol=1e-12)
         assert got.on == want.on and (got.event is None) == (want.event is None)
     assert ref.qp_solves == mixed.qp_solves
+
+
+def test_only_inputs_of_the_resolved_types_take_the_direct_passes() -> None:
+    filt = SafetyFilter(2.0, 0.0)
+    rng = np.random.default_rng(5)
+    lie, u = _lie(rng, 4, 2), rng.normal(size=2)
+    assert filt._passes_for(lie, u) is filt._direct
+    assert filt._passes_for(lie, np.repeat(u, 2)[::2]) is filt._passes  # (a strided command)
+    for field in ("h", "lf", "grad_norm"):  # (a strided row array)
+        arrays = {f: getattr(lie, f) for f in ("h", "lf", "lg", "grad_norm")}
+        arrays[field] = np.repeat(arrays[field], 2)[::2]
+        assert filt._passes_for(LieData(**arrays), u) is filt._passes
+    assert filt._passes_for(lie, u.astype(np.float32)) is filt._plain
 
 
 def test_a_non_linear_class_k_function_takes_the_dispatching_passes() -> None:
