@@ -37,6 +37,7 @@ if TYPE_CHECKING:
 __all__ = ["FilterRows", "NarrowPhase", "NearPairs", "TickRows", "pair_value", "unit_normal", "dot3", "obstacle_dhdt",
            "substep_distmax"]
 
+_F64 = np.dtype(np.float64)
 _EPS_DIST = 1e-9  # [m] below this |dist| the witness points give no direction
 _new = tuple.__new__  # a NamedTuple from a tuple of its fields (as _make, without the length check)
 _BLOCK_FLOATS = 32768  # the compiled path's outputs are allocated up to this many float64s (256 kB) at a time
@@ -270,7 +271,9 @@ class NarrowPhase:
             if mocap_lin.shape != self._lin_shape:  # type: ignore[union-attr]
                 raise ShapeError(f"mocap velocities must have shape {self._lin_shape} (rows like data.mocap_pos); "
                                  f"got {mocap_lin.shape}")  # type: ignore[union-attr]
-            lin, dhdt_in = np.ascontiguousarray(mocap_lin, dtype=np.float64).reshape(-1), self._kdhdt
+            if not (type(mocap_lin) is np.ndarray and mocap_lin.dtype is _F64 and mocap_lin.flags.c_contiguous):
+                mocap_lin = np.ascontiguousarray(mocap_lin, dtype=np.float64)
+            lin, dhdt_in = mocap_lin.reshape(-1), self._kdhdt  # type: ignore[union-attr]
         kd = self._kdirect
         if kd[0] is not self._kernel:  # (its arrays are of fixed types: the context's and the output blocks')
             kd = self._kdirect = (self._kernel, direct(self._kernel, (
