@@ -365,6 +365,8 @@ class IntermittentSafetyFilter(_FilterBase):
             xs.av, b, lie.lg, u_nom, solver.feas_tol, solver.active_tol, solver.few_rows, self._lo, self._hi, u,
             self._res_buf)
         short = self._closed_result(u_nom, u, code, low, held, n, bits, t0) if code >= 0 else _NO_CLOSED
+        if short[1]:  # (answered, every other row holding: as _rows_solved returns it)
+            return short[0], (), False, False
         return self._rows_solved(t, x, lie, u_nom, xi, xs.av, promote, ramp, b, xs.passes, None if n == k else buf[:n],
                                  short)
 
