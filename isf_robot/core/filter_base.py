@@ -17,7 +17,8 @@ The filters' semantics (when they are on, which rows they promote) are in
 
 Each pass is one plain function, compiled by numba where it runs
 (:func:`~isf_robot.core.jit.compiled`; ``ISF_ROBOT_JIT=0`` runs it as written, read when the
-filter is built).
+filter is built); for float64 C-contiguous inputs and a linear class-K function its compiled code is
+called without numba's per-call dispatch (:class:`_DirectPasses`, :func:`~isf_robot.core.jit.direct`).
 """
 
 from __future__ import annotations
