@@ -41,10 +41,13 @@ import mujoco
 import numpy as np
 
 from isf_robot.core.exceptions import ConfigError
+from isf_robot.core.jit import direct
 
 from . import kernels
 from .scene import Scene
 from .tracking_law import command_feedforward, desired_acceleration, motor_ctrl, reference_error, tracking_error
+
+_F64 = np.dtype(np.float64)
 
 __all__ = ["VelocityTracker", "friction_feedforward", "FRICTION_SMOOTHING"]
 
@@ -165,6 +168,7 @@ class VelocityTracker:
         k = kernels.step_kernels(n) if jit and contiguous and own and getattr(model, "_address", 0) else None
         self._kernels = k
         self._step = k["track_step"] if k is not None else None
+        self._step_direct: tuple = (None, None)  # (the kernel, its code for float64 commands: command)
         self._maddr = int(getattr(model, "_address", 0))
         self._daddr = 0
         self._ptrs = np.zeros(6, dtype=np.int64)
@@ -256,8 +260,15 @@ class VelocityTracker:
             if data is not self._data:
                 self._bind(data)
             ff = self.feedforward and period is not None and period > 0
-            return float(step(self._maddr, self._daddr, self._ptrs, self._buf, self.n, self._acc_full.size,
-                              u if type(u) is np.ndarray else np.asarray(u, float),
+            if type(u) is np.ndarray and u.dtype is _F64 and u.ndim == 1 and u.flags.c_contiguous:
+                sd = self._step_direct  # (the other arrays are the tracker's own: jit.direct)
+                if sd[0] is not step:
+                    sd = self._step_direct = (step, direct(step, (self._maddr, self._daddr, self._ptrs, self._buf,
+                                                                  self.n, self._acc_full.size, u, 0.0, ff)))
+                step = sd[1]
+            elif type(u) is not np.ndarray:
+                u = np.asarray(u, float)
+            return float(step(self._maddr, self._daddr, self._ptrs, self._buf, self.n, self._acc_full.size, u,
                               1.0 / period if ff else 0.0, ff))  # type: ignore[operator]
         err = float(tracking_error(data.qvel[self._dof].tolist(), self.u.tolist()))
         self.set_command(u, period)

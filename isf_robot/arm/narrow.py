@@ -25,7 +25,7 @@ import numpy as np
 
 from isf_robot.core import LieData
 from isf_robot.core.exceptions import ShapeError
-from isf_robot.core.jit import formula
+from isf_robot.core.jit import direct, formula
 
 from .rows import FilterRows, NearPairs, TickRows
 
@@ -37,6 +37,7 @@ if TYPE_CHECKING:
 __all__ = ["FilterRows", "NarrowPhase", "NearPairs", "TickRows", "pair_value", "unit_normal", "dot3", "obstacle_dhdt",
            "substep_distmax"]
 
+_F64 = np.dtype(np.float64)
 _EPS_DIST = 1e-9  # [m] below this |dist| the witness points give no direction
 _new = tuple.__new__  # a NamedTuple from a tuple of its fields (as _make, without the length check)
 _BLOCK_FLOATS = 32768  # the compiled path's outputs are allocated up to this many float64s (256 kB) at a time
@@ -270,10 +271,16 @@ class NarrowPhase:
             if mocap_lin.shape != self._lin_shape:  # type: ignore[union-attr]
                 raise ShapeError(f"mocap velocities must have shape {self._lin_shape} (rows like data.mocap_pos); "
                                  f"got {mocap_lin.shape}")  # type: ignore[union-attr]
-            lin, dhdt_in = np.ascontiguousarray(mocap_lin, dtype=np.float64).reshape(-1), self._kdhdt
-        j, h_min, dist_min, jmin, touching, key = self._kernel(self._maddr, daddr, p, blk, rows, coherence is not None,
-                                                          self.cutoff, distmax, slack, _EPS_DIST, norms_in, lin,
-                                                          dhdt_in)
+            if not (type(mocap_lin) is np.ndarray and mocap_lin.dtype is _F64 and mocap_lin.flags.c_contiguous):
+                mocap_lin = np.ascontiguousarray(mocap_lin, dtype=np.float64)
+            lin, dhdt_in = mocap_lin.reshape(-1), self._kdhdt  # type: ignore[union-attr]
+        kd = self._kdirect
+        if kd[0] is not self._kernel:  # (its arrays are of fixed types: the context's and the output blocks')
+            kd = self._kdirect = (self._kernel, direct(self._kernel, (
+                self._maddr, daddr, p, blk, rows, coherence is not None, self.cutoff, distmax, slack, _EPS_DIST,
+                norms_in, lin, dhdt_in)))
+        j, h_min, dist_min, jmin, touching, key = kd[1](self._maddr, daddr, p, blk, rows, coherence is not None,
+                                                        self.cutoff, distmax, slack, _EPS_DIST, norms_in, lin, dhdt_in)
         k = j + nj
         if touching:  # coinciding witness points: the numpy path (the same rows without the bounds)
             near = self._near_numpy(data, mocap_lin, mocap_ang, witness, None)

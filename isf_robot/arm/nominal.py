@@ -28,6 +28,7 @@ import mujoco
 import numpy as np
 
 from isf_robot.core.exceptions import ConfigError, ShapeError
+from isf_robot.core.jit import direct
 
 from . import kernels
 from .goals import GoalSequence
@@ -212,7 +213,9 @@ class ReachingController(NominalController):
         use = contiguous and scene.ee_site_id >= 0 and getattr(model, "_address", 0) and jit
         k = kernels.step_kernels(n) if use else None
         self._reach = k["reach"] if k is not None else None
+        self._reach_direct: tuple = (None, None)  # (the kernel, its code for the call's argument types)
         self._maddr, self._daddr = int(getattr(model, "_address", 0)), 0
+        self._nv = nv
         self._data: mujoco.MjData | None = None
         self._binds: dict[int, tuple[mujoco.MjData, int, int]] = {}  # (id -> the data, its address, site_xpos')
         self._goals_seen: np.ndarray | None = None
@@ -260,14 +263,22 @@ class ReachingController(NominalController):
         """:meth:`__call__` by the compiled kernel (the same formulas, compiled)."""
         goals, rate, out = self.goals, self._rate, np.empty(self.n)
         index, t_prev = goals.index, rate.t_prev
-        args = (t, 0.0 if t_prev is None else t_prev, t_prev is not None, rate.a_max, self.kp, self.max_ee_speed,
-                self.max_joint_speed, self._lam2)
-        dist = self._reach(self._maddr, self._daddr, self._ptrs, self._buf, out, self.n, self._jac.shape[1],  # type: ignore[misc]
-                           self._dof0, self.scene.ee_site_id, index, False, *args)
+        tf, tp, held = float(t), 0.0 if t_prev is None else float(t_prev), t_prev is not None  # (floats: direct code)
+        rd = self._reach_direct
+        if rd[0] is not self._reach:  # (its arrays are its own buffers: jit.direct)
+            rd = self._reach_direct = (self._reach, direct(self._reach, (
+                self._maddr, self._daddr, self._ptrs, self._buf, out, self.n, self._nv, self._dof0,
+                self.scene.ee_site_id, index, False, tf, tp, held, rate.a_max, self.kp, self.max_ee_speed,
+                self.max_joint_speed, self._lam2)))
+        reach = rd[1]
+        dist = reach(self._maddr, self._daddr, self._ptrs, self._buf, out, self.n, self._nv, self._dof0,
+                     self.scene.ee_site_id, index, False, tf, tp, held, rate.a_max, self.kp, self.max_ee_speed,
+                     self.max_joint_speed, self._lam2)
         goals.update(t, dist)
         if goals.index != index:  # a new goal: the command toward it (the rate limit's state put back)
-            self._reach(self._maddr, self._daddr, self._ptrs, self._buf, out, self.n, self._jac.shape[1],  # type: ignore[misc]
-                        self._dof0, self.scene.ee_site_id, goals.index, True, *args)
+            reach(self._maddr, self._daddr, self._ptrs, self._buf, out, self.n, self._nv, self._dof0,
+                  self.scene.ee_site_id, goals.index, True, tf, tp, held, rate.a_max, self.kp, self.max_ee_speed,
+                  self.max_joint_speed, self._lam2)
         rate.t_prev = t
         return out
 

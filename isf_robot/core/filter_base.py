@@ -17,7 +17,8 @@ The filters' semantics (when they are on, which rows they promote) are in
 
 Each pass is one plain function, compiled by numba where it runs
 (:func:`~isf_robot.core.jit.compiled`; ``ISF_ROBOT_JIT=0`` runs it as written, read when the
-filter is built).
+filter is built); for float64 C-contiguous inputs and a linear class-K function its compiled code is
+called without numba's per-call dispatch (:class:`_DirectPasses`, :func:`~isf_robot.core.jit.direct`).
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from .class_k import ClassK, Linear, as_class_k
 from .closed_step import promoted_closed_step, screened_closed_step, xi_closed_step
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
 from .handover import promote_rows
-from .jit import compiled, jit_enabled
+from .jit import compiled, direct, jit_enabled
 from .projection import FEW_ROWS
 from .qp import FilterQP, QPResult
 from .qp_solver import QPSolver
@@ -57,7 +58,7 @@ _NONE_F = np.zeros(0)  # "no thresholds" / "every ramp weight 1"
 _KINDS = ("robust", "promote")  # a row's kind by its promotion flag
 _ACTIVE: dict[int, tuple[np.ndarray, ...]] = {}  # n rows' activity masks by their bits, shared (read-only)
 _tuple_new = tuple.__new__  # (builds a _Xi without its generated __new__)
-_NO_CLOSED = (None, False)  # "no closed-form answer" (see _FilterBase._solve_rows)
+_NO_CLOSED = (None, False, False)  # "no closed-form answer" (see _FilterBase._solve_rows)
 
 
 def _masks(n: int) -> tuple[np.ndarray, ...]:
@@ -90,6 +91,36 @@ class Passes(NamedTuple):
                    c(promote_rows), c(xi_closed_step), c(screened_closed_step), c(promoted_closed_step))
 
 
+class _DirectPasses:
+    """:class:`Passes`' compiled code called without numba's dispatch (:func:`~isf_robot.core.jit.direct`).
+
+    Each pass is resolved at its first call, for that call's argument types; the filter hands these passes
+    only inputs :meth:`_FilterBase._passes_for` admits (float64, C-contiguous, one dimension, ``Lg h`` two; a
+    linear class-K function), so every later call passes arrays of the same types: those, the filter's own
+    buffers and flags, and screening thresholds made C-contiguous float64 (:meth:`_FilterBase._screen_array`).
+    """
+
+    __slots__ = (*Passes._fields, "_of")
+
+    def __init__(self, passes: Passes) -> None:
+        self._of = passes
+
+    def __reduce__(self) -> tuple[Any, ...]:  # (a copy resolves its passes again: compiled code does not pickle)
+        return _DirectPasses, (self._of,)
+
+    def __getattr__(self, name: str) -> Any:  # (a pass not called yet: resolved at this call)
+        if name.startswith("_"):  # (not a pass; also _of before __init__, as a copy is being made)
+            raise AttributeError(name)
+        kernel = getattr(self._of, name)
+
+        def first(*args: Any) -> Any:
+            code = direct(kernel, args)
+            setattr(self, name, code)
+            return code(*args)
+
+        return first
+
+
 def core_kernels() -> list[Any]:
     """The core's compiled functions (the filter step's passes, the closed forms, the prediction pass).
 
@@ -110,7 +141,7 @@ class _Xi(NamedTuple):
     av: np.ndarray  # alpha(h) per row
     argmin: int  # first row of least Xi_on
     passes: Passes  # the passes these inputs take (compiled, or as written)
-    closed: tuple[QPResult, bool] | None  # the robust rows' closed form (_closed_result), made with Xi_on, if answered
+    closed: tuple[QPResult, bool, bool] | None  # the robust rows' closed form (_closed_result) with Xi_on, if answered
 
 
 class _FilterBase:
@@ -161,6 +192,8 @@ class _FilterBase:
         self.screen = self._check_screen(screen)
         self._passes = Passes.build()  # (ISF_ROBOT_JIT is read when the filter is built)
         self._plain = Passes.build(False)  # (inputs the compiled passes do not take: other dtypes, no inputs)
+        self._direct = _DirectPasses(self._passes)  # (the compiled passes for inputs of fixed types: _passes_for)
+        self._closed = self._closed_forms()  # (the solver's options and the bounds are read when the filter is built)
         self._lo = qp_check.NO_BOUND if self.u_min is None else self.u_min  # (the closed steps' bounds: length 0 none)
         self._hi = qp_check.NO_BOUND if self.u_max is None else self.u_max
         self._within = compiled(projection.within_bounds)  # (ISF_ROBOT_JIT is read here)
@@ -182,14 +215,14 @@ class _FilterBase:
 
     def _screen_array(self, screen: float | np.ndarray, k: int) -> np.ndarray:
         """Thresholds as the passes take them: one for every row, or one per row of ``k``."""
-        if type(screen) is np.ndarray and screen.dtype is _F64 and screen.ndim == 1:
+        if type(screen) is np.ndarray and screen.dtype is _F64 and screen.ndim == 1 and screen.flags.c_contiguous:
             sa = screen
         elif type(screen) is float:
             sa = self._screens.get(screen)
             if sa is None:
                 sa = self._screens[screen] = np.full(1, screen)
-        else:
-            sa = np.asarray(screen, dtype=float).reshape(-1)
+        else:  # (C-contiguous float64, as the passes take them: _DirectPasses)
+            sa = np.ascontiguousarray(screen, dtype=float).reshape(-1)
         if sa.shape[0] != k and sa.shape[0] != 1:
             raise ShapeError(f"screen thresholds: one, or one per row ({k}); got {sa.shape[0]}")
         return sa
@@ -231,16 +264,25 @@ class _FilterBase:
 
         With bounds a closed step's answer is kept only when it satisfies them (no bound active: the bounded optimum
         too); the solver's own closed forms follow the same rule (:class:`~isf_robot.core.qp_solver.QPSolver`).
+        Read once, when the filter is built (``_closed``): not in every step.
         """
         solver = self.solver
         return solver.closed_form and (solver.few_rows or (self.u_min is None and self.u_max is None))
 
     def _passes_for(self, lie: LieData, u_nom: np.ndarray) -> Passes:
-        """The compiled passes for float64 data with inputs; the plain ones otherwise (numpy decides)."""
-        lg = lie.lg
+        """The compiled passes for float64 data with inputs; the plain ones otherwise (numpy decides).
+
+        Called without numba's dispatch (:class:`_DirectPasses`) where every array is C-contiguous and of one
+        dimension (``Lg h`` two) and the class-K function linear: the types those calls were resolved for.
+        """
+        lg, h, lf, gn = lie.lg, lie.h, lie.lf, lie.grad_norm
         f64 = _F64
-        if (lg.dtype is f64 and u_nom.dtype is f64 and lie.h.dtype is f64 and lie.lf.dtype is f64
-                and lie.grad_norm.dtype is f64 and lg.ndim == 2 and u_nom.shape[0] and lg.flags.c_contiguous):
+        if (lg.dtype is f64 and u_nom.dtype is f64 and h.dtype is f64 and lf.dtype is f64
+                and gn.dtype is f64 and lg.ndim == 2 and u_nom.shape[0] and lg.flags.c_contiguous):
+            if (type(self.alpha) is Linear and h.ndim == 1 and lf.ndim == 1 and gn.ndim == 1 and u_nom.ndim == 1
+                    and h.flags.c_contiguous and lf.flags.c_contiguous and gn.flags.c_contiguous
+                    and u_nom.flags.c_contiguous):
+                return self._direct  # type: ignore[return-value]
             return self._passes
         return self._plain
 
@@ -271,7 +313,7 @@ class _FilterBase:
         xi = np.empty(k)
         passes = self._passes_for(lie, u_nom)
         solver = self.solver
-        if closed and self._closed_forms():
+        if closed and self._closed:
             sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
             u = np.empty(u_nom.shape[0])
             t0 = time.perf_counter()
@@ -349,7 +391,7 @@ class _FilterBase:
         """
         k = xi.shape[0]
         passes = xs.passes if xs is not None else self._passes_for(lie, u_nom)
-        short: tuple[QPResult | None, bool]
+        short: tuple[QPResult | None, bool, bool]
         if xs is not None and xs.closed is not None and promote is None and not floor > 0.0:
             short, rows = xs.closed, None  # (made with Xi_on for the same rows, and answered: no rows needed below)
         else:
@@ -358,7 +400,7 @@ class _FilterBase:
             sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
             prom, arg = _NONE_B if promote is None else promote, -1 if xs is None else xs.argmin
             buf, solver = self._rows_buf, self.solver
-            if self._closed_forms():
+            if self._closed:
                 u = np.empty(u_nom.shape[0])
                 t0 = time.perf_counter()
                 n, code, low, held, bits = passes.screened_closed_step(
@@ -373,7 +415,7 @@ class _FilterBase:
     def _rows_solved(self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, xi: np.ndarray,
                      av: np.ndarray, promote: np.ndarray | None, ramp: np.ndarray, b: float, passes: Passes,
                      rows: np.ndarray | None,
-                     short: tuple[QPResult | None, bool]) -> tuple[QPResult, tuple[str, ...], bool, bool]:
+                     short: tuple[QPResult | None, bool, bool]) -> tuple[QPResult, tuple[str, ...], bool, bool]:
         """:meth:`_solve_rows` after the screening: ``rows`` kept (``None``: every row), ``short`` their closed form.
 
         The closed form's answer when every other row holds at it; else the rows' QP (when the closed form gave
@@ -391,8 +433,10 @@ class _FilterBase:
         return replace(res, solve_time_s=res.solve_time_s + first.solve_time_s), relaxed, fb, True
 
     def _closed_result(self, u_nom: np.ndarray, u: np.ndarray, code: int, low: float, held: bool, n: int, bits: int,
-                       t0: float) -> tuple[QPResult, bool]:
-        """``(result, every other row holds)`` of a closed-form answer (``code`` >= 0) on ``n`` rows, from ``t0``.
+                       t0: float) -> tuple[QPResult, bool, bool]:
+        """``(result, every other row holds, a row is active)`` of a closed-form answer (``code`` >= 0) on ``n`` rows.
+
+        ``t0``: when its solve began.
 
         ``bits``: the active rows (:func:`~isf_robot.core.closed_step.active_bits`); the result's ``active``
         is a shared read-only mask.
@@ -403,8 +447,8 @@ class _FilterBase:
         if masks is None:
             masks = _ACTIVE[n] = _masks(n)
         if n == 1:
-            return QPResult._of(u_nom if code == 0 else u, "closed_form", masks[bits], spent), bool(held)
-        return QPResult._of(u, "optimal", masks[bits], spent, 0, max(0.0, -float(low))), bool(held)
+            return QPResult._of(u_nom if code == 0 else u, "closed_form", masks[bits], spent), bool(held), bits != 0
+        return QPResult._of(u, "optimal", masks[bits], spent, 0, max(0.0, -float(low))), bool(held), bits != 0
 
     def _solve_block(
         self, t: float, x: np.ndarray | None, lie: LieData, u_nom: np.ndarray, av: np.ndarray,

@@ -105,15 +105,14 @@ class SafetyFilter(_FilterBase):
         """
         screen = self.screen if screen is None else screen
         xs = self._xi(t, lie, u_nom, screen, True)
-        u_nom, xi = xs.u_nom, xs.xi
-        short = xs.closed
+        u_nom, xi, xi_min, av, _, _, short = xs
         if short is not None and short[1]:  # (the rows' closed form, every other row holding: solved with Xi_on)
-            res, fb, resolved = short[0], False, False
+            res, fb, resolved, on = short[0], False, False, short[2]
         else:
-            res, _, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, xs.av, None, _NONE_F, 0.0, 0.0, screen, xs)
-        on = fb or any(res.active.tolist())
+            res, _, fb, resolved = self._solve_rows(t, x, lie, u_nom, xi, av, None, _NONE_F, 0.0, 0.0, screen, xs)
+            on = fb or any(res.active.tolist())
         sw = self._switches
-        event = None if on == sw.on else sw.update(t, on, xs.xi_min)
+        event = None if on == sw.on else sw.update(t, on, xi_min)
         return FilterStep._of(t, res.u, u_nom, on, lie.h, xi, event, res, (), fb, lie.names, resolved)
 
 
@@ -260,7 +259,7 @@ class IntermittentSafetyFilter(_FilterBase):
         sees every row.
         """
         xs = self._xi(t, lie, u_nom)
-        u_nom, xi, xi_min = xs.u_nom, xs.xi, xs.xi_min
+        u_nom, xi, xi_min, _, _, _, _ = xs
         trigger = self.trigger
         was_on = trigger.on
         self.fall_rate.observe(t, xi_min, not was_on)
@@ -317,7 +316,7 @@ class IntermittentSafetyFilter(_FilterBase):
         fail = _NONE_B if failing is None else failing
         if promotable is not None and promotable.shape != xi.shape:
             raise ShapeError(f"promotable: one flag per row ({xi.shape[0]}), got shape {promotable.shape}")
-        if self.shooter is None and self._closed_forms():
+        if self.shooter is None and self._closed:
             res, relaxed, fb, resolved = self._promoted_solve(t, x, lie, xs, c, fail, rate, promotable, screen)
             return self._done(FilterStep._of(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names,
                                              resolved, c, bound, ran, held))
@@ -355,14 +354,20 @@ class IntermittentSafetyFilter(_FilterBase):
             screen = self.screen
         sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
         solver, buf, b = self.solver, self._rows_buf, self.b
+        if promotable is None:
+            promotable = _NONE_B
+        elif promotable.dtype != bool or promotable.ndim != 1 or not promotable.flags.c_contiguous:
+            promotable = np.ascontiguousarray(promotable, dtype=bool).reshape(-1)  # (the type the passes take)
         u = np.empty(u_nom.shape[0])
         t0 = time.perf_counter()
         n, code, low, held, bits = xs.passes.promoted_closed_step(
             xi, c, failing, rate is not None, ids, w, inw, 0.0 if rate is None else rate, promote, ramp,
-            _NONE_B if promotable is None else promotable, sa, xs.argmin, buf, lie.lf, lie.grad_norm, self.d_bar,
+            promotable, sa, xs.argmin, buf, lie.lf, lie.grad_norm, self.d_bar,
             xs.av, b, lie.lg, u_nom, solver.feas_tol, solver.active_tol, solver.few_rows, self._lo, self._hi, u,
             self._res_buf)
         short = self._closed_result(u_nom, u, code, low, held, n, bits, t0) if code >= 0 else _NO_CLOSED
+        if short[1]:  # (answered, every other row holding: as _rows_solved returns it)
+            return short[0], (), False, False
         return self._rows_solved(t, x, lie, u_nom, xi, xs.av, promote, ramp, b, xs.passes, None if n == k else buf[:n],
                                  short)
 

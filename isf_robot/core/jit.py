@@ -25,7 +25,8 @@ from types import ModuleType
 from typing import Any, TextIO
 
 __all__ = ["JIT_ENV", "CACHED_ONLY", "NOTICE_ENV", "COMPILE_NOTICE", "jit_enabled", "announce_compiles",
-           "watch_compiles", "end_notice", "compiled_here", "formula", "compiled", "register_formulas", "stamp_sources"]
+           "watch_compiles", "end_notice", "compiled_here", "formula", "compiled", "direct", "register_formulas",
+           "stamp_sources"]
 
 JIT_ENV = "ISF_ROBOT_JIT"
 """Environment variable: ``0`` (or ``false``, ``no``, ``off``) turns the compiled kernels off; ``cached`` uses
@@ -198,6 +199,27 @@ def _hand_out(fn: Any, cached_only: bool, sources: Sequence[str]) -> Any:
     if cached_only and compiled_here((got,))[0] == 0:
         return fn
     return got
+
+
+def direct(kernel: Any, args: Sequence[Any]) -> Any:
+    """``kernel``'s compiled code for the types of ``args``, called without numba's dispatch; else ``kernel``.
+
+    A numba function looks at every argument of every call to pick the code compiled for their types
+    (some 45 ns an argument: a microsecond for the arm's twenty-argument kernels, called every control
+    step). The code it picks takes its arguments as they come: a call site whose arguments' types are
+    fixed by construction (its own buffers and addresses, Python floats, ints and bools) can hold it and
+    call it directly. The caller must pass every later call arrays of the same dtype, dimensions and layout
+    as ``args`` (numba does not check an array's dtype there; a scalar is converted as numba converts it).
+    Loads or compiles that code as a first call would. ``kernel`` itself when it is not a numba function
+    (``ISF_ROBOT_JIT=0``, no numba, a stand-in) or numba lacks the interface.
+    """
+    typeof = getattr(kernel, "typeof_pyval", None)
+    if typeof is None:
+        return kernel
+    try:
+        return kernel.compile(tuple(typeof(a) for a in args))
+    except Exception:  # noqa: BLE001 - numba's interface moved: the dispatching call serves
+        return kernel
 
 
 def stamp_sources(dispatcher: Any, folders: Sequence[str]) -> None:

@@ -172,15 +172,16 @@ class MetricsAccumulator:
     (the cheapest per step) and packed into arrays every ``_CHUNK`` steps.
 
     :meth:`add_step` keeps the commands of up to ``_BATCH`` steps (and their nominal commands where
-    they differ) in two arrays and makes their figures -- ``|u - u_nom|^2`` and the jump
-    ``|u_k - u_{k-1}|^2`` -- when the batch is full or read, in step order: the same products on the same
-    numbers as step by step (a row of the batch's difference is the difference of the two commands,
-    and its ``dot`` numpy's), but in one warm pass instead of five numpy calls inside every control step.
+    they differ) as their bytes (``tobytes``: a copy of the values, cheaper than writing an array's row) and
+    makes their figures -- ``|u - u_nom|^2`` and the jump ``|u_k - u_{k-1}|^2`` -- when the batch is full or
+    read, in step order: the same products on the same numbers as step by step (a row of the batch's
+    difference is the difference of the two commands, and its ``dot`` numpy's), but in one warm pass instead
+    of five numpy calls inside every control step.
     """
 
     def __init__(self) -> None:
         self._steps: list[tuple[float, float, bool, bool]] = []  # (t, dt, on, solved)
-        self._rates: list[float] = []  # |u - u_nom|^2 of those steps (a batch's: 0.0 until it is made)
+        self._rates: list[float] = []  # |u - u_nom|^2 of those steps (a batch's: added when it is made)
         self._packed: list[dict[str, np.ndarray]] = []  # earlier steps, as arrays
         self._n_packed = 0
         self._qp_times: list[float] = []
@@ -190,15 +191,16 @@ class MetricsAccumulator:
         self._jump2: float | None = None  # largest |u_k - u_{k-1}|^2 (its root is the largest jump: sqrt is monotone)
         self._switch_jump2: float | None = None
         self._off_bound: float | None = None
-        self._U: np.ndarray | None = None  # row 0: the command before the batch; rows 1..n: the batch's commands
-        self._N: np.ndarray | None = None  # rows 1..n: the nominal commands where they are not the command itself
-        self._n = 0  # steps in the batch
+        self._ub: list[bytes] | None = None  # the batch's commands (bytes of float64 vectors); None: no batch
+        self._nb: list[bytes] = []  # the nominal commands of the batch's steps with u not u_nom, in step order
+        self._u0 = b""  # the command before the batch
         self._shape: tuple[int, ...] = ()  # the batch's command shape
-        self._rix: list[tuple[int, int]] = []  # (batch row, index in _rates) of the steps with u not u_nom
+        self._rix: list[int] = []  # batch rows of the steps with u not u_nom
         self._ev: list[int] = []  # batch rows of the steps with a switch event
 
     def add(self, t: float, dt: float, on: bool, u: np.ndarray, u_nom: np.ndarray, solved: bool) -> None:
         """Record one step."""
+        self._flush()  # (the batch's steps first: their figures go to the columns in step order)
         rate = sq_sum(u - u_nom)  # (sums' written order: the same figure on every machine)
         self._steps.append((t, dt, bool(on), bool(solved)))
         self._rates.append(rate)
@@ -215,20 +217,21 @@ class MetricsAccumulator:
         if type(u) is not np.ndarray or u.dtype != _F64:
             u = np.asarray(u, dtype=float)
         same = u is u_nom
-        U = self._U
-        if U is not None and u.shape == self._shape and (
+        ub = self._ub
+        if ub is not None and u.shape == self._shape and (
                 same or type(u_nom) is np.ndarray and u_nom.dtype == _F64 and u_nom.shape == u.shape):
-            n = self._n = self._n + 1  # (into the batch: the figures when it is made)
-            U[n] = u
+            ub.append(u.tobytes())  # (into the batch: the figures when it is made)
+            n = len(ub)
             if not same:
-                self._N[n] = u_nom  # type: ignore[index]
-                self._rix.append((n, len(self._rates)))
-            self._rates.append(0.0)
+                self._nb.append(u_nom.tobytes())
+                self._rix.append(n)
             if step.event is not None:
                 self._ev.append(n)
             self._steps.append((step.t, dt, bool(step.on), qp is not None))
             if n == _BATCH:
                 self._flush()
+                if len(self._steps) >= _CHUNK:
+                    self._pack()
         else:  # (the first step, or a command of another shape: step by step)
             self._flush()
             rate = 0.0
@@ -241,14 +244,11 @@ class MetricsAccumulator:
             if prev is not None:
                 self._jump(sq_sum(u - prev), step.event is not None)
             if u.ndim == 1:  # (a new batch after this step)
-                if U is None or self._shape != u.shape:
-                    self._U, self._N = np.empty((_BATCH + 1, u.shape[0])), np.empty((_BATCH + 1, u.shape[0]))
-                    self._shape = u.shape
-                self._U[0] = u  # type: ignore[index]
+                self._ub, self._shape, self._u0 = [], u.shape, u.tobytes()
             else:
-                self._U = self._N = None
-        if len(self._steps) >= _CHUNK:
-            self._pack()
+                self._ub = None
+            if len(self._steps) >= _CHUNK:
+                self._pack()
         if qp is not None:
             self._qp_times.append(qp.solve_time_s)
             if qp.status == "closed_form":
@@ -274,11 +274,12 @@ class MetricsAccumulator:
 
     def _flush(self) -> None:
         """Make the batch's figures, in step order, and start the next batch after its last command."""
-        n = self._n
-        if not n:
+        ub = self._ub
+        if not ub:
             return
-        U, N, rates = self._U, self._N, self._rates
-        d = U[1:n + 1] - U[:n]  # type: ignore[index]  # row j: command j + 1 minus command j (elementwise, exact)
+        n, width = len(ub), self._shape[0]
+        U = np.frombuffer(b"".join((self._u0, *ub)), dtype=_F64).reshape(n + 1, width)  # row 0: the one before
+        d = U[1:] - U[:n]  # row j: command j + 1 minus command j (elementwise, exact)
         jumps = row_sq_sums(d).tolist()  # (each row's sq_sum, in one pass)
         top = self._jump2
         for v in jumps:  # (as _jump, step by step)
@@ -291,17 +292,19 @@ class MetricsAccumulator:
             if top is None or v > top:
                 top = v
         self._switch_jump2 = top
-        rix = self._rix
+        rix, rates = self._rix, [0.0] * n  # (the batch's steps' rates, in step order: 0 where u is u_nom)
         if rix:
-            rows = [row for row, _ in rix]
-            r = U[rows] - N[rows]  # type: ignore[index]  # (the steps with u not u_nom: u - u_nom)
-            for (_, i), v in zip(rix, row_sq_sums(r).tolist()):
-                rates[i] = v
+            N = np.frombuffer(b"".join(self._nb), dtype=_F64).reshape(len(rix), width)
+            r = U[rix] - N  # (the steps with u not u_nom: u - u_nom)
+            for row, v in zip(rix, row_sq_sums(r).tolist()):
+                rates[row - 1] = v
             rix.clear()
+            self._nb.clear()
+        self._rates += rates
         self._ev.clear()
-        U[0] = U[n]  # type: ignore[index]
-        self._u_prev = U[n].copy()  # type: ignore[index]
-        self._n = 0
+        self._u0 = ub[-1]
+        self._u_prev = U[n].copy()
+        ub.clear()
 
     def stats(self) -> FilterStats:
         """The solver figures of the steps recorded with :meth:`add_step`."""
