@@ -19,7 +19,7 @@ __all__ = ["strip_array", "witness_columns", "closest_witness", "goal_columns", 
 def strip_array(points: np.ndarray, lengths: np.ndarray) -> Any:
     """Arrow array of line strips (float32 points) from the points of every strip, concatenated."""
     dtype = LineStrip3DBatch._ARROW_DATATYPE
-    inner = pa.FixedSizeListArray.from_arrays(pa.array(points.astype(np.float32).reshape(-1)),
+    inner = pa.FixedSizeListArray.from_arrays(pa.array(np.asarray(points, dtype=np.float32).reshape(-1)),
                                               type=dtype.value_type)
     offsets = np.concatenate(([0], np.cumsum(lengths))).astype(np.int32)
     return pa.ListArray.from_arrays(pa.array(offsets), inner, type=dtype)
