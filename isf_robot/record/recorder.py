@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import gc
 import json
+import weakref
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -66,6 +67,19 @@ def release_collector() -> None:
     if _GC_HOLD[0] == 0 and _GC_HOLD[1]:
         _GC_HOLD[1] = False
         gc.unfreeze()
+
+
+class _CollectorHold:
+    """One recorder's :func:`hold_collector`, released once (at close, or when the recorder is dropped unclosed)."""
+
+    def __init__(self) -> None:
+        self.held = True
+        hold_collector()
+
+    def release(self) -> None:
+        if self.held:
+            self.held = False
+            release_collector()
 
 
 def value_columns(**fields: np.ndarray | Sequence[str]) -> Any:
@@ -137,7 +151,7 @@ class RerunRecorder(Observer):
         self.buffer = ColumnBuffer(stream, capacity)
         self.close_on_finish = close_on_finish
         self.closed = False
-        self._holding = False  # (between on_start and close: see hold_collector)
+        self._hold: _CollectorHold | None = None  # (between on_start and close: see hold_collector)
         self.error: RecordError | None = None  # a file that could not be written (see on_finish)
         self.steps = 0
         self.events = 0
@@ -180,9 +194,16 @@ class RerunRecorder(Observer):
         plus ``versions`` (:meth:`versions`); the versions and the scalar settings are also
         recording properties, which the viewer shows beside the recording.
         """
-        if not self._holding:
-            self._holding = True
-            hold_collector()
+        if self._hold is None:
+            self._hold = _CollectorHold()
+            weakref.finalize(self, self._hold.release)  # (a recorder dropped without close: released all the same)
+        try:
+            self._log_start(info)
+        except BaseException:
+            self._release()
+            raise
+
+    def _log_start(self, info: Mapping[str, Any]) -> None:
         meta = to_jsonable({k: v for k, v in info.items() if k not in self.INFO_OBJECTS})
         meta.setdefault("versions", self.versions())
         self.stream.log(schema.INFO, rr.AnyValues(kind=self.kind, info_json=json.dumps(meta)), static=True)
@@ -251,9 +272,8 @@ class RerunRecorder(Observer):
             close_stream(self.stream, complete=complete)
 
     def _release(self) -> None:
-        if self._holding:
-            self._holding = False
-            release_collector()
+        if self._hold is not None:
+            self._hold.release()
 
     def on_abort(self, reason: BaseException) -> None:
         """The run stopped early: close without completing (the data stays in ``<name>.partial``)."""

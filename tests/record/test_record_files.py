@@ -122,6 +122,12 @@ def test_collector_is_held_only_while_recording(tmp_path) -> None:  # type: igno
     assert gc.get_freeze_count() == 0
     second.close()
     assert gc.get_freeze_count() == 0
+    third = RerunRecorder(open_stream("isf_robot", rrd_path=tmp_path / "3.rrd"))
+    third.on_start({"strategy": "isf"})
+    assert gc.get_freeze_count() > 0
+    del third  # (dropped without close: released all the same)
+    gc.collect()
+    assert gc.get_freeze_count() == 0
 
 
 def test_cli_errors_name_the_file(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
