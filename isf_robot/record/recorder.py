@@ -194,7 +194,7 @@ class RerunRecorder(Observer):
         plus ``versions`` (:meth:`versions`); the versions and the scalar settings are also
         recording properties, which the viewer shows beside the recording.
         """
-        if self._hold is None:
+        if self._hold is None or not self._hold.held:  # (a recorder of several runs: held again for each)
             self._hold = _CollectorHold()
             weakref.finalize(self, self._hold.release)  # (a recorder dropped without close: released all the same)
         try:
