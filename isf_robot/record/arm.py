@@ -286,14 +286,23 @@ class ArmRecorder(RerunRecorder):
         pts = np.concatenate((self._trail_tail, a["ee"]))
         off = len(self._trail_tail)
         # step i's strip: the points j, j - stride, j - 2 stride, ... >= max(0, j - k + 1) (j = off + i), in order
-        j = off + np.arange(len(t))
-        lengths = (j - np.maximum(0, j - k + 1)) // stride + 1
-        start = np.cumsum(lengths) - lengths
-        pos = np.arange(int(lengths.sum())) - np.repeat(start, lengths)  # position within its strip
-        idx = np.repeat(j, lengths) - (np.repeat(lengths, lengths) - 1 - pos) * stride
+        n = len(t)
+        head = min(n, max(0, k - 1 - off))  # (the run's first steps: strips shorter than the others)
+        j = off + np.arange(head)
+        lengths = np.empty(n, dtype=np.int64)
+        lengths[:head] = j // stride + 1
+        full = (k - 1) // stride + 1
+        lengths[head:] = full
+        start = np.cumsum(lengths[:head]) - lengths[:head]
+        pos = np.arange(int(lengths[:head].sum())) - np.repeat(start, lengths[:head])  # position within its strip
+        idx_head = np.repeat(j, lengths[:head]) - (np.repeat(lengths[:head], lengths[:head]) - 1 - pos) * stride
+        # (the others, all of ``full`` points: one broadcast)
+        idx = (np.arange(off + head, off + n)[:, None] - stride * np.arange(full - 1, -1, -1)).reshape(-1)
+        if head:
+            idx = np.concatenate((idx_head, idx))
         self._trail_tail = pts[-(k - 1):].copy()
-        strips = strip_array(pts[idx], lengths)
-        return t, rr.LineStrips3D.columns(strips=strips).partition([1] * len(t))
+        strips = strip_array(np.take(pts.astype(np.float32), idx, axis=0), lengths)  # (take: 4x a fancy index)
+        return t, rr.LineStrips3D.columns(strips=strips).partition([1] * n)
 
     # -- static --------------------------------------------------------------------------
     def start_content(self, info: Mapping[str, Any]) -> None:

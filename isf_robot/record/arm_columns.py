@@ -19,7 +19,7 @@ __all__ = ["strip_array", "witness_columns", "closest_witness", "goal_columns", 
 def strip_array(points: np.ndarray, lengths: np.ndarray) -> Any:
     """Arrow array of line strips (float32 points) from the points of every strip, concatenated."""
     dtype = LineStrip3DBatch._ARROW_DATATYPE
-    inner = pa.FixedSizeListArray.from_arrays(pa.array(points.astype(np.float32).reshape(-1)),
+    inner = pa.FixedSizeListArray.from_arrays(pa.array(np.asarray(points, dtype=np.float32).reshape(-1)),
                                               type=dtype.value_type)
     offsets = np.concatenate(([0], np.cumsum(lengths))).astype(np.int32)
     return pa.ListArray.from_arrays(pa.array(offsets), inner, type=dtype)
@@ -65,7 +65,8 @@ def closest_witness(block: Any, n: int, closest: np.ndarray) -> tuple[np.ndarray
     member = np.zeros((n, nc), dtype=bool)
     member[np.arange(n)[:, None], closest] = True
     keep = member[row, pair]
-    return segs[keep], np.bincount(row[keep], minlength=n)
+    kept = np.flatnonzero(keep)  # (take: a boolean mask over the segments is 5x slower)
+    return np.take(segs, kept, axis=0), np.bincount(row[kept], minlength=n)
 
 
 def goal_columns(t: np.ndarray, a: dict[str, np.ndarray]) -> tuple[np.ndarray, Any] | None:

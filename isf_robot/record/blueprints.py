@@ -3,7 +3,8 @@
 Each builder returns a :class:`rerun.blueprint.Blueprint`; :func:`blueprint_for` picks one by
 recording kind. Recorders send it as the recording's default blueprint, so the viewer opens
 on this layout (the user's own layout changes are kept by the viewer). Once a run starts, the
-arm recorder sends the arm layout again with the camera framed on the arm's workspace
+arm recorder sends the arm layout again with the camera framed on the arm's workspace (a file
+alone gets only that one: :func:`~isf_robot.record.options.open_recorder`)
 (:func:`arm_blueprint` with ``eye``), and the satellite recorder sends its layout with the
 time axes spanning the whole run (:func:`satellite_blueprint` with ``duration_s``).
 

@@ -173,14 +173,17 @@ def open_recorder(kind: str, path: Path | None, *, spawn: bool = False, name: st
     from .blueprints import blueprint_for
     from .stream import open_stream
 
+    live = spawn or connect is not None or serve_web
+    # (the arm recorder sends its layout, framed on the arm, when the run starts: a file alone needs no other, 8 ms;
+    # a viewer gets the kind's layout at once)
+    blueprint = blueprint_for(kind) if live or kind != "arm" else None
     stream = open_stream(APPLICATION_IDS[kind], rrd_path=path, spawn=spawn, recording_name=name,
-                         blueprint=blueprint_for(kind), connect=connect, serve_web=serve_web, **(serving or {}))
+                         blueprint=blueprint, connect=connect, serve_web=serve_web, **(serving or {}))
     if kind == "arm":
         from .arm import ArmRecorder
 
         arm = _pick(context, ArmRecorder.CONTEXT_KEYS)
         if "capacity" not in arm:  # (a file alone: long blocks, fewer sends; a live viewer: an update every ~1 s)
-            live = spawn or connect is not None or serve_web
             arm["capacity"] = ArmRecorder.LIVE_CAPACITY if live else ArmRecorder.FILE_CAPACITY
         return ArmRecorder(stream, **arm)
     if kind == "satellite":

@@ -108,6 +108,28 @@ def test_unfinished_run_is_reported(tmp_path) -> None:  # type: ignore[no-untype
         read_rrd(path)
 
 
+def test_collector_is_held_only_while_recording(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    import gc
+
+    assert gc.get_freeze_count() == 0
+    first, second = (RerunRecorder(open_stream("isf_robot", rrd_path=tmp_path / f"{i}.rrd")) for i in range(2))
+    first.on_start({"strategy": "isf"})
+    assert gc.get_freeze_count() > 0  # (what lived before the run: kept off the collector's full passes)
+    second.on_start({"strategy": "isf"})
+    first.on_finish({})
+    assert gc.get_freeze_count() > 0  # (the other recorder still runs)
+    second.close(complete=False)  # (an aborted run also hands them back)
+    assert gc.get_freeze_count() == 0
+    second.close()
+    assert gc.get_freeze_count() == 0
+    third = RerunRecorder(open_stream("isf_robot", rrd_path=tmp_path / "3.rrd"))
+    third.on_start({"strategy": "isf"})
+    assert gc.get_freeze_count() > 0
+    del third  # (dropped without close: released all the same)
+    gc.collect()
+    assert gc.get_freeze_count() == 0
+
+
 def test_cli_errors_name_the_file(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
     assert main(["replay", str(tmp_path / "gone.rrd")]) == 2
     err = capsys.readouterr().err
