@@ -40,7 +40,7 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from isf_robot.core.exceptions import ConfigError
+from isf_robot.core.exceptions import ConfigError, ShapeError
 from isf_robot.core.jit import direct
 
 from . import kernels
@@ -255,6 +255,8 @@ class VelocityTracker:
         Returns ``|q_dot - u_held|`` [rad/s] at the state in ``data`` (before ``u`` takes over): the
         error the simulation records per control step.
         """
+        if (u.shape[0] if type(u) is np.ndarray and u.ndim == 1 else np.size(u)) != self.n:  # (the kernel reads n)
+            raise ShapeError(f"velocity command of {np.size(u)} joints for a tracker of {self.n}")
         step = self._step
         if step is not None:
             if data is not self._data:

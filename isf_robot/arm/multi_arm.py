@@ -222,8 +222,9 @@ class MultiArmSimulation(ArmSimulation):
 
     def _make_strategy(self, strategy: str, solver: QPSolver) -> CentralFilter | SharedFilter:
         """One filter over every arm's joints (central), or one per arm with its shares (decentral)."""
-        hold = self._off_hold if self._off_hold is not None else self.params.off_hold
-        self.params = self.params.replace(off_hold=OFF_HOLD_S if hold is None else hold)  # (recorded as run)
+        if self.info.intermittent:  # (the hold the filters run with, recorded as run)
+            hold = self._off_hold if self._off_hold is not None else self.params.off_hold
+            self.params = self.params.replace(off_hold=OFF_HOLD_S if hold is None else hold)
         if self.coordination == "central":
             return CentralFilter(super()._make_strategy(strategy, solver), self.blocks, self.arm_names,
                                  self.control_period)

@@ -137,6 +137,7 @@ class NarrowPhase:
     _kctxs: dict[tuple[int, int, int], tuple]
     _kout: tuple
     _kblocks: dict
+    _kdirect: tuple  # (the kernel, its compiled code for the context's argument types: jit.direct)
     _lie_names: tuple
     _tick_names: tuple
     pairs: CollisionPairs

@@ -157,7 +157,7 @@ class IntermittentSafetyFilter(_FilterBase):
         shoot_rollout: The rollout that scores the levels (:data:`~isf_robot.core.intermittent.RolloutFn`
             taking ``first=u``); needed when ``shoot > 0``.
         off_hold: Off only once the off condition has held this long [s] (the trigger's off hold,
-            :class:`~isf_robot.core.triggers.OnOffTrigger`; 0: none).
+            :class:`~isf_robot.core.triggers.OnOffTrigger`; 0 or ``None``: none).
 
     """
 
@@ -190,7 +190,7 @@ class IntermittentSafetyFilter(_FilterBase):
         c_pred: float | None = None,
         shoot: float = 0.0,
         shoot_rollout: Callable[..., Any] | None = None,
-        off_hold: float = 0.0,
+        off_hold: float | None = None,
     ) -> None:
         super().__init__(alpha, d_bar, system=system, barriers=barriers, u_min=u_min, u_max=u_max,
                          solver=solver, on_infeasible=on_infeasible, fallback=fallback, validate=validate,
@@ -198,7 +198,8 @@ class IntermittentSafetyFilter(_FilterBase):
         self.spec = spec = FilterSpec(
             alpha=self.alpha, d_bar=self.d_bar, c=c, b=b, min_off=0.0 if min_off is None else min_off, c_max=c_max,
             fall_rate_prior=fall_rate_prior, fall_rate_forget=fall_rate_forget, blend=blend,
-            predict_every=predict_every, c_pred=0.0 if c_pred is None else c_pred, shoot=shoot, off_hold=off_hold)
+            predict_every=predict_every, c_pred=0.0 if c_pred is None else c_pred, shoot=shoot,
+            off_hold=off_hold or None)
         self.c, self.b, self.c_max, self.blend = spec.c, spec.b, spec.c_max, spec.blend
         self.min_off = spec.min_off or None
         self.c_pred = spec.c_pred or None
@@ -209,7 +210,7 @@ class IntermittentSafetyFilter(_FilterBase):
         if spec.shoot and shoot_rollout is None:
             raise ConfigError("shoot (maneuvers by shooting) needs its rollout: shoot_rollout(t, x, first=u)")
         self.shooter = ManeuverShooter(shoot_rollout, spec.predict_every, self.blend) if spec.shoot else None
-        self.trigger = OnOffTrigger(self.c if self.c_pred is None else self.c_pred, t0, off_hold=off_hold)
+        self.trigger = OnOffTrigger(self.c if self.c_pred is None else self.c_pred, t0, off_hold=spec.off_hold or 0.0)
         self.reset(t0)
 
     @classmethod
@@ -314,8 +315,11 @@ class IntermittentSafetyFilter(_FilterBase):
             rate = (t - self._t_ramp) / self.blend if self._t_ramp is not None else 0.0
             self._t_ramp = t
         fail = _NONE_B if failing is None else failing
-        if promotable is not None and promotable.shape != xi.shape:
-            raise ShapeError(f"promotable: one flag per row ({xi.shape[0]}), got shape {promotable.shape}")
+        if promotable is not None:
+            if promotable.shape != xi.shape:
+                raise ShapeError(f"promotable: one flag per row ({xi.shape[0]}), got shape {promotable.shape}")
+            if promotable.dtype != bool or not promotable.flags.c_contiguous:  # (the type the passes take)
+                promotable = np.ascontiguousarray(promotable, dtype=bool)
         if self.shooter is None and self._closed:
             res, relaxed, fb, resolved = self._promoted_solve(t, x, lie, xs, c, fail, rate, promotable, screen)
             return self._done(FilterStep._of(t, res.u, u_nom, True, lie.h, xi, event, res, relaxed, fb, lie.names,
@@ -355,9 +359,7 @@ class IntermittentSafetyFilter(_FilterBase):
         sa = _NONE_F if screen is None or k < 2 else self._screen_array(screen, k)
         solver, buf, b = self.solver, self._rows_buf, self.b
         if promotable is None:
-            promotable = _NONE_B
-        elif promotable.dtype != bool or promotable.ndim != 1 or not promotable.flags.c_contiguous:
-            promotable = np.ascontiguousarray(promotable, dtype=bool).reshape(-1)  # (the type the passes take)
+            promotable = _NONE_B  # (else C-contiguous bool, one per row: step_lie made it so)
         u = np.empty(u_nom.shape[0])
         t0 = time.perf_counter()
         n, code, low, held, bits = xs.passes.promoted_closed_step(

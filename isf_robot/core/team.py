@@ -32,10 +32,10 @@ limits, self pairs) are promoted as for one arm. Promoting a shared row asks the
 ``b`` from the moment the filter is on: two arms on crossing paths may then never come closer, while
 passing each other needs them to, so the filter stayed on with the arms held apart until their goals
 timed out (panda_pair, RESULTS.md). ``promote_shared=True`` restores the promotion. This does not weaken
-the robust condition, which holds on every row at every on step. (A team's intermittent filters are built
-with an off hold, the trigger's ``off_hold``, :class:`~isf_robot.core.triggers.OnOffTrigger`: a shared
-row's ``Xi_on`` can flip sign between control steps where the closest points of two links jump between
-features.)
+the robust condition, which holds on every row at every on step. (The arm layer builds a team's intermittent
+filters with an off hold, the trigger's ``off_hold``, :class:`~isf_robot.core.triggers.OnOffTrigger`: a
+shared row's ``Xi_on`` can flip sign between control steps where the closest points of two links jump
+between features. These classes add no hold of their own.)
 
 *Safety argument.* The shares of a row sum to 1. If every agent's command meets its share, adding the
 (share i) conditions over ``i`` in ``S`` gives (team): the pair's robust condition holds, so the barrier

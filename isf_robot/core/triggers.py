@@ -112,7 +112,10 @@ class OnOffTrigger:
         self.reset(t0, start_on)
 
     def reset(self, t0: float = 0.0, start_on: bool = False) -> None:
-        """Forget history; start at ``t0`` in the given mode."""
+        """Forget history; start at ``t0`` in the given mode.
+
+        Starting on counts as the off condition failing at ``t0``: the off hold runs from there.
+        """
         self._t_last = check_finite_scalar(t0, "t0")
         self._t_fail = t0 if start_on else -math.inf  # the last update at which the off condition failed while on
         self._switches = SwitchCounter(start_on)

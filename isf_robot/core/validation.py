@@ -54,7 +54,9 @@ def as_matrix(value: object, name: str, shape: tuple[int | None, int | None]) ->
 
 
 def check_finite_scalar(value: object, name: str) -> float:
-    """Return ``value`` as a finite float."""
+    """Return ``value`` as a finite float (a number: not a bool or a string, which ``float`` would take)."""
+    if isinstance(value, (bool, str, bytes)):
+        raise ConfigError(f"{name} must be a number, got {value!r}")
     try:
         v = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError) as exc:

@@ -11,7 +11,7 @@ import pytest
 
 from isf_robot.arm import VelocityTracker, calibrate_d_bar, load_scene, load_scene_from_files
 from isf_robot.arm.actuation import ServoTracker, TorqueTracker, actuator_info, make_actuation
-from isf_robot.core import ConfigError
+from isf_robot.core import ConfigError, ShapeError
 from isf_robot.paths import models_dir
 
 MOTORS = """    <motor name="m1" joint="j1" class="planar" ctrlrange="-20 20"/>
@@ -95,6 +95,17 @@ def test_torque_path_is_the_velocity_tracker_to_the_bit(planar) -> None:  # type
             mujoco.mj_step2(planar.model, d)
     np.testing.assert_array_equal(da.qpos, db.qpos)
     np.testing.assert_array_equal(da.ctrl, db.ctrl)
+
+
+def test_a_command_of_the_wrong_length_is_refused(planar) -> None:  # type: ignore[no-untyped-def]
+    # (the compiled step reads the command by the tracker's joint count: a short one must not be read past its end)
+    tr = VelocityTracker(planar)
+    d = planar.make_data()
+    tr.reset(d)
+    for u in (np.zeros(2), np.zeros(4), [0.0, 0.0]):
+        with pytest.raises(ShapeError, match="velocity command of .* joints for a tracker of 3"):
+            tr.command(d, u, 0.002)
+    tr.command(d, np.zeros(3), 0.002)
 
 
 def _hold(scene, tracker, u: np.ndarray, seconds: float) -> mujoco.MjData:  # type: ignore[no-untyped-def]

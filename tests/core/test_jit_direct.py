@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isf_robot.core import IntermittentSafetyFilter, LieData, Power, SafetyFilter, robust
+from isf_robot.core import IntermittentSafetyFilter, LieData, Power, QPSolver, SafetyFilter, robust
 from isf_robot.core.jit import compiled, direct
 
 pytestmark = pytest.mark.kernels  # (skipped under ISF_ROBOT_JIT=0: tests/conftest.py)
@@ -53,17 +53,49 @@ def _lie(rng: np.random.Generator, k: int, m: int) -> LieData:
                                                                    on_infeasible="fallback")])
 @pytest.mark.filterwarnings("ignore::isf_robot.core.IsfWarning")
 def test_filters_answer_alike_with_screens_of_every_layout(make) -> None:  # type: ignore[no-untyped-def]
+    # distinct thresholds per row, strided between other values: code that read a strided screen as contiguous
+    # would see the -1e9 between them and screen out rows it must keep (other solves, other answers)
     rng = np.random.default_rng(7)
-    k, m, n = 6, 3, 60
+    k, m, n = 6, 3, 120
+    th = np.array([0.2, 0.05, 0.3, 0.02, 0.4, 0.03])
+    strided = np.stack([th, np.full(k, -1e9)], 1).ravel()[::2]
+    assert not strided.flags.c_contiguous and np.array_equal(strided, th)
     steps = [(_lie(rng, k, m), rng.normal(size=m)) for _ in range(n)]
     ref, mixed = make(), make()
+    assert mixed._passes_for(*steps[0]) is mixed._direct  # (the direct passes answer)
     for i, (lie, u_nom) in enumerate(steps):
-        want = ref.step_lie(i * 1e-3, lie, u_nom)
-        screen = np.repeat(np.full(k, 0.2), 2)[::2] if i % 2 else None  # (strided: made C-contiguous for the passes)
-        got = mixed.step_lie(i * 1e-3, lie, u_nom, screen=screen)
+        want = ref.step_lie(i * 1e-3, lie, u_nom, screen=th)
+        got = mixed.step_lie(i * 1e-3, lie, u_nom, screen=strided if i % 2 else th.copy())  # (resolved C first)
         np.testing.assert_allclose(got.u, want.u, rtol=1e-12, atol=1e-12)
-        assert got.on == want.on and (got.event is None) == (want.event is None)
+        assert got.on == want.on and (got.event is None) == (want.event is None) and got.resolved == want.resolved
+        assert (got.qp is None) == (want.qp is None)
+        if got.qp is not None:
+            np.testing.assert_array_equal(got.qp.active, want.qp.active)
     assert ref.qp_solves == mixed.qp_solves
+
+
+@pytest.mark.parametrize("closed_form", [True, False])
+@pytest.mark.filterwarnings("ignore::isf_robot.core.IsfWarning")
+def test_promotable_flags_of_any_layout_and_type_answer_as_contiguous_bools(closed_form: bool) -> None:
+    # an int array and a strided bool view of the same flags, after a contiguous bool array resolved the passes; on
+    # the closed step and on the QP path (promote &= promotable)
+    rng = np.random.default_rng(11)
+    k, m, n = 6, 3, 80
+    flags = np.array([True, False, True, True, False, True])
+    kinds = [flags.copy(), flags.astype(np.int64), np.stack([flags, ~flags], 1).ravel()[::2]]
+    steps = [(_lie(rng, k, m), rng.normal(size=m)) for _ in range(n)]
+
+    def make() -> IntermittentSafetyFilter:
+        return IntermittentSafetyFilter(2.0, 0.05, 0.1, 0.01, on_infeasible="fallback",
+                                        solver=QPSolver(closed_form=closed_form))
+
+    ref, mixed = make(), make()
+    for i, (lie, u_nom) in enumerate(steps):
+        want = ref.step_lie(i * 1e-3, lie, u_nom, promotable=flags)
+        got = mixed.step_lie(i * 1e-3, lie, u_nom, promotable=kinds[i % 3])
+        np.testing.assert_allclose(got.u, want.u, rtol=1e-12, atol=1e-12)
+        assert got.on == want.on
+    assert ref.qp_solves == mixed.qp_solves and ref.qp_solves > 0
 
 
 def test_only_inputs_of_the_resolved_types_take_the_direct_passes() -> None:

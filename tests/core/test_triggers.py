@@ -93,12 +93,13 @@ def test_off_hold_asks_the_off_condition_to_have_held_that_long():
     assert trig.update(5.2, 2.0) is None and trig.on  # held 0.2 < 10
     trig.reset(0.0)
     assert not trig.on
-    with pytest.raises(ConfigError, match="off_hold"):
-        OnOffTrigger(c=1.0, off_hold=-0.1)
+    for bad in (-0.1, True, "0.1", None):
+        with pytest.raises(ConfigError, match="off_hold"):
+            OnOffTrigger(c=1.0, off_hold=bad)
 
 
 def test_the_filters_off_hold_keeps_it_on_and_its_constraints_enforced():
-    # Xi_on = u_nom + h (one row, Lg h = 1); on at Xi <= 0, pushed at b while held, off after 0.03 s of Xi >= c
+    # Xi_on = u_nom + h (one row, Lg h = 1); on at Xi <= 0, pushed at b while held, off after 0.375 s of Xi >= c
     f = IntermittentSafetyFilter(Linear(1.0), c=0.5, b=0.2, off_hold=0.375)
     clock = FakeClock(0.125)
     lie = LieData(np.array([0.1]), np.zeros(1), np.ones((1, 1)), np.ones(1), ("b",))
@@ -109,7 +110,9 @@ def test_the_filters_off_hold_keeps_it_on_and_its_constraints_enforced():
     assert all(s.u[0] >= 0.2 - 1e-9 for s in steps[:5])  # promoted while held on (u >= b)
     assert steps[5].event is not None and steps[5].event.kind == "off" and steps[5].t == 0.875
     f.reset()
-    assert not f.on and f.trigger.off_hold == 0.375
+    assert not f.on and f.trigger.off_hold == 0.375 and f.spec.as_info()["off_hold"] == 0.375
+    plain = IntermittentSafetyFilter(Linear(1.0), c=0.5, b=0.2, off_hold=None)  # (None: no hold, none recorded)
+    assert plain.trigger.off_hold == 0.0 and "off_hold" not in plain.spec.as_info()
 
 
 def test_intermittent_filter_modes_follow_trigger_with_scripted_xi():
