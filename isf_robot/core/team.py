@@ -184,10 +184,13 @@ class AgentTally:
         self.metrics = MetricsAccumulator()
         self.coordination = Coordination()
 
-    def add(self, step: FilterStep, shared: np.ndarray, dt: float) -> None:
-        """Record the agent's step (``shared``: which of its rows involve another agent, shape like ``step.xi``)."""
+    def add(self, step: FilterStep, shared: np.ndarray, dt: float, shares: bool = True) -> None:
+        """Record the agent's step (``shared``: which of its rows involve another agent, shape like ``step.xi``).
+
+        ``shares=False`` says that none does (as ``shared.any()`` would; not asked again).
+        """
         self.metrics.add_step(step, dt)
-        self.coordination.add(Coordination.needs(step, shared), dt)
+        self.coordination.add(Coordination.needs(step, shared) if shares else _nobody(1), dt)
 
     def result(self) -> AgentResult:
         """The figures so far."""
@@ -390,17 +393,25 @@ class SharedFilter:
                 st = s.step_lie(t, sub, u_nom[b], x, **extra)
                 xi[rows] = np.minimum(xi[rows], st.xi)
                 steps.append(st)
-            for i, (b, st, (_, _, shared, _)) in enumerate(zip(self.blocks, steps, parts)):
+            for i, (b, st, (_, _, shared, _), (_, shares)) in enumerate(zip(self.blocks, steps, parts, own)):
                 u[b] = st.u
-                tallies[i].add(st, shared, period)
+                tallies[i].add(st, shared, period, shares)
         self.last = steps
-        on = any(st.on for st in steps)
+        on = fallback = resolved = False
+        qp = None
+        relaxed: tuple[str, ...] = ()
+        for st in steps:  # (one pass over the agents' steps)
+            on = on or bool(st.on)
+            if qp is None:
+                qp = st.qp
+            if st.relaxed:
+                relaxed += tuple(st.relaxed)
+            fallback = fallback or bool(st.fallback)
+            resolved = resolved or bool(st.resolved)
         switch = self._switch
         event = None if on == switch.on else switch.update(t, on, float(np.min(xi)) if xi.size else np.inf)
-        qp = next((st.qp for st in steps if st.qp is not None), None)
-        return FilterStep._of(t, u, u_nom, on, lie.h if lie is not None else xi, xi, event, qp,
-                              tuple(r for st in steps for r in st.relaxed), any(st.fallback for st in steps),
-                              lie.names if lie is not None else (), any(st.resolved for st in steps))
+        return FilterStep._of(t, u, u_nom, on, lie.h if lie is not None else xi, xi, event, qp, relaxed, fallback,
+                              lie.names if lie is not None else (), resolved)
 
     def agent_modes(self) -> list[tuple[bool, bool]]:
         """Each agent's ``(on, QP solved)`` at the last step (its own filter's)."""
