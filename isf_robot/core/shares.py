@@ -146,18 +146,20 @@ class _Involved:
         return self._steps
 
     def _make(self) -> None:
-        """Make :attr:`parts` and :attr:`steps` (once per set of rows)."""
+        """Make :attr:`parts` and :attr:`steps` (once per set of rows; the few array operations per agent)."""
         parts, steps = [], []
         names = self.names
-        for i in range(self.inv.shape[1]):
-            rows = np.flatnonzero(self.inv[:, i])
-            picked = rows.tolist()
+        by_agent = np.ascontiguousarray(self.inv.T)
+        share, own = 1.0 / self.count, ~self.shared
+        any_shared = (by_agent & self.shared).any(axis=1).tolist()
+        for i in range(by_agent.shape[0]):
+            rows = by_agent[i].nonzero()[0]
             its: tuple[str, ...] = ()
             if names:
+                picked = rows.tolist()
                 its = itemgetter(*picked)(names) if len(picked) > 1 else tuple(names[r] for r in picked)
                 if i < len(self._pools):
                     its = self._pools[i].setdefault(its, its)
-            shared = self.shared[rows]
-            parts.append((rows, 1.0 / self.count[rows], shared, its))
-            steps.append((~shared, bool(shared.any())))
+            parts.append((rows, share[rows], self.shared[rows], its))
+            steps.append((own[rows], any_shared[i]))
         self._parts, self._steps = tuple(parts), tuple(steps)
