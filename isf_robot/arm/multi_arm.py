@@ -60,12 +60,14 @@ OFF_HOLD_S = 0.1
 class _ArmRollout:
     """Arm ``i``'s view of the team's rollout: each point's rows as :func:`agent_lie` splits them.
 
-    The arms share one rollout per control step (the first arm to ask runs it).
+    The arms share one rollout per control step (the first arm to ask runs it), and one :class:`SharedRows`
+    (``shared_rows``; its own when not given): each point's rows are looked at once for all arms.
     """
 
-    def __init__(self, rollout: Any, cache: dict[str, Any], blocks: tuple[slice, ...], i: int) -> None:
+    def __init__(self, rollout: Any, cache: dict[str, Any], blocks: tuple[slice, ...], i: int,
+                 shared_rows: SharedRows | None = None) -> None:
         self.rollout, self.cache, self.blocks, self.i = rollout, cache, blocks, i
-        self.shared_rows = SharedRows(blocks)
+        self.shared_rows = SharedRows(blocks) if shared_rows is None else shared_rows
 
     def __call__(self, t: float, x: Any) -> list[tuple[float, LieData, np.ndarray]]:
         if self.cache.get("t") != t or self.cache.get("x") is not x:  # (x: the episode's data; a new run, new data)
@@ -230,11 +232,12 @@ class MultiArmSimulation(ArmSimulation):
                                  self.control_period)
         spec, wiring = filter_options(self)
         cache: dict[str, Any] = {}
+        rows = SharedRows(self.blocks)  # (the arms' rollouts': one for all)
         per_arm = []
         for i in range(len(self.blocks)):
             w = dict(wiring)
             if "rollout" in w:
-                w["rollout"] = _ArmRollout(wiring["rollout"], cache, self.blocks, i)
+                w["rollout"] = _ArmRollout(wiring["rollout"], cache, self.blocks, i, rows)
             arm_solver = solver if self._solver_given else QPSolver(few_rows=True)  # (a given one serves every arm)
             per_arm.append(make_strategy(strategy, spec, **w, solver=arm_solver, on_infeasible="fallback",
                                          fallback=_brake, validate=False))

@@ -11,6 +11,7 @@ the safety argument). :class:`SharedRows` keeps the answer per set of row names.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from operator import itemgetter
 
 import numpy as np
 
@@ -44,7 +45,7 @@ def row_agents(lg: np.ndarray, blocks: Sequence[slice] | np.ndarray) -> np.ndarr
 
 
 def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray,
-              names: tuple[str, ...] | None = None) -> LieData:
+              names: tuple[str, ...] | None = None, scaled: bool | None = None) -> LieData:
     """Agent's rows: ``(h, lf, lg[:, block] / share, |dh/dx|)`` of the rows ``rows`` (see the module docstring).
 
     Args:
@@ -54,11 +55,15 @@ def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray,
         share: The agent's share of each of those rows, in (0, 1], shape (k_i,).
         names: Those rows' names, if at hand (:attr:`_Involved.parts` keeps one tuple per set of names, so
             that what is kept per names object downstream, e.g. the hand-over's weights, is found again).
+        scaled: Whether any share is below 1 (``None``: divide anyway; ``False`` skips dividing by shares of 1).
 
     """
     if names is None:
         names = tuple(lie.names[r] for r in rows) if lie.names else ()
-    return LieData._of(lie.h[rows], lie.lf[rows], lie.lg[rows, block] / share[:, None], lie.grad_norm[rows], names)
+    lg = lie.lg[rows, block]
+    if scaled is None or scaled:  # (a share of 1 leaves the row as it is: no division where no row is shared)
+        lg = lg / share[:, None]
+    return LieData._of(lie.h[rows], lie.lf[rows], lg, lie.grad_norm[rows], names)
 
 
 class SharedRows:
@@ -66,7 +71,8 @@ class SharedRows:
 
     A row's agents follow from which bodies its pair joins, so rows with the same names (the tuple
     :class:`LieData` shares between ticks with the same near pairs) are looked at once. Rows without
-    names are looked at every time.
+    names are looked at every time. The names object of the last call is checked first (by identity: the
+    names are not hashed while the near pairs stay the same).
     """
 
     LIMIT = 4096
@@ -76,23 +82,32 @@ class SharedRows:
         self.blocks = tuple(blocks)
         self._M: np.ndarray | None = None
         self._cache: dict[tuple[str, ...], _Involved] = {}
+        self._pools: tuple[dict[tuple[str, ...], tuple[str, ...]], ...] = tuple({} for _ in self.blocks)
+        self._last = _Involved(np.zeros((0, len(self.blocks)), bool), np.zeros(0, np.intp), np.zeros(0, bool))
 
     def __call__(self, lie: LieData) -> _Involved:
         """The agents of each row of ``lie`` (:class:`_Involved`)."""
         key = lie.names
+        last = self._last
+        if key is last.names and key and last.count.shape[0] == lie.k:
+            return last  # (the same names object as the last call's: no hashing of the names)
         if key:
             hit = self._cache.get(key)
             if hit is not None and hit.count.shape[0] == lie.k:
+                self._last = hit
                 return hit
         if self._M is None or self._M.shape[0] != lie.m:
             self._M = block_matrix(self.blocks, lie.m)
         inv = row_agents(lie.lg, self._M)
         count = inv.sum(axis=1)
-        out = _Involved(inv, count, count > 1, key)
+        out = _Involved(inv, count, count > 1, key, self._pools)
         if key:
             if len(self._cache) >= self.LIMIT:
                 self._cache.clear()
+                for pool in self._pools:
+                    pool.clear()
             self._cache[key] = out
+        self._last = out
         return out
 
 
@@ -101,23 +116,50 @@ class _Involved:
 
     ``inv``: :func:`row_agents`, shape (k, a); ``count``: how many agents each row involves, shape (k,);
     ``shared``: ``count > 1``; :attr:`parts` (made at the first use): per agent, ``(its rows, its share of each,
-    which of them are shared, their names)``.
+    which of them are shared, their names)``; :attr:`steps` (made with it): per agent, ``(which of its rows
+    are not shared, whether any is)``. An agent's names tuple is the one an earlier set of rows gave it when
+    the names are the same (``pools``, one dict per agent, kept by :class:`SharedRows`): what an agent's filter
+    keeps per names object (its hand-over's keys) is found again when other agents' rows changed.
     """
 
-    __slots__ = ("inv", "count", "shared", "names", "_parts")
+    __slots__ = ("inv", "count", "shared", "names", "_pools", "_parts", "_steps")
 
-    def __init__(self, inv: np.ndarray, count: np.ndarray, shared: np.ndarray, names: tuple[str, ...] = ()) -> None:
+    def __init__(self, inv: np.ndarray, count: np.ndarray, shared: np.ndarray, names: tuple[str, ...] = (),
+                 pools: Sequence[dict[tuple[str, ...], tuple[str, ...]]] = ()) -> None:
         self.inv, self.count, self.shared, self.names = inv, count, shared, names
+        self._pools = pools
         self._parts: tuple[tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...]], ...] | None = None
+        self._steps: tuple[tuple[np.ndarray, bool], ...] = ()
 
     @property
     def parts(self) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...]], ...]:
         """Per agent ``(rows, share, shared, names)`` (see the class docstring)."""
         if self._parts is None:
-            out = []
-            for i in range(self.inv.shape[1]):
-                rows = np.flatnonzero(self.inv[:, i])
-                names = tuple(self.names[r] for r in rows.tolist()) if self.names else ()
-                out.append((rows, 1.0 / self.count[rows], self.shared[rows], names))
-            self._parts = tuple(out)
-        return self._parts
+            self._make()
+        return self._parts  # type: ignore[return-value]
+
+    @property
+    def steps(self) -> tuple[tuple[np.ndarray, bool], ...]:
+        """Per agent ``(not shared, any shared)`` of its rows (see the class docstring)."""
+        if self._parts is None:
+            self._make()
+        return self._steps
+
+    def _make(self) -> None:
+        """Make :attr:`parts` and :attr:`steps` (once per set of rows; the few array operations per agent)."""
+        parts, steps = [], []
+        names = self.names
+        by_agent = np.ascontiguousarray(self.inv.T)
+        share, own = 1.0 / self.count, ~self.shared
+        any_shared = (by_agent & self.shared).any(axis=1).tolist()
+        for i in range(by_agent.shape[0]):
+            rows = by_agent[i].nonzero()[0]
+            its: tuple[str, ...] = ()
+            if names:
+                picked = rows.tolist()
+                its = itemgetter(*picked)(names) if len(picked) > 1 else tuple(names[r] for r in picked)
+                if i < len(self._pools):
+                    its = self._pools[i].setdefault(its, its)
+            parts.append((rows, share[rows], self.shared[rows], its))
+            steps.append((own[rows], any_shared[i]))
+        self._parts, self._steps = tuple(parts), tuple(steps)

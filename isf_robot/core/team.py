@@ -184,10 +184,13 @@ class AgentTally:
         self.metrics = MetricsAccumulator()
         self.coordination = Coordination()
 
-    def add(self, step: FilterStep, shared: np.ndarray, dt: float) -> None:
-        """Record the agent's step (``shared``: which of its rows involve another agent, shape like ``step.xi``)."""
+    def add(self, step: FilterStep, shared: np.ndarray, dt: float, shares: bool = True) -> None:
+        """Record the agent's step (``shared``: which of its rows involve another agent, shape like ``step.xi``).
+
+        ``shares=False`` says that none does (as ``shared.any()`` would; not asked again).
+        """
         self.metrics.add_step(step, dt)
-        self.coordination.add(Coordination.needs(step, shared), dt)
+        self.coordination.add(Coordination.needs(step, shared) if shares else _nobody(1), dt)
 
     def result(self) -> AgentResult:
         """The figures so far."""
@@ -357,41 +360,58 @@ class SharedFilter:
 
     def split(self, lie: LieData) -> list[tuple[np.ndarray, LieData, np.ndarray]]:
         """Each agent's ``(rows, its Lie data, which of those rows are shared)`` (:func:`~.shares.agent_lie`)."""
-        return [(rows, agent_lie(lie, b, rows, share, names), shared)
-                for b, (rows, share, shared, names) in zip(self.blocks, self.shared_rows(lie).parts)]
+        inv = self.shared_rows(lie)
+        return [(rows, agent_lie(lie, b, rows, share, names, scaled), shared)
+                for b, (rows, share, shared, names), (_, scaled) in zip(self.blocks, inv.parts, inv.steps)]
 
     def step_lie(self, t: float, lie: LieData | None, u_nom: np.ndarray, x: Any = None,
                  screen: np.ndarray | None = None, **kw: Any) -> FilterStep:
         """Every agent's filter on its share of the rows; the commands stacked."""
         u = np.array(u_nom, dtype=float)
         steps = []
+        period, tallies = self.period, self.tallies
         if lie is None:
-            for s, b in zip(self.agents, self.blocks):
-                steps.append(s.step_lie(t, None, u_nom[b]))  # type: ignore[arg-type]  # (NominalStrategy)
+            for i, (s, b) in enumerate(zip(self.agents, self.blocks)):
+                st = s.step_lie(t, None, u_nom[b])  # type: ignore[arg-type]  # (NominalStrategy)
+                u[b] = st.u
+                tallies[i].add(st, np.zeros(st.xi.shape, bool), period)
+                steps.append(st)
             xi = np.zeros(0)
-            parts: list[tuple[np.ndarray, LieData, np.ndarray]] = []
         else:
-            parts = self.split(lie)
+            inv = self.shared_rows(lie)
+            parts, own = inv.parts, inv.steps
+            subs = [agent_lie(lie, b, rows, share, names, scaled)  # (every agent's rows first: faster than by turns)
+                    for b, (rows, share, _, names), (_, scaled) in zip(self.blocks, parts, own)]
             xi = np.full(lie.k, np.inf)
-            for s, b, (rows, sub, shared) in zip(self.agents, self.blocks, parts):
-                extra = dict(kw)
+            keep = not self.promote_shared
+            for s, b, sub, (rows, _, _, _), (mine, _) in zip(self.agents, self.blocks, subs, parts, own):
+                extra = dict(kw) if kw else {}
                 if screen is not None:
                     extra["screen"] = screen[rows]
-                if s.intermittent and not self.promote_shared:
-                    extra["promotable"] = ~shared
+                if keep and s.intermittent:
+                    extra["promotable"] = mine
                 st = s.step_lie(t, sub, u_nom[b], x, **extra)
                 xi[rows] = np.minimum(xi[rows], st.xi)
                 steps.append(st)
-        for i, (b, st) in enumerate(zip(self.blocks, steps)):
-            u[b] = st.u
-            self.tallies[i].add(st, parts[i][2] if parts else np.zeros(st.xi.shape, bool), self.period)
+            for i, (b, st, (_, _, shared, _), (_, shares)) in enumerate(zip(self.blocks, steps, parts, own)):
+                u[b] = st.u
+                tallies[i].add(st, shared, period, shares)
         self.last = steps
-        on = any(st.on for st in steps)
-        event = self._switch.update(t, on, float(np.min(xi)) if xi.size else np.inf)
-        qp = next((st.qp for st in steps if st.qp is not None), None)
-        return FilterStep._of(t, u, u_nom, on, lie.h if lie is not None else xi, xi, event, qp,
-                              tuple(r for st in steps for r in st.relaxed), any(st.fallback for st in steps),
-                              lie.names if lie is not None else (), any(st.resolved for st in steps))
+        on = fallback = resolved = False
+        qp = None
+        relaxed: tuple[str, ...] = ()
+        for st in steps:  # (one pass over the agents' steps)
+            on = on or bool(st.on)
+            if qp is None:
+                qp = st.qp
+            if st.relaxed:
+                relaxed += tuple(st.relaxed)
+            fallback = fallback or bool(st.fallback)
+            resolved = resolved or bool(st.resolved)
+        switch = self._switch
+        event = None if on == switch.on else switch.update(t, on, float(np.min(xi)) if xi.size else np.inf)
+        return FilterStep._of(t, u, u_nom, on, lie.h if lie is not None else xi, xi, event, qp, relaxed, fallback,
+                              lie.names if lie is not None else (), resolved)
 
     def agent_modes(self) -> list[tuple[bool, bool]]:
         """Each agent's ``(on, QP solved)`` at the last step (its own filter's)."""
