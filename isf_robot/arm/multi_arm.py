@@ -74,8 +74,9 @@ class _ArmRollout:
             self.cache.update(t=t, x=x, points=list(self.rollout(t, x)))
         b, out = self.blocks[self.i], []
         for s, lie, u in self.cache["points"]:
-            rows, share, _, names = self.shared_rows(lie).parts[self.i]
-            out.append((s, agent_lie(lie, b, rows, share, names), np.asarray(u)[b]))
+            inv = self.shared_rows(lie)
+            rows, share, _, names = inv.parts[self.i]
+            out.append((s, agent_lie(lie, b, rows, share, names, inv.steps[self.i][1]), np.asarray(u)[b]))
         return out
 
 

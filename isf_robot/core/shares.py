@@ -45,7 +45,7 @@ def row_agents(lg: np.ndarray, blocks: Sequence[slice] | np.ndarray) -> np.ndarr
 
 
 def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray,
-              names: tuple[str, ...] | None = None, scaled: bool | None = None) -> LieData:
+              names: tuple[str, ...] | None = None, scaled: bool = True) -> LieData:
     """Agent's rows: ``(h, lf, lg[:, block] / share, |dh/dx|)`` of the rows ``rows`` (see the module docstring).
 
     Args:
@@ -55,13 +55,13 @@ def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray,
         share: The agent's share of each of those rows, in (0, 1], shape (k_i,).
         names: Those rows' names, if at hand (:attr:`_Involved.parts` keeps one tuple per set of names, so
             that what is kept per names object downstream, e.g. the hand-over's weights, is found again).
-        scaled: Whether any share is below 1 (``None``: divide anyway; ``False`` skips dividing by shares of 1).
+        scaled: Whether any share is below 1 (``False``: every share is 1, nothing to divide).
 
     """
     if names is None:
         names = tuple(lie.names[r] for r in rows) if lie.names else ()
     lg = lie.lg[rows, block]
-    if scaled is None or scaled:  # (a share of 1 leaves the row as it is: no division where no row is shared)
+    if scaled:  # (a share of 1 leaves the row as it is: no division where no row is shared)
         lg = lg / share[:, None]
     return LieData._of(lie.h[rows], lie.lf[rows], lg, lie.grad_norm[rows], names)
 
