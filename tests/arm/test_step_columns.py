@@ -48,18 +48,33 @@ def _block(capacity: int) -> tuple[StepColumns, mujoco.MjData, mujoco.MjModel]:
     return block, data, model
 
 
-@pytest.mark.parametrize("seal_every", [1, 7, 10_000])
-def test_columns_hold_what_was_written(seal_every: int) -> None:
+def _layout(u: np.ndarray, layout: str) -> np.ndarray:
+    """A command as a strategy might return it: float64 contiguous (the compiled copy), strided, or float32."""
+    if layout == "strided":
+        out = np.zeros(2 * u.size)
+        out[::2] = u
+        return out[::2]
+    return u.astype(np.float32) if layout == "float32" else u
+
+
+@pytest.mark.parametrize(("seal_every", "layout", "jit"), [(1, "float64", "1"), (7, "float64", "1"),
+                                                           (10_000, "float64", "1"), (7, "strided", "1"),
+                                                           (7, "float32", "1"), (7, "float64", "0")])
+def test_columns_hold_what_was_written(seal_every: int, layout: str, jit: str, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    monkeypatch.setenv("ISF_ROBOT_JIT", jit)  # (the row's copy: compiled and called directly, else numpy's)
     rng = np.random.default_rng(seal_every)
     rows = _rows(rng, 300)
+    for r in rows:
+        r["step"].u, r["step"].u_nom = _layout(r["step"].u, layout), _layout(r["step"].u_nom, layout)
     block, data, model = _block(400)
     block.SEAL_ROWS = 64  # (an instance value: the loop's own seals between the explicit ones)
-    want_pos = []
+    want_pos, want_ee = [], []
     for i, r in enumerate(rows):
         data.qpos[:] = r["q"]
         data.mocap_pos[0] = [i, 0.0, 0.0]
         mujoco.mj_kinematics(model, data)
         want_pos.append(data.xpos.copy())
+        want_ee.append(data.site_xpos[0].copy())
         block.write(r["t"], r["step"], r["values"], r["goal"])
         block.end_row(r["dist"])
         if (i + 1) % seal_every == 0:
@@ -70,6 +85,9 @@ def test_columns_hold_what_was_written(seal_every: int) -> None:
     np.testing.assert_array_equal(block.t[:n], [r["t"] for r in rows])
     np.testing.assert_array_equal(block.q[:n], [r["q"] for r in rows])
     np.testing.assert_array_equal(block.u[:n], [r["step"].u for r in rows])
+    np.testing.assert_array_equal(block.u_nom[:n], [r["step"].u_nom for r in rows])
+    np.testing.assert_array_equal(block.qd[:n], np.zeros((n, 2)))
+    np.testing.assert_array_equal(block.ee_pos[:n], want_ee)
     np.testing.assert_array_equal(block.body_pos[:n], want_pos)
     np.testing.assert_array_equal(block.mocap_pos[:n, 0, 0], np.arange(n))
     np.testing.assert_array_equal(block.dist_min[:n], [r["dist"] for r in rows])
