@@ -65,7 +65,7 @@ import numpy as np
 
 from .exceptions import ConfigError
 from .metrics import DutyCycleMetrics, MetricsAccumulator
-from .shares import SharedRows, agent_lie, block_matrix
+from .shares import SharedRows, block_matrix
 from .step import FilterStep
 from .strategies import Strategy
 from .switches import SwitchCounter
@@ -359,10 +359,9 @@ class SharedFilter:
         self._switch.reset()
 
     def split(self, lie: LieData) -> list[tuple[np.ndarray, LieData, np.ndarray]]:
-        """Each agent's ``(rows, its Lie data, which of those rows are shared)`` (:func:`~.shares.agent_lie`)."""
+        """Each agent's ``(rows, its Lie data, which of those rows are shared)`` (:func:`~.shares.agent_lie`'s rows)."""
         inv = self.shared_rows(lie)
-        return [(rows, agent_lie(lie, b, rows, share, names, scaled), shared)
-                for b, (rows, share, shared, names), (_, scaled) in zip(self.blocks, inv.parts, inv.steps)]
+        return [(rows, sub, shared) for sub, (rows, _, shared, _) in zip(inv.split(lie), inv.parts)]
 
     def step_lie(self, t: float, lie: LieData | None, u_nom: np.ndarray, x: Any = None,
                  screen: np.ndarray | None = None, **kw: Any) -> FilterStep:
@@ -380,8 +379,7 @@ class SharedFilter:
         else:
             inv = self.shared_rows(lie)
             parts, own = inv.parts, inv.steps
-            subs = [agent_lie(lie, b, rows, share, names, scaled)  # (every agent's rows first: faster than by turns)
-                    for b, (rows, share, _, names), (_, scaled) in zip(self.blocks, parts, own)]
+            subs = inv.split(lie)  # (every agent's rows first, in one pass: agent_lie's rows for each agent)
             xi = np.full(lie.k, np.inf)
             keep = not self.promote_shared
             for s, b, sub, (rows, _, _, _), (mine, _) in zip(self.agents, self.blocks, subs, parts, own):
