@@ -19,7 +19,7 @@ import numpy as np
 from .jit import compiled
 from .system import LieData
 
-__all__ = ["block_matrix", "row_agents", "gather_rows", "agent_lie", "SharedRows"]
+__all__ = ["block_matrix", "row_agents", "gather_rows", "agent_lie", "least_of", "SharedRows"]
 
 _NO_I = np.zeros(0, np.intp)
 
@@ -106,6 +106,18 @@ def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray,
     compiled(gather_rows)(lie.h, lie.lf, lie.lg, lie.grad_norm, rows, np.array([k], np.intp), cols,
                           np.array([w], np.intp), np.asarray(share, dtype=float), np.array([bool(scaled)]), *out)
     return LieData._of(out[0], out[1], out[3].reshape(k, w), out[2], names)
+
+
+def least_of(xi: np.ndarray, rows: np.ndarray, values: np.ndarray) -> None:
+    """``xi[rows[i]] = minimum(xi[rows[i]], values[i])`` for each ``i`` in turn (a row may come several times).
+
+    Each row's least ``Xi_on`` over the agents that have it (:meth:`_Involved.order`: every agent's rows, agent
+    after agent; ``values`` their ``Xi_on`` in that order). NaN as ``np.minimum`` treats it: kept, and taken.
+    """
+    for i in range(rows.shape[0]):
+        r, v = rows[i], values[i]
+        if v < xi[r] or v != v:
+            xi[r] = v
 
 
 class SharedRows:
@@ -201,6 +213,13 @@ class _Involved:
         if self._parts is None:
             self._make()
         return self._steps
+
+    @property
+    def order(self) -> np.ndarray:
+        """Every agent's rows (:attr:`parts`), agent after agent, in one array."""
+        if self._parts is None:
+            self._make()
+        return self._plan[0]  # type: ignore[no-any-return]
 
     def split(self, lie: LieData) -> list[LieData]:
         """Every agent's rows of ``lie`` (these rows' data), as :func:`agent_lie` makes them, in one pass.

@@ -64,8 +64,9 @@ from typing import Any
 import numpy as np
 
 from .exceptions import ConfigError
+from .jit import compiled
 from .metrics import DutyCycleMetrics, MetricsAccumulator
-from .shares import SharedRows, block_matrix
+from .shares import SharedRows, block_matrix, least_of
 from .step import FilterStep
 from .strategies import Strategy
 from .switches import SwitchCounter
@@ -380,7 +381,6 @@ class SharedFilter:
             inv = self.shared_rows(lie)
             parts, own = inv.parts, inv.steps
             subs = inv.split(lie)  # (every agent's rows first, in one pass: agent_lie's rows for each agent)
-            xi = np.full(lie.k, np.inf)
             keep = not self.promote_shared
             for s, b, sub, (rows, _, _, _), (mine, _) in zip(self.agents, self.blocks, subs, parts, own):
                 extra = dict(kw) if kw else {}
@@ -388,9 +388,9 @@ class SharedFilter:
                     extra["screen"] = screen[rows]
                 if keep and s.intermittent:
                     extra["promotable"] = mine
-                st = s.step_lie(t, sub, u_nom[b], x, **extra)
-                xi[rows] = np.minimum(xi[rows], st.xi)
-                steps.append(st)
+                steps.append(s.step_lie(t, sub, u_nom[b], x, **extra))
+            xi = np.full(lie.k, np.inf)
+            compiled(least_of)(xi, inv.order, np.concatenate([st.xi for st in steps]))  # (each row's least Xi_on)
             for i, (b, st, (_, _, shared, _), (_, shares)) in enumerate(zip(self.blocks, steps, parts, own)):
                 u[b] = st.u
                 tallies[i].add(st, shared, period, shares)
