@@ -244,11 +244,11 @@ class _Involved:
         by_agent = np.ascontiguousarray(self.inv.T)
         share, own = 1.0 / self.count, ~shared
         agent, every = by_agent.nonzero()  # (agent after agent, each agent's rows ascending: its rows, in one call)
-        ends = np.cumsum(np.bincount(agent, minlength=by_agent.shape[0]), dtype=np.intp)
+        ends = np.searchsorted(agent, np.arange(1, by_agent.shape[0] + 1)).astype(np.intp, copy=False)
         shares, shared_of, own_of = share[every], shared[every], own[every]
         picked_all = every.tolist()
+        flags = (by_agent & shared).any(axis=1).tolist()
         r0 = 0
-        flags = []
         for i, r1 in enumerate(ends.tolist()):
             rows = every[r0:r1]
             its: tuple[str, ...] = ()
@@ -257,11 +257,8 @@ class _Involved:
                 its = itemgetter(*picked)(names) if len(picked) > 1 else tuple(names[r] for r in picked)
                 if i < len(pools):
                     its = pools[i].setdefault(its, its)
-            sh = shared_of[r0:r1]
-            any_sh = bool(sh.any())
-            flags.append(any_sh)
-            parts.append((rows, shares[r0:r1], sh, its))
-            steps.append((own_of[r0:r1], any_sh))
+            parts.append((rows, shares[r0:r1], shared_of[r0:r1], its))
+            steps.append((own_of[r0:r1], flags[i]))
             r0 = r1
         self._parts, self._steps = tuple(parts), tuple(steps)
         if self._cols is None:  # (made without SharedRows: every agent's columns unknown; split is not offered)

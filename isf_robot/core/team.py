@@ -191,7 +191,11 @@ class AgentTally:
         ``shares=False`` says that none does (as ``shared.any()`` would; not asked again).
         """
         self.metrics.add_step(step, dt)
-        self.coordination.add(Coordination.needs(step, shared) if shares else _nobody(1), dt)
+        coordination = self.coordination
+        if shares and step.on:
+            coordination.add(Coordination.needs(step, shared), dt)
+        elif coordination._any:  # (off, or no shared row: nobody is needed; only the end of a stretch to record)
+            coordination.add(_nobody(1), dt)
 
     def result(self) -> AgentResult:
         """The figures so far."""
