@@ -10,7 +10,7 @@ the safety argument). :class:`SharedRows` keeps the answer per set of row names.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from operator import itemgetter
 from typing import Any
 
@@ -139,6 +139,7 @@ class SharedRows:
         self._pools: tuple[dict[tuple[str, ...], tuple[str, ...]], ...] = tuple({} for _ in self.blocks)
         self._last = _Involved(np.zeros((0, len(self.blocks)), bool), np.zeros(0, np.intp), np.zeros(0, bool))
         self._colmap: tuple[int, tuple[np.ndarray, np.ndarray, tuple[int, ...]]] | None = None
+        self._gather = compiled(gather_rows)  # (ISF_ROBOT_JIT is read here, when the rows' split is set up)
 
     def _cols(self, m: int) -> tuple[np.ndarray, np.ndarray, tuple[int, ...]]:
         """The agents' columns of ``m`` inputs, one after the other, their ends, and each agent's count."""
@@ -166,7 +167,7 @@ class SharedRows:
             self._M = block_matrix(self.blocks, lie.m)
         inv = row_agents(lie.lg, self._M)
         count = inv.sum(axis=1)
-        out = _Involved(inv, count, count > 1, key, self._pools, self._cols(lie.m))
+        out = _Involved(inv, count, count > 1, key, self._pools, self._cols(lie.m), self._gather)
         if key:
             if len(self._cache) >= self.LIMIT:
                 self._cache.clear()
@@ -186,16 +187,18 @@ class _Involved:
     are not shared, whether any is)``. An agent's names tuple is the one an earlier set of rows gave it when
     the names are the same (``pools``, one dict per agent, kept by :class:`SharedRows`): what an agent's filter
     keeps per names object (its hand-over's keys) is found again when other agents' rows changed. ``cols``:
-    the agents' columns one after the other, their ends and each agent's count (:meth:`split`).
+    the agents' columns one after the other, their ends and each agent's count; ``gather``: :func:`gather_rows`,
+    compiled or not (:meth:`split`).
     """
 
-    __slots__ = ("inv", "count", "shared", "names", "_pools", "_cols", "_parts", "_steps", "_plan")
+    __slots__ = ("inv", "count", "shared", "names", "_pools", "_cols", "_gather", "_parts", "_steps", "_plan")
 
     def __init__(self, inv: np.ndarray, count: np.ndarray, shared: np.ndarray, names: tuple[str, ...] = (),
                  pools: Sequence[dict[tuple[str, ...], tuple[str, ...]]] = (),
-                 cols: tuple[np.ndarray, np.ndarray, tuple[int, ...]] | None = None) -> None:
+                 cols: tuple[np.ndarray, np.ndarray, tuple[int, ...]] | None = None,
+                 gather: Callable[..., None] = gather_rows) -> None:
         self.inv, self.count, self.shared, self.names = inv, count, shared, names
-        self._pools, self._cols = pools, cols
+        self._pools, self._cols, self._gather = pools, cols, gather
         self._parts: tuple[tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...]], ...] | None = None
         self._steps: tuple[tuple[np.ndarray, bool], ...] = ()
         self._plan: tuple[Any, ...] = ()
@@ -233,8 +236,7 @@ class _Involved:
         cols, col_ends, _ = self._cols  # type: ignore[misc]
         k = rows.shape[0]
         h, lf, gn, lg = np.empty(k), np.empty(k), np.empty(k), np.empty(size)
-        compiled(gather_rows)(lie.h, lie.lf, lie.lg, lie.grad_norm, rows, ends, cols, col_ends, share, scaled,
-                              h, lf, gn, lg)
+        self._gather(lie.h, lie.lf, lie.lg, lie.grad_norm, rows, ends, cols, col_ends, share, scaled, h, lf, gn, lg)
         return [LieData._of(h[r], lf[r], lg[p].reshape(shape), gn[r], names) for r, p, shape, names in views]
 
     def _make(self) -> None:
