@@ -43,9 +43,9 @@ import os
 from collections.abc import Callable
 from typing import Any
 
-from isf_robot.core.filter_base import core_kernels
 from isf_robot.core.jit import compiled, jit_enabled
 from isf_robot.core.jit import compiled_here as jit_compiled_here
+from isf_robot.core.passes import core_kernels
 
 __all__ = ["available", "compiled_here", "monitor_kernel", "near_kernel", "rollout_kernels", "second_order_kernels",
            "step_kernels"]

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from isf_robot.core import ConfigError, LieData, QPSolver, UnknownNameError
-from isf_robot.core.shares import SharedRows, agent_lie
+from isf_robot.core.shares import SharedRows
 from isf_robot.core.strategies import make_strategy
 from isf_robot.core.team import CentralFilter, SharedFilter
 
@@ -58,7 +58,7 @@ OFF_HOLD_S = 0.1
 
 
 class _ArmRollout:
-    """Arm ``i``'s view of the team's rollout: each point's rows as :func:`agent_lie` splits them.
+    """Arm ``i``'s view of the team's rollout: each point's rows as :func:`~isf_robot.core.shares.agent_lie` makes them.
 
     The arms share one rollout per control step (the first arm to ask runs it), and one :class:`SharedRows`
     (``shared_rows``; its own when not given): each point's rows are looked at once for all arms.
@@ -70,14 +70,14 @@ class _ArmRollout:
         self.shared_rows = SharedRows(blocks) if shared_rows is None else shared_rows
 
     def __call__(self, t: float, x: Any) -> list[tuple[float, LieData, np.ndarray]]:
-        if self.cache.get("t") != t or self.cache.get("x") is not x:  # (x: the episode's data; a new run, new data)
-            self.cache.update(t=t, x=x, points=list(self.rollout(t, x)))
-        b, out = self.blocks[self.i], []
-        for s, lie, u in self.cache["points"]:
-            inv = self.shared_rows(lie)
-            rows, share, _, names = inv.parts[self.i]
-            out.append((s, agent_lie(lie, b, rows, share, names, inv.steps[self.i][1]), np.asarray(u)[b]))
-        return out
+        cache = self.cache
+        if cache.get("t") != t or cache.get("x") is not x:  # (x: the episode's data; a new run, new data)
+            cache.update(t=t, x=x, points=list(self.rollout(t, x)), split=None)
+        split = cache["split"]
+        if split is None:  # (every arm's rows of every point, in one pass per point: the first arm to ask)
+            split = cache["split"] = [self.shared_rows(lie).split(lie) for _, lie, _ in cache["points"]]
+        b, i = self.blocks[self.i], self.i
+        return [(s, subs[i], np.asarray(u)[b]) for (s, _, u), subs in zip(cache["points"], split)]
 
 
 class _TeamEpisode(ArmSimulation.episode):  # type: ignore[name-defined,misc,valid-type]

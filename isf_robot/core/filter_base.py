@@ -18,7 +18,7 @@ The filters' semantics (when they are on, which rows they promote) are in
 Each pass is one plain function, compiled by numba where it runs
 (:func:`~isf_robot.core.jit.compiled`; ``ISF_ROBOT_JIT=0`` runs it as written, read when the
 filter is built); for float64 C-contiguous inputs and a linear class-K function its compiled code is
-called without numba's per-call dispatch (:class:`_DirectPasses`, :func:`~isf_robot.core.jit.direct`).
+called without numba's per-call dispatch (:mod:`isf_robot.core.passes`).
 """
 
 from __future__ import annotations
@@ -28,17 +28,17 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import replace
-from typing import Any, NamedTuple
+from operator import itemgetter
+from typing import NamedTuple
 
 import numpy as np
 
-from . import projection, qp_check, robust, screening
+from . import projection, qp_check
 from .barrier import Barrier, evaluate_barriers
 from .class_k import ClassK, Linear, as_class_k
-from .closed_step import promoted_closed_step, screened_closed_step, xi_closed_step
 from .exceptions import ConfigError, InfeasibleFilterError, IsfWarning, NonFiniteError, ShapeError, SolverError
-from .handover import promote_rows
-from .jit import compiled, direct, jit_enabled
+from .jit import compiled
+from .passes import DirectPasses, Passes
 from .projection import FEW_ROWS
 from .qp import FilterQP, QPResult
 from .qp_solver import QPSolver
@@ -69,67 +69,6 @@ def _masks(n: int) -> tuple[np.ndarray, ...]:
         mask.flags.writeable = False
         out.append(mask)
     return tuple(out)
-
-
-class Passes(NamedTuple):
-    """The step's passes: each a function of :mod:`.robust`, :mod:`.screening`, :mod:`.handover`, compiled or not."""
-
-    xi_pass: Callable[..., Any]
-    row_bounds: Callable[..., Any]
-    screened_rows: Callable[..., Any]
-    others_hold: Callable[..., Any]
-    promote_rows: Callable[..., Any]
-    xi_closed_step: Callable[..., Any]
-    screened_closed_step: Callable[..., Any]
-    promoted_closed_step: Callable[..., Any]
-
-    @classmethod
-    def build(cls, compile_them: bool = True) -> Passes:
-        """The passes compiled (where ``ISF_ROBOT_JIT`` allows; ``compile_them=False``: as written)."""
-        c = compiled if compile_them else (lambda f: f)
-        return cls(c(robust.xi_pass), c(robust.row_bounds), c(screening.screened_rows), c(screening.others_hold),
-                   c(promote_rows), c(xi_closed_step), c(screened_closed_step), c(promoted_closed_step))
-
-
-class _DirectPasses:
-    """:class:`Passes`' compiled code called without numba's dispatch (:func:`~isf_robot.core.jit.direct`).
-
-    Each pass is resolved at its first call, for that call's argument types; the filter hands these passes
-    only inputs :meth:`_FilterBase._passes_for` admits (float64, C-contiguous, one dimension, ``Lg h`` two; a
-    linear class-K function), so every later call passes arrays of the same types: those, the filter's own
-    buffers and flags, and screening thresholds made C-contiguous float64 (:meth:`_FilterBase._screen_array`).
-    """
-
-    __slots__ = (*Passes._fields, "_of")
-
-    def __init__(self, passes: Passes) -> None:
-        self._of = passes
-
-    def __reduce__(self) -> tuple[Any, ...]:  # (a copy resolves its passes again: compiled code does not pickle)
-        return _DirectPasses, (self._of,)
-
-    def __getattr__(self, name: str) -> Any:  # (a pass not called yet: resolved at this call)
-        if name.startswith("_"):  # (not a pass; also _of before __init__, as a copy is being made)
-            raise AttributeError(name)
-        kernel = getattr(self._of, name)
-
-        def first(*args: Any) -> Any:
-            code = direct(kernel, args)
-            setattr(self, name, code)
-            return code(*args)
-
-        return first
-
-
-def core_kernels() -> list[Any]:
-    """The core's compiled functions (the filter step's passes, the closed forms, the prediction pass).
-
-    For :func:`~isf_robot.core.jit.compiled_here`; empty when the kernels are off.
-    """
-    if not jit_enabled():
-        return []
-    return [*Passes.build(), compiled(projection.project_row), compiled(projection.project_few_within),
-            compiled(projection.within_bounds), compiled(qp_check.answer_violation), compiled(robust.predict_pass)]
 
 
 class _Xi(NamedTuple):
@@ -192,7 +131,7 @@ class _FilterBase:
         self.screen = self._check_screen(screen)
         self._passes = Passes.build()  # (ISF_ROBOT_JIT is read when the filter is built)
         self._plain = Passes.build(False)  # (inputs the compiled passes do not take: other dtypes, no inputs)
-        self._direct = _DirectPasses(self._passes)  # (the compiled passes for inputs of fixed types: _passes_for)
+        self._direct = DirectPasses(self._passes)  # (the compiled passes for inputs of fixed types: _passes_for)
         self._closed = self._closed_forms()  # (the solver's options and the bounds are read when the filter is built)
         self._lo = qp_check.NO_BOUND if self.u_min is None else self.u_min  # (the closed steps' bounds: length 0 none)
         self._hi = qp_check.NO_BOUND if self.u_max is None else self.u_max
@@ -221,7 +160,7 @@ class _FilterBase:
             sa = self._screens.get(screen)
             if sa is None:
                 sa = self._screens[screen] = np.full(1, screen)
-        else:  # (C-contiguous float64, as the passes take them: _DirectPasses)
+        else:  # (C-contiguous float64, as the passes take them: passes.DirectPasses)
             sa = np.ascontiguousarray(screen, dtype=float).reshape(-1)
         if sa.shape[0] != k and sa.shape[0] != 1:
             raise ShapeError(f"screen thresholds: one, or one per row ({k}); got {sa.shape[0]}")
@@ -272,7 +211,7 @@ class _FilterBase:
     def _passes_for(self, lie: LieData, u_nom: np.ndarray) -> Passes:
         """The compiled passes for float64 data with inputs; the plain ones otherwise (numpy decides).
 
-        Called without numba's dispatch (:class:`_DirectPasses`) where every array is C-contiguous and of one
+        Called without numba's dispatch (:class:`DirectPasses`) where every array is C-contiguous and of one
         dimension (``Lg h`` two) and the class-K function linear: the types those calls were resolved for.
         """
         lg, h, lf, gn = lie.lg, lie.h, lie.lf, lie.grad_norm
@@ -466,10 +405,14 @@ class _FilterBase:
         A = lie.lg if rows is None else lie.lg.take(rows, 0)
         names = lie.names
         if rows is not None and names:
-            nn = len(names)
-            names = tuple(names[i] if i < nn else str(i) for i in rows.tolist())
-        promoted = promote is not None and bool(prom[idx].any())
-        kinds = tuple(map(_KINDS.__getitem__, prom[idx].tolist())) if promoted else ()
+            picked, nn = rows.tolist(), len(names)
+            if len(picked) > 1 and max(picked) < nn:  # (every row named: one call)
+                names = itemgetter(*picked)(names)
+            else:
+                names = tuple(names[i] if i < nn else str(i) for i in picked)
+        marks = prom[idx] if promote is not None and prom.any() else None  # (the rows' promotion flags, if any)
+        promoted = marks is not None and bool(marks.any())
+        kinds = tuple(map(_KINDS.__getitem__, marks.tolist())) if promoted else ()  # type: ignore[union-attr]
         qp = FilterQP._of(u_nom, A, lb, self.u_min, self.u_max, kinds, names)
         res = self._solve(qp)
         relaxed: tuple[str, ...] = ()

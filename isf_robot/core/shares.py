@@ -10,14 +10,18 @@ the safety argument). :class:`SharedRows` keeps the answer per set of row names.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from operator import itemgetter
+from typing import Any
 
 import numpy as np
 
+from .jit import compiled
 from .system import LieData
 
-__all__ = ["block_matrix", "row_agents", "agent_lie", "SharedRows"]
+__all__ = ["block_matrix", "row_agents", "gather_rows", "agent_lie", "least_of", "SharedRows"]
+
+_NO_I = np.zeros(0, np.intp)
 
 
 def block_matrix(blocks: Sequence[slice], m: int) -> np.ndarray:
@@ -44,9 +48,44 @@ def row_agents(lg: np.ndarray, blocks: Sequence[slice] | np.ndarray) -> np.ndarr
     return np.abs(lg) @ M > 0.0
 
 
+def gather_rows(h: np.ndarray, lf: np.ndarray, lg: np.ndarray, grad_norm: np.ndarray, rows: np.ndarray,
+                ends: np.ndarray, cols: np.ndarray, col_ends: np.ndarray, share: np.ndarray, scaled: np.ndarray,
+                out_h: np.ndarray, out_lf: np.ndarray, out_gn: np.ndarray, out_lg: np.ndarray) -> None:
+    """Agents' rows ``(h, lf, lg[:, cols] / share, |dh/dx|)``, agent after agent (see the module docstring).
+
+    Agent ``a``: the rows ``rows[ends[a - 1]:ends[a]]`` (``ends[-1]`` read as 0), its columns
+    ``cols[col_ends[a - 1]:col_ends[a]]``, its share of each of those rows ``share[ends[a - 1]:ends[a]]``
+    (divided by only where ``scaled[a]``: a share of 1 leaves the row as it is). Written to ``out_h``,
+    ``out_lf``, ``out_gn`` (one entry per row of ``rows``) and ``out_lg`` (flat: each agent's rows by its
+    columns, row by row, after the agents before it). One pass for every agent, compiled by numba where the
+    kernels run (:class:`_Involved.split`).
+    """
+    p = 0
+    r0 = c0 = 0
+    for a in range(ends.shape[0]):
+        r1, c1 = ends[a], col_ends[a]
+        for i in range(r0, r1):
+            r = rows[i]
+            out_h[i] = h[r]
+            out_lf[i] = lf[r]
+            out_gn[i] = grad_norm[r]
+            if scaled[a]:
+                s = share[i]
+                for j in range(c0, c1):
+                    out_lg[p] = lg[r, cols[j]] / s
+                    p += 1
+            else:
+                for j in range(c0, c1):
+                    out_lg[p] = lg[r, cols[j]]
+                    p += 1
+        r0, c0 = r1, c1
+
+
 def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray,
               names: tuple[str, ...] | None = None, scaled: bool = True) -> LieData:
     """Agent's rows: ``(h, lf, lg[:, block] / share, |dh/dx|)`` of the rows ``rows`` (see the module docstring).
+
+    :func:`gather_rows` for one agent (:meth:`_Involved.split` makes every agent's in one call).
 
     Args:
         lie: The team's rows.
@@ -60,10 +99,25 @@ def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray,
     """
     if names is None:
         names = tuple(lie.names[r] for r in rows) if lie.names else ()
-    lg = lie.lg[rows, block]
-    if scaled:  # (a share of 1 leaves the row as it is: no division where no row is shared)
-        lg = lg / share[:, None]
-    return LieData._of(lie.h[rows], lie.lf[rows], lg, lie.grad_norm[rows], names)
+    rows = np.asarray(rows, dtype=np.intp)
+    cols = np.arange(lie.lg.shape[1], dtype=np.intp)[block]
+    k, w = rows.shape[0], cols.shape[0]
+    out = np.empty(k), np.empty(k), np.empty(k), np.empty(k * w)
+    compiled(gather_rows)(lie.h, lie.lf, lie.lg, lie.grad_norm, rows, np.array([k], np.intp), cols,
+                          np.array([w], np.intp), np.asarray(share, dtype=float), np.array([bool(scaled)]), *out)
+    return LieData._of(out[0], out[1], out[3].reshape(k, w), out[2], names)
+
+
+def least_of(xi: np.ndarray, rows: np.ndarray, values: np.ndarray) -> None:
+    """``xi[rows[i]] = minimum(xi[rows[i]], values[i])`` for each ``i`` in turn (a row may come several times).
+
+    Each row's least ``Xi_on`` over the agents that have it (:meth:`_Involved.order`: every agent's rows, agent
+    after agent; ``values`` their ``Xi_on`` in that order). NaN as ``np.minimum`` treats it: kept, and taken.
+    """
+    for i in range(rows.shape[0]):
+        r, v = rows[i], values[i]
+        if v < xi[r] or v != v:
+            xi[r] = v
 
 
 class SharedRows:
@@ -84,6 +138,19 @@ class SharedRows:
         self._cache: dict[tuple[str, ...], _Involved] = {}
         self._pools: tuple[dict[tuple[str, ...], tuple[str, ...]], ...] = tuple({} for _ in self.blocks)
         self._last = _Involved(np.zeros((0, len(self.blocks)), bool), np.zeros(0, np.intp), np.zeros(0, bool))
+        self._colmap: tuple[int, tuple[np.ndarray, np.ndarray, tuple[int, ...]]] | None = None
+        self._gather = compiled(gather_rows)  # (ISF_ROBOT_JIT is read here, when the rows' split is set up)
+
+    def _cols(self, m: int) -> tuple[np.ndarray, np.ndarray, tuple[int, ...]]:
+        """The agents' columns of ``m`` inputs, one after the other, their ends, and each agent's count."""
+        got = self._colmap
+        if got is None or got[0] != m:
+            every = np.arange(m, dtype=np.intp)
+            each = [every[b] for b in self.blocks]
+            widths = tuple(c.shape[0] for c in each)
+            got = self._colmap = (m, (np.concatenate(each) if each else _NO_I,
+                                      np.cumsum(widths, dtype=np.intp), widths))
+        return got[1]
 
     def __call__(self, lie: LieData) -> _Involved:
         """The agents of each row of ``lie`` (:class:`_Involved`)."""
@@ -100,7 +167,7 @@ class SharedRows:
             self._M = block_matrix(self.blocks, lie.m)
         inv = row_agents(lie.lg, self._M)
         count = inv.sum(axis=1)
-        out = _Involved(inv, count, count > 1, key, self._pools)
+        out = _Involved(inv, count, count > 1, key, self._pools, self._cols(lie.m), self._gather)
         if key:
             if len(self._cache) >= self.LIMIT:
                 self._cache.clear()
@@ -119,17 +186,22 @@ class _Involved:
     which of them are shared, their names)``; :attr:`steps` (made with it): per agent, ``(which of its rows
     are not shared, whether any is)``. An agent's names tuple is the one an earlier set of rows gave it when
     the names are the same (``pools``, one dict per agent, kept by :class:`SharedRows`): what an agent's filter
-    keeps per names object (its hand-over's keys) is found again when other agents' rows changed.
+    keeps per names object (its hand-over's keys) is found again when other agents' rows changed. ``cols``:
+    the agents' columns one after the other, their ends and each agent's count; ``gather``: :func:`gather_rows`,
+    compiled or not (:meth:`split`).
     """
 
-    __slots__ = ("inv", "count", "shared", "names", "_pools", "_parts", "_steps")
+    __slots__ = ("inv", "count", "shared", "names", "_pools", "_cols", "_gather", "_parts", "_steps", "_plan")
 
     def __init__(self, inv: np.ndarray, count: np.ndarray, shared: np.ndarray, names: tuple[str, ...] = (),
-                 pools: Sequence[dict[tuple[str, ...], tuple[str, ...]]] = ()) -> None:
+                 pools: Sequence[dict[tuple[str, ...], tuple[str, ...]]] = (),
+                 cols: tuple[np.ndarray, np.ndarray, tuple[int, ...]] | None = None,
+                 gather: Callable[..., None] = gather_rows) -> None:
         self.inv, self.count, self.shared, self.names = inv, count, shared, names
-        self._pools = pools
+        self._pools, self._cols, self._gather = pools, cols, gather
         self._parts: tuple[tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...]], ...] | None = None
         self._steps: tuple[tuple[np.ndarray, bool], ...] = ()
+        self._plan: tuple[Any, ...] = ()
 
     @property
     def parts(self) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...]], ...]:
@@ -145,21 +217,59 @@ class _Involved:
             self._make()
         return self._steps
 
+    @property
+    def order(self) -> np.ndarray:
+        """Every agent's rows (:attr:`parts`), agent after agent, in one array."""
+        if self._parts is None:
+            self._make()
+        return self._plan[0]  # type: ignore[no-any-return]
+
+    def split(self, lie: LieData) -> list[LieData]:
+        """Every agent's rows of ``lie`` (these rows' data), as :func:`agent_lie` makes them, in one pass.
+
+        :func:`gather_rows` (compiled where the kernels run) into one fresh array per field; agent ``i``'s data
+        are views of its part (C-contiguous, float64).
+        """
+        if self._parts is None:
+            self._make()
+        rows, ends, share, scaled, views, size = self._plan
+        cols, col_ends, _ = self._cols  # type: ignore[misc]
+        k = rows.shape[0]
+        h, lf, gn, lg = np.empty(k), np.empty(k), np.empty(k), np.empty(size)
+        self._gather(lie.h, lie.lf, lie.lg, lie.grad_norm, rows, ends, cols, col_ends, share, scaled, h, lf, gn, lg)
+        return [LieData._of(h[r], lf[r], lg[p].reshape(shape), gn[r], names) for r, p, shape, names in views]
+
     def _make(self) -> None:
-        """Make :attr:`parts` and :attr:`steps` (once per set of rows; the few array operations per agent)."""
+        """Make :attr:`parts`, :attr:`steps` and :meth:`split`'s plan (once per set of rows)."""
         parts, steps = [], []
-        names = self.names
+        names, pools, shared = self.names, self._pools, self.shared
         by_agent = np.ascontiguousarray(self.inv.T)
-        share, own = 1.0 / self.count, ~self.shared
-        any_shared = (by_agent & self.shared).any(axis=1).tolist()
-        for i in range(by_agent.shape[0]):
-            rows = by_agent[i].nonzero()[0]
+        share, own = 1.0 / self.count, ~shared
+        agent, every = by_agent.nonzero()  # (agent after agent, each agent's rows ascending: its rows, in one call)
+        ends = np.searchsorted(agent, np.arange(1, by_agent.shape[0] + 1)).astype(np.intp, copy=False)
+        shares, shared_of, own_of = share[every], shared[every], own[every]
+        picked_all = every.tolist()
+        flags = (by_agent & shared).any(axis=1).tolist()
+        r0 = 0
+        for i, r1 in enumerate(ends.tolist()):
+            rows = every[r0:r1]
             its: tuple[str, ...] = ()
             if names:
-                picked = rows.tolist()
+                picked = picked_all[r0:r1]
                 its = itemgetter(*picked)(names) if len(picked) > 1 else tuple(names[r] for r in picked)
-                if i < len(self._pools):
-                    its = self._pools[i].setdefault(its, its)
-            parts.append((rows, share[rows], self.shared[rows], its))
-            steps.append((own[rows], any_shared[i]))
+                if i < len(pools):
+                    its = pools[i].setdefault(its, its)
+            parts.append((rows, shares[r0:r1], shared_of[r0:r1], its))
+            steps.append((own_of[r0:r1], flags[i]))
+            r0 = r1
         self._parts, self._steps = tuple(parts), tuple(steps)
+        if self._cols is None:  # (made without SharedRows: every agent's columns unknown; split is not offered)
+            return
+        widths = self._cols[2]
+        views, r0, p0 = [], 0, 0
+        for (rows, _, _, its), w in zip(parts, widths):
+            r1 = r0 + rows.shape[0]
+            p1 = p0 + rows.shape[0] * w
+            views.append((slice(r0, r1), slice(p0, p1), (rows.shape[0], w), its))
+            r0, p0 = r1, p1
+        self._plan = (every.astype(np.intp, copy=False), ends, shares, np.array(flags, bool), tuple(views), p0)

@@ -64,8 +64,9 @@ from typing import Any
 import numpy as np
 
 from .exceptions import ConfigError
+from .jit import compiled
 from .metrics import DutyCycleMetrics, MetricsAccumulator
-from .shares import SharedRows, agent_lie, block_matrix
+from .shares import SharedRows, block_matrix, least_of
 from .step import FilterStep
 from .strategies import Strategy
 from .switches import SwitchCounter
@@ -190,7 +191,11 @@ class AgentTally:
         ``shares=False`` says that none does (as ``shared.any()`` would; not asked again).
         """
         self.metrics.add_step(step, dt)
-        self.coordination.add(Coordination.needs(step, shared) if shares else _nobody(1), dt)
+        coordination = self.coordination
+        if shares and step.on:
+            coordination.add(Coordination.needs(step, shared), dt)
+        elif coordination._any:  # (off, or no shared row: nobody is needed; only the end of a stretch to record)
+            coordination.add(_nobody(1), dt)
 
     def result(self) -> AgentResult:
         """The figures so far."""
@@ -345,6 +350,7 @@ class SharedFilter:
         self.last: list[FilterStep] = []
         self._switch = SwitchCounter()
         self.shared_rows = SharedRows(self.blocks)
+        self._least = compiled(least_of)  # (ISF_ROBOT_JIT is read when the filter is built)
 
     @property
     def on(self) -> bool:
@@ -359,10 +365,9 @@ class SharedFilter:
         self._switch.reset()
 
     def split(self, lie: LieData) -> list[tuple[np.ndarray, LieData, np.ndarray]]:
-        """Each agent's ``(rows, its Lie data, which of those rows are shared)`` (:func:`~.shares.agent_lie`)."""
+        """Each agent's ``(rows, its Lie data, which of those rows are shared)`` (:func:`~.shares.agent_lie`'s rows)."""
         inv = self.shared_rows(lie)
-        return [(rows, agent_lie(lie, b, rows, share, names, scaled), shared)
-                for b, (rows, share, shared, names), (_, scaled) in zip(self.blocks, inv.parts, inv.steps)]
+        return [(rows, sub, shared) for sub, (rows, _, shared, _) in zip(inv.split(lie), inv.parts)]
 
     def step_lie(self, t: float, lie: LieData | None, u_nom: np.ndarray, x: Any = None,
                  screen: np.ndarray | None = None, **kw: Any) -> FilterStep:
@@ -380,9 +385,7 @@ class SharedFilter:
         else:
             inv = self.shared_rows(lie)
             parts, own = inv.parts, inv.steps
-            subs = [agent_lie(lie, b, rows, share, names, scaled)  # (every agent's rows first: faster than by turns)
-                    for b, (rows, share, _, names), (_, scaled) in zip(self.blocks, parts, own)]
-            xi = np.full(lie.k, np.inf)
+            subs = inv.split(lie)  # (every agent's rows first, in one pass: agent_lie's rows for each agent)
             keep = not self.promote_shared
             for s, b, sub, (rows, _, _, _), (mine, _) in zip(self.agents, self.blocks, subs, parts, own):
                 extra = dict(kw) if kw else {}
@@ -390,9 +393,9 @@ class SharedFilter:
                     extra["screen"] = screen[rows]
                 if keep and s.intermittent:
                     extra["promotable"] = mine
-                st = s.step_lie(t, sub, u_nom[b], x, **extra)
-                xi[rows] = np.minimum(xi[rows], st.xi)
-                steps.append(st)
+                steps.append(s.step_lie(t, sub, u_nom[b], x, **extra))
+            xi = np.full(lie.k, np.inf)
+            self._least(xi, inv.order, np.concatenate([st.xi for st in steps]))  # (each row's least Xi_on)
             for i, (b, st, (_, _, shared, _), (_, shares)) in enumerate(zip(self.blocks, steps, parts, own)):
                 u[b] = st.u
                 tallies[i].add(st, shared, period, shares)
