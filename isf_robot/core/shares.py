@@ -57,27 +57,23 @@ def gather_rows(h: np.ndarray, lf: np.ndarray, lg: np.ndarray, grad_norm: np.nda
     ``cols[col_ends[a - 1]:col_ends[a]]``, its share of each of those rows ``share[ends[a - 1]:ends[a]]``
     (divided by only where ``scaled[a]``: a share of 1 leaves the row as it is). Written to ``out_h``,
     ``out_lf``, ``out_gn`` (one entry per row of ``rows``) and ``out_lg`` (flat: each agent's rows by its
-    columns, row by row, after the agents before it). One pass for every agent, compiled by numba where the
-    kernels run (:class:`_Involved.split`).
+    columns, row by row, after the agents before it). One call for every agent, in array operations per agent
+    (as fast as numpy runs it; compiled by numba where the kernels run, :class:`_Involved.split`).
     """
+    out_h[:] = h[rows]
+    out_lf[:] = lf[rows]
+    out_gn[:] = grad_norm[rows]
     p = 0
     r0 = c0 = 0
     for a in range(ends.shape[0]):
         r1, c1 = ends[a], col_ends[a]
-        for i in range(r0, r1):
-            r = rows[i]
-            out_h[i] = h[r]
-            out_lf[i] = lf[r]
-            out_gn[i] = grad_norm[r]
-            if scaled[a]:
-                s = share[i]
-                for j in range(c0, c1):
-                    out_lg[p] = lg[r, cols[j]] / s
-                    p += 1
-            else:
-                for j in range(c0, c1):
-                    out_lg[p] = lg[r, cols[j]]
-                    p += 1
+        block = lg[rows[r0:r1]][:, cols[c0:c1]]
+        dst = out_lg[p: p + block.size].reshape(r1 - r0, c1 - c0)
+        if scaled[a]:
+            dst[:] = (block.T / share[r0:r1]).T
+        else:
+            dst[:] = block
+        p += block.size
         r0, c0 = r1, c1
 
 
@@ -108,16 +104,19 @@ def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray,
     return LieData._of(out[0], out[1], out[3].reshape(k, w), out[2], names)
 
 
-def least_of(xi: np.ndarray, rows: np.ndarray, values: np.ndarray) -> None:
-    """``xi[rows[i]] = minimum(xi[rows[i]], values[i])`` for each ``i`` in turn (a row may come several times).
+def least_of(xi: np.ndarray, rows: np.ndarray, ends: np.ndarray, values: np.ndarray) -> None:
+    """``xi[r] = minimum(xi[r], v)`` over every agent's rows ``r`` and their ``Xi_on`` ``v``, agent after agent.
 
-    Each row's least ``Xi_on`` over the agents that have it (:meth:`_Involved.order`: every agent's rows, agent
-    after agent; ``values`` their ``Xi_on`` in that order). NaN as ``np.minimum`` treats it: kept, and taken.
+    Each row's least ``Xi_on`` over the agents that have it (:attr:`_Involved.order`: every agent's rows, agent
+    after agent, each agent's ascending, and where each agent's end; ``values`` their ``Xi_on`` in that order).
+    NaN as ``np.minimum`` treats it. One call in array operations per agent (compiled where the kernels run).
     """
-    for i in range(rows.shape[0]):
-        r, v = rows[i], values[i]
-        if v < xi[r] or v != v:
-            xi[r] = v
+    r0 = 0
+    for a in range(ends.shape[0]):
+        r1 = ends[a]
+        idx = rows[r0:r1]
+        xi[idx] = np.minimum(xi[idx], values[r0:r1])
+        r0 = r1
 
 
 class SharedRows:
@@ -218,11 +217,11 @@ class _Involved:
         return self._steps
 
     @property
-    def order(self) -> np.ndarray:
-        """Every agent's rows (:attr:`parts`), agent after agent, in one array."""
+    def order(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every agent's rows (:attr:`parts`), agent after agent, in one array, and where each agent's end."""
         if self._parts is None:
             self._make()
-        return self._plan[0]  # type: ignore[no-any-return]
+        return self._plan[0], self._plan[1]
 
     def split(self, lie: LieData) -> list[LieData]:
         """Every agent's rows of ``lie`` (these rows' data), as :func:`agent_lie` makes them, in one pass.

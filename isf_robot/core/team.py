@@ -395,7 +395,7 @@ class SharedFilter:
                     extra["promotable"] = mine
                 steps.append(s.step_lie(t, sub, u_nom[b], x, **extra))
             xi = np.full(lie.k, np.inf)
-            self._least(xi, inv.order, np.concatenate([st.xi for st in steps]))  # (each row's least Xi_on)
+            self._least(xi, *inv.order, np.concatenate([st.xi for st in steps]))  # (each row's least Xi_on)
             for i, (b, st, (_, _, shared, _), (_, shares)) in enumerate(zip(self.blocks, steps, parts, own)):
                 u[b] = st.u
                 tallies[i].add(st, shared, period, shares)

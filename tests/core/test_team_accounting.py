@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from isf_robot.core import LieData
-from isf_robot.core.shares import SharedRows, row_agents
+from isf_robot.core.jit import compiled
+from isf_robot.core.shares import SharedRows, agent_lie, gather_rows, least_of, row_agents
 from isf_robot.core.step import FilterStep
 from isf_robot.core.team import BlockIntervention, Coordination
 
@@ -63,6 +64,52 @@ def test_shared_rows_match_row_agents_and_are_kept_per_names() -> None:
     nameless = shared(_lie(lg[[2]], ()))
     np.testing.assert_array_equal(nameless.shared, [True])
     assert shared(_lie(lg[[0]], ())) is not nameless
+
+
+@pytest.mark.parametrize("jit", ["1", "0"])
+def test_split_gives_each_agent_its_rows_its_columns_and_its_share(jit: str, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """Every agent's rows in one pass (compiled or as written) equal the rows picked one agent at a time."""
+    monkeypatch.setenv("ISF_ROBOT_JIT", jit)
+    rng = np.random.default_rng(2)
+    blocks = (slice(0, 2), slice(2, 5), slice(5, 7))
+    lg = rng.normal(size=(9, 7))
+    lg[rng.random(size=(9, 7)) < 0.4] = 0.0  # (rows of one agent, of two, of three)
+    lg[0] = 0.0
+    lg[0, 3] = 1.5  # (a row of agent 1 alone)
+    lie = LieData._of(rng.normal(size=9), rng.normal(size=9), lg, np.linalg.norm(lg, axis=1) + 1.0,
+                      tuple(f"r{i}" for i in range(9)))
+    inv = SharedRows(blocks)(lie)
+    subs = inv.split(lie)
+    inv_rows = row_agents(lg, blocks)
+    for a, (b, sub, (rows, share, _, names)) in enumerate(zip(blocks, subs, inv.parts)):
+        np.testing.assert_array_equal(rows, np.flatnonzero(inv_rows[:, a]))
+        want_share = 1.0 / inv_rows[rows].sum(axis=1)
+        np.testing.assert_array_equal(share, want_share)
+        np.testing.assert_array_equal(sub.h, lie.h[rows])
+        np.testing.assert_array_equal(sub.lf, lie.lf[rows])
+        np.testing.assert_array_equal(sub.grad_norm, lie.grad_norm[rows])
+        np.testing.assert_array_equal(sub.lg, lg[rows][:, b] / want_share[:, None])
+        assert sub.names == names == tuple(f"r{i}" for i in rows)
+        one = agent_lie(lie, b, rows, share, names)  # (one agent's rows, the same pass)
+        np.testing.assert_array_equal(one.lg, sub.lg)
+        np.testing.assert_array_equal(agent_lie(lie, b, rows, np.ones(rows.size), names, scaled=False).lg,
+                                      lg[rows][:, b])
+    assert (compiled(gather_rows) is gather_rows) == (jit == "0")  # (numba is a dependency: compiled with "1")
+
+
+@pytest.mark.parametrize("jit", ["1", "0"])
+def test_least_of_takes_each_rows_least_xi_over_its_agents(jit: str, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    monkeypatch.setenv("ISF_ROBOT_JIT", jit)
+    rows = np.array([0, 2, 3, 1, 2, 4, 2, 3], dtype=np.intp)  # (three agents, each's rows ascending)
+    ends = np.array([3, 6, 8], dtype=np.intp)
+    values = np.array([0.5, 0.2, -1.0, 0.7, 0.1, np.nan, 0.3, -2.0])
+    xi = np.full(5, np.inf)
+    compiled(least_of)(xi, rows, ends, values)
+    want = np.full(5, np.inf)
+    for r, v in zip(rows, values):
+        want[r] = np.minimum(want[r], v)
+    np.testing.assert_array_equal(xi, want)
+    np.testing.assert_array_equal(xi, [0.5, 0.7, 0.1, -2.0, np.nan])
 
 
 def _step(t: float, on: bool, xi: list[float], margin: float | None) -> FilterStep:
