@@ -1,6 +1,6 @@
 """jit.direct: a kernel's compiled code called without numba's dispatch gives the dispatching call's answers.
 
-The filters call their passes so (``_DirectPasses``) only for inputs of the types those calls were resolved
+The filters call their passes so (``DirectPasses``) only for inputs of the types those calls were resolved
 for: strided rows or commands and a non-linear class-K function take the dispatching passes, a strided screen is
 made C-contiguous (the same commands, modes and switches).
 """
