@@ -51,6 +51,7 @@ import numpy as np
 
 from isf_robot.core import ConfigError, LieData
 from isf_robot.core.exceptions import IsfWarning
+from isf_robot.core.jit import direct
 
 from . import kernels
 from .collision import CollisionBarriers
@@ -59,6 +60,8 @@ from .joint_limits import JointLimitBarriers
 from .psi_law import obstacle_rate, phi_difference, phi_rows, psi_rows
 
 __all__ = ["psi_lie", "SecondOrderRows", "ObstacleClock", "PROBE_REACH"]
+
+_F64 = np.dtype(np.float64)
 
 PROBE_REACH = 0.05
 """How far beyond the broad-phase cut-off [m] the difference of ``phi`` still sees a pair."""
@@ -134,6 +137,7 @@ class SecondOrderRows:
         ks = kernels.second_order_kernels() if self._kargs is not None else None
         self._kernel, self._tick_kernel = (None, None) if ks is None else ks[:2]
         self._kqpos = (self._scratch.qpos, self.qadr)
+        self._tick_direct: Callable[..., int] | None = None  # (the tick kernel without numba's dispatch: tick)
 
     def _shift_obstacles(self, data: mujoco.MjData, t: float) -> np.ndarray | None:
         """The scratch's mocap bodies as in ``data``, the moving ones at ``t + eps``; their velocities (or None)."""
@@ -188,7 +192,10 @@ class SecondOrderRows:
         ``data`` has the kinematics of its state (after ``mj_step1``); ``lin``: the mocap velocities at ``t``.
         After the velocity level's rows, ``phi``, ``D phi`` (:meth:`phi_rate`) and the ``psi`` rows are one compiled
         call with numba (``_second_order_jit.psi_tick``: the formulas of :mod:`isf_robot.arm.psi_law`, which the
-        numpy path calls too); the numpy path where it cannot (coinciding witness points at the shifted state).
+        numpy path calls too); the numpy path where it cannot (coinciding witness points at the shifted state). The
+        call skips numba's dispatch (:func:`~isf_robot.core.jit.direct`) when ``Lg`` and ``terms.minv`` are C-ordered
+        float64 (as the velocity level's rows and :class:`~isf_robot.arm.dynamics.ArmDynamics` make them; its
+        ``a0`` a contiguous float64 vector, as there).
 
         Returns:
             ``(psi_lie, tick)``: the :func:`psi_lie` of every near pair then every joint limit, and
@@ -202,11 +209,17 @@ class SecondOrderRows:
         q_dot = data.qvel[self.coll.dof_adr]
         if self._tick_kernel is not None:  # (phi, D phi and the psi rows in one call; numpy below when it cannot)
             lin_e = self._shift_obstacles(data, t) if idx.size else None
-            k, n = lie.lg.shape
+            lg, minv = lie.lg, terms.minv
+            k, n = lg.shape
             out = np.empty(k * (n + 2))  # (fresh: the filter may keep the rows)
-            if self._tick_kernel(*self._kargs, *self._probe.packed_velocities(lin_e), data.qpos, *self._kqpos, q_dot,
-                                 self.eps, idx, self._at, self.approaching, lie.h, lie.lg, lie.lf, terms.a0, terms.minv,
-                                 self.alpha_1, out) == 0:  # (_second_order_jit.DONE)
+            args = (*self._kargs, *self._probe.packed_velocities(lin_e), data.qpos, *self._kqpos, q_dot, self.eps, idx,
+                    self._at, self.approaching, lie.h, lg, lie.lf, terms.a0, minv, self.alpha_1, out)
+            kernel = self._tick_kernel
+            if lg.flags.c_contiguous and minv.flags.c_contiguous and minv.dtype is _F64:  # (the types held: direct)
+                kernel = self._tick_direct
+                if kernel is None:
+                    kernel = self._tick_direct = direct(self._tick_kernel, args)
+            if kernel(*args) == 0:  # (_second_order_jit.DONE)
                 return LieData._of(out[:k], out[k: 2 * k], out[2 * k:].reshape(k, n), lie.grad_norm, lie.names), tick
         dhdt = obstacle_rate(lie.lf, self.approaching)
         phi = phi_rows(lie.lg, q_dot, dhdt)

@@ -341,3 +341,37 @@ def test_the_torque_level_builds_only_its_own_strategy(pole, monkeypatch) -> Non
     assert sim.run(0.05).collisions == 0  # (an episode runs without a tracker)
     with pytest.raises(ConfigError, match="takes no tracker"):
         TorqueSimulation(pole, "isf", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR), tracker=object())
+
+
+def test_compiled_torque_nominal_agrees_with_the_plain_function(pole) -> None:  # type: ignore[no-untyped-def]
+    """The compiled tick of the torque nominal (``nominal_torque`` by numba) equals the plain function on numpy.
+
+    On the ticks of a nominal episode (``a_ref`` from the last reference), and on the same ticks with a twentieth of
+    the torque limits (the clip active): the same operations (the product ``M x`` by BLAS on both); tolerance 1e-12
+    relative, with a floor of 1e-12 times the torque limits.
+    """
+    from isf_robot.arm import kernels
+    from isf_robot.arm.torque_nominal import nominal_torque
+
+    if not kernels.available():
+        pytest.skip("compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
+    sim = TorqueSimulation(pole, "nominal", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR))
+    ep = sim.episode(sim, 200)
+    nom, T = sim.torque_nominal, sim.control_period
+    assert nom._step is not nominal_torque  # (the compiled one)
+    clipped, low = 0, nom.tau_max / 20
+    for k in range(200):
+        ep.sense(k)
+        prev, first = nom.v_ref.copy(), nom._first
+        tau = nom(k * T, ep.data, sim.terms)
+        v, terms, atol = nom.v_ref.copy(), sim.terms, 1e-12 * float(nom.tau_max.max())
+        assert terms is not None
+        want = nominal_torque(terms.mass, terms.hold, v, prev.copy(), first, T, ep.data.qvel, nom.dof, nom.kd,
+                              nom.tau_max)
+        np.testing.assert_allclose(tau, want, rtol=1e-12, atol=atol)
+        tight = nom._step(terms.mass, terms.hold, v, prev.copy(), first, T, ep.data.qvel, nom.dof, nom.kd, low)
+        want = nominal_torque(terms.mass, terms.hold, v, prev.copy(), first, T, ep.data.qvel, nom.dof, nom.kd, low)
+        np.testing.assert_allclose(tight, want, rtol=1e-12, atol=atol)
+        clipped += int(np.any(np.abs(tight) >= low))
+        ep.act(k, tau)
+    assert clipped > 0  # (the clip was exercised)
