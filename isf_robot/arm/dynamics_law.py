@@ -4,6 +4,7 @@ A plain function that :class:`~isf_robot.arm.dynamics.ArmDynamics` calls on nump
 (``_dynamics_jit``, :func:`~isf_robot.core.jit.formula`) compile into themselves::
 
     free = qfrc_passive - qfrc_bias          (free_force: the force whose solution is the free acceleration a0)
+    |(q_dot - q_dot_0) / T - q_ddot_model|   (model_error: a period's error of the model [rad/s^2])
 """
 
 from __future__ import annotations
@@ -12,10 +13,20 @@ import numpy as np
 
 from isf_robot.core.jit import formula
 
-__all__ = ["free_force"]
+__all__ = ["free_force", "model_error"]
 
 
 @formula
 def free_force(passive: np.ndarray, bias: np.ndarray) -> np.ndarray:
     """The free generalized force ``qfrc_passive - qfrc_bias`` [N m], shape (nv,)."""
     return passive - bias
+
+
+@formula
+def model_error(qvel: np.ndarray, dof: np.ndarray, v0: np.ndarray, pred: np.ndarray, period: float) -> float:
+    """``|(q_dot - v0) / period - pred|`` [rad/s^2]: the model's error over a control period.
+
+    ``q_dot = qvel[dof]`` at its end, ``v0`` at its start, ``pred`` the model's ``q_ddot = a0 + Minv tau`` there.
+    """
+    e = (qvel[dof] - v0) / period - pred
+    return np.sqrt(e.dot(e))

@@ -117,3 +117,21 @@ def test_compiled_terms_equal_the_bindings_calls(name: str, monkeypatch: pytest.
                 for a, b in zip((got.mass, got.minv, got.a0, got.hold), (want.mass, want.minv, want.a0, want.hold),
                                 strict=True):
                     np.testing.assert_array_equal(a, b)
+
+
+def test_compiled_model_error_agrees_with_the_plain_formula() -> None:
+    """``dynamics_law.model_error`` compiled (the torque episode's) and as written: 1e-12 relative, and the norm."""
+    from isf_robot.arm import kernels
+    from isf_robot.arm.dynamics_law import model_error
+    from isf_robot.core.jit import compiled
+
+    rng = np.random.default_rng(8)
+    fast = compiled(model_error)
+    if not kernels.available() or fast is model_error:
+        pytest.skip("compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
+    dof = np.array([0, 1, 2, 4, 5, 6, 7], dtype=np.int64)
+    for _ in range(100):
+        qvel, v0, pred = rng.normal(size=9), rng.normal(size=7), rng.normal(scale=50.0, size=7)
+        want = float(np.linalg.norm((qvel[dof] - v0) / 0.002 - pred))
+        assert model_error(qvel, dof, v0, pred, 0.002) == pytest.approx(want, rel=1e-12)
+        assert fast(qvel, dof, v0, pred, 0.002) == pytest.approx(model_error(qvel, dof, v0, pred, 0.002), rel=1e-12)
