@@ -44,15 +44,18 @@ def computed_torque(terms: DynamicsTerms, v_ref: np.ndarray, a_ref: np.ndarray, 
 
 
 def nominal_torque(mass: np.ndarray, hold: np.ndarray, v: np.ndarray, v_prev: np.ndarray, first: bool,
-                   period: float, qvel: np.ndarray, dof: np.ndarray, kd: float, tau_max: np.ndarray) -> np.ndarray:
-    """The torque nominal at a tick (:class:`TorqueNominal`): :func:`torque_law` on the reference ``v``.
+                   period: float, qvel: np.ndarray, dof: np.ndarray, kd: float, tau_max: np.ndarray,
+                   out: np.ndarray) -> None:
+    """The torque nominal at a tick (:class:`TorqueNominal`): :func:`torque_law` on the reference ``v`` into ``out``.
 
     ``a_ref = (v - v_prev) / period`` (zero at the ``first`` tick); ``v_prev`` (the last tick's reference) then
-    gets ``v``; ``q_dot = qvel[dof]``. A plain function: :func:`~isf_robot.core.jit.compiled` compiles it.
+    gets ``v``; ``q_dot = qvel[dof]``. A plain function: :func:`~isf_robot.core.jit.compiled` compiles it. ``out``
+    is the caller's (numpy's own array: an array a cached numba kernel returns carries a dtype object that is not
+    numpy's float64 singleton, and the core's strategies test ``dtype is float64`` before their compiled passes).
     """
     a_ref = np.zeros_like(v) if first else (v - v_prev) / period
     v_prev[:] = v
-    return torque_law(mass, hold, v, a_ref, qvel[dof], kd, tau_max)
+    out[:] = torque_law(mass, hold, v, a_ref, qvel[dof], kd, tau_max)
 
 
 class TorqueNominal:
@@ -89,5 +92,7 @@ class TorqueNominal:
         if not (type(v) is np.ndarray and v.dtype == np.float64 and v.ndim == 1):  # (else used as it is: copied)
             v = np.array(v, dtype=float)
         first, self._first = self._first, False
-        return self._step(terms.mass, terms.hold, v, self.v_ref, first, self.period, data.qvel, self.dof, self.kd,
-                          self.tau_max)
+        tau = np.empty(self.dof.size)  # (fresh: the strategy may keep it)
+        self._step(terms.mass, terms.hold, v, self.v_ref, first, self.period, data.qvel, self.dof, self.kd,
+                   self.tau_max, tau)
+        return tau

@@ -365,12 +365,13 @@ def test_compiled_torque_nominal_agrees_with_the_plain_function(pole) -> None:  
         prev, first = nom.v_ref.copy(), nom._first
         tau = nom(k * T, ep.data, sim.terms)
         v, terms, atol = nom.v_ref.copy(), sim.terms, 1e-12 * float(nom.tau_max.max())
-        assert terms is not None
-        want = nominal_torque(terms.mass, terms.hold, v, prev.copy(), first, T, ep.data.qvel, nom.dof, nom.kd,
-                              nom.tau_max)
+        assert terms is not None and tau.dtype is np.dtype(np.float64)  # (numpy's own: the core tests the dtype so)
+        want, tight = np.empty_like(tau), np.empty_like(tau)
+        nominal_torque(terms.mass, terms.hold, v, prev.copy(), first, T, ep.data.qvel, nom.dof, nom.kd, nom.tau_max,
+                       want)
         np.testing.assert_allclose(tau, want, rtol=1e-12, atol=atol)
-        tight = nom._step(terms.mass, terms.hold, v, prev.copy(), first, T, ep.data.qvel, nom.dof, nom.kd, low)
-        want = nominal_torque(terms.mass, terms.hold, v, prev.copy(), first, T, ep.data.qvel, nom.dof, nom.kd, low)
+        nom._step(terms.mass, terms.hold, v, prev.copy(), first, T, ep.data.qvel, nom.dof, nom.kd, low, tight)
+        nominal_torque(terms.mass, terms.hold, v, prev.copy(), first, T, ep.data.qvel, nom.dof, nom.kd, low, want)
         np.testing.assert_allclose(tight, want, rtol=1e-12, atol=atol)
         clipped += int(np.any(np.abs(tight) >= low))
         ep.act(k, tau)
