@@ -137,6 +137,15 @@ class SecondOrderRows:
         ks = kernels.second_order_kernels() if self._kargs is not None else None
         self._kernel, self._tick_kernel = (None, None) if ks is None else ks[:2]
         self._kqpos = (self._scratch.qpos, self.qadr)
+        # The tick kernel's leading arguments where nothing moves (the probe's context, no obstacle velocities), and
+        # the views of the data last given (binding attributes are new arrays at each access); q_dot by a slice when
+        # the dofs are contiguous (a view: the same values as the index array's copy).
+        moves = self.obstacles is not None or bool(self._nmocap)
+        self._kfix = None if (self._kargs is None or moves) else (*self._kargs, *self._probe.packed_velocities(None))
+        self._views: tuple = (None, None, None)
+        dof = np.asarray(coll.dof_adr, dtype=np.int64)
+        contiguous = dof.size and bool((np.diff(dof) == 1).all())
+        self._dsel = slice(int(dof[0]), int(dof[0]) + dof.size) if contiguous else dof
         self._tick_direct: Callable[..., int] | None = None  # (the tick kernel without numba's dispatch: tick)
 
     def _shift_obstacles(self, data: mujoco.MjData, t: float) -> np.ndarray | None:
@@ -206,14 +215,20 @@ class SecondOrderRows:
         tick = self.coll.lie_rows(data, self.joints, lin, coherence=coherence, witness=witness)  # type: ignore[arg-type]
         lie, idx = tick[0], tick[1]
         # (no copies: the rows' arrays are the tick's own, never handed out again, and only read here)
-        q_dot = data.qvel[self.coll.dof_adr]
+        views = self._views
+        if views[0] is not data:
+            views = self._views = (data, data.qpos, data.qvel)
+        q_dot = views[2][self._dsel]
         if self._tick_kernel is not None:  # (phi, D phi and the psi rows in one call; numpy below when it cannot)
-            lin_e = self._shift_obstacles(data, t) if idx.size else None
+            head = self._kfix
+            if head is None:  # (moving obstacles: at t + eps on the scratch, their velocities)
+                lin_e = self._shift_obstacles(data, t) if idx.size else None
+                head = (*self._kargs, *self._probe.packed_velocities(lin_e))
             lg, minv = lie.lg, terms.minv
             k, n = lg.shape
             out = np.empty(k * (n + 2))  # (fresh: the filter may keep the rows)
-            args = (*self._kargs, *self._probe.packed_velocities(lin_e), data.qpos, *self._kqpos, q_dot, self.eps, idx,
-                    self._at, self.approaching, lie.h, lg, lie.lf, terms.a0, minv, self.alpha_1, out)
+            args = (*head, views[1], *self._kqpos, q_dot, self.eps, idx, self._at, self.approaching, lie.h, lg, lie.lf,
+                    terms.a0, minv, self.alpha_1, out)
             kernel = self._tick_kernel
             if lg.flags.c_contiguous and minv.flags.c_contiguous and minv.dtype is _F64:  # (the types held: direct)
                 kernel = self._tick_direct
