@@ -119,7 +119,9 @@ class ArmDynamics:
 
         ``M^-1`` comes from the factor of ``M`` those leave in ``data`` (``qLD``, ``mj_solveM``): one solve of
         ``n + 1`` right-hand sides (the arm dofs' unit vectors, whose solutions' arm entries are ``[M^-1]_aa``
-        (``M`` symmetric), and ``qfrc_passive - qfrc_bias``, whose solution is the free acceleration).
+        (``M`` symmetric), and ``qfrc_passive - qfrc_bias``, whose solution is the free acceleration). With numba
+        ``mj_fullM``, the free force and ``mj_solveM`` are one compiled call (``_dynamics_jit.dynamics_terms``: the
+        same C calls, the same figures to the bit).
         """
         if self._own is not None:
             own = self._own
