@@ -35,7 +35,7 @@ from isf_robot.core.jit import direct
 
 from . import kernels
 from .actuation import arm_actuators
-from .dynamics_law import free_force
+from .dynamics_law import free_force, model_acceleration
 from .scene import Scene
 
 __all__ = ["ArmDynamics", "DynamicsTerms", "torque_limits"]
@@ -73,7 +73,7 @@ class DynamicsTerms:
 
     def acceleration(self, tau: np.ndarray) -> np.ndarray:
         """The model's ``q_ddot = a0 + Minv tau`` [rad/s^2] under the arm torques ``tau`` (n,)."""
-        return self.a0 + self.minv @ tau
+        return model_acceleration(self.a0, self.minv, tau)
 
 
 class ArmDynamics:

@@ -26,15 +26,26 @@ from isf_robot.core.jit import compiled, formula
 from .dynamics import DynamicsTerms
 from .nominal import NominalController
 
-__all__ = ["TorqueNominal", "computed_torque", "torque_law", "nominal_torque"]
+__all__ = ["TorqueNominal", "computed_torque", "torque_law", "torque_clip", "torque_peak", "nominal_torque"]
 
 
 @formula
 def torque_law(mass: np.ndarray, hold: np.ndarray, v_ref: np.ndarray, a_ref: np.ndarray, q_dot: np.ndarray,
                kd: float, tau_max: np.ndarray) -> np.ndarray:
     """``clip(M (kd (v_ref - q_dot) + a_ref) + hold, -tau_max, tau_max)`` [N m], shape (n,)."""
-    tau = mass @ (kd * (v_ref - q_dot) + a_ref) + hold
-    return np.minimum(np.maximum(tau, -tau_max), tau_max)  # (np.clip, which numba lacks for arrays)
+    return torque_clip(mass @ (kd * (v_ref - q_dot) + a_ref) + hold, tau_max)
+
+
+@formula
+def torque_clip(tau: np.ndarray, tau_max: np.ndarray) -> np.ndarray:
+    """``clip(tau, -tau_max, tau_max)`` [N m] (np.clip, which numba lacks for arrays)."""
+    return np.minimum(np.maximum(tau, -tau_max), tau_max)
+
+
+@formula
+def torque_peak(tau: np.ndarray, tau_max: np.ndarray) -> float:
+    """The largest ``|tau_i| / tau_max,i`` (not finite exactly when ``tau`` is not: ``tau_max`` > 0, finite)."""
+    return (np.abs(tau) / tau_max).max()
 
 
 def computed_torque(terms: DynamicsTerms, v_ref: np.ndarray, a_ref: np.ndarray, q_dot: np.ndarray, kd: float,

@@ -376,3 +376,61 @@ def test_compiled_torque_nominal_agrees_with_the_plain_function(pole) -> None:  
         clipped += int(np.any(np.abs(tight) >= low))
         ep.act(k, tau)
     assert clipped > 0  # (the clip was exercised)
+
+
+def test_compiled_act_arithmetic_agrees_with_the_plain_function(pole) -> None:  # type: ignore[no-untyped-def]
+    """``held_torque`` compiled (the act phase's) and as written, on the ticks of a cbf episode and on commands beyond
+    the limits: the clipped torque and the velocities equal, the peak, the reference error and the model's
+    acceleration to 1e-12 relative (the product ``Minv tau`` by BLAS on both); a non-finite command gives a non-finite
+    peak on both."""
+    from isf_robot.arm import kernels
+    from isf_robot.arm.torque_sim import held_torque
+    from isf_robot.core.jit import compiled
+
+    fast = compiled(held_torque)
+    if not kernels.available() or fast is held_torque:
+        pytest.skip("compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
+    sim = TorqueSimulation(pole, "cbf", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR))
+    ep = sim.episode(sim, 100)
+    T, n, dof = sim.control_period, pole.n_joints, np.asarray(pole.dof_adr, dtype=np.int64)
+    rng = np.random.default_rng(3)
+    for k in range(100):
+        t = k * T
+        ep.sense(k)
+        _, lie = ep.barriers()
+        u = ep.strategy(t, lie, ep.nominal(t)).u
+        terms = sim.terms
+        assert terms is not None
+        for cmd in (u, u * rng.uniform(0.0, 3.0, n)):  # (the second beyond the limits at some joints)
+            got = [np.empty(n) for _ in range(3)]
+            want = [np.empty(n) for _ in range(3)]
+            a = fast(cmd, sim.tau_max, got[0], ep.data.qvel, dof, sim.torque_nominal.v_ref, terms.a0, terms.minv,
+                     got[1], got[2])
+            b = held_torque(cmd, sim.tau_max, want[0], ep.data.qvel, dof, sim.torque_nominal.v_ref, terms.a0,
+                            terms.minv, want[1], want[2])
+            np.testing.assert_array_equal(got[0], want[0])
+            np.testing.assert_array_equal(got[1], want[1])
+            np.testing.assert_allclose(got[2], want[2], rtol=1e-12, atol=1e-12 * float(np.abs(want[2]).max()))
+            np.testing.assert_allclose(a, b, rtol=1e-12)
+        ep.act(k, u)
+    bad = np.full(n, 0.5)
+    bad[2] = np.nan
+    out = [np.empty(n) for _ in range(3)]
+    for f in (fast, held_torque):
+        peak, _ = f(bad, sim.tau_max, out[0], ep.data.qvel, dof, sim.torque_nominal.v_ref, sim.terms.a0,  # type: ignore[union-attr]
+                    sim.terms.minv, out[1], out[2])  # type: ignore[union-attr]
+        assert not np.isfinite(peak)
+
+
+def test_a_non_finite_torque_command_is_refused(pole) -> None:  # type: ignore[no-untyped-def]
+    """act raises NonFiniteError on a command with a NaN or an infinity (the peak ratio is not finite)."""
+    from isf_robot.core import NonFiniteError
+
+    sim = TorqueSimulation(pole, "nominal", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR))
+    ep = sim.episode(sim, 10)
+    ep.sense(0)
+    for bad in (np.nan, np.inf):
+        u = np.zeros(pole.n_joints)
+        u[1] = bad
+        with pytest.raises(NonFiniteError, match="not finite"):
+            ep.act(0, u)
