@@ -188,8 +188,25 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
         for e in range(3):
             wit[k, 0, e] = fromto[k, e]
             wit[k, 1, e] = fromto[k, 3 + e]
-        if pair_row(ma, da, live, r, d, fromto[k], eps, mocap, lin, dhdt_in, dof, jac1, jac2, g, k, lf, wit[k, 2]):
+        if -eps < d < eps:
             touching = True
+            continue
+        n0 = unit_normal(fromto[k, 0], fromto[k, 3], d)
+        n1 = unit_normal(fromto[k, 1], fromto[k, 4], d)
+        n2 = unit_normal(fromto[k, 2], fromto[k, 5], d)
+        wit[k, 2, 0], wit[k, 2, 1], wit[k, 2, 2] = n0, n1, n2
+        if dhdt_in != 0 and mocap[r] >= 0:
+            b = 3 * mocap[r]
+            lf[k] = obstacle_dhdt(n0, n1, n2, lin[b], lin[b + 1], lin[b + 2])
+        jac(ma, da, jac1.ctypes.data, 0, fromto[k].ctypes.data, np.int32(live[r, 3]))
+        for c in range(ndof):
+            col = dof[c]
+            g[k, c] = dot3(n0, n1, n2, jac1[0, col], jac1[1, col], jac1[2, col])
+        if live[r, 5] != 0:
+            jac(ma, da, jac2.ctypes.data, 0, fromto[k, 3:].ctypes.data, np.int32(live[r, 4]))
+            for c in range(ndof):
+                col = dof[c]
+                g[k, c] -= dot3(n0, n1, n2, jac2[0, col], jac2[1, col], jac2[2, col])
     if norms_in != 0:  # |dh/dq| of each row (the numpy path: np.linalg.norm; a loop here, no BLAS call per row)
         for k in range(j + nj):
             s = 0.0
@@ -197,35 +214,6 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
                 s += g[k, c] * g[k, c]
             gn[k] = math.sqrt(s)
     return j, hmin, dmin, jmin, touching, key
-
-@formula
-def pair_row(ma, da, live, r, d, ft, eps, mocap, lin, dhdt_in, dof, jac1, jac2, g, k, lf, wn):  # pragma: no cover
-    """Row ``k`` of live pair ``r`` at distance ``d`` with witness points ``ft`` (p1, p2): ``g[k]``, ``wn``, ``lf[k]``.
-
-    ``dh/dq = n^T (J_1(p_1) - J_2(p_2))`` into ``g[k]`` (the columns ``dof``), the unit normal ``n`` into ``wn``
-    and, with ``dhdt_in`` and a moving obstacle (``mocap[r] >= 0``), ``dh/dt`` into ``lf[k]`` (left alone otherwise).
-    Returns True (and writes nothing) where the witness points coincide (``|d| < eps``): no direction.
-    """
-    if -eps < d < eps:
-        return True
-    n0 = unit_normal(ft[0], ft[3], d)
-    n1 = unit_normal(ft[1], ft[4], d)
-    n2 = unit_normal(ft[2], ft[5], d)
-    wn[0], wn[1], wn[2] = n0, n1, n2
-    if dhdt_in != 0 and mocap[r] >= 0:
-        b = 3 * mocap[r]
-        lf[k] = obstacle_dhdt(n0, n1, n2, lin[b], lin[b + 1], lin[b + 2])
-    jac(ma, da, jac1.ctypes.data, 0, ft.ctypes.data, np.int32(live[r, 3]))
-    for c in range(dof.size):
-        col = dof[c]
-        g[k, c] = dot3(n0, n1, n2, jac1[0, col], jac1[1, col], jac1[2, col])
-    if live[r, 5] != 0:
-        jac(ma, da, jac2.ctypes.data, 0, ft[3:].ctypes.data, np.int32(live[r, 4]))
-        for c in range(dof.size):
-            col = dof[c]
-            g[k, c] -= dot3(n0, n1, n2, jac2[0, col], jac2[1, col], jac2[2, col])
-    return False
-
 
 @formula
 def monitor(ma, da, rows, g1, g2, margin, thresh, bound):  # pragma: no cover (compiled)

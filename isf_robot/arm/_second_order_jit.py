@@ -4,8 +4,8 @@
 level's rows a second time, at ``(q + eps q_dot, t + eps)`` on a scratch ``MjData``, and differences their ``phi``.
 From Python that is a dozen small numpy calls and the bindings' calls around one collision kernel call: most of the
 torque level's barrier phase. :func:`phi_rate` does it in one call: the shifted ``qpos``, ``mj_kinematics`` and
-``mj_comPos`` on the scratch data, the rows of the tick's pairs there (:func:`pairs_at`: the probe's collision kernel's
-per-pair part, on the tables of its context, for those pairs alone), and the difference, with the formulas of
+``mj_comPos`` on the scratch data, the probe's collision kernel (``_kernels_jit.near_packed_key``, on the tables of
+its context), the tick's pairs found among the probe's, and the difference, with the formulas of
 :mod:`isf_robot.arm.psi_law`, which the numpy path calls too. The two paths agree to rounding
 (``tests/arm/test_second_order_kernel.py``). :func:`psi_tick` adds the tick's ``phi`` and the ``psi`` rows'
 Lie data (:func:`~isf_robot.arm.psi_law.psi_rows`) around it: the whole barrier phase after the tick's rows.
@@ -16,12 +16,11 @@ every row of the points the whole-rollout kernel made, put in the rollout's tabl
 from __future__ import annotations
 
 import numpy as np
-from numba import carray
 
 from isf_robot.core.jit import formula
 
-from ._kernels_jit import com_pos, f64p, geom_distance, i64p, kinematics, pair_row  # (loads libmujoco)
-from .narrow import P_DOF, P_FROMTO, P_JAC1, P_JAC2, P_LIVE, P_MOCAP, P_NDOF, P_NFT, P_NV, P_TAB
+from ._kernels_jit import com_pos, kinematics, near_packed_key  # (importing it loads libmujoco; ImportError without)
+from .narrow import P_LIVE, P_NDOF, P_NJ
 from .psi_law import obstacle_rate, phi_difference, phi_rows, psi_rows, psi_value
 
 DONE, TOUCHING, MISSING = 0, 1, 2
@@ -36,11 +35,10 @@ def phi_rate(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, 
     """``D phi`` of the pairs ``rows`` into ``out``: ``(phi(q + eps q_dot, t + eps) - phi) / eps``.
 
     ``sa``: the scratch data (its obstacles already where they are at ``t + eps``), which gets ``qpos`` with
-    ``q_dot`` added at ``qadr`` (times ``eps``) and its kinematics. ``p``, ``cutoff``: the probe's packed kernel
-    context on ``sa`` (no joints, no coherence) and its cut-off (``blk``, ``prow``: an output block and rows of its
-    layout, unused since :func:`pairs_at` evaluates the pairs ``rows`` alone); ``lin``, ``dhdt_in``: the obstacles'
-    velocities as ``near_packed_key`` takes them. ``at``: -1 per pair (left so). Returns :data:`DONE`,
-    :data:`TOUCHING` or :data:`MISSING`.
+    ``q_dot`` added at ``qadr`` (times ``eps``) and its kinematics. ``p``, ``blk``, ``prow``, ``cutoff``: the probe's
+    packed kernel context on ``sa`` (no joints, no coherence), an output block and rows of its layout, its
+    cut-off; ``lin``, ``dhdt_in``: the obstacles' velocities as ``near_packed_key`` takes them. ``at``: -1 per pair
+    (left so). Returns :data:`DONE`, :data:`TOUCHING` or :data:`MISSING`.
     """
     for i in range(qpos.size):
         sqpos[i] = qpos[i]
@@ -48,53 +46,32 @@ def phi_rate(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, 
         sqpos[qadr[u]] = qpos[qadr[u]] + eps * q_dot[u]
     kinematics(ma, sa)
     com_pos(ma, sa)
+    j, _, _, _, touching, _ = near_packed_key(ma, sa, p, blk, prow, False, cutoff, cutoff, 0.0, eps_dist, 0, lin,
+                                              dhdt_in)
+    if touching:
+        return TOUCHING
+    m, n = p[P_LIVE] + p[P_NJ], p[P_NDOF]
+    g = blk[m: m + m * n].reshape((m, n))
+    lf = blk[2 * m + m * n: 3 * m + m * n]
+    for k in range(j):
+        at[prow[k]] = k
     K = rows.size
-    grad = np.empty((K, p[P_NDOF]))
+    grad = np.empty((K, n))
     dhdt = np.empty(K)
-    code = pairs_at(ma, sa, p, cutoff, eps_dist, lin, dhdt_in, rows, at, grad, dhdt)
-    if code != DONE:
-        return code
+    found = True
+    for i in range(K):
+        k = at[rows[i]]
+        if k < 0:
+            found = False
+            break
+        grad[i] = g[k]
+        dhdt[i] = lf[k]
+    for k in range(j):
+        at[prow[k]] = -1
+    if not found:
+        return MISSING
     out[:] = phi_difference(phi_rows(grad, q_dot, obstacle_rate(dhdt, approaching)), phi, eps)
     return DONE
-
-
-@formula
-def pairs_at(ma, da, p, cutoff, eps_dist, lin, dhdt_in, pairs, at, grad, dhdt):  # pragma: no cover (compiled)
-    """The rows of the collision pairs ``pairs`` (their indices) at the state in ``da`` (kinematics done).
-
-    What the packed collision kernel (``near_packed_key``, no coherence bounds: ``mj_geomDistance`` with the
-    cut-off as its ``distmax``, then ``_kernels_jit.pair_row``) gives these pairs, without its broad phase and
-    without the narrow phase of the other pairs (the probe's reach holds some ten more than the tick's). Into
-    ``grad[i]`` (n) and ``dhdt[i]`` for pair ``pairs[i]``. ``at``: -1 per pair (left so). Returns :data:`DONE`,
-    :data:`TOUCHING` (witness points coincide) or :data:`MISSING` (a pair not live, or not within ``cutoff``).
-    """
-    n_live, n, nv = p[P_LIVE], p[P_NDOF], p[P_NV]
-    live = carray(i64p(p[P_TAB]), (n_live, 6))
-    dof = carray(i64p(p[P_DOF]), n)
-    ft = carray(f64p(p[P_FROMTO]), (p[P_NFT], 6))[0]
-    jac1 = carray(f64p(p[P_JAC1]), (3, nv))
-    jac2 = carray(f64p(p[P_JAC2]), (3, nv))
-    mocap = carray(i64p(p[P_MOCAP]), n_live)
-    for r in range(n_live):
-        at[live[r, 0]] = r
-    wn = np.empty(3)
-    code = DONE
-    for i in range(pairs.size):
-        r = at[pairs[i]]
-        if r < 0:
-            code = MISSING
-            break
-        d = geom_distance(ma, da, np.int32(live[r, 1]), np.int32(live[r, 2]), cutoff, ft.ctypes.data)
-        if not d < cutoff:
-            code = MISSING
-            break
-        dhdt[i] = 0.0
-        if pair_row(ma, da, live, r, d, ft, eps_dist, mocap, lin, dhdt_in, dof, jac1, jac2, grad, i, dhdt, wn):
-            code = TOUCHING
-            break
-    for r in range(n_live):
-        at[live[r, 0]] = -1
-    return code
 
 
 def psi_tick(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, qadr, q_dot, eps, rows, at,
