@@ -76,6 +76,10 @@ jac_site = types.ExternalFunction("mj_jacSite", types.void(_ptr, _ptr, _ptr, _pt
 kinematics = types.ExternalFunction("mj_kinematics", types.void(_ptr, _ptr))
 # void mj_comPos(const mjModel* m, mjData* d)
 com_pos = types.ExternalFunction("mj_comPos", types.void(_ptr, _ptr))
+# void mj_fullM(const mjModel* m, const mjData* d, mjtNum* dst)
+full_m = types.ExternalFunction("mj_fullM", types.void(_ptr, _ptr, _ptr))
+# void mj_solveM(const mjModel* m, mjData* d, mjtNum* x, const mjtNum* y, int n)
+solve_m = types.ExternalFunction("mj_solveM", types.void(_ptr, _ptr, _ptr, _ptr, _i32))
 
 
 

@@ -31,8 +31,11 @@ import mujoco
 import numpy as np
 
 from isf_robot.core.exceptions import ConfigError
+from isf_robot.core.jit import direct
 
+from . import kernels
 from .actuation import arm_actuators
+from .dynamics_law import free_force, model_acceleration
 from .scene import Scene
 
 __all__ = ["ArmDynamics", "DynamicsTerms", "torque_limits"]
@@ -70,7 +73,7 @@ class DynamicsTerms:
 
     def acceleration(self, tau: np.ndarray) -> np.ndarray:
         """The model's ``q_ddot = a0 + Minv tau`` [rad/s^2] under the arm torques ``tau`` (n,)."""
-        return self.a0 + self.minv @ tau
+        return model_acceleration(self.a0, self.minv, tau)
 
 
 class ArmDynamics:
@@ -96,13 +99,29 @@ class ArmDynamics:
         # Right-hand sides of the one solve per state: the arm dofs' unit vectors, then the free force.
         self._rhs = np.zeros((n + 1, model.nv))
         self._rhs[np.arange(n), self.dof] = 1.0
+        self._kernel = kernels.dynamics_kernel()  # (the compiled terms; None: the bindings' calls below)
+        self._bound: tuple = (None,)  # (the data the kernel was last given, its address and force arrays: _bind)
+
+    def _bind(self, data: mujoco.MjData) -> tuple:
+        """The compiled call's arguments of ``data``: ``(data, kernel, its address, qfrc_passive, qfrc_bias)``.
+
+        The kernel called directly (:func:`~isf_robot.core.jit.direct`): its arguments are of fixed types (the model's
+        and data's addresses, their own arrays, this object's buffers).
+        """
+        nv = self.model.nv
+        args = (int(self.model._address), int(data._address), data.qfrc_passive, data.qfrc_bias,
+                np.empty((nv, nv)), self._rhs, np.empty_like(self._rhs))
+        self._bound = (data, direct(self._kernel, args), *args[:4])
+        return self._bound
 
     def terms(self, data: mujoco.MjData) -> DynamicsTerms:
         """The terms at the state in ``data`` (after ``mj_step1`` or ``mj_forward``).
 
         ``M^-1`` comes from the factor of ``M`` those leave in ``data`` (``qLD``, ``mj_solveM``): one solve of
         ``n + 1`` right-hand sides (the arm dofs' unit vectors, whose solutions' arm entries are ``[M^-1]_aa``
-        (``M`` symmetric), and ``qfrc_passive - qfrc_bias``, whose solution is the free acceleration).
+        (``M`` symmetric), and ``qfrc_passive - qfrc_bias``, whose solution is the free acceleration). With numba
+        ``mj_fullM``, the free force and ``mj_solveM`` are one compiled call (``_dynamics_jit.dynamics_terms``: the
+        same C calls, the same figures to the bit).
         """
         if self._own is not None:
             own = self._own
@@ -113,10 +132,15 @@ class ArmDynamics:
             data = own
         model, rhs, n = self.model, self._rhs, self.dof.size
         full = np.empty(self._nv2)  # (fresh, as the solution: the terms of a state are never overwritten)
-        mujoco.mj_fullM(model, data, full)
-        free = np.subtract(data.qfrc_passive, data.qfrc_bias, out=rhs[n])
         sol = np.empty_like(rhs)
-        mujoco.mj_solveM(model, data, sol, rhs)
+        if self._kernel is not None:  # (the same calls in one compiled call)
+            b = self._bound if self._bound[0] is data else self._bind(data)
+            b[1](b[2], b[3], b[4], b[5], full, rhs, sol)
+        else:
+            mujoco.mj_fullM(model, data, full)
+            rhs[n] = free_force(data.qfrc_passive, data.qfrc_bias)
+            mujoco.mj_solveM(model, data, sol, rhs)
+        free = rhs[n]
         if self._all:
             return DynamicsTerms._of(full, sol[:n], sol[n], -free)
         dof = self.dof

@@ -29,7 +29,8 @@ and the rate limit), each one call.
 
 The torque level's barrier phase (:func:`second_order_kernels`, ``_second_order_jit.py``): the difference of
 ``phi`` at ``(q + eps q_dot, t + eps)``, with the kinematics and the collision kernel at the shifted state, and the
-``psi`` rows' Lie data, in one call; and the ``psi`` of the torque rollout's points.
+``psi`` rows' Lie data, in one call; and the ``psi`` of the torque rollout's points. Its sense phase: the dynamics'
+terms (:func:`dynamics_kernel`, ``_dynamics_jit.py``).
 
 Without numba, or with ``ISF_ROBOT_JIT=0`` in the environment, :func:`near_kernel` and
 :func:`step_kernels` return ``None`` and the numpy paths run. Under ``ISF_ROBOT_JIT=cached`` each getter
@@ -47,8 +48,8 @@ from isf_robot.core.jit import compiled, jit_enabled
 from isf_robot.core.jit import compiled_here as jit_compiled_here
 from isf_robot.core.passes import core_kernels
 
-__all__ = ["available", "compiled_here", "monitor_kernel", "near_kernel", "rollout_kernels", "second_order_kernels",
-           "step_kernels"]
+__all__ = ["available", "compiled_here", "dynamics_kernel", "monitor_kernel", "near_kernel", "rollout_kernels",
+           "second_order_kernels", "step_kernels"]
 
 _STATE: dict[str, Any] = {}
 
@@ -58,6 +59,7 @@ def _build() -> dict[str, Callable[..., Any]] | None:
     if not jit_enabled():
         return None
     try:
+        from . import _dynamics_jit as kdyn
         from . import _kernels_jit as kj
         from . import _kernels_step as ks
         from . import _rollout_jit as kr
@@ -67,7 +69,8 @@ def _build() -> dict[str, Callable[..., Any]] | None:
     fns = {"near_packed_key": kj.near_packed_key, "monitor": kj.monitor, "track_apply": ks.track_apply,
            "track_step": ks.track_step, "reach": ks.reach, "monitor_apply": ks.monitor_apply,
            "euler_step": kr.euler_step, "closed_loop_points": kr.closed_loop_points, "phi_rate": k2.phi_rate,
-           "psi_tick": k2.psi_tick, "psi_points": k2.psi_points}
+           "psi_tick": k2.psi_tick, "psi_points": k2.psi_points,
+           "dynamics_terms": kdyn.dynamics_terms}
     return {name: compiled(fn) for name, fn in fns.items()}
 
 
@@ -119,6 +122,15 @@ def second_order_kernels() -> tuple[Callable[..., Any], Callable[..., Any], Call
     ``(phi_rate, psi_tick, psi_points)`` of ``_second_order_jit``.
     """
     return _group("phi_rate", "psi_tick", "psi_points")  # type: ignore[return-value]
+
+
+def dynamics_kernel() -> Callable[..., Any] | None:
+    """The compiled terms of :meth:`ArmDynamics.terms <isf_robot.arm.dynamics.ArmDynamics.terms>` (``None``: bindings).
+
+    ``_dynamics_jit.dynamics_terms``: ``mj_fullM``, the free force and ``mj_solveM`` in one call.
+    """
+    k = _group("dynamics_terms")
+    return None if k is None else k[0]
 
 
 def monitor_kernel() -> Callable[..., Any] | None:

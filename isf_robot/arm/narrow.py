@@ -165,11 +165,14 @@ class NarrowPhase:
                    joints: JointLimitBarriers, key: int = -1) -> tuple[LieData, np.ndarray, tuple[int, ...]]:
         """Lie data (pairs, then joints), pair indices and tuple of an output ``blk`` of context ``c`` with ``j`` pairs.
 
-        ``key``: the kernel's key of the set of near pairs (``near_packed_key``; -1: none), under which the
+        ``key``: the kernel's key of the set of near pairs (``near_packed_key``; -1: none, more than 62 live pairs,
+        as at the torque level with the arm's own pairs: the bytes of the pair indices instead), under which the
         rows' names and tuple are kept (one lookup instead of a list, a tuple and the names' lookup).
         """
         k, o_gn, o_lf, norms_in = j + c[9], c[10], c[11], c[13]
         rows, gk = rows[:j], g[:k]  # (g: blk's (m, n) gradient view)
+        if key < 0:  # (the set by its indices' bytes: a bytes key is never equal to an int key)
+            key = rows.tobytes()  # type: ignore[assignment]
         tn = self._tick_names
         hit = tn[1].get(key) if tn[0] is joints.names else None
         if hit is None:
@@ -319,11 +322,11 @@ class NarrowPhase:
         return TickRows(self.lie(rows, joints), near.rows, tuple(near.row_list), near.h_min,  # type: ignore[arg-type]
                         near.dist_min, rows.joint_min, near.witness)
 
-    def _tick_key(self, key: int, row_list: list[int], joints: JointLimitBarriers
+    def _tick_key(self, key: int | bytes, row_list: list[int], joints: JointLimitBarriers
                   ) -> tuple[tuple[str, ...], tuple[int, ...]]:
-        """The names and the tuple of the rows ``row_list``, kept under the kernel's ``key`` of the set (``>= 0``)."""
+        """The names and the tuple of the rows ``row_list``, kept under the ``key`` of the set (``>= 0``, or bytes)."""
         hit = (self._row_names(row_list, joints), tuple(row_list))
-        if key >= 0:
+        if type(key) is bytes or key >= 0:
             tn = self._tick_names
             if tn[0] is not joints.names or len(tn[1]) >= 4096:  # (another joint set, or bounded: start again)
                 tn = self._tick_names = (joints.names, {})

@@ -51,6 +51,7 @@ import numpy as np
 
 from isf_robot.core import ConfigError, LieData
 from isf_robot.core.exceptions import IsfWarning
+from isf_robot.core.jit import direct
 
 from . import kernels
 from .collision import CollisionBarriers
@@ -59,6 +60,8 @@ from .joint_limits import JointLimitBarriers
 from .psi_law import obstacle_rate, phi_difference, phi_rows, psi_rows
 
 __all__ = ["psi_lie", "SecondOrderRows", "ObstacleClock", "PROBE_REACH"]
+
+_F64 = np.dtype(np.float64)
 
 PROBE_REACH = 0.05
 """How far beyond the broad-phase cut-off [m] the difference of ``phi`` still sees a pair."""
@@ -134,6 +137,16 @@ class SecondOrderRows:
         ks = kernels.second_order_kernels() if self._kargs is not None else None
         self._kernel, self._tick_kernel = (None, None) if ks is None else ks[:2]
         self._kqpos = (self._scratch.qpos, self.qadr)
+        # The tick kernel's leading arguments where nothing moves (the probe's context, no obstacle velocities), and
+        # the views of the data last given (binding attributes are new arrays at each access); q_dot by a slice when
+        # the dofs are contiguous (a view: the same values as the index array's copy).
+        moves = self.obstacles is not None or bool(self._nmocap)
+        self._kfix = None if (self._kargs is None or moves) else (*self._kargs, *self._probe.packed_velocities(None))
+        self._views: tuple = (None, None, None)
+        dof = np.asarray(coll.dof_adr, dtype=np.int64)
+        contiguous = dof.size and bool((np.diff(dof) == 1).all())
+        self._dsel = slice(int(dof[0]), int(dof[0]) + dof.size) if contiguous else dof
+        self._tick_direct: Callable[..., int] | None = None  # (the tick kernel without numba's dispatch: tick)
 
     def _shift_obstacles(self, data: mujoco.MjData, t: float) -> np.ndarray | None:
         """The scratch's mocap bodies as in ``data``, the moving ones at ``t + eps``; their velocities (or None)."""
@@ -188,7 +201,10 @@ class SecondOrderRows:
         ``data`` has the kinematics of its state (after ``mj_step1``); ``lin``: the mocap velocities at ``t``.
         After the velocity level's rows, ``phi``, ``D phi`` (:meth:`phi_rate`) and the ``psi`` rows are one compiled
         call with numba (``_second_order_jit.psi_tick``: the formulas of :mod:`isf_robot.arm.psi_law`, which the
-        numpy path calls too); the numpy path where it cannot (coinciding witness points at the shifted state).
+        numpy path calls too); the numpy path where it cannot (coinciding witness points at the shifted state). The
+        call skips numba's dispatch (:func:`~isf_robot.core.jit.direct`) when ``Lg`` and ``terms.minv`` are C-ordered
+        float64 (as the velocity level's rows and :class:`~isf_robot.arm.dynamics.ArmDynamics` make them; its
+        ``a0`` a contiguous float64 vector, as there).
 
         Returns:
             ``(psi_lie, tick)``: the :func:`psi_lie` of every near pair then every joint limit, and
@@ -199,14 +215,26 @@ class SecondOrderRows:
         tick = self.coll.lie_rows(data, self.joints, lin, coherence=coherence, witness=witness)  # type: ignore[arg-type]
         lie, idx = tick[0], tick[1]
         # (no copies: the rows' arrays are the tick's own, never handed out again, and only read here)
-        q_dot = data.qvel[self.coll.dof_adr]
+        views = self._views
+        if views[0] is not data:
+            views = self._views = (data, data.qpos, data.qvel)
+        q_dot = views[2][self._dsel]
         if self._tick_kernel is not None:  # (phi, D phi and the psi rows in one call; numpy below when it cannot)
-            lin_e = self._shift_obstacles(data, t) if idx.size else None
-            k, n = lie.lg.shape
+            head = self._kfix
+            if head is None:  # (moving obstacles: at t + eps on the scratch, their velocities)
+                lin_e = self._shift_obstacles(data, t) if idx.size else None
+                head = (*self._kargs, *self._probe.packed_velocities(lin_e))
+            lg, minv = lie.lg, terms.minv
+            k, n = lg.shape
             out = np.empty(k * (n + 2))  # (fresh: the filter may keep the rows)
-            if self._tick_kernel(*self._kargs, *self._probe.packed_velocities(lin_e), data.qpos, *self._kqpos, q_dot,
-                                 self.eps, idx, self._at, self.approaching, lie.h, lie.lg, lie.lf, terms.a0, terms.minv,
-                                 self.alpha_1, out) == 0:  # (_second_order_jit.DONE)
+            args = (*head, views[1], *self._kqpos, q_dot, self.eps, idx, self._at, self.approaching, lie.h, lg, lie.lf,
+                    terms.a0, minv, self.alpha_1, out)
+            kernel = self._tick_kernel
+            if lg.flags.c_contiguous and minv.flags.c_contiguous and minv.dtype is _F64:  # (the types held: direct)
+                kernel = self._tick_direct
+                if kernel is None:
+                    kernel = self._tick_direct = direct(self._tick_kernel, args)
+            if kernel(*args) == 0:  # (_second_order_jit.DONE)
                 return LieData._of(out[:k], out[k: 2 * k], out[2 * k:].reshape(k, n), lie.grad_norm, lie.names), tick
         dhdt = obstacle_rate(lie.lf, self.approaching)
         phi = phi_rows(lie.lg, q_dot, dhdt)

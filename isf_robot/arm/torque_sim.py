@@ -41,9 +41,11 @@ import mujoco
 import numpy as np
 
 from isf_robot.core import ClassK, ConfigError, LieData, NonFiniteError, QPSolver
+from isf_robot.core.jit import compiled
 from isf_robot.core.strategies import make_strategy
 
 from .dynamics import ArmDynamics, DynamicsTerms, torque_limits
+from .dynamics_law import model_acceleration, model_error
 from .filter_design import designed_kd
 from .params import filter_options, resolve_params
 from .records import FilterParams, RunResult
@@ -52,7 +54,7 @@ from .second_order import SecondOrderRows
 from .sim import ArmSimulation, _Episode
 from .step_columns import TickValues
 from .torque_calibration import calibrate_torque_d_bar, inner_gain, torque_plant
-from .torque_nominal import TorqueNominal, computed_torque
+from .torque_nominal import TorqueNominal, computed_torque, torque_clip, torque_peak
 from .torque_rollout import TorqueRollout
 
 __all__ = ["TorqueSimulation", "TorqueRunResult", "resolve_torque_params", "run_torque_episode", "FALLBACK_KD"]
@@ -222,7 +224,10 @@ class _TorqueEpisode(_Episode):
         self.tau_peak = 0.0
         self._t = 0.0
         self._last: tuple[int, np.ndarray, np.ndarray] | None = None  # (tick, q_dot, predicted q_ddot)
-        self._tau, self._tau_min = np.zeros(sim.tau_max.size), -sim.tau_max  # (act's torque, its lower limit)
+        self._tau = np.zeros(sim.tau_max.size)  # (act's torque)
+        self._held = compiled(held_torque)  # (act's arithmetic in one call; reads ISF_ROBOT_JIT)
+        self._model_error = compiled(model_error)  # (one call, not five numpy operations; reads ISF_ROBOT_JIT)
+        self._qvel, self._dofs = self.data.qvel, sim.dynamics.dof  # (a view of the run's data: its joint velocities)
 
     def sense(self, k: int) -> None:
         """The velocity level's sense, then the model's terms (and the last period's model error)."""
@@ -236,10 +241,7 @@ class _TorqueEpisode(_Episode):
         """The last period's model error ``|(q_dot - q_dot_0) / T - (a0 + Minv tau)|`` [rad/s^2] (at the next tick)."""
         if self._last is not None:
             j, v0, pred = self._last
-            e = self.data.qvel[self._dof_sel] - v0
-            e /= self.sim.control_period
-            e -= pred
-            self.track_err[j] = math.sqrt(e.dot(e))  # (np.linalg.norm of a vector, without its wrapper)
+            self.track_err[j] = self._model_error(self._qvel, self._dofs, v0, pred, self.sim.control_period)
 
     def barriers(self) -> tuple[TickValues | None, LieData | None]:
         """The ``psi`` rows and the tick's safety accounting on the true geometry.
@@ -265,18 +267,16 @@ class _TorqueEpisode(_Episode):
 
     def act(self, k: int, u: np.ndarray) -> None:
         """Hold the torque ``u`` over the control period: S physics steps, each checked for safety."""
-        sim, data, model, dofs = self.sim, self.data, self.model, self._dof_sel
-        peak = float((np.abs(u) / sim.tau_max).max())  # (not finite exactly when u is not: tau_max > 0, finite)
+        sim, data, model, dofs, terms = self.sim, self.data, self.model, self._dof_sel, self.sim.terms
+        assert terms is not None
+        tau, n = self._tau, self._tau.size  # (the QP's answer is within the limits up to its tolerance: clipped)
+        v, pred = np.empty(n), np.empty(n)  # (fresh: kept for the next tick's model error)
+        peak, self.ref_err[k] = self._held(u, sim.tau_max, tau, self._qvel, self._dofs, sim.torque_nominal.v_ref,
+                                           terms.a0, terms.minv, v, pred)
         if not math.isfinite(peak):
             raise NonFiniteError(f"torque command at t = {k * sim.control_period:g} s is not finite: {u}")
-        self.tau_peak = max(self.tau_peak, peak)
-        tau = self._tau  # (the QP's answer is within the limits up to its tolerance: clipped, as np.clip)
-        np.minimum(np.maximum(u, self._tau_min, out=tau), sim.tau_max, out=tau)
-        v = data.qvel[dofs].copy()
-        e = v - sim.torque_nominal.v_ref
-        self.ref_err[k] = math.sqrt(e.dot(e))
-        assert sim.terms is not None
-        self._last = (k, v, sim.terms.acceleration(tau))
+        self.tau_peak = max(self.tau_peak, float(peak))
+        self._last = (k, v, pred)
         data.qfrc_applied[dofs] = tau
         mujoco.mj_step2(model, data)
         bound, base = (self.dmin if self.recording else -math.inf), k * self.S
@@ -300,6 +300,25 @@ class _TorqueEpisode(_Episode):
 
 
 TorqueSimulation.episode = _TorqueEpisode  # type: ignore[misc]
+
+
+def held_torque(u: np.ndarray, tau_max: np.ndarray, tau: np.ndarray, qvel: np.ndarray, dof: np.ndarray,
+                v_ref: np.ndarray, a0: np.ndarray, minv: np.ndarray, v: np.ndarray,
+                pred: np.ndarray) -> tuple[float, float]:
+    """The act phase's arithmetic on the command ``u``: ``(peak, |q_dot - v_ref|)``; ``tau``, ``v``, ``pred`` filled.
+
+    ``peak``: :func:`~isf_robot.arm.torque_nominal.torque_peak` of ``u``; ``tau``: ``u`` clipped to the limits
+    (:func:`~isf_robot.arm.torque_nominal.torque_clip`), the torque held; ``v = qvel[dof]``, the joint velocities at
+    the tick; ``pred``: the model's acceleration under ``tau``
+    (:func:`~isf_robot.arm.dynamics_law.model_acceleration`). A plain function that
+    :func:`~isf_robot.core.jit.compiled` compiles (one call instead of a dozen numpy operations).
+    """
+    peak = torque_peak(u, tau_max)
+    tau[:] = torque_clip(u, tau_max)
+    v[:] = qvel[dof]
+    e = v - v_ref
+    pred[:] = model_acceleration(a0, minv, tau)
+    return peak, np.sqrt(e.dot(e))
 
 
 def run_torque_episode(scene: Scene, strategy: str = "isf", duration: float | None = None, seed: int | None = 0, *,

@@ -87,3 +87,51 @@ def test_terms_do_not_share_buffers_between_states() -> None:
     for a, b in zip((first.mass, first.minv, first.a0, first.hold), (kept.mass, kept.minv, kept.a0, kept.hold),
                     strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("name", ["panda_pole", "ur5e_pole"])
+def test_compiled_terms_equal_the_bindings_calls(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The compiled terms (``_dynamics_jit``: mj_fullM, the free force, mj_solveM in one call) equal the bindings'.
+
+    The same C calls on the same inputs: equal to the bit (tolerance 0), every dof and a subset, a second data too.
+    """
+    from isf_robot.arm import kernels
+
+    if kernels.dynamics_kernel() is None:
+        pytest.skip("compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
+    scene = load_scene(name)
+    plant = torque_plant(scene.model)
+    rng = np.random.default_rng(7)
+    all_dofs = np.asarray(scene.dof_adr, dtype=np.int64)
+    for dof in (all_dofs, all_dofs[[0, 2, 5]]):
+        fast = ArmDynamics(scene.model, dof)
+        with monkeypatch.context() as m:
+            m.setattr(kernels, "dynamics_kernel", lambda: None)
+            slow = ArmDynamics(scene.model, dof)
+        assert fast._kernel is not None and slow._kernel is None
+        for data in (mujoco.MjData(plant), mujoco.MjData(plant)):  # (a second data: the kernel rebinds)
+            for _ in range(30):
+                _random_state(scene, data, rng)
+                mujoco.mj_step1(plant, data)
+                got, want = fast.terms(data), slow.terms(data)
+                for a, b in zip((got.mass, got.minv, got.a0, got.hold), (want.mass, want.minv, want.a0, want.hold),
+                                strict=True):
+                    np.testing.assert_array_equal(a, b)
+
+
+def test_compiled_model_error_agrees_with_the_plain_formula() -> None:
+    """``dynamics_law.model_error`` compiled (the torque episode's) and as written: 1e-12 relative, and the norm."""
+    from isf_robot.arm import kernels
+    from isf_robot.arm.dynamics_law import model_error
+    from isf_robot.core.jit import compiled
+
+    rng = np.random.default_rng(8)
+    fast = compiled(model_error)
+    if not kernels.available() or fast is model_error:
+        pytest.skip("compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
+    dof = np.array([0, 1, 2, 4, 5, 6, 7], dtype=np.int64)
+    for _ in range(100):
+        qvel, v0, pred = rng.normal(size=9), rng.normal(size=7), rng.normal(scale=50.0, size=7)
+        want = float(np.linalg.norm((qvel[dof] - v0) / 0.002 - pred))
+        assert model_error(qvel, dof, v0, pred, 0.002) == pytest.approx(want, rel=1e-12)
+        assert fast(qvel, dof, v0, pred, 0.002) == pytest.approx(model_error(qvel, dof, v0, pred, 0.002), rel=1e-12)

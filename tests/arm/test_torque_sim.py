@@ -341,3 +341,96 @@ def test_the_torque_level_builds_only_its_own_strategy(pole, monkeypatch) -> Non
     assert sim.run(0.05).collisions == 0  # (an episode runs without a tracker)
     with pytest.raises(ConfigError, match="takes no tracker"):
         TorqueSimulation(pole, "isf", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR), tracker=object())
+
+
+def test_compiled_torque_nominal_agrees_with_the_plain_function(pole) -> None:  # type: ignore[no-untyped-def]
+    """The compiled tick of the torque nominal (``nominal_torque`` by numba) equals the plain function on numpy.
+
+    On the ticks of a nominal episode (``a_ref`` from the last reference), and on the same ticks with a twentieth of
+    the torque limits (the clip active): the same operations (the product ``M x`` by BLAS on both); tolerance 1e-12
+    relative, with a floor of 1e-12 times the torque limits.
+    """
+    from isf_robot.arm import kernels
+    from isf_robot.arm.torque_nominal import nominal_torque
+
+    if not kernels.available():
+        pytest.skip("compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
+    sim = TorqueSimulation(pole, "nominal", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR))
+    ep = sim.episode(sim, 200)
+    nom, T = sim.torque_nominal, sim.control_period
+    assert nom._step is not nominal_torque  # (the compiled one)
+    clipped, low = 0, nom.tau_max / 20
+    for k in range(200):
+        ep.sense(k)
+        prev, first = nom.v_ref.copy(), nom._first
+        tau = nom(k * T, ep.data, sim.terms)
+        v, terms, atol = nom.v_ref.copy(), sim.terms, 1e-12 * float(nom.tau_max.max())
+        assert terms is not None and tau.dtype is np.dtype(np.float64)  # (numpy's own: the core tests the dtype so)
+        want, tight = np.empty_like(tau), np.empty_like(tau)
+        nominal_torque(terms.mass, terms.hold, v, prev.copy(), first, T, ep.data.qvel, nom.dof, nom.kd, nom.tau_max,
+                       want)
+        np.testing.assert_allclose(tau, want, rtol=1e-12, atol=atol)
+        nom._step(terms.mass, terms.hold, v, prev.copy(), first, T, ep.data.qvel, nom.dof, nom.kd, low, tight)
+        nominal_torque(terms.mass, terms.hold, v, prev.copy(), first, T, ep.data.qvel, nom.dof, nom.kd, low, want)
+        np.testing.assert_allclose(tight, want, rtol=1e-12, atol=atol)
+        clipped += int(np.any(np.abs(tight) >= low))
+        ep.act(k, tau)
+    assert clipped > 0  # (the clip was exercised)
+
+
+def test_compiled_act_arithmetic_agrees_with_the_plain_function(pole) -> None:  # type: ignore[no-untyped-def]
+    """``held_torque`` compiled (the act phase's) and as written, on the ticks of a cbf episode and on commands beyond
+    the limits: the clipped torque and the velocities equal, the peak, the reference error and the model's
+    acceleration to 1e-12 relative (the product ``Minv tau`` by BLAS on both); a non-finite command gives a non-finite
+    peak on both."""
+    from isf_robot.arm import kernels
+    from isf_robot.arm.torque_sim import held_torque
+    from isf_robot.core.jit import compiled
+
+    fast = compiled(held_torque)
+    if not kernels.available() or fast is held_torque:
+        pytest.skip("compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
+    sim = TorqueSimulation(pole, "cbf", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR))
+    ep = sim.episode(sim, 100)
+    T, n, dof = sim.control_period, pole.n_joints, np.asarray(pole.dof_adr, dtype=np.int64)
+    rng = np.random.default_rng(3)
+    for k in range(100):
+        t = k * T
+        ep.sense(k)
+        _, lie = ep.barriers()
+        u = ep.strategy(t, lie, ep.nominal(t)).u
+        terms = sim.terms
+        assert terms is not None
+        for cmd in (u, u * rng.uniform(0.0, 3.0, n)):  # (the second beyond the limits at some joints)
+            got = [np.empty(n) for _ in range(3)]
+            want = [np.empty(n) for _ in range(3)]
+            a = fast(cmd, sim.tau_max, got[0], ep.data.qvel, dof, sim.torque_nominal.v_ref, terms.a0, terms.minv,
+                     got[1], got[2])
+            b = held_torque(cmd, sim.tau_max, want[0], ep.data.qvel, dof, sim.torque_nominal.v_ref, terms.a0,
+                            terms.minv, want[1], want[2])
+            np.testing.assert_array_equal(got[0], want[0])
+            np.testing.assert_array_equal(got[1], want[1])
+            np.testing.assert_allclose(got[2], want[2], rtol=1e-12, atol=1e-12 * float(np.abs(want[2]).max()))
+            np.testing.assert_allclose(a, b, rtol=1e-12)
+        ep.act(k, u)
+    bad = np.full(n, 0.5)
+    bad[2] = np.nan
+    out = [np.empty(n) for _ in range(3)]
+    for f in (fast, held_torque):
+        peak, _ = f(bad, sim.tau_max, out[0], ep.data.qvel, dof, sim.torque_nominal.v_ref, sim.terms.a0,  # type: ignore[union-attr]
+                    sim.terms.minv, out[1], out[2])  # type: ignore[union-attr]
+        assert not np.isfinite(peak)
+
+
+def test_a_non_finite_torque_command_is_refused(pole) -> None:  # type: ignore[no-untyped-def]
+    """act raises NonFiniteError on a command with a NaN or an infinity (the peak ratio is not finite)."""
+    from isf_robot.core import NonFiniteError
+
+    sim = TorqueSimulation(pole, "nominal", seed=0, params=resolve_torque_params(pole, d_bar=D_BAR))
+    ep = sim.episode(sim, 10)
+    ep.sense(0)
+    for bad in (np.nan, np.inf):
+        u = np.zeros(pole.n_joints)
+        u[1] = bad
+        with pytest.raises(NonFiniteError, match="not finite"):
+            ep.act(0, u)
