@@ -76,7 +76,8 @@ def gather_rows(h: np.ndarray, lf: np.ndarray, lg: np.ndarray, grad_norm: np.nda
     (divided by only where ``scaled[a]``: a share of 1 leaves the row as it is). Written to ``out_h``,
     ``out_lf``, ``out_gn`` (one entry per row of ``rows``) and ``out_lg`` (flat: each agent's rows by its
     columns, row by row, after the agents before it). One call for every agent, in array operations per agent
-    (as fast as numpy runs it; compiled by numba where the kernels run, :class:`_Involved.split`).
+    (as fast as numpy runs it; compiled by numba where the kernels run, :class:`_Involved.split`). An agent's
+    columns that are a range (a slice's, step 1) are taken in one indexing, others picked one by one.
     """
     out_h[:] = h[rows]
     out_lf[:] = lf[rows]
@@ -85,10 +86,13 @@ def gather_rows(h: np.ndarray, lf: np.ndarray, lg: np.ndarray, grad_norm: np.nda
     r0 = c0 = 0
     for a in range(ends.shape[0]):
         r1, c1 = ends[a], col_ends[a]
-        block = lg[rows[r0:r1]][:, cols[c0:c1]]
+        if c1 > c0 and cols[c1 - 1] - cols[c0] == c1 - c0 - 1:  # (ascending, distinct: a range)
+            block = lg[rows[r0:r1], cols[c0]: cols[c1 - 1] + 1]
+        else:
+            block = lg[rows[r0:r1]][:, cols[c0:c1]]
         dst = out_lg[p: p + block.size].reshape(r1 - r0, c1 - c0)
         if scaled[a]:
-            dst[:] = (block.T / share[r0:r1]).T
+            np.divide(block, share[r0:r1].reshape(r1 - r0, 1), dst)
         else:
             dst[:] = block
         p += block.size
