@@ -240,9 +240,12 @@ class SharedRows:
 
         Agent ``i``'s points: each point's rows as :meth:`_Involved.split` makes them (the rows that involve it,
         ascending, divided by its share), its columns of the commands, keys and key names as the points'; made for
-        every point and agent in one call (:func:`split_points`, compiled where the kernels run). ``None`` (split
-        the points one by one) for other points, without keys, or where an agent's columns are not a range.
+        every point and agent in one compiled call (:func:`split_points`). ``None`` (split the points one by one)
+        for other points, without keys, where an agent's columns are not a range, or where the call is not compiled
+        (``ISF_ROBOT_JIT=0``, or ``cached`` before numba's cache holds it: its loops run slowly as written).
         """
+        if not hasattr(self._split, "py_func"):  # (not compiled: its loops as written are slower than point by point)
+            return None
         keys = points.keys if type(points) is StackedPoints else None
         lg = points.lg if keys is not None else None
         if type(lg) is not np.ndarray or lg.ndim != 3:
