@@ -21,7 +21,9 @@ with its compiled command, all points are one compiled call (the moving obstacle
 kinematics, the controller's kernel, the collision kernel with the mocap velocities), and the points are
 handed over stacked
 (:class:`~isf_robot.core.intermittent.StackedPoints`: the blocks' arrays, each point's Lie data read from
-its block only when asked for, so ``predict`` evaluates every point in one compiled pass); otherwise
+its block only when asked for, so ``predict`` evaluates every point in one compiled pass). A team's nominal
+(:class:`~isf_robot.arm.team_nominal.TeamReaching`) takes the same way while every arm's goal is steady
+(:class:`~isf_robot.arm.team_rollout.TeamPoints`: each arm's compiled command at every point); otherwise
 each point's Euler step and kinematics are one call and its rows
 :meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`. Every path computes the numpy loop's
 points with the same formulas (equal to rounding). The off trigger asks :meth:`NominalRollout.prediction`
