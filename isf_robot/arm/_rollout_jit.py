@@ -5,7 +5,8 @@ hands them out; its cache is keyed on every source file of this folder, so an ed
 formula this calls compiles it again). MuJoCo's ``mj_kinematics`` and ``mj_comPos`` are called on the
 raw addresses of the ``MjModel``/``MjData`` the bindings hold; :func:`closed_loop_points` calls the
 reaching controller's kernel (``_kernels_step.reach``) and the collision kernel
-(``_kernels_jit.near_packed_key``); :func:`closed_loop_predict` computes the command now (``reach``), calls it
+(``_kernels_jit.near_packed_key``), :func:`team_points` each arm's reaching kernel and the collision kernel once per
+point; :func:`closed_loop_predict` computes the command now (``reach``), calls it
 and then the core's prediction pass (:func:`~isf_robot.core.robust.predict_pass`), so its cache is keyed on the
 core's sources too (:func:`isf_robot.arm.rollout.predict_kernel`).
 """
@@ -33,6 +34,33 @@ def euler_step(ma, da, q, u, dt, qpos, qadr):  # pragma: no cover (compiled)
 
 
 @formula
+def place_obstacles(mp, mids, mpos, j):  # pragma: no cover (compiled)
+    """Mocap body ``mids[r]`` at ``mpos[j, r]`` (``mp``: the scratch data's ``mocap_pos``), every ``r``."""
+    for r in range(mids.shape[0]):
+        for c in range(3):
+            mp[mids[r], c] = mpos[j, r, c]
+
+
+@formula
+def point_rows(ma, da, pn, blk, rows, keys, res, npairs, cutoff, distmax, slack, eps, norms_in, lin,
+               dhdt_in):  # pragma: no cover (compiled)
+    """A point's rows (kinematics done): the collision kernel's into ``blk``/``rows``, their keys and ``res[:5]``.
+
+    ``near_packed_key`` (tables ``pn``, no coherence bounds, mocap velocities ``lin``); each row's key into
+    ``keys`` (a pair's index for the pair rows, ``npairs + i`` for the i-th row after them: the joint rows);
+    ``res[:5]``: near pairs, h_min, dist_min, joint_min, touching. Returns whether witness points touch.
+    """
+    k, h_min, dist_min, jmin, touching, _ = near_packed_key(ma, da, pn, blk, rows, False, cutoff, distmax, slack, eps,
+                                                            norms_in, lin, dhdt_in)
+    res[0], res[1], res[2], res[3], res[4] = k, h_min, dist_min, jmin, 1.0 if touching else 0.0
+    for i in range(k):
+        keys[i] = rows[i]
+    for i in range(keys.shape[0] - k):
+        keys[k + i] = npairs + i
+    return touching
+
+
+@formula
 def closed_loop_points(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs, vs, n, nv, dof0, site, index, t_prev,
                   a_max, kp, max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff, distmax, slack, eps,
                   norms_in, lin, dhdt_in, mp_addr, nmocap, mids, mpos, lins):  # pragma: no cover (compiled)
@@ -54,13 +82,10 @@ def closed_loop_points(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs,
     kernel reads the mocap velocities ``lins[j]`` (no rows: ``lin`` at every point).
     """
     v = v0
-    nm = mids.shape[0]
     mp = carray(f64p(mp_addr), (max(nmocap, 1), 3))
     for j in range(outs.shape[0]):
         tj = t + (j + 1) * dt
-        for r in range(nm):  # (the obstacles' place first: the kinematics below read it)
-            for c in range(3):
-                mp[mids[r], c] = mpos[j, r, c]
+        place_obstacles(mp, mids, mpos, j)  # (the obstacles' place first: the kinematics below read it)
         euler_step(ma, da, q, v, dt, qpos, qadr)
         res[j, 5] = reach(ma, da, rp, nb, outs[j], n, nv, dof0, site, index, False, tj, t_prev, True, a_max, kp,
                           max_ee, max_js, lam2)
@@ -69,18 +94,45 @@ def closed_loop_points(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs,
             e[i] = e[i] * decay
             vs[j, i] = outs[j, i] + e[i]
         v = vs[j]
-        k, h_min, dist_min, jmin, touching, _ = near_packed_key(ma, da, pn, blks[j], rows[j], False, cutoff, distmax,
-                                                                slack, eps, norms_in, lins[j] if lins.shape[0] else lin,
-                                                                dhdt_in)
-        res[j, 0], res[j, 1], res[j, 2], res[j, 3], res[j, 4] = k, h_min, dist_min, jmin, 1.0 if touching else 0.0
-        for i in range(k):
-            keys[j, i] = rows[j, i]
-        for i in range(keys.shape[1] - k):
-            keys[j, k + i] = npairs + i
-        if touching:
+        if point_rows(ma, da, pn, blks[j], rows[j], keys[j], res[j], npairs, cutoff, distmax, slack, eps,
+                      norms_in, lins[j] if lins.shape[0] else lin, dhdt_in):
             return j + 1
     return outs.shape[0]
 
+
+
+def team_points(ma, da, q, v0, t, dt, qpos, qadr, rps, nbs, arm_i, arm_f, nv, outs, pn, blks, rows, keys, npairs, res,
+                cutoff, distmax, slack, eps, norms_in, lin, dhdt_in, mp_addr, nmocap, mids, mpos,
+                lins):  # pragma: no cover (compiled)
+    """The closed loop of several arms' reaching controllers (a team's nominal) rolled forward, in one call.
+
+    As :func:`closed_loop_points` at the velocity level (no tracking error: the joint velocity is the command),
+    with every arm's command at each point: arm ``a``'s reaching controller (``reach``, its addresses ``rps[a]``,
+    buffer ``nbs[a]``, ``arm_i[a]``: its joints, first dof, end-effector site, goal index and first column of
+    the team's command; ``arm_f[a]``: the time of its rate limit's previous command, then its ``a_max``, ``kp``,
+    ``max_ee``, ``max_js`` and ``lam2``) into ``outs[j]``'s columns from that first column. One Euler step of
+    every joint, one kinematics and one collision kernel call per point (:func:`point_rows`). ``res[j, 5]``: the
+    largest goal distance of the arms. Returns the points done (it stops after a point with touching witness points).
+    """
+    v = v0
+    mp = carray(f64p(mp_addr), (max(nmocap, 1), 3))
+    for j in range(outs.shape[0]):
+        tj = t + (j + 1) * dt
+        place_obstacles(mp, mids, mpos, j)  # (the obstacles' place first: the kinematics below read it)
+        euler_step(ma, da, q, v, dt, qpos, qadr)
+        far = 0.0
+        for a in range(arm_i.shape[0]):
+            n, c0 = arm_i[a, 0], arm_i[a, 4]
+            t_prev = arm_f[a, 0] if j == 0 else t + j * dt  # (the previous point's time, as the loop makes it)
+            dist = reach(ma, da, rps[a], nbs[a], outs[j, c0: c0 + n], n, nv, arm_i[a, 1], arm_i[a, 2], arm_i[a, 3],
+                         False, tj, t_prev, True, arm_f[a, 1], arm_f[a, 2], arm_f[a, 3], arm_f[a, 4], arm_f[a, 5])
+            far = max(far, dist)
+        res[j, 5] = far
+        v = outs[j]
+        if point_rows(ma, da, pn, blks[j], rows[j], keys[j], res[j], npairs, cutoff, distmax, slack, eps,
+                      norms_in, lins[j] if lins.shape[0] else lin, dhdt_in):
+            return j + 1
+    return outs.shape[0]
 
 def closed_loop_predict(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs, vs, n, nv, dof0, site, index, t_prev,
                         a_max, kp, max_ee, max_js, lam2, pn, blks, rows, keys, npairs, res, cutoff, distmax, slack, eps,

@@ -61,7 +61,9 @@ class _ArmRollout:
     """Arm ``i``'s view of the team's rollout: each point's rows as :func:`~isf_robot.core.shares.agent_lie` makes them.
 
     The arms share one rollout per control step (the first arm to ask runs it), and one :class:`SharedRows`
-    (``shared_rows``; its own when not given): each point's rows are looked at once for all arms.
+    (``shared_rows``; its own when not given): each point's rows are looked at once for all arms. The compiled
+    rollout's stacked points are split for every arm and point in one call (:meth:`SharedRows.split_points`): each
+    arm gets stacked points, which its predictor reads in one pass; other points are split point by point.
     """
 
     def __init__(self, rollout: Any, cache: dict[str, Any], blocks: tuple[slice, ...], i: int,
@@ -72,10 +74,15 @@ class _ArmRollout:
     def __call__(self, t: float, x: Any) -> list[tuple[float, LieData, np.ndarray]]:
         cache = self.cache
         if cache.get("t") != t or cache.get("x") is not x:  # (x: the episode's data; a new run, new data)
-            cache.update(t=t, x=x, points=list(self.rollout(t, x)), split=None)
+            points = self.rollout(t, x)
+            cache.update(t=t, x=x, points=points, split=None, agents=self.shared_rows.split_points(points))
+        agents = cache["agents"]
+        if agents is not None:  # (the compiled rollout's stacked points: every arm's, split in one call)
+            return agents[self.i]
         split = cache["split"]
         if split is None:  # (every arm's rows of every point, in one pass per point: the first arm to ask)
-            split = cache["split"] = [self.shared_rows(lie).split(lie) for _, lie, _ in cache["points"]]
+            points = cache["points"] = list(cache["points"])
+            split = cache["split"] = [self.shared_rows(lie).split(lie) for _, lie, _ in points]
         b, i = self.blocks[self.i], self.i
         return [(s, subs[i], np.asarray(u)[b]) for (s, _, u), subs in zip(cache["points"], split)]
 

@@ -21,7 +21,9 @@ with its compiled command, all points are one compiled call (the moving obstacle
 kinematics, the controller's kernel, the collision kernel with the mocap velocities), and the points are
 handed over stacked
 (:class:`~isf_robot.core.intermittent.StackedPoints`: the blocks' arrays, each point's Lie data read from
-its block only when asked for, so ``predict`` evaluates every point in one compiled pass); otherwise
+its block only when asked for, so ``predict`` evaluates every point in one compiled pass). A team's nominal
+(:class:`~isf_robot.arm.team_nominal.TeamReaching`) takes the same way while every arm's goal is steady
+(:class:`~isf_robot.arm.team_rollout.TeamPoints`: each arm's compiled command at every point); otherwise
 each point's Euler step and kinematics are one call and its rows
 :meth:`~isf_robot.arm.collision.CollisionBarriers.lie_rows`. Every path computes the numpy loop's
 points with the same formulas (equal to rounding). The off trigger asks :meth:`NominalRollout.prediction`
@@ -56,6 +58,7 @@ from .joint_limits import JointLimitBarriers
 from .nominal import ReachingController
 from .paths import path_track
 from .scene import Scene
+from .team_rollout import TeamPoints
 
 __all__ = ["NominalRollout", "ScratchRollout", "MAX_POINTS", "obstacle_tracks"]
 
@@ -196,16 +199,26 @@ class ScratchRollout:
         """
         nom, coll = self.nominal, self.coll
         rate = nom._rate
+        mp, ls, lin, dl = self._moving_args(mpos, lins)
+        return (*self._addr, q, v0, e, decay, t, self.dt, self._data.qpos, self._qadr, nom._ptrs,
+                nom._buf if nb is None else nb, outs, vs, v0.size, nom._jac.shape[1], nom._dof0, nom.scene.ee_site_id,
+                nom.goals.index, rate.t_prev, rate.a_max, nom.kp, nom.max_ee_speed, nom.max_joint_speed, nom._lam2,
+                c[4], blk, rows, keys, len(coll.pairs.names), res, coll.cutoff, c[14], c[15], narrow._EPS_DIST, c[13],
+                lin, dl, self._mp_addr, self._nmocap, self._mids, mp, ls)
+
+    def _moving_args(self, mpos: np.ndarray | None, lins: np.ndarray | None) -> tuple:
+        """The kernels' moving-obstacle arguments ``(places, velocities, lin, dhdt_in)`` for ``mpos``/``lins``.
+
+        ``None``: no moving obstacle; the velocities are handed over only where the collision kernel makes
+        ``dh/dt`` (else ``lin`` at every point, the empty one).
+        """
+        coll = self.coll
         mp, ls, lin, dl = _NO_POS, _NO_LINS, coll._knolin, 0
         if mpos is not None and lins is not None:
             mp, ls = mpos, lins
             if coll._any_moving:
                 lin, dl = ls[0], coll._kdhdt
-        return (*self._addr, q, v0, e, decay, t, self.dt, self._data.qpos, self._qadr, nom._ptrs,
-                nom._buf if nb is None else nb, outs, vs, v0.size, nom._jac.shape[1], nom._dof0, nom.scene.ee_site_id,
-                nom.goals.index, rate.t_prev, rate.a_max, nom.kp, nom.max_ee_speed, nom.max_joint_speed, nom._lam2,
-                c[4], blk, rows, keys, len(coll.pairs.names), res, coll.cutoff, c[14], c[15], narrow._EPS_DIST, c[13],
-                lin, dl, self._mp_addr, self._nmocap, self._mids, mp, ls if dl else _NO_LINS)
+        return mp, ls if dl else _NO_LINS, lin, dl
 
     def _run_whole(self, t: float, q: np.ndarray, v0: np.ndarray, e: np.ndarray, decay: float, prev: np.ndarray,
                    mpos: np.ndarray | None, lins: np.ndarray | None, command: bool) -> tuple | None:
@@ -244,6 +257,7 @@ class NominalRollout(ScratchRollout):
         super().__init__(scene, nominal, coll, joints, control_period, time_offset, horizon, points)
         self._s = tuple((j + 1) * self.dt for j in range(self.n))  # (the points' times ahead, as the loop makes them)
         self._whole = self._whole_kernel()  # (with no tracking error: the velocity is the command)
+        self._team = TeamPoints.of(self) if self._whole is None else None  # (a team's nominal: every arm's command)
         self._no_error = np.zeros(self._qadr.size)  # (stays 0: 0 * decay 0)
         self._qpos = self._data.qpos  # (a view of the scratch data: the kernel writes through it)
         qa = self._qadr
@@ -266,14 +280,22 @@ class NominalRollout(ScratchRollout):
         (the controller's state as before this call, ``q`` unchanged), also after a point whose witness
         points coincide (the numpy narrow phase's case).
         """
-        coll, joints, n = self.coll, self.joints, self.n
-        if u.shape != q.shape or u.ndim != 1 or not self._steady(t):
+        team = self._team
+        if u.shape != q.shape or u.ndim != 1 or not (self._steady(t) if team is None else team.steady(t)):
             return None
         mpos, lins = self._tracks(t) if self.moving else (None, None)  # (each point's obstacle places, velocities)
-        got = self._run_whole(t, q, first, self._no_error, 0.0, u, mpos, lins, command=True)
+        if team is None:
+            got = self._run_whole(t, q, first, self._no_error, 0.0, u, mpos, lins, command=True)
+        else:
+            got = team.run(t, q, first, mpos, lins)
         if got is None:  # (the general loop from the start)
             return None
-        c, blk, g, rows, keys, res, outs, _ = got
+        return self._stacked(*got[:7])
+
+    def _stacked(self, c: tuple, blk: np.ndarray, g: np.ndarray, rows: np.ndarray, keys: np.ndarray, res: np.ndarray,
+                 outs: np.ndarray) -> StackedPoints:
+        """The points of a compiled call's outputs (context ``c``, blocks, gradients, rows, keys, res, commands)."""
+        coll, joints, n = self.coll, self.joints, self.n
         m = c[7]
 
         def point(j: int) -> LieData:  # (point j's Lie data, read from its block as the simulation's tick reads it)
@@ -382,7 +404,7 @@ class NominalRollout(ScratchRollout):
                 first = np.array(first, dtype=float)
                 if first.shape != u.shape:
                     raise ConfigError(f"rollout: the first command has shape {first.shape}, the nominal's {u.shape}")
-            if self._whole is not None:
+            if self._whole is not None or self._team is not None:
                 pts = self._compiled(t, q, u, u if first is None else first)
                 if pts is not None:
                     return pts

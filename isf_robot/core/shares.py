@@ -16,10 +16,12 @@ from typing import Any
 
 import numpy as np
 
-from .jit import compiled
+from .intermittent import StackedPoints
+from .jit import compiled, formula
 from .system import LieData
 
-__all__ = ["block_matrix", "row_agents", "gather_rows", "agent_lie", "least_of", "SharedRows"]
+__all__ = ["block_matrix", "row_agents", "involved", "gather_rows", "split_points", "agent_lie", "least_of",
+           "SharedRows"]
 
 _NO_I = np.zeros(0, np.intp)
 
@@ -48,6 +50,22 @@ def row_agents(lg: np.ndarray, blocks: Sequence[slice] | np.ndarray) -> np.ndarr
     return np.abs(lg) @ M > 0.0
 
 
+@formula
+def involved(lg, c0, c1, out):  # type: ignore[no-untyped-def]
+    """Whether each row of ``lg`` (k, m) involves the agent of the columns ``c0:c1``, into ``out`` (k,), bool.
+
+    :func:`row_agents`' test for one agent whose columns are a range: ``sum |Lg h| > 0`` over them (a sum of
+    absolute values is positive exactly where one of them is; NaN gives ``False`` either way). Loops over the
+    entries: it runs compiled (:func:`split_points`).
+    """
+    for r in range(lg.shape[0]):
+        s = 0.0
+        for c in range(c0, c1):
+            s += abs(lg[r, c])
+        out[r] = s > 0.0
+
+
+@formula
 def gather_rows(h: np.ndarray, lf: np.ndarray, lg: np.ndarray, grad_norm: np.ndarray, rows: np.ndarray,
                 ends: np.ndarray, cols: np.ndarray, col_ends: np.ndarray, share: np.ndarray, scaled: np.ndarray,
                 out_h: np.ndarray, out_lf: np.ndarray, out_gn: np.ndarray, out_lg: np.ndarray) -> None:
@@ -58,7 +76,8 @@ def gather_rows(h: np.ndarray, lf: np.ndarray, lg: np.ndarray, grad_norm: np.nda
     (divided by only where ``scaled[a]``: a share of 1 leaves the row as it is). Written to ``out_h``,
     ``out_lf``, ``out_gn`` (one entry per row of ``rows``) and ``out_lg`` (flat: each agent's rows by its
     columns, row by row, after the agents before it). One call for every agent, in array operations per agent
-    (as fast as numpy runs it; compiled by numba where the kernels run, :class:`_Involved.split`).
+    (as fast as numpy runs it; compiled by numba where the kernels run, :class:`_Involved.split`). An agent's
+    columns that are a range (a slice's, step 1) are taken in one indexing, others picked one by one.
     """
     out_h[:] = h[rows]
     out_lf[:] = lf[rows]
@@ -67,14 +86,77 @@ def gather_rows(h: np.ndarray, lf: np.ndarray, lg: np.ndarray, grad_norm: np.nda
     r0 = c0 = 0
     for a in range(ends.shape[0]):
         r1, c1 = ends[a], col_ends[a]
-        block = lg[rows[r0:r1]][:, cols[c0:c1]]
+        if c1 > c0 and cols[c1 - 1] - cols[c0] == c1 - c0 - 1:  # (ascending, distinct: a range)
+            block = lg[rows[r0:r1], cols[c0]: cols[c1 - 1] + 1]
+        else:
+            block = lg[rows[r0:r1]][:, cols[c0:c1]]
         dst = out_lg[p: p + block.size].reshape(r1 - r0, c1 - c0)
         if scaled[a]:
-            dst[:] = (block.T / share[r0:r1]).T
+            np.divide(block, share[r0:r1].reshape(r1 - r0, 1), dst)
         else:
             dst[:] = block
         p += block.size
         r0, c0 = r1, c1
+
+
+def split_points(h, lf, lg, grad_norm, k, keys, col0, col1, lg_at, out_k, out_h, out_lf, out_gn, out_lg,
+                 out_keys):  # type: ignore[no-untyped-def]
+    """Every agent's rows of every stacked point, as :meth:`_Involved.split` makes them point by point.
+
+    Point ``j``'s rows are the first ``k[j]`` of ``h[j]``, ``lf[j]``, ``lg[j]`` (K, m), ``grad_norm[j]`` and
+    ``keys[j]``; agent ``a`` owns the columns ``col0[a]:col1[a]`` (``w`` of them). Its rows of point ``j``: those
+    that involve it (:func:`involved`), ascending, each divided by its share ``1 / (agents of the row)`` where any
+    of them is shared: :func:`gather_rows` of every agent, once per point. Their count goes to ``out_k[a, j]``,
+    their values to the first entries of ``out_h[a, j]``, ``out_lf[a, j]``, ``out_gn[a, j]`` and ``out_keys[a, j]``,
+    their ``Lg h`` columns row after row to the flat ``out_lg`` from ``lg_at[a] + j K w`` (agent ``a``'s (n, K, w)
+    block, ``K = out_h.shape[2]``). One call for every point (compiled where the kernels run:
+    :meth:`SharedRows.split_points`).
+    """
+    na, big = col0.shape[0], out_h.shape[2]
+    widths = col1 - col0
+    cols = np.empty(widths.sum(), np.intp)
+    col_ends = np.cumsum(widths).astype(np.intp)
+    for a in range(na):
+        cols[col_ends[a] - widths[a]: col_ends[a]] = np.arange(col0[a], col1[a])
+    kmax = k.max() if k.shape[0] else 0
+    inv = np.empty((na, kmax), np.bool_)
+    count = np.empty(kmax)
+    rows = np.empty(na * kmax, np.intp)
+    share = np.empty(na * kmax)
+    ends = np.empty(na, np.intp)
+    scaled = np.empty(na, np.bool_)
+    th, tlf, tgn = np.empty(na * kmax), np.empty(na * kmax), np.empty(na * kmax)
+    tlg = np.empty(kmax * cols.shape[0])
+    for j in range(h.shape[0]):
+        kj = k[j]
+        lgj = lg[j, :kj]
+        for a in range(na):
+            involved(lgj, col0[a], col1[a], inv[a, :kj])
+        for r in range(kj):
+            count[r] = inv[:, r].sum()
+        p = 0
+        for a in range(na):  # (agent after agent, each agent's rows ascending, as _Involved.split gathers them)
+            scaled[a] = False
+            for r in range(kj):
+                if inv[a, r]:
+                    rows[p], share[p] = r, 1.0 / count[r]
+                    scaled[a] = scaled[a] or count[r] > 1.0
+                    p += 1
+            ends[a] = p
+        gather_rows(h[j], lf[j], lgj, grad_norm[j], rows[:p], ends, cols, col_ends, share[:p], scaled, th[:p],
+                    tlf[:p], tgn[:p], tlg)
+        r0 = q = 0
+        for a in range(na):
+            ka, w = ends[a] - r0, widths[a]
+            out_k[a, j] = ka
+            out_h[a, j, :ka] = th[r0: r0 + ka]
+            out_lf[a, j, :ka] = tlf[r0: r0 + ka]
+            out_gn[a, j, :ka] = tgn[r0: r0 + ka]
+            for i in range(ka):
+                out_keys[a, j, i] = keys[j, rows[r0 + i]]
+            at = lg_at[a] + j * big * w
+            out_lg[at: at + ka * w] = tlg[q: q + ka * w]
+            r0, q = r0 + ka, q + ka * w
 
 
 def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray,
@@ -139,6 +221,8 @@ class SharedRows:
         self._last = _Involved(np.zeros((0, len(self.blocks)), bool), np.zeros(0, np.intp), np.zeros(0, bool))
         self._colmap: tuple[int, tuple[np.ndarray, np.ndarray, tuple[int, ...]]] | None = None
         self._gather = compiled(gather_rows)  # (ISF_ROBOT_JIT is read here, when the rows' split is set up)
+        self._split = compiled(split_points)
+        self._rangemap: tuple[int, tuple | None] | None = None
 
     def _cols(self, m: int) -> tuple[np.ndarray, np.ndarray, tuple[int, ...]]:
         """The agents' columns of ``m`` inputs, one after the other, their ends, and each agent's count."""
@@ -149,6 +233,59 @@ class SharedRows:
             widths = tuple(c.shape[0] for c in each)
             got = self._colmap = (m, (np.concatenate(each) if each else _NO_I,
                                       np.cumsum(widths, dtype=np.intp), widths))
+        return got[1]
+
+    def split_points(self, points: Any) -> list[StackedPoints] | None:
+        """Every agent's rows of stacked points (:class:`~.intermittent.StackedPoints` with keys), or ``None``.
+
+        Agent ``i``'s points: each point's rows as :meth:`_Involved.split` makes them (the rows that involve it,
+        ascending, divided by its share), its columns of the commands, keys and key names as the points'; made for
+        every point and agent in one compiled call (:func:`split_points`). ``None`` (split the points one by one)
+        for other points, without keys, where an agent's columns are not a range, or where the call is not compiled
+        (``ISF_ROBOT_JIT=0``, or ``cached`` before numba's cache holds it: its loops run slowly as written).
+        """
+        if not hasattr(self._split, "py_func"):  # (not compiled: its loops as written are slower than point by point)
+            return None
+        keys = points.keys if type(points) is StackedPoints else None
+        lg = points.lg if keys is not None else None
+        if type(lg) is not np.ndarray or lg.ndim != 3:
+            return None
+        plan = self._ranges(lg.shape[2])
+        if plan is None:
+            return None
+        col0, col1, widths, starts, size = plan
+        n, big = points.h.shape[0], max(points._rows, default=0)  # (an agent has at most its point's rows)
+        lg_at = starts * (n * big)  # (agent a's (n, K, w) block of Lg h in the flat output)
+        na = len(widths)
+        out_k, out_keys = np.empty((na, n), np.int64), np.empty((na, n, big), np.int64)
+        out_h, out_lf, out_gn, out_lg = np.empty((na, n, big)), np.empty((na, n, big)), np.empty((na, n, big)), \
+            np.empty(n * big * size)
+        self._split(points.h, points.lf, lg, points.grad_norm, points.rows, keys, col0, col1, lg_at, out_k, out_h,
+                    out_lf, out_gn, out_lg, out_keys)
+        s, u, names = points.s, points.u, points.key_names
+        got = []
+        for a, w in enumerate(widths):
+            at = int(lg_at[a])
+            ka, lga, ha, lfa, gna, kya = out_k[a], out_lg[at: at + n * big * w].reshape(n, big, w), out_h[a], \
+                out_lf[a], out_gn[a], out_keys[a]
+            got.append(StackedPoints._of(s, np.ascontiguousarray(u[:, int(col0[a]):int(col1[a])]), ka, ka.tolist(), ha,
+                                         lfa, lga, gna, _point_of(ka, ha, lfa, lga, gna, kya, names), None, kya, names))
+        return got
+
+    def _ranges(self, m: int) -> tuple | None:
+        """The agents' column ranges of ``m`` inputs, or ``None`` where a block is not a range.
+
+        ``(first columns, ends, widths, the widths before each agent, sum of widths)`` (kept per ``m``).
+        """
+        got = self._rangemap
+        if got is None or got[0] != m:
+            ranges = [range(m)[b] for b in self.blocks]
+            ok = all(r.step == 1 for r in ranges)
+            widths = [len(r) for r in ranges]
+            starts = np.cumsum([0, *widths[:-1]]).astype(np.int64)
+            got = self._rangemap = (m, (np.array([r.start for r in ranges], np.int64),
+                                        np.array([r.stop for r in ranges], np.int64), widths, starts,
+                                        int(sum(widths))) if ok else None)
         return got[1]
 
     def __call__(self, lie: LieData) -> _Involved:
@@ -175,6 +312,17 @@ class SharedRows:
             self._cache[key] = out
         self._last = out
         return out
+
+
+def _point_of(k: np.ndarray, h: np.ndarray, lf: np.ndarray, lg: np.ndarray, gn: np.ndarray, keys: np.ndarray,
+              names: Any) -> Callable[[int], LieData]:
+    """``point(j)``: an agent's split point ``j`` as :class:`LieData` (views; its rows' names from the keys)."""
+    def point(j: int) -> LieData:
+        kj = int(k[j])
+        names_j = tuple([names[i] for i in keys[j, :kj].tolist()])
+        return LieData._of(h[j, :kj], lf[j, :kj], lg[j, :kj], gn[j, :kj], names_j)
+
+    return point
 
 
 class _Involved:
