@@ -136,7 +136,7 @@ def report(times: dict[str, list[float]], suite: tuple[float, str] | None, load0
         f"{int(sum(times['run warm compiled']))}.",
     ]
     if suite is not None:
-        lines += ["", f"`pytest -q -n 2` in a user's clone (no `../shared`), after `pip install \".[test]\"` into a new "
+        lines += ["", "`pytest -q -n 2` in a user's clone (no `../shared`), after `pip install \".[test]\"` into a new "
                   f"virtual environment (cold kernel caches; the install not timed): **{suite[0] / 60:.1f} min** "
                   f"({suite[1]}). Target: at most 5 min."]
     return "\n".join(lines)
