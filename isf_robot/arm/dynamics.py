@@ -102,6 +102,12 @@ class ArmDynamics:
         self._kernel = kernels.dynamics_kernel()  # (the compiled terms; None: the bindings' calls below)
         self._bound: tuple = (None,)  # (the data the kernel was last given, its address and force arrays: _bind)
 
+    def __getstate__(self) -> dict:
+        """A copy or a pickle binds its compiled call again: the binding holds raw addresses of this object's data."""
+        state = dict(self.__dict__)
+        state["_bound"] = (None,)
+        return state
+
     def _bind(self, data: mujoco.MjData) -> tuple:
         """The compiled call's arguments of ``data``: ``(data, kernel, its address, qfrc_passive, qfrc_bias)``.
 

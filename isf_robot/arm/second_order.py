@@ -202,9 +202,9 @@ class SecondOrderRows:
         After the velocity level's rows, ``phi``, ``D phi`` (:meth:`phi_rate`) and the ``psi`` rows are one compiled
         call with numba (``_second_order_jit.psi_tick``: the formulas of :mod:`isf_robot.arm.psi_law`, which the
         numpy path calls too); the numpy path where it cannot (coinciding witness points at the shifted state). The
-        call skips numba's dispatch (:func:`~isf_robot.core.jit.direct`) when ``Lg`` and ``terms.minv`` are C-ordered
-        float64 (as the velocity level's rows and :class:`~isf_robot.arm.dynamics.ArmDynamics` make them; its
-        ``a0`` a contiguous float64 vector, as there).
+        call skips numba's dispatch (:func:`~isf_robot.core.jit.direct`) when ``Lg``, ``terms.minv`` and ``terms.a0``
+        are C-ordered float64 (as the velocity level's rows and :class:`~isf_robot.arm.dynamics.ArmDynamics` make
+        them; the rows' ``h``, ``lf`` and indices are the tick's own arrays, of the types its kernel gives them).
 
         Returns:
             ``(psi_lie, tick)``: the :func:`psi_lie` of every near pair then every joint limit, and
@@ -230,7 +230,9 @@ class SecondOrderRows:
             args = (*head, views[1], *self._kqpos, q_dot, self.eps, idx, self._at, self.approaching, lie.h, lg, lie.lf,
                     terms.a0, minv, self.alpha_1, out)
             kernel = self._tick_kernel
-            if lg.flags.c_contiguous and minv.flags.c_contiguous and minv.dtype is _F64:  # (the types held: direct)
+            a0 = terms.a0
+            if (lg.dtype is _F64 and minv.dtype is _F64 and a0.dtype is _F64 and lg.flags.c_contiguous
+                    and minv.flags.c_contiguous and a0.flags.c_contiguous):  # (the types held: direct)
                 kernel = self._tick_direct
                 if kernel is None:
                     kernel = self._tick_direct = direct(self._tick_kernel, args)

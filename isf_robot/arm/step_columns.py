@@ -170,21 +170,20 @@ class StepColumns:
             rest += (data.xpos.reshape(-1), data.xquat.reshape(-1))
         if self.mocap_pos.shape[1]:
             rest += (data.mocap_pos.reshape(-1), data.mocap_quat.reshape(-1))
-        self._copy = None
         if isinstance(qpos_adr, slice) and isinstance(dof_adr, slice):
             parts = (data.qpos[qpos_adr], data.qvel[dof_adr], *rest)
             width = sum(p.size for p in parts) + 2 * self._n
-            if width != self._row_state.shape[1]:
+            if width != self._row_state.shape[1]:  # (checked before anything is bound: a failed bind changes nothing)
                 raise ValueError(f"the bound state holds {width - 2 * self._n} values a step; the block keeps "
                                  f"{self._row_state.shape[1] - 2 * self._n} (joints, end effector, poses)")
-            self._state = (parts, None)
-            copy = compiled(copy_row)
+            copy, fast = compiled(copy_row), None
             if copy is not copy_row and all(p.dtype == np.float64 and p.ndim == 1 and p.flags.c_contiguous
                                             for p in parts):  # (the views' types are fixed: a direct call)
                 u0 = np.zeros(self._n)
-                self._copy = direct(copy, (parts, u0, u0, self._row_state[0]))
+                fast = direct(copy, (parts, u0, u0, self._row_state[0]))
+            self._state, self._copy = (parts, None), fast
         else:  # (the arm's joints scattered: picked at each step)
-            self._state = (rest, (data, qpos_adr, dof_adr))
+            self._state, self._copy = (rest, (data, qpos_adr, dof_adr)), None
 
     def clear(self) -> None:
         """Start the next block (the arrays are reused: observers must not keep views past ``on_steps``)."""

@@ -101,11 +101,11 @@ class TeamPoints:
         keys = np.empty((n, c[7]), dtype=np.int64)
         outs, res, q0 = np.empty((n, v0.size)), np.empty((n, 6)), q.copy()
         rps, nbs, arm_i, arm_f = self.rps, self.nbs, self.arm_i, self.arm_f
-        for a, ctl in enumerate(self.arms):  # (each arm's state now: addresses, buffer, goal, last command's time)
+        for a, ctl in enumerate(self.arms):  # (each arm's state and settings now, as the one-arm path reads them)
             rps[a] = ctl._ptrs
             nbs[a, :ctl._buf.size] = ctl._buf
             arm_i[a, 3] = ctl.goals.index
-            arm_f[a, 0] = ctl._rate.t_prev
+            arm_f[a] = (ctl._rate.t_prev, ctl._rate.a_max, ctl.kp, ctl.max_ee_speed, ctl.max_joint_speed, ctl._lam2)
         mp, ls, lin, dl = ro._moving_args(mpos, lins)
         done = self.kernel(*ro._addr, q, v0, t, ro.dt, ro._data.qpos, ro._qadr, rps, nbs, arm_i, arm_f, self.nv, outs,
                            c[4], blk, rows, keys, len(coll.pairs.names), res, coll.cutoff, c[14], c[15],

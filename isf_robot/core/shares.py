@@ -10,12 +10,14 @@ the safety argument). :class:`SharedRows` keeps the answer per set of row names.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from operator import itemgetter
 from typing import Any
 
 import numpy as np
 
+from .exceptions import NonFiniteError
 from .intermittent import StackedPoints
 from .jit import compiled, formula
 from .system import LieData
@@ -47,7 +49,11 @@ def row_agents(lg: np.ndarray, blocks: Sequence[slice] | np.ndarray) -> np.ndarr
 
     """
     M = blocks if isinstance(blocks, np.ndarray) else block_matrix(blocks, lg.shape[1])
-    return np.abs(lg) @ M > 0.0
+    s = np.abs(lg) @ M
+    if not np.isfinite(s).all():  # (a row nobody would get: its constraint would be dropped without a word)
+        bad = np.flatnonzero(~np.isfinite(s).all(axis=1)).tolist()
+        raise NonFiniteError(f"team rows: Lg h not finite in rows {bad}")
+    return s > 0.0
 
 
 @formula
@@ -55,14 +61,15 @@ def involved(lg, c0, c1, out):  # type: ignore[no-untyped-def]
     """Whether each row of ``lg`` (k, m) involves the agent of the columns ``c0:c1``, into ``out`` (k,), bool.
 
     :func:`row_agents`' test for one agent whose columns are a range: ``sum |Lg h| > 0`` over them (a sum of
-    absolute values is positive exactly where one of them is; NaN gives ``False`` either way). Loops over the
-    entries: it runs compiled (:func:`split_points`).
+    absolute values is positive exactly where one of them is). A row whose sum is not finite is the agent's too,
+    so that its non-finite values reach the agent's prediction, which refuses them (:func:`row_agents` refuses
+    them at once). Loops over the entries: it runs compiled (:func:`split_points`).
     """
     for r in range(lg.shape[0]):
         s = 0.0
         for c in range(c0, c1):
             s += abs(lg[r, c])
-        out[r] = s > 0.0
+        out[r] = s > 0.0 or not s < math.inf
 
 
 @formula
@@ -86,7 +93,12 @@ def gather_rows(h: np.ndarray, lf: np.ndarray, lg: np.ndarray, grad_norm: np.nda
     r0 = c0 = 0
     for a in range(ends.shape[0]):
         r1, c1 = ends[a], col_ends[a]
-        if c1 > c0 and cols[c1 - 1] - cols[c0] == c1 - c0 - 1:  # (ascending, distinct: a range)
+        step1 = c1 > c0
+        for i in range(c0, c1):  # (a range: each column the one before plus 1)
+            if cols[i] != cols[c0] + (i - c0):
+                step1 = False
+                break
+        if step1:
             block = lg[rows[r0:r1], cols[c0]: cols[c1 - 1] + 1]
         else:
             block = lg[rows[r0:r1]][:, cols[c0:c1]]
@@ -102,6 +114,9 @@ def gather_rows(h: np.ndarray, lf: np.ndarray, lg: np.ndarray, grad_norm: np.nda
 def split_points(h, lf, lg, grad_norm, k, keys, col0, col1, lg_at, out_k, out_h, out_lf, out_gn, out_lg,
                  out_keys):  # type: ignore[no-untyped-def]
     """Every agent's rows of every stacked point, as :meth:`_Involved.split` makes them point by point.
+
+    (A row whose ``Lg h`` is not finite: :func:`row_agents` refuses it there; here it goes to the agents
+    (:func:`involved`), whose prediction refuses it.)
 
     Point ``j``'s rows are the first ``k[j]`` of ``h[j]``, ``lf[j]``, ``lg[j]`` (K, m), ``grad_norm[j]`` and
     ``keys[j]``; agent ``a`` owns the columns ``col0[a]:col1[a]`` (``w`` of them). Its rows of point ``j``: those

@@ -71,6 +71,25 @@ def test_terms_of_another_models_state_are_the_filter_models() -> None:
         assert not np.allclose(got.minv, _dense(plant, data, dof)[1], rtol=1e-6)  # (the plant's would differ)
 
 
+def test_a_copied_dynamics_computes_on_its_own_data() -> None:
+    """A deep copy binds its compiled call again: it must not compute on the original's model and data (addresses)."""
+    scene = load_scene("panda_pole")
+    data = mujoco.MjData(scene.model)
+    rng = np.random.default_rng(3)
+    _random_state(scene, data, rng)
+    mujoco.mj_step1(scene.model, data)
+    dyn = ArmDynamics(scene.model, scene.dof_adr, own_data=True)
+    dyn.terms(data)  # (bound to its own data)
+    twin = copy.deepcopy(dyn)
+    _random_state(scene, data, rng)
+    mujoco.mj_step1(scene.model, data)
+    dyn._own.qpos[:] = 0.0  # (the original's data elsewhere: a copy reading it would see this state)
+    fresh = ArmDynamics(scene.model, scene.dof_adr, own_data=True).terms(data)
+    got = twin.terms(data)
+    for a, b in zip((got.minv, got.a0), (fresh.minv, fresh.a0), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_terms_do_not_share_buffers_between_states() -> None:
     """The terms of one state are not changed by the next call (the solve's buffers are reused)."""
     scene = load_scene("panda_pole")

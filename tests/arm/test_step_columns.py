@@ -67,6 +67,7 @@ def test_columns_hold_what_was_written(seal_every: int, layout: str, jit: str, m
     for r in rows:
         r["step"].u, r["step"].u_nom = _layout(r["step"].u, layout), _layout(r["step"].u_nom, layout)
     block, data, model = _block(400)
+    assert (block._copy is not None) == (jit == "1")  # (the compiled copy where it runs: the case under test)
     block.SEAL_ROWS = 64  # (an instance value: the loop's own seals between the explicit ones)
     want_pos, want_ee = [], []
     for i, r in enumerate(rows):

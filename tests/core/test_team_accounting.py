@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from isf_robot.core import LieData
+from isf_robot.core.exceptions import NonFiniteError
 from isf_robot.core.jit import compiled
-from isf_robot.core.shares import SharedRows, agent_lie, gather_rows, least_of, row_agents
+from isf_robot.core.shares import SharedRows, agent_lie, gather_rows, involved, least_of, row_agents
 from isf_robot.core.step import FilterStep
 from isf_robot.core.team import BlockIntervention, Coordination
 
@@ -95,6 +96,21 @@ def test_split_gives_each_agent_its_rows_its_columns_and_its_share(jit: str, mon
         np.testing.assert_array_equal(agent_lie(lie, b, rows, np.ones(rows.size), names, scaled=False).lg,
                                       lg[rows][:, b])
     assert (compiled(gather_rows) is gather_rows) == (jit == "0")  # (numba is a dependency: compiled with "1")
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_a_row_with_non_finite_lg_is_refused_not_dropped(bad: float) -> None:
+    """No agent may lose a row silently: the step's split refuses it, the points' split hands it to the agent."""
+    lg = np.array([[bad, 0.0, 1.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0, 0.0]])
+    with pytest.raises(NonFiniteError, match=r"rows \[0\]"):
+        row_agents(lg, BLOCKS)
+    with pytest.raises(NonFiniteError):
+        SharedRows(BLOCKS)(_lie(lg, ("a|b", "a|x")))
+    out = np.zeros(2, dtype=bool)
+    compiled(involved)(lg, 0, 2, out)  # (agent 0's columns: its prediction then refuses the row)
+    np.testing.assert_array_equal(out, [True, True])
+    compiled(involved)(lg, 2, 5, out)
+    np.testing.assert_array_equal(out, [True, False])
 
 
 @pytest.mark.parametrize("jit", ["1", "0"])
