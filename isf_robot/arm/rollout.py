@@ -158,18 +158,21 @@ class ScratchRollout:
                  and nom.scene.model is self.scene.model)
         return ks[1] if ks is not None and reach and self.coll._kernel is not None else None
 
-    def _steady(self, t: float, first: float | None = None) -> bool:
+    def _steady(self, t: float, first: float | None = None, controllers: Sequence[Any] | None = None) -> bool:
         """Whether the points after ``t`` can be one compiled call.
 
-        The goal index cannot change over the horizon, from ``first`` (default the first point, ``t + dt``) to
-        its end (:meth:`GoalSequence.steady`: the kernel holds it; the goal bookkeeping is put back after the
-        rollout anyway), the controller has a previous command (its rate limit) and its compiled command is bound
-        to the scratch data, and the collision kernel computes ``dh/dt``.
+        For each of ``controllers`` (default the nominal itself; a team's: every arm's reaching controller): the
+        goal index cannot change over the horizon, from ``first`` (default the first point, ``t + dt``) to its end
+        (:meth:`GoalSequence.steady`: the kernel holds it; the goal bookkeeping is put back after the rollout
+        anyway), the controller has a previous command (its rate limit) and its compiled command is bound to the
+        scratch data; and the collision kernel computes ``dh/dt``.
         """
-        nom, coll = self.nominal, self.coll
-        return (nom._rate.t_prev is not None and not (coll._any_moving and not coll._kdhdt)
-                and nom.goals.steady(t + self.dt if first is None else first, t + self.n * self.dt)
-                and nom._bound(self._data))
+        coll = self.coll
+        if coll._any_moving and not coll._kdhdt:
+            return False
+        start, end = t + self.dt if first is None else first, t + self.n * self.dt
+        return all(c._rate.t_prev is not None and c.goals.steady(start, end) and c._bound(self._data)
+                   for c in ((self.nominal,) if controllers is None else controllers))
 
     def _load(self, x: Any) -> mujoco.MjData:
         """The scratch data with the episode's positions and mocap bodies (``x``: the episode's ``MjData``)."""

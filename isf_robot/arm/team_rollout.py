@@ -78,14 +78,7 @@ class TeamPoints:
 
     def steady(self, t: float) -> bool:
         """Whether the points after ``t`` can be one call: :meth:`ScratchRollout._steady` for every arm."""
-        ro = self.ro
-        coll, first, last, data = ro.coll, t + ro.dt, t + ro.n * ro.dt, ro._data
-        if coll._any_moving and not coll._kdhdt:
-            return False
-        for c in self.arms:
-            if c._rate.t_prev is None or not c.goals.steady(first, last) or not c._bound(data):
-                return False
-        return True
+        return self.ro._steady(t, controllers=self.arms)  # type: ignore[no-any-return]
 
     def run(self, t: float, q: np.ndarray, v0: np.ndarray, mpos: np.ndarray | None,
             lins: np.ndarray | None) -> tuple | None:

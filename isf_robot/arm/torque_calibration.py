@@ -61,7 +61,7 @@ from .dynamics import ArmDynamics, torque_limits
 from .filter_design import designed_kd
 from .nominal import ReachingController
 from .scene import Scene
-from .torque_nominal import TorqueNominal
+from .torque_nominal import TorqueNominal, torque_clip
 
 __all__ = ["calibrate_torque_d_bar", "torque_plant", "TorqueCalibration", "inner_gain"]
 
@@ -177,7 +177,7 @@ def calibrate_torque_d_bar(
             offset = (rng.uniform(-1.0, 1.0, free.n_joints) * excitation * tau_max
                       if rng.random() < 0.5 else np.zeros(free.n_joints))
         terms = dyn.terms(data)
-        tau = np.clip(nominal(k * T, data, terms) + offset, -tau_max, tau_max)
+        tau = torque_clip(nominal(k * T, data, terms) + offset, tau_max)
         sat += np.abs(tau) >= tau_max * (1 - 1e-9)
         q0, v0, pred = data.qpos[qadr].copy(), data.qvel[dofs].copy(), terms.acceleration(tau)
         data.qfrc_applied[dofs] = tau
