@@ -10,7 +10,9 @@ from isf_robot.core.shares import gather_rows
 
 
 @pytest.mark.parametrize("blocks", [(slice(0, 3), slice(3, 7)), (slice(0, 7, 2), slice(1, 7, 2)),
-                                    (slice(4, 7), slice(3, None, -1)), (slice(0, 7), slice(7, 7))])
+                                    (slice(4, 7), slice(3, None, -1)), (slice(0, 7), slice(7, 7)),
+                                    # (columns whose ends look like a range's, not a range)
+                                    (np.array([0, 2, 1, 3]), np.array([4, 4, 6]))])
 @pytest.mark.parametrize("run", [gather_rows, compiled(gather_rows)], ids=["plain", "compiled"])
 def test_gather_rows_takes_each_agents_columns_divided_by_its_shares(blocks, run) -> None:  # type: ignore[no-untyped-def]
     rng = np.random.default_rng(5)
