@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from isf_robot.core import ConfigError, UnknownNameError
+from isf_robot.core.spec import PARAMETERS as SPEC_PARAMETERS
 from isf_robot.core.strategies import strategy_info
 from isf_robot.support.parallel import MAX_JOBS, Interrupted, check_backend, run_tasks
 from isf_robot.support.report import format_table
@@ -51,10 +52,10 @@ __all__ = ["SweepPoint", "SweepTask", "grid_points", "random_points", "run_sweep
            "summarize_arms", "team_points",
            "pareto_front", "goals_time", "format_sweep", "PARAMETERS", "OBJECTIVES", "MAX_SWEEP_EPISODES"]
 
-PARAMETERS = ("alpha", "c", "b", "min_off", "c_max", "blend", "horizon", "predict_every", "c_pred", "shoot")
-"""Filter parameters a sweep can vary (the names of :func:`~isf_robot.arm.params.resolve_params`)."""
+PARAMETERS = tuple(q.name for q in SPEC_PARAMETERS if q.swept)
+"""Filter parameters a sweep can vary: the :class:`~isf_robot.core.FilterSpec` fields marked ``swept``."""
 
-_INTERMITTENT_ONLY = frozenset(PARAMETERS) - {"alpha"}
+_INTERMITTENT_ONLY = frozenset(q.name for q in SPEC_PARAMETERS if q.intermittent)
 
 OBJECTIVES: tuple[tuple[str, int], ...] = (
     ("duty_cycle", -1), ("on_switches", -1), ("min_off_all_s", +1), ("intervention", -1),

@@ -67,7 +67,6 @@ _MAIN = ("alpha", "c", "b", "d_bar")  # (the paper's four; the intermittent opti
 _HELP = {"d_bar": "disturbance bound: tracking error [rad/s] at the velocity level (default: the scene's, else "
                   "calibrated), model error [rad/s^2] at the torque level (default: calibrated)",
          "predict_every": "control steps between rollouts of the predictive off trigger (default 5)"}
-_CLI_ONLY_IN_CONFIG = ("fall_rate_prior", "fall_rate_forget")  # (scene files and scripts; no flag)
 
 
 def _add_parameter(p: Any, q: Parameter) -> None:
@@ -79,12 +78,12 @@ def _add_parameter(p: Any, q: Parameter) -> None:
 def _add_intermittent_args(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("intermittent filter options (isf; off by default)")
     for q in PARAMETERS:
-        if q.name not in _MAIN + _CLI_ONLY_IN_CONFIG:
+        if q.flag and q.name not in _MAIN:
             _add_parameter(g, q)
 
 
 def _intermittent_kwargs(args: argparse.Namespace) -> dict[str, Any]:
-    return {q.name: getattr(args, q.name, None) for q in PARAMETERS if q.name not in _MAIN + _CLI_ONLY_IN_CONFIG}
+    return {q.name: getattr(args, q.name, None) for q in PARAMETERS if q.flag and q.name not in _MAIN}
 
 
 def _level(args: argparse.Namespace, scene: Any) -> str:

@@ -23,6 +23,7 @@ from typing import Any
 from isf_robot.arm.config_schema import LEVELS  # (no MuJoCo)
 from isf_robot.cli.plot import sweep_figure
 from isf_robot.core.exceptions import ConfigError
+from isf_robot.core.spec import PARAMETERS
 from isf_robot.core.strategies import strategy_info, strategy_names
 from isf_robot.support.extras import install_hint
 from isf_robot.support.files import check_output_path, write_text_atomic
@@ -31,9 +32,7 @@ from isf_robot.support.report import with_schema
 
 __all__ = ["register"]
 
-_FLAGS = {"alpha": "--alpha", "c": "--c", "b": "--b", "min_off": "--min-off", "c_max": "--c-max",
-          "blend": "--blend", "horizon": "--horizon", "predict_every": "--predict-every",
-          "c_pred": "--c-pred", "shoot": "--shoot"}
+_FLAGS = {q.name: "--" + q.name.replace("_", "-") for q in PARAMETERS if q.swept}  # (the sweep's parameters' flags)
 
 
 def register(subparsers: Any) -> None:

@@ -32,6 +32,9 @@ class Parameter:
         help: One line for ``--help``.
         metavar: The flag's value name.
         intermittent: Only an intermittent strategy uses it.
+        flag: The commands have a flag for it (``False``: scene files and scripts only).
+        swept: ``isf-robot sweep`` can vary it (a flag of design choices; ``d_bar``, the disturbance the design
+            must cover, is given once for every point).
 
     """
 
@@ -39,10 +42,14 @@ class Parameter:
     help: str
     metavar: str
     intermittent: bool
+    flag: bool = True
+    swept: bool = True
 
 
-def _p(default: Any, help: str, metavar: str, intermittent: bool = True) -> Any:  # noqa: A002
-    return field(default=default, metadata={"help": help, "metavar": metavar, "intermittent": intermittent})
+def _p(default: Any, help: str, metavar: str, intermittent: bool = True, flag: bool = True,  # noqa: A002
+       swept: bool = True) -> Any:
+    return field(default=default, metadata={"help": help, "metavar": metavar, "intermittent": intermittent,
+                                            "flag": flag, "swept": flag and swept})
 
 
 @dataclass(frozen=True)
@@ -77,14 +84,14 @@ class FilterSpec:
     """
 
     alpha: float | ClassK = _p(5.0, "class-K gain [1/s]", "ALPHA", intermittent=False)
-    d_bar: float = _p(0.0, "disturbance (tracking-error) bound", "D", intermittent=False)
+    d_bar: float = _p(0.0, "disturbance (tracking-error) bound", "D", intermittent=False, swept=False)
     c: float = _p(0.05, "off-trigger margin c", "C")
     b: float = _p(0.02, "promotion rate b", "B")
     min_off: float = _p(0.0, "asked-for shortest off period [s]: the off margin is designed from the measured "
                              "fall rate of Xi_on (at least c, at most c_max)", "S")
     c_max: float = _p(math.inf, "largest designed off margin", "C")
-    fall_rate_prior: float = _p(0.0, "fall rate of Xi_on assumed before the first measurement", "R")
-    fall_rate_forget: float = _p(2.0, "time constant [s] of the measured fall rate's memory", "S")
+    fall_rate_prior: float = _p(0.0, "fall rate of Xi_on assumed before the first measurement", "R", flag=False)
+    fall_rate_forget: float = _p(2.0, "time constant [s] of the measured fall rate's memory", "S", flag=False)
     blend: float | None = _p(None, "hand-over time [s] after each switch (no step in the command beyond what "
                                    "safety needs; 0: none; default: designed from the scene)", "S")
     horizon: float | None = _p(None, "predictive off trigger: off only if the nominal, rolled forward this long, "
@@ -196,7 +203,8 @@ def _number(spec: FilterSpec, name: str, positive: bool = False, nonneg: bool = 
 
 
 PARAMETERS: tuple[Parameter, ...] = tuple(
-    Parameter(f.name, f.metadata["help"], f.metadata["metavar"], f.metadata["intermittent"])
+    Parameter(f.name, f.metadata["help"], f.metadata["metavar"], f.metadata["intermittent"], f.metadata["flag"],
+              f.metadata["swept"])
     for f in dataclasses.fields(FilterSpec))
 """Every field of :class:`FilterSpec` with its help line, in order (the command lines' flags)."""
 

@@ -114,6 +114,30 @@ def test_every_sweep_parameter_has_its_flag_and_is_a_filter_field() -> None:
     assert tuple(_FLAGS) == PARAMETERS
     assert set(PARAMETERS) <= set(NAMES)
     assert all(flag == "--" + name.replace("_", "-") for name, flag in _FLAGS.items())
+    # every design option the run and compare commands take is one a sweep can vary (off_hold was missing once);
+    # d_bar is given once for all points, and the fall-rate memory has no flag anywhere
+    run_flags = {a.dest for a in _parser("run")._actions if a.option_strings}
+    design = {n for n in NAMES if n in run_flags} - {"d_bar"}
+    assert design == set(PARAMETERS) and "off_hold" in PARAMETERS
+    assert not {"fall_rate_prior", "fall_rate_forget"} & run_flags
+
+
+def _parser(command: str):  # type: ignore[no-untyped-def]
+    import argparse
+
+    from isf_robot.cli import build_parser
+
+    root = build_parser()
+    sub = next(a for a in root._actions if isinstance(a, argparse._SubParsersAction))
+    return sub.choices[command]
+
+
+def test_a_sweep_over_off_hold_runs_each_value(capsys) -> None:  # type: ignore[no-untyped-def]
+    assert main(["sweep", "--scenes", "planar", "--filters", "isf", "--episodes", "1", "--duration", "0.3",
+                 "--d-bar", "0.05", "--off-hold", "0,0.2", "--json", "--quiet"]) == 0
+    points = json.loads(capsys.readouterr().out)["scenes"][0]["points"]
+    assert [p["values"] for p in points] == [{"off_hold": 0.0}, {"off_hold": 0.2}]
+    assert [p["runs"][0]["off_hold"] for p in points] == [0.0, 0.2]  # (what each run's filter was given)
 
 
 def test_sweep_at_the_torque_level_runs_that_level_and_says_so(capsys, tmp_path) -> None:  # type: ignore[no-untyped-def]
