@@ -64,6 +64,8 @@ __all__ = ["ArmSimulation", "run_episode"]
 PHASES = ("sense", "barriers", "nominal", "strategy", "act")
 MAX_CONTROL_STEPS = 10_000_000
 BLOCK_STEPS = 2048
+PROGRESS_STEPS = 256
+"""Control steps between calls of a simulation's ``progress`` (when it has one)."""
 """Steps per block handed to block observers (an observer's ``block_steps`` attribute lowers it)."""
 """Longest run in control steps (the obstacle paths and tracking errors are stored per step)."""
 
@@ -144,6 +146,8 @@ class ArmSimulation:
         self.names = self.coll.names + self.joints.names
         self.observers = Observers(observers)
         self.timing = bool(timing)
+        self.progress: Callable[[float, float], None] | None = None
+        """Called as ``progress(t, duration)`` every :data:`PROGRESS_STEPS` control steps of a run (``None``: not)."""
         keep_j = 0.5 if joint_row_slack is None else float(joint_row_slack)
         keep_c = 0.1 if collision_row_slack is None else float(collision_row_slack)
         if not (keep_j >= 0 and keep_c >= 0):
@@ -235,9 +239,14 @@ class ArmSimulation:
                              default=BLOCK_STEPS)) if recording else None
         if recording:
             observers.on_start({**self.start_info(n_ctrl * T), "data": ep.data})  # live data: a viewer can perturb it
+        progress, total = self.progress, n_ctrl * T
+        report = 0 if progress is not None else n_ctrl  # (the next step that reports)
         try:
             for k in range(n_ctrl):
                 t = k * T
+                if k == report:
+                    report += PROGRESS_STEPS
+                    progress(t, total)  # type: ignore[misc]
                 sense(k)
                 values, lie = barriers()
                 u_nom = nominal(t)

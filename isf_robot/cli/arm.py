@@ -25,6 +25,7 @@ from isf_robot.core.spec import PARAMETERS, Parameter
 from isf_robot.core.strategies import strategy_info, strategy_names
 from isf_robot.record.options import add_recording_args, make_observer
 from isf_robot.support.parallel import Interrupted
+from isf_robot.support.progress import TerminalProgress
 from isf_robot.support.report import format_value, to_jsonable, with_schema
 
 from .arm_team import COORDINATION_HELP, check_coordination, team_compare, team_report, team_simulation
@@ -162,6 +163,8 @@ def register(subparsers: Any) -> None:
                    help="raise d_bar until the tracking error this filter produces is covered (runs it on seeds "
                         "0-5 for 6 s a round, a few rounds; cached per process)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress line (shown on a terminal only, for runs longer than a second)")
     p.add_argument("--view", action="store_true",
                    help="watch the run in MuJoCo's viewer in real time (Space pauses, Ctrl + mouse drag perturbs "
                         "a body, closing the window stops the run; needs a display)")
@@ -244,9 +247,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
         observers.append(LiveViewer(speed=args.view_speed, show_collision=args.view_collision))
     if any(o is not None for o in observers):
         sim.observers = Observers(observers)  # (drops None)
-    if scene.arms:
-        return team_report(args, sim)
-    d = to_jsonable(sim.run(args.duration).as_dict())
+    progress = None if args.quiet else TerminalProgress.for_stream(sys.stderr, f"{scene.name} {args.filter}")
+    sim.progress = progress
+    try:
+        if scene.arms:
+            return team_report(args, sim)
+        d = to_jsonable(sim.run(args.duration).as_dict())
+    finally:
+        if progress is not None:
+            progress.close()
     if args.json:
         print(json.dumps(with_schema("isf-robot-run", d)))
         return 0

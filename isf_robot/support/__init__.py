@@ -7,6 +7,7 @@
   tables.
 * :mod:`~isf_robot.support.extras`: how a message names an optional extra.
 * :mod:`~isf_robot.support.messages`: the commands' warnings as one line each, workers included.
+* :mod:`~isf_robot.support.progress`: a long run's progress on a terminal, one line rewritten in place.
 
 Imported by the arm, the satellite, the recorders, the plots and the command lines; it imports from
 the project only the core's exceptions (:mod:`isf_robot.core.exceptions`), and the core imports nothing
@@ -26,6 +27,7 @@ _EXPORTS: dict[str, str] = {
     "with_schema": "report", "schema_id": "report", "SCHEMAS": "report",
     "EXTRAS": "extras", "install_hint": "extras",
     "one_line_warnings": "messages", "WARN_ENV": "messages",
+    "TerminalProgress": "progress",
 }
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, globals())

@@ -1,0 +1,99 @@
+"""A long run's progress line: on a terminal only, throttled, erased at the end; the loop's calls; a real terminal."""
+
+from __future__ import annotations
+
+import io
+import os
+import subprocess
+import sys
+
+import pytest
+
+from isf_robot.support.progress import TerminalProgress
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_nothing_before_after_then_at_most_every_interval_and_close_erases() -> None:
+    out, clock = _Terminal(), _Clock()
+    p = TerminalProgress(out, "panda_pole isf", after=1.0, every=0.5, clock=clock)
+    p(0.0, 30.0)
+    clock.now += 0.9
+    p(3.0, 30.0)
+    assert out.getvalue() == ""  # (a run shorter than a second prints nothing)
+    clock.now += 0.2
+    p(6.0, 30.0)
+    assert out.getvalue() == "\r\x1b[Kpanda_pole isf  6.0 / 30.0 s simulated (20 %), 1 s"
+    clock.now += 0.4
+    p(7.5, 30.0)  # (0.4 s after the last line: not yet)
+    clock.now += 0.1
+    p(9.0, 30.0)
+    assert out.getvalue().count("\r") == 2 and out.getvalue().endswith("9.0 / 30.0 s simulated (30 %), 2 s")
+    p.close()
+    assert out.getvalue().endswith("\r\x1b[K")  # (the summary starts on a clean line)
+    p.close()
+    assert out.getvalue().count("\r") == 3  # (erased once)
+
+
+def test_close_without_a_line_writes_nothing_and_a_pipe_gets_no_reporter() -> None:
+    out = _Terminal()
+    TerminalProgress(out, clock=_Clock()).close()
+    assert out.getvalue() == ""
+    assert TerminalProgress.for_stream(io.StringIO()) is None  # (a pipe or a file: no progress in logs or JSON)
+    assert isinstance(TerminalProgress.for_stream(_Terminal(), "x"), TerminalProgress)
+
+
+def test_the_loop_reports_every_progress_steps_of_simulated_time() -> None:
+    from isf_robot.arm import ArmSimulation, load_scene, resolve_params
+    from isf_robot.arm.sim import PROGRESS_STEPS
+
+    scene = load_scene("planar")
+    sim = ArmSimulation(scene, "cbf", seed=0, params=resolve_params(scene, d_bar=0.05, calibrate=False))
+    calls: list[tuple[float, float]] = []
+    sim.progress = lambda t, total: calls.append((t, total))
+    n = 2 * PROGRESS_STEPS + 10
+    sim.run(n * sim.control_period)
+    T = sim.control_period
+    assert calls == [(k * PROGRESS_STEPS * T, n * T) for k in range(3)]
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")
+def test_a_run_on_a_real_terminal_shows_its_progress_then_erases_it(outside_checkout, arm_compiled) -> None:  # type: ignore[no-untyped-def]
+    def run(*extra: str) -> tuple[str, str]:
+        master, slave = os.openpty()
+        p = subprocess.Popen([sys.executable, "-m", "isf_robot.cli", "run", "--scene", "panda_pole", "--filter",
+                              "cbf", "--duration", "80", *extra], stdout=subprocess.PIPE, stderr=slave,
+                             stdin=subprocess.DEVNULL)
+        os.close(slave)
+        err = b""
+        while True:
+            try:
+                chunk = os.read(master, 4096)
+            except OSError:  # (the terminal's other end closed: the command ended)
+                break
+            if not chunk:
+                break
+            err += chunk
+        out = p.communicate(timeout=300)[0].decode()
+        os.close(master)
+        assert p.returncode == 0, err
+        return out, err.decode()
+
+    out, err = run()
+    # (the loop lasts about 2.5 s here, well over the first line's 1 s)
+    assert "panda_pole cbf  " in err and "s simulated (" in err and "/ 80.0 s" in err
+    assert err.endswith("\r\x1b[K")  # (erased before the summary)
+    assert out.startswith("scene panda_pole, filter cbf") and "simulated" not in out.splitlines()[1]
+    out, err = run("--quiet")
+    assert "s simulated" not in err and out.startswith("scene panda_pole")
