@@ -18,6 +18,13 @@ shortest off period of each episode (worst, median) and the episodes where it is
 ``--levels torque`` runs one level only; ``--tables-from A.json B.json`` runs nothing and prints the
 tables from saved ``--json`` files (a later file's ``scene/level`` entries replace an earlier one's:
 the velocity rows of one run with the torque rows of another).
+
+``--vary NAME=V1,V2,...`` instead runs the intermittent filter alone at the torque level with each value of
+one design option (any parameter ``isf-robot sweep`` takes: ``horizon``, ``off_hold``, ...), everything
+else as designed, through :func:`isf_robot.arm.sweep.run_sweep` (the same as ``isf-robot sweep --level
+torque --filters isf --NAME V1,V2``), and prints one table of all scenes: duty, switches, intervention,
+goals, the worst shortest off period, the episodes and the off periods under 0.25 s, fallbacks and
+collision steps (RESULTS.md "The predictive horizon at the torque level" and "The off hold").
 """
 
 from __future__ import annotations
@@ -83,7 +90,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--levels", nargs="+", default=list(LEVELS), choices=LEVELS)
     ap.add_argument("--tables-from", nargs="+", type=Path, default=None,
                     help="run nothing: print the tables from these --json files (later files win)")
+    ap.add_argument("--vary", default=None, metavar="NAME=V1,V2",
+                    help="isf at the torque level with each value of one design option (e.g. horizon=0,0.26,0.5)")
     args = ap.parse_args(argv)
+    if args.vary:
+        return _vary(args)
     if args.tables_from:
         saved: dict[str, dict] = {}
         for path in args.tables_from:
@@ -110,6 +121,41 @@ def main(argv: list[str] | None = None) -> int:
             if args.json is not None:  # after every comparison, so a long run that is cut short keeps what it has
                 args.json.write_text(json.dumps(out))
         _table(scene, done)
+    return 0
+
+
+def _vary(args: argparse.Namespace) -> int:
+    """``--vary NAME=V1,V2``: isf at the torque level per value, one table over the scenes (module docstring)."""
+    warnings.simplefilter("ignore")
+    from isf_robot.arm.compare import SceneSpec
+    from isf_robot.arm.sweep import PARAMETERS, SweepPoint, run_sweep
+
+    name, sep, text = args.vary.partition("=")
+    if not sep or name not in PARAMETERS:
+        raise SystemExit(f"--vary NAME=V1,V2: NAME one of {', '.join(PARAMETERS)}; got {args.vary!r}")
+    values = [float(v) for v in text.split(",") if v.strip()]
+    points = [SweepPoint("isf", {name: v}) for v in values]
+    t0 = time.perf_counter()
+    sweep = run_sweep([SceneSpec(name=s) for s in args.scenes], points, list(range(args.seeds)),
+                      duration=args.duration, jobs=args.jobs, level="torque")
+    print(f"[{time.perf_counter() - t0:.0f} s]", file=sys.stderr, flush=True)
+    if args.json is not None:
+        args.json.write_text(json.dumps(sweep))
+    head = ["scene", name, "duty", "switches", "intervention [N^2 m^2 s]", "goals", "shortest off: worst [s]",
+            "episodes < 0.25 s", "off periods < 0.25 s", "fallbacks", "collision steps"]
+    print("| " + " | ".join(head) + " |")
+    print("|" + "---|" * len(head))
+    for scene in sweep["scenes"]:
+        for pt in scene["points"]:
+            runs = pt["runs"]
+            offs = [r["min_off_s"] for r in runs if r.get("min_off_s") is not None]
+            mean = {k: sum(float(r[k]) for r in runs) / len(runs)
+                    for k in ("duty_cycle", "on_switches", "intervention", "goals_reached")}
+            print(f"| {scene['scene']} | {pt['values'][name]:g} | {mean['duty_cycle']:.3f} | "
+                  f"{mean['on_switches']:.1f} | {mean['intervention']:.3g} | {mean['goals_reached']:.2f} | "
+                  + (f"{min(offs):.3f}" if offs else "-")
+                  + f" | {sum(x < 0.25 for x in offs)} of {len(runs)} | {sum(int(r['short_offs']) for r in runs)} | "
+                  f"{sum(int(r['fallbacks']) for r in runs)} | {sum(int(r['collisions']) for r in runs)} |")
     return 0
 
 
