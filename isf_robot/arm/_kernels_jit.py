@@ -217,15 +217,13 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
 
 @formula
 def monitor(ma, da, rows, g1, g2, margin, thresh, bound):  # pragma: no cover (compiled)
-    """The smallest ``h`` and distance of the pairs ``rows`` at a physics sub-step (``SafetyMonitor.substep``)."""
+    """The smallest ``h = dist - margin`` of the pairs ``rows`` at a physics sub-step (``SafetyMonitor.substep``)."""
     step_h = math.inf
-    step_d = math.inf
     for t in range(rows.size):
         i = rows[t]
         d = geom_distance(ma, da, np.int32(g1[i]), np.int32(g2[i]), substep_distmax(thresh, margin[i], bound), 0)
         step_h = min(step_h, pair_value(d, margin[i]))
-        step_d = min(step_d, d)
-    return step_h, step_d
+    return step_h
 
 
 @formula

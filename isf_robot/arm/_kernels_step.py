@@ -60,9 +60,9 @@ def track_step(ma, da, p, buf, n, nv, cmd, inv_period, feedforward):  # pragma: 
 
 def monitor_apply(ma, da, rows, g1, g2, margin, thresh, bound, p, buf, n, nv):  # pragma: no cover (compiled)
     """A physics sub-step's safety check (``_kernels_jit.monitor``), then the tracker's apply, in one call."""
-    step_h, step_d = monitor(ma, da, rows, g1, g2, margin, thresh, bound)
+    step_h = monitor(ma, da, rows, g1, g2, margin, thresh, bound)
     track_apply(ma, da, p, buf, n, nv)
-    return step_h, step_d
+    return step_h
 
 
 # -- the reaching controller (ReachingController.__call__) -------------------------------------

@@ -56,26 +56,25 @@ class SafetyMonitor:
         self.steps = 0
         self.rows: Sequence[int] = []
 
-    def tick(self, h: np.ndarray, rows: np.ndarray, margin: np.ndarray) -> float:
-        """Account the tick's barrier values; return the smallest true distance [m] (inf: none).
+    def tick(self, h: np.ndarray, rows: np.ndarray) -> float:
+        """Account the tick's barrier values; return the smallest barrier value of the pairs within the cut-off.
 
         Args:
             h: Collision barrier values at the tick, shape (k,).
             rows: Indices of the pairs within the cut-off.
-            margin: Margin per pair [m], shape (k,).
+
+        Returns:
+            Their smallest ``dist - margin`` [m] (each pair's own margin); ``inf`` when none is near.
 
         """
-        near = rows.tolist()
-        dist = float((h[rows] + margin[rows]).min()) if near else math.inf
-        return self.tick_min(float(h.min()), near, dist)
+        return self.tick_min(float(h.min()), rows.tolist())
 
-    def tick_min(self, h_min: float, rows: Sequence[int], dist_min: float,
-                 rows_array: np.ndarray | None = None) -> float:
-        """:meth:`tick` given its minima; returns the smallest barrier value.
+    def tick_min(self, h_min: float, rows: Sequence[int], rows_array: np.ndarray | None = None) -> float:
+        """:meth:`tick` given its minimum: the smallest barrier value over every pair and the pairs within the cut-off.
 
-        The minima: the smallest barrier value over every pair, the pairs
-        within the cut-off (a list or tuple, kept until the next tick) and their smallest ``h + margin``
-        (``inf`` when none); returns that. ``rows_array``: the same rows as an int64 array, if at hand.
+        ``rows``: a list or tuple, kept until the next tick; ``rows_array``: the same rows as an int64 array, if at
+        hand. Returns ``h_min`` when a pair is near (the near pairs hold the smallest values: every other pair is
+        at least ``cutoff - margin`` away), else ``inf``.
         """
         self.steps += 1
         self.rows = rows
@@ -84,7 +83,7 @@ class SafetyMonitor:
             self.collisions += 1
         if h_min < self.min_h:
             self.min_h = h_min
-        return dist_min if rows else math.inf
+        return h_min if rows else math.inf
 
     def rows_array(self) -> np.ndarray:
         """The pairs within the cut-off at the last tick (:attr:`rows`) as an int64 array (made once per tick)."""
@@ -94,21 +93,23 @@ class SafetyMonitor:
         return ra
 
     def substep(self, data: mujoco.MjData, bound: float = -math.inf, tracker: Actuation | None = None) -> float:
-        """Check the pairs near at the last tick; return their smallest distance.
+        """Check the pairs near at the last tick; return their smallest barrier value ``dist - margin``.
 
         Args:
             data: The MuJoCo data after ``mj_step1``.
-            bound: Distances at or above ``bound`` [m] need not be exact (pass the control
-                step's running minimum distance to get that minimum exactly, ``-inf`` when
+            bound: Barrier values at or above ``bound`` [m] need not be exact (pass the control
+                step's running minimum barrier to get that minimum exactly, ``-inf`` when
                 only the run's minimum barrier and the collision count matter). Each pair's
-                ``distmax`` is the larger of that and what could change the running minimum
-                barrier or count a collision, so ``mj_geomDistance`` can stop early.
+                ``distmax`` is its margin above the larger of that and what could change the run's
+                minimum barrier or count a collision (:func:`~isf_robot.arm.narrow.substep_distmax`),
+                so ``mj_geomDistance`` can stop early.
             tracker: Then ``tracker.apply(data)`` (in the same compiled call where both have one:
                 :meth:`~isf_robot.arm.lowlevel.VelocityTracker.compiled_apply`).
 
         Returns:
-            The smallest distance found [m]: exact when below ``bound``, otherwise a value
-            at or above ``bound`` (or ``inf`` when no pair is near).
+            The smallest barrier value found [m] (each pair's own margin): exact when below ``bound``
+            or the run's minimum, otherwise a value at or above the larger of them (``inf`` when no
+            pair is near).
 
         """
         self.steps += 1
@@ -126,29 +127,25 @@ class SafetyMonitor:
             ra = self.rows_array()
             if fused is not None:
                 k, ptrs, buf, n, nv = fused
-                step_h, step_d = k["monitor_apply"](self._maddr, self._daddr, ra, self._g1, self._g2, self._margin,
-                                                    thresh, bound, ptrs, buf, n, nv)
+                step_h = k["monitor_apply"](self._maddr, self._daddr, ra, self._g1, self._g2, self._margin,
+                                            thresh, bound, ptrs, buf, n, nv)
             else:
-                step_h, step_d = self._kernel(self._maddr, self._daddr, ra, self._g1, self._g2,
-                                              self._margin, thresh, bound)
+                step_h = self._kernel(self._maddr, self._daddr, ra, self._g1, self._g2, self._margin, thresh, bound)
         else:
-            step_h, step_d = self._substep_python(data, rows, thresh, bound)
+            step_h = self._substep_python(data, rows, thresh, bound)
         if tracker is not None and fused is None:
             tracker.apply(data)
         if step_h < 0.0:
             self.collisions += 1
         if step_h < self.min_h:
             self.min_h = step_h
-        return step_d
+        return step_h
 
-    def _substep_python(self, data: mujoco.MjData, rows: Sequence[int], thresh: float,
-                        bound: float) -> tuple[float, float]:
-        """The smallest ``h`` and distance of ``rows`` (per-pair calls; :meth:`substep` without the kernel)."""
+    def _substep_python(self, data: mujoco.MjData, rows: Sequence[int], thresh: float, bound: float) -> float:
+        """The smallest ``h`` of ``rows`` (per-pair calls; :meth:`substep` without the kernel)."""
         m, g1, g2, marg = self.model, self.g1l, self.g2l, self.marginl
         step_h = math.inf
-        step_d = math.inf
         for i in rows:
             d = mujoco.mj_geomDistance(m, data, g1[i], g2[i], substep_distmax(thresh, marg[i], bound), None)
             step_h = min(step_h, pair_value(d, marg[i]))
-            step_d = min(step_d, d)
-        return step_h, step_d
+        return step_h

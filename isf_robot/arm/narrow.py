@@ -84,10 +84,11 @@ def obstacle_dhdt(n0, n1, n2, v0, v1, v2):  # type: ignore[no-untyped-def]
 def substep_distmax(thresh, margin, bound):  # type: ignore[no-untyped-def]
     """The ``distmax`` of a pair's distance call at a physics sub-step [m].
 
-    ``max(thresh + margin, bound) + 1e-6``: a distance at or above it can change neither the running
-    minimum barrier ``thresh`` (>= 0) nor the running minimum distance ``bound`` (the safety monitor).
+    ``max(thresh, bound) + margin + 1e-6``: a distance at or above it gives a barrier value ``dist - margin``
+    that can change neither the run's minimum barrier ``thresh`` (>= 0) nor the control step's running
+    minimum barrier ``bound`` (the safety monitor; ``-inf`` when only the run's minimum matters).
     """
-    return max(thresh + margin, bound) + 1e-6
+    return max(thresh, bound) + margin + 1e-6
 
 
 def _output_blocks(size: int, m: int, n: int, n_live: int) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:

@@ -44,8 +44,8 @@ class ArmStepRecord:
         on: Filter mode in this step (cbf: a constraint active).
         h_min: Smallest barrier value at ``t`` over all k barriers.
         xi_min: Smallest ``Xi_on`` of the barriers the filter saw (inf for ``nominal``).
-        dist_min: Smallest true signed distance [m] over the collision pairs and over the
-            physics steps of this control step (no margin).
+        true_min: Smallest barrier value ``dist - margin`` [m] of the collision pairs on the true
+            geometry (each pair's own margin) over the physics steps of this control step.
         qp_solved: Whether a QP was solved in this step.
         h: Barrier values, shape (k,) ([m] for pairs, [rad] for joint limits).
         names: Barrier names, length k (the same tuple every step).
@@ -73,7 +73,7 @@ class ArmStepRecord:
     on: bool
     h_min: float
     xi_min: float
-    dist_min: float
+    true_min: float
     qp_solved: bool
     h: np.ndarray
     names: tuple[str, ...]

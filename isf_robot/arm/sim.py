@@ -255,7 +255,7 @@ class ArmSimulation:
                     ep.write(block, t, step, values)
                 act(k, step.u)
                 if block is not None:
-                    full = block.end_row(ep.dmin)
+                    full = block.end_row(ep.true_min)
                     if step.event is not None:
                         observers.on_event(step.event)
                     if per_step:
@@ -320,7 +320,7 @@ class _Episode:
         self.metrics = MetricsAccumulator()
         self.track_err = np.empty(n_ctrl)
         self.min_joint = math.inf
-        self.dmin = math.inf
+        self.true_min = math.inf
         self.recording = bool(sim.observers)
         self.uses_rows = bool(getattr(sim.strategy, "uses_rows", True))
         nj = sim.joints.evaluate(data).k
@@ -358,18 +358,18 @@ class _Episode:
         """
         sim = self.sim
         if self.uses_rows:  # (the rows in one pass, without the NearPairs; witness points only for a record)
-            lie, idx, row_list, h_min, dist_min, jmin, wit = sim.coll.lie_rows(
+            lie, idx, row_list, h_min, _, jmin, wit = sim.coll.lie_rows(
                 self.data, sim.joints, self.lin, coherence=self.coherence, witness=self.recording)
             values = TickValues(idx, lie.h, wit) if self.recording else None
             self.tick_h = lie.h
         else:
             rows = sim.coll.rows(self.data, sim.joints, self.lin, witness=self.recording, coherence=self.coherence)
             near = rows.near
-            idx, row_list, h_min, dist_min, jmin = near.rows, near.row_list, near.h_min, near.dist_min, rows.joint_min
+            idx, row_list, h_min, jmin = near.rows, near.row_list, near.h_min, rows.joint_min
             values = TickValues(idx, rows.h, near.witness) if self.recording else None
             lie = None
             self.tick_h = rows.h
-        self.dmin = self.monitor.tick_min(min(h_min, self._h_far_min), row_list, dist_min, idx)
+        self.true_min = self.monitor.tick_min(min(h_min, self._h_far_min), row_list, idx)
         self.min_joint = min(self.min_joint, jmin)  # (jmin when smaller)
         return values, lie
 
@@ -400,15 +400,15 @@ class _Episode:
         mujoco.mj_step2(model, data)
         if self.S == 1:
             return
-        bound, base = (self.dmin if self.recording else -math.inf), k * self.S
+        bound, base = (self.true_min if self.recording else -math.inf), k * self.S
         for s in range(1, self.S):
             if self.moving:
                 self._place(base + s)
             mujoco.mj_step1(model, data)
-            d2 = self.monitor.substep(data, bound, self.sim.tracker)  # (then tracker.apply: one compiled call)
-            if d2 < self.dmin:
-                self.dmin = d2
-                bound = d2 if self.recording else bound
+            h2 = self.monitor.substep(data, bound, self.sim.tracker)  # (then tracker.apply: one compiled call)
+            if h2 < self.true_min:
+                self.true_min = h2
+                bound = h2 if self.recording else bound
             mujoco.mj_step2(model, data)
 
     # -- records and summary ---------------------------------------------------------------
@@ -442,7 +442,7 @@ class _Episode:
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         last = sim.coll.evaluate(data)
-        self.monitor.tick(last.h, last.active.nonzero()[0], sim.coll.pairs.margin)
+        self.monitor.tick(last.h, last.active.nonzero()[0])
         return RunResult(
             scene=sim.scene.name, filter=sim.info.name, seed=-1 if sim.seed is None else int(sim.seed),
             physics_steps=self.monitor.steps, metrics=self.metrics.result(), stats=self.metrics.stats(),

@@ -64,8 +64,9 @@ class StepColumns:
         body_pos, body_quat: Every body's pose at ``t`` ([m]; (w, x, y, z)), shape (C, B, 3) and (C, B, 4).
         on, qp_solved, fallback: Filter mode, QP solved, braking fallback applied, shape (C,) bool.
         xi_min: Smallest ``Xi_on`` the filter saw (inf for ``nominal``), shape (C,).
-        dist_min: Smallest true signed distance [m] over the step's physics steps, shape (C,) (``inf`` in a row
-            whose physics steps did not finish: the last row of a run stopped by an error or Ctrl-C).
+        true_min: Smallest barrier value ``dist - margin`` of the collision pairs on the true geometry [m] over the
+            step's physics steps (each pair's own margin), shape (C,) (``inf`` in a row whose physics steps did
+            not finish: the last row of a run stopped by an error or Ctrl-C).
         h: Every barrier value at ``t``, shape (C, k) (pairs beyond the cut-off: ``cutoff - margin``).
         h_min: Smallest barrier value of each row, shape (C,).
         ee_pos, goal_pos: End effector at ``t`` and goal pursued [m], shape (C, 3) (goal NaN without one).
@@ -124,7 +125,7 @@ class StepColumns:
         self.goal_pos = np.zeros((c, 3))
         self._goals = None if goals is None else np.asarray(goals, dtype=float).reshape(-1, 3).copy()
         self.t, self.on, self.qp_solved, self.fallback = np.zeros(c), *(np.zeros(c, dtype=bool) for _ in range(3))
-        self.xi_min, self.dist_min, self.h_min = np.zeros(c), np.full(c, math.inf), np.zeros(c)
+        self.xi_min, self.true_min, self.h_min = np.zeros(c), np.full(c, math.inf), np.zeros(c)
         self.goal_index = np.zeros(c, dtype=np.int64)
         self.h = np.zeros((c, k))
         self.pair_start = np.zeros(c + 1, dtype=np.int64)
@@ -188,7 +189,7 @@ class StepColumns:
     def clear(self) -> None:
         """Start the next block (the arrays are reused: observers must not keep views past ``on_steps``)."""
         self.size = self.sealed = 0
-        self.dist_min[:] = math.inf
+        self.true_min[:] = math.inf
         self._rows.clear()
         self.relaxed.clear()
         self.events.clear()
@@ -245,8 +246,8 @@ class StepColumns:
             pairs[:used], witness[:used] = self._pairs[:used], self._witness[:used]
             self._pairs, self._witness = pairs, witness
 
-    def end_row(self, dist_min: float) -> bool:
-        """The smallest true signed distance [m] over the physics steps of the row just written.
+    def end_row(self, true_min: float) -> bool:
+        """The smallest true-geometry barrier value [m] over the physics steps of the row just written.
 
         Returns:
             Whether every row is now written (the loop then seals the block, hands it on and clears it).
@@ -255,7 +256,7 @@ class StepColumns:
         i = self.size
         if i == 0:
             raise IndexError("end_row follows write: the block has no row yet")
-        self.dist_min[i - 1] = dist_min
+        self.true_min[i - 1] = true_min
         return i >= self.capacity
 
     def seal(self) -> None:
@@ -331,7 +332,7 @@ class StepColumns:
         return ArmStepRecord(
             t=float(self.t[i]), dt=self.dt, q=self.q[i].copy(), qd=self.qd[i].copy(), u=self.u[i].copy(),
             u_nom=self.u_nom[i].copy(), on=bool(self.on[i]), h_min=float(self.h_min[i]),
-            xi_min=float(self.xi_min[i]), dist_min=float(self.dist_min[i]), qp_solved=bool(self.qp_solved[i]),
+            xi_min=float(self.xi_min[i]), true_min=float(self.true_min[i]), qp_solved=bool(self.qp_solved[i]),
             h=self.h[i].copy(), names=names, closest=tuple(names[j] for j in self.closest(i).tolist()),
             witness=self._witness[near].copy(), witness_names=tuple(names[j] for j in self._pairs[near].tolist()),
             mocap_pos=self.mocap_pos[i].copy(), mocap_quat=self.mocap_quat[i].copy(),

@@ -254,9 +254,9 @@ class _TorqueEpisode(_Episode):
         assert sim.terms is not None
         psi, tick = sim.second_order.tick(self.data, self._t, sim.terms, self.lin, coherence=self.coherence,
                                           witness=self.recording)
-        lie, idx, row_list, h_min, dist_min, jmin, wit = tick
+        lie, idx, row_list, h_min, _, jmin, wit = tick
         values = TickValues(idx, lie.h, wit) if self.recording else None
-        self.dmin = self.monitor.tick_min(min(h_min, self._h_far_min), row_list, dist_min, idx)
+        self.true_min = self.monitor.tick_min(min(h_min, self._h_far_min), row_list, idx)
         self.min_joint = min(self.min_joint, jmin)
         return values, psi
 
@@ -279,15 +279,15 @@ class _TorqueEpisode(_Episode):
         self._last = (k, v, pred)
         data.qfrc_applied[dofs] = tau
         mujoco.mj_step2(model, data)
-        bound, base = (self.dmin if self.recording else -math.inf), k * self.S
+        bound, base = (self.true_min if self.recording else -math.inf), k * self.S
         for s in range(1, self.S):
             if self.moving:
                 self._place(base + s)
             mujoco.mj_step1(model, data)
-            d2 = self.monitor.substep(data, bound)
-            if d2 < self.dmin:
-                self.dmin = d2
-                bound = d2 if self.recording else bound
+            h2 = self.monitor.substep(data, bound)
+            if h2 < self.true_min:
+                self.true_min = h2
+                bound = h2 if self.recording else bound
             mujoco.mj_step2(model, data)
 
     def finish(self, wall: float, timings: dict[str, float]) -> RunResult:

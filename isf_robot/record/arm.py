@@ -24,10 +24,9 @@ arm's series and replay columns (``/arms/<name>/...``, ``/replay/arms/<name>``, 
 and opens on the team layout (:func:`~isf_robot.record.blueprints.team_blueprint`, a tab per arm).
 
 Replay row: ``t``, ``dt``, ``on``, ``|u - u_nom|^2``, ``qp_solved`` from the record, and
-``min_barrier`` the true-geometry minimum of ``dist - margin`` over the step's physics steps:
-the smaller of the tick's collision barriers (``h[:n_collision]``) and ``dist_min - margin``
-(exact up to rounding when every collision pair has the same margin, which
-:attr:`ArmRecorder.exact_min_barrier` says). The loop also checks the state after the last
+``min_barrier`` the true-geometry minimum of ``dist - margin`` (each pair's own margin) over the step's
+physics steps: the smaller of the tick's collision barriers (``h[:n_collision]``) and the loop's minimum over
+the other physics steps (``true_min``), exact. The loop also checks the state after the last
 step without a step record; when that final check is the run's minimum, it is logged as one
 extra row ``/replay/terminal``.
 
@@ -103,9 +102,7 @@ class ArmRecorder(RerunRecorder):
             raise RecordError(f"trail_s must be a finite number >= 0, got {trail_s!r}")
         self.drawing: MujocoDrawing | None = None
         self.margins = np.zeros(0)
-        self.exact_min_barrier = True
         self.c = math.nan
-        self._margin = 0.0
         self._running_min = math.inf
         self._n_collision = 0
         self._pair_paths: dict[int, str] = {}
@@ -134,8 +131,6 @@ class ArmRecorder(RerunRecorder):
         except ValueError as exc:
             raise RecordError(f"start info: {exc}") from None
         self.margins = np.asarray(info.get("pair_margins", ()), dtype=float).reshape(-1)
-        self.exact_min_barrier = self.margins.size == 0 or bool(np.all(self.margins == self.margins[0]))
-        self._margin = float(self.margins.max()) if self.margins.size else 0.0
         self._n_collision = int(info.get("n_collision", self.margins.size))
         c = info.get("c")
         self.c = float(c) if isinstance(c, (int, float)) else math.nan
@@ -183,7 +178,7 @@ class ArmRecorder(RerunRecorder):
             "t": t, "dt": np.full(n, float(b.dt)), "on": b.on[:n].copy(), "qp_solved": b.qp_solved[:n].copy(),
             # in the metrics accumulator's written order (sums.sq_sum per row), so the sums match
             "intervention_rate": row_sq_sums(u - u_nom),
-            "dist_min": b.dist_min[:n].copy(), "h_filter": b.h_min[:n].copy(), "xi": b.xi_min[:n].copy(),
+            "true_min": b.true_min[:n].copy(), "h_filter": b.h_min[:n].copy(), "xi": b.xi_min[:n].copy(),
             "h": b.h[:n].copy(), "u_nom": u_nom, "u": u, "ee": b.ee_pos[:n].copy(), "goal": b.goal_pos[:n].copy(),
             # each row's collision pairs, the smallest h first (as the step record's ``closest``)
             "order": np.argsort(b.h[:n, :self._n_collision], axis=1),
@@ -208,8 +203,7 @@ class ArmRecorder(RerunRecorder):
         """Per-step true-geometry minimum of ``dist - margin`` (tick values and physics substeps)."""
         nc = self._n_collision
         tick = a["h"][:, :nc].min(axis=1) if nc else np.full(a["t"].shape, np.inf)
-        dist = a["dist_min"]
-        out = np.where(np.isfinite(dist), np.minimum(tick, dist - self._margin), tick)
+        out = np.minimum(tick, a["true_min"])
         out[~np.isfinite(out)] = np.nan
         return out
 
@@ -338,8 +332,7 @@ class ArmRecorder(RerunRecorder):
         rec.log("/plots/xi/zero", rr.SeriesLines(names="0 (on below)", colors=grey, widths=[1.0]), static=True)
         rec.log("/plots/xi/c", rr.SeriesLines(names=f"c = {self.c:g} (off above)", colors=[[60, 200, 90]],
                                               widths=[1.0]), static=True)
-        rec.log("/run/arm", rr.AnyValues(exact_min_barrier=self.exact_min_barrier,
-                                         geoms_drawn=self.drawing.geoms_drawn,
+        rec.log("/run/arm", rr.AnyValues(geoms_drawn=self.drawing.geoms_drawn,
                                          geom_ids_drawn=np.asarray(self.drawing.drawn_ids, dtype=np.int64),
                                          geoms_skipped=",".join(self.drawing.geoms_skipped)), static=True)
         centre, radius = self.drawing.workspace()
@@ -371,8 +364,7 @@ class ArmRecorder(RerunRecorder):
         d = np.asarray(record.u, dtype=float) - np.asarray(record.u_nom, dtype=float)
         nc = self._n_collision
         tick = float(record.h[:nc].min()) if nc else math.inf
-        dist = float(record.dist_min)
-        hmin = min(tick, dist - self._margin) if math.isfinite(dist) else tick
+        hmin = min(tick, float(record.true_min))
         if not math.isfinite(hmin):
             hmin = math.nan
         return (float(record.t), float(record.dt), bool(record.on), sq_sum(d), bool(record.qp_solved), hmin)

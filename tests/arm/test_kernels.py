@@ -150,8 +150,8 @@ def test_monitor_substeps_equal_the_per_pair_calls(random_states, rng) -> None: 
     for d in random_states(scene, rng, 40, spread=0.8):
         near = slow.near(d)
         for mon, arr in ((mf, near.rows), (ms, None)):
-            mon.tick_min(min(near.h_min, slow.h_far_min), near.row_list, near.dist_min, arr)
-        for bound in (-math.inf, 0.05, near.dist_min):
+            mon.tick_min(min(near.h_min, slow.h_far_min), near.row_list, arr)
+        for bound in (-math.inf, 0.05, near.h_min):
             assert _same(np.array(mf.substep(d, bound)), np.array(ms.substep(d, bound)))
             assert (mf.collisions, mf.steps) == (ms.collisions, ms.steps) and _same(np.array(mf.min_h),
                                                                                   np.array(ms.min_h))

@@ -84,8 +84,8 @@ def test_tick_min_accounts_like_tick() -> None:
         d.qpos[scene.qpos_adr] = scene.home + shift
         mujoco.mj_forward(m, d)
         batch, near = cb.evaluate(d), cb.near(d)
-        da = a.tick(batch.h, batch.active.nonzero()[0], cb.pairs.margin)
-        db = b.tick_min(min(near.h_min, cb.h_far_min), near.row_list, near.dist_min)
+        da = a.tick(batch.h, batch.active.nonzero()[0])
+        db = b.tick_min(min(near.h_min, cb.h_far_min), near.row_list)
         assert abs(da - db) <= 1e-15 * max(1.0, abs(da)) or da == db == math.inf
         assert (a.min_h, a.collisions, a.steps, a.rows) == (b.min_h, b.collisions, b.steps, b.rows)
     assert a.steps == 3 and a.min_h < cb.h_far_min

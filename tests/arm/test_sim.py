@@ -156,13 +156,13 @@ def test_safety_monitor_matches_min_distance_helper(planar, rng) -> None:  # typ
         true = min_distance(planar.model, data, coll.pairs).distance
         mon = SafetyMonitor(coll)
         b = coll.evaluate(data)
-        d_tick = mon.tick(b.h, b.active.nonzero()[0], margin)
-        d_sub = mon.substep(data, bound=1e6)  # every distance exact
-        d_run = mon.substep(data, bound=d_tick)  # exact below the running minimum (as in runs)
+        h_tick = mon.tick(b.h, b.active.nonzero()[0])
+        h_sub = mon.substep(data, bound=1e6)  # every barrier value exact
+        h_run = mon.substep(data, bound=h_tick)  # exact below the running minimum (as in runs)
         if true < coll.cutoff:
-            assert d_tick == pytest.approx(true, abs=1e-9)
-            assert d_sub == pytest.approx(true, abs=1e-9)
-            assert d_run == pytest.approx(true, abs=1e-9)
+            assert h_tick == pytest.approx(true - margin[0], abs=1e-9)
+            assert h_sub == pytest.approx(true - margin[0], abs=1e-9)
+            assert h_run == pytest.approx(true - margin[0], abs=1e-9)
             assert mon.min_h == pytest.approx(true - margin[0], abs=1e-9)
             assert mon.collisions == (3 if true - margin[0] < 0 else 0)
 
@@ -224,7 +224,8 @@ def test_observer_sees_every_step_and_event(planar, strategy: str) -> None:  # t
     assert rec.witness.shape[1:] == (2, 3) and len(rec.witness_names) == rec.witness.shape[0]
     assert rec.h_min == pytest.approx(float(rec.h.min()))
     # the run's minimum also covers the state after the last step (no record for it)
-    rec_min = min(s.dist_min for s in obs.steps) - 0.02
+    nc = obs.info["n_collision"]  # (each step's true-geometry minimum: the tick's pairs, then the other physics steps)
+    rec_min = min(min(s.true_min, float(s.h[:nc].min())) for s in obs.steps)
     assert rec_min >= r.min_barrier - 1e-12
     assert rec_min == pytest.approx(r.min_barrier, abs=1e-4)
     with pytest.raises(dataclasses.FrozenInstanceError):

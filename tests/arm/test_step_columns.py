@@ -91,7 +91,7 @@ def test_columns_hold_what_was_written(seal_every: int, layout: str, jit: str, m
     np.testing.assert_array_equal(block.ee_pos[:n], want_ee)
     np.testing.assert_array_equal(block.body_pos[:n], want_pos)
     np.testing.assert_array_equal(block.mocap_pos[:n, 0, 0], np.arange(n))
-    np.testing.assert_array_equal(block.dist_min[:n], [r["dist"] for r in rows])
+    np.testing.assert_array_equal(block.true_min[:n], [r["dist"] for r in rows])
     np.testing.assert_array_equal(block.on[:n], [r["step"].on for r in rows])
     np.testing.assert_array_equal(block.qp_solved[:n], [r["step"].qp is not None for r in rows])
     np.testing.assert_array_equal(block.xi_min[:n], [x.min() if x.size else math.inf
@@ -138,7 +138,7 @@ def test_write_checks() -> None:
     with pytest.raises(IndexError, match="full"):
         block.write(0.002, r[1]["step"], r[1]["values"], 0)
     block.clear()
-    assert len(block) == 0 and block.dist_min[0] == math.inf
+    assert len(block) == 0 and block.true_min[0] == math.inf
     bad = SimpleNamespace(**{**vars(r[0]["step"]), "u": np.arange(3.0), "u_nom": np.arange(1.0)})
     with pytest.raises(ValueError, match="commands of 3 and 1 joints"):  # (the total width matches; the split not)
         block.write(0.0, bad, r[0]["values"], 0)

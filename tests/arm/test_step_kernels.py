@@ -102,12 +102,12 @@ def test_substep_check_and_apply_in_one_call_equal_the_separate_calls(rng) -> No
         for i in range(300):
             mujoco.mj_step1(model, d)
             near = coll.near(d)
-            mon.tick_min(min(near.h_min, coll.h_far_min), near.row_list, near.dist_min, near.rows)
+            mon.tick_min(min(near.h_min, coll.h_far_min), near.row_list, near.rows)
             tr.command(d, np.sin(0.02 * i + np.arange(scene.n_joints)) * 0.8, 0.002)
             mujoco.mj_step2(model, d)
             mujoco.mj_step1(model, d)
             fused += bool(near.row_list) and tr.compiled_apply(d) is not None
-            seq.append(np.concatenate(([mon.substep(d, near.dist_min if i % 2 else -np.inf, tr)], d.ctrl)))
+            seq.append(np.concatenate(([mon.substep(d, near.h_min if i % 2 else -np.inf, tr)], d.ctrl)))
             mujoco.mj_step2(model, d)
         out.append((np.array(seq), mon.min_h, mon.collisions, mon.steps, d.qpos.copy(), fused))
     (sa, ha, ca, na, qa, fa), (sb, hb, cb, nb, qb, fb) = out
