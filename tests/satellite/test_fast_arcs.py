@@ -161,7 +161,12 @@ def test_arcs_outside_the_table_stay_compiled(setup) -> None:  # type: ignore[no
     assert got is not None and got.status == ref.status == 0
     assert np.linalg.norm(got.y[:3], axis=0).max() > 1.2 * model.field.grid.r_hi  # beyond the end nodes
     tt = np.linspace(0.0, t1, 31)
-    assert (np.abs(got.sol(tt) - ref.sol(tt))[:3] <= 1e-5).all()
+    # the two paths choose their own steps (their error estimates differ by rounding near the acceptance threshold,
+    # so the steps fall at other times: 20 each over these 3 h), so they agree to the integrator's tolerance
+    # accumulated over the arc, not to rounding: within 1e-7 of the radius (measured 2.3e-8 on an Intel Xeon,
+    # 1.7e-5 m at 744 m)
+    r = np.linalg.norm(ref.sol(tt)[:3], axis=0)
+    assert (np.abs(got.sol(tt) - ref.sol(tt))[:3] <= 1e-7 * r).all()
     assert fast.integrate(5.0, 5.0, y0, evs, dense=True, scan=True, **KW) is None  # empty arc: Python's rules
     uncoded = [event(trig.h, False, -1.0)]
     assert fast.integrate(0.0, 100.0, y0, uncoded, dense=True, scan=True, **KW) is None
