@@ -22,7 +22,7 @@ from .intermittent import StackedPoints
 from .jit import compiled, formula
 from .system import LieData
 
-__all__ = ["block_matrix", "row_agents", "involved", "gather_rows", "row_plan", "split_points", "agent_lie", "least_of",
+__all__ = ["block_matrix", "row_agents", "involved", "gather_rows", "row_plan", "split_points", "agent_lie", "least_of", "team_least",
            "SharedRows"]
 
 _NO_I = np.zeros(0, np.intp)
@@ -242,6 +242,7 @@ def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray,
     return LieData._of(out[0], out[1], out[3].reshape(k, w), out[2], names)
 
 
+@formula
 def least_of(xi: np.ndarray, rows: np.ndarray, ends: np.ndarray, values: np.ndarray) -> None:
     """``xi[r] = minimum(xi[r], v)`` over every agent's rows ``r`` and their ``Xi_on`` ``v``, agent after agent.
 
@@ -254,6 +255,24 @@ def least_of(xi: np.ndarray, rows: np.ndarray, ends: np.ndarray, values: np.ndar
         r1 = ends[a]
         idx = rows[r0:r1]
         xi[idx] = np.minimum(xi[idx], values[r0:r1])
+        r0 = r1
+
+
+def team_least(xi: np.ndarray, rows: np.ndarray, ends: np.ndarray, values: np.ndarray, shared_of: np.ndarray,
+               margins: np.ndarray, on: np.ndarray, need: np.ndarray) -> None:
+    """Each row's least ``Xi_on`` over its agents, and which agents need the others, in one call.
+
+    ``xi`` is set to ``inf`` (a row of no agent keeps it), then :func:`least_of`. ``need[a]``: agent ``a``'s filter
+    is on (``on[a]``) and one of its shared rows (``shared_of``, in the order of ``values``) has ``Xi_on`` below its
+    margin ``margins[a]``: :meth:`~isf_robot.core.team.Coordination.needs` of the agent's step (a NaN is not below).
+    In array operations per agent (compiled where the kernels run: :class:`~isf_robot.core.team.SharedFilter`).
+    """
+    xi[:] = np.inf
+    least_of(xi, rows, ends, values)
+    r0 = 0
+    for a in range(ends.shape[0]):
+        r1 = ends[a]
+        need[a] = on[a] and (shared_of[r0:r1] & (values[r0:r1] < margins[a])).any()
         r0 = r1
 
 
@@ -444,6 +463,10 @@ class _Involved:
     def order(self) -> tuple[np.ndarray, np.ndarray]:
         """Every agent's rows (:attr:`parts`), agent after agent, in one array, and where each agent's end."""
         return self._order[0], self._order[1]
+
+    def order_shared(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:attr:`order`, and which of those rows are shared (each agent's :attr:`parts` ``shared``, one after the other)."""
+        return self._order[0], self._order[1], self._order[3]
 
     def split(self, lie: LieData) -> list[LieData]:
         """Every agent's rows of ``lie`` (these rows' data), as :func:`agent_lie` makes them, in one pass.
