@@ -22,8 +22,8 @@ from .intermittent import StackedPoints
 from .jit import compiled, formula
 from .system import LieData
 
-__all__ = ["block_matrix", "row_agents", "involved", "gather_rows", "row_plan", "split_points", "agent_lie", "least_of", "team_least",
-           "SharedRows"]
+__all__ = ["block_matrix", "row_agents", "involved", "gather_rows", "row_plan", "split_points", "agent_lie", "least_of",
+           "team_least", "SharedRows"]
 
 _NO_I = np.zeros(0, np.intp)
 
@@ -391,8 +391,8 @@ class SharedRows:
         if n < 0:  # (a sum not finite: refused, as row_agents refuses it)
             if self._M is None or self._M.shape[0] != lie.m:
                 self._M = block_matrix(self.blocks, lie.m)
-            row_agents(lg, self._M)
-            raise NonFiniteError("team rows: Lg h not finite")  # (row_agents raised already; not reached)
+            row_agents(lg, self._M)  # (raises, naming the rows)
+            raise NonFiniteError("team rows: Lg h not finite")  # (a sum that overflows only in row_plan's order)
         out = _Involved(by_agent.T, count, count > 1, (rows[:n], ends, share[:n], shared_of[:n], flags), key,
                         self._pools, cols, self._gather)
         if key:
@@ -465,7 +465,7 @@ class _Involved:
         return self._order[0], self._order[1]
 
     def order_shared(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:attr:`order`, and which of those rows are shared (each agent's :attr:`parts` ``shared``, one after the other)."""
+        """:attr:`order`, and which of those rows are shared (the agents' :attr:`parts` ``shared``, in turn)."""
         return self._order[0], self._order[1], self._order[3]
 
     def split(self, lie: LieData) -> list[LieData]:

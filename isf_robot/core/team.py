@@ -409,7 +409,7 @@ class SharedFilter:
             rows, ends, shared_of = inv.order_shared()
             # (each row's least Xi_on, and which agents need the others: Coordination.needs of each agent's step)
             self._least(xi, rows, ends, np.concatenate([st.xi for st in steps]), shared_of, margins, on, need)
-            for i, (b, st, tally, wants) in enumerate(zip(self.blocks, steps, tallies, need.tolist())):
+            for b, st, tally, wants in zip(self.blocks, steps, tallies, need.tolist()):
                 u[b] = st.u
                 tally.add_need(st, wants, period)
         self.last = steps

@@ -8,7 +8,16 @@ import pytest
 from isf_robot.core import LieData
 from isf_robot.core.exceptions import NonFiniteError
 from isf_robot.core.jit import compiled
-from isf_robot.core.shares import SharedRows, agent_lie, gather_rows, involved, least_of, row_agents, row_plan, team_least
+from isf_robot.core.shares import (
+    SharedRows,
+    agent_lie,
+    gather_rows,
+    involved,
+    least_of,
+    row_agents,
+    row_plan,
+    team_least,
+)
 from isf_robot.core.step import FilterStep
 from isf_robot.core.team import AgentTally, BlockIntervention, Coordination
 
@@ -189,7 +198,7 @@ def test_row_plan_is_row_agents_and_each_agents_rows_shares_and_flags(jit: str, 
     """The one pass of a new set of rows: row_agents' answer, and per agent its rows, shares and shared flags."""
     monkeypatch.setenv("ISF_ROBOT_JIT", jit)
     rng = np.random.default_rng(5)
-    for trial in range(20):
+    for _ in range(20):
         lg = rng.normal(size=(int(rng.integers(0, 12)), 7))
         lg[rng.random(size=lg.shape) < 0.5] = 0.0
         lg[rng.random(size=lg.shape[0]) < 0.2] = 0.0  # (rows of no agent)
@@ -250,7 +259,7 @@ def test_team_least_is_least_of_and_each_agents_coordination_need(jit: str, monk
     rng = np.random.default_rng(7)
     rows = np.array([0, 2, 3, 1, 2, 4, 2, 3], dtype=np.intp)
     ends = np.array([3, 6, 8], dtype=np.intp)
-    for trial in range(50):
+    for _ in range(50):
         values = rng.normal(size=8)
         values[rng.random(8) < 0.1] = np.nan
         shared_of = rng.random(8) < 0.5
