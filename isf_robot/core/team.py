@@ -360,6 +360,8 @@ class SharedFilter:
         self._switch = SwitchCounter()
         self.shared_rows = SharedRows(self.blocks)
         self._least = compiled(team_least)  # (ISF_ROBOT_JIT is read when the filter is built)
+        a = len(self.agents)  # (team_least's per-agent inputs and answer, rewritten at each step)
+        self._margins, self._on, self._need = np.empty(a), np.empty(a, np.bool_), np.empty(a, np.bool_)
 
     @property
     def on(self) -> bool:
@@ -403,9 +405,10 @@ class SharedFilter:
                 if keep and s.intermittent:
                     extra["promotable"] = mine
                 steps.append(s.step_lie(t, sub, u_nom[b], x, **extra))
-            xi, need = np.empty(lie.k), np.empty(len(steps), np.bool_)
-            margins = np.array([0.0 if st.margin is None else st.margin for st in steps])
-            on = np.array([bool(st.on) for st in steps])
+            xi, margins, on, need = np.empty(lie.k), self._margins, self._on, self._need
+            for i, st in enumerate(steps):
+                margins[i] = 0.0 if st.margin is None else st.margin
+                on[i] = bool(st.on)
             rows, ends, shared_of = inv.order_shared()
             # (each row's least Xi_on, and which agents need the others: Coordination.needs of each agent's step)
             self._least(xi, rows, ends, np.concatenate([st.xi for st in steps]), shared_of, margins, on, need)
