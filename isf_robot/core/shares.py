@@ -22,8 +22,8 @@ from .intermittent import StackedPoints
 from .jit import compiled, formula
 from .system import LieData
 
-__all__ = ["block_matrix", "row_agents", "involved", "gather_rows", "split_points", "agent_lie", "least_of",
-           "SharedRows"]
+__all__ = ["block_matrix", "row_agents", "involved", "gather_rows", "row_plan", "split_points", "agent_lie", "least_of",
+           "team_least", "SharedRows"]
 
 _NO_I = np.zeros(0, np.intp)
 
@@ -109,6 +109,47 @@ def gather_rows(h: np.ndarray, lf: np.ndarray, lg: np.ndarray, grad_norm: np.nda
             dst[:] = block
         p += block.size
         r0, c0 = r1, c1
+
+
+@formula
+def row_plan(lg: np.ndarray, cols: np.ndarray, col_ends: np.ndarray, by_agent: np.ndarray, count: np.ndarray,
+             rows: np.ndarray, ends: np.ndarray, share: np.ndarray, shared_of: np.ndarray, flags: np.ndarray) -> int:
+    """Which agents each row of ``lg`` (k, m) involves, and every agent's rows with their shares, in one pass.
+
+    Agent ``a`` owns the columns ``cols[col_ends[a - 1]:col_ends[a]]`` (``col_ends[-1]`` read as 0). Its test is
+    :func:`row_agents`': ``sum |Lg h| > 0`` over its columns, into ``by_agent[a]`` (``by_agent``: shape (a, k), bool;
+    :func:`row_agents`' answer transposed). ``count`` (k,): how many agents each row involves. Then every agent's
+    rows, agent after agent, each agent's ascending, into ``rows`` (and where each agent's end into ``ends``), its
+    share of each ``1 / count`` into ``share``, whether each is shared (``count > 1``) into ``shared_of``, and
+    whether any of its rows is shared into ``flags[a]``. Returns the number of those rows, or -1 where a sum is
+    not finite (nothing else is then to be read: :func:`row_agents` refuses such rows). In array operations per
+    agent (as numpy runs it; compiled where the kernels run: :class:`SharedRows`).
+    """
+    count[:] = 0
+    e0 = 0
+    for a in range(col_ends.shape[0]):
+        e1 = col_ends[a]
+        s = np.zeros(lg.shape[0])
+        for c in range(e0, e1):  # (the sum column after column, as involved() takes it)
+            s += np.abs(lg[:, cols[c]])
+        if not np.isfinite(s).all():
+            return -1
+        mine = s > 0.0
+        by_agent[a] = mine
+        count += mine
+        e0 = e1
+    p = 0
+    for a in range(col_ends.shape[0]):
+        idx = np.flatnonzero(by_agent[a])
+        n = idx.shape[0]
+        c = count[idx]
+        rows[p: p + n] = idx
+        share[p: p + n] = 1.0 / c
+        shared_of[p: p + n] = c > 1
+        flags[a] = (c > 1).any()
+        p += n
+        ends[a] = p
+    return p
 
 
 def split_points(h, lf, lg, grad_norm, k, keys, col0, col1, lg_at, out_k, out_h, out_lf, out_gn, out_lg,
@@ -201,6 +242,7 @@ def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray,
     return LieData._of(out[0], out[1], out[3].reshape(k, w), out[2], names)
 
 
+@formula
 def least_of(xi: np.ndarray, rows: np.ndarray, ends: np.ndarray, values: np.ndarray) -> None:
     """``xi[r] = minimum(xi[r], v)`` over every agent's rows ``r`` and their ``Xi_on`` ``v``, agent after agent.
 
@@ -213,6 +255,24 @@ def least_of(xi: np.ndarray, rows: np.ndarray, ends: np.ndarray, values: np.ndar
         r1 = ends[a]
         idx = rows[r0:r1]
         xi[idx] = np.minimum(xi[idx], values[r0:r1])
+        r0 = r1
+
+
+def team_least(xi: np.ndarray, rows: np.ndarray, ends: np.ndarray, values: np.ndarray, shared_of: np.ndarray,
+               margins: np.ndarray, on: np.ndarray, need: np.ndarray) -> None:
+    """Each row's least ``Xi_on`` over its agents, and which agents need the others, in one call.
+
+    ``xi`` is set to ``inf`` (a row of no agent keeps it), then :func:`least_of`. ``need[a]``: agent ``a``'s filter
+    is on (``on[a]``) and one of its shared rows (``shared_of``, in the order of ``values``) has ``Xi_on`` below its
+    margin ``margins[a]``: :meth:`~isf_robot.core.team.Coordination.needs` of the agent's step (a NaN is not below).
+    In array operations per agent (compiled where the kernels run: :class:`~isf_robot.core.team.SharedFilter`).
+    """
+    xi[:] = np.inf
+    least_of(xi, rows, ends, values)
+    r0 = 0
+    for a in range(ends.shape[0]):
+        r1 = ends[a]
+        need[a] = on[a] and (shared_of[r0:r1] & (values[r0:r1] < margins[a])).any()
         r0 = r1
 
 
@@ -233,22 +293,34 @@ class SharedRows:
         self._M: np.ndarray | None = None
         self._cache: dict[tuple[str, ...], _Involved] = {}
         self._pools: tuple[dict[tuple[str, ...], tuple[str, ...]], ...] = tuple({} for _ in self.blocks)
-        self._last = _Involved(np.zeros((0, len(self.blocks)), bool), np.zeros(0, np.intp), np.zeros(0, bool))
-        self._colmap: tuple[int, tuple[np.ndarray, np.ndarray, tuple[int, ...]]] | None = None
+        a = len(self.blocks)
+        self._last = _Involved(np.zeros((a, 0), bool).T, np.zeros(0, np.intp), np.zeros(0, bool),
+                               (_NO_I, np.zeros(a, np.intp), np.zeros(0), np.zeros(0, bool), np.zeros(a, bool)))
+        self._colmap: tuple[int, tuple[np.ndarray, np.ndarray, tuple[int, ...]], tuple | None] | None = None
         self._gather = compiled(gather_rows)  # (ISF_ROBOT_JIT is read here, when the rows' split is set up)
         self._split = compiled(split_points)
-        self._rangemap: tuple[int, tuple | None] | None = None
+        self._plan = compiled(row_plan)
 
     def _cols(self, m: int) -> tuple[np.ndarray, np.ndarray, tuple[int, ...]]:
         """The agents' columns of ``m`` inputs, one after the other, their ends, and each agent's count."""
         got = self._colmap
         if got is None or got[0] != m:
-            every = np.arange(m, dtype=np.intp)
-            each = [every[b] for b in self.blocks]
-            widths = tuple(c.shape[0] for c in each)
-            got = self._colmap = (m, (np.concatenate(each) if each else _NO_I,
-                                      np.cumsum(widths, dtype=np.intp), widths))
+            got = self._colmap = self._columns(m)
         return got[1]
+
+    def _columns(self, m: int) -> tuple[int, tuple[np.ndarray, np.ndarray, tuple[int, ...]], tuple | None]:
+        """``(m, (columns, ends, counts), ranges)``: :meth:`_cols`' answer, and :meth:`_ranges`' made from it."""
+        every = np.arange(m, dtype=np.intp)
+        each = [every[b] for b in self.blocks]
+        widths = tuple(c.shape[0] for c in each)
+        cols = np.concatenate(each) if each else _NO_I
+        ends = np.cumsum(widths, dtype=np.intp)
+        ranges = None
+        if all(c.shape[0] == 0 or (np.diff(c) == 1).all() for c in each):  # (each agent's columns a range)
+            col0 = np.array([int(c[0]) if c.shape[0] else 0 for c in each], np.int64)
+            starts = (ends - np.asarray(widths, np.intp)).astype(np.int64)
+            ranges = (col0, col0 + np.asarray(widths, np.int64), list(widths), starts, int(sum(widths)))
+        return m, (cols, ends, widths), ranges
 
     def split_points(self, points: Any) -> list[StackedPoints] | None:
         """Every agent's rows of stacked points (:class:`~.intermittent.StackedPoints` with keys), or ``None``.
@@ -290,18 +362,13 @@ class SharedRows:
     def _ranges(self, m: int) -> tuple | None:
         """The agents' column ranges of ``m`` inputs, or ``None`` where a block is not a range.
 
-        ``(first columns, ends, widths, the widths before each agent, sum of widths)`` (kept per ``m``).
+        ``(first columns, ends, widths, the widths before each agent, sum of widths)``: the columns of
+        :meth:`_cols` (kept per ``m`` with them).
         """
-        got = self._rangemap
+        got = self._colmap
         if got is None or got[0] != m:
-            ranges = [range(m)[b] for b in self.blocks]
-            ok = all(r.step == 1 for r in ranges)
-            widths = [len(r) for r in ranges]
-            starts = np.cumsum([0, *widths[:-1]]).astype(np.int64)
-            got = self._rangemap = (m, (np.array([r.start for r in ranges], np.int64),
-                                        np.array([r.stop for r in ranges], np.int64), widths, starts,
-                                        int(sum(widths))) if ok else None)
-        return got[1]
+            got = self._colmap = self._columns(m)
+        return got[2]
 
     def __call__(self, lie: LieData) -> _Involved:
         """The agents of each row of ``lie`` (:class:`_Involved`)."""
@@ -314,11 +381,20 @@ class SharedRows:
             if hit is not None and hit.count.shape[0] == lie.k:
                 self._last = hit
                 return hit
-        if self._M is None or self._M.shape[0] != lie.m:
-            self._M = block_matrix(self.blocks, lie.m)
-        inv = row_agents(lie.lg, self._M)
-        count = inv.sum(axis=1)
-        out = _Involved(inv, count, count > 1, key, self._pools, self._cols(lie.m), self._gather)
+        lg = lie.lg
+        k, a = lg.shape[0], len(self.blocks)
+        cols = self._cols(lg.shape[1])
+        by_agent, count = np.empty((a, k), np.bool_), np.empty(k, np.int64)
+        rows, ends, share, shared_of, flags = np.empty(a * k, np.intp), np.empty(a, np.intp), np.empty(a * k), \
+            np.empty(a * k, np.bool_), np.empty(a, np.bool_)
+        n = self._plan(lg, cols[0], cols[1], by_agent, count, rows, ends, share, shared_of, flags)
+        if n < 0:  # (a sum not finite: refused, as row_agents refuses it)
+            if self._M is None or self._M.shape[0] != lie.m:
+                self._M = block_matrix(self.blocks, lie.m)
+            row_agents(lg, self._M)  # (raises, naming the rows)
+            raise NonFiniteError("team rows: Lg h not finite")  # (a sum that overflows only in row_plan's order)
+        out = _Involved(by_agent.T, count, count > 1, (rows[:n], ends, share[:n], shared_of[:n], flags), key,
+                        self._pools, cols, self._gather)
         if key:
             if len(self._cache) >= self.LIMIT:
                 self._cache.clear()
@@ -344,23 +420,27 @@ class _Involved:
     """The agents of a set of rows.
 
     ``inv``: :func:`row_agents`, shape (k, a); ``count``: how many agents each row involves, shape (k,);
-    ``shared``: ``count > 1``; :attr:`parts` (made at the first use): per agent, ``(its rows, its share of each,
-    which of them are shared, their names)``; :attr:`steps` (made with it): per agent, ``(which of its rows
-    are not shared, whether any is)``. An agent's names tuple is the one an earlier set of rows gave it when
-    the names are the same (``pools``, one dict per agent, kept by :class:`SharedRows`): what an agent's filter
-    keeps per names object (its hand-over's keys) is found again when other agents' rows changed. ``cols``:
-    the agents' columns one after the other, their ends and each agent's count; ``gather``: :func:`gather_rows`,
-    compiled or not (:meth:`split`).
+    ``shared``: ``count > 1``; ``order``: :func:`row_plan`'s every agent's rows, agent after agent, where each
+    agent's end, its share of each, which of them are shared, and which agents have a shared row;
+    :attr:`parts` (made at the first use): per agent, ``(its rows, its share of each, which of them are shared,
+    their names)``; :attr:`steps` (made with it): per agent, ``(which of its rows are not shared, whether any
+    is)``. An agent's names tuple is the one an earlier set of rows gave it when the names are the same
+    (``pools``, one dict per agent, kept by :class:`SharedRows`): what an agent's filter keeps per names object
+    (its hand-over's keys) is found again when other agents' rows changed. ``cols``: the agents' columns one
+    after the other, their ends and each agent's count; ``gather``: :func:`gather_rows`, compiled or not
+    (:meth:`split`).
     """
 
-    __slots__ = ("inv", "count", "shared", "names", "_pools", "_cols", "_gather", "_parts", "_steps", "_plan")
+    __slots__ = ("inv", "count", "shared", "names", "_order", "_pools", "_cols", "_gather", "_parts", "_steps",
+                 "_plan")
 
-    def __init__(self, inv: np.ndarray, count: np.ndarray, shared: np.ndarray, names: tuple[str, ...] = (),
+    def __init__(self, inv: np.ndarray, count: np.ndarray, shared: np.ndarray,
+                 order: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray], names: tuple[str, ...] = (),
                  pools: Sequence[dict[tuple[str, ...], tuple[str, ...]]] = (),
                  cols: tuple[np.ndarray, np.ndarray, tuple[int, ...]] | None = None,
                  gather: Callable[..., None] = gather_rows) -> None:
         self.inv, self.count, self.shared, self.names = inv, count, shared, names
-        self._pools, self._cols, self._gather = pools, cols, gather
+        self._order, self._pools, self._cols, self._gather = order, pools, cols, gather
         self._parts: tuple[tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...]], ...] | None = None
         self._steps: tuple[tuple[np.ndarray, bool], ...] = ()
         self._plan: tuple[Any, ...] = ()
@@ -382,9 +462,11 @@ class _Involved:
     @property
     def order(self) -> tuple[np.ndarray, np.ndarray]:
         """Every agent's rows (:attr:`parts`), agent after agent, in one array, and where each agent's end."""
-        if self._parts is None:
-            self._make()
-        return self._plan[0], self._plan[1]
+        return self._order[0], self._order[1]
+
+    def order_shared(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:attr:`order`, and which of those rows are shared (the agents' :attr:`parts` ``shared``, in turn)."""
+        return self._order[0], self._order[1], self._order[3]
 
     def split(self, lie: LieData) -> list[LieData]:
         """Every agent's rows of ``lie`` (these rows' data), as :func:`agent_lie` makes them, in one pass.
@@ -402,27 +484,23 @@ class _Involved:
         return [LieData._of(h[r], lf[r], lg[p].reshape(shape), gn[r], names) for r, p, shape, names in views]
 
     def _make(self) -> None:
-        """Make :attr:`parts`, :attr:`steps` and :meth:`split`'s plan (once per set of rows)."""
+        """Make :attr:`parts`, :attr:`steps` and :meth:`split`'s plan from :attr:`order` (once per set of rows)."""
         parts, steps = [], []
-        names, pools, shared = self.names, self._pools, self.shared
-        by_agent = np.ascontiguousarray(self.inv.T)
-        share, own = 1.0 / self.count, ~shared
-        agent, every = by_agent.nonzero()  # (agent after agent, each agent's rows ascending: its rows, in one call)
-        ends = np.searchsorted(agent, np.arange(1, by_agent.shape[0] + 1)).astype(np.intp, copy=False)
-        shares, shared_of, own_of = share[every], shared[every], own[every]
-        picked_all = every.tolist()
-        flags = (by_agent & shared).any(axis=1).tolist()
+        names, pools = self.names, self._pools
+        every, ends, shares, shared_of, flags = self._order
+        own_of = ~shared_of
+        picked_all = every.tolist() if names else []
+        flag_list = flags.tolist()
         r0 = 0
         for i, r1 in enumerate(ends.tolist()):
-            rows = every[r0:r1]
             its: tuple[str, ...] = ()
             if names:
                 picked = picked_all[r0:r1]
                 its = itemgetter(*picked)(names) if len(picked) > 1 else tuple(names[r] for r in picked)
                 if i < len(pools):
                     its = pools[i].setdefault(its, its)
-            parts.append((rows, shares[r0:r1], shared_of[r0:r1], its))
-            steps.append((own_of[r0:r1], flags[i]))
+            parts.append((every[r0:r1], shares[r0:r1], shared_of[r0:r1], its))
+            steps.append((own_of[r0:r1], flag_list[i]))
             r0 = r1
         self._parts, self._steps = tuple(parts), tuple(steps)
         if self._cols is None:  # (made without SharedRows: every agent's columns unknown; split is not offered)
@@ -434,4 +512,4 @@ class _Involved:
             p1 = p0 + rows.shape[0] * w
             views.append((slice(r0, r1), slice(p0, p1), (rows.shape[0], w), its))
             r0, p0 = r1, p1
-        self._plan = (every.astype(np.intp, copy=False), ends, shares, np.array(flags, bool), tuple(views), p0)
+        self._plan = (every, ends, shares, flags, tuple(views), p0)

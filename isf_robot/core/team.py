@@ -66,7 +66,7 @@ import numpy as np
 from .exceptions import ConfigError
 from .jit import compiled
 from .metrics import DutyCycleMetrics, MetricsAccumulator
-from .shares import SharedRows, block_matrix, least_of
+from .shares import SharedRows, block_matrix, team_least
 from .step import FilterStep
 from .strategies import Strategy
 from .switches import SwitchCounter
@@ -195,6 +195,15 @@ class AgentTally:
         if shares and step.on:
             coordination.add(Coordination.needs(step, shared), dt)
         elif coordination._any:  # (off, or no shared row: nobody is needed; only the end of a stretch to record)
+            coordination.add(_nobody(1), dt)
+
+    def add_need(self, step: FilterStep, need: bool, dt: float) -> None:
+        """As :meth:`add`, given whether the agent needs the others at ``step`` (:meth:`Coordination.needs`' answer)."""
+        self.metrics.add_step(step, dt)
+        coordination = self.coordination
+        if need:
+            coordination.add(_SOMEONE, dt)
+        elif coordination._any:  # (only the end of a stretch to record)
             coordination.add(_nobody(1), dt)
 
     def result(self) -> AgentResult:
@@ -350,7 +359,9 @@ class SharedFilter:
         self.last: list[FilterStep] = []
         self._switch = SwitchCounter()
         self.shared_rows = SharedRows(self.blocks)
-        self._least = compiled(least_of)  # (ISF_ROBOT_JIT is read when the filter is built)
+        self._least = compiled(team_least)  # (ISF_ROBOT_JIT is read when the filter is built)
+        a = len(self.agents)  # (team_least's per-agent inputs and answer, rewritten at each step)
+        self._margins, self._on, self._need = np.empty(a), np.empty(a, np.bool_), np.empty(a, np.bool_)
 
     @property
     def on(self) -> bool:
@@ -394,11 +405,16 @@ class SharedFilter:
                 if keep and s.intermittent:
                     extra["promotable"] = mine
                 steps.append(s.step_lie(t, sub, u_nom[b], x, **extra))
-            xi = np.full(lie.k, np.inf)
-            self._least(xi, *inv.order, np.concatenate([st.xi for st in steps]))  # (each row's least Xi_on)
-            for i, (b, st, (_, _, shared, _), (_, shares)) in enumerate(zip(self.blocks, steps, parts, own)):
+            xi, margins, on, need = np.empty(lie.k), self._margins, self._on, self._need
+            for i, st in enumerate(steps):
+                margins[i] = 0.0 if st.margin is None else st.margin
+                on[i] = bool(st.on)
+            rows, ends, shared_of = inv.order_shared()
+            # (each row's least Xi_on, and which agents need the others: Coordination.needs of each agent's step)
+            self._least(xi, rows, ends, np.concatenate([st.xi for st in steps]), shared_of, margins, on, need)
+            for b, st, tally, wants in zip(self.blocks, steps, tallies, need.tolist()):
                 u[b] = st.u
-                tallies[i].add(st, shared, period, shares)
+                tally.add_need(st, wants, period)
         self.last = steps
         on = fallback = resolved = False
         qp = None

@@ -8,9 +8,18 @@ import pytest
 from isf_robot.core import LieData
 from isf_robot.core.exceptions import NonFiniteError
 from isf_robot.core.jit import compiled
-from isf_robot.core.shares import SharedRows, agent_lie, gather_rows, involved, least_of, row_agents
+from isf_robot.core.shares import (
+    SharedRows,
+    agent_lie,
+    gather_rows,
+    involved,
+    least_of,
+    row_agents,
+    row_plan,
+    team_least,
+)
 from isf_robot.core.step import FilterStep
-from isf_robot.core.team import BlockIntervention, Coordination
+from isf_robot.core.team import AgentTally, BlockIntervention, Coordination
 
 BLOCKS = (slice(0, 2), slice(2, 5))
 
@@ -171,3 +180,111 @@ def test_central_coordination_counts_an_agent_only_for_rows_it_shares() -> None:
     assert [c.of(i)[:2] for i in range(3)] == [(1, 1), (2, 1), (1, 1)]
     c.add(Coordination.needs(_step(0.004, False, [-0.5, -0.5, -0.5], 0.05), shared, involves), 0.002)  # off
     assert [c.of(i)[0] for i in range(3)] == [1, 2, 1]
+
+
+def _plan(lg: np.ndarray, blocks: tuple[slice, ...]) -> tuple:
+    """row_plan's outputs for ``lg`` (compiled or not, as ``ISF_ROBOT_JIT`` says)."""
+    k, a = lg.shape[0], len(blocks)
+    cols, col_ends, _ = SharedRows(blocks)._cols(lg.shape[1])
+    out = (np.empty((a, k), bool), np.empty(k, np.int64), np.empty(a * k, np.intp), np.empty(a, np.intp),
+           np.empty(a * k), np.empty(a * k, bool), np.empty(a, bool))
+    n = compiled(row_plan)(lg, cols, col_ends, *out)
+    return n, out
+
+
+@pytest.mark.parametrize("jit", ["1", "0"])
+@pytest.mark.parametrize("blocks", [(slice(0, 2), slice(2, 5), slice(5, 7)), (slice(0, 7, 2), slice(1, 7, 2))])
+def test_row_plan_is_row_agents_and_each_agents_rows_shares_and_flags(jit: str, blocks, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The one pass of a new set of rows: row_agents' answer, and per agent its rows, shares and shared flags."""
+    monkeypatch.setenv("ISF_ROBOT_JIT", jit)
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        lg = rng.normal(size=(int(rng.integers(0, 12)), 7))
+        lg[rng.random(size=lg.shape) < 0.5] = 0.0
+        lg[rng.random(size=lg.shape[0]) < 0.2] = 0.0  # (rows of no agent)
+        n, (by_agent, count, rows, ends, share, shared_of, flags) = _plan(lg, blocks)
+        inv = row_agents(lg, blocks)
+        np.testing.assert_array_equal(by_agent.T, inv)
+        np.testing.assert_array_equal(count, inv.sum(axis=1))
+        r0 = 0
+        for a in range(len(blocks)):
+            mine = np.flatnonzero(inv[:, a])
+            np.testing.assert_array_equal(rows[r0:ends[a]], mine)
+            np.testing.assert_array_equal(share[r0:ends[a]], 1.0 / inv[mine].sum(axis=1))
+            np.testing.assert_array_equal(shared_of[r0:ends[a]], inv[mine].sum(axis=1) > 1)
+            assert flags[a] == bool((inv[mine].sum(axis=1) > 1).any())
+            r0 = ends[a]
+        assert n == r0 == inv.sum()
+    lg = rng.normal(size=(3, 7))
+    for bad in (np.nan, np.inf):
+        lg[1, 6] = bad
+        assert _plan(lg, blocks)[0] == -1  # (refused: SharedRows then raises as row_agents does)
+        with pytest.raises(NonFiniteError):
+            SharedRows(blocks)(_lie(lg, ("a", "b", "c")))
+
+
+def test_a_new_set_of_names_is_looked_at_again_not_taken_from_the_cache() -> None:
+    """The cache is per set of names: other names (another set of near pairs) give that set's own answer."""
+    shared = SharedRows(BLOCKS)
+    lg = np.array([[1.0, 0.0, 1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0, 0.0]])
+    first = shared(_lie(lg, ("a|b", "a|x")))
+    np.testing.assert_array_equal(first.shared, [True, False])
+    lg2 = np.array([[1.0, 0.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 2.0, 0.0], [0.0, 0.0, 0.0, 0.0, 3.0]])
+    second = shared(_lie(lg2, ("a|y", "a|b", "b|z")))  # (another set: one more row, the shared row second)
+    assert second is not first
+    np.testing.assert_array_equal(second.inv, row_agents(lg2, BLOCKS))
+    np.testing.assert_array_equal(second.shared, [False, True, False])
+    np.testing.assert_array_equal(second.order[0], [0, 1, 1, 2])
+    assert [p[3] for p in second.parts] == [("a|y", "a|b"), ("a|b", "b|z")]
+    assert shared(_lie(lg, ("a|b", "a|x"))) is first  # (the first set again: kept)
+
+
+def test_ranges_are_the_columns_of_each_agent_where_they_are_ranges() -> None:
+    rows = SharedRows((slice(0, 2), slice(2, 5)))
+    col0, col1, widths, starts, size = rows._ranges(5)
+    np.testing.assert_array_equal(col0, [0, 2])
+    np.testing.assert_array_equal(col1, [2, 5])
+    assert (list(widths), list(starts), size) == ([2, 3], [0, 2], 5)
+    cols, ends, w = rows._cols(5)
+    np.testing.assert_array_equal(cols, np.arange(5))
+    np.testing.assert_array_equal(ends, [2, 5])
+    assert SharedRows((slice(0, 4, 2), slice(1, 4, 2)))._ranges(4) is None  # (every other column: no range)
+    assert rows._ranges(6)[1].tolist() == [2, 5] and rows._cols(6)[1].tolist() == [2, 5]  # (another width: made again)
+
+
+@pytest.mark.parametrize("jit", ["1", "0"])
+def test_team_least_is_least_of_and_each_agents_coordination_need(jit: str, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """One call: least_of from inf, and per agent Coordination.needs of its step (on, a shared row below its margin)."""
+    monkeypatch.setenv("ISF_ROBOT_JIT", jit)
+    rng = np.random.default_rng(7)
+    rows = np.array([0, 2, 3, 1, 2, 4, 2, 3], dtype=np.intp)
+    ends = np.array([3, 6, 8], dtype=np.intp)
+    for _ in range(50):
+        values = rng.normal(size=8)
+        values[rng.random(8) < 0.1] = np.nan
+        shared_of = rng.random(8) < 0.5
+        margins = rng.choice([0.0, 0.05, 0.5], size=3)
+        on = rng.random(3) < 0.7
+        xi, need = np.empty(6), np.empty(3, bool)
+        compiled(team_least)(xi, rows, ends, values, shared_of, margins, on, need)
+        want = np.full(6, np.inf)
+        least_of(want, rows, ends, values)
+        np.testing.assert_array_equal(xi, want)
+        r0 = 0
+        for a in range(3):
+            step = _step(0.0, bool(on[a]), values[r0:ends[a]].tolist(), float(margins[a]))
+            assert need[a] == bool(Coordination.needs(step, shared_of[r0:ends[a]])[0])
+            r0 = ends[a]
+
+
+def test_add_need_counts_as_add() -> None:
+    """An agent's tally given its need counts the steps, events and time that add() counts from the step."""
+    one, two = AgentTally("a"), AgentTally("a")
+    shared = np.array([False, True])
+    for i, (on, xi) in enumerate([(False, [-1.0, -1.0]), (True, [1.0, 0.05]), (True, [1.0, 0.0]), (True, [1.0, 0.5]),
+                                  (True, [1.0, -0.3]), (False, [1.0, -0.3])]):
+        st = _step(i * 0.002, on, xi, 0.1)
+        one.add(st, shared, 0.002)
+        two.add_need(st, bool(Coordination.needs(st, shared)[0]), 0.002)
+    assert one.coordination.of(0) == two.coordination.of(0) == (3, 2, pytest.approx(0.006))
+    assert one.result() == two.result()
