@@ -171,8 +171,10 @@ class ArmRecorder(RerunRecorder):
         """Send every entity of a block of steps in columns (one ``send_columns`` call each).
 
         ``b`` is a :class:`~isf_robot.arm.step_columns.StepColumns` of the arm loop: its first
-        ``len(b)`` rows are copied (the loop reuses its arrays for the next block, and the stream may
-        encode the columns after ``send_columns`` returns).
+        ``len(b)`` rows are copied where they are sent as they are (the loop reuses its arrays for the next
+        block, and the stream may encode the columns after ``send_columns`` returns); ``h`` is only read
+        here (every column sent is made from it), so it is not copied. The time column of the block's
+        steps is made once and sent with every entity that has a row at each step.
         """
         n = len(b)
         if n == 0:
@@ -184,23 +186,25 @@ class ArmRecorder(RerunRecorder):
             # in the metrics accumulator's written order (sums.sq_sum per row), so the sums match
             "intervention_rate": row_sq_sums(u - u_nom),
             "dist_min": b.dist_min[:n].copy(), "h_filter": b.h_min[:n].copy(), "xi": b.xi_min[:n].copy(),
-            "h": b.h[:n].copy(), "u_nom": u_nom, "u": u, "ee": b.ee_pos[:n].copy(), "goal": b.goal_pos[:n].copy(),
+            "h": b.h[:n], "u_nom": u_nom, "u": u, "ee": b.ee_pos[:n].copy(), "goal": b.goal_pos[:n].copy(),
             # each row's collision pairs, the smallest h first (as the step record's ``closest``)
             "order": np.argsort(b.h[:n, :self._n_collision], axis=1),
         }
         if not self._names:
             self._names = tuple(b.names)
         stream = self.stream
+        idx = [rr.TimeColumn(TIMELINE, duration=t)]  # (every step's: made once, sent with each entity of every step)
         for path, fn in self._derived:
             out = fn(t, a)
             if out is not None and len(out[0]):
-                stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=out[0])], columns=out[1])
-        stream.send_columns("/world/witness", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
+                stream.send_columns(path, indexes=idx if out[0] is t else [rr.TimeColumn(TIMELINE, duration=out[0])],
+                                    columns=out[1])
+        stream.send_columns("/world/witness", indexes=idx,
                             columns=witness_columns(*closest_witness(b, n, a["order"][:, :min(self.closest, 3)])))
         if self.team is not None:
             self.team.send(stream, t, a["dt"], b, a["h"][:, :self._n_collision], u, u_nom)
         assert self.drawing is not None
-        self.drawing.send_poses(stream, t, b.body_pos[:n], b.body_quat[:n])
+        self.drawing.send_poses(stream, t, b.body_pos[:n], b.body_quat[:n], index=idx[0])
         self.drawing.send_tint(stream, t, a["on"])
         self.steps += n
 
