@@ -233,6 +233,7 @@ class MujocoDrawing:
         The columns are those ``rr.Transform3D.columns(translation=..., quaternion=...)`` makes (float32
         translations and (x, y, z, w) quaternions), built from every moving body at once
         (:func:`transform_columns`): Rerun's own conversion costs some 2 ms per body and block of 16384 steps.
+
         """
         n = len(t)
         if not self.moving.size or n == 0:
