@@ -246,6 +246,8 @@ class ArmRecorder(RerunRecorder):
             prev[0, j] = was
         gaps_all = prev & ~member
         seen = np.flatnonzero(member.any(axis=0) | gaps_all.any(axis=0)).tolist()
+        # (the block's times as the time column holds them, [ns], converted once: each pair's rows are taken from it)
+        t_ns = (t * 1e9).astype("timedelta64[ns]")
         last = member[-1]
         for j in seen:
             self._pair_member[j] = bool(last[j])
@@ -253,10 +255,10 @@ class ArmRecorder(RerunRecorder):
             rows = np.flatnonzero(member[:, j])
             gaps = np.flatnonzero(gaps_all[:, j])
             if rows.size:
-                self.stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=t[rows])],
+                self.stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=t_ns[rows])],
                                          columns=rr.Scalars.columns(scalars=h[rows, j]))
             if gaps.size:
-                self.stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=t[gaps])],
+                self.stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=t_ns[gaps])],
                                          columns=rr.Clear.columns(is_recursive=[False] * int(gaps.size)))
         return None
 
