@@ -54,7 +54,7 @@ from .blueprints import arm_blueprint, camera_for, team_blueprint
 from .buffer import TIMELINE, Channel
 from .errors import RecordError
 from .mjgeometry import MujocoDrawing
-from .recorder import RerunRecorder, finite_scalars, value_columns
+from .recorder import RerunRecorder, any_values, finite_scalars, value_columns
 from .schema import STEPS, TERMINAL
 from .team import TeamSeries
 
@@ -344,7 +344,7 @@ class ArmRecorder(RerunRecorder):
         rec.log("/plots/xi/zero", rr.SeriesLines(names="0 (on below)", colors=grey, widths=[1.0]), static=True)
         rec.log("/plots/xi/c", rr.SeriesLines(names=f"c = {self.c:g} (off above)", colors=[[60, 200, 90]],
                                               widths=[1.0]), static=True)
-        rec.log("/run/arm", rr.AnyValues(exact_min_barrier=self.exact_min_barrier,
+        rec.log("/run/arm", any_values(exact_min_barrier=self.exact_min_barrier,
                                          geoms_drawn=self.drawing.geoms_drawn,
                                          geom_ids_drawn=np.asarray(self.drawing.drawn_ids, dtype=np.int64),
                                          geoms_skipped=",".join(self.drawing.geoms_skipped)), static=True)
