@@ -102,8 +102,9 @@ _ARROW_TYPES = ((bool, pa.bool_()), (int, pa.int64()), (float, pa.float64()), (s
 def any_values(**fields: Any) -> rr.AnyValues:
     """``rr.AnyValues(**fields)``, each plain value made an Arrow array of its type here.
 
-    Plain: bool, int, float, a non-empty str, a 1-D numeric array. The same components as Rerun's (the types it infers for them); its own inference of a value costs some
-    0.4 ms the first time in a process (about 10 ms for a run's settings). Other values are left to Rerun.
+    Plain: bool, int, float, a non-empty str, a 1-D numeric array. The same components as Rerun's (the
+    types it infers for them); its own inference of a value costs some 0.4 ms the first time in a process
+    (about 10 ms for a run's settings). Other values are left to Rerun.
     """
     out: dict[str, Any] = {}
     for name, v in fields.items():
