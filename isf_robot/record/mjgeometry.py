@@ -206,8 +206,7 @@ class MujocoDrawing:
                 continue
             path = f"{self.body_paths[int(m.geom_bodyid[g])]}/{gname}"
             local = rr.Transform3D(translation=m.geom_pos[g], quaternion=rr.Quaternion(xyzw=_xyzw(m.geom_quat[g])))
-            stream.log(path, local, static=True)
-            stream.log(path, shape, static=True)
+            stream.log(path, local, shape, static=True)  # (the geom's frame and shape: one message)
             if g in tinted:
                 self._tint_shapes.append((path, shape, color))
             self.drawn_ids.append(g)
