@@ -289,3 +289,36 @@ def test_witness_points_of_either_width_read_back(width: str) -> None:
         a, b = block.pair_start[i], block.pair_start[i + 1]
         np.testing.assert_array_equal(block.witness[a:b], wit[:, :2])
         np.testing.assert_array_equal(block.record(i).witness, wit[:, :2])
+
+
+@pytest.mark.parametrize("strategy", ["isf", "nominal"])
+def test_the_arm_loop_takes_the_compiled_write_at_every_step(strategy: str, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """With numba, every row of an arm run goes the compiled way (its direct call: the loop's arrays have the types it
+    was made for), so nothing of a step waits for a seal; the kernel path's witness points (isf) and the filter
+    rows' strided ones (nominal) alike."""
+    from isf_robot.arm import sim as arm_sim
+    from isf_robot.arm.params import resolve_params
+    from isf_robot.arm.scene import load_scene
+    from isf_robot.core import Observer
+
+    monkeypatch.setenv("ISF_ROBOT_JIT", "1")
+    taken: list[bool] = []
+    write = StepColumns._write_compiled
+
+    def counted(self, *args):  # type: ignore[no-untyped-def]
+        taken.append(write(self, *args))
+        return taken[-1]
+
+    monkeypatch.setattr(StepColumns, "_write_compiled", counted)
+    sizes: list[int] = []
+
+    class Blocks(Observer):
+        block_steps = 64
+
+        def on_steps(self, block):  # type: ignore[no-untyped-def]
+            assert block._copy is not None and not block._rows and block.sealed == len(block)
+            sizes.append(len(block))
+
+    scene = load_scene("panda_pole")
+    res = arm_sim.ArmSimulation(scene, strategy, seed=0, params=resolve_params(scene), observers=[Blocks()]).run(0.3)
+    assert sum(sizes) == res.control_steps == len(taken) and all(taken)
