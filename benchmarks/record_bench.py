@@ -1,6 +1,6 @@
 """Rerun logging overhead: runs with and without ``--rrd``, wall time and memory.
 
-Usage: ``python benchmarks/record_bench.py [--repeats 3] [--quick] [--out BENCHMARKS.md]``.
+Usage: ``python benchmarks/record_bench.py [--repeats 3] [--quick] [--out BENCHMARKS.md] [--case CASE ...]``.
 
 Target (issue "Rerun: every run logged"): a run with ``--rrd`` takes at most 1.3 times the wall
 time of the same run without it, and memory stays bounded on long runs (a 2400 h satellite
@@ -303,6 +303,11 @@ def main() -> None:
     p.add_argument("--out", default=str(Path(__file__).resolve().parent.parent / "BENCHMARKS.md"))
     p.add_argument("--no-write", action="store_true", help="print the section instead of writing it")
     p.add_argument("--no-long", action="store_true", help="without the long runs (memory growth)")
+    p.add_argument("--case", action="append", metavar="CASE", dest="cases",
+                   help="run only this case (repeatable), written as the worker takes it: arm:SCENE:FILTER:SECONDS "
+                        "(e.g. arm:panda_pole:isf:10) or satellite:TRIGGER:HOURS (e.g. satellite:greedy:2400); "
+                        "a satellite case or an arm run of 300 s or more also gets its memory row; the section "
+                        "written holds only the cases run (see --no-write)")
     args = p.parse_args()
     reps = 1 if args.quick else args.repeats
     short = 5.0 if args.quick else 60.0
@@ -311,6 +316,18 @@ def main() -> None:
              f"arm:planar_moving:isf:{short:g}"]
     long_cases = [] if args.no_long else [f"arm:panda_moving:isf:{60.0 if args.quick else 600.0:g}",
                                           f"satellite:greedy:{240.0 if args.quick else 2400.0:g}"]
+    if args.cases:
+        for c in args.cases:
+            kind, *rest = c.split(":")
+            try:
+                ok = kind in CASE_LABELS and len(rest) == (3 if kind == "arm" else 2) and float(rest[-1]) > 0
+            except ValueError:
+                ok = False
+            if not ok:
+                p.error(f"--case {c!r}: expected arm:SCENE:FILTER:SECONDS or satellite:TRIGGER:HOURS")
+        chosen = list(dict.fromkeys(args.cases))  # (a satellite case or an arm run of 300 s or more: a memory row)
+        long_cases = [c for c in chosen if c.startswith("satellite:") or float(c.rsplit(":", 1)[1]) >= 300]
+        cases = [c for c in chosen if c not in long_cases]
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir)
         results = [bench_case(c, reps, tmp, null=True) for c in cases]

@@ -28,9 +28,25 @@ from isf_robot.core.jit import compiled, direct
 
 from .records import ArmStepRecord
 
-__all__ = ["StepColumns", "TickValues", "copy_row"]
+__all__ = ["StepColumns", "TickValues"]
 
 _F8 = np.dtype(np.float64)
+_I8 = np.dtype(np.int64)
+_NO_POINTS = np.zeros((0, 2, 3))  # (the witness points passed when a row has none)
+
+
+def _row_kernel() -> Any:
+    """The compiled row write (``_columns_jit.write_row``), or ``None`` (no numba, or ``ISF_ROBOT_JIT=0``)."""
+    from isf_robot.core.jit import jit_enabled
+
+    if not jit_enabled():
+        return None
+    try:
+        from . import _columns_jit
+    except ImportError:
+        return None
+    kernel = compiled(_columns_jit.write_row)
+    return None if kernel is _columns_jit.write_row else kernel
 
 
 class TickValues(NamedTuple):
@@ -82,18 +98,20 @@ class StepColumns:
         names: Barrier names, length k.
         n_collision: ``k_c``.
 
-    Cost: a step's vectors that live in MuJoCo's data or may be reused by their owner (the state,
-    ``u``, ``u_nom``, the end effector) are copied into their row in one call, from views of ``data``
-    made once by :meth:`bind` (the columns ``q`` to ``u_nom`` are views of one array; the call is
-    :func:`copy_row` compiled, called directly, for float64 contiguous commands: some 2 us a step less
-    than ``np.concatenate`` in the loop, about a quarter of what the loop's writing costs); the rest of the
-    step goes to one tuple (its scalars, and the arrays the loop makes fresh at every step, ``Xi_on``
-    and the tick's values, by reference). :meth:`seal` turns
-    those tuples into the block's arrays with a few NumPy calls over the whole stretch of rows, and
-    runs every :attr:`SEAL_ROWS` rows: a kept view keeps alive the kernel's output block it points
-    into, and a long run of them makes every phase of the loop slower. A step inside a control loop
-    costs far more per NumPy call than the same call in a tight loop, so the per-step part makes as
-    few as it can.
+    Cost: with numba, :meth:`write` writes the whole row at the tick in one compiled call
+    (``_columns_jit.write_row``, called directly on a table of the addresses of the block's arrays and of the
+    views of ``data`` made once by :meth:`bind`): the state and commands, the scalars, ``Xi_on``'s minimum, the
+    tick's values scattered into ``h``, ``h``'s minimum, the goal, the near pairs and their witness points.
+    Nothing of the step is kept, and :meth:`seal` has nothing left to do for such rows. Without numba, and for a
+    row whose arrays are of other types (checked at each step), the NumPy way: the state and commands
+    copied into their row in one ``np.concatenate`` (the columns ``q`` to ``u_nom`` are views of one array),
+    the rest of the step kept as one tuple (its scalars, and the arrays the loop makes fresh at every step,
+    ``Xi_on`` and the tick's values, by reference), which :meth:`seal` turns into the block's arrays with a
+    few NumPy calls over the whole stretch of rows, every :attr:`SEAL_ROWS` rows: a kept view keeps alive
+    the kernel's output block it points into, and a long run of them makes every phase of the loop slower.
+    A step inside a control loop costs far more per NumPy call than the same call in a tight loop, so the
+    per-step part makes as few as it can. The compiled write and :meth:`seal` fill the same arrays with the
+    same values (``tests/arm/test_step_columns.py`` compares the two, rows of both kinds mixed).
 
     """
 
@@ -137,7 +155,9 @@ class StepColumns:
         self.events: dict[int, Any] = {}
         self.sealed = 0
         self._state: tuple[Any, ...] = ()
-        self._copy: Any = None  # (the compiled row copy, resolved for the views of :meth:`bind`)
+        self._copy: Any = None  # (the compiled row write: (kernel, sources, h_far, address table), made by bind)
+        self._variants: dict[bool, Any] = {}  # (the kernel called directly, by whether witness points are contiguous)
+        self._used = 0  # (near pairs in the flat buffers, rows written by the compiled write: their end)
 
     def __len__(self) -> int:
         return self.size
@@ -177,18 +197,34 @@ class StepColumns:
             if width != self._row_state.shape[1]:  # (checked before anything is bound: a failed bind changes nothing)
                 raise ValueError(f"the bound state holds {width - 2 * self._n} values a step; the block keeps "
                                  f"{self._row_state.shape[1] - 2 * self._n} (joints, end effector, poses)")
-            copy, fast = compiled(copy_row), None
-            if copy is not copy_row and all(p.dtype == np.float64 and p.ndim == 1 and p.flags.c_contiguous
-                                            for p in parts):  # (the views' types are fixed: a direct call)
-                u0 = np.zeros(self._n)
-                fast = direct(copy, (parts, u0, u0, self._row_state[0]))
-            self._state, self._copy = (parts, None), fast
+            fast = None
+            if all(p.dtype == np.float64 and p.ndim == 1 and p.flags.c_contiguous for p in parts):
+                kernel = _row_kernel()  # (the views' types are fixed: their addresses in the table)
+                if kernel is not None:
+                    fast = (kernel, parts)
+            self._state, self._copy, self._variants = (parts, None), fast, {}
+            self._point()
         else:  # (the arm's joints scattered: picked at each step)
             self._state, self._copy = (rest, (data, qpos_adr, dof_adr)), None
 
+    def _point(self) -> None:
+        """The compiled write's address table, on the block's arrays as they are now (again after they grow)."""
+        if self._copy is None:
+            return
+        from ._columns_jit import table
+
+        goals, far = self._goals, np.ascontiguousarray(self.h_far, dtype=np.float64)
+        self._copy = (self._copy[0], self._copy[1], far, table(
+            self._copy[1], row_state=self._row_state, width=self._row_state.shape[1], t=self.t, on=self.on,
+            qp_solved=self.qp_solved, fallback=self.fallback, goal_index=self.goal_index, xi_min=self.xi_min,
+            h=self.h, k=self.h.shape[1], n_collision=self.n_collision, h_far=far, h_min=self.h_min,
+            pair_start=self.pair_start, pairs=self._pairs, witness=self._witness, goal_pos=self.goal_pos,
+            goals=goals if goals is not None else self.goal_pos, n_goals=0 if goals is None else len(goals),
+            capacity=self.capacity))
+
     def clear(self) -> None:
         """Start the next block (the arrays are reused: observers must not keep views past ``on_steps``)."""
-        self.size = self.sealed = 0
+        self.size = self.sealed = self._used = 0
         self.true_min[:] = math.inf
         self._rows.clear()
         self.relaxed.clear()
@@ -216,15 +252,13 @@ class StepColumns:
         if not self._state:
             raise RuntimeError("StepColumns.write needs bind(data, qpos_adr, dof_adr, ee_pos) first")
         src, pick = self._state
-        if step.u.shape[0] != self._n or step.u_nom.shape[0] != self._n:  # (one copy checks only the total width)
-            raise ValueError(f"commands of {step.u.shape[0]} and {step.u_nom.shape[0]} joints for a block of {self._n}")
         u, u_nom = step.u, step.u_nom
-        if pick is None:  # (the row's state and commands: one copy; compiled for float64, contiguous commands)
-            if (self._copy is not None and u.dtype == _F8 and u_nom.dtype == _F8 and u.flags.c_contiguous
-                    and u_nom.flags.c_contiguous and u.ndim == 1 and u_nom.ndim == 1):
-                self._copy(src, u, u_nom, self._row_state[i])
-            else:
-                np.concatenate((*src, u, u_nom), out=self._row_state[i])
+        if u.shape[0] != self._n or u_nom.shape[0] != self._n:  # (one copy checks only the total width)
+            raise ValueError(f"commands of {u.shape[0]} and {u_nom.shape[0]} joints for a block of {self._n}")
+        if self._copy is not None and not self._rows and self._write_compiled(i, t, step, values, goal_index, u, u_nom):
+            return
+        if pick is None:  # (the row's state and commands: one copy)
+            np.concatenate((*src, u, u_nom), out=self._row_state[i])
         else:
             data, qpos_adr, dof_adr = pick
             np.concatenate((data.qpos[qpos_adr], data.qvel[dof_adr], *src, u, u_nom), out=self._row_state[i])
@@ -237,6 +271,48 @@ class StepColumns:
         if self.size - self.sealed >= self.SEAL_ROWS:
             self.seal()
 
+    def _write_compiled(self, i: int, t: float, step: Any, values: TickValues, goal_index: int, u: np.ndarray,
+                        u_nom: np.ndarray) -> bool:
+        """Row ``i`` by the compiled write (``_columns_jit.write_row``), whole; ``False``: the NumPy way instead.
+
+        Taken when every array has the types the compiled call was made for (checked here: the call is
+        direct, without numba's own checks): float64 (int64 for the pairs) and contiguous, the witness points
+        contiguous or not (a call for each, made when first needed), and the values hold what the row needs.
+        """
+        rows, tick_h, wit = values
+        xi = step.xi
+        if not (u.dtype is _F8 and u_nom.dtype is _F8 and xi.dtype is _F8 and tick_h.dtype is _F8
+                and rows.dtype is _I8 and u.ndim == 1 and u_nom.ndim == 1 and xi.ndim == 1 and tick_h.ndim == 1
+                and rows.ndim == 1 and u.flags.c_contiguous and u_nom.flags.c_contiguous and xi.flags.c_contiguous
+                and tick_h.flags.c_contiguous and rows.flags.c_contiguous):
+            return False
+        j = rows.shape[0]
+        if wit is None:
+            has, wit, dense = False, _NO_POINTS, True
+        elif type(wit) is np.ndarray and wit.dtype is _F8 and wit.ndim == 3 and wit.shape[0] == j and \
+                wit.shape[1] >= 2 and wit.shape[2] == 3:
+            has, dense = True, wit.flags.c_contiguous
+        else:
+            return False
+        call = self._variants.get(dense)
+        if call is None:
+            call = self._variants[dense] = direct(self._copy[0], (
+                self._copy[3], 0, 0.0, False, False, False, 0, u, u_nom, xi, rows, tick_h,
+                wit if dense else np.zeros((2, 3, 3))[:, :2], True))  # (2 pairs: not contiguous)
+        if self._used + j > self._pairs.shape[0]:
+            self._room(self._used + j)
+        used = call(self._copy[3], i, float(t), bool(step.on), step.qp is not None, bool(step.fallback),
+                    int(goal_index), u, u_nom, xi, rows, tick_h, wit, has)
+        if used < 0:  # (pairs or values the compiled write does not take: the NumPy way says what is wrong)
+            return False
+        self._used = used
+        if step.relaxed:
+            self.relaxed[i] = tuple(step.relaxed)
+        if step.event is not None:
+            self.events[i] = step.event
+        self.size = self.sealed = i + 1
+        return True
+
     def _room(self, pairs: int) -> None:
         """Room for at least ``pairs`` near pairs (and their witness points) in the flat buffers."""
         if pairs > len(self._pairs):
@@ -245,6 +321,7 @@ class StepColumns:
             pairs, witness = np.empty(size, dtype=np.int64), np.empty((size, 2, 3))
             pairs[:used], witness[:used] = self._pairs[:used], self._witness[:used]
             self._pairs, self._witness = pairs, witness
+            self._point()
 
     def end_row(self, true_min: float) -> bool:
         """The smallest true-geometry barrier value [m] over the physics steps of the row just written.
@@ -316,6 +393,7 @@ class StepColumns:
                 self.goal_pos[a:b][ok] = goals[gi[ok]]
         self.h_min[a:b] = h.min(axis=1) if h.shape[1] else math.inf
         self.sealed = b
+        self._used = p1
         self._rows.clear()  # (only now: a seal that fails keeps its rows)
 
     def closest(self, i: int, m: int = 3) -> np.ndarray:
@@ -339,24 +417,6 @@ class StepColumns:
             ee_pos=self.ee_pos[i].copy(), goal_index=int(self.goal_index[i]), goal_pos=self.goal_pos[i].copy(),
             event=self.events.get(i), fallback=bool(self.fallback[i]), relaxed=self.relaxed.get(i, ()),
         )
-
-
-def copy_row(parts: tuple[np.ndarray, ...], u: np.ndarray, u_nom: np.ndarray, out: np.ndarray) -> None:
-    """``out = concatenate(parts + (u, u_nom))``: a step's row (:meth:`StepColumns.write`), compiled where numba is.
-
-    ``parts``: 1-D float64 arrays; ``out`` holds exactly their total length and ``u``'s and ``u_nom``'s.
-    """
-    c = 0
-    for p in parts:
-        for i in range(p.shape[0]):
-            out[c] = p[i]
-            c += 1
-    for i in range(u.shape[0]):
-        out[c] = u[i]
-        c += 1
-    for i in range(u_nom.shape[0]):
-        out[c] = u_nom[i]
-        c += 1
 
 
 def _row_minima(arrays: tuple[np.ndarray, ...], n: int) -> np.ndarray:

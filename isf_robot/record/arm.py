@@ -53,7 +53,7 @@ from .blueprints import arm_blueprint, camera_for, team_blueprint
 from .buffer import TIMELINE, Channel
 from .errors import RecordError
 from .mjgeometry import MujocoDrawing
-from .recorder import RerunRecorder, finite_scalars, value_columns
+from .recorder import RerunRecorder, any_values, finite_scalars, value_columns
 from .schema import STEPS, TERMINAL
 from .team import TeamSeries
 
@@ -166,8 +166,10 @@ class ArmRecorder(RerunRecorder):
         """Send every entity of a block of steps in columns (one ``send_columns`` call each).
 
         ``b`` is a :class:`~isf_robot.arm.step_columns.StepColumns` of the arm loop: its first
-        ``len(b)`` rows are copied (the loop reuses its arrays for the next block, and the stream may
-        encode the columns after ``send_columns`` returns).
+        ``len(b)`` rows are copied where they are sent as they are (the loop reuses its arrays for the next
+        block, and the stream may encode the columns after ``send_columns`` returns); ``h`` is only read
+        here (every column sent is made from it), so it is not copied. The time column of the block's
+        steps is made once and sent with every entity that has a row at each step.
         """
         n = len(b)
         if n == 0:
@@ -179,23 +181,25 @@ class ArmRecorder(RerunRecorder):
             # in the metrics accumulator's written order (sums.sq_sum per row), so the sums match
             "intervention_rate": row_sq_sums(u - u_nom),
             "true_min": b.true_min[:n].copy(), "h_filter": b.h_min[:n].copy(), "xi": b.xi_min[:n].copy(),
-            "h": b.h[:n].copy(), "u_nom": u_nom, "u": u, "ee": b.ee_pos[:n].copy(), "goal": b.goal_pos[:n].copy(),
+            "h": b.h[:n], "u_nom": u_nom, "u": u, "ee": b.ee_pos[:n].copy(), "goal": b.goal_pos[:n].copy(),
             # each row's collision pairs, the smallest h first (as the step record's ``closest``)
             "order": np.argsort(b.h[:n, :self._n_collision], axis=1),
         }
         if not self._names:
             self._names = tuple(b.names)
         stream = self.stream
+        idx = [rr.TimeColumn(TIMELINE, duration=t)]  # (every step's: made once, sent with each entity of every step)
         for path, fn in self._derived:
             out = fn(t, a)
             if out is not None and len(out[0]):
-                stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=out[0])], columns=out[1])
-        stream.send_columns("/world/witness", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
+                stream.send_columns(path, indexes=idx if out[0] is t else [rr.TimeColumn(TIMELINE, duration=out[0])],
+                                    columns=out[1])
+        stream.send_columns("/world/witness", indexes=idx,
                             columns=witness_columns(*closest_witness(b, n, a["order"][:, :min(self.closest, 3)])))
         if self.team is not None:
             self.team.send(stream, t, a["dt"], b, a["h"][:, :self._n_collision], u, u_nom)
         assert self.drawing is not None
-        self.drawing.send_poses(stream, t, b.body_pos[:n], b.body_quat[:n])
+        self.drawing.send_poses(stream, t, b.body_pos[:n], b.body_quat[:n], index=idx[0])
         self.drawing.send_tint(stream, t, a["on"])
         self.steps += n
 
@@ -236,6 +240,8 @@ class ArmRecorder(RerunRecorder):
             prev[0, j] = was
         gaps_all = prev & ~member
         seen = np.flatnonzero(member.any(axis=0) | gaps_all.any(axis=0)).tolist()
+        # (the block's times as the time column holds them, [ns], converted once: each pair's rows are taken from it)
+        t_ns = (t * 1e9).astype("timedelta64[ns]")
         last = member[-1]
         for j in seen:
             self._pair_member[j] = bool(last[j])
@@ -243,10 +249,10 @@ class ArmRecorder(RerunRecorder):
             rows = np.flatnonzero(member[:, j])
             gaps = np.flatnonzero(gaps_all[:, j])
             if rows.size:
-                self.stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=t[rows])],
+                self.stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=t_ns[rows])],
                                          columns=rr.Scalars.columns(scalars=h[rows, j]))
             if gaps.size:
-                self.stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=t[gaps])],
+                self.stream.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=t_ns[gaps])],
                                          columns=rr.Clear.columns(is_recursive=[False] * int(gaps.size)))
         return None
 
@@ -332,7 +338,7 @@ class ArmRecorder(RerunRecorder):
         rec.log("/plots/xi/zero", rr.SeriesLines(names="0 (on below)", colors=grey, widths=[1.0]), static=True)
         rec.log("/plots/xi/c", rr.SeriesLines(names=f"c = {self.c:g} (off above)", colors=[[60, 200, 90]],
                                               widths=[1.0]), static=True)
-        rec.log("/run/arm", rr.AnyValues(geoms_drawn=self.drawing.geoms_drawn,
+        rec.log("/run/arm", any_values(geoms_drawn=self.drawing.geoms_drawn,
                                          geom_ids_drawn=np.asarray(self.drawing.drawn_ids, dtype=np.int64),
                                          geoms_skipped=",".join(self.drawing.geoms_skipped)), static=True)
         centre, radius = self.drawing.workspace()

@@ -59,13 +59,15 @@ def _layout(u: np.ndarray, layout: str) -> np.ndarray:
 
 @pytest.mark.parametrize(("seal_every", "layout", "jit"), [(1, "float64", "1"), (7, "float64", "1"),
                                                            (10_000, "float64", "1"), (7, "strided", "1"),
-                                                           (7, "float32", "1"), (7, "float64", "0")])
+                                                           (7, "float32", "1"), (7, "float64", "0"),
+                                                           (7, "mixed", "1"), (10_000, "mixed", "1")])
 def test_columns_hold_what_was_written(seal_every: int, layout: str, jit: str, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     monkeypatch.setenv("ISF_ROBOT_JIT", jit)  # (the row's copy: compiled and called directly, else numpy's)
     rng = np.random.default_rng(seal_every)
     rows = _rows(rng, 300)
-    for r in rows:
-        r["step"].u, r["step"].u_nom = _layout(r["step"].u, layout), _layout(r["step"].u_nom, layout)
+    for i, r in enumerate(rows):  # ("mixed": stretches of rows the compiled write takes and rows it leaves to NumPy)
+        lay = ("float32" if i % 11 in (3, 4, 9) else "float64") if layout == "mixed" else layout
+        r["step"].u, r["step"].u_nom = _layout(r["step"].u, lay), _layout(r["step"].u_nom, lay)
     block, data, model = _block(400)
     assert (block._copy is not None) == (jit == "1")  # (the compiled copy where it runs: the case under test)
     block.SEAL_ROWS = 64  # (an instance value: the loop's own seals between the explicit ones)
@@ -86,6 +88,9 @@ def test_columns_hold_what_was_written(seal_every: int, layout: str, jit: str, m
     np.testing.assert_array_equal(block.t[:n], [r["t"] for r in rows])
     np.testing.assert_array_equal(block.q[:n], [r["q"] for r in rows])
     np.testing.assert_array_equal(block.u[:n], [r["step"].u for r in rows])
+    np.testing.assert_array_equal(block.goal_index[:n], [r["goal"] for r in rows])
+    np.testing.assert_array_equal(block.fallback[:n], [r["step"].fallback for r in rows])
+    np.testing.assert_array_equal(block.pair_start[1: n + 1], np.cumsum([len(r["values"].rows) for r in rows]))
     np.testing.assert_array_equal(block.u_nom[:n], [r["step"].u_nom for r in rows])
     np.testing.assert_array_equal(block.qd[:n], np.zeros((n, 2)))
     np.testing.assert_array_equal(block.ee_pos[:n], want_ee)
@@ -112,8 +117,11 @@ def test_columns_hold_what_was_written(seal_every: int, layout: str, jit: str, m
         np.testing.assert_array_equal(rec.goal_pos, [[0.1, 0, 0], [0.2, 0, 0]][r["goal"]])
 
 
-def test_the_loops_arrays_are_let_go_within_seal_rows() -> None:
-    """A kept view keeps the kernel's whole output block alive: the block lets each row's go at the next seal."""
+@pytest.mark.parametrize("jit", ["1", "0"])
+def test_the_loops_arrays_are_let_go_within_seal_rows(jit: str, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """A kept view keeps the kernel's whole output block alive: the block lets each row's go at the next seal, and
+    keeps none where the compiled write writes the whole row at once."""
+    monkeypatch.setenv("ISF_ROBOT_JIT", jit)
     rows = _rows(np.random.default_rng(0), 40)
     block, _, _ = _block(100)
     block.SEAL_ROWS = 16
@@ -125,7 +133,10 @@ def test_the_loops_arrays_are_let_go_within_seal_rows() -> None:
     del rows, r
     gc.collect()
     alive = [ref() is not None for ref in refs]
-    assert not any(alive[:32]) and all(alive[32:])  # (two seals of 16 rows; the last 8 wait for the next)
+    if jit == "1":
+        assert block._copy is not None and not block._rows and not any(alive)  # (nothing of a step kept)
+    else:
+        assert not any(alive[:32]) and all(alive[32:])  # (two seals of 16 rows; the last 8 wait for the next)
 
 
 def test_write_checks() -> None:
@@ -251,3 +262,63 @@ def test_a_failure_after_the_last_step_aborts_the_observers_once(monkeypatch, fa
         sim.run(0.05)  # (fewer steps than a block: all of them go on after the loop)
     steps = int(round(0.05 / sim.control_period))
     assert calls == ["start", f"steps:{steps}", "abort:disk full"]  # (the block handed on once, then the abort)
+
+
+@pytest.mark.parametrize("width", ["3", "2", "2view", "mixed"])
+def test_witness_points_of_either_width_read_back(width: str) -> None:
+    """The tick's witness points as the kernel hands them (pair, 3, 3), as the numpy paths do ((pair, 2, 3), a copy
+    or a view), or both in one stretch of rows: the first two points of each pair are what is read back."""
+    rng = np.random.default_rng(11)
+    rows = _rows(rng, 200)
+    for i, r in enumerate(rows):
+        near, h, wit = r["values"]
+        if width == "2" or (width == "mixed" and i % 5 == 2):
+            wit = wit[:, :2].copy()
+        elif width == "2view":
+            wit = wit[:, :2]
+        r["values"] = TickValues(near, h, wit)
+    block, data, model = _block(256)
+    block.SEAL_ROWS = 64
+    for r in rows:
+        block.write(r["t"], r["step"], r["values"], r["goal"])
+        block.end_row(r["dist"])
+    block.seal()
+    assert block.witness.shape == (int(block.pair_start[len(rows)]), 2, 3)
+    for i, r in enumerate(rows):
+        near, _, wit = r["values"]
+        a, b = block.pair_start[i], block.pair_start[i + 1]
+        np.testing.assert_array_equal(block.witness[a:b], wit[:, :2])
+        np.testing.assert_array_equal(block.record(i).witness, wit[:, :2])
+
+
+@pytest.mark.parametrize("strategy", ["isf", "nominal"])
+def test_the_arm_loop_takes_the_compiled_write_at_every_step(strategy: str, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """With numba, every row of an arm run goes the compiled way (its direct call: the loop's arrays have the types it
+    was made for), so nothing of a step waits for a seal; the kernel path's witness points (isf) and the filter
+    rows' strided ones (nominal) alike."""
+    from isf_robot.arm import sim as arm_sim
+    from isf_robot.arm.params import resolve_params
+    from isf_robot.arm.scene import load_scene
+    from isf_robot.core import Observer
+
+    monkeypatch.setenv("ISF_ROBOT_JIT", "1")
+    taken: list[bool] = []
+    write = StepColumns._write_compiled
+
+    def counted(self, *args):  # type: ignore[no-untyped-def]
+        taken.append(write(self, *args))
+        return taken[-1]
+
+    monkeypatch.setattr(StepColumns, "_write_compiled", counted)
+    sizes: list[int] = []
+
+    class Blocks(Observer):
+        block_steps = 64
+
+        def on_steps(self, block):  # type: ignore[no-untyped-def]
+            assert block._copy is not None and not block._rows and block.sealed == len(block)
+            sizes.append(len(block))
+
+    scene = load_scene("panda_pole")
+    res = arm_sim.ArmSimulation(scene, strategy, seed=0, params=resolve_params(scene), observers=[Blocks()]).run(0.3)
+    assert sum(sizes) == res.control_steps == len(taken) and all(taken)

@@ -80,3 +80,42 @@ def test_every_geom_type_is_drawn(tmp_path) -> None:  # type: ignore[no-untyped-
     np.testing.assert_allclose(quat[1], [0, 0, np.sin(np.pi / 4), np.cos(np.pi / 4)], atol=1e-6)
     crate = read_columns(path, "/world/bodies/crate")
     np.testing.assert_allclose(crate["Transform3D:translation"][1], [0.7, 0.4, 0.1], atol=1e-6)
+
+
+def test_transform_columns_are_rerun_own() -> None:
+    """The Arrow-built pose columns equal ``rr.Transform3D.columns`` of the same poses, value for value."""
+    import rerun as rr
+
+    from isf_robot.record.mjgeometry import transform_columns
+
+    rng = np.random.default_rng(3)
+    pos, quat = rng.normal(size=(7, 3)), rng.normal(size=(7, 4))  # (w, x, y, z), not normalised: kept as given
+    mine = list(transform_columns(pos, quat))
+    ref = list(rr.Transform3D.columns(translation=pos, quaternion=quat[:, [1, 2, 3, 0]]))
+    assert [c.component_descriptor() for c in mine] == [c.component_descriptor() for c in ref]
+    for a, b in zip(mine, ref):
+        assert a.as_arrow_array().equals(b.as_arrow_array())
+
+
+def test_poses_of_moving_bodies_apart(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """Moving bodies that are not consecutive (a static body between them): each gets its own poses back."""
+    from isf_robot.record import read_columns
+
+    xml = MJCF.replace('<body name="crate"', '<body name="shelf" pos="0 -0.5 0"><geom type="box" size="0.1 0.1 0.1"/>'
+                       '</body>\n    <body name="crate"')
+    model = mujoco.MjModel.from_xml_string(xml)
+    draw = MujocoDrawing(model)
+    assert [draw.body_paths[b].rsplit("/", 1)[1] for b in draw.moving] == ["arm", "crate"]
+    assert draw.moving.tolist() == [1, 3]
+    path = tmp_path / "apart.rrd"
+    rec = open_stream("isf_robot", rrd_path=path)
+    draw.log_static(rec)
+    t = np.array([0.0, 0.1, 0.2])
+    rng = np.random.default_rng(5)
+    pos, quat = rng.normal(size=(3, model.nbody, 3)), rng.normal(size=(3, model.nbody, 4))
+    draw.send_poses(rec, t, pos, quat)
+    close_stream(rec)
+    for b in draw.moving.tolist():
+        got = read_columns(path, draw.body_paths[b])
+        np.testing.assert_array_equal(got["Transform3D:translation"], pos[:, b].astype(np.float32))
+        np.testing.assert_array_equal(got["Transform3D:quaternion"], quat[:, b][:, [1, 2, 3, 0]].astype(np.float32))
