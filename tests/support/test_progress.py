@@ -70,7 +70,7 @@ def test_the_loop_reports_every_progress_steps_of_simulated_time() -> None:
 
 @pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")
 def test_a_run_on_a_real_terminal_shows_its_progress_then_erases_it(outside_checkout, arm_compiled) -> None:  # type: ignore[no-untyped-def]
-    def run(*extra: str) -> tuple[str, str]:
+    def run(*extra: str) -> tuple[str, str]:  # (the command on a pseudo-terminal's stderr, stdout to a pipe)
         master, slave = os.openpty()
         p = subprocess.Popen([sys.executable, "-m", "isf_robot.cli", "run", "--scene", "panda_pole", "--filter",
                               "cbf", "--duration", "80", *extra], stdout=subprocess.PIPE, stderr=slave,
@@ -96,5 +96,16 @@ def test_a_run_on_a_real_terminal_shows_its_progress_then_erases_it(outside_chec
     last = err.rindex("s simulated (")
     assert "\r\x1b[K" in err[last:]  # (the last line erased before the summary; warnings may follow it)
     assert out.startswith("scene panda_pole, filter cbf") and "simulated" not in out.splitlines()[1]
-    out, err = run("--quiet")
-    assert "s simulated" not in err and out.startswith("scene panda_pole")
+
+
+def test_quiet_asks_for_no_reporter(monkeypatch, capsys) -> None:  # type: ignore[no-untyped-def]
+    from isf_robot.cli import main
+
+    asked: list[str] = []
+    monkeypatch.setattr(TerminalProgress, "for_stream", classmethod(lambda cls, stream, label="", **kw: asked.append(
+        label)))
+    assert main(["run", "--scene", "planar", "--filter", "nominal", "--duration", "0.1", "--quiet"]) == 0
+    assert asked == []
+    assert main(["run", "--scene", "planar", "--filter", "nominal", "--duration", "0.1"]) == 0
+    assert asked == ["planar nominal"]  # (without --quiet: a reporter is asked for, for stderr)
+    assert capsys.readouterr().out.startswith("scene planar")
