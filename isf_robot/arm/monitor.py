@@ -73,8 +73,9 @@ class SafetyMonitor:
         """:meth:`tick` given its minimum: the smallest barrier value over every pair and the pairs within the cut-off.
 
         ``rows``: a list or tuple, kept until the next tick; ``rows_array``: the same rows as an int64 array, if at
-        hand. Returns ``h_min`` when a pair is near (the near pairs hold the smallest values: every other pair is
-        at least ``cutoff - margin`` away), else ``inf``.
+        hand. Returns ``h_min`` when a pair is near, else ``inf``. The loop passes the smaller of the near pairs'
+        minimum and the far pairs' floor (the least ``cutoff - margin``): exact whenever some pair is below that
+        floor, else the floor, a lower bound (with pairs of different margins a near pair can lie above it).
         """
         self.steps += 1
         self.rows = rows

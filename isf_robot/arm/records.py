@@ -89,6 +89,12 @@ class ArmStepRecord:
     fallback: bool = False
     relaxed: tuple[str, ...] = ()
 
+    @property
+    def dist_min(self) -> float:
+        """Gone: the record carries :attr:`true_min`, the smallest ``dist - margin`` (each pair's own margin)."""
+        raise AttributeError("ArmStepRecord.dist_min is now true_min: the smallest barrier value dist - margin over "
+                             "the step's physics steps, each pair with its own margin (not a distance)")
+
 
 @dataclass(frozen=True)
 class FilterParams(FilterSpec):

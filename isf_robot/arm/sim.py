@@ -26,11 +26,11 @@ Observers (:class:`isf_robot.core.Observer`) receive ``on_start(info)`` (see
 :meth:`ArmSimulation.start_info`, plus ``data``: the live MjData), the steps, ``on_event`` per
 :class:`~isf_robot.core.SwitchEvent` and ``on_finish(summary)``. The loop writes each step into a
 :class:`~isf_robot.arm.step_columns.StepColumns` block (only when an observer is attached), at the
-tick (the state the rows were computed from, the command), and the smallest true distance over
-its physics steps after them: observers that take blocks (``on_steps``, the Rerun recorder) get
-the block when it is full and at the end; the others get ``on_step`` with an
-:class:`~isf_robot.arm.records.ArmStepRecord` at every step. Timing per phase (``timing=True``)
-wraps the phases with timers; the loop itself has none.
+tick (the state the rows were computed from, the command), and the smallest true-geometry barrier
+value ``dist - margin`` (each pair's own margin) over its physics steps after them: observers that
+take blocks (``on_steps``, the Rerun recorder) get the block when it is full and at the end; the
+others get ``on_step`` with an :class:`~isf_robot.arm.records.ArmStepRecord` at every step. Timing
+per phase (``timing=True``) wraps the phases with timers; the loop itself has none.
 """
 
 from __future__ import annotations
@@ -63,11 +63,11 @@ __all__ = ["ArmSimulation", "run_episode"]
 
 PHASES = ("sense", "barriers", "nominal", "strategy", "act")
 MAX_CONTROL_STEPS = 10_000_000
+"""Longest run in control steps (the obstacle paths and tracking errors are stored per step)."""
 BLOCK_STEPS = 2048
+"""Steps per block handed to block observers (an observer's ``block_steps`` attribute lowers it)."""
 PROGRESS_STEPS = 256
 """Control steps between calls of a simulation's ``progress`` (when it has one)."""
-"""Steps per block handed to block observers (an observer's ``block_steps`` attribute lowers it)."""
-"""Longest run in control steps (the obstacle paths and tracking errors are stored per step)."""
 
 
 def _brake(t: float, x: Any, lie: LieData, res: Any) -> np.ndarray:

@@ -11,7 +11,8 @@ at every step; :meth:`StepColumns.record` builds the same record from a row.
 
 A row is the control tick's state (``t``: joint positions and velocities, every body's pose, the
 end effector, mocap poses: what the filter's barrier values ``h`` were computed from), the command
-applied from it, and the smallest true distance over the step's physics steps.
+applied from it, and the smallest true-geometry barrier value ``dist - margin`` (each pair's own margin)
+over the step's physics steps.
 
 Shapes: ``n`` arm joints, ``k`` barriers (the collision pairs first, then the joint-limit rows;
 ``k_c`` collision pairs), ``m`` mocap bodies, ``B`` the model's bodies, ``C`` the block's capacity.
@@ -171,6 +172,12 @@ class StepColumns:
     def witness(self) -> np.ndarray:
         """Their witness points, shape (A, 2, 3)."""
         return self._witness[: self.pair_start[self.sealed]]
+
+    def __getstate__(self) -> dict:
+        """A copy or a pickle writes the NumPy way: the compiled write's table holds this object's raw addresses."""
+        state = dict(self.__dict__)
+        state["_copy"], state["_variants"] = None, {}
+        return state
 
     def bind(self, data: Any, qpos_adr: Any, dof_adr: Any, ee_pos: np.ndarray) -> None:
         """Where :meth:`write` reads the tick's state: views of ``data`` (MuJoCo's, valid while it lives).

@@ -26,7 +26,8 @@ and opens on the team layout (:func:`~isf_robot.record.blueprints.team_blueprint
 Replay row: ``t``, ``dt``, ``on``, ``|u - u_nom|^2``, ``qp_solved`` from the record, and
 ``min_barrier`` the true-geometry minimum of ``dist - margin`` (each pair's own margin) over the step's
 physics steps: the smaller of the tick's collision barriers (``h[:n_collision]``) and the loop's minimum over
-the other physics steps (``true_min``), exact. The loop also checks the state after the last
+the other physics steps (``true_min``), exact below the far pairs' floor (the least ``cutoff - margin``), which
+is also what the run's ``min_barrier`` takes there. The loop also checks the state after the last
 step without a step record; when that final check is the run's minimum, it is logged as one
 extra row ``/replay/terminal``.
 

@@ -9,11 +9,15 @@ output stay clean), and :meth:`~TerminalProgress.close` erases the line before t
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from typing import TextIO
 
-__all__ = ["TerminalProgress"]
+__all__ = ["TerminalProgress", "AFTER_ENV"]
+
+AFTER_ENV = "ISF_ROBOT_PROGRESS_AFTER"
+"""Environment variable: seconds of wall time before a run's first progress line (default 1)."""
 
 
 class TerminalProgress:
@@ -31,31 +35,51 @@ class TerminalProgress:
     def __init__(self, stream: TextIO, label: str = "", after: float = 1.0, every: float = 0.5,
                  clock: Callable[[], float] = time.perf_counter) -> None:
         self.stream, self.label, self.every, self.clock = stream, label, float(every), clock
+        self.after = float(after)
         self.start = clock()
-        self.next = self.start + float(after)
+        self.next = self.start + self.after
         self.shown = False
+        self.broken = False
 
     @classmethod
     def for_stream(cls, stream: TextIO, label: str = "", **kwargs: float) -> TerminalProgress | None:
-        """A reporter when ``stream`` is a terminal, else ``None`` (nothing to report to)."""
+        """A reporter when ``stream`` is a terminal, else ``None`` (nothing to report to).
+
+        ``after`` defaults to :data:`AFTER_ENV` when that is set to a number of seconds (else 1 s).
+        """
         isatty = getattr(stream, "isatty", None)
-        return cls(stream, label, **kwargs) if isatty is not None and isatty() else None
+        if isatty is None or not isatty():
+            return None
+        if "after" not in kwargs:
+            try:
+                kwargs["after"] = max(0.0, float(os.environ.get(AFTER_ENV, "1")))
+            except ValueError:
+                kwargs["after"] = 1.0
+        return cls(stream, label, **kwargs)
 
     def __call__(self, t: float, total: float) -> None:
-        """The run has simulated ``t`` of ``total`` seconds."""
+        """The run has simulated ``t`` of ``total`` seconds (``t = 0``: a run starts; its clock starts too)."""
         now = self.clock()
-        if now < self.next:
+        if t == 0.0:
+            self.start, self.next = now, now + self.after
+        if now < self.next or self.broken:
             return
         self.next = now + self.every
         share = f" ({100.0 * t / total:.0f} %)" if total > 0 else ""
         head = f"{self.label}  " if self.label else ""
-        self.stream.write(f"\r\x1b[K{head}{t:.1f} / {total:.1f} s simulated{share}, {now - self.start:.0f} s")
-        self.stream.flush()
-        self.shown = True
+        self._write(f"\r\x1b[K{head}{t:.1f} / {total:.1f} s simulated{share}, {now - self.start:.0f} s")
+        self.shown = not self.broken
 
     def close(self) -> None:
         """Erase the line (if one was written)."""
         if self.shown:
-            self.stream.write("\r\x1b[K")
-            self.stream.flush()
+            self._write("\r\x1b[K")
             self.shown = False
+
+    def _write(self, text: str) -> None:
+        """Write and flush; a terminal that went away ends the reporting, not the run."""
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except (OSError, ValueError):  # (a closed terminal or stream: nothing more to show)
+            self.broken = True

@@ -322,3 +322,23 @@ def test_the_arm_loop_takes_the_compiled_write_at_every_step(strategy: str, monk
     scene = load_scene("panda_pole")
     res = arm_sim.ArmSimulation(scene, strategy, seed=0, params=resolve_params(scene), observers=[Blocks()]).run(0.3)
     assert sum(sizes) == res.control_steps == len(taken) and all(taken)
+
+
+def test_a_copy_writes_its_own_arrays_not_the_originals(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    import copy
+
+    monkeypatch.setenv("ISF_ROBOT_JIT", "1")
+    rows = _rows(np.random.default_rng(5), 3)
+    block, data, model = _block(8)
+    if block._copy is None:
+        pytest.skip("the compiled write is not available")
+    twin = copy.deepcopy(block)
+    assert twin._copy is None  # (its table would hold the original's addresses: the copy writes the NumPy way)
+    for r in rows:
+        data.qpos[:] = r["q"]
+        mujoco.mj_kinematics(model, data)
+        twin.write(r["t"], r["step"], r["values"], r["goal"])
+        twin.end_row(r["dist"])
+    twin.seal()
+    assert len(block) == 0 and not block.t[:3].any()  # (nothing reached the original's arrays)
+    np.testing.assert_array_equal(twin.t[:3], [r["t"] for r in rows])

@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from isf_robot.support.progress import TerminalProgress
+from isf_robot.support.progress import AFTER_ENV, TerminalProgress
 
 
 class _Terminal(io.StringIO):
@@ -70,32 +70,67 @@ def test_the_loop_reports_every_progress_steps_of_simulated_time() -> None:
 
 @pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")
 def test_a_run_on_a_real_terminal_shows_its_progress_then_erases_it(outside_checkout, arm_compiled) -> None:  # type: ignore[no-untyped-def]
-    def run(*extra: str) -> tuple[str, str]:  # (the command on a pseudo-terminal's stderr, stdout to a pipe)
-        master, slave = os.openpty()
-        p = subprocess.Popen([sys.executable, "-m", "isf_robot.cli", "run", "--scene", "panda_pole", "--filter",
-                              "cbf", "--duration", "80", *extra], stdout=subprocess.PIPE, stderr=slave,
-                             stdin=subprocess.DEVNULL)
-        os.close(slave)
-        err = b""
-        while True:
+    import select
+    import time
+
+    master, slave = os.openpty()
+    env = {**os.environ, AFTER_ENV: "0"}  # (the first line at once: the test does not depend on the machine's speed)
+    p = subprocess.Popen([sys.executable, "-m", "isf_robot.cli", "run", "--scene", "panda_pole", "--filter", "cbf",
+                          "--duration", "10"], stdout=subprocess.PIPE, stderr=slave, stdin=subprocess.DEVNULL, env=env)
+    os.close(slave)
+    raw, deadline = b"", time.monotonic() + 300
+    try:
+        while time.monotonic() < deadline:
+            if not select.select([master], [], [], 1.0)[0]:
+                if p.poll() is not None:
+                    break
+                continue
             try:
                 chunk = os.read(master, 4096)
             except OSError:  # (the terminal's other end closed: the command ended)
                 break
             if not chunk:
                 break
-            err += chunk
-        out = p.communicate(timeout=300)[0].decode()
+            raw += chunk
+        out = p.communicate(timeout=max(1.0, deadline - time.monotonic()))[0].decode()
+    finally:
         os.close(master)
-        assert p.returncode == 0, err
-        return out, err.decode()
-
-    out, err = run()
-    # (the loop lasts about 2.5 s here, well over the first line's 1 s)
-    assert "panda_pole cbf  " in err and "s simulated (" in err and "/ 80.0 s" in err
+        if p.poll() is None:
+            p.kill()
+    err = raw.decode()
+    assert p.returncode == 0, err
+    assert "panda_pole cbf  0.0 / 10.0 s simulated (0 %)" in err
     last = err.rindex("s simulated (")
     assert "\r\x1b[K" in err[last:]  # (the last line erased before the summary; warnings may follow it)
     assert out.startswith("scene panda_pole, filter cbf") and "simulated" not in out.splitlines()[1]
+
+
+def test_a_run_restarts_the_clock_and_a_lost_terminal_ends_only_the_reporting() -> None:
+    out, clock = _Terminal(), _Clock()
+    p = TerminalProgress(out, after=1.0, every=0.5, clock=clock)
+    clock.now += 5.0  # (built long before the run starts)
+    p(0.0, 10.0)
+    clock.now += 0.5
+    p(1.0, 10.0)
+    assert out.getvalue() == ""  # (the second since the run began, not since the reporter was made)
+
+    class _Gone(_Terminal):
+        def write(self, text: str) -> int:
+            raise OSError("terminal gone")
+
+    q = TerminalProgress(_Gone(), after=0.0, clock=clock)
+    q(0.0, 10.0)  # (no exception: the run goes on)
+    q.close()
+    assert q.broken and not q.shown
+
+
+def test_the_first_line_waits_for_the_environments_seconds(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    monkeypatch.setenv(AFTER_ENV, "0")
+    assert TerminalProgress.for_stream(_Terminal()).after == 0.0  # type: ignore[union-attr]
+    monkeypatch.setenv(AFTER_ENV, "soon")
+    assert TerminalProgress.for_stream(_Terminal()).after == 1.0  # type: ignore[union-attr]
+    monkeypatch.delenv(AFTER_ENV)
+    assert TerminalProgress.for_stream(_Terminal()).after == 1.0  # type: ignore[union-attr]
 
 
 def test_quiet_asks_for_no_reporter(monkeypatch, capsys) -> None:  # type: ignore[no-untyped-def]
