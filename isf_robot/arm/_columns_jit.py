@@ -19,9 +19,11 @@ import numpy as np
 from llvmlite import ir
 from numba import carray, types
 
+from isf_robot.core.jit import formula
+
 from ._kernels_jit import _pointer, f64p, i64p
 
-__all__ = ["table", "write_row", "SLOTS"]
+__all__ = ["table", "write_row", "least", "SLOTS"]
 
 u8p = _pointer(ir.IntType(8), types.uint8)
 """``u8p(addr)``: the address ``addr`` as a uint8 pointer (a NumPy bool array's bytes)."""
@@ -48,6 +50,19 @@ def table(sources: Sequence[np.ndarray], **arrays: np.ndarray | int) -> np.ndarr
     for name, v in arrays.items():
         p[1 + 2 * m + _S[name]] = v.ctypes.data if isinstance(v, np.ndarray) else int(v)
     return p
+
+
+@formula
+def least(a):  # type: ignore[no-untyped-def]
+    """The smallest value of the 1-D array ``a``: NaN when it holds one (as NumPy's minimum), ``inf`` when empty."""
+    lo = math.inf
+    for e in range(a.shape[0]):
+        v = a[e]
+        if v != v:
+            return v
+        if v < lo:
+            lo = v
+    return lo
 
 
 def write_row(p, i, t, on, qp, fallback, goal, u, u_nom, xi, rows, tick_h, wit, has_wit):  # type: ignore[no-untyped-def]  # pragma: no cover (compiled)
@@ -85,15 +100,7 @@ def write_row(p, i, t, on, qp, fallback, goal, u, u_nom, xi, rows, tick_h, wit, 
     carray(u8p(p[b + QP]), cap)[i] = 1 if qp else 0
     carray(u8p(p[b + FALLBACK]), cap)[i] = 1 if fallback else 0
     carray(i64p(p[b + GOAL_INDEX]), cap)[i] = goal
-    lo = math.inf  # (the smallest value; NaN when there is one, as NumPy's minimum)
-    for e in range(xi.shape[0]):
-        v = xi[e]
-        if v != v:
-            lo = v
-            break
-        if v < lo:
-            lo = v
-    carray(f64p(p[b + XI_MIN]), cap)[i] = lo
+    carray(f64p(p[b + XI_MIN]), cap)[i] = least(xi)
     h = carray(f64p(p[b + H] + 8 * k * i), k)
     far = carray(f64p(p[b + H_FAR]), nc)
     for q in range(nc):
@@ -102,15 +109,7 @@ def write_row(p, i, t, on, qp, fallback, goal, u, u_nom, xi, rows, tick_h, wit, 
         h[rows[r]] = tick_h[r]
     for q in range(k - nc):
         h[nc + q] = tick_h[j + q]
-    lo = math.inf
-    for q in range(k):
-        v = h[q]
-        if v != v:
-            lo = v
-            break
-        if v < lo:
-            lo = v
-    carray(f64p(p[b + H_MIN]), cap)[i] = lo
+    carray(f64p(p[b + H_MIN]), cap)[i] = least(h)
     gp = carray(f64p(p[b + GOAL_POS] + 24 * i), 3)
     ng = p[b + N_GOALS]
     if 0 <= goal < ng:

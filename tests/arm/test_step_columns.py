@@ -342,3 +342,13 @@ def test_a_copy_writes_its_own_arrays_not_the_originals(monkeypatch) -> None:  #
     twin.seal()
     assert len(block) == 0 and not block.t[:3].any()  # (nothing reached the original's arrays)
     np.testing.assert_array_equal(twin.t[:3], [r["t"] for r in rows])
+
+
+def test_least_is_numpys_minimum_with_nan_and_empty() -> None:
+    from isf_robot.arm._columns_jit import least
+
+    rng = np.random.default_rng(3)
+    for a in (rng.normal(size=7), np.array([2.0, np.nan, -5.0]), np.array([np.inf, 1.0])):
+        want = np.min(a)
+        assert least(a) == want or (np.isnan(want) and np.isnan(least(a)))
+    assert least(np.zeros(0)) == np.inf  # (a row of no values: no minimum, as the NumPy way writes it)
