@@ -345,6 +345,7 @@ def test_a_copy_writes_its_own_arrays_not_the_originals(monkeypatch) -> None:  #
 
 
 def test_least_is_numpys_minimum_with_nan_and_empty() -> None:
+    pytest.importorskip("numba")  # (the module of the compiled write imports it)
     from isf_robot.arm._columns_jit import least
 
     rng = np.random.default_rng(3)
