@@ -102,7 +102,6 @@ class ArmRecorder(RerunRecorder):
         if not (self.trail_s >= 0 and math.isfinite(self.trail_s)):
             raise RecordError(f"trail_s must be a finite number >= 0, got {trail_s!r}")
         self.drawing: MujocoDrawing | None = None
-        self.margins = np.zeros(0)
         self.c = math.nan
         self._running_min = math.inf
         self._n_collision = 0
@@ -119,7 +118,7 @@ class ArmRecorder(RerunRecorder):
         return self.buffer.capacity
 
     def _setup(self, info: Mapping[str, Any]) -> None:
-        """Geometry and margins from the run's start info (``model``, ``pair_margins``)."""
+        """Geometry and the collision rows' count from the run's start info (``model``, ``n_collision``)."""
         model = info.get("model")
         if model is None:
             raise RecordError("ArmRecorder needs the arm loop's start info (model, pair_margins); "
@@ -131,8 +130,7 @@ class ArmRecorder(RerunRecorder):
                                          tinted=robot.tolist())
         except ValueError as exc:
             raise RecordError(f"start info: {exc}") from None
-        self.margins = np.asarray(info.get("pair_margins", ()), dtype=float).reshape(-1)
-        self._n_collision = int(info.get("n_collision", self.margins.size))
+        self._n_collision = int(info.get("n_collision", np.size(info.get("pair_margins", ()))))
         c = info.get("c")
         self.c = float(c) if isinstance(c, (int, float)) else math.nan
         self.team = TeamSeries.from_info(info)
