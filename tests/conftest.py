@@ -56,6 +56,27 @@ def outside_checkout(tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-
 
 
 @pytest.fixture(scope="session")
+def local_ray(tmp_path_factory: pytest.TempPathFactory) -> Iterator[object]:
+    """One local Ray instance (2 CPUs) for this test process's comparisons of the backends in-process.
+
+    Starting and stopping Ray costs several seconds; :func:`~isf_robot.support.parallel.run_tasks` joins an
+    instance that is running and leaves it running, so the tests that compare results share this one. Starting
+    a private instance and stopping it (and Ctrl-C then) is what the commands do: the Ctrl-C tests of
+    ``tests/arm/test_sweep_ray.py`` run them. Started from an empty folder (see :func:`outside_checkout`).
+    """
+    import ray
+
+    here = os.getcwd()
+    os.chdir(tmp_path_factory.mktemp("ray"))
+    try:
+        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level="error")
+    finally:
+        os.chdir(here)
+    yield ray
+    ray.shutdown()
+
+
+@pytest.fixture(scope="session")
 def arm_compiled() -> None:
     """numba's cache of the arm's and the core's kernels, filled before a test that times a command starts its clock.
 

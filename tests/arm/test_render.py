@@ -288,14 +288,24 @@ def test_named_camera_and_unknown_camera(tmp_path: Path) -> None:
     assert lab["hand"].sum() > 20 and lab["goal_a"].sum() > 10 and lab["goal_b"].sum() > 10 and lab["pole"].sum() > 50
     top = frame[BANNER + 1:BANNER + 4].reshape(-1, 3).astype(int)  # looking down: floor under the banner, no sky
     assert np.median(np.abs(top[:, 2] - top[:, 0])) < 12
-    bad = _render_vendor(tmp_path, "x.png", "--camera", "front")
-    assert bad.returncode == 2 and not (tmp_path / "x.png").exists()
-    line = bad.stderr.strip().splitlines()[-1]
-    assert "'front'" in line and "valid: top, side" in line, bad.stderr
-    both = _render_vendor(tmp_path, "x.png", "--camera", "top", "--azimuth", "90")
-    assert both.returncode == 2 and "--azimuth" in both.stderr
-    lookat = _render_vendor(tmp_path, "x.png", "--lookat", "1,2")
-    assert lookat.returncode == 2 and "X,Y,Z" in lookat.stderr.strip().splitlines()[-1]
+
+
+def test_bad_camera_options_are_one_line_errors_before_anything_runs(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """In this process: the checks run before the episode and before any OpenGL context (no subprocess needed)."""
+    from isf_robot.cli import main
+
+    xml, toml = _vendor(tmp_path)
+    base = ["render", "--model", str(xml), "--config", str(toml), "--filter", "nominal", "--duration", "0.02",
+            "-o", str(tmp_path / "x.png")]
+    assert main([*base, "--camera", "front"]) == 2 and not (tmp_path / "x.png").exists()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "'front'" in err[0] and "valid: top, side" in err[0], err
+    assert main([*base, "--camera", "top", "--azimuth", "90"]) == 2
+    assert "--azimuth" in capsys.readouterr().err
+    assert main([*base, "--lookat", "1,2"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "X,Y,Z" in err[0], err
+    assert not (tmp_path / "x.png").exists()
 
 
 @pytest.mark.parametrize(("azimuth", "elevation", "aspect"), [(140.0, -22.0, 4 / 3), (90.0, -60.0, 1.0),

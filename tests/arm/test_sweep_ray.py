@@ -46,6 +46,7 @@ def _numbers(sweep):
 
 
 @needs_ray
+@pytest.mark.usefixtures("local_ray")  # (tests/conftest.py: one local instance, joined by run_tasks)
 def test_sweep_on_local_ray_equals_local_processes():
     pts = [SweepPoint("cbf", {}), SweepPoint("isf", {"c": 0.1, "blend": 0.02})]
     args = dict(duration=0.6, d_bar=0.05)

@@ -29,6 +29,7 @@ def _numbers(doc: dict) -> dict:
 @pytest.mark.usefixtures("outside_checkout")  # Ray's workers import the installed package (tests/conftest.py)
 @pytest.mark.skipif(not HAVE_RAY and not os.environ.get("CI"),
                     reason="ray not installed (pip install '.[ray]'); CI installs it with the test extra")
+@pytest.mark.usefixtures("local_ray")  # (tests/conftest.py: one local instance, joined by run_tasks)
 def test_study_on_local_ray_equals_local_processes() -> None:
     configs = plan(["greedy", "periodic"], ["kepler"], [0.5])
     starts = [(0, 45.0), (1, 15.0), (2, 75.0)]

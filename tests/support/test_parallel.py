@@ -40,17 +40,12 @@ def test_a_task_error_stops_the_batch_as_itself() -> None:
         run_tasks(math.sqrt, [1.0, -1.0, 4.0], jobs=2)
 
 
-def test_ray_gives_the_same_pairs_and_errors() -> None:
+def test_ray_gives_the_same_pairs_and_errors(request: pytest.FixtureRequest) -> None:
     pytest.importorskip("ray")
-    import ray
-
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level="error")
-    try:  # one local instance for the whole test (starting Ray costs seconds)
-        assert _pairs("ray", 2) == _pairs("processes", 1)
-        with pytest.raises(ValueError, match="math domain error"):
-            run_tasks(math.sqrt, [1.0, -1.0, 4.0], jobs=2, backend="ray")
-    finally:
-        ray.shutdown()
+    request.getfixturevalue("local_ray")  # (tests/conftest.py: one local instance, joined by run_tasks)
+    assert _pairs("ray", 2) == _pairs("processes", 1)
+    with pytest.raises(ValueError, match="math domain error"):
+        run_tasks(math.sqrt, [1.0, -1.0, 4.0], jobs=2, backend="ray")
 
 
 def test_a_ray_that_cannot_start_is_one_error(monkeypatch) -> None:  # type: ignore[no-untyped-def]
