@@ -17,6 +17,7 @@ in :mod:`isf_robot.arm.collision`; the types of the rows in :mod:`isf_robot.arm.
 
 from __future__ import annotations
 
+from operator import itemgetter
 from typing import TYPE_CHECKING
 
 import mujoco
@@ -326,7 +327,9 @@ class NarrowPhase:
         if names is None:
             if len(cache[1]) >= 4096:  # (bounded: a long run through many pair sets)
                 cache[1].clear()
-            names = cache[1][key] = tuple(self.pairs.names[i] for i in key) + joints.names
+            pn = self.pairs.names
+            pairs = itemgetter(*key)(pn) if len(key) > 1 else tuple(pn[i] for i in key)  # (one call: a tuple)
+            names = cache[1][key] = pairs + joints.names
         return names
 
     def _pool(self, c: tuple, count: int = 0) -> BlockPool:
