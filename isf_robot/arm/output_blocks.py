@@ -18,7 +18,7 @@ import sys
 
 import numpy as np
 
-__all__ = ["BlockPool"]
+__all__ = ["BlockPool", "REUSE"]
 
 _refs = sys.getrefcount
 
@@ -26,6 +26,20 @@ _refs = sys.getrefcount
 def _held(a: list) -> tuple[int, int]:
     """References to an allocation's float and int arrays (the pool's own included; one form for every count)."""
     return _refs(a[0]), _refs(a[1])
+
+
+def _views_counted() -> bool:
+    """Whether a view of an array shows in the array's reference count here (else nothing is reused)."""
+    a = [np.empty(2), np.empty(1)]
+    before = _held(a)
+    view = a[0][:1]
+    counted = _held(a)[0] == before[0] + 1
+    del view
+    return counted and _held(a) == before
+
+
+REUSE = _views_counted()
+"""Whether :class:`BlockPool` reuses allocations (the interpreter counts references as CPython does)."""
 
 
 class BlockPool:
@@ -56,7 +70,7 @@ class BlockPool:
 
     def _alloc(self) -> list:
         """A free allocation: the oldest kept one nothing else holds, else a new one (in place of the oldest)."""
-        for a in self._allocs:
+        for a in self._allocs if REUSE else ():
             if _held(a) == a[3]:
                 return a
         count, m = self.count, self.m

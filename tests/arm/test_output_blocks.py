@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isf_robot.arm import CollisionBarriers, JointLimitBarriers, kernels, load_scene
+from isf_robot.arm import CollisionBarriers, JointLimitBarriers, kernels, load_scene, output_blocks
 from isf_robot.arm.output_blocks import BlockPool
 
 needs_kernel = pytest.mark.skipif(not kernels.available(), reason="compiled kernels off (ISF_ROBOT_JIT=0) or numba not importable")
@@ -19,6 +19,18 @@ def _barriers(scene) -> CollisionBarriers:  # type: ignore[no-untyped-def]
 
 def _equal(xs: list[np.ndarray], ys: list[np.ndarray]) -> bool:
     return all(x.shape == y.shape and np.array_equal(x, y) for x, y in zip(xs, ys))
+
+
+def test_reference_counts_tell_views_here() -> None:
+    assert output_blocks.REUSE  # (CPython: else the pools allocate every time, as fresh as ever)
+
+
+def test_without_reuse_every_allocation_is_new(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    monkeypatch.setattr(output_blocks, "REUSE", False)
+    pool = BlockPool(8, 1, 1, 1, 1)
+    for _ in range(3):
+        pool.take()
+    assert pool.made == 3
 
 
 def test_a_block_is_reused_only_when_nothing_holds_it() -> None:
