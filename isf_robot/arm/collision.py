@@ -165,7 +165,7 @@ class CollisionBarriers(NarrowPhase):
         self._knolin = np.zeros(0)
         self._lin_shape = (model.nmocap, 3)
         self._kctx: tuple | None = None  # (see NarrowPhase._kernel_context)
-        self._kout: tuple = (None, None)  # (a context, the output blocks of its layout; NarrowPhase._output_source)
+        self._kout: tuple = (None, None)  # (a context, the output blocks of its layout; NarrowPhase._pool)
         self._kdirect: tuple = (None, None)  # (the kernel, its code for the call's argument types: jit.direct)
         self._kblocks: dict = {}
         self._tick_names: tuple = (None, {})  # (NarrowPhase._tick_key)

@@ -17,7 +17,7 @@ in :mod:`isf_robot.arm.collision`; the types of the rows in :mod:`isf_robot.arm.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from operator import itemgetter
 from typing import TYPE_CHECKING
 
 import mujoco
@@ -27,6 +27,7 @@ from isf_robot.core import LieData
 from isf_robot.core.exceptions import ShapeError
 from isf_robot.core.jit import direct, formula
 
+from .output_blocks import BlockPool
 from .rows import FilterRows, NearPairs, TickRows
 
 if TYPE_CHECKING:
@@ -40,7 +41,7 @@ __all__ = ["FilterRows", "NarrowPhase", "NearPairs", "TickRows", "pair_value", "
 _F64 = np.dtype(np.float64)
 _EPS_DIST = 1e-9  # [m] below this |dist| the witness points give no direction
 _new = tuple.__new__  # a NamedTuple from a tuple of its fields (as _make, without the length check)
-_BLOCK_FLOATS = 32768  # the compiled path's outputs are allocated up to this many float64s (256 kB) at a time
+_BLOCK_FLOATS = 32768  # a control tick's outputs are allocated up to this many float64s (256 kB) at a time
 
 # The tables of the packed kernel's address array ``p`` (``_kernels_jit.near_packed_key``; built by
 # NarrowPhase._build_context): sizes first, then the arrays' addresses.
@@ -89,22 +90,6 @@ def substep_distmax(thresh, margin, bound):  # type: ignore[no-untyped-def]
     minimum barrier ``bound`` (the safety monitor; ``-inf`` when only the run's minimum matters).
     """
     return max(thresh, bound) + margin + 1e-6
-
-
-def _output_blocks(size: int, m: int, n: int, n_live: int) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Fresh outputs of the packed kernel for the next calls: ``(blk, rows, g)``, each handed out once.
-
-    ``blk``: float64 (size,), the kernel's output block (layout in ``_kernels_jit.near_packed_key``);
-    ``rows``: int64 (n_live,); ``g``: the (m, n) view of ``blk``'s gradient rows. Up to 64 blocks (at
-    most 256 kB) are allocated at once with their views: cheaper than two ``np.empty``, a reshape and
-    three views per call made between the other phases' work. A block is never handed out twice, so
-    every result stays fresh; a result kept alive keeps its allocation alive (at most 256 kB, or one
-    block where a block is larger).
-    """
-    count = max(1, min(64, _BLOCK_FLOATS // max(size, 1)))
-    flat = np.empty((count, size))
-    g = flat[:, m: m + m * n].reshape(count, m, n, copy=False)
-    return iter(list(zip(flat, np.empty((count, max(n_live, 1)), dtype=np.int64), g)))
 
 
 KERNEL_CONTEXTS = 4
@@ -183,10 +168,11 @@ class NarrowPhase:
                 rows, hit[1])
 
     def _point_outputs(self, c: tuple, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``count`` fresh output blocks of ``c`` in one allocation (a rollout's points): blk, its g views, rows."""
-        m, n, nj, size = c[7], c[8], c[9], c[12]
-        flat = np.empty((count, size))
-        return flat, flat[:, m: m + m * n].reshape(count, m, n), np.empty((count, max(m - nj, 1)), dtype=np.int64)
+        """``count`` output blocks of ``c`` in one allocation (a rollout's points): blk, its g views, rows.
+
+        As fresh as a new allocation: one that nothing holds any more is reused (:class:`BlockPool`).
+        """
+        return self._pool(c, count).take_all()
 
     def _build_context(self, data: mujoco.MjData, coherence: JointCoherence | None,
                        joints: JointLimitBarriers | None) -> tuple:
@@ -265,11 +251,8 @@ class NarrowPhase:
         _, _, _, _, p, daddr, _, m, n, nj, o_gn, o_lf, size, norms_in, distmax, slack = c
         out = self._kout
         if out[0] is not c:  # (another context: the output blocks of its layout)
-            out = self._output_source(c, m, n, nj, size)
-        try:
-            blk, rows, g2 = next(out[1])  # fresh outputs (arrays a kernel returns cost more)
-        except StopIteration:  # (this allocation's blocks are all handed out)
-            blk, rows, g2 = next(self._output_source(c, m, n, nj, size, True)[1])
+            out = self._kout = (c, self._pool(c))
+        blk, rows, g2 = out[1].take()  # (as fresh as new ones: BlockPool; arrays a kernel returns cost more)
         lin, dhdt_in = self._knolin, 0
         moving = self._any_moving and mocap_lin is not None
         if moving and self._kdhdt and mocap_ang is None:  # dh/dt in the kernel (obstacle_dhdt)
@@ -344,21 +327,24 @@ class NarrowPhase:
         if names is None:
             if len(cache[1]) >= 4096:  # (bounded: a long run through many pair sets)
                 cache[1].clear()
-            names = cache[1][key] = tuple(self.pairs.names[i] for i in key) + joints.names
+            pn = self.pairs.names
+            pairs = itemgetter(*key)(pn) if len(key) > 1 else tuple(pn[i] for i in key)  # (one call: a tuple)
+            names = cache[1][key] = pairs + joints.names
         return names
 
-    def _output_source(self, c: tuple, m: int, n: int, nj: int, size: int, new: bool = False
-                       ) -> tuple[tuple, Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
-        """The output blocks for kernel context ``c`` of that layout (one source per layout, shared by contexts).
+    def _pool(self, c: tuple, count: int = 0) -> BlockPool:
+        """The output blocks of kernel context ``c``'s layout (one pool per layout, shared by contexts).
 
-        ``new``: a new allocation of blocks for the layout (the current one is used up).
+        ``count``: blocks per allocation, handed out together (a rollout's points); 0: a control tick's, one at a
+        time, up to :data:`_BLOCK_FLOATS` floats per allocation.
         """
-        key = (m, n, nj, size)
-        src = None if new else self._kblocks.get(key)
-        if src is None:
-            src = self._kblocks[key] = _output_blocks(size, m, n, m - nj)
-        self._kout = (c, src)
-        return self._kout
+        m, n, nj, size = c[7], c[8], c[9], c[12]
+        key = (m, n, nj, size, count)
+        pool = self._kblocks.get(key)
+        if pool is None:
+            per = count or max(1, min(64, _BLOCK_FLOATS // max(size, 1)))
+            pool = self._kblocks[key] = BlockPool(size, m, n, m - nj, per)
+        return pool
 
     def _dhdt(self, data: mujoco.MjData, row_list: list[int], idx: np.ndarray, n: np.ndarray,
               p2: np.ndarray, mocap_lin: np.ndarray | None, mocap_ang: np.ndarray | None) -> np.ndarray:

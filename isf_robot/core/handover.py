@@ -112,7 +112,7 @@ class PromotionRamp:
         if names is not self._names or k != self._k:
             keys = names if len(names) == k else range(k)
             id_of = self._id_of
-            ids = np.fromiter((id_of.setdefault(key, len(id_of)) for key in keys), np.intp, k)
+            ids = np.array([id_of.setdefault(key, len(id_of)) for key in keys], np.intp)
             if len(id_of) > self._w.shape[0]:  # (room for the new keys, the weights kept)
                 size = 2 * len(id_of)
                 self._w = np.concatenate((self._w, np.zeros(size - self._w.shape[0])))

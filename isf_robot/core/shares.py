@@ -22,8 +22,8 @@ from .intermittent import StackedPoints
 from .jit import compiled, formula
 from .system import LieData
 
-__all__ = ["block_matrix", "row_agents", "involved", "gather_rows", "row_plan", "split_points", "agent_lie", "least_of",
-           "team_least", "SharedRows"]
+__all__ = ["block_matrix", "row_agents", "involved", "gather_rows", "row_plan", "split_points", "agent_lie",
+           "SharedRows"]
 
 _NO_I = np.zeros(0, np.intp)
 
@@ -240,40 +240,6 @@ def agent_lie(lie: LieData, block: slice, rows: np.ndarray, share: np.ndarray,
     compiled(gather_rows)(lie.h, lie.lf, lie.lg, lie.grad_norm, rows, np.array([k], np.intp), cols,
                           np.array([w], np.intp), np.asarray(share, dtype=float), np.array([bool(scaled)]), *out)
     return LieData._of(out[0], out[1], out[3].reshape(k, w), out[2], names)
-
-
-@formula
-def least_of(xi: np.ndarray, rows: np.ndarray, ends: np.ndarray, values: np.ndarray) -> None:
-    """``xi[r] = minimum(xi[r], v)`` over every agent's rows ``r`` and their ``Xi_on`` ``v``, agent after agent.
-
-    Each row's least ``Xi_on`` over the agents that have it (:attr:`_Involved.order`: every agent's rows, agent
-    after agent, each agent's ascending, and where each agent's end; ``values`` their ``Xi_on`` in that order).
-    NaN as ``np.minimum`` treats it. One call in array operations per agent (compiled where the kernels run).
-    """
-    r0 = 0
-    for a in range(ends.shape[0]):
-        r1 = ends[a]
-        idx = rows[r0:r1]
-        xi[idx] = np.minimum(xi[idx], values[r0:r1])
-        r0 = r1
-
-
-def team_least(xi: np.ndarray, rows: np.ndarray, ends: np.ndarray, values: np.ndarray, shared_of: np.ndarray,
-               margins: np.ndarray, on: np.ndarray, need: np.ndarray) -> None:
-    """Each row's least ``Xi_on`` over its agents, and which agents need the others, in one call.
-
-    ``xi`` is set to ``inf`` (a row of no agent keeps it), then :func:`least_of`. ``need[a]``: agent ``a``'s filter
-    is on (``on[a]``) and one of its shared rows (``shared_of``, in the order of ``values``) has ``Xi_on`` below its
-    margin ``margins[a]``: :meth:`~isf_robot.core.team.Coordination.needs` of the agent's step (a NaN is not below).
-    In array operations per agent (compiled where the kernels run: :class:`~isf_robot.core.team.SharedFilter`).
-    """
-    xi[:] = np.inf
-    least_of(xi, rows, ends, values)
-    r0 = 0
-    for a in range(ends.shape[0]):
-        r1 = ends[a]
-        need[a] = on[a] and (shared_of[r0:r1] & (values[r0:r1] < margins[a])).any()
-        r0 = r1
 
 
 class SharedRows:

@@ -64,15 +64,16 @@ from typing import Any
 import numpy as np
 
 from .exceptions import ConfigError
-from .jit import compiled
+from .jit import compiled, formula
 from .metrics import DutyCycleMetrics, MetricsAccumulator
-from .shares import SharedRows, block_matrix, team_least
+from .shares import SharedRows, block_matrix
 from .step import FilterStep
 from .strategies import Strategy
 from .switches import SwitchCounter
 from .system import LieData
 
-__all__ = ["Coordination", "AgentTally", "AgentResult", "BlockIntervention", "CentralFilter", "SharedFilter"]
+__all__ = ["Coordination", "AgentTally", "AgentResult", "BlockIntervention", "CentralFilter", "SharedFilter",
+           "least_of", "team_least"]
 
 
 @dataclass(frozen=True)
@@ -171,6 +172,40 @@ def _nobody(a: int) -> np.ndarray:
         got = _NOBODY[a] = np.zeros(a, dtype=bool)
         got.flags.writeable = False
     return got
+
+
+@formula
+def least_of(xi: np.ndarray, rows: np.ndarray, ends: np.ndarray, values: np.ndarray) -> None:
+    """``xi[r] = minimum(xi[r], v)`` over every agent's rows ``r`` and their ``Xi_on`` ``v``, agent after agent.
+
+    Each row's least ``Xi_on`` over the agents that have it (:attr:`.shares._Involved.order`: every agent's rows, agent
+    after agent, each agent's ascending, and where each agent's end; ``values`` their ``Xi_on`` in that order).
+    NaN as ``np.minimum`` treats it. One call in array operations per agent (compiled where the kernels run).
+    """
+    r0 = 0
+    for a in range(ends.shape[0]):
+        r1 = ends[a]
+        idx = rows[r0:r1]
+        xi[idx] = np.minimum(xi[idx], values[r0:r1])
+        r0 = r1
+
+
+def team_least(xi: np.ndarray, rows: np.ndarray, ends: np.ndarray, values: np.ndarray, shared_of: np.ndarray,
+               margins: np.ndarray, on: np.ndarray, need: np.ndarray) -> None:
+    """Each row's least ``Xi_on`` over its agents, and which agents need the others, in one call.
+
+    ``xi`` is set to ``inf`` (a row of no agent keeps it), then :func:`least_of`. ``need[a]``: agent ``a``'s filter
+    is on (``on[a]``) and one of its shared rows (``shared_of``, in the order of ``values``) has ``Xi_on`` below its
+    margin ``margins[a]``: :meth:`Coordination.needs` of the agent's step (a NaN is not below). In array operations
+    per agent (compiled where the kernels run: :class:`SharedFilter`).
+    """
+    xi[:] = np.inf
+    least_of(xi, rows, ends, values)
+    r0 = 0
+    for a in range(ends.shape[0]):
+        r1 = ends[a]
+        need[a] = on[a] and (shared_of[r0:r1] & (values[r0:r1] < margins[a])).any()
+        r0 = r1
 
 
 class AgentTally:

@@ -144,3 +144,20 @@ def test_stacked_points_split_per_arm_as_point_by_point(team) -> None:  # type: 
         for (s1, x, u1), (s2, y, u2) in zip(a, b):
             assert s1 == s2 and x.names == y.names
             np.testing.assert_array_equal(_flat(x, u1), _flat(y, u2))
+
+
+def test_kept_rollout_points_stay_and_dropped_ones_give_their_blocks_back(team) -> None:  # type: ignore[no-untyped-def]
+    """The points' blocks come from a pool (:class:`~isf_robot.arm.output_blocks.BlockPool`): points kept past later
+    rollouts are never written again; points dropped let the next rollouts reuse their blocks."""
+    scene, sim, roll = team
+    kept = []
+    for i, (t, data) in enumerate(_states(scene, sim, 8)):
+        points = roll(t, data)
+        assert type(points) is StackedPoints
+        if i % 2 == 0:
+            kept.append((points, [_flat(lie, u).copy() for _, lie, u in points]))
+        del points
+    pool = next(p for p in sim.coll._kblocks.values() if p.count == roll.n)
+    assert pool.made == 5  # (a dropped rollout's blocks serve the next rollout, which is kept: 4 kept, 1 more)
+    for points, flats in kept:
+        assert all(np.array_equal(_flat(lie, u), f) for (_, lie, u), f in zip(points, flats))

@@ -13,13 +13,11 @@ from isf_robot.core.shares import (
     agent_lie,
     gather_rows,
     involved,
-    least_of,
     row_agents,
     row_plan,
-    team_least,
 )
 from isf_robot.core.step import FilterStep
-from isf_robot.core.team import AgentTally, BlockIntervention, Coordination
+from isf_robot.core.team import AgentTally, BlockIntervention, Coordination, least_of, team_least
 
 BLOCKS = (slice(0, 2), slice(2, 5))
 
