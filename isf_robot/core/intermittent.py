@@ -266,7 +266,9 @@ def _predict_stacked(points: StackedPoints, alpha: ClassK, d_bar: float, kernel:
     nk = 0 if names is None else len(names)
     out = np.empty(fails.size if keys is not None else 0, np.int64)
     run = kernel if m > 0 else predict_pass
-    bad, xi_lo, found = run(points.lf, lg, np.ascontiguousarray(u), points.grad_norm, float(d_bar), h, gain, av, k,
+    c = np.ascontiguousarray  # (strided points, as a team's split hands them over, are copied: numba compiles the
+    # pass for one layout, not again for each mix of layouts)
+    bad, xi_lo, found = run(c(points.lf), c(lg), c(u), c(points.grad_norm), float(d_bar), c(h), gain, av, k,
                             xi, fails, nfail, _NO_KEYS if keys is None else keys, np.zeros(nk, np.bool_), out)
     return pass_prediction(points.s, k, xi, fails, bad, xi_lo, nfail, found, out, names, points)
 

@@ -201,3 +201,21 @@ def test_the_prediction_pass_compiled_as_written(gain: float) -> None:
         assert ga == gb and fa == fb and oa.tolist() == ob.tolist()
         for j, k in enumerate(pts.rows.tolist()):
             assert xa[j, :k].tobytes() == xb[j, :k].tobytes()
+
+
+def test_strided_points_predict_the_same_through_the_one_compiled_pass() -> None:
+    """Points in strided arrays (a team's split hands such over) predict as their contiguous copies do, and the
+    compiled pass is made for one layout only (numba compiled it once more for strided arrays)."""
+    from isf_robot.core.jit import compiled
+    from isf_robot.core.robust import predict_pass
+
+    rng = np.random.default_rng(21)
+    pts, _ = _stacked(rng, 9, 3)
+    wide = lambda a: np.concatenate([a, np.zeros_like(a)], axis=1)[:, : a.shape[1]]  # noqa: E731 (a strided view)
+    h, lf, gn = wide(pts.h), wide(pts.lf), wide(pts.grad_norm)
+    assert not (h.flags.c_contiguous or lf.flags.c_contiguous or gn.flags.c_contiguous)
+    strided = StackedPoints(pts.s, pts.u, pts.rows, h, lf, pts.lg, gn, pts._point, pts._row_names)
+    kernel = compiled(predict_pass)
+    for alpha in ALPHAS:
+        assert _same(im._predict_stacked(strided, alpha, 0.1, kernel), im._predict_stacked(pts, alpha, 0.1, kernel))
+    assert len(kernel.signatures) == 1
