@@ -16,10 +16,11 @@ every row of the points the whole-rollout kernel made, put in the rollout's tabl
 from __future__ import annotations
 
 import numpy as np
+from numba import carray
 
 from isf_robot.core.jit import formula
 
-from ._kernels_jit import com_pos, kinematics, near_packed_key  # (importing it loads libmujoco; ImportError without)
+from ._kernels_jit import com_pos, f64p, kinematics, near_packed_key  # (importing it loads libmujoco; ImportError without)
 from .narrow import P_LIVE, P_NDOF, P_NJ
 from .psi_law import obstacle_rate, phi_difference, phi_rows, psi_rows, psi_value
 
@@ -106,8 +107,10 @@ def psi_points(blk, keys, res, vs, nj, m, n, o_gn, o_lf, alpha_1, approaching, p
 
     From the outputs of ``_rollout_jit.closed_loop_points`` (its rows with their ``|J|``, the joint limits'
     after the pairs): per point ``j`` (row ``j + 1``), each row's ``psi = J v + obstacle_rate(dh/dt) + alpha_1 h``
-    with the point's joint velocity ``vs[j]``, at the column of its key ``keys[j]``.
+    with the point's joint velocity ``vs[j]``, at the column of its key ``keys[j]``. (The per-point views are of raw
+    aliases of ``blk`` and ``vs``, as in ``_rollout_jit.closed_loop_points``: no reference counts.)
     """
+    blk, vs = carray(f64p(blk.ctypes.data), blk.shape), carray(f64p(vs.ctypes.data), vs.shape)
     for j in range(res.shape[0]):
         k = int(res[j, 0]) + nj
         grad = np.ascontiguousarray(blk[j, m: m + k * n]).reshape((k, n))
