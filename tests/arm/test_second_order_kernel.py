@@ -111,3 +111,33 @@ def test_a_pair_beyond_the_probe_is_refused_on_both_paths(monkeypatch) -> None: 
         assert far.size
         with pytest.raises(ConfigError, match="left the probe's reach"):
             rows.phi_rate(d, d.time, far, d.qvel[scene.dof_adr], np.zeros(1))
+
+
+@pytest.mark.parametrize("name", ["panda_pole", "panda_moving"])
+def test_probe_rows_are_the_probes_near_rows(name: str, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The compiled difference measures the tick's pairs alone (``probe_rows``): each gets, to the bit, the row the
+    probe's collision kernel gives it among all its near pairs (the same ``pair_row``, the same distance call)."""
+    from isf_robot.core.jit import compiled
+
+    scene = load_scene(name)
+    rows = _rows(scene, monkeypatch, True)
+    probe, s, a = rows._probe, rows._scratch, rows._kargs
+    fn = compiled(k2.probe_rows)
+    m, n = probe.broadphase.live.size, scene.n_joints  # (the probe's block: no joint rows)
+    checked = 0
+    for d, lin in _states(scene, np.random.default_rng(6), 20):
+        s.qpos[:], s.mocap_pos[:], s.mocap_quat[:] = d.qpos, d.mocap_pos, d.mocap_quat
+        mujoco.mj_kinematics(scene.model, s)
+        mujoco.mj_comPos(scene.model, s)
+        near = probe.near(s, lin)  # (the compiled kernel: every pair within the probe's cut-off)
+        want_g, want_dhdt, pick = near.grad.copy(), near.dhdt.copy(), near.rows.copy()
+        blk = np.full_like(a[3], np.nan)
+        lv, dl = probe.packed_velocities(lin)
+        assert fn(a[0], a[1], a[2], blk, pick, rows._live_of, a[5], a[6], lv, dl) == k2.DONE
+        k = pick.size
+        assert np.array_equal(blk[m: m + m * n].reshape(m, n)[:k], want_g)
+        assert np.array_equal(blk[2 * m + m * n: 2 * m + m * n + k], want_dhdt)
+        checked += k
+        far = np.setdiff1d(np.arange(probe.pairs.k), pick)[:1]  # (a pair beyond the probe's cut-off: missing)
+        assert fn(a[0], a[1], a[2], blk, far, rows._live_of, a[5], a[6], lv, dl) == k2.MISSING
+    assert checked > 20
