@@ -152,7 +152,10 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
     pairs' set: the sum of ``2**r`` over their live rows ``r`` where there are at most 62 live rows, else -1).
     """
     n_live = live.shape[0]
-    cand = np.empty(n_live, np.int64)
+    # Scratch without allocation: the candidates, then the near ones among them, in ``rows`` (n_live entries; each
+    # read before its entry is written, at an index as large or larger), their distances in ``h`` (rows 0 .. j - 1,
+    # each read before pair_value's h there; the joint rows go after them).
+    cand = rows
     nc = 0
     if coh:
         nu = qadr.size
@@ -184,8 +187,7 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
                 nc += 1
         dmax = cutoff
     # Narrow phase: near pairs packed in rows 0, 1, ... of the scratch (a far one's row is reused).
-    sel = np.empty(nc, np.int64)
-    ds = np.empty(nc)
+    sel, ds = cand, h
     j = 0
     for c in range(nc):
         r = cand[c]
