@@ -144,6 +144,9 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
          mocap, lin, dhdt_in, rows, h, g, gn, wit, lf):  # pragma: no cover (compiled)
     """Fill rows[:j], h[:j + l], g[:j + l], gn[:j + l] (with ``norms_in``) and wit[:j] = (p1, p2, n).
 
+    ``rows`` (at least one entry per live pair) and ``h`` are its scratch too: their other entries are left as it used
+    them.
+
     With ``dhdt_in``: ``lf[k] = dh/dt = -n^T v`` (``narrow.obstacle_dhdt``)
     of each near pair whose obstacle is mocap body ``mocap[r] >= 0``, ``v`` its row of ``lin``
     (flat, 3 per mocap body); ``lf`` is left alone otherwise.
