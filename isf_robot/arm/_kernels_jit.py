@@ -104,45 +104,14 @@ i64p = _pointer(ir.IntType(64), types.int64)
 
 
 @formula
-def pair_row(ma, da, live, r, d, k, eps, dof, fromto, jac1, jac2, mocap, lin, dhdt_in, g, wit, lf):  # pragma: no cover
-    """Row ``k`` of live pair ``r`` at distance ``d``, witness points ``fromto[k]``: ``wit[k]``, ``g[k]``, ``lf[k]``.
-
-    ``wit[k] = (p1, p2, n)``, ``g[k] = dh/dq`` on the dofs ``dof`` (``n`` times the Jacobians of the witness points,
-    ``mj_jac``, the second's subtracted for a pair of two moving bodies) and, with ``dhdt_in`` where the pair's
-    obstacle is mocap body ``mocap[r] >= 0``, ``lf[k] = dh/dt`` (``narrow.obstacle_dhdt``). Returns whether the
-    witness points coincide (``|d| < eps``: then only ``wit[k]``'s points are written). The row of :func:`near`'s
-    near pairs, and of the probe's pairs of the torque level's rows (``_second_order_jit.phi_rate``).
-    """
-    for e in range(3):
-        wit[k, 0, e] = fromto[k, e]
-        wit[k, 1, e] = fromto[k, 3 + e]
-    if -eps < d < eps:
-        return True
-    n0 = unit_normal(fromto[k, 0], fromto[k, 3], d)
-    n1 = unit_normal(fromto[k, 1], fromto[k, 4], d)
-    n2 = unit_normal(fromto[k, 2], fromto[k, 5], d)
-    wit[k, 2, 0], wit[k, 2, 1], wit[k, 2, 2] = n0, n1, n2
-    if dhdt_in != 0 and mocap[r] >= 0:
-        b = 3 * mocap[r]
-        lf[k] = obstacle_dhdt(n0, n1, n2, lin[b], lin[b + 1], lin[b + 2])
-    jac(ma, da, jac1.ctypes.data, 0, fromto[k].ctypes.data, np.int32(live[r, 3]))
-    ndof = dof.size
-    for c in range(ndof):
-        col = dof[c]
-        g[k, c] = dot3(n0, n1, n2, jac1[0, col], jac1[1, col], jac1[2, col])
-    if live[r, 5] != 0:
-        jac(ma, da, jac2.ctypes.data, 0, fromto[k, 3:].ctypes.data, np.int32(live[r, 4]))
-        for c in range(ndof):
-            col = dof[c]
-            g[k, c] -= dot3(n0, n1, n2, jac2[0, col], jac2[1, col], jac2[2, col])
-    return False
-
-
-@formula
 def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, lever, qadr,
          cutoff, distmax, slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, norms_in,
-         mocap, lin, dhdt_in, rows, h, g, gn, wit, lf):  # pragma: no cover (compiled)
+         mocap, lin, dhdt_in, rows, h, g, gn, wit, lf, given):  # pragma: no cover (compiled)
     """Fill rows[:j], h[:j + l], g[:j + l], gn[:j + l] (with ``norms_in``) and wit[:j] = (p1, p2, n).
+
+    ``given`` (live rows; empty: the broad phase's or the bounds' candidates): exactly these pairs are measured, in
+    this order, up to ``cutoff`` (without ``coh``; ``given`` may be ``rows``' first entries), and the near ones among
+    them made rows (the torque level's difference of ``phi``: ``_second_order_jit.phi_rate``).
 
     ``rows`` (at least one entry per live pair) and ``h`` are its scratch too: their other entries are left as it used
     them.
@@ -160,7 +129,12 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
     # each read before pair_value's h there; the joint rows go after them).
     cand = rows
     nc = 0
-    if coh:
+    if given.size:
+        for c in range(given.size):
+            cand[c] = given[c]
+        nc = given.size
+        dmax = cutoff
+    elif coh:
         nu = qadr.size
         if qstate[0] != 0:
             dq = np.empty(nu)
@@ -225,8 +199,28 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
         h[k] = hk
         hmin = min(hmin, hk)
         dmin = min(dmin, d)
-        if pair_row(ma, da, live, r, d, k, eps, dof, fromto, jac1, jac2, mocap, lin, dhdt_in, g, wit, lf):
+        for e in range(3):
+            wit[k, 0, e] = fromto[k, e]
+            wit[k, 1, e] = fromto[k, 3 + e]
+        if -eps < d < eps:
             touching = True
+            continue
+        n0 = unit_normal(fromto[k, 0], fromto[k, 3], d)
+        n1 = unit_normal(fromto[k, 1], fromto[k, 4], d)
+        n2 = unit_normal(fromto[k, 2], fromto[k, 5], d)
+        wit[k, 2, 0], wit[k, 2, 1], wit[k, 2, 2] = n0, n1, n2
+        if dhdt_in != 0 and mocap[r] >= 0:
+            b = 3 * mocap[r]
+            lf[k] = obstacle_dhdt(n0, n1, n2, lin[b], lin[b + 1], lin[b + 2])
+        jac(ma, da, jac1.ctypes.data, 0, fromto[k].ctypes.data, np.int32(live[r, 3]))
+        for c in range(ndof):
+            col = dof[c]
+            g[k, c] = dot3(n0, n1, n2, jac1[0, col], jac1[1, col], jac1[2, col])
+        if live[r, 5] != 0:
+            jac(ma, da, jac2.ctypes.data, 0, fromto[k, 3:].ctypes.data, np.int32(live[r, 4]))
+            for c in range(ndof):
+                col = dof[c]
+                g[k, c] -= dot3(n0, n1, n2, jac2[0, col], jac2[1, col], jac2[2, col])
     if norms_in != 0:  # |dh/dq| of each row (the numpy path: np.linalg.norm; a loop here, no BLAS call per row)
         for k in range(j + nj):
             s = 0.0
@@ -248,6 +242,13 @@ def monitor(ma, da, rows, g1, g2, margin, thresh, bound):  # pragma: no cover (c
 
 @formula
 def near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norms_in, lin, dhdt_in):  # pragma: no cover
+    """:func:`near_packed` of the broad phase's (or the bounds') candidates."""
+    return near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norms_in, lin, dhdt_in, rows[:0])
+
+
+@formula
+def near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norms_in, lin, dhdt_in,
+                given):  # pragma: no cover
     """:func:`near` (and its key of the set of near pairs) with its tables as the addresses in ``p``.
 
     Its outputs go to ``blk``.
@@ -289,4 +290,4 @@ def near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norm
         lf[i] = 0.0
     return near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, lever, qadr, cutoff, distmax,
                 slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, norms_in, mocap, lin, dhdt_in, rows, h, g,
-                gn, wit, lf)
+                gn, wit, lf, given)

@@ -4,12 +4,11 @@
 level's rows a second time, at ``(q + eps q_dot, t + eps)`` on a scratch ``MjData``, and differences their ``phi``.
 From Python that is a dozen small numpy calls and the bindings' calls around one collision kernel call: most of the
 torque level's barrier phase. :func:`phi_rate` does it in one call: the shifted ``qpos``, ``mj_kinematics`` and
-``mj_comPos`` on the scratch data, the tick's pairs measured there on the tables of the probe's collision kernel
-(:func:`probe_rows`: each pair's row as ``_kernels_jit.near_packed_key`` makes it, ``_kernels_jit.pair_row``), and
-the difference, with the formulas of :mod:`isf_robot.arm.psi_law`, which the numpy path calls too. The two paths
-agree to rounding (``tests/arm/test_second_order_kernel.py``). :func:`psi_tick` adds the tick's ``phi`` and the
-``psi`` rows' Lie data (:func:`~isf_robot.arm.psi_law.psi_rows`) around it: the whole barrier phase after the tick's
-rows.
+``mj_comPos`` on the scratch data, the tick's pairs measured there by the probe's collision kernel
+(``_kernels_jit.near_packed``, on the tables of its context, those pairs given), and the difference, with the
+formulas of :mod:`isf_robot.arm.psi_law`, which the numpy path calls too. The two paths agree to rounding
+(``tests/arm/test_second_order_kernel.py``). :func:`psi_tick` adds the tick's ``phi`` and the ``psi`` rows' Lie data
+(:func:`~isf_robot.arm.psi_law.psi_rows`) around it: the whole barrier phase after the tick's rows.
 :func:`psi_points` is the torque rollout's (:class:`~isf_robot.arm.torque_rollout.TorqueRollout`): the ``psi`` of
 every row of the points the whole-rollout kernel made, put in the rollout's table by row key.
 """
@@ -21,8 +20,8 @@ from numba import carray
 
 from isf_robot.core.jit import formula
 
-from ._kernels_jit import com_pos, f64p, geom_distance, i64p, kinematics, pair_row  # (loads libmujoco)
-from .narrow import P_DOF, P_FROMTO, P_JAC1, P_JAC2, P_LIVE, P_MOCAP, P_NDOF, P_NFT, P_NJ, P_NV, P_TAB
+from ._kernels_jit import com_pos, f64p, kinematics, near_packed  # (importing it loads libmujoco; ImportError without)
+from .narrow import P_LIVE, P_NDOF, P_NJ
 from .psi_law import obstacle_rate, phi_difference, phi_rows, psi_rows, psi_value
 
 DONE, TOUCHING, MISSING = 0, 1, 2
@@ -32,52 +31,18 @@ from the shifted state left in ``sa``)."""
 
 
 @formula
-def probe_rows(ma, sa, p, blk, rows, live_of, cutoff, eps_dist, lin, dhdt_in):  # pragma: no cover (compiled)
-    """The rows of the pairs ``rows`` at the state in ``sa`` (kinematics done), measured alone: into ``blk``'s rows.
-
-    ``p``, ``blk``: the probe's packed kernel context on ``sa`` and an output block of its layout, whose gradient rows
-    ``0 .. len(rows) - 1`` get the pairs' ``dh/dq`` and ``dh/dt`` rows the obstacles' part (zero for a static
-    obstacle) (``_kernels_jit.pair_row``, as ``near_packed_key`` makes its near pairs' rows: the same figures);
-    ``live_of``: each pair's row in the context's table of live pairs (-1: not live); ``cutoff``: the probe's, up to
-    which each pair is measured. Returns :data:`DONE`, :data:`TOUCHING` (a pair's witness points coincide) or
-    :data:`MISSING` (a pair is not within the cut-off: not among the probe's near pairs).
-    """
-    n_live, n, nv = p[P_LIVE], p[P_NDOF], p[P_NV]
-    live = carray(i64p(p[P_TAB]), (n_live, 6))
-    dof = carray(i64p(p[P_DOF]), n)
-    fromto = carray(f64p(p[P_FROMTO]), (p[P_NFT], 6))
-    jac1 = carray(f64p(p[P_JAC1]), (3, nv))
-    jac2 = carray(f64p(p[P_JAC2]), (3, nv))
-    mocap = carray(i64p(p[P_MOCAP]), n_live)
-    m = n_live + p[P_NJ]
-    g = blk[m: m + m * n].reshape((m, n))
-    lf = blk[2 * m + m * n: 3 * m + m * n]
-    wit = blk[3 * m + m * n: 3 * m + m * n + 9 * n_live].reshape((n_live, 3, 3))
-    for i in range(rows.size):
-        r = live_of[rows[i]]
-        if r < 0:
-            return MISSING
-        d = geom_distance(ma, sa, np.int32(live[r, 1]), np.int32(live[r, 2]), cutoff, fromto[i].ctypes.data)
-        if not d < cutoff:
-            return MISSING
-        lf[i] = 0.0
-        if pair_row(ma, sa, live, r, d, i, eps_dist, dof, fromto, jac1, jac2, mocap, lin, dhdt_in, g, wit, lf):
-            return TOUCHING
-    return DONE
-
-
-@formula
 def phi_rate(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, qadr, q_dot, eps, rows, phi, live_of,
              approaching, out):  # pragma: no cover (compiled)
     """``D phi`` of the pairs ``rows`` into ``out``: ``(phi(q + eps q_dot, t + eps) - phi) / eps``.
 
     ``sa``: the scratch data (its obstacles already where they are at ``t + eps``), which gets ``qpos`` with
-    ``q_dot`` added at ``qadr`` (times ``eps``) and its kinematics. ``p``, ``blk``, ``cutoff``: the probe's
-    packed kernel context on ``sa`` (no joints, no coherence), an output block of its layout, its cut-off (``prow``,
-    rows of its layout, is not used); ``lin``, ``dhdt_in``: the obstacles' velocities as ``near_packed_key`` takes
-    them; ``live_of``: each pair's row among the context's live pairs (-1: none). The pairs ``rows`` alone are
-    measured (:func:`probe_rows`), not every pair within the probe's cut-off: the same rows as the probe's near pairs
-    give them, for some 40 % of the narrow phase's calls. Returns :data:`DONE`, :data:`TOUCHING` or :data:`MISSING`.
+    ``q_dot`` added at ``qadr`` (times ``eps``) and its kinematics. ``p``, ``blk``, ``prow``, ``cutoff``: the probe's
+    packed kernel context on ``sa`` (no joints, no coherence), an output block and rows of its layout, its
+    cut-off; ``lin``, ``dhdt_in``: the obstacles' velocities as ``near_packed_key`` takes them; ``live_of``: each
+    pair's row among the context's live pairs (-1: none). The pairs ``rows`` alone are measured
+    (``_kernels_jit.near_packed`` with them given), not every pair within the probe's cut-off: the rows the probe's
+    near pairs would give them, for some half of the narrow phase's calls. Returns :data:`DONE`, :data:`TOUCHING` or
+    :data:`MISSING` (a pair not within the probe's cut-off).
     """
     for i in range(qpos.size):
         sqpos[i] = qpos[i]
@@ -85,13 +50,21 @@ def phi_rate(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, 
         sqpos[qadr[u]] = qpos[qadr[u]] + eps * q_dot[u]
     kinematics(ma, sa)
     com_pos(ma, sa)
-    code = probe_rows(ma, sa, p, blk, rows, live_of, cutoff, eps_dist, lin, dhdt_in)
-    if code != DONE:
-        return code
+    K = rows.size
+    for i in range(K):  # (the pairs' live rows, given to the kernel in prow: its scratch may hold them)
+        r = live_of[rows[i]]
+        if r < 0:
+            return MISSING
+        prow[i] = r
+    j, _, _, _, touching, _ = near_packed(ma, sa, p, blk, prow, False, cutoff, cutoff, 0.0, eps_dist, 0, lin, dhdt_in,
+                                          prow[:K])
+    if touching:
+        return TOUCHING
+    if j < K:
+        return MISSING
     n, m = p[P_NDOF], p[P_LIVE] + p[P_NJ]
     g = blk[m: m + m * n].reshape((m, n))
     lf = blk[2 * m + m * n: 3 * m + m * n]
-    K = rows.size
     grad = np.empty((K, n))
     dhdt = np.empty(K)
     for i in range(K):

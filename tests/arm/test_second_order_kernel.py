@@ -114,15 +114,16 @@ def test_a_pair_beyond_the_probe_is_refused_on_both_paths(monkeypatch) -> None: 
 
 
 @pytest.mark.parametrize("name", ["panda_pole", "panda_moving"])
-def test_probe_rows_are_the_probes_near_rows(name: str, monkeypatch) -> None:  # type: ignore[no-untyped-def]
-    """The compiled difference measures the tick's pairs alone (``probe_rows``): each gets, to the bit, the row the
-    probe's collision kernel gives it among all its near pairs (the same ``pair_row``, the same distance call)."""
+def test_given_pairs_get_the_probes_near_rows(name: str, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The compiled difference measures the tick's pairs alone (``near_packed`` with them given): each gets, to the
+    bit, the row the probe's collision kernel gives it among all its near pairs; a pair beyond the cut-off is dropped."""
+    from isf_robot.arm import _kernels_jit as kj
     from isf_robot.core.jit import compiled
 
     scene = load_scene(name)
     rows = _rows(scene, monkeypatch, True)
     probe, s, a = rows._probe, rows._scratch, rows._kargs
-    fn = compiled(k2.probe_rows)
+    fn = compiled(kj.near_packed)
     m, n = probe.broadphase.live.size, scene.n_joints  # (the probe's block: no joint rows)
     checked = 0
     for d, lin in _states(scene, np.random.default_rng(6), 20):
@@ -130,14 +131,18 @@ def test_probe_rows_are_the_probes_near_rows(name: str, monkeypatch) -> None:  #
         mujoco.mj_kinematics(scene.model, s)
         mujoco.mj_comPos(scene.model, s)
         near = probe.near(s, lin)  # (the compiled kernel: every pair within the probe's cut-off)
-        want_g, want_dhdt, pick = near.grad.copy(), near.dhdt.copy(), near.rows.copy()
-        blk = np.full_like(a[3], np.nan)
+        want_g, want_dhdt = near.grad.copy(), near.dhdt.copy()
+        given = rows._live_of[near.rows]
+        k = given.size
+        far = np.setdiff1d(np.arange(m), given)[:1]  # (a live pair beyond the probe's cut-off)
         lv, dl = probe.packed_velocities(lin)
-        assert fn(a[0], a[1], a[2], blk, pick, rows._live_of, a[5], a[6], lv, dl) == k2.DONE
-        k = pick.size
-        assert np.array_equal(blk[m: m + m * n].reshape(m, n)[:k], want_g)
-        assert np.array_equal(blk[2 * m + m * n: 2 * m + m * n + k], want_dhdt)
+        for extra in (np.zeros(0, dtype=np.int64), far):
+            blk, out = np.full_like(a[3], np.nan), np.empty_like(a[4])
+            got = fn(a[0], a[1], a[2], blk, out, False, a[5], a[5], 0.0, a[6], 0, lv, dl,
+                     np.concatenate((given, extra)))
+            assert got[0] == k and not got[4]
+            assert np.array_equal(out[:k], near.rows)
+            assert np.array_equal(blk[m: m + m * n].reshape(m, n)[:k], want_g)
+            assert np.array_equal(blk[2 * m + m * n: 2 * m + m * n + k], want_dhdt)
         checked += k
-        far = np.setdiff1d(np.arange(probe.pairs.k), pick)[:1]  # (a pair beyond the probe's cut-off: missing)
-        assert fn(a[0], a[1], a[2], blk, far, rows._live_of, a[5], a[6], lv, dl) == k2.MISSING
     assert checked > 20
