@@ -106,8 +106,15 @@ i64p = _pointer(ir.IntType(64), types.int64)
 @formula
 def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, lever, qadr,
          cutoff, distmax, slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, norms_in,
-         mocap, lin, dhdt_in, rows, h, g, gn, wit, lf):  # pragma: no cover (compiled)
+         mocap, lin, dhdt_in, rows, h, g, gn, wit, lf, given):  # pragma: no cover (compiled)
     """Fill rows[:j], h[:j + l], g[:j + l], gn[:j + l] (with ``norms_in``) and wit[:j] = (p1, p2, n).
+
+    ``given`` (live rows; empty: the broad phase's or the bounds' candidates): exactly these pairs are measured, in
+    this order, up to ``cutoff`` (without ``coh``; ``given`` may be ``rows``' first entries), and the near ones among
+    them made rows (the torque level's difference of ``phi``: ``_second_order_jit.phi_rate``).
+
+    ``rows`` (at least one entry per live pair) and ``h`` are its scratch too: their other entries are left as it used
+    them.
 
     With ``dhdt_in``: ``lf[k] = dh/dt = -n^T v`` (``narrow.obstacle_dhdt``)
     of each near pair whose obstacle is mocap body ``mocap[r] >= 0``, ``v`` its row of ``lin``
@@ -117,9 +124,17 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
     pairs' set: the sum of ``2**r`` over their live rows ``r`` where there are at most 62 live rows, else -1).
     """
     n_live = live.shape[0]
-    cand = np.empty(n_live, np.int64)
+    # Scratch without allocation: the candidates, then the near ones among them, in ``rows`` (n_live entries; each
+    # read before its entry is written, at an index as large or larger), their distances in ``h`` (rows 0 .. j - 1,
+    # each read before pair_value's h there; the joint rows go after them).
+    cand = rows
     nc = 0
-    if coh:
+    if given.size:
+        for c in range(given.size):
+            cand[c] = given[c]
+        nc = given.size
+        dmax = cutoff
+    elif coh:
         nu = qadr.size
         if qstate[0] != 0:
             dq = np.empty(nu)
@@ -149,8 +164,7 @@ def near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, leve
                 nc += 1
         dmax = cutoff
     # Narrow phase: near pairs packed in rows 0, 1, ... of the scratch (a far one's row is reused).
-    sel = np.empty(nc, np.int64)
-    ds = np.empty(nc)
+    sel, ds = cand, h
     j = 0
     for c in range(nc):
         r = cand[c]
@@ -228,6 +242,13 @@ def monitor(ma, da, rows, g1, g2, margin, thresh, bound):  # pragma: no cover (c
 
 @formula
 def near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norms_in, lin, dhdt_in):  # pragma: no cover
+    """:func:`near_packed` of the broad phase's (or the bounds') candidates."""
+    return near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norms_in, lin, dhdt_in, rows[:0])
+
+
+@formula
+def near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norms_in, lin, dhdt_in,
+                given):  # pragma: no cover
     """:func:`near` (and its key of the set of near pairs) with its tables as the addresses in ``p``.
 
     Its outputs go to ``blk``.
@@ -269,4 +290,4 @@ def near_packed_key(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norm
         lf[i] = 0.0
     return near(ma, da, qpos, xpos, live, margin, thr2, coh, lower, qprev, qstate, lever, qadr, cutoff, distmax,
                 slack, eps, dof, fromto, jac1, jac2, jq, jsign, joff, jgrad, norms_in, mocap, lin, dhdt_in, rows, h, g,
-                gn, wit, lf)
+                gn, wit, lf, given)

@@ -19,7 +19,7 @@ from numba import carray
 from isf_robot.core.jit import formula
 from isf_robot.core.robust import predict_pass
 
-from ._kernels_jit import com_pos, f64p, kinematics, near_packed_key  # (loads libmujoco; ImportError without it)
+from ._kernels_jit import com_pos, f64p, i64p, kinematics, near_packed_key  # (loads libmujoco; ImportError without it)
 from ._kernels_step import reach
 
 
@@ -80,9 +80,17 @@ def closed_loop_points(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs,
     Moving obstacles: before each point's kinematics, mocap body ``mids[r]`` is put at ``mpos[j, r]``
     (the scratch data's ``mocap_pos`` at address ``mp_addr``, ``nmocap`` rows), and the collision
     kernel reads the mocap velocities ``lins[j]`` (no rows: ``lin`` at every point).
+
+    The per-point rows of the outputs and the controller's buffer are views of raw aliases of the arrays
+    (``carray``, which own no memory): a view of an argument itself takes and drops a reference count, an atomic
+    operation, some forty times a point in all (6 % of the call on panda_pole).
     """
     v = v0
     mp = carray(f64p(mp_addr), (max(nmocap, 1), 3))
+    nb, outs, vs = carray(f64p(nb.ctypes.data), nb.shape), carray(f64p(outs.ctypes.data), outs.shape), \
+        carray(f64p(vs.ctypes.data), vs.shape)  # (the arguments are alive for the call: the aliases stay valid)
+    blks, res = carray(f64p(blks.ctypes.data), blks.shape), carray(f64p(res.ctypes.data), res.shape)
+    rows, keys = carray(i64p(rows.ctypes.data), rows.shape), carray(i64p(keys.ctypes.data), keys.shape)
     for j in range(outs.shape[0]):
         tj = t + (j + 1) * dt
         place_obstacles(mp, mids, mpos, j)  # (the obstacles' place first: the kinematics below read it)

@@ -4,11 +4,11 @@
 level's rows a second time, at ``(q + eps q_dot, t + eps)`` on a scratch ``MjData``, and differences their ``phi``.
 From Python that is a dozen small numpy calls and the bindings' calls around one collision kernel call: most of the
 torque level's barrier phase. :func:`phi_rate` does it in one call: the shifted ``qpos``, ``mj_kinematics`` and
-``mj_comPos`` on the scratch data, the probe's collision kernel (``_kernels_jit.near_packed_key``, on the tables of
-its context), the tick's pairs found among the probe's, and the difference, with the formulas of
-:mod:`isf_robot.arm.psi_law`, which the numpy path calls too. The two paths agree to rounding
-(``tests/arm/test_second_order_kernel.py``). :func:`psi_tick` adds the tick's ``phi`` and the ``psi`` rows'
-Lie data (:func:`~isf_robot.arm.psi_law.psi_rows`) around it: the whole barrier phase after the tick's rows.
+``mj_comPos`` on the scratch data, the tick's pairs measured there by the probe's collision kernel
+(``_kernels_jit.near_packed``, on the tables of its context, those pairs given), and the difference, with the
+formulas of :mod:`isf_robot.arm.psi_law`, which the numpy path calls too. The two paths agree to rounding
+(``tests/arm/test_second_order_kernel.py``). :func:`psi_tick` adds the tick's ``phi`` and the ``psi`` rows' Lie data
+(:func:`~isf_robot.arm.psi_law.psi_rows`) around it: the whole barrier phase after the tick's rows.
 :func:`psi_points` is the torque rollout's (:class:`~isf_robot.arm.torque_rollout.TorqueRollout`): the ``psi`` of
 every row of the points the whole-rollout kernel made, put in the rollout's table by row key.
 """
@@ -16,10 +16,11 @@ every row of the points the whole-rollout kernel made, put in the rollout's tabl
 from __future__ import annotations
 
 import numpy as np
+from numba import carray
 
 from isf_robot.core.jit import formula
 
-from ._kernels_jit import com_pos, kinematics, near_packed_key  # (importing it loads libmujoco; ImportError without)
+from ._kernels_jit import com_pos, f64p, kinematics, near_packed  # (importing it loads libmujoco; ImportError without)
 from .narrow import P_LIVE, P_NDOF, P_NJ
 from .psi_law import obstacle_rate, phi_difference, phi_rows, psi_rows, psi_value
 
@@ -30,15 +31,18 @@ from the shifted state left in ``sa``)."""
 
 
 @formula
-def phi_rate(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, qadr, q_dot, eps, rows, phi, at,
+def phi_rate(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, qadr, q_dot, eps, rows, phi, live_of,
              approaching, out):  # pragma: no cover (compiled)
     """``D phi`` of the pairs ``rows`` into ``out``: ``(phi(q + eps q_dot, t + eps) - phi) / eps``.
 
     ``sa``: the scratch data (its obstacles already where they are at ``t + eps``), which gets ``qpos`` with
     ``q_dot`` added at ``qadr`` (times ``eps``) and its kinematics. ``p``, ``blk``, ``prow``, ``cutoff``: the probe's
     packed kernel context on ``sa`` (no joints, no coherence), an output block and rows of its layout, its
-    cut-off; ``lin``, ``dhdt_in``: the obstacles' velocities as ``near_packed_key`` takes them. ``at``: -1 per pair
-    (left so). Returns :data:`DONE`, :data:`TOUCHING` or :data:`MISSING`.
+    cut-off; ``lin``, ``dhdt_in``: the obstacles' velocities as ``near_packed_key`` takes them; ``live_of``: each
+    pair's row among the context's live pairs (-1: none). The pairs ``rows`` alone are measured
+    (``_kernels_jit.near_packed`` with them given), not every pair within the probe's cut-off: the rows the probe's
+    near pairs would give them, for some half of the narrow phase's calls. Returns :data:`DONE`, :data:`TOUCHING` or
+    :data:`MISSING` (a pair not within the probe's cut-off).
     """
     for i in range(qpos.size):
         sqpos[i] = qpos[i]
@@ -46,35 +50,31 @@ def phi_rate(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, 
         sqpos[qadr[u]] = qpos[qadr[u]] + eps * q_dot[u]
     kinematics(ma, sa)
     com_pos(ma, sa)
-    j, _, _, _, touching, _ = near_packed_key(ma, sa, p, blk, prow, False, cutoff, cutoff, 0.0, eps_dist, 0, lin,
-                                              dhdt_in)
+    K = rows.size
+    for i in range(K):  # (the pairs' live rows, given to the kernel in prow: its scratch may hold them)
+        r = live_of[rows[i]]
+        if r < 0:
+            return MISSING
+        prow[i] = r
+    j, _, _, _, touching, _ = near_packed(ma, sa, p, blk, prow, False, cutoff, cutoff, 0.0, eps_dist, 0, lin, dhdt_in,
+                                          prow[:K])
     if touching:
         return TOUCHING
-    m, n = p[P_LIVE] + p[P_NJ], p[P_NDOF]
+    if j < K:
+        return MISSING
+    n, m = p[P_NDOF], p[P_LIVE] + p[P_NJ]
     g = blk[m: m + m * n].reshape((m, n))
     lf = blk[2 * m + m * n: 3 * m + m * n]
-    for k in range(j):
-        at[prow[k]] = k
-    K = rows.size
     grad = np.empty((K, n))
     dhdt = np.empty(K)
-    found = True
     for i in range(K):
-        k = at[rows[i]]
-        if k < 0:
-            found = False
-            break
-        grad[i] = g[k]
-        dhdt[i] = lf[k]
-    for k in range(j):
-        at[prow[k]] = -1
-    if not found:
-        return MISSING
+        grad[i] = g[i]
+        dhdt[i] = lf[i]
     out[:] = phi_difference(phi_rows(grad, q_dot, obstacle_rate(dhdt, approaching)), phi, eps)
     return DONE
 
 
-def psi_tick(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, qadr, q_dot, eps, rows, at,
+def psi_tick(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, qadr, q_dot, eps, rows, live_of,
              approaching, h, grad, dhdt, a0, minv, alpha_1, out):  # pragma: no cover (compiled)
     """The tick's ``psi`` rows (:func:`~isf_robot.arm.psi_law.psi_rows`) into ``out``: ``psi``, ``Lf psi``, ``Lg psi``.
 
@@ -88,7 +88,7 @@ def psi_tick(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, 
     nc = rows.size
     if nc:
         code = phi_rate(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, qadr, q_dot, eps, rows,
-                        phi[:nc], at, approaching, dphi[:nc])
+                        phi[:nc], live_of, approaching, dphi[:nc])
         if code != DONE:
             return code
     psi, lf, lg = psi_rows(h, grad, phi, dphi, a0, minv, alpha_1)
@@ -106,8 +106,10 @@ def psi_points(blk, keys, res, vs, nj, m, n, o_gn, o_lf, alpha_1, approaching, p
 
     From the outputs of ``_rollout_jit.closed_loop_points`` (its rows with their ``|J|``, the joint limits'
     after the pairs): per point ``j`` (row ``j + 1``), each row's ``psi = J v + obstacle_rate(dh/dt) + alpha_1 h``
-    with the point's joint velocity ``vs[j]``, at the column of its key ``keys[j]``.
+    with the point's joint velocity ``vs[j]``, at the column of its key ``keys[j]``. (The per-point views are of raw
+    aliases of ``blk`` and ``vs``, as in ``_rollout_jit.closed_loop_points``: no reference counts.)
     """
+    blk, vs = carray(f64p(blk.ctypes.data), blk.shape), carray(f64p(vs.ctypes.data), vs.shape)
     for j in range(res.shape[0]):
         k = int(res[j, 0]) + nj
         grad = np.ascontiguousarray(blk[j, m: m + k * n]).reshape((k, n))

@@ -131,6 +131,9 @@ class SecondOrderRows:
             warnings.simplefilter("ignore", IsfWarning)
             self._probe = CollisionBarriers(coll.model, coll.pairs, coll.dof_adr, coll.cutoff + PROBE_REACH)
         self._at = np.full(coll.pairs.k, -1, dtype=np.int64)  # (pair -> its row in the probe's near pairs)
+        live = self._probe.broadphase.live
+        self._live_of = np.full(coll.pairs.k, -1, dtype=np.int64)  # (pair -> its row in the probe's live pairs)
+        self._live_of[live] = np.arange(live.size)
         self._nmocap = coll.model.nmocap
         # The compiled difference and rows (kernels.second_order_kernels): the probe's packed kernel on the scratch.
         self._kargs = self._probe.packed_arguments(self._scratch)
@@ -177,7 +180,7 @@ class SecondOrderRows:
         if self._kernel is not None:  # (shift, kinematics, rows and difference in one call; numpy below when it cannot)
             out = np.empty(rows.size)
             if self._kernel(*self._kargs, *self._probe.packed_velocities(lin), data.qpos, *self._kqpos, q_dot, e, rows,
-                            phi, self._at, self.approaching, out) == 0:  # (_second_order_jit.DONE)
+                            phi, self._live_of, self.approaching, out) == 0:  # (_second_order_jit.DONE)
                 return out
         else:
             s.qpos[:] = data.qpos
@@ -227,8 +230,8 @@ class SecondOrderRows:
             lg, minv = lie.lg, terms.minv
             k, n = lg.shape
             out = np.empty(k * (n + 2))  # (fresh: the filter may keep the rows)
-            args = (*head, views[1], *self._kqpos, q_dot, self.eps, idx, self._at, self.approaching, lie.h, lg, lie.lf,
-                    terms.a0, minv, self.alpha_1, out)
+            args = (*head, views[1], *self._kqpos, q_dot, self.eps, idx, self._live_of, self.approaching, lie.h, lg,
+                    lie.lf, terms.a0, minv, self.alpha_1, out)
             kernel = self._tick_kernel
             a0 = terms.a0
             if (lg.dtype is _F64 and minv.dtype is _F64 and a0.dtype is _F64 and lg.flags.c_contiguous

@@ -111,3 +111,38 @@ def test_a_pair_beyond_the_probe_is_refused_on_both_paths(monkeypatch) -> None: 
         assert far.size
         with pytest.raises(ConfigError, match="left the probe's reach"):
             rows.phi_rate(d, d.time, far, d.qvel[scene.dof_adr], np.zeros(1))
+
+
+@pytest.mark.parametrize("name", ["panda_pole", "panda_moving"])
+def test_given_pairs_get_the_probes_near_rows(name: str, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The compiled difference measures the tick's pairs alone (``near_packed`` with them given): each gets, to the
+    bit, the row the probe's collision kernel gives it among all its near pairs; a pair beyond the cut-off is dropped."""
+    from isf_robot.arm import _kernels_jit as kj
+    from isf_robot.core.jit import compiled
+
+    scene = load_scene(name)
+    rows = _rows(scene, monkeypatch, True)
+    probe, s, a = rows._probe, rows._scratch, rows._kargs
+    fn = compiled(kj.near_packed)
+    m, n = probe.broadphase.live.size, scene.n_joints  # (the probe's block: no joint rows)
+    checked = 0
+    for d, lin in _states(scene, np.random.default_rng(6), 20):
+        s.qpos[:], s.mocap_pos[:], s.mocap_quat[:] = d.qpos, d.mocap_pos, d.mocap_quat
+        mujoco.mj_kinematics(scene.model, s)
+        mujoco.mj_comPos(scene.model, s)
+        near = probe.near(s, lin)  # (the compiled kernel: every pair within the probe's cut-off)
+        want_g, want_dhdt = near.grad.copy(), near.dhdt.copy()
+        given = rows._live_of[near.rows]
+        k = given.size
+        far = np.setdiff1d(np.arange(m), given)[:1]  # (a live pair beyond the probe's cut-off)
+        lv, dl = probe.packed_velocities(lin)
+        for extra in (np.zeros(0, dtype=np.int64), far):
+            blk, out = np.full_like(a[3], np.nan), np.empty_like(a[4])
+            got = fn(a[0], a[1], a[2], blk, out, False, a[5], a[5], 0.0, a[6], 0, lv, dl,
+                     np.concatenate((given, extra)))
+            assert got[0] == k and not got[4]
+            assert np.array_equal(out[:k], near.rows)
+            assert np.array_equal(blk[m: m + m * n].reshape(m, n)[:k], want_g)
+            assert np.array_equal(blk[2 * m + m * n: 2 * m + m * n + k], want_dhdt)
+        checked += k
+    assert checked > 20
