@@ -406,7 +406,7 @@ def _compare_levels(args: argparse.Namespace, spec: Any, scene: Any, levels: lis
 
 DEMO_PLAIN_NOTICE = ("the fast kernels are not compiled for this machine yet, so this demo runs the plain NumPy "
                      "path (the same numbers); the first `isf-robot run` or `compare` compiles them once (about "
-                     "15-30 s), and later runs, this demo included, use them")
+                     "30-45 s), and later runs, this demo included, use them")
 
 
 @_keep_partial

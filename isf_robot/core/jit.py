@@ -1,8 +1,9 @@
 """Whether the compiled kernels run, and a one-line notice on stderr when they are compiled.
 
 The kernels (the arm's step, the filters' few-row step, the satellite's arcs) are numba functions
-cached on disk (``cache=True``): the first run on a machine compiles them (some 15-30 s of CPU in
-all), later runs load them. ``ISF_ROBOT_JIT=0`` runs the plain numpy paths instead (the same
+cached on disk (``cache=True``): the first run on a machine compiles them (some 30-45 s of CPU for a
+velocity-level arm run; the torque level, several arms and the satellite compile theirs on their first run),
+later runs load them. ``ISF_ROBOT_JIT=0`` runs the plain numpy paths instead (the same
 formulas; see the kernels' modules for the tolerance they agree to). ``ISF_ROBOT_JIT=cached`` uses a
 kernel handed out by :func:`compiled` only where numba's cache already holds it for this machine and runs
 the rest as written: it compiles nothing (``isf-robot demo`` runs so, whatever the commands before it
@@ -38,7 +39,7 @@ CACHED_ONLY = "cached"
 NOTICE_ENV = "ISF_ROBOT_COMPILE_NOTICE"
 """Environment variable naming the marker file of a command's compile notice (set by :func:`announce_compiles`)."""
 
-COMPILE_NOTICE = ("compiling the fast kernels for this machine, once (about 15-30 s in all; later runs load "
+COMPILE_NOTICE = ("compiling the fast kernels for this machine, once (about 30-45 s; later runs load "
                   "them from numba's cache; ISF_ROBOT_JIT=0 runs without them)")
 """The notice (after the program's name)."""
 
