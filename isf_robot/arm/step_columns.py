@@ -35,6 +35,7 @@ _F8 = np.dtype(np.float64)
 _I8 = np.dtype(np.int64)
 _NO_POINTS = np.zeros((0, 2, 3))  # (the witness points passed when a row has none)
 _ONE_F8, _ONE_I8 = np.zeros(1), np.zeros(1, np.int64)  # (the types the compiled write is made for: writable, C)
+_STRIDED_POINTS = np.zeros((2, 3, 3))[:, :2]  # (witness points as a strided view, as near's are: two pairs, so not C)
 
 
 def _row_kernel() -> Any:
@@ -158,7 +159,7 @@ class StepColumns:
         self.sealed = 0
         self._state: tuple[Any, ...] = ()
         self._copy: Any = None  # (the compiled row write: (kernel, sources, h_far, address table), made by bind)
-        self._call: Any = None  # (the kernel called directly: _write_compiled)
+        self._variants: dict[bool, Any] = {}  # (the kernel called directly, by whether witness points are contiguous)
         self._used = 0  # (near pairs in the flat buffers, rows written by the compiled write: their end)
 
     def __len__(self) -> int:
@@ -177,7 +178,7 @@ class StepColumns:
     def __getstate__(self) -> dict:
         """A copy or a pickle writes the NumPy way: the compiled write's table holds this object's raw addresses."""
         state = dict(self.__dict__)
-        state["_copy"], state["_call"] = None, None
+        state["_copy"], state["_variants"] = None, {}
         return state
 
     def bind(self, data: Any, qpos_adr: Any, dof_adr: Any, ee_pos: np.ndarray) -> None:
@@ -210,7 +211,7 @@ class StepColumns:
                 kernel = _row_kernel()  # (the views' types are fixed: their addresses in the table)
                 if kernel is not None:
                     fast = (kernel, parts)
-            self._state, self._copy, self._call = (parts, None), fast, None
+            self._state, self._copy, self._variants = (parts, None), fast, {}
             self._point()
         else:  # (the arm's joints scattered: picked at each step)
             self._state, self._copy = (rest, (data, qpos_adr, dof_adr)), None
@@ -284,10 +285,10 @@ class StepColumns:
         """Row ``i`` by the compiled write (``_columns_jit.write_row``), whole; ``False``: the NumPy way instead.
 
         Taken when every array has the types the compiled call was made for (checked here: the call is
-        direct, without numba's own checks): float64 (int64 for the pairs) and contiguous (witness points that
-        are not are copied), and the values hold what the row needs. One compiled call for every run: it is
-        made for writable arrays and takes read-only ones as they are (it only reads them; numba would
-        otherwise compile it again for each mix of read-only arguments).
+        direct, without numba's own checks): float64 (int64 for the pairs) and contiguous, the witness points
+        contiguous or not (a call for each, made when first needed), and the values hold what the row needs.
+        The calls are made for writable arrays and take read-only ones as they are (the write only reads them;
+        numba would otherwise compile it again for each mix of read-only arguments).
         """
         rows, tick_h, wit = values
         xi = step.xi
@@ -298,18 +299,17 @@ class StepColumns:
             return False
         j = rows.shape[0]
         if wit is None:
-            has, wit = False, _NO_POINTS
+            has, wit, dense = False, _NO_POINTS, True
         elif type(wit) is np.ndarray and wit.dtype is _F8 and wit.ndim == 3 and wit.shape[0] == j and \
                 wit.shape[1] >= 2 and wit.shape[2] == 3:
-            has = True
-            if not wit.flags.c_contiguous:
-                wit = np.ascontiguousarray(wit)
+            has, dense = True, wit.flags.c_contiguous
         else:
             return False
-        call = self._call
+        call = self._variants.get(dense)
         if call is None:
-            call = self._call = direct(self._copy[0], (self._copy[3], 0, 0.0, False, False, False, 0, _ONE_F8, _ONE_F8,
-                                                       _ONE_F8, _ONE_I8, _ONE_F8, _NO_POINTS, True))
+            call = self._variants[dense] = direct(self._copy[0], (
+                self._copy[3], 0, 0.0, False, False, False, 0, _ONE_F8, _ONE_F8, _ONE_F8, _ONE_I8, _ONE_F8,
+                _NO_POINTS if dense else _STRIDED_POINTS, True))
         if self._used + j > self._pairs.shape[0]:
             self._room(self._used + j)
         used = call(self._copy[3], i, float(t), bool(step.on), step.qp is not None, bool(step.fallback),

@@ -117,34 +117,42 @@ def test_columns_hold_what_was_written(seal_every: int, layout: str, jit: str, m
         np.testing.assert_array_equal(rec.goal_pos, [[0.1, 0, 0], [0.2, 0, 0]][r["goal"]])
 
 
-def test_read_only_and_strided_arrays_take_the_one_compiled_write(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+@pytest.mark.parametrize("seed", [11, 12])
+def test_read_only_and_strided_arrays_take_the_compiled_write_made_once_per_layout(seed: int, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     """Rows whose arrays are read-only (as a strategy may hand them back) or whose witness points are a strided
-    view go the compiled way too, through the one call made for writable contiguous arrays: numba compiles the
-    write once (it compiled it again for every mix of read-only arguments, five times in a test suite)."""
+    view go the compiled way too, in blocks that first meet writable or read-only arrays alike: numba compiles the
+    write once per layout of the witness points (it compiled it again for every mix of read-only arguments a block
+    happened to meet first: five times in a test suite)."""
     monkeypatch.setenv("ISF_ROBOT_JIT", "1")
-    rows = _rows(np.random.default_rng(11), 90)
-    for i, r in enumerate(rows):
-        near, h, wit = r["values"]
-        if i % 3 == 1:
-            wit = wit[:, :2]  # (not contiguous)
-        for a in (near, h, wit, r["step"].xi):
-            a.setflags(write=False)
-        r["values"] = TickValues(near, h, wit)
-    block, data, model = _block(128)
-    if block._copy is None:
-        pytest.skip("the compiled write is not available")
-    for r in rows:
-        block.write(r["t"], r["step"], r["values"], r["goal"])
-        assert block.sealed == len(block)  # (the compiled write takes the whole row at once; NumPy's waits for a seal)
-        block.end_row(r["dist"])
-    assert len(block._copy[0].signatures) == 1
-    for i, r in enumerate(rows):
-        near, h, wit = r["values"]
-        a, b = block.pair_start[i], block.pair_start[i + 1]
-        np.testing.assert_array_equal(block.pairs[a:b], near)
-        np.testing.assert_array_equal(block.witness[a:b], wit[:, :2])
-        np.testing.assert_array_equal(block.h[i, near], h[: near.size])
-        assert block.xi_min[i] == (r["step"].xi.min() if r["step"].xi.size else math.inf)
+    rng = np.random.default_rng(seed)
+    blocks = []
+    for frozen in (False, True, "mixed"):  # (a block per kind of first row, each with both layouts)
+        rows = _rows(rng, 40)
+        for i, r in enumerate(rows):
+            near, h, wit = r["values"]
+            if i % 3 == 1:
+                wit = wit[:, :2]  # (not contiguous)
+            if frozen is True or (frozen == "mixed" and i % 2):
+                for a in (near, h, wit, r["step"].xi):
+                    a.setflags(write=False)
+            r["values"] = TickValues(near, h, wit)
+        block, data, model = _block(64)
+        if block._copy is None:
+            pytest.skip("the compiled write is not available")
+        for r in rows:
+            block.write(r["t"], r["step"], r["values"], r["goal"])
+            assert block.sealed == len(block)  # (the compiled write takes the whole row at once; NumPy's, at a seal)
+            block.end_row(r["dist"])
+        blocks.append((block, rows))
+    assert len(blocks[0][0]._copy[0].signatures) <= 2  # (contiguous witness points, strided ones; in every block)
+    for block, rows in blocks:
+        for i, r in enumerate(rows):
+            near, h, wit = r["values"]
+            a, b = block.pair_start[i], block.pair_start[i + 1]
+            np.testing.assert_array_equal(block.pairs[a:b], near)
+            np.testing.assert_array_equal(block.witness[a:b], wit[:, :2])
+            np.testing.assert_array_equal(block.h[i, near], h[: near.size])
+            assert block.xi_min[i] == (r["step"].xi.min() if r["step"].xi.size else math.inf)
 
 
 @pytest.mark.parametrize("jit", ["1", "0"])
