@@ -66,12 +66,16 @@ def local_ray(tmp_path_factory: pytest.TempPathFactory) -> Iterator[object]:
     """
     import ray
 
-    here = os.getcwd()
+    here, address, term = os.getcwd(), os.environ.pop("RAY_ADDRESS", None), signal.getsignal(signal.SIGTERM)
     os.chdir(tmp_path_factory.mktemp("ray"))
-    try:
+    try:  # (a private instance, as run_tasks starts, even where RAY_ADDRESS names a cluster)
         ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level="error")
     finally:
         os.chdir(here)
+        if address is not None:
+            os.environ["RAY_ADDRESS"] = address
+        if term is not None:
+            signal.signal(signal.SIGTERM, term)  # (ray.init replaces it)
     yield ray
     ray.shutdown()
 

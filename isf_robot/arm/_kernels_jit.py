@@ -254,7 +254,7 @@ def near_packed(ma, da, p, blk, rows, coh, cutoff, distmax, slack, eps, norms_in
     Its outputs go to ``blk``.
 
     One numba call costs about 0.1 us per 1-D array argument and 0.6 us per 2-D one; :func:`near`'s
-    31 arguments cost more than its work. ``blk`` (float64, fresh per call) holds, for
+    31 arguments cost more than its work. ``blk`` (float64, uninitialised, shared with no result kept) holds, for
     ``L = live pairs + joint rows`` and ``n`` dofs: ``h`` (L), ``g`` (L, n), ``gn`` (L), ``lf`` (L,
     zeroed here: the rows' ``dh/dt``, of moving obstacles filled here with ``dhdt_in``, else by the caller)
     and the witness points (live pairs, 3, 3). ``lin``: the mocap bodies' velocities, flat.

@@ -85,6 +85,9 @@ def closed_loop_points(ma, da, q, v0, e, decay, t, dt, qpos, qadr, rp, nb, outs,
     (``carray``, which own no memory): a view of an argument itself takes and drops a reference count, an atomic
     operation, some forty times a point in all (6 % of the call on panda_pole).
     """
+    if not (nb.flags.c_contiguous and outs.flags.c_contiguous and vs.flags.c_contiguous and blks.flags.c_contiguous
+            and res.flags.c_contiguous and rows.flags.c_contiguous and keys.flags.c_contiguous):
+        raise ValueError("closed_loop_points: its output and buffer arrays must be C-contiguous (read as C aliases)")
     v = v0
     mp = carray(f64p(mp_addr), (max(nmocap, 1), 3))
     nb, outs, vs = carray(f64p(nb.ctypes.data), nb.shape), carray(f64p(outs.ctypes.data), outs.shape), \

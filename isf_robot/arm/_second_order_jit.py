@@ -51,6 +51,8 @@ def phi_rate(ma, sa, p, blk, prow, cutoff, eps_dist, lin, dhdt_in, qpos, sqpos, 
     kinematics(ma, sa)
     com_pos(ma, sa)
     K = rows.size
+    if K > prow.size:  # (more rows than the probe has live pairs: some repeat; the NumPy path takes them)
+        return TOUCHING
     for i in range(K):  # (the pairs' live rows, given to the kernel in prow: its scratch may hold them)
         r = live_of[rows[i]]
         if r < 0:
@@ -109,6 +111,8 @@ def psi_points(blk, keys, res, vs, nj, m, n, o_gn, o_lf, alpha_1, approaching, p
     with the point's joint velocity ``vs[j]``, at the column of its key ``keys[j]``. (The per-point views are of raw
     aliases of ``blk`` and ``vs``, as in ``_rollout_jit.closed_loop_points``: no reference counts.)
     """
+    if not (blk.flags.c_contiguous and vs.flags.c_contiguous):  # (the aliases below read them as C arrays)
+        raise ValueError("psi_points: blk and vs must be C-contiguous")
     blk, vs = carray(f64p(blk.ctypes.data), blk.shape), carray(f64p(vs.ctypes.data), vs.shape)
     for j in range(res.shape[0]):
         k = int(res[j, 0]) + nj

@@ -23,14 +23,16 @@ __all__ = ["BlockPool", "REUSE"]
 _refs = sys.getrefcount
 
 
-def _held(a: list) -> tuple[int, int]:
-    """References to an allocation's float and int arrays (the pool's own included; one form for every count)."""
-    return _refs(a[0]), _refs(a[1])
+def _held(a: list) -> tuple[int, int, int]:
+    """References to an allocation's float, int and gradient arrays (the pool's own included; one form for every
+    count). The gradient view counts too: :meth:`BlockPool.take_all` hands it out as it is, and a caller that keeps
+    only it holds the memory (its views' own base is the float array)."""
+    return _refs(a[0]), _refs(a[1]), _refs(a[2])
 
 
 def _views_counted() -> bool:
     """Whether a view of an array shows in the array's reference count here (else nothing is reused)."""
-    a = [np.empty(2), np.empty(1)]
+    a = [np.empty(2), np.empty(1), np.empty(1)]
     before = _held(a)
     view = a[0][:1]
     counted = _held(a)[0] == before[0] + 1

@@ -70,6 +70,20 @@ def test_a_whole_allocation_is_reused_only_when_nothing_holds_it() -> None:
     assert pool.made == 2 and not np.shares_memory(blk, held)
 
 
+@pytest.mark.skipif(not output_blocks.REUSE, reason="allocations are not reused here")
+def test_an_allocation_whose_gradient_array_alone_is_kept_is_not_reused() -> None:
+    """``take_all``'s gradient array is handed out as the pool holds it (a rollout's points keep it as their
+    ``lg``): kept alone, without the float block and the rows, it keeps its allocation out of use."""
+    pool = BlockPool(40, 4, 3, 5, 10)
+    blk, g, rows = pool.take_all()
+    g[:] = 1.0
+    kept = g
+    del blk, g, rows
+    blk, g, rows = pool.take_all()
+    blk[:] = 2.0
+    assert pool.made == 2 and not np.shares_memory(blk, kept) and (kept == 1.0).all()
+
+
 def test_the_pool_keeps_a_bounded_number_of_allocations() -> None:
     pool = BlockPool(8, 1, 1, 1, 1)
     kept = [pool.take() for _ in range(3 * BlockPool.KEEP)]  # (every one held: a new allocation each time)

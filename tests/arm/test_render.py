@@ -292,6 +292,8 @@ def test_named_camera_and_unknown_camera(tmp_path: Path) -> None:
 
 def test_bad_camera_options_are_one_line_errors_before_anything_runs(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
     """In this process: the checks run before the episode and before any OpenGL context (no subprocess needed)."""
+    import mujoco  # noqa: F401  (imported already: the command does not choose an OpenGL backend for this process)
+
     from isf_robot.cli import main
 
     xml, toml = _vendor(tmp_path)

@@ -146,3 +146,19 @@ def test_given_pairs_get_the_probes_near_rows(name: str, monkeypatch) -> None:  
             assert np.array_equal(blk[2 * m + m * n: 2 * m + m * n + k], want_dhdt)
         checked += k
     assert checked > 20
+
+
+def test_repeated_pairs_beyond_the_live_count_go_to_the_numpy_path(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """More rows than the probe has live pairs (repeats): the kernel leaves them to the numpy path (it wrote one
+    scratch entry per row, past its arrays), and both paths give each repeat its pair's value."""
+    scene = load_scene("panda_pole")
+    fast, slow = _rows(scene, monkeypatch, True), _rows(scene, monkeypatch, False)
+    d, _ = next(_states(scene, np.random.default_rng(6), 1))
+    near = fast._probe.near(d).rows
+    live = int(np.count_nonzero(fast._live_of >= 0))
+    rows = np.resize(near, live + 5).astype(np.int64)
+    q_dot, phi = d.qvel[scene.dof_adr], np.zeros(rows.size)
+    got, want = fast.phi_rate(d, d.time, rows, q_dot, phi), slow.phi_rate(d, d.time, rows, q_dot, phi)
+    assert _close(got, want)
+    single = slow.phi_rate(d, d.time, near.astype(np.int64), q_dot, np.zeros(near.size))
+    assert _close(got[: near.size], single)
