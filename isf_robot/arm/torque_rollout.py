@@ -170,11 +170,6 @@ class TorqueRollout(ScratchRollout):
                     break
         finally:
             self.nominal.restore(saved)
-        if len(lgv) == 1:  # (point 0 alone, the compiled call made the others: its table row, the same figures)
-            cols = np.concatenate(keys)
-            phi = lgv[0] + obstacle_rate(lf[0], self.approaching)
-            psi[0, cols], g[0, cols], present[0, cols] = psi_value(phi, h[0], self.alpha_1), gn[0], True
-            return self._points(psi, g, present)
         rows = np.array([a.size for a in lgv])  # (the points made here)
         where = (np.repeat(np.arange(rows.size), rows), np.concatenate(keys))
         phi = np.concatenate(lgv) + obstacle_rate(np.concatenate(lf), self.approaching)
