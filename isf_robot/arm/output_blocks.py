@@ -70,6 +70,13 @@ class BlockPool:
         self.made = 0
         """Allocations made so far (for tests and benchmarks: the rest of the hand-outs were reuses)."""
 
+    def __getstate__(self) -> dict:
+        """A copy or a pickle starts with no allocations: an allocation's gradient array is a view of its float
+        block, which a copy would make a separate array (the kernel's writes would not reach it)."""
+        state = dict(self.__dict__)
+        state["_allocs"], state["_cur"], state["_next"] = [], None, self.count
+        return state
+
     def _alloc(self) -> list:
         """A free allocation: the oldest kept one nothing else holds, else a new one (in place of the oldest)."""
         for a in self._allocs if REUSE else ():

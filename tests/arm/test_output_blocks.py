@@ -84,6 +84,28 @@ def test_an_allocation_whose_gradient_array_alone_is_kept_is_not_reused() -> Non
     assert pool.made == 2 and not np.shares_memory(blk, kept) and (kept == 1.0).all()
 
 
+@pytest.mark.parametrize("how", ["deepcopy", "pickle"])
+def test_a_copied_pool_hands_out_blocks_whose_gradient_is_the_block(how: str) -> None:
+    """A copy of a pool that holds allocations: its blocks' gradient views are views of its blocks (a copy of an
+    allocation would make the view a separate array, and the kernel's writes to the block would not reach it)."""
+    import copy
+    import pickle
+
+    pool = BlockPool(40, 4, 3, 5, 2)
+    blk0, _, g0 = pool.take()
+    g0[:] = 7.0
+    twin = copy.deepcopy(pool) if how == "deepcopy" else pickle.loads(pickle.dumps(pool))
+    for _ in range(3):  # (past the end of the current allocation, and into a reuse)
+        blk, rows, g = twin.take()
+        blk[:] = 0.0
+        blk[4:16] = np.arange(12.0)
+        assert np.array_equal(g.ravel(), np.arange(12.0)) and np.shares_memory(blk, g)
+        del blk, rows, g
+    fb, fg, _ = twin.take_all()
+    fb[:, 4:16] = 3.0
+    assert (fg == 3.0).all() and (g0 == 7.0).all() and (blk0[4:16] == 7.0).all()  # (the original untouched)
+
+
 def test_the_pool_keeps_a_bounded_number_of_allocations() -> None:
     pool = BlockPool(8, 1, 1, 1, 1)
     kept = [pool.take() for _ in range(3 * BlockPool.KEEP)]  # (every one held: a new allocation each time)
