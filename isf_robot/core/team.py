@@ -64,7 +64,7 @@ from typing import Any
 import numpy as np
 
 from .exceptions import ConfigError
-from .jit import compiled, formula
+from .jit import compiled, direct, formula
 from .metrics import DutyCycleMetrics, MetricsAccumulator
 from .shares import SharedRows, block_matrix
 from .step import FilterStep
@@ -395,13 +395,32 @@ class SharedFilter:
         self._switch = SwitchCounter()
         self.shared_rows = SharedRows(self.blocks)
         self._least = compiled(team_least)  # (ISF_ROBOT_JIT is read when the filter is built)
+        self._least_code: Any = None  # (its code for the types of the first step's arguments: jit.direct)
         a = len(self.agents)  # (team_least's per-agent inputs and answer, rewritten at each step)
         self._margins, self._on, self._need = np.empty(a), np.empty(a, np.bool_), np.empty(a, np.bool_)
+        self._plan: tuple[Any, ...] = (None, (), None)  # (_plan_for's answer for the last rows and screen)
 
     @property
     def on(self) -> bool:
         """Whether any agent's filter is on."""
         return any(s.on for s in self.agents)
+
+    def _plan_for(self, inv: Any, screen: np.ndarray | None) -> tuple[Any, ...]:
+        """``(inv, per agent (strategy, columns, keyword arguments of its step), screen)``.
+
+        What :meth:`step_lie` hands each agent's filter besides its rows' data (its rows' ``screen`` thresholds, and
+        ``promotable``: its rows that are not shared, for an intermittent filter unless ``promote_shared``), made once
+        per set of rows (:class:`~.shares.SharedRows`' answer, by identity) and screen thresholds (the same array
+        object: the loop hands the same one for the same rows; its values are read when it first comes).
+        """
+        keep, agents = not self.promote_shared, []
+        for s, b, (rows, _, _, _), (mine, _) in zip(self.agents, self.blocks, inv.parts, inv.steps):
+            extra = {} if screen is None else {"screen": screen[rows]}
+            if keep and s.intermittent:
+                extra["promotable"] = mine
+            agents.append((s, b, extra))
+        self._plan = (inv, tuple(agents), screen)
+        return self._plan
 
     def reset(self, t0: float = 0.0) -> None:
         """Start again."""
@@ -418,10 +437,10 @@ class SharedFilter:
     def step_lie(self, t: float, lie: LieData | None, u_nom: np.ndarray, x: Any = None,
                  screen: np.ndarray | None = None, **kw: Any) -> FilterStep:
         """Every agent's filter on its share of the rows; the commands stacked."""
-        u = np.array(u_nom, dtype=float)
         steps = []
         period, tallies = self.period, self.tallies
         if lie is None:
+            u = np.array(u_nom, dtype=float)
             for i, (s, b) in enumerate(zip(self.agents, self.blocks)):
                 st = s.step_lie(t, None, u_nom[b])  # type: ignore[arg-type]  # (NominalStrategy)
                 u[b] = st.u
@@ -430,23 +449,25 @@ class SharedFilter:
             xi = np.zeros(0)
         else:
             inv = self.shared_rows(lie)
-            parts, own = inv.parts, inv.steps
+            plan = self._plan
+            if plan[0] is not inv or plan[2] is not screen:
+                plan = self._plan_for(inv, screen)
             subs = inv.split(lie)  # (every agent's rows first, in one pass: agent_lie's rows for each agent)
-            keep = not self.promote_shared
-            for s, b, sub, (rows, _, _, _), (mine, _) in zip(self.agents, self.blocks, subs, parts, own):
-                extra = dict(kw) if kw else {}
-                if screen is not None:
-                    extra["screen"] = screen[rows]
-                if keep and s.intermittent:
-                    extra["promotable"] = mine
-                steps.append(s.step_lie(t, sub, u_nom[b], x, **extra))
-            xi, margins, on, need = np.empty(lie.k), self._margins, self._on, self._need
-            for i, st in enumerate(steps):
+            margins, on, need = self._margins, self._on, self._need
+            for i, ((s, b, extra), sub) in enumerate(zip(plan[1], subs)):
+                st = s.step_lie(t, sub, u_nom[b], x, **({**kw, **extra} if kw else extra))
+                steps.append(st)
                 margins[i] = 0.0 if st.margin is None else st.margin
-                on[i] = bool(st.on)
+                on[i] = st.on
+            xi = np.empty(lie.k)
             rows, ends, shared_of = inv.order_shared()
             # (each row's least Xi_on, and which agents need the others: Coordination.needs of each agent's step)
-            self._least(xi, rows, ends, np.concatenate([st.xi for st in steps]), shared_of, margins, on, need)
+            args = (xi, rows, ends, np.concatenate([st.xi for st in steps]), shared_of, margins, on, need)
+            least = self._least_code  # (every argument's type is fixed by construction: float64 Xi_on checked)
+            if least is None:
+                least = self._least_code = direct(self._least, args)
+            (least if args[3].dtype == np.float64 else self._least)(*args)
+            u = np.array(u_nom, dtype=float)
             for b, st, tally, wants in zip(self.blocks, steps, tallies, need.tolist()):
                 u[b] = st.u
                 tally.add_need(st, wants, period)

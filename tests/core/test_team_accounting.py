@@ -17,7 +17,7 @@ from isf_robot.core.shares import (
     row_plan,
 )
 from isf_robot.core.step import FilterStep
-from isf_robot.core.team import AgentTally, BlockIntervention, Coordination, least_of, team_least
+from isf_robot.core.team import AgentTally, BlockIntervention, Coordination, SharedFilter, least_of, team_least
 
 BLOCKS = (slice(0, 2), slice(2, 5))
 
@@ -286,3 +286,50 @@ def test_add_need_counts_as_add() -> None:
         two.add_need(st, bool(Coordination.needs(st, shared)[0]), 0.002)
     assert one.coordination.of(0) == two.coordination.of(0) == (3, 2, pytest.approx(0.006))
     assert one.result() == two.result()
+
+
+class _Recorder:
+    """A strategy that passes the nominal through and keeps each step's rows' names and keyword arguments."""
+
+    uses_rows, on = True, False
+
+    def __init__(self, intermittent: bool) -> None:
+        self.intermittent = intermittent
+        self.calls: list[tuple[tuple[str, ...], dict]] = []
+
+    def reset(self, t0: float = 0.0) -> None:
+        self.calls.clear()
+
+    def step_lie(self, t, lie, u_nom, x=None, **kw):  # type: ignore[no-untyped-def]
+        self.calls.append((lie.names, {k: np.array(v) if isinstance(v, np.ndarray) else v for k, v in kw.items()}))
+        return FilterStep._of(t, u_nom, u_nom, False, lie.h, np.ones(lie.k), margin=0.05)
+
+
+@pytest.mark.parametrize("promote_shared", [False, True])
+def test_shared_filter_hands_each_agent_its_rows_screen_and_promotable_rows(promote_shared: bool) -> None:
+    """What each agent's step is given is kept per set of rows and screen array, and made again for another of either."""
+    a, b = _Recorder(True), _Recorder(False)
+    team = SharedFilter([a, b], BLOCKS, ("a", "b"), 0.002, promote_shared=promote_shared)
+    lg = np.array([[1.0, 0.0, 1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0, 0.0]])  # (row 0 shared, row 1 agent a's)
+    lg2 = np.array([[0.0, 0.0, 1.0, 0.0, 0.0], [0.0, 1.0, 0.0, 2.0, 0.0], [1.0, 0.0, 0.0, 0.0, 0.0]])
+    first, second = _lie(lg, ("a|b", "a|x")), _lie(lg2, ("b|y", "a|b", "a|z"))
+    s1, s2, s3 = np.array([0.1, 0.2]), np.array([0.3, 0.4]), np.array([0.5, 0.6, 0.7])
+    u = np.zeros(5)
+    for t, lie, screen, kw in [(0.0, first, s1, {}), (0.002, first, s1, {}), (0.004, first, s2, {}),
+                               (0.006, second, s3, {}), (0.008, second, None, {"extra": 1}), (0.01, first, s1, {})]:
+        team.step_lie(t, lie, u, screen=screen, **kw)
+    prom = {} if promote_shared else None
+    want_a = [(("a|b", "a|x"), [0.1, 0.2], [False, True]), (("a|b", "a|x"), [0.1, 0.2], [False, True]),
+              (("a|b", "a|x"), [0.3, 0.4], [False, True]), (("a|b", "a|z"), [0.6, 0.7], [False, True]),
+              (("a|b", "a|z"), None, [False, True]), (("a|b", "a|x"), [0.1, 0.2], [False, True])]
+    want_b = [(("a|b",), [0.1]), (("a|b",), [0.1]), (("a|b",), [0.3]), (("b|y", "a|b"), [0.5, 0.6]),
+              (("b|y", "a|b"), None), (("a|b",), [0.1])]
+    for (names, kw), (want_names, want_screen, want_prom) in zip(a.calls, want_a):
+        assert names == want_names
+        assert kw.get("extra", 1) == 1
+        assert (kw.get("screen") is None if want_screen is None else kw["screen"].tolist() == want_screen)
+        assert ("promotable" not in kw) if prom is not None else kw["promotable"].tolist() == want_prom
+    for (names, kw), (want_names, want_screen) in zip(b.calls, want_b):
+        assert names == want_names and "promotable" not in kw  # (not intermittent: no promotion to limit)
+        assert (kw.get("screen") is None if want_screen is None else kw["screen"].tolist() == want_screen)
+    assert len(a.calls) == len(b.calls) == 6 and "extra" in a.calls[4][1] and "extra" in b.calls[4][1]
