@@ -307,7 +307,8 @@ class _Recorder:
 
 @pytest.mark.parametrize("promote_shared", [False, True])
 def test_shared_filter_hands_each_agent_its_rows_screen_and_promotable_rows(promote_shared: bool) -> None:
-    """What each agent's step is given is kept per set of rows and screen array, and made again for another of either."""
+    """What each agent's step is given: made once per set of rows, again for another; the screen thresholds read at
+    every step (an array rewritten in place gives its new values)."""
     a, b = _Recorder(True), _Recorder(False)
     team = SharedFilter([a, b], BLOCKS, ("a", "b"), 0.002, promote_shared=promote_shared)
     lg = np.array([[1.0, 0.0, 1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0, 0.0]])  # (row 0 shared, row 1 agent a's)
@@ -333,3 +334,6 @@ def test_shared_filter_hands_each_agent_its_rows_screen_and_promotable_rows(prom
         assert names == want_names and "promotable" not in kw  # (not intermittent: no promotion to limit)
         assert (kw.get("screen") is None if want_screen is None else kw["screen"].tolist() == want_screen)
     assert len(a.calls) == len(b.calls) == 6 and "extra" in a.calls[4][1] and "extra" in b.calls[4][1]
+    s1[:] = [0.8, 0.9]  # (the same array, rewritten in place)
+    team.step_lie(0.012, first, u, screen=s1)
+    assert a.calls[-1][1]["screen"].tolist() == [0.8, 0.9] and b.calls[-1][1]["screen"].tolist() == [0.8]
