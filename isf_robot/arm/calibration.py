@@ -109,7 +109,7 @@ def _key(scene: Scene, params: tuple[Any, ...]) -> tuple[Any, ...]:
             files.append((str(p), p.stat().st_mtime_ns))
         except OSError:
             files.append((str(p), None))
-    return (scene.name, *files, params)
+    return (scene.name, *files, repr(scene.config), params)  # (the config as run: a control period set in memory)
 
 
 def free_scene(scene: Scene, model: mujoco.MjModel | None = None) -> Scene:

@@ -10,6 +10,7 @@ With ``--json`` stdout holds exactly one JSON object; progress goes to stderr.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import functools
 import json
 import os
@@ -115,6 +116,7 @@ def _params(args: argparse.Namespace, scene: Any) -> dict[str, Any]:
     from isf_robot.arm.compare import level_params
     from isf_robot.arm.diagnostics import run_findings
 
+    scene = _with_period(scene, getattr(args, "control_period", None))  # (the calibration's period: the run's)
     level = _level(args, scene)
     if level == "torque" and getattr(args, "d_bar_in_loop", False):
         raise ConfigError("--d-bar-in-loop raises the velocity level's d_bar; the torque level's is calibrated "
@@ -128,6 +130,18 @@ def _params(args: argparse.Namespace, scene: Any) -> dict[str, Any]:
     if getattr(args, "control_period", None) is not None:
         out["control_period"] = args.control_period
     return out
+
+
+def _with_period(scene: Any, period: float | None) -> Any:
+    """``scene`` with ``--control-period`` in its config (``[control] period``), checked against the physics timestep:
+    the calibration of ``d_bar`` reads it there (its hold and tracking errors grow with the period)."""
+    if period is None:
+        return scene
+    from isf_robot.arm.episode import check_control_period
+
+    check_control_period(period, float(scene.model.opt.timestep))
+    control = dataclasses.replace(scene.config.control, period=float(period))
+    return dataclasses.replace(scene, config=dataclasses.replace(scene.config, control=control))
 
 
 def _check_seed(args: argparse.Namespace) -> None:

@@ -111,3 +111,19 @@ def test_the_torque_parameters_calibrate_with_the_runs_own_gain(ur5e) -> None:  
     assert same.d_bar == designed.d_bar
     assert other.d_bar == calibrate_torque_d_bar(ur5e, alpha_1=inner_gain(ur5e.config.filter.alpha),
                                                  kd=3.0 * designed_kd(ur5e.config)).d_bar != designed.d_bar
+
+
+def test_a_control_period_set_in_memory_is_calibrated_for(ur5e) -> None:  # type: ignore[no-untyped-def]
+    """A scene whose ``[control] period`` was changed in memory (``--control-period``) gets a calibration of its own
+    period, not the cached one of the file's: the hold error (and so ``d_bar``) grows with the period."""
+    import dataclasses
+
+    from isf_robot.cli.arm import _with_period
+
+    slow = _with_period(ur5e, 4 * ur5e.config.control.period)
+    assert slow.config.control.period == pytest.approx(0.008) and ur5e.config.control.period == pytest.approx(0.002)
+    base, held = calibrate_torque_d_bar(ur5e, duration=0.4), calibrate_torque_d_bar(slow, duration=0.4)
+    assert held is not base and held.d_bar > 1.5 * base.d_bar
+    assert calibrate_torque_d_bar(dataclasses.replace(slow), duration=0.4) is held  # (the same config: cached)
+    with pytest.raises(ConfigError, match="whole multiple"):
+        _with_period(ur5e, 0.0013)
