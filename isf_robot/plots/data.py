@@ -14,7 +14,8 @@ import numpy as np
 
 from isf_robot.core import ConfigError
 
-__all__ = ["RunSeries", "StrategyBars", "OrbitSeries", "TauSamples", "on_intervals", "break_gaps"]
+__all__ = ["RunSeries", "StrategyBars", "OrbitSeries", "TauSamples", "on_intervals", "break_gaps",
+           "intervention_unit"]
 
 
 def _vec(name: str, a: object, n: int | None = None, dtype: type = float) -> np.ndarray:
@@ -60,6 +61,11 @@ def break_gaps(t: np.ndarray, y: np.ndarray, max_gap: float) -> tuple[np.ndarray
     return np.insert(t, gaps, np.nan), np.insert(y, gaps, nan_row, axis=0)
 
 
+def intervention_unit(unit: str) -> str:
+    """The unit of the intervention ``integral |u - u_nom|^2 dt`` for a command in ``unit``."""
+    return {"rad/s": "rad\u00b2/s", "N m": "N\u00b2m\u00b2s"}.get(unit, f"({unit})\u00b2 s")
+
+
 @dataclass(frozen=True)
 class RunSeries:
     """Time series of one arm run.
@@ -71,10 +77,11 @@ class RunSeries:
         dt: Control-step lengths [s], shape (N,).
         h: True-geometry minimum barrier ``min(dist - margin)`` per step [m], shape (N,).
         on: Filter on at the step, shape (N,).
-        correction: ``|u - u_nom|`` per step [rad/s], shape (N,).
+        correction: ``|u - u_nom|`` per step [``unit``], shape (N,).
         xi_t: Times of the ``min Xi_on`` samples [s], shape (M,) (M = 0 without a trigger).
         xi: ``min Xi_on`` (the on trigger fires at ``<= 0``), shape (M,).
         c: The off threshold (the filter turns off at ``Xi_on >= c``); NaN when not applicable.
+        unit: The command's unit: ``rad/s`` (joint velocities) or ``N m`` (joint torques, the torque level).
 
     """
 
@@ -88,6 +95,7 @@ class RunSeries:
     xi_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
     xi: np.ndarray = field(default_factory=lambda: np.zeros(0))
     c: float = math.nan
+    unit: str = "rad/s"
 
     def __post_init__(self) -> None:
         t = _vec("t", self.t)

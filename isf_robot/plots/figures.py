@@ -15,7 +15,7 @@ import numpy as np
 
 from isf_robot.core import ConfigError
 
-from .data import OrbitSeries, RunSeries, StrategyBars, TauSamples, break_gaps
+from .data import OrbitSeries, RunSeries, StrategyBars, TauSamples, break_gaps, intervention_unit
 from .output import new_figure
 
 __all__ = ["run_figure", "compare_figure", "satellite_figure", "tau_figure", "ON_COLOR", "strategy_color"]
@@ -82,7 +82,7 @@ def run_figure(run: RunSeries) -> Any:
     ax = axes[-1]
     _shade_on(ax, run, label=False)
     ax.plot(run.t, run.correction, color="#9467bd", lw=1.0)
-    ax.set_ylabel("|u - u_nom| [rad/s]")
+    ax.set_ylabel(f"|u - u_nom| [{run.unit}]")
     ax.set_xlabel("time [s]")
     ax.grid(alpha=0.3)
     return fig
@@ -134,6 +134,9 @@ def compare_figure(runs: Sequence[RunSeries], bars: Sequence[StrategyBars], titl
     """
     if not runs or not bars:
         raise ConfigError("a comparison figure needs at least one run and one strategy")
+    units = sorted({run.unit for run in runs})
+    if len(units) > 1:
+        raise ConfigError(f"the runs' commands have different units ({', '.join(units)}): compare one level at a time")
     n = len(runs)
     fig = new_figure(9.0, 1.6 * n + 2.8)
     grid = fig.add_gridspec(n + 1, 4, height_ratios=[1.0] * n + [1.5])
@@ -151,7 +154,7 @@ def compare_figure(runs: Sequence[RunSeries], bars: Sequence[StrategyBars], titl
             ax.set_xlabel("time [s]")
     k = max(len(b.duty_cycle) for b in bars)
     spec = (("duty_cycle", "duty cycle"), ("on_switches", "on switches"),
-            ("intervention", "intervention \u222b|u \u2212 u_nom|\u00b2 dt [rad\u00b2/s]"),
+            ("intervention", f"intervention \u222b|u \u2212 u_nom|\u00b2 dt [{intervention_unit(runs[0].unit)}]"),
             ("min_barrier", "min h [m]"))
     for j, (name, label) in enumerate(spec):
         _bars(fig.add_subplot(grid[n, j]), bars, name, label)

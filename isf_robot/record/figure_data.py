@@ -19,7 +19,7 @@ from .errors import RecordingReadError
 from .replay import RunLog, arm_metrics, replay_metrics
 
 __all__ = ["arm_series", "satellite_series", "strategy_bars", "run_label", "team_arm_series", "team_bars",
-           "team_group"]
+           "team_group", "run_level", "command_unit"]
 
 
 def run_label(log: RunLog) -> str:
@@ -66,7 +66,18 @@ def arm_series(log: RunLog) -> dict[str, Any]:
         "t": s["t"], "dt": s["dt"], "h": s["min_barrier"], "on": s["on"],
         "correction": np.sqrt(np.asarray(s["intervention_rate"], dtype=float)),
         "xi_t": xi_t, "xi": xi, "c": float(c) if isinstance(c, (int, float)) else float("nan"),
+        "unit": command_unit(log),
     }
+
+
+def run_level(log: RunLog) -> str:
+    """What an arm recording's filter commanded: ``velocity`` or ``torque`` (its run info's ``level``)."""
+    return str(log.info.get("level") or "velocity")
+
+
+def command_unit(log: RunLog) -> str:
+    """The unit of an arm recording's commands: ``N m`` at the torque level, else ``rad/s``."""
+    return "N m" if run_level(log) == "torque" else "rad/s"
 
 
 def satellite_series(log: RunLog) -> dict[str, Any]:

@@ -153,3 +153,34 @@ def test_series_are_checked() -> None:
     assert len(fig.axes) == 2 and math.isclose(fig.axes[0].patches[0].get_width(), 1.0)
     with pytest.raises(Exception, match="valid: .png, .svg, .pdf"):
         save_figure(fig, "/tmp/figure.gif")
+
+
+def test_torque_level_recordings_plot_in_their_units_and_never_with_the_velocity_levels(tmp_path: Path,
+                                                                                         capsys) -> None:
+    """A torque-level run's command is a torque: its figure says N m (intervention N^2 m^2 s); recordings of the two
+    levels are refused together (one bar would average rad/s and N m), in one line, before any file is written."""
+    from isf_robot.plots import compare_figure
+
+    paths = {}
+    for level in ("velocity", "torque"):
+        paths[level] = tmp_path / f"{level}.rrd"
+        assert main(["run", "--scene", "planar", "--filter", "isf", "--level", level, "--duration", "0.3",
+                     "--rrd", str(paths[level])]) == 0
+    capsys.readouterr()
+    torque = RunSeries(**arm_series(read_rrd(paths["torque"])[0]))
+    velocity = RunSeries(**arm_series(read_rrd(paths["velocity"])[0]))
+    assert (torque.unit, velocity.unit) == ("N m", "rad/s")
+    assert run_figure(torque).axes[-1].get_ylabel() == "|u - u_nom| [N m]"
+    assert run_figure(velocity).axes[-1].get_ylabel() == "|u - u_nom| [rad/s]"
+    out = tmp_path / "mix.png"
+    assert main(["plot", str(paths["torque"]), str(paths["velocity"]), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "torque and velocity-level" in err and not out.exists()
+    from isf_robot.core import ConfigError
+
+    from isf_robot.plots import StrategyBars
+    from isf_robot.record.figure_data import strategy_bars
+
+    bars = [StrategyBars(**b) for b in strategy_bars(read_rrd(paths["torque"]) + read_rrd(paths["velocity"]))]
+    with pytest.raises(ConfigError, match="different units"):
+        compare_figure([torque, velocity], bars)
