@@ -103,6 +103,9 @@ def grid_points(strategies: Sequence[str], grid: Mapping[str, Sequence[float]]) 
     """Every combination of the grid's values per strategy (a strategy gets only the parameters it uses)."""
     for k, v in grid.items():
         _check_values(k, v)
+        bad = [x for x in v if k == "predict_every" and not (math.isfinite(x) and x >= 1 and int(x) == x)]
+        if bad:
+            raise ConfigError(f"--predict-every takes whole numbers of control steps >= 1, got {bad[0]:g}")
     out: list[SweepPoint] = []
     for s in strategies:
         info = strategy_info(s)
@@ -163,7 +166,7 @@ def run_sweep_task(task: SweepTask) -> dict[str, Any]:
 def _params_of(scene: Any, base: FilterParams, point: SweepPoint, level: str = "velocity") -> FilterParams:
     v = dict(point.values)
     every = v.pop("predict_every", None)
-    p = level_params(scene, level, d_bar=base.d_bar, predict_every=None if every is None else int(every), **v)
+    p = level_params(scene, level, d_bar=base.d_bar, predict_every=every, **v)  # (whole: grid_points, random_points)
     return p.replace(d_bar_source=base.d_bar_source)
 
 

@@ -153,3 +153,11 @@ def test_sweep_at_the_torque_level_runs_that_level_and_says_so(capsys, tmp_path)
                  "--write-config", str(tmp_path / "x.toml")]) == 2
     assert "velocity level" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())  # nothing written
+
+
+@pytest.mark.parametrize("bad", [2.9, 0.5, 0.0, float("nan")])
+def test_a_grid_refuses_a_predict_every_that_is_not_a_whole_number_of_steps(bad: float) -> None:
+    """(It was truncated: a point labelled predict_every=2.9 ran with 2.)"""
+    with pytest.raises(ConfigError, match="--predict-every takes whole numbers"):
+        grid_points(["isf"], {"predict_every": [2.0, bad]})
+    assert [p.values["predict_every"] for p in grid_points(["isf"], {"predict_every": [2.0, 3.0]})] == [2.0, 3.0]
