@@ -108,7 +108,7 @@ class VideoRecorder(Observer):
             of the start info).
 
     Raises:
-        ConfigError: Unknown format, bad sizes, or an unwritable path (before any rendering).
+        ConfigError: Unknown format, bad sizes, a bad ``at``, or an unwritable path (before any rendering).
 
     """
 
@@ -124,6 +124,10 @@ class VideoRecorder(Observer):
             raise ConfigError(f"frame size must be 16..4096 px, got {width} x {height}")
         if not (math.isfinite(fps) and 0 < fps <= 120 and math.isfinite(speed) and speed > 0):
             raise ConfigError(f"fps must be in (0, 120] and speed > 0, got fps={fps}, speed={speed}")
+        if at is not None and not (self.format == ".png" and isinstance(at, (int, float)) and math.isfinite(at)
+                                   and at >= 0):
+            raise ConfigError(f"the frame's time (--at) must be a number of seconds >= 0 and is for a .png only; got "
+                              f"{at!r} for a {self.format} file")
         if self.format == ".mp4":
             try:
                 import imageio.v2  # noqa: F401

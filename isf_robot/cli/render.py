@@ -17,6 +17,7 @@ from typing import Any
 
 from isf_robot.cli.arm import _add_filter_args, _add_scene_args, _check_seed, _params, _simulation, _spec
 from isf_robot.cli.arm_team import COORDINATION_HELP, check_coordination
+from isf_robot.core.exceptions import ConfigError
 from isf_robot.core.strategies import strategy_names
 
 __all__ = ["register", "handle"]
@@ -80,6 +81,9 @@ def handle(args: argparse.Namespace) -> int:
     if view.camera is not None:
         camera_id(scene.model, view.camera)  # an unknown name fails before the episode runs
     sim = _simulation(args, scene, observers=[video], **_params(args, scene))
+    end = sim.control_steps(args.duration) * sim.control_period
+    if args.at is not None and args.at > end + 1e-9:
+        raise ConfigError(f"--at {args.at:g} s is past the run's end ({end:g} s): give a time within it")
     wall = time.perf_counter()
     res = sim.run(args.duration)
     wall = time.perf_counter() - wall

@@ -308,6 +308,13 @@ def test_bad_camera_options_are_one_line_errors_before_anything_runs(tmp_path: P
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "X,Y,Z" in err[0], err
     assert not (tmp_path / "x.png").exists()
+    for at, want in (("nan", "--at"), ("-1", "--at"), ("0.5", "past the run's end (0.02 s)")):
+        assert main([*base, "--at", at]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and want in err[0], err
+    gif = [*base[:-1], str(tmp_path / "x.gif"), "--at", "0.01"]  # (a video has no single frame's time)
+    assert main(gif) == 2 and ".gif" in capsys.readouterr().err
+    assert not (tmp_path / "x.png").exists() and not (tmp_path / "x.gif").exists()
 
 
 @pytest.mark.parametrize(("azimuth", "elevation", "aspect"), [(140.0, -22.0, 4 / 3), (90.0, -60.0, 1.0),
