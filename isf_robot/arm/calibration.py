@@ -141,7 +141,7 @@ def calibrate_d_bar(
 
     Args:
         scene: The scene (its model is not modified; a copy is).
-        duration: Simulated time [s], > 0.
+        duration: Simulated time [s], at least one control period.
         quantile: Quantile level in (0, 1].
         factor: Safety factor >= 1 applied to the quantile.
         excitation: Size of the random command offsets, as a fraction of ``max_joint_speed``.
@@ -155,8 +155,9 @@ def calibrate_d_bar(
         The :class:`Calibration`.
 
     """
-    if not duration > 0:
-        raise ConfigError(f"calibration duration must be > 0 [s], got {duration}")
+    if not duration >= scene.config.control.period:
+        raise ConfigError(f"calibration duration must cover a control period ({scene.config.control.period:g} s), "
+                          f"got {duration} s")
     if not 0.0 < quantile <= 1.0:
         raise ConfigError(f"calibration quantile must be in (0, 1], got {quantile}")
     if not factor >= 1.0:

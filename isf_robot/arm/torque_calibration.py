@@ -63,7 +63,7 @@ from .nominal import ReachingController
 from .scene import Scene
 from .torque_nominal import TorqueNominal, torque_clip
 
-__all__ = ["calibrate_torque_d_bar", "torque_plant", "TorqueCalibration", "inner_gain"]
+__all__ = ["calibrate_torque_d_bar", "torque_plant", "check_plant", "TorqueCalibration", "inner_gain"]
 
 _CACHE: dict[tuple[Any, ...], tuple[mujoco.MjModel | None, TorqueCalibration]] = {}
 """Calibrations by scene files and arguments, each with the plant it ran on (a hit needs that very plant)."""
@@ -100,6 +100,22 @@ def inner_gain(alpha: object) -> float:
     raise ConfigError("alpha_1 must be given when alpha is not a linear gain")
 
 
+def check_plant(scene: Scene, plant: mujoco.MjModel | None) -> None:
+    """A simulated arm's model must have the scene model's joints and mocap bodies (the states are copied across).
+
+    Raises:
+        ConfigError: ``plant`` has another number of position or velocity coordinates or of mocap bodies.
+
+    """
+    if plant is None:
+        return
+    m = scene.model
+    mine, theirs = (m.nq, m.nv, m.nmocap), (plant.nq, plant.nv, plant.nmocap)
+    if mine != theirs:
+        raise ConfigError(f"the plant's model must have the scene's joints and mocap bodies (nq, nv, nmocap) = {mine}; "
+                          f"it has {theirs}")
+
+
 def torque_plant(model: mujoco.MjModel) -> mujoco.MjModel:
     """A copy of ``model`` with its actuators switched off: the arm torques go in ``qfrc_applied``."""
     plant = copy.deepcopy(model)
@@ -125,7 +141,7 @@ def calibrate_torque_d_bar(
     Args:
         scene: The scene (the filter's model; not modified).
         plant: The simulated arm's model (default: the scene's); not modified.
-        duration: Simulated time [s], > 0.
+        duration: Simulated time [s], at least one control period.
         quantile: Quantile level in (0, 1].
         factor: Safety factor >= 1.
         excitation: Random torque offsets as a fraction of the torque limits, >= 0.
@@ -144,6 +160,10 @@ def calibrate_torque_d_bar(
                           f"{duration}, {switch_period}, {excitation}")
     if not (0.0 < quantile <= 1.0 and factor >= 1.0):
         raise ConfigError(f"calibration quantile must be in (0, 1] and factor >= 1, got {quantile}, {factor}")
+    check_plant(scene, plant)
+    if duration < scene.config.control.period:
+        raise ConfigError(f"calibration duration must cover a control period ({scene.config.control.period:g} s), "
+                          f"got {duration:g} s")
     alpha_1 = inner_gain(scene.config.filter.alpha) if alpha_1 is None else float(alpha_1)
     if not (np.isfinite(alpha_1) and alpha_1 >= 0):
         raise ConfigError(f"alpha_1 must be a number >= 0 [1/s], got {alpha_1}")

@@ -53,7 +53,7 @@ from .scene import Scene
 from .second_order import SecondOrderRows
 from .sim import ArmSimulation, _Episode
 from .step_columns import TickValues
-from .torque_calibration import calibrate_torque_d_bar, inner_gain, torque_plant
+from .torque_calibration import calibrate_torque_d_bar, check_plant, inner_gain, torque_plant
 from .torque_nominal import TorqueNominal, computed_torque, torque_clip, torque_peak
 from .torque_rollout import TorqueRollout
 
@@ -147,6 +147,7 @@ class TorqueSimulation(ArmSimulation):
                  b: float | None = None, d_bar: float | None = None, alpha_1: float | None = None,
                  kd: float | None = None, self_collision: bool | None = True, solver: QPSolver | None = None,
                  **kwargs: Any) -> None:
+        check_plant(scene, plant)
         if params is None:
             params = resolve_torque_params(scene, alpha, c, b, d_bar, calibrate=False)
         if params.shoot:

@@ -127,3 +127,28 @@ def test_a_control_period_set_in_memory_is_calibrated_for(ur5e) -> None:  # type
     assert calibrate_torque_d_bar(dataclasses.replace(slow), duration=0.4) is held  # (the same config: cached)
     with pytest.raises(ConfigError, match="whole multiple"):
         _with_period(ur5e, 0.0013)
+
+
+def test_a_plant_with_other_joints_is_refused_in_one_line() -> None:
+    """The plant's states are copied to and from the filter's model: another joint layout is a ConfigError naming
+    both, for the simulation and for the calibration (it was a raw ValueError from the copy)."""
+    planar = load_scene("planar")
+    spec = mujoco.MjSpec.from_file(str(planar.xml_path))
+    body = spec.worldbody.add_body(name="extra_body", pos=[5.0, 5.0, 0.0])  # (far away, a joint of its own)
+    body.add_joint(name="extra_hinge", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0.0, 0.0, 1.0])
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.01, 0.0, 0.0], contype=0, conaffinity=0)
+    other = spec.compile()
+    assert other.nq == planar.model.nq + 1
+    with pytest.raises(ConfigError, match=r"\(nq, nv, nmocap\)"):
+        TorqueSimulation(planar, "cbf", plant=other, d_bar=0.1)
+    with pytest.raises(ConfigError, match=r"\(nq, nv, nmocap\)"):
+        calibrate_torque_d_bar(planar, other, duration=0.1)
+
+
+def test_a_calibration_shorter_than_a_control_period_is_refused(ur5e) -> None:  # type: ignore[no-untyped-def]
+    """(Both levels' calibrations ended in an IndexError of an empty quantile.)"""
+    from isf_robot.arm.calibration import calibrate_d_bar
+
+    for calibrate in (calibrate_torque_d_bar, calibrate_d_bar):
+        with pytest.raises(ConfigError, match="must cover a control period"):
+            calibrate(ur5e, duration=0.0005)
