@@ -21,7 +21,7 @@ from satellite.control.triggers import TRIGGERS, Trigger
 from satellite.gravity.fields import DEFAULT_GRAVITY, GRAVITY_MODELS, load_field
 from satellite.orbit.arcs import IntegratorSettings
 from satellite.orbit.model import InitialOrbit, OrbitModel
-from satellite.orbit.simulate import MIN_INTERVAL_S, RunResult, SatelliteSample, simulate
+from satellite.orbit.simulate import MIN_INTERVAL_S, SURFACE_STEP_S, RunResult, SatelliteSample, simulate
 from satellite.shape.mesh_surface import load_surface
 
 __all__ = ["register", "run", "ProgressObserver", "format_text", "add_controller_args", "control_from_args"]
@@ -157,8 +157,8 @@ def register(subparsers: Any) -> None:
                    help="shape file for --contact, --surface-check, --surface-barrier and --gravity polyhedron "
                         "(default: the shipped Gaskell Itokawa mesh, itokawa_low.obj)")
     p.add_argument("--shape-units", choices=("km", "m"), default="km", help="length unit of --shape (default km)")
-    p.add_argument("--surface-step", type=float, default=10.0, metavar="S",
-                   help="sampling interval of --surface-check in seconds (default 10)")
+    p.add_argument("--surface-step", type=float, default=None, metavar="S",
+                   help=f"sampling interval of --surface-check in seconds (default {SURFACE_STEP_S:g})")
     add_recording_args(p)
     p.set_defaults(func=run)
 
@@ -225,8 +225,11 @@ def run(args: argparse.Namespace) -> int:
             and args.gravity != "polyhedron"):
         raise ConfigError("--shape needs --surface-check, --contact count|stop, --surface-barrier or "
                           "--gravity polyhedron")
-    if args.surface_check and not (math.isfinite(args.surface_step) and args.surface_step > 0):
-        raise ConfigError(f"--surface-step must be a positive number of seconds, got {args.surface_step:g}")
+    if args.surface_step is not None and not args.surface_check:
+        raise ConfigError("--surface-step goes with --surface-check")
+    surface_step = SURFACE_STEP_S if args.surface_step is None else args.surface_step
+    if not (math.isfinite(surface_step) and surface_step > 0):
+        raise ConfigError(f"--surface-step must be a positive number of seconds, got {surface_step:g}")
     if not args.surface_barrier and (args.surface_clearance != 0.0 or args.surface_c is not None):
         raise ConfigError("--surface-clearance and --surface-c go with --surface-barrier")
     if args.surface_barrier and trigger not in (Trigger.GREEDY, Trigger.MANEUVER):
@@ -264,7 +267,7 @@ def run(args: argparse.Namespace) -> int:
     if recorder is not None:
         observers.append(recorder)
     res = simulate(trigger, args.hours, initial=initial, model=model, control=control, tau=tau,
-                   observers=observers, surface=surface, surface_step_s=args.surface_step,
+                   observers=observers, surface=surface, surface_step_s=surface_step,
                    body_mesh=recorder is not None, contact=args.contact, contact_surface=shape,
                    integrator=IntegratorSettings(event_scan=not args.no_event_scan), period_h=args.period_h,
                    min_interval_s=args.min_interval, surface_barrier=args.surface_barrier,

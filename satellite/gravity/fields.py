@@ -121,11 +121,12 @@ def load_field(name: str = DEFAULT_GRAVITY, shape: str | Path | None = None, uni
         return _committed_table()
     if name == "polyhedron":
         return exact_itokawa(shape, units)
+    if name.endswith((".json", ".npz")) and not Path(name).is_file():
+        raise GravityModelError(f"gravity file not found: {name} (give {', '.join(GRAVITY_MODELS)}, or a .json series "
+                                "or .npz table written by `isf-satellite gravity`)")
     if name.endswith(".json"):
         return GravityField.from_json(name)
     if name.endswith(".npz"):
-        if not Path(name).is_file():
-            raise GravityModelError(f"gravity table not found: {name}")
         return GravityTable.load(name)
     raise GravityModelError(f"unknown gravity model {name!r}; valid: {', '.join(GRAVITY_MODELS)}, FILE.json "
                             "or FILE.npz")

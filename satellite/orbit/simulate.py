@@ -54,7 +54,11 @@ __all__ = [
     "miet_estimate",
     "MietReport",
     "MIN_INTERVAL_S",
+    "SURFACE_STEP_S",
 ]
+
+SURFACE_STEP_S = 10.0
+"""Default sampling interval of the surface check [s] (``surface_step_s``)."""
 
 
 def start_info(
@@ -109,7 +113,7 @@ def simulate(
     sample_interval_s: float = 600.0,
     miet_samples: int = 2000,
     surface: SurfaceModel | None = None,
-    surface_step_s: float = 10.0,
+    surface_step_s: float = SURFACE_STEP_S,
     body_mesh: bool | None = None,
     contact: str = "off",
     contact_surface: SurfaceModel | None = None,

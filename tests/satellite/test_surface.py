@@ -205,6 +205,9 @@ def test_cli_surface_check_with_shape_file(
         (["run", "--contact", "off", "--shape", "x.obj"], "--shape needs --surface-check, --contact count|stop"),
         (["run", "--surface-check", "--shape", "/nonexistent/shape.obj"], "not found"),
         (["run", "--surface-check", "--surface-step", "0"], "--surface-step"),
+        (["run", "--surface-step", "0"], "--surface-step goes with --surface-check"),  # (was accepted, unused)
+        (["run", "--surface-step", "60"], "--surface-step goes with --surface-check"),
+        (["run", "--gravity", "nope.json"], "gravity file not found: nope.json (give table, sh8"),
     ],
 )
 def test_cli_surface_errors(argv: list[str], needle: str, capsys: pytest.CaptureFixture[str]) -> None:
