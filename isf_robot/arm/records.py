@@ -124,7 +124,7 @@ class RunResult:
         scene: Scene name.
         filter: Strategy name.
         seed: Episode seed (-1: the scene exactly as configured).
-        physics_steps: Number of physics steps.
+        physics_steps: States the safety monitor checked: the start and every physics step after it (steps + 1).
         metrics: Duty cycle, switches, on/off periods, intervention, QP solves
             (:class:`~isf_robot.core.DutyCycleMetrics`).
         stats: Fallbacks, relaxations, re-solves, closed forms, QP times
