@@ -77,7 +77,8 @@ def handle(args: argparse.Namespace) -> int:
 def _recordings(args: argparse.Namespace) -> tuple[Any, str]:
     from isf_robot.core.strategies import strategy_names
     from isf_robot.plots import OrbitSeries, RunSeries, StrategyBars, compare_figure, run_figure, satellite_figure
-    from isf_robot.record.figure_data import arm_series, run_level, satellite_series, strategy_bars
+    from isf_robot.record.figure_data import arm_series, satellite_series, strategy_bars
+    from isf_robot.record.schema import run_level
     from isf_robot.record.replay import read_many
 
     logs = read_many(args.inputs)
@@ -98,7 +99,7 @@ def _recordings(args: argparse.Namespace) -> tuple[Any, str]:
                           "of one arm; plot one kind at a time")
     if teams:
         return _team_recordings(args, logs)
-    levels = sorted({run_level(log) for log in logs})
+    levels = sorted({run_level(log.info) for log in logs})
     if len(levels) > 1:
         raise ConfigError(f"the inputs mix {' and '.join(levels)}-level recordings (their commands, duty and "
                           "intervention are not comparable in one bar); plot one level at a time")

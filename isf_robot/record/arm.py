@@ -55,7 +55,7 @@ from .buffer import TIMELINE, Channel
 from .errors import RecordError
 from .mjgeometry import MujocoDrawing
 from .recorder import RerunRecorder, any_values, finite_scalars, value_columns
-from .schema import STEPS, TERMINAL
+from .schema import STEPS, TERMINAL, command_unit
 from .team import TeamSeries
 
 __all__ = ["ArmRecorder"]
@@ -348,7 +348,7 @@ class ArmRecorder(RerunRecorder):
             self.team.log_static(rec)
             blueprint = team_blueprint(self.team.names, eye, target, span, c=self.c)
         else:
-            blueprint = arm_blueprint(eye, target, span, c=self.c)
+            blueprint = arm_blueprint(eye, target, span, c=self.c, unit=command_unit(info))
         rec.send_blueprint(blueprint, make_active=True, make_default=True)
 
     # -- per step ------------------------------------------------------------------------

@@ -71,7 +71,7 @@ def camera_for(centre: Sequence[float], radius: float) -> tuple[np.ndarray, np.n
 
 
 def arm_blueprint(eye: Sequence[float] | None = None, target: Sequence[float] | None = None,
-                  duration_s: float | None = None, c: float | None = None) -> rrb.Blueprint:
+                  duration_s: float | None = None, c: float | None = None, unit: str = "rad/s") -> rrb.Blueprint:
     """Arm layout: scene in 3-D (left); h, Xi_on, mode and command correction stacked (right).
 
     Args:
@@ -80,6 +80,7 @@ def arm_blueprint(eye: Sequence[float] | None = None, target: Sequence[float] | 
         duration_s: The run's length: the plots' time axes span it.
         c: The off margin: the ``Xi_on`` plot's value axis starts at ``[-2c, 6c]`` (:func:`xi_range`),
             so its thresholds 0 and ``c`` stay apart however large ``Xi_on`` gets far from obstacles.
+        unit: The command's unit (``rad/s``; ``N m`` at the torque level).
 
     """
     eye_controls = None
@@ -92,9 +93,9 @@ def arm_blueprint(eye: Sequence[float] | None = None, target: Sequence[float] | 
         rrb.TimeSeriesView(origin=f"{PLOTS}/xi", name="min Xi_on with 0 and c", **span, **_xi_axis(c)),
         rrb.TimeSeriesView(origin=f"{PLOTS}/mode", name="filter mode (1 = on)", **span),
         rrb.Tabs(
-            rrb.TimeSeriesView(origin=f"{PLOTS}/command", name="|u - u_nom| [rad/s]", **span),
-            rrb.TimeSeriesView(origin=f"{PLOTS}/joints/correction", name="u - u_nom per joint [rad/s]", **span),
-            rrb.TimeSeriesView(origin=f"{PLOTS}/joints/command", name="u and u_nom per joint [rad/s]", **span),
+            rrb.TimeSeriesView(origin=f"{PLOTS}/command", name=f"|u - u_nom| [{unit}]", **span),
+            rrb.TimeSeriesView(origin=f"{PLOTS}/joints/correction", name=f"u - u_nom per joint [{unit}]", **span),
+            rrb.TimeSeriesView(origin=f"{PLOTS}/joints/command", name=f"u and u_nom per joint [{unit}]", **span),
         ),
         row_shares=[3, 2, 1, 2],
     )
@@ -182,8 +183,8 @@ def generic_blueprint() -> rrb.Blueprint:
     )
 
 
-def compare_blueprint(strategies: Sequence[str], *, root: str = "/compare") -> rrb.Blueprint:
-    """Strategies of one seed side by side: a column per strategy (barrier, mode, correction).
+def compare_blueprint(strategies: Sequence[str], *, root: str = "/compare", unit: str = "rad/s") -> rrb.Blueprint:
+    """Strategies of one seed side by side: a column per strategy (barrier, mode, correction in ``unit``).
 
     The views read ``<root>/<strategy>/plots/...``: :func:`isf_robot.record.compare.merge_runs`
     copies each per-run recording's plots there, in one recording.
@@ -196,7 +197,7 @@ def compare_blueprint(strategies: Sequence[str], *, root: str = "/compare") -> r
         cols.append(rrb.Vertical(
             rrb.TimeSeriesView(origin=f"{base}/barrier", name=f"{s}: barrier h [m]"),
             rrb.TimeSeriesView(origin=f"{base}/mode", name=f"{s}: filter mode"),
-            rrb.TimeSeriesView(origin=f"{base}/command", name=f"{s}: |u - u_nom| [rad/s]"),
+            rrb.TimeSeriesView(origin=f"{base}/command", name=f"{s}: |u - u_nom| [{unit}]"),
             row_shares=[3, 1, 2], name=s,
         ))
     return rrb.Blueprint(rrb.Horizontal(*cols), _time_panel(), collapse_panels=False)

@@ -17,9 +17,10 @@ from rerun.chunk import RrdReader
 from .columns import read_columns
 from .errors import RecordingReadError
 from .replay import RunLog, arm_metrics, replay_metrics
+from .schema import command_unit
 
 __all__ = ["arm_series", "satellite_series", "strategy_bars", "run_label", "team_arm_series", "team_bars",
-           "team_group", "run_level", "command_unit"]
+           "team_group"]
 
 
 def run_label(log: RunLog) -> str:
@@ -66,18 +67,9 @@ def arm_series(log: RunLog) -> dict[str, Any]:
         "t": s["t"], "dt": s["dt"], "h": s["min_barrier"], "on": s["on"],
         "correction": np.sqrt(np.asarray(s["intervention_rate"], dtype=float)),
         "xi_t": xi_t, "xi": xi, "c": float(c) if isinstance(c, (int, float)) else float("nan"),
-        "unit": command_unit(log),
+        "unit": command_unit(log.info),
     }
 
-
-def run_level(log: RunLog) -> str:
-    """What an arm recording's filter commanded: ``velocity`` or ``torque`` (its run info's ``level``)."""
-    return str(log.info.get("level") or "velocity")
-
-
-def command_unit(log: RunLog) -> str:
-    """The unit of an arm recording's commands: ``N m`` at the torque level, else ``rad/s``."""
-    return "N m" if run_level(log) == "torque" else "rad/s"
 
 
 def satellite_series(log: RunLog) -> dict[str, Any]:

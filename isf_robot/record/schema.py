@@ -36,12 +36,15 @@ Layout of a recording (every time-varying entity is on the ``sim_time`` timeline
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import rerun as rr
 
 __all__ = [
     "INFO", "SUMMARY", "STEPS", "EVENTS", "EVENT_LOG", "STEP_FIELDS", "EVENT_FIELDS",
     "PLOTS", "WORLD", "IMPULSES", "IMPULSE_FIELDS", "TERMINAL", "ARMS", "ARM_STEPS",
-    "arm_path",
+    "arm_path", "run_level", "command_unit",
 ]
 
 INFO = "/run/info"
@@ -71,3 +74,13 @@ IMPULSE_FIELDS: tuple[str, ...] = (
 def arm_path(root: str, name: str) -> str:
     """``<root>/<name>`` with an arm's name escaped as one entity path part (a team's per-arm entities)."""
     return f"{root}/{rr.escape_entity_path_part(str(name))}"
+
+
+def run_level(info: Mapping[str, Any]) -> str:
+    """What an arm run's filter commanded, from its run info: ``velocity`` or ``torque`` (the info's ``level``)."""
+    return str(info.get("level") or "velocity")
+
+
+def command_unit(info: Mapping[str, Any]) -> str:
+    """The unit of an arm run's commands, from its run info: ``N m`` at the torque level, else ``rad/s``."""
+    return "N m" if run_level(info) == "torque" else "rad/s"

@@ -21,6 +21,7 @@ from .blueprints import compare_blueprint
 from .columns import read_columns
 from .errors import RecordingReadError
 from .replay import RunLog, read_rrd
+from .schema import command_unit
 from .stream import close_stream, open_stream
 
 __all__ = ["write_side_by_side", "SERIES", "SUBDIR"]
@@ -68,8 +69,11 @@ def write_side_by_side(directory: str | Path, order: Sequence[str] = ()) -> list
             raise RecordingReadError(d, f"several recordings of {scene} seed {seed} with the same strategy")
         name = f"{scene}-seed{seed}"
         path = d / SUBDIR / f"{name}.rrd"
+        units = {command_unit(log.info) for _, log in runs}
+        if len(units) > 1:
+            raise RecordingReadError(d, f"recordings of {scene} seed {seed} at both levels: compare one level at a time")
         stream = open_stream("isf_robot_compare", rrd_path=path, recording_name=f"{name}: {' vs '.join(strategies)}",
-                             blueprint=compare_blueprint(strategies))
+                             blueprint=compare_blueprint(strategies, unit=units.pop()))
         ok = False
         try:
             stream.log("/run/info", rr.AnyValues(scene=scene, seed_label=seed, strategies=",".join(strategies),

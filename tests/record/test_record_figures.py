@@ -184,3 +184,25 @@ def test_torque_level_recordings_plot_in_their_units_and_never_with_the_velocity
     bars = [StrategyBars(**b) for b in strategy_bars(read_rrd(paths["torque"]) + read_rrd(paths["velocity"]))]
     with pytest.raises(ConfigError, match="different units"):
         compare_figure([torque, velocity], bars)
+    # the viewer's layouts label the command in the run's unit too; side by side refuses the two levels together
+    from isf_robot.record.blueprints import arm_blueprint, compare_blueprint
+    from isf_robot.record.errors import RecordingReadError
+    from isf_robot.record.side_by_side import write_side_by_side
+
+    def names(blueprint) -> list[str]:  # type: ignore[no-untyped-def]
+        out, todo = [], [blueprint.root_container]
+        while todo:
+            view = todo.pop()
+            todo += list(getattr(view, "contents", None) or [])
+            out.append(str(getattr(view, "name", "")))
+        return out
+
+    assert "|u - u_nom| [N m]" in names(arm_blueprint(unit="N m")) and "|u - u_nom| [rad/s]" in names(arm_blueprint())
+    assert "isf: |u - u_nom| [N m]" in names(compare_blueprint(["isf"], unit="N m"))
+    mixed = tmp_path / "mixed"
+    mixed.mkdir()
+    paths["torque"].rename(mixed / "planar-isf-seed0.rrd")
+    assert main(["run", "--scene", "planar", "--filter", "cbf", "--duration", "0.3",
+                 "--rrd", str(mixed / "planar-cbf-seed0.rrd")]) == 0
+    with pytest.raises(RecordingReadError, match="at both levels"):
+        write_side_by_side(mixed)
