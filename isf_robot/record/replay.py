@@ -146,6 +146,9 @@ def _read_store(path: Path, reader: RrdReader, entry: Any) -> RunLog:
             by_entity.setdefault(ep, []).append(chunk.to_record_batch())
     info_batches = by_entity.get(schema.INFO, [])
     if not info_batches or schema.STEPS not in by_entity:
+        if path.name.endswith(".partial"):  # (the temporary name a recording has until its run ends)
+            raise RecordingReadError(path, "an unfinished recording (its run was interrupted before the recording "
+                                           "was complete) holds no run log to replay; finished runs' .rrd files do")
         raise RecordingReadError(
             path, f"recording {entry.recording_id!r} is not an isf_robot run log (no {schema.INFO} / "
             f"{schema.STEPS} entities); record runs with --rrd"

@@ -91,6 +91,9 @@ def test_foreign_rerun_recording(tmp_path) -> None:  # type: ignore[no-untyped-d
     rec.disconnect()
     with pytest.raises(RecordingReadError, match="not an isf_robot run log"):
         read_rrd(path)
+    partial = path.rename(tmp_path / "run.rrd.partial")  # (an interrupted run's file, with nothing of the run in it)
+    with pytest.raises(RecordingReadError, match="an unfinished recording"):
+        read_rrd(partial)
 
 
 def test_unfinished_run_is_reported(tmp_path) -> None:  # type: ignore[no-untyped-def]
