@@ -61,10 +61,11 @@ from .timing import PhaseTimers
 
 __all__ = ["ArmSimulation", "run_episode"]
 
+_new = tuple.__new__  # a NamedTuple from a tuple of its fields (as _make, without the length check)
+
 PHASES = ("sense", "barriers", "nominal", "strategy", "act")
 MAX_CONTROL_STEPS = 10_000_000
 """Longest run in control steps (the obstacle paths and tracking errors are stored per step)."""
-_new = tuple.__new__  # a NamedTuple from a tuple of its fields (as _make, without the length check)
 BLOCK_STEPS = 2048
 """Steps per block handed to block observers (an observer's ``block_steps`` attribute lowers it)."""
 PROGRESS_STEPS = 256
