@@ -68,20 +68,31 @@ def least(a):  # type: ignore[no-untyped-def]
 def write_row(p, i, t, on, qp, fallback, goal, u, u_nom, xi, rows, tick_h, wit, has_wit):  # type: ignore[no-untyped-def]  # pragma: no cover (compiled)
     """Write row ``i`` (see the module docstring); returns the pairs used after it, or -1 (nothing written).
 
-    -1 when a near pair's index is not one of the block's collision pairs or ``tick_h`` does not hold the
-    near pairs' and the joint rows' values: the caller then writes the row the NumPy way (which says what
-    is wrong). ``wit``: the pairs' witness points, shape (j, 2 or more, 3), read when ``has_wit``.
+    -1 when the row does not fit: ``i`` is past the block's capacity, ``u`` and ``u_nom`` are not of the
+    row's width of joints, a near pair's index is not one of the block's collision pairs, ``tick_h`` does not
+    hold the near pairs' and the joint rows' values, or the witness points are not of shape (j, 2 or more, 3);
+    the caller then writes the row the NumPy way (which says what is wrong). ``wit``: the pairs' witness
+    points, read when ``has_wit``.
     """
     m = p[0]
     b = 1 + 2 * m
     cap, k, nc = p[b + CAPACITY], p[b + K], p[b + NC]
+    w = p[b + WIDTH]
+    if i < 0 or i >= cap:
+        return -1
+    state = 0
+    for s in range(m):
+        state += p[2 + 2 * s]
+    if u.shape[0] != u_nom.shape[0] or state + 2 * u.shape[0] != w:
+        return -1
     j = rows.shape[0]
     if tick_h.shape[0] != j + k - nc:
+        return -1
+    if has_wit and (wit.shape[0] != j or wit.shape[1] < 2 or wit.shape[2] != 3):
         return -1
     for r in range(j):
         if rows[r] < 0 or rows[r] >= nc:
             return -1
-    w = p[b + WIDTH]
     row = carray(f64p(p[b + ROW_STATE] + 8 * w * i), w)
     c = 0
     for s in range(m):

@@ -61,6 +61,8 @@ from .timing import PhaseTimers
 
 __all__ = ["ArmSimulation", "run_episode"]
 
+_new = tuple.__new__  # a NamedTuple from a tuple of its fields (as _make, without the length check)
+
 PHASES = ("sense", "barriers", "nominal", "strategy", "act")
 MAX_CONTROL_STEPS = 10_000_000
 """Longest run in control steps (the obstacle paths and tracking errors are stored per step)."""
@@ -237,6 +239,7 @@ class ArmSimulation:
         per_step = bool(stepwise)
         block = ep.block(min((getattr(o, "block_steps", BLOCK_STEPS) for o in blockwise.items),
                              default=BLOCK_STEPS)) if recording else None
+        write, end_row = (ep.write, block.end_row) if block is not None else (None, None)
         if recording:
             observers.on_start({**self.start_info(n_ctrl * T), "data": ep.data})  # live data: a viewer can perturb it
         progress, total = self.progress, n_ctrl * T
@@ -252,10 +255,10 @@ class ArmSimulation:
                 u_nom = nominal(t)
                 step = strategy(t, lie, u_nom)
                 if block is not None:  # (the row holds the tick's state: written before the physics steps)
-                    ep.write(block, t, step, values)
+                    write(block, t, step, values)  # type: ignore[misc]
                 act(k, step.u)
                 if block is not None:
-                    full = block.end_row(ep.true_min)
+                    full = end_row(ep.true_min)  # type: ignore[misc]
                     if step.event is not None:
                         observers.on_event(step.event)
                     if per_step:
@@ -360,13 +363,13 @@ class _Episode:
         if self.uses_rows:  # (the rows in one pass, without the NearPairs; witness points only for a record)
             lie, idx, row_list, h_min, _, jmin, wit = sim.coll.lie_rows(
                 self.data, sim.joints, self.lin, coherence=self.coherence, witness=self.recording)
-            values = TickValues(idx, lie.h, wit) if self.recording else None
+            values = _new(TickValues, (idx, lie.h, wit)) if self.recording else None
             self.tick_h = lie.h
         else:
             rows = sim.coll.rows(self.data, sim.joints, self.lin, witness=self.recording, coherence=self.coherence)
             near = rows.near
             idx, row_list, h_min, jmin = near.rows, near.row_list, near.h_min, rows.joint_min
-            values = TickValues(idx, rows.h, near.witness) if self.recording else None
+            values = _new(TickValues, (idx, rows.h, near.witness)) if self.recording else None
             lie = None
             self.tick_h = rows.h
         self.true_min = self.monitor.tick_min(min(h_min, self._h_far_min), row_list, idx)

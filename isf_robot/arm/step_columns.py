@@ -33,9 +33,10 @@ __all__ = ["StepColumns", "TickValues"]
 
 _F8 = np.dtype(np.float64)
 _I8 = np.dtype(np.int64)
+_S8 = (8,)  # (the strides of a 1-D contiguous array of 8-byte values; an empty one's are (0,))
 _NO_POINTS = np.zeros((0, 2, 3))  # (the witness points passed when a row has none)
 _ONE_F8, _ONE_I8 = np.zeros(1), np.zeros(1, np.int64)  # (the types the compiled write is made for: writable, C)
-_STRIDED_POINTS = np.zeros((2, 3, 3))[:, :2]  # (witness points as a strided view, as near's are: two pairs, so not C)
+_ANY_POINTS = np.zeros((2, 3, 3))[:, :2]  # (witness points of any layout: a strided view, as near's are, so not C)
 
 
 def _row_kernel() -> Any:
@@ -159,7 +160,8 @@ class StepColumns:
         self.sealed = 0
         self._state: tuple[Any, ...] = ()
         self._copy: Any = None  # (the compiled row write: (kernel, sources, h_far, address table), made by bind)
-        self._variants: dict[bool, Any] = {}  # (the kernel called directly, by whether witness points are contiguous)
+        self._table: np.ndarray | None = None  # (its address table, ``_copy[3]``)
+        self._call: Any = None  # (the kernel called directly, made at the first compiled write)
         self._used = 0  # (near pairs in the flat buffers, rows written by the compiled write: their end)
 
     def __len__(self) -> int:
@@ -178,7 +180,7 @@ class StepColumns:
     def __getstate__(self) -> dict:
         """A copy or a pickle writes the NumPy way: the compiled write's table holds this object's raw addresses."""
         state = dict(self.__dict__)
-        state["_copy"], state["_variants"] = None, {}
+        state["_copy"], state["_table"], state["_call"] = None, None, None
         return state
 
     def bind(self, data: Any, qpos_adr: Any, dof_adr: Any, ee_pos: np.ndarray) -> None:
@@ -211,10 +213,10 @@ class StepColumns:
                 kernel = _row_kernel()  # (the views' types are fixed: their addresses in the table)
                 if kernel is not None:
                     fast = (kernel, parts)
-            self._state, self._copy, self._variants = (parts, None), fast, {}
+            self._state, self._copy, self._table, self._call = (parts, None), fast, None, None
             self._point()
         else:  # (the arm's joints scattered: picked at each step)
-            self._state, self._copy = (rest, (data, qpos_adr, dof_adr)), None
+            self._state, self._copy, self._table = (rest, (data, qpos_adr, dof_adr)), None, None
 
     def _point(self) -> None:
         """The compiled write's address table, on the block's arrays as they are now (again after they grow)."""
@@ -223,13 +225,14 @@ class StepColumns:
         from ._columns_jit import table
 
         goals, far = self._goals, np.ascontiguousarray(self.h_far, dtype=np.float64)
-        self._copy = (self._copy[0], self._copy[1], far, table(
+        self._table = table(
             self._copy[1], row_state=self._row_state, width=self._row_state.shape[1], t=self.t, on=self.on,
             qp_solved=self.qp_solved, fallback=self.fallback, goal_index=self.goal_index, xi_min=self.xi_min,
             h=self.h, k=self.h.shape[1], n_collision=self.n_collision, h_far=far, h_min=self.h_min,
             pair_start=self.pair_start, pairs=self._pairs, witness=self._witness, goal_pos=self.goal_pos,
             goals=goals if goals is not None else self.goal_pos, n_goals=0 if goals is None else len(goals),
-            capacity=self.capacity))
+            capacity=self.capacity)
+        self._copy = (self._copy[0], self._copy[1], far, self._table)
 
     def clear(self) -> None:
         """Start the next block (the arrays are reused: observers must not keep views past ``on_steps``)."""
@@ -255,6 +258,8 @@ class StepColumns:
             RuntimeError: :meth:`bind` was not called.
 
         """
+        if self._table is not None and not self._rows and self._write_compiled(t, step, values, goal_index):
+            return
         i = self.size
         if i >= self.capacity:
             raise IndexError(f"the block is full ({self.capacity} steps)")
@@ -264,8 +269,6 @@ class StepColumns:
         u, u_nom = step.u, step.u_nom
         if u.shape[0] != self._n or u_nom.shape[0] != self._n:  # (one copy checks only the total width)
             raise ValueError(f"commands of {u.shape[0]} and {u_nom.shape[0]} joints for a block of {self._n}")
-        if self._copy is not None and not self._rows and self._write_compiled(i, t, step, values, goal_index, u, u_nom):
-            return
         if pick is None:  # (the row's state and commands: one copy)
             np.concatenate((*src, u, u_nom), out=self._row_state[i])
         else:
@@ -280,41 +283,44 @@ class StepColumns:
         if self.size - self.sealed >= self.SEAL_ROWS:
             self.seal()
 
-    def _write_compiled(self, i: int, t: float, step: Any, values: TickValues, goal_index: int, u: np.ndarray,
-                        u_nom: np.ndarray) -> bool:
-        """Row ``i`` by the compiled write (``_columns_jit.write_row``), whole; ``False``: the NumPy way instead.
+    def _write_compiled(self, t: float, step: Any, values: TickValues, goal_index: int) -> bool:
+        """The next row by the compiled write (``_columns_jit.write_row``), whole; ``False``: the NumPy way instead.
 
         Taken when every array has the types the compiled call was made for (checked here: the call is
-        direct, without numba's own checks): float64 (int64 for the pairs) and contiguous, the witness points
-        contiguous or not (a call for each, made when first needed), and the values hold what the row needs.
-        The calls are made for writable arrays and take read-only ones as they are (the write only reads them;
-        numba would otherwise compile it again for each mix of read-only arguments).
+        direct, without numba's own checks): 1-D float64 (int64 for the pairs) and contiguous, the witness points
+        3-D float64 of any layout (one call for contiguous and strided ones alike, made when first needed). The
+        write itself checks the rest and writes nothing when the row does not fit (a full block, commands of
+        another width, values or witness points that do not match the near pairs, a pair that is not one of the
+        block's): the NumPy way then says what is wrong. The call is made for writable arrays and takes read-only
+        ones as they are (the write only reads them; numba would otherwise compile it again for each mix of
+        read-only arguments). It is the loop's path at every step of a recorded run, so it checks as little as
+        it can in Python: a dtype and the strides of each array.
         """
         rows, tick_h, wit = values
-        xi = step.xi
+        u, u_nom, xi = step.u, step.u_nom, step.xi
         if not (u.dtype is _F8 and u_nom.dtype is _F8 and xi.dtype is _F8 and tick_h.dtype is _F8
-                and rows.dtype is _I8 and u.ndim == 1 and u_nom.ndim == 1 and xi.ndim == 1 and tick_h.ndim == 1
-                and rows.ndim == 1 and u.flags.c_contiguous and u_nom.flags.c_contiguous and xi.flags.c_contiguous
-                and tick_h.flags.c_contiguous and rows.flags.c_contiguous):
+                and rows.dtype is _I8 and (u.strides == _S8 or _flat(u)) and (u_nom.strides == _S8 or _flat(u_nom))
+                and (xi.strides == _S8 or _flat(xi)) and (tick_h.strides == _S8 or _flat(tick_h))
+                and (rows.strides == _S8 or _flat(rows))):
             return False
-        j = rows.shape[0]
         if wit is None:
-            has, wit, dense = False, _NO_POINTS, True
-        elif type(wit) is np.ndarray and wit.dtype is _F8 and wit.ndim == 3 and wit.shape[0] == j and \
-                wit.shape[1] >= 2 and wit.shape[2] == 3:
-            has, dense = True, wit.flags.c_contiguous
+            has, wit = False, _NO_POINTS
+        elif type(wit) is np.ndarray and wit.dtype is _F8 and wit.ndim == 3:
+            has = True
         else:
             return False
-        call = self._variants.get(dense)
+        call = self._call
         if call is None:
-            call = self._variants[dense] = direct(self._copy[0], (
-                self._copy[3], 0, 0.0, False, False, False, 0, _ONE_F8, _ONE_F8, _ONE_F8, _ONE_I8, _ONE_F8,
-                _NO_POINTS if dense else _STRIDED_POINTS, True))
+            call = self._call = direct(self._copy[0], (
+                self._table, 0, 0.0, False, False, False, 0, _ONE_F8, _ONE_F8, _ONE_F8, _ONE_I8, _ONE_F8,
+                _ANY_POINTS, True))
+        j = rows.shape[0]
         if self._used + j > self._pairs.shape[0]:
             self._room(self._used + j)
-        used = call(self._copy[3], i, float(t), bool(step.on), step.qp is not None, bool(step.fallback),
+        i = self.size
+        used = call(self._table, i, float(t), bool(step.on), step.qp is not None, bool(step.fallback),
                     int(goal_index), u, u_nom, xi, rows, tick_h, wit, has)
-        if used < 0:  # (pairs or values the compiled write does not take: the NumPy way says what is wrong)
+        if used < 0:  # (a row the compiled write does not take: the NumPy way says what is wrong)
             return False
         self._used = used
         if step.relaxed:
@@ -428,6 +434,11 @@ class StepColumns:
             ee_pos=self.ee_pos[i].copy(), goal_index=int(self.goal_index[i]), goal_pos=self.goal_pos[i].copy(),
             event=self.events.get(i), fallback=bool(self.fallback[i]), relaxed=self.relaxed.get(i, ()),
         )
+
+
+def _flat(a: np.ndarray) -> bool:
+    """Whether ``a`` is 1-D and contiguous (the full check, for arrays whose strides are not ``(8,)``: empty ones)."""
+    return a.ndim == 1 and a.flags.c_contiguous
 
 
 def _row_minima(arrays: tuple[np.ndarray, ...], n: int) -> np.ndarray:

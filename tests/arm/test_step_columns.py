@@ -189,8 +189,12 @@ def test_write_checks() -> None:
     block.clear()
     assert len(block) == 0 and block.true_min[0] == math.inf
     bad = SimpleNamespace(**{**vars(r[0]["step"]), "u": np.arange(3.0), "u_nom": np.arange(1.0)})
+    before = (block._row_state.copy(), block.h.copy(), block.t.copy())
     with pytest.raises(ValueError, match="commands of 3 and 1 joints"):  # (the total width matches; the split not)
         block.write(0.0, bad, r[0]["values"], 0)
+    # (the compiled write refuses such a row before it writes anything; the NumPy way then says what is wrong)
+    assert len(block) == 0 and all(np.array_equal(a, b) for a, b in
+                                   zip(before, (block._row_state, block.h, block.t)))
 
 
 @pytest.mark.parametrize("witness_of", ["one", "none"])
