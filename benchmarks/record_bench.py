@@ -276,8 +276,10 @@ def report(results: list[dict[str, Any]], long_results: list[dict[str, Any]], co
         "for the `.rrd` footer (one entry per chunk sent, about 60 per block); the rest of the growth in the "
         "table is the simulation's own (see the column without).",
         "",
-        "These machines are shared: figures vary by about +-0.1 in the ratios between runs of this "
-        "script under the load of other jobs (load average above).",
+        "These machines are shared virtual machines whose speed moves within minutes even when nothing else "
+        "runs: the same case's ratio has moved by up to +-0.3 between runs of this script (a ratio below 1 "
+        "is such a swing). Compare cases within one run, and repeat a run (`--case`, `--repeats`) before "
+        "reading a change into one figure.",
     ]
     return "\n".join(lines)
 
