@@ -24,9 +24,11 @@ _refs = sys.getrefcount
 
 
 def _held(a: list) -> tuple[int, int, int]:
-    """References to an allocation's float, int and gradient arrays (the pool's own included; one form for every
-    count). The gradient view counts too: :meth:`BlockPool.take_all` hands it out as it is, and a caller that keeps
-    only it holds the memory (its views' own base is the float array)."""
+    """References to an allocation's float, int and gradient arrays (the pool's own included).
+
+    The gradient view counts too: :meth:`BlockPool.take_all` hands it out as it is, and a caller that keeps only it
+    holds the memory (its views' own base is the float array).
+    """
     return _refs(a[0]), _refs(a[1]), _refs(a[2])
 
 
@@ -71,8 +73,11 @@ class BlockPool:
         """Allocations made so far (for tests and benchmarks: the rest of the hand-outs were reuses)."""
 
     def __getstate__(self) -> dict:
-        """A copy or a pickle starts with no allocations: an allocation's gradient array is a view of its float
-        block, which a copy would make a separate array (the kernel's writes would not reach it)."""
+        """A copy or a pickle starts with no allocations.
+
+        An allocation's gradient array is a view of its float block, which a copy would make a separate array (the
+        kernel's writes would not reach it).
+        """
         state = dict(self.__dict__)
         state["_allocs"], state["_cur"], state["_next"] = [], None, self.count
         return state

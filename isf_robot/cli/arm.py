@@ -133,8 +133,10 @@ def _params(args: argparse.Namespace, scene: Any) -> dict[str, Any]:
 
 
 def _with_period(scene: Any, period: float | None) -> Any:
-    """``scene`` with ``--control-period`` in its config (``[control] period``), checked against the physics timestep:
-    the calibration of ``d_bar`` reads it there (its hold and tracking errors grow with the period)."""
+    """``scene`` with ``--control-period`` in its config (``[control] period``), checked against the physics timestep.
+
+    The calibration of ``d_bar`` reads it there (its hold and tracking errors grow with the period).
+    """
     if period is None:
         return scene
     from isf_robot.arm.episode import check_control_period

@@ -78,8 +78,8 @@ def _recordings(args: argparse.Namespace) -> tuple[Any, str]:
     from isf_robot.core.strategies import strategy_names
     from isf_robot.plots import OrbitSeries, RunSeries, StrategyBars, compare_figure, run_figure, satellite_figure
     from isf_robot.record.figure_data import arm_series, satellite_series, strategy_bars
-    from isf_robot.record.schema import run_level
     from isf_robot.record.replay import read_many
+    from isf_robot.record.schema import run_level
 
     logs = read_many(args.inputs)
     kinds = sorted({log.kind for log in logs})

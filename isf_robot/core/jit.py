@@ -7,9 +7,10 @@ later runs load them. ``ISF_ROBOT_JIT=0`` runs the plain numpy paths instead (th
 formulas; see the kernels' modules for the tolerance they agree to). ``ISF_ROBOT_JIT=cached`` uses a
 kernel handed out by :func:`compiled` only where numba's cache already holds it for this machine and runs
 the rest as written: it compiles nothing (``isf-robot demo`` runs so, whatever the commands before it
-happened to compile, and with ``0`` where the cache holds none; the satellite's kernels, made by :mod:`satellite.compiled`, compile as usual). The
-cache is numba's, per argument types: a kernel held for some types still compiles, on its first call, for
-types no earlier run gave it (rare: the arm's paths call each kernel with the same types).
+happened to compile, and with ``0`` where the cache holds none; the satellite's kernels, made by
+:mod:`satellite.compiled`, compile as usual). The cache is numba's, per argument types: a kernel held for some
+types still compiles, on its first call, for types no earlier run gave it (rare: the arm's paths call each kernel
+with the same types).
 
 The command-line tools call :func:`announce_compiles` once: the first kernel that a command (or any
 of its worker processes) actually compiles, rather than loads from the cache, prints one line on

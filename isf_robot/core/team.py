@@ -398,25 +398,11 @@ class SharedFilter:
         self._least_code: Any = None  # (its code for the types of the first step's arguments: jit.direct)
         a = len(self.agents)  # (team_least's per-agent inputs and answer, rewritten at each step)
         self._margins, self._on, self._need = np.empty(a), np.empty(a, np.bool_), np.empty(a, np.bool_)
-        self._plan: tuple[Any, ...] = (None, ())  # (_plan_for's answer for the last set of rows)
 
     @property
     def on(self) -> bool:
         """Whether any agent's filter is on."""
         return any(s.on for s in self.agents)
-
-    def _plan_for(self, inv: Any) -> tuple[Any, ...]:
-        """``(inv, per agent (strategy, columns, its rows, keyword arguments of its step))``.
-
-        What :meth:`step_lie` hands each agent's filter besides its rows' data and their ``screen`` thresholds
-        (``promotable``: its rows that are not shared, for an intermittent filter unless ``promote_shared``), made
-        once per set of rows (:class:`~.shares.SharedRows`' answer, by identity).
-        """
-        keep, agents = not self.promote_shared, []
-        for s, b, (rows, _, _, _), (mine, _) in zip(self.agents, self.blocks, inv.parts, inv.steps):
-            agents.append((s, b, rows, {"promotable": mine} if keep and s.intermittent else {}))
-        self._plan = (inv, tuple(agents))
-        return self._plan
 
     def reset(self, t0: float = 0.0) -> None:
         """Start again."""
@@ -445,15 +431,16 @@ class SharedFilter:
             xi = np.zeros(0)
         else:
             inv = self.shared_rows(lie)
-            plan = self._plan
-            if plan[0] is not inv:
-                plan = self._plan_for(inv)
             subs = inv.split(lie)  # (every agent's rows first, in one pass: agent_lie's rows for each agent)
-            margins, on, need = self._margins, self._on, self._need
-            for i, ((s, b, rows, extra), sub) in enumerate(zip(plan[1], subs)):
-                if screen is not None:  # (its values read at every step: a caller may rewrite the array)
-                    extra = {**extra, "screen": screen[rows]}
-                st = s.step_lie(t, sub, u_nom[b], x, **({**kw, **extra} if kw else extra))
+            keep, margins, on, need = not self.promote_shared, self._margins, self._on, self._need
+            parts = zip(self.agents, self.blocks, subs, inv.parts, inv.steps)
+            for i, (s, b, sub, (rows, _, _, _), (mine, _)) in enumerate(parts):
+                extra = dict(kw) if kw else {}
+                if screen is not None:
+                    extra["screen"] = screen[rows]
+                if keep and s.intermittent:
+                    extra["promotable"] = mine
+                st = s.step_lie(t, sub, u_nom[b], x, **extra)
                 steps.append(st)
                 margins[i] = 0.0 if st.margin is None else st.margin
                 on[i] = st.on

@@ -71,7 +71,8 @@ def write_side_by_side(directory: str | Path, order: Sequence[str] = ()) -> list
         path = d / SUBDIR / f"{name}.rrd"
         units = {command_unit(log.info) for _, log in runs}
         if len(units) > 1:
-            raise RecordingReadError(d, f"recordings of {scene} seed {seed} at both levels: compare one level at a time")
+            raise RecordingReadError(d, f"recordings of {scene} seed {seed} at both levels: compare one level at a "
+                                        "time")
         stream = open_stream("isf_robot_compare", rrd_path=path, recording_name=f"{name}: {' vs '.join(strategies)}",
                              blueprint=compare_blueprint(strategies, unit=units.pop()))
         ok = False

@@ -307,8 +307,8 @@ class _Recorder:
 
 @pytest.mark.parametrize("promote_shared", [False, True])
 def test_shared_filter_hands_each_agent_its_rows_screen_and_promotable_rows(promote_shared: bool) -> None:
-    """What each agent's step is given: made once per set of rows, again for another; the screen thresholds read at
-    every step (an array rewritten in place gives its new values)."""
+    """What each agent's step is given: its rows' screen thresholds (read at every step: an array rewritten in place
+    gives its new values) and, for an intermittent agent, its rows that are not shared; other keywords pass through."""
     a, b = _Recorder(True), _Recorder(False)
     team = SharedFilter([a, b], BLOCKS, ("a", "b"), 0.002, promote_shared=promote_shared)
     lg = np.array([[1.0, 0.0, 1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0, 0.0]])  # (row 0 shared, row 1 agent a's)

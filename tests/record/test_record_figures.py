@@ -177,7 +177,6 @@ def test_torque_level_recordings_plot_in_their_units_and_never_with_the_velocity
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "torque and velocity-level" in err and not out.exists()
     from isf_robot.core import ConfigError
-
     from isf_robot.plots import StrategyBars
     from isf_robot.record.figure_data import strategy_bars
 
